@@ -1,0 +1,72 @@
+//! Atomic output files: write to a temporary file beside the target, then rename.
+//!
+//! Architecture invariant: every output railgrip writes goes through [`write_atomically`], so a
+//! crash or an error never leaves a half-written file under the final name.
+
+use std::fs::{self, File};
+use std::io::{self, BufWriter};
+use std::path::{Path, PathBuf};
+
+/// Writes `path` through `fill`; on success the complete file appears under `path` at once, on
+/// failure nothing is left behind (the temporary file is removed).
+pub fn write_atomically<E>(
+    path: &Path,
+    fill: impl FnOnce(&mut BufWriter<File>) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<io::Error>,
+{
+    let tmp = temp_path(path);
+    let result = (|| {
+        let mut w = BufWriter::new(File::create(&tmp)?);
+        fill(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error())?;
+        file.sync_all()?;
+        drop(file);
+        fs::rename(&tmp, path)?;
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// `<dir>/.<name>.tmp-<pid>`: hidden, beside the target (same file system, so rename is atomic).
+fn temp_path(path: &Path) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = format!(".{name}.tmp-{}", std::process::id());
+    match path.parent() {
+        Some(dir) => dir.join(tmp),
+        None => PathBuf::from(tmp),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    #[test]
+    fn failure_leaves_no_file_and_success_replaces_whole() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out.txt");
+        let r: Result<(), io::Error> = write_atomically(&target, |w| {
+            w.write_all(b"partial")?;
+            Err(io::Error::other("boom"))
+        });
+        assert!(r.is_err());
+        assert_eq!(
+            fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "no temp file, no target"
+        );
+
+        write_atomically::<io::Error>(&target, |w| w.write_all(b"complete")).unwrap();
+        assert_eq!(fs::read(&target).unwrap(), b"complete");
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,933 @@
+//! The pipeline file: raw serde types ([`raw`]), checked into validated types ([`Pipeline`]).
+//!
+//! Stages only ever see validated types. Every check names the key, the value found, the
+//! allowed range and the default, e.g.
+//! `ingest.max_gap_ms = -5: must be > 2.398 ms (one sample period) and <= 10000 (default 50)`.
+//! The options are documented in README.md ("Pipeline file").
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use crate::format::{Signal, AXLES};
+use crate::units::{Quantity, Unit};
+
+/// The embedded default pipeline (`pipelines/uic_z1.toml`).
+pub const DEFAULT_PIPELINE_TOML: &str = include_str!("../pipelines/uic_z1.toml");
+/// How the embedded default is named in messages and provenance.
+pub const DEFAULT_PIPELINE_NAME: &str = "<embedded pipelines/uic_z1.toml>";
+
+/// A pipeline file that could not be read or does not pass its checks.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    #[error(
+        "{file}: cannot read the pipeline file: {source}. Hint: check the path given to --pipeline"
+    )]
+    Read {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: not a valid pipeline file: {message}")]
+    Syntax { file: String, message: String },
+    #[error("{file}: {key} = {value}: {rule}")]
+    Invalid {
+        file: String,
+        key: String,
+        value: String,
+        rule: String,
+    },
+    #[error("{file}: {key} is missing: {rule}")]
+    Missing {
+        file: String,
+        key: String,
+        rule: String,
+    },
+}
+
+/// Raw serde types: exactly the TOML's shape, every field optional so that checks, not serde,
+/// produce the messages.
+pub mod raw {
+    use serde::Deserialize;
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Pipeline {
+        pub vehicle: Option<Vehicle>,
+        #[serde(default)]
+        pub ingest: Ingest,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Vehicle {
+        pub name: Option<String>,
+        pub body_mass_kg: Option<f64>,
+        pub bogie_mass_kg: Option<f64>,
+        pub axle_inertia_kgm2: Option<f64>,
+        pub wheel_radius_m: Option<f64>,
+        pub bogie_pivot_distance_m: Option<f64>,
+        pub bogie_wheelbase_m: Option<f64>,
+        pub body_cog_height_m: Option<f64>,
+        pub pivot_height_m: Option<f64>,
+        pub bogie_cog_height_m: Option<f64>,
+        pub brake_torque_nm_per_bar: Option<Vec<f64>>,
+        pub max_brake_pressure_bar: Option<f64>,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Ingest {
+        pub sample_rate_hz: Option<f64>,
+        pub max_gap_ms: Option<f64>,
+        #[serde(default)]
+        pub plausibility: Plausibility,
+        #[serde(default)]
+        pub csv: CsvMapping,
+        #[serde(default)]
+        pub mcap: McapMapping,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Plausibility {
+        pub action: Option<String>,
+        pub speed_min_mps: Option<f64>,
+        pub speed_max_mps: Option<f64>,
+        pub omega_min_radps: Option<f64>,
+        pub omega_max_radps: Option<f64>,
+        pub pressure_min_bar: Option<f64>,
+        pub pressure_max_bar: Option<f64>,
+    }
+
+    #[derive(Debug, Clone, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct CsvColumn {
+        pub column: Option<String>,
+        pub unit: Option<String>,
+    }
+
+    #[derive(Debug, Clone, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct McapField {
+        pub topic: Option<String>,
+        pub field: Option<String>,
+        pub unit: Option<String>,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct CsvMapping {
+        pub time: Option<CsvColumn>,
+        pub v_radar: Option<CsvColumn>,
+        pub omega1: Option<CsvColumn>,
+        pub omega2: Option<CsvColumn>,
+        pub omega3: Option<CsvColumn>,
+        pub omega4: Option<CsvColumn>,
+        pub p1: Option<CsvColumn>,
+        pub p2: Option<CsvColumn>,
+        pub p3: Option<CsvColumn>,
+        pub p4: Option<CsvColumn>,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct McapMapping {
+        pub v_radar: Option<McapField>,
+        pub omega1: Option<McapField>,
+        pub omega2: Option<McapField>,
+        pub omega3: Option<McapField>,
+        pub omega4: Option<McapField>,
+        pub p1: Option<McapField>,
+        pub p2: Option<McapField>,
+        pub p3: Option<McapField>,
+        pub p4: Option<McapField>,
+    }
+
+    impl CsvMapping {
+        pub(crate) fn signals(&self) -> [&Option<CsvColumn>; 9] {
+            [
+                &self.v_radar,
+                &self.omega1,
+                &self.omega2,
+                &self.omega3,
+                &self.omega4,
+                &self.p1,
+                &self.p2,
+                &self.p3,
+                &self.p4,
+            ]
+        }
+    }
+
+    impl McapMapping {
+        pub(crate) fn signals(&self) -> [&Option<McapField>; 9] {
+            [
+                &self.v_radar,
+                &self.omega1,
+                &self.omega2,
+                &self.omega3,
+                &self.omega4,
+                &self.p1,
+                &self.p2,
+                &self.p3,
+                &self.p4,
+            ]
+        }
+    }
+}
+
+/// A validated pipeline.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pipeline {
+    /// Where it was read from (a path, or [`DEFAULT_PIPELINE_NAME`]).
+    pub source: String,
+    /// The exact text it was parsed from (for provenance hashes).
+    pub text: String,
+    pub vehicle: Vehicle,
+    pub ingest: IngestConfig,
+}
+
+/// The vehicle: masses, inertia and the geometry of the load-transfer model of seed 002
+/// eq. 12–13 (002_8d8769283f5e9cb6.txt, Fig. 6).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Vehicle {
+    pub name: String,
+    /// Car-body mass m_c, kg.
+    pub body_mass_kg: f64,
+    /// Mass of one bogie including its wheelsets m_b, kg.
+    pub bogie_mass_kg: f64,
+    /// Moment of inertia J of one wheelset about its axle, kg·m².
+    pub axle_inertia_kgm2: f64,
+    /// Wheel rolling radius r, m.
+    pub wheel_radius_m: f64,
+    /// Distance between bogie pivots l1, m.
+    pub bogie_pivot_distance_m: f64,
+    /// Bogie wheelbase l2, m.
+    pub bogie_wheelbase_m: f64,
+    /// Height of the car body's centre of gravity h1 above the rail, m.
+    pub body_cog_height_m: f64,
+    /// Height hb of the body–bogie connection above the rail, m.
+    pub pivot_height_m: f64,
+    /// Height of the bogie's centre of gravity h2 above the rail, m.
+    pub bogie_cog_height_m: f64,
+    /// Brake-torque coefficient α_i of seed 002 eq. 10 per axle, N·m/bar.
+    pub brake_torque_nm_per_bar: [f64; AXLES],
+    /// Highest brake-cylinder pressure the brake can apply, bar.
+    pub max_brake_pressure_bar: f64,
+}
+
+/// What to do with a raw sample outside the plausibility limits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PlausibilityAction {
+    /// Drop the sample (treated as missing, bridged only if the hole is shorter than
+    /// `max_gap_ms`) and report the count as a warning.
+    Warn,
+    /// Reject the file with an error naming the first such sample.
+    Error,
+}
+
+/// Limits on raw samples, canonical units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plausibility {
+    pub action: PlausibilityAction,
+    pub speed_mps: (f64, f64),
+    pub omega_radps: (f64, f64),
+    pub pressure_bar: (f64, f64),
+}
+
+impl Plausibility {
+    /// The (min, max) limits that apply to a signal, in its canonical unit.
+    pub fn limits(&self, signal: Signal) -> (f64, f64) {
+        match signal {
+            Signal::VRadar => self.speed_mps,
+            Signal::Omega(_) => self.omega_radps,
+            Signal::Pressure(_) => self.pressure_bar,
+        }
+    }
+}
+
+/// Where a signal is in a CSV log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CsvColumn {
+    pub column: String,
+    pub unit: Unit,
+}
+
+/// Where a signal is in an MCAP log.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct McapField {
+    pub topic: String,
+    pub field: String,
+    pub unit: Unit,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct IngestConfig {
+    /// Rate of the uniform time base, Hz.
+    pub sample_rate_hz: f64,
+    /// Longest hole in a channel that is bridged by linear interpolation, s.
+    pub max_gap_s: f64,
+    pub plausibility: Plausibility,
+    pub csv_time: CsvColumn,
+    /// CSV columns in [`Signal::ALL`] order.
+    pub csv: [CsvColumn; 9],
+    /// MCAP fields in [`Signal::ALL`] order.
+    pub mcap: [McapField; 9],
+}
+
+impl IngestConfig {
+    pub fn csv_column(&self, s: Signal) -> &CsvColumn {
+        &self.csv[s.index()]
+    }
+    pub fn mcap_field(&self, s: Signal) -> &McapField {
+        &self.mcap[s.index()]
+    }
+}
+
+impl Pipeline {
+    /// The embedded default pipeline.
+    pub fn default_uic_z1() -> Pipeline {
+        Self::from_toml(DEFAULT_PIPELINE_TOML, DEFAULT_PIPELINE_NAME)
+            .expect("the embedded default pipeline passes its own checks (tested)")
+    }
+
+    /// Loads `path`, or the embedded default when `None`.
+    pub fn load(path: Option<&Path>) -> Result<Pipeline, ConfigError> {
+        match path {
+            None => Ok(Self::default_uic_z1()),
+            Some(p) => {
+                let file = p.display().to_string();
+                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                    file: file.clone(),
+                    source,
+                })?;
+                Self::from_toml(&text, &file)
+            }
+        }
+    }
+
+    /// Parses and checks pipeline TOML; `file` names it in errors.
+    pub fn from_toml(text: &str, file: &str) -> Result<Pipeline, ConfigError> {
+        let raw: raw::Pipeline = toml::from_str(text).map_err(|e| ConfigError::Syntax {
+            file: file.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let c = Checker { file };
+        let vehicle = c.vehicle(raw.vehicle)?;
+        let ingest = c.ingest(raw.ingest)?;
+        Ok(Pipeline {
+            source: file.to_string(),
+            text: text.to_string(),
+            vehicle,
+            ingest,
+        })
+    }
+}
+
+/// A numeric rule: inclusive/exclusive bounds and the default, for messages.
+struct Rule {
+    lo: f64,
+    lo_open: bool,
+    hi: f64,
+    hi_open: bool,
+    default: Option<f64>,
+    unit: &'static str,
+}
+
+impl Rule {
+    fn contains(&self, x: f64) -> bool {
+        x.is_finite()
+            && (if self.lo_open {
+                x > self.lo
+            } else {
+                x >= self.lo
+            })
+            && (if self.hi_open {
+                x < self.hi
+            } else {
+                x <= self.hi
+            })
+    }
+}
+
+impl fmt::Display for Rule {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let lo = if self.lo_open { ">" } else { ">=" };
+        let hi = if self.hi_open { "<" } else { "<=" };
+        let u = if self.unit.is_empty() {
+            String::new()
+        } else {
+            format!(" {}", self.unit)
+        };
+        write!(
+            f,
+            "must be {lo} {}{u} and {hi} {}{u}",
+            g(self.lo),
+            g(self.hi)
+        )?;
+        if let Some(d) = self.default {
+            write!(f, " (default {}{u})", g(d))?;
+        }
+        Ok(())
+    }
+}
+
+/// Shortest readable form of a number for messages.
+fn g(x: f64) -> String {
+    if x == x.trunc() && x.abs() < 1e15 {
+        format!("{}", x as i64)
+    } else {
+        let s = format!("{x:.4}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+fn closed(lo: f64, hi: f64, default: Option<f64>, unit: &'static str) -> Rule {
+    Rule {
+        lo,
+        lo_open: false,
+        hi,
+        hi_open: false,
+        default,
+        unit,
+    }
+}
+fn open_lo(lo: f64, hi: f64, default: Option<f64>, unit: &'static str) -> Rule {
+    Rule {
+        lo,
+        lo_open: true,
+        hi,
+        hi_open: false,
+        default,
+        unit,
+    }
+}
+
+struct Checker<'a> {
+    file: &'a str,
+}
+
+impl Checker<'_> {
+    fn invalid(&self, key: &str, value: impl fmt::Display, rule: impl fmt::Display) -> ConfigError {
+        ConfigError::Invalid {
+            file: self.file.to_string(),
+            key: key.to_string(),
+            value: value.to_string(),
+            rule: rule.to_string(),
+        }
+    }
+
+    fn missing(&self, key: &str, rule: impl fmt::Display) -> ConfigError {
+        ConfigError::Missing {
+            file: self.file.to_string(),
+            key: key.to_string(),
+            rule: rule.to_string(),
+        }
+    }
+
+    /// A required number within `rule`; `example` is the UIC-Z1 value quoted when it is missing.
+    fn required(
+        &self,
+        key: &str,
+        v: Option<f64>,
+        rule: Rule,
+        example: f64,
+    ) -> Result<f64, ConfigError> {
+        match v {
+            None => Err(self.missing(
+                key,
+                format!("give it in {}, {rule} (UIC-Z1: {})", rule.unit, g(example)),
+            )),
+            Some(x) if !rule.contains(x) => Err(self.invalid(key, g(x), rule)),
+            Some(x) => Ok(x),
+        }
+    }
+
+    /// An optional number within `rule`, defaulting to `rule.default`.
+    fn optional(&self, key: &str, v: Option<f64>, rule: Rule) -> Result<f64, ConfigError> {
+        match v {
+            None => Ok(rule.default.expect("optional keys have a default")),
+            Some(x) if !rule.contains(x) => Err(self.invalid(key, g(x), rule)),
+            Some(x) => Ok(x),
+        }
+    }
+
+    fn vehicle(&self, v: Option<raw::Vehicle>) -> Result<Vehicle, ConfigError> {
+        let v = v.ok_or_else(|| {
+            self.missing(
+                "[vehicle]",
+                "every pipeline describes its vehicle; copy the [vehicle] section of pipelines/uic_z1.toml and edit it",
+            )
+        })?;
+        let k = |name: &str| format!("vehicle.{name}");
+        let body = self.required(
+            &k("body_mass_kg"),
+            v.body_mass_kg,
+            open_lo(1000.0, 200_000.0, None, "kg"),
+            34000.0,
+        )?;
+        let bogie = self.required(
+            &k("bogie_mass_kg"),
+            v.bogie_mass_kg,
+            open_lo(100.0, 50_000.0, None, "kg"),
+            7000.0,
+        )?;
+        let j = self.required(
+            &k("axle_inertia_kgm2"),
+            v.axle_inertia_kgm2,
+            open_lo(1.0, 2000.0, None, "kg·m²"),
+            120.0,
+        )?;
+        let r = self.required(
+            &k("wheel_radius_m"),
+            v.wheel_radius_m,
+            closed(0.2, 0.7, None, "m"),
+            0.445,
+        )?;
+        let l1 = self.required(
+            &k("bogie_pivot_distance_m"),
+            v.bogie_pivot_distance_m,
+            closed(1.0, 40.0, None, "m"),
+            19.0,
+        )?;
+        let l2 = self.required(
+            &k("bogie_wheelbase_m"),
+            v.bogie_wheelbase_m,
+            closed(0.5, 5.0, None, "m"),
+            2.56,
+        )?;
+        if l2 >= l1 {
+            return Err(self.invalid(
+                &k("bogie_wheelbase_m"),
+                g(l2),
+                format!(
+                    "must be shorter than vehicle.bogie_pivot_distance_m = {}",
+                    g(l1)
+                ),
+            ));
+        }
+        let h1 = self.required(
+            &k("body_cog_height_m"),
+            v.body_cog_height_m,
+            open_lo(0.0, 5.0, None, "m"),
+            1.75,
+        )?;
+        let hb = self.required(
+            &k("pivot_height_m"),
+            v.pivot_height_m,
+            open_lo(0.0, 5.0, None, "m"),
+            0.85,
+        )?;
+        let h2 = self.required(
+            &k("bogie_cog_height_m"),
+            v.bogie_cog_height_m,
+            open_lo(0.0, 5.0, None, "m"),
+            0.55,
+        )?;
+        if hb > h1 {
+            return Err(self.invalid(
+                &k("pivot_height_m"),
+                g(hb),
+                format!(
+                    "must not be above the body's centre of gravity vehicle.body_cog_height_m = {}",
+                    g(h1)
+                ),
+            ));
+        }
+        let alpha_key = k("brake_torque_nm_per_bar");
+        let alpha = match v.brake_torque_nm_per_bar {
+            None => {
+                return Err(self.missing(
+                    &alpha_key,
+                    "give alpha_i of seed 002 eq. 10 for axles 1..4 in N·m/bar, e.g. [1600.0, 1600.0, 1600.0, 1600.0]",
+                ))
+            }
+            Some(a) if a.len() != AXLES => {
+                return Err(self.invalid(&alpha_key, format!("{a:?}"), "must list exactly 4 values, one per axle"))
+            }
+            Some(a) => {
+                let rule = open_lo(0.0, 100_000.0, None, "N·m/bar");
+                for (i, x) in a.iter().enumerate() {
+                    if !rule.contains(*x) {
+                        return Err(self.invalid(&format!("{alpha_key}[{i}] (axle {})", i + 1), g(*x), rule));
+                    }
+                }
+                [a[0], a[1], a[2], a[3]]
+            }
+        };
+        let pmax = self.required(
+            &k("max_brake_pressure_bar"),
+            v.max_brake_pressure_bar,
+            open_lo(0.0, 20.0, None, "bar"),
+            3.8,
+        )?;
+        Ok(Vehicle {
+            name: v.name.unwrap_or_else(|| "unnamed vehicle".to_string()),
+            body_mass_kg: body,
+            bogie_mass_kg: bogie,
+            axle_inertia_kgm2: j,
+            wheel_radius_m: r,
+            bogie_pivot_distance_m: l1,
+            bogie_wheelbase_m: l2,
+            body_cog_height_m: h1,
+            pivot_height_m: hb,
+            bogie_cog_height_m: h2,
+            brake_torque_nm_per_bar: alpha,
+            max_brake_pressure_bar: pmax,
+        })
+    }
+
+    fn ingest(&self, i: raw::Ingest) -> Result<IngestConfig, ConfigError> {
+        let fs = self.optional(
+            "ingest.sample_rate_hz",
+            i.sample_rate_hz,
+            closed(1.0, 100_000.0, Some(417.0), "Hz"),
+        )?;
+        let period_ms = 1000.0 / fs;
+        let gap_rule = Rule {
+            lo: period_ms,
+            lo_open: true,
+            hi: 10_000.0,
+            hi_open: false,
+            default: Some(50.0),
+            unit: "ms",
+        };
+        let max_gap_ms = match i.max_gap_ms {
+            None if gap_rule.contains(50.0) => 50.0,
+            None => return Err(self.missing(
+                "ingest.max_gap_ms",
+                format!(
+                    "the default 50 ms is not longer than one sample period at {} Hz; {gap_rule}",
+                    g(fs)
+                ),
+            )),
+            Some(x) if !gap_rule.contains(x) => {
+                return Err(self.invalid(
+                    "ingest.max_gap_ms",
+                    g(x),
+                    format!("{gap_rule}; the lower bound is one sample period"),
+                ))
+            }
+            Some(x) => x,
+        };
+        let plausibility = self.plausibility(i.plausibility)?;
+
+        let csv_time = self.csv_column(
+            "ingest.csv.time",
+            i.csv.time.as_ref(),
+            crate::format::CSV_TIME_COLUMN,
+            Quantity::Time,
+        )?;
+        let mut csv = Vec::with_capacity(9);
+        for (s, r) in Signal::ALL.iter().zip(i.csv.signals()) {
+            csv.push(self.csv_column(
+                &format!("ingest.csv.{}", s.key()),
+                r.as_ref(),
+                s.key(),
+                s.quantity(),
+            )?);
+        }
+        let mut mcap = Vec::with_capacity(9);
+        for (s, r) in Signal::ALL.iter().zip(i.mcap.signals()) {
+            mcap.push(self.mcap_field(&format!("ingest.mcap.{}", s.key()), r.as_ref(), *s)?);
+        }
+        Ok(IngestConfig {
+            sample_rate_hz: fs,
+            max_gap_s: max_gap_ms * 1e-3,
+            plausibility,
+            csv_time,
+            csv: csv.try_into().expect("nine signals"),
+            mcap: mcap.try_into().expect("nine signals"),
+        })
+    }
+
+    fn plausibility(&self, p: raw::Plausibility) -> Result<Plausibility, ConfigError> {
+        let action = match p.action.as_deref() {
+            None | Some("warn") => PlausibilityAction::Warn,
+            Some("error") => PlausibilityAction::Error,
+            Some(other) => {
+                return Err(self.invalid(
+                    "ingest.plausibility.action",
+                    format!("{other:?}"),
+                    "must be \"warn\" or \"error\" (default \"warn\")",
+                ))
+            }
+        };
+        let pair = |lo_key: &str,
+                    lo: Option<f64>,
+                    lo_def: f64,
+                    hi_key: &str,
+                    hi: Option<f64>,
+                    hi_def: f64,
+                    unit| {
+            let k_lo = format!("ingest.plausibility.{lo_key}");
+            let k_hi = format!("ingest.plausibility.{hi_key}");
+            let lo = self.optional(&k_lo, lo, closed(-1e6, 1e6, Some(lo_def), unit))?;
+            let hi = self.optional(&k_hi, hi, closed(-1e6, 1e6, Some(hi_def), unit))?;
+            if lo >= hi {
+                return Err(self.invalid(
+                    &k_hi,
+                    g(hi),
+                    format!("must be greater than {k_lo} = {}", g(lo)),
+                ));
+            }
+            Ok((lo, hi))
+        };
+        Ok(Plausibility {
+            action,
+            speed_mps: pair(
+                "speed_min_mps",
+                p.speed_min_mps,
+                -0.5,
+                "speed_max_mps",
+                p.speed_max_mps,
+                100.0,
+                "m/s",
+            )?,
+            omega_radps: pair(
+                "omega_min_radps",
+                p.omega_min_radps,
+                -0.5,
+                "omega_max_radps",
+                p.omega_max_radps,
+                250.0,
+                "rad/s",
+            )?,
+            pressure_bar: pair(
+                "pressure_min_bar",
+                p.pressure_min_bar,
+                -0.5,
+                "pressure_max_bar",
+                p.pressure_max_bar,
+                10.0,
+                "bar",
+            )?,
+        })
+    }
+
+    fn unit(&self, key: &str, text: Option<&str>, q: Quantity) -> Result<Unit, ConfigError> {
+        let Some(text) = text else {
+            return Ok(q.canonical());
+        };
+        Unit::parse(q, text).ok_or_else(|| {
+            self.invalid(
+                &format!("{key}.unit"),
+                format!("{text:?}"),
+                format!(
+                    "unknown {q} unit; use one of {} (default \"{}\")",
+                    q.accepted()
+                        .iter()
+                        .map(|u| format!("\"{u}\""))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    q.canonical()
+                ),
+            )
+        })
+    }
+
+    fn name(&self, key: &str, v: Option<&str>, default: &str) -> Result<String, ConfigError> {
+        match v {
+            None => Ok(default.to_string()),
+            Some(s) if s.trim().is_empty() => Err(self.invalid(
+                key,
+                "\"\"",
+                format!("must not be empty (default \"{default}\")"),
+            )),
+            Some(s) => Ok(s.to_string()),
+        }
+    }
+
+    fn csv_column(
+        &self,
+        key: &str,
+        r: Option<&raw::CsvColumn>,
+        default: &str,
+        q: Quantity,
+    ) -> Result<CsvColumn, ConfigError> {
+        Ok(CsvColumn {
+            column: self.name(
+                &format!("{key}.column"),
+                r.and_then(|r| r.column.as_deref()),
+                default,
+            )?,
+            unit: self.unit(key, r.and_then(|r| r.unit.as_deref()), q)?,
+        })
+    }
+
+    fn mcap_field(
+        &self,
+        key: &str,
+        r: Option<&raw::McapField>,
+        s: Signal,
+    ) -> Result<McapField, ConfigError> {
+        Ok(McapField {
+            topic: self.name(
+                &format!("{key}.topic"),
+                r.and_then(|r| r.topic.as_deref()),
+                s.mcap_topic(),
+            )?,
+            field: self.name(
+                &format!("{key}.field"),
+                r.and_then(|r| r.field.as_deref()),
+                s.mcap_field(),
+            )?,
+            unit: self.unit(key, r.and_then(|r| r.unit.as_deref()), s.quantity())?,
+        })
+    }
+}
+
+/// The path of the pipeline for messages: the file, or the embedded default's name.
+pub fn describe(path: Option<&Path>) -> String {
+    path.map(|p| p.display().to_string())
+        .unwrap_or_else(|| DEFAULT_PIPELINE_NAME.to_string())
+}
+
+/// Where the default pipeline lives in the source tree (for docs and `--help`).
+pub fn default_pipeline_path() -> PathBuf {
+    PathBuf::from("pipelines/uic_z1.toml")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn with_vehicle(extra: &str) -> String {
+        let base = DEFAULT_PIPELINE_TOML;
+        format!("{base}\n{extra}")
+    }
+
+    #[test]
+    fn embedded_default_passes_its_checks_with_contract_names() {
+        let p = Pipeline::default_uic_z1();
+        assert_eq!(p.vehicle.wheel_radius_m, 0.445);
+        assert_eq!(p.vehicle.brake_torque_nm_per_bar, [1600.0; 4]);
+        assert_eq!(p.ingest.sample_rate_hz, 417.0);
+        assert!((p.ingest.max_gap_s - 0.05).abs() < 1e-15);
+        for s in Signal::ALL {
+            assert_eq!(p.ingest.csv_column(s).column, s.key());
+            assert_eq!(p.ingest.mcap_field(s).topic, s.mcap_topic());
+            assert_eq!(p.ingest.mcap_field(s).field, s.mcap_field());
+            assert_eq!(p.ingest.csv_column(s).unit, s.quantity().canonical());
+        }
+    }
+
+    #[test]
+    fn a_minimal_file_gets_contract_defaults_for_ingest() {
+        let vehicle_only: String = DEFAULT_PIPELINE_TOML
+            .split("[ingest]")
+            .next()
+            .unwrap()
+            .to_string();
+        let p = Pipeline::from_toml(&vehicle_only, "v.toml").unwrap();
+        assert_eq!(p.ingest, Pipeline::default_uic_z1().ingest);
+    }
+
+    #[test]
+    fn out_of_range_value_names_key_value_range_and_default() {
+        let text = DEFAULT_PIPELINE_TOML.replace("max_gap_ms = 50.0", "max_gap_ms = -5.0");
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: ingest.max_gap_ms = -5: must be > 2.3981 ms and <= 10000 ms (default 50 ms); the lower bound is one sample period"
+        );
+    }
+
+    #[test]
+    fn implausible_vehicle_is_rejected() {
+        let text = DEFAULT_PIPELINE_TOML.replace("wheel_radius_m = 0.445", "wheel_radius_m = 4.45");
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: vehicle.wheel_radius_m = 4.45: must be >= 0.2 m and <= 0.7 m"
+        );
+        let text = DEFAULT_PIPELINE_TOML
+            .replace("bogie_wheelbase_m = 2.56", "bogie_wheelbase_m = 4.0")
+            .replace(
+                "bogie_pivot_distance_m = 19.0",
+                "bogie_pivot_distance_m = 3.0",
+            );
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("vehicle.bogie_wheelbase_m = 4: must be shorter than"),
+            "{e}"
+        );
+        let text = DEFAULT_PIPELINE_TOML.replace(
+            "[1600.0, 1600.0, 1600.0, 1600.0]",
+            "[1600.0, 1600.0, -1.0, 1600.0]",
+        );
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("vehicle.brake_torque_nm_per_bar[2] (axle 3) = -1"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn missing_vehicle_key_quotes_the_uic_z1_value() {
+        let text = DEFAULT_PIPELINE_TOML.replace("axle_inertia_kgm2 = 120.0", "");
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "p.toml: vehicle.axle_inertia_kgm2 is missing: give it in kg·m², must be > 1 kg·m² and <= 2000 kg·m² (UIC-Z1: 120)"
+        );
+    }
+
+    #[test]
+    fn unknown_unit_lists_the_accepted_ones() {
+        let text = with_vehicle("");
+        let text = text.replace(
+            r#"v_radar = { column = "v_radar", unit = "m/s" }"#,
+            r#"v_radar = { column = "speed", unit = "mph" }"#,
+        );
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            r#"p.toml: ingest.csv.v_radar.unit = "mph": unknown speed unit; use one of "m/s", "km/h" (default "m/s")"#
+        );
+    }
+
+    #[test]
+    fn unknown_keys_and_bad_actions_are_rejected() {
+        let text =
+            DEFAULT_PIPELINE_TOML.replace("max_gap_ms = 50.0", "max_gap_ms = 50.0\nmax_gapp = 3");
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.toml: not a valid pipeline file:") && e.contains("max_gapp"),
+            "{e}"
+        );
+        let text = DEFAULT_PIPELINE_TOML.replace(r#"action = "warn""#, r#"action = "ignore""#);
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            r#"p.toml: ingest.plausibility.action = "ignore": must be "warn" or "error" (default "warn")"#
+        );
+    }
+
+    #[test]
+    fn missing_file_error_names_the_file() {
+        let e = Pipeline::load(Some(Path::new("/nonexistent/p.toml")))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("/nonexistent/p.toml: cannot read the pipeline file"),
+            "{e}"
+        );
+    }
+}

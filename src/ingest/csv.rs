@@ -1,0 +1,383 @@
+//! CSV logs: canonical (data-contract.md) or mapped through `[ingest.csv]`.
+//!
+//! Fast path: the header is read here, the mapped columns are read with polars as `f64`.
+//! Error path: when polars fails or a column holds an empty cell, NaN/inf, or a time that does
+//! not increase, [`diagnose`] rescans the file line by line to name the exact line and column.
+
+use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use polars::prelude::*;
+
+use super::{IngestError, Locator, RawChannel, Warning, WarningKind};
+use crate::config::{CsvColumn, IngestConfig};
+use crate::format::{RunMetadata, Signal, SIDECAR_SUFFIX};
+
+/// The mapped columns of a CSV log: time first, then the nine signals.
+fn wanted(cfg: &IngestConfig) -> Vec<(&'static str, &CsvColumn)> {
+    let mut v = vec![("time", &cfg.csv_time)];
+    v.extend(Signal::ALL.iter().map(|s| (s.key(), cfg.csv_column(*s))));
+    v
+}
+
+/// Splits one CSV line into trimmed fields, removing surrounding double quotes.
+fn fields(line: &str) -> Vec<&str> {
+    line.split(',')
+        .map(|f| f.trim().trim_matches('"'))
+        .collect()
+}
+
+fn read_header(path: &Path) -> Result<Vec<String>, IngestError> {
+    let f = File::open(path).map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let mut line = String::new();
+    BufReader::new(f.take(1 << 20))
+        .read_line(&mut line)
+        .map_err(|e| IngestError::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+    let line = line
+        .trim_start_matches('\u{feff}')
+        .trim_end_matches(['\n', '\r']);
+    Ok(fields(line).into_iter().map(str::to_string).collect())
+}
+
+/// Lower-case alphanumerics only, for "did you mean" suggestions.
+fn normalise(s: &str) -> String {
+    s.chars()
+        .filter(|c| c.is_ascii_alphanumeric())
+        .collect::<String>()
+        .to_ascii_lowercase()
+}
+
+pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, IngestError> {
+    let header = read_header(path)?;
+    let wanted = wanted(cfg);
+    let missing: Vec<_> = wanted
+        .iter()
+        .filter(|(_, c)| !header.iter().any(|h| *h == c.column))
+        .collect();
+    if !missing.is_empty() {
+        let mut hints = Vec::new();
+        for (key, c) in &missing {
+            let n = normalise(&c.column);
+            if let Some(h) = header.iter().find(|h| {
+                let hn = normalise(h);
+                !hn.is_empty() && (hn == n || hn.contains(&n) || n.contains(&hn))
+            }) {
+                hints.push(format!(
+                    "{key} = {{ column = {h:?}, unit = \"{}\" }}",
+                    c.unit
+                ));
+            }
+        }
+        let hint = if hints.is_empty() {
+            "map each signal to its column and unit in [ingest.csv] of a pipeline file (--pipeline), e.g. v_radar = { column = \"speed\", unit = \"km/h\" }".to_string()
+        } else {
+            format!(
+                "map them in [ingest.csv] of a pipeline file (--pipeline), e.g. {}",
+                hints.join("; ")
+            )
+        };
+        return Err(IngestError::CsvMissingColumns {
+            path: path.to_path_buf(),
+            missing: missing
+                .iter()
+                .map(|(k, c)| format!("{:?} ({k})", c.column))
+                .collect::<Vec<_>>()
+                .join(", "),
+            present: header
+                .iter()
+                .map(|h| format!("{h:?}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            hint,
+        });
+    }
+
+    let names: Vec<PlSmallStr> = wanted
+        .iter()
+        .map(|(_, c)| PlSmallStr::from(c.column.as_str()))
+        .collect();
+    let mut unique = names.clone();
+    unique.sort();
+    unique.dedup();
+    let schema: Schema = unique
+        .iter()
+        .map(|n| Field::new(n.clone(), DataType::Float64))
+        .collect();
+    let df = CsvReadOptions::default()
+        .with_has_header(true)
+        .with_columns(Some(unique.clone().into()))
+        .with_schema_overwrite(Some(Arc::new(schema)))
+        .try_into_reader_with_file_path(Some(path.to_path_buf()))
+        .and_then(|r| r.finish());
+    let df = match df {
+        Ok(df) => df,
+        Err(e) => {
+            return Err(
+                diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                    path: path.to_path_buf(),
+                    message: e.to_string(),
+                }),
+            )
+        }
+    };
+    if df.height() == 0 {
+        return Err(IngestError::CsvBadLine {
+            path: path.to_path_buf(),
+            line: 2,
+            what: "the file has a header but no data rows".into(),
+            hint: "the logger stopped before recording; re-export the run".into(),
+        });
+    }
+
+    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
+    for (i, (_, c)) in wanted.iter().enumerate() {
+        let col = df.column(names[i].as_str()).and_then(|c| c.f64().cloned());
+        let ok = match &col {
+            Ok(ca) if ca.null_count() == 0 => {
+                let factor = c.unit.to_canonical_factor();
+                let v: Vec<f64> = ca.into_no_null_iter().map(|x| x * factor).collect();
+                if v.iter().all(|x| x.is_finite()) {
+                    Some(v)
+                } else {
+                    None
+                }
+            }
+            _ => None,
+        };
+        match ok {
+            Some(v) => columns.push(v),
+            None => {
+                return Err(
+                    diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                        path: path.to_path_buf(),
+                        message: format!("column {:?} has empty or non-finite cells", c.column),
+                    }),
+                )
+            }
+        }
+    }
+    let time = columns.remove(0);
+    if time.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(
+            diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                path: path.to_path_buf(),
+                message: "the time column does not increase strictly".into(),
+            }),
+        );
+    }
+    let time = Arc::new(time);
+    let locate = Locator::CsvRows(Arc::new(path.to_path_buf()));
+    Ok(Signal::ALL
+        .iter()
+        .zip(columns)
+        .map(|(s, values)| RawChannel {
+            signal: *s,
+            source: format!(
+                "column {:?} [{}]",
+                cfg.csv_column(*s).column,
+                cfg.csv_column(*s).unit
+            ),
+            time_s: Arc::clone(&time),
+            values,
+            locate: locate.clone(),
+        })
+        .collect())
+}
+
+/// Rescans the file and returns the first problem with its line and column, or `None` if the
+/// rescan finds nothing (then the caller reports polars' own message).
+pub(super) fn diagnose(path: &Path, cfg: &IngestConfig) -> Option<IngestError> {
+    let mut text = String::new();
+    File::open(path).ok()?.read_to_string(&mut text).ok()?;
+    let ends_with_newline = text.ends_with('\n');
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
+    let (_, header_line) = lines.next()?;
+    let header = fields(header_line.trim_start_matches('\u{feff}'));
+    let wanted = wanted(cfg);
+    let idx: Vec<(usize, &CsvColumn)> = wanted
+        .iter()
+        .map(|(_, c)| {
+            (
+                header
+                    .iter()
+                    .position(|h| *h == c.column)
+                    .unwrap_or(usize::MAX),
+                *c,
+            )
+        })
+        .collect();
+    let total_lines = text.lines().count();
+    let time_col = idx[0].0;
+    let time_factor = cfg.csv_time.unit.to_canonical_factor();
+    let mut prev_t: Option<f64> = None;
+    let bad = |line: usize, column: &str, what: String, hint: &str| IngestError::CsvBadCell {
+        path: path.to_path_buf(),
+        line,
+        column: column.to_string(),
+        what,
+        hint: hint.to_string(),
+    };
+    for (line_no, line) in lines {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let f = fields(line);
+        if f.len() < header.len() {
+            let last = line_no == total_lines;
+            let (what, hint) = if last && !ends_with_newline {
+                (
+                    format!("the last line has {} of {} fields and no line end: the file looks cut off mid-line", f.len(), header.len()),
+                    "the logger or copy was interrupted; delete the incomplete last line or re-export the run",
+                )
+            } else {
+                (
+                    format!("{} fields, but the header has {}", f.len(), header.len()),
+                    "every row needs a value for every column; repair or delete this row",
+                )
+            };
+            return Some(IngestError::CsvBadLine {
+                path: path.to_path_buf(),
+                line: line_no,
+                what,
+                hint: hint.into(),
+            });
+        }
+        if f.len() > header.len() {
+            return Some(IngestError::CsvBadLine {
+                path: path.to_path_buf(),
+                line: line_no,
+                what: format!("{} fields, but the header has {}", f.len(), header.len()),
+                hint: "check the separator: railgrip reads ',' separated values with '.' as decimal point".into(),
+            });
+        }
+        for &(col, c) in &idx {
+            let cell = f[col];
+            if cell.is_empty() {
+                return Some(bad(
+                    line_no,
+                    &c.column,
+                    "empty cell".into(),
+                    "every sample needs a value; fill or delete this row",
+                ));
+            }
+            match cell.parse::<f64>() {
+                Err(_) => {
+                    return Some(bad(
+                        line_no,
+                        &c.column,
+                        format!("{cell:?} is not a number"),
+                        "numbers use '.' as decimal point and no thousands separator",
+                    ))
+                }
+                Ok(x) if !x.is_finite() => {
+                    return Some(bad(
+                        line_no,
+                        &c.column,
+                        format!("{cell:?} is not a finite number"),
+                        "NaN and inf are not measurements; delete the row or leave a gap in time",
+                    ))
+                }
+                Ok(_) => {}
+            }
+        }
+        let t = f[time_col].parse::<f64>().ok()? * time_factor;
+        if let Some(p) = prev_t {
+            if t <= p {
+                return Some(IngestError::TimeNotIncreasing {
+                    path: path.to_path_buf(),
+                    location: super::Location::CsvLine(line_no),
+                    channel: format!("column {:?}", cfg.csv_time.column),
+                    t_prev_s: p,
+                    t_s: t,
+                });
+            }
+        }
+        prev_t = Some(t);
+    }
+    None
+}
+
+/// The 1-based line of data row `row` (0-based), skipping blank lines like the reader does.
+pub(super) fn line_of_row(path: &PathBuf, row: usize) -> usize {
+    let Ok(f) = File::open(path) else {
+        return row + 2;
+    };
+    let mut seen = 0usize;
+    for (i, line) in BufReader::new(f).lines().enumerate().skip(1) {
+        let Ok(line) = line else { break };
+        if line.trim().is_empty() {
+            continue;
+        }
+        if seen == row {
+            return i + 1;
+        }
+        seen += 1;
+    }
+    row + 2
+}
+
+/// Reads `<stem>.meta.toml` beside a CSV log. A missing sidecar is a warning (nothing lost).
+pub(super) fn read_sidecar(path: &Path) -> Result<(RunMetadata, Vec<Warning>), IngestError> {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let sidecar = path.with_file_name(format!("{stem}{SIDECAR_SUFFIX}"));
+    let text = match std::fs::read_to_string(&sidecar) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok((
+                RunMetadata::default(),
+                vec![Warning {
+                    kind: WarningKind::NoMetadata,
+                    message: format!(
+                        "no metadata: {} not found (ambient temperature, initial speed, condition unknown)",
+                        sidecar.display()
+                    ),
+                }],
+            ))
+        }
+        Err(e) => return Err(IngestError::Io { path: sidecar, source: e }),
+    };
+    let name = sidecar.display().to_string();
+    let table: toml::Table = toml::from_str(&text).map_err(|e| IngestError::Metadata {
+        path: path.to_path_buf(),
+        source_name: name.clone(),
+        what: e.to_string().trim_end().to_string(),
+        hint: "the sidecar is TOML: key = value lines, e.g. ambient_temperature_c = 5.0".into(),
+    })?;
+    let mut pairs = BTreeMap::new();
+    for (k, v) in table {
+        let s = match v {
+            toml::Value::String(s) => s,
+            toml::Value::Float(x) => format!("{x:?}"),
+            toml::Value::Integer(i) => i.to_string(),
+            toml::Value::Boolean(b) => b.to_string(),
+            other => {
+                return Err(IngestError::Metadata {
+                    path: path.to_path_buf(),
+                    source_name: name,
+                    what: format!(
+                        "{k} is a {}, expected a number or a string",
+                        other.type_str()
+                    ),
+                    hint: "metadata values are plain numbers or strings".into(),
+                })
+            }
+        };
+        pairs.insert(k, s);
+    }
+    Ok((super::metadata_from_pairs(path, &name, &pairs)?, Vec::new()))
+}

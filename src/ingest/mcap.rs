@@ -1,0 +1,547 @@
+//! MCAP logs: JSON-encoded channels per data-contract.md, topic and field per signal from
+//! `[ingest.mcap]` (several signals may share a topic with different fields). Channels may run
+//! at different rates; unrelated topics are skipped without decoding. Chunk CRCs are checked.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+
+use ::mcap::read::{LinearReader, Options, RawMessageStream};
+use ::mcap::records::Record;
+use ::mcap::McapError;
+use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, Visitor};
+
+use super::{IngestError, Location, Locator, RawChannel, Warning, WarningKind};
+use crate::config::IngestConfig;
+use crate::format::{RunMetadata, Signal, MCAP_MESSAGE_ENCODING, MCAP_METADATA_NAME};
+
+pub(super) struct McapRead {
+    pub channels: Vec<RawChannel>,
+    pub metadata: RunMetadata,
+    /// Log time of t = 0 s: the earliest message of any mapped channel, ns.
+    pub t0_ns: u64,
+    pub warnings: Vec<Warning>,
+}
+
+/// What a channel id maps to: the signals read from it and their JSON fields.
+#[derive(Clone)]
+enum Slot {
+    Unseen,
+    Ignored,
+    Read { topic_index: usize },
+}
+
+struct TopicPlan {
+    topic: String,
+    /// (signal index, field name) pairs read from this topic.
+    fields: Vec<(usize, String)>,
+    /// Message count of this topic (also the index of the next message).
+    messages: usize,
+    seen_channel: bool,
+}
+
+fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
+    let (what, hint) = match &source {
+        McapError::BadChunkCrc { .. } | McapError::BadDataCrc { .. } | McapError::BadSummaryCrc { .. } => (
+            "CRC mismatch",
+            "the file is corrupted; copy it again from the logger",
+        ),
+        McapError::UnexpectedEof | McapError::UnexpectedEoc | McapError::BadFooter => (
+            "truncated file",
+            "the recording was cut off before it was closed; `mcap recover` can rebuild a readable file",
+        ),
+        McapError::BadMagic => (
+            "bad end magic",
+            "the recording was cut off before it was closed; `mcap recover` can rebuild a readable file",
+        ),
+        _ => ("unreadable record", "the file is damaged or not a valid MCAP; check it with `mcap doctor`"),
+    };
+    IngestError::McapRead {
+        path: path.to_path_buf(),
+        messages,
+        what,
+        hint,
+        source,
+    }
+}
+
+pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestError> {
+    let bytes = std::fs::read(path).map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+
+    // Plan: topics to read and which fields of each.
+    let mut topics: Vec<TopicPlan> = Vec::new();
+    let mut topic_index: HashMap<String, usize> = HashMap::new();
+    for s in Signal::ALL {
+        let m = cfg.mcap_field(s);
+        let t = *topic_index.entry(m.topic.clone()).or_insert_with(|| {
+            topics.push(TopicPlan {
+                topic: m.topic.clone(),
+                fields: Vec::new(),
+                messages: 0,
+                seen_channel: false,
+            });
+            topics.len() - 1
+        });
+        topics[t].fields.push((s.index(), m.field.clone()));
+    }
+    let mut times: Vec<Vec<u64>> = vec![Vec::new(); topics.len()];
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); 9];
+    let mut present: BTreeMap<String, usize> = BTreeMap::new();
+    let mut slots: Vec<Slot> = Vec::new();
+    let mut total = 0usize;
+
+    let stream = RawMessageStream::new_with_options(&bytes, Options::ValidateChunkCrcs.into())
+        .map_err(|e| read_error(path, 0, e))?;
+    let mut stream = stream;
+    let field_names: Vec<Vec<String>> = topics
+        .iter()
+        .map(|p| p.fields.iter().map(|(_, f)| f.clone()).collect())
+        .collect();
+    let field_refs: Vec<Vec<&str>> = field_names
+        .iter()
+        .map(|v| v.iter().map(String::as_str).collect())
+        .collect();
+    while let Some(msg) = stream.next() {
+        let msg = msg.map_err(|e| read_error(path, total, e))?;
+        total += 1;
+        let id = msg.header.channel_id as usize;
+        if id >= slots.len() {
+            slots.resize(id + 1, Slot::Unseen);
+        }
+        if let Slot::Unseen = slots[id] {
+            let ch = stream.get_channel(msg.header.channel_id).ok_or_else(|| {
+                read_error(
+                    path,
+                    total,
+                    McapError::UnknownChannel(msg.header.sequence, msg.header.channel_id),
+                )
+            })?;
+            match topic_index.get(&ch.topic) {
+                None => slots[id] = Slot::Ignored,
+                Some(&t) => {
+                    if ch.message_encoding != MCAP_MESSAGE_ENCODING {
+                        return Err(IngestError::McapEncoding {
+                            path: path.to_path_buf(),
+                            topic: ch.topic.clone(),
+                            encoding: ch.message_encoding.clone(),
+                        });
+                    }
+                    topics[t].seen_channel = true;
+                    slots[id] = Slot::Read { topic_index: t };
+                }
+            }
+        }
+        let t = match slots[id] {
+            Slot::Read { topic_index } => topic_index,
+            _ => {
+                if let Some(ch) = stream.get_channel(msg.header.channel_id) {
+                    // Counting unrelated topics is cheap and helps the missing-topic message.
+                    if present.len() < 200 {
+                        *present.entry(ch.topic.clone()).or_default() += 1;
+                    }
+                }
+                continue;
+            }
+        };
+        let plan = &mut topics[t];
+        let names = &field_refs[t];
+        let index = plan.messages;
+        plan.messages += 1;
+        let loc = || Location::Mcap {
+            topic: plan.topic.clone(),
+            message: index,
+            log_time_ns: msg.header.log_time,
+        };
+        let mut found = [None::<f64>; 8];
+        extract(&msg.data, names, &mut found).map_err(|what| IngestError::McapBadMessage {
+            path: path.to_path_buf(),
+            location: loc(),
+            what,
+            hint: format!(
+                "each message on {} must be a JSON object with the number field(s) {}",
+                plan.topic,
+                names
+                    .iter()
+                    .map(|n| format!("{n:?}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        })?;
+        for (k, (sig, field)) in plan.fields.iter().enumerate() {
+            match found[k] {
+                Some(x) if x.is_finite() => {}
+                Some(x) => {
+                    return Err(IngestError::McapBadMessage {
+                        path: path.to_path_buf(),
+                        location: loc(),
+                        what: format!("field {field:?} is {x}, not a finite number"),
+                        hint: "NaN and inf are not measurements; drop such messages when logging".into(),
+                    })
+                }
+                None => {
+                    return Err(IngestError::McapBadMessage {
+                        path: path.to_path_buf(),
+                        location: loc(),
+                        what: format!("no number field {field:?} in {}", preview(&msg.data)),
+                        hint: format!(
+                            "set the field name of {} in [ingest.mcap] of the pipeline (field = \"...\")",
+                            Signal::ALL[*sig]
+                        ),
+                    })
+                }
+            }
+        }
+        times[t].push(msg.header.log_time);
+        for (k, (sig, _)) in plan.fields.iter().enumerate() {
+            values[*sig].push(found[k].expect("checked above"));
+        }
+    }
+
+    // Every mapped topic must exist and have messages.
+    let missing: Vec<&TopicPlan> = topics.iter().filter(|p| !p.seen_channel).collect();
+    if !missing.is_empty() {
+        let mut listed: Vec<String> = present
+            .iter()
+            .map(|(t, n)| format!("{t} ({n} messages)"))
+            .collect();
+        for p in topics.iter().filter(|p| p.seen_channel) {
+            listed.push(format!("{} ({} messages)", p.topic, p.messages));
+        }
+        listed.sort();
+        // A channel record with no messages at all is not in `present`: look at the summary.
+        let declared = declared_topics(&bytes);
+        let empty: Vec<&&TopicPlan> = missing
+            .iter()
+            .filter(|p| declared.contains(&p.topic))
+            .collect();
+        if let Some(p) = empty.first() {
+            return Err(IngestError::McapNoMessages {
+                path: path.to_path_buf(),
+                topic: p.topic.clone(),
+                signal: Signal::ALL[p.fields[0].0],
+            });
+        }
+        return Err(IngestError::McapMissingTopics {
+            path: path.to_path_buf(),
+            missing: missing
+                .iter()
+                .map(|p| {
+                    let sigs: Vec<&str> = p
+                        .fields
+                        .iter()
+                        .map(|(s, _)| Signal::ALL[*s].key())
+                        .collect();
+                    format!("{} ({})", p.topic, sigs.join(", "))
+                })
+                .collect::<Vec<_>>()
+                .join(", "),
+            present: if listed.is_empty() {
+                "no messages".into()
+            } else {
+                listed.join(", ")
+            },
+        });
+    }
+    if let Some(p) = topics.iter().find(|p| p.messages == 0) {
+        return Err(IngestError::McapNoMessages {
+            path: path.to_path_buf(),
+            topic: p.topic.clone(),
+            signal: Signal::ALL[p.fields[0].0],
+        });
+    }
+
+    // Order by log time within each topic (MCAP does not promise order); equal times are errors.
+    let mut orders: Vec<Option<Vec<usize>>> = Vec::with_capacity(topics.len());
+    for (t, ts) in times.iter_mut().enumerate() {
+        if ts.windows(2).all(|w| w[0] < w[1]) {
+            orders.push(None);
+            continue;
+        }
+        let mut order: Vec<usize> = (0..ts.len()).collect();
+        order.sort_by_key(|&i| (ts[i], i));
+        for w in order.windows(2) {
+            if ts[w[0]] == ts[w[1]] {
+                return Err(IngestError::TimeNotIncreasing {
+                    path: path.to_path_buf(),
+                    location: Location::Mcap {
+                        topic: topics[t].topic.clone(),
+                        message: w[1],
+                        log_time_ns: ts[w[1]],
+                    },
+                    channel: format!("topic {}", topics[t].topic),
+                    t_prev_s: ts[w[0]] as f64 * 1e-9,
+                    t_s: ts[w[1]] as f64 * 1e-9,
+                });
+            }
+        }
+        *ts = order.iter().map(|&i| ts[i]).collect();
+        orders.push(Some(order));
+    }
+    let t0_ns = times
+        .iter()
+        .filter_map(|ts| ts.first().copied())
+        .min()
+        .unwrap_or(0);
+
+    let metadata = read_metadata(path, &bytes)?;
+    let mut warnings = Vec::new();
+    let metadata = match metadata {
+        Some(m) => m,
+        None => {
+            warnings.push(Warning {
+                kind: WarningKind::NoMetadata,
+                message: format!(
+                    "no metadata: the file has no \"{MCAP_METADATA_NAME}\" metadata record (ambient temperature, initial speed, condition unknown)"
+                ),
+            });
+            RunMetadata::default()
+        }
+    };
+
+    let mut channels = Vec::with_capacity(9);
+    let shared_times: Vec<Arc<Vec<f64>>> = times
+        .iter()
+        .map(|ts| Arc::new(ts.iter().map(|&t| (t - t0_ns) as f64 * 1e-9).collect()))
+        .collect();
+    let log_times: Vec<Arc<Vec<u64>>> = times.into_iter().map(Arc::new).collect();
+    for s in Signal::ALL {
+        let m = cfg.mcap_field(s);
+        let t = topic_index[&m.topic];
+        let factor = m.unit.to_canonical_factor();
+        let raw = std::mem::take(&mut values[s.index()]);
+        let v: Vec<f64> = match &orders[t] {
+            None => raw.into_iter().map(|x| x * factor).collect(),
+            Some(order) => order.iter().map(|&i| raw[i] * factor).collect(),
+        };
+        channels.push(RawChannel {
+            signal: s,
+            source: format!("{} .{} [{}]", m.topic, m.field, m.unit),
+            time_s: Arc::clone(&shared_times[t]),
+            values: v,
+            locate: Locator::Mcap {
+                topic: m.topic.clone(),
+                log_time_ns: Arc::clone(&log_times[t]),
+            },
+        });
+    }
+    Ok(McapRead {
+        channels,
+        metadata,
+        t0_ns,
+        warnings,
+    })
+}
+
+/// Topics declared by channel records anywhere in the file (including channels with no
+/// messages), read leniently.
+fn declared_topics(bytes: &[u8]) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Ok(Some(summary)) = ::mcap::Summary::read(bytes) {
+        out.extend(summary.channels.values().map(|c| c.topic.clone()));
+    }
+    if let Ok(reader) = LinearReader::new(bytes) {
+        for rec in reader.flatten() {
+            if let Record::Channel(c) = rec {
+                out.push(c.topic.clone());
+            }
+        }
+    }
+    out
+}
+
+/// The metadata record "run", if any. Other metadata records are ignored.
+fn read_metadata(path: &Path, bytes: &[u8]) -> Result<Option<RunMetadata>, IngestError> {
+    let reader = LinearReader::new(bytes).map_err(|e| read_error(path, 0, e))?;
+    for rec in reader {
+        let rec = rec.map_err(|e| read_error(path, 0, e))?;
+        if let Record::Metadata(m) = rec {
+            if m.name == MCAP_METADATA_NAME {
+                let name = format!("metadata record \"{MCAP_METADATA_NAME}\"");
+                return super::metadata_from_pairs(path, &name, &m.metadata).map(Some);
+            }
+        }
+    }
+    Ok(None)
+}
+
+fn preview(data: &[u8]) -> String {
+    let s = String::from_utf8_lossy(&data[..data.len().min(80)]);
+    format!("{s:?}")
+}
+
+/// Extracts the named number fields of a JSON object without allocating; other fields are
+/// skipped. `found[k]` receives field `names[k]` (at most 8 fields per topic).
+fn extract(data: &[u8], names: &[&str], found: &mut [Option<f64>; 8]) -> Result<(), String> {
+    if names.len() > found.len() {
+        return Err(format!(
+            "more than {} fields mapped to one topic",
+            found.len()
+        ));
+    }
+    let mut de = serde_json::Deserializer::from_slice(data);
+    FieldsSeed { names, found }
+        .deserialize(&mut de)
+        .and_then(|_| de.end())
+        .map_err(|e| format!("not a JSON object of numbers: {e} in {}", preview(data)))
+}
+
+struct FieldsSeed<'a, 'b> {
+    names: &'a [&'a str],
+    found: &'b mut [Option<f64>; 8],
+}
+
+impl<'de> DeserializeSeed<'de> for FieldsSeed<'_, '_> {
+    type Value = ();
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for FieldsSeed<'_, '_> {
+    type Value = ();
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("a JSON object")
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        while let Some(key) = map.next_key::<KeyRef<'de>>()? {
+            match self.names.iter().position(|n| *n == key.as_str()) {
+                Some(k) => {
+                    let v: NumberOrNot = map.next_value()?;
+                    match v {
+                        NumberOrNot::Number(x) => self.found[k] = Some(x),
+                        NumberOrNot::Other(kind) => {
+                            return Err(serde::de::Error::custom(format!(
+                                "field {:?} is {kind}, expected a number",
+                                key.as_str()
+                            )))
+                        }
+                    }
+                }
+                None => {
+                    map.next_value::<IgnoredAny>()?;
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A JSON object key, borrowed when possible.
+enum KeyRef<'de> {
+    Borrowed(&'de str),
+    Owned(String),
+}
+
+impl KeyRef<'_> {
+    fn as_str(&self) -> &str {
+        match self {
+            KeyRef::Borrowed(s) => s,
+            KeyRef::Owned(s) => s,
+        }
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for KeyRef<'de> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = KeyRef<'de>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a string key")
+            }
+            fn visit_borrowed_str<E>(self, v: &'de str) -> Result<Self::Value, E> {
+                Ok(KeyRef::Borrowed(v))
+            }
+            fn visit_str<E>(self, v: &str) -> Result<Self::Value, E> {
+                Ok(KeyRef::Owned(v.to_string()))
+            }
+        }
+        d.deserialize_str(V)
+    }
+}
+
+/// A JSON value that is a number, or a description of what else it is.
+enum NumberOrNot {
+    Number(f64),
+    Other(&'static str),
+}
+
+impl<'de> serde::Deserialize<'de> for NumberOrNot {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = NumberOrNot;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a JSON value")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Number(v))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Number(v as f64))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Number(v as f64))
+            }
+            fn visit_str<E>(self, _: &str) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Other("a string"))
+            }
+            fn visit_bool<E>(self, _: bool) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Other("a boolean"))
+            }
+            fn visit_unit<E>(self) -> Result<Self::Value, E> {
+                Ok(NumberOrNot::Other("null"))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut a: A,
+            ) -> Result<Self::Value, A::Error> {
+                while a.next_element::<IgnoredAny>()?.is_some() {}
+                Ok(NumberOrNot::Other("an array"))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut a: A) -> Result<Self::Value, A::Error> {
+                while a.next_entry::<IgnoredAny, IgnoredAny>()?.is_some() {}
+                Ok(NumberOrNot::Other("an object"))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn extracts_named_numbers_and_skips_the_rest() {
+        let mut found = [None; 8];
+        extract(
+            br#"{"stamp":{"sec":1,"nsec":2},"v":12.5,"note":"x","omega":[1,2]}"#,
+            &["v"],
+            &mut found,
+        )
+        .unwrap();
+        assert_eq!(found[0], Some(12.5));
+        let mut found = [None; 8];
+        extract(br#"{"a":1,"b":-2e3}"#, &["b", "a", "c"], &mut found).unwrap();
+        assert_eq!(&found[..3], &[Some(-2000.0), Some(1.0), None]);
+    }
+
+    #[test]
+    fn non_numbers_and_bad_json_are_errors() {
+        let mut found = [None; 8];
+        let e = extract(br#"{"v":"12.5"}"#, &["v"], &mut found).unwrap_err();
+        assert!(
+            e.contains("field \"v\" is a string, expected a number"),
+            "{e}"
+        );
+        let e = extract(br#"{"v":1.0"#, &["v"], &mut found).unwrap_err();
+        assert!(e.starts_with("not a JSON object of numbers"), "{e}");
+        let e = extract(b"[1,2]", &["v"], &mut found).unwrap_err();
+        assert!(e.contains("not a JSON object"), "{e}");
+    }
+}

@@ -1,0 +1,17 @@
+//! railgrip learns wheel–rail adhesion curves from railway braking-test logs.
+//!
+//! Data flows one way (see ARCHITECTURE.md): [`ingest`] reads a log (CSV or MCAP, any column
+//! names and units) into a [`ingest::RunLog`] on a uniform time base in canonical units.
+//! [`format`] owns every channel name, column, topic and unit of the log format; [`config`]
+//! holds the validated pipeline file.
+//!
+//! The library never prints, exits or reads the terminal; the `railgrip` binary does.
+
+pub mod atomic;
+pub mod config;
+pub mod format;
+pub mod ingest;
+pub mod units;
+
+pub use config::Pipeline;
+pub use ingest::{ingest_file, RunLog};

@@ -1,0 +1,145 @@
+//! Synthetic braking logs for tests and benchmarks: smooth analytic signals (known second
+//! derivatives, so resampling errors have a bound), sampled with jitter, written through the
+//! crate's own format writers.
+#![allow(dead_code)]
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+use railgrip::format::{self, McapCompression, RunMetadata, SeriesRef, Signal};
+
+/// Wheel radius used to turn speeds into angular speeds, m.
+pub const R: f64 = 0.445;
+
+/// The analytic value of each signal at `t` (canonical units), periodic so any duration works.
+pub fn analytic(s: Signal, t: f64) -> f64 {
+    let v = 25.0 + 5.0 * (0.0105 * t).sin() + 0.3 * (0.7 * t).sin();
+    match s {
+        Signal::VRadar => v,
+        Signal::Omega(a) => (v - (1.0 + (std::f64::consts::PI * t + a as f64).sin())) / R,
+        Signal::Pressure(a) => 2.0 + 0.5 * (std::f64::consts::TAU * t + a as f64).sin(),
+    }
+}
+
+/// Upper bound of |d²x/dt²| of [`analytic`] per signal.
+pub fn max_second_derivative(s: Signal) -> f64 {
+    let v2 = 5.0 * 0.0105f64.powi(2) + 0.3 * 0.49;
+    match s {
+        Signal::VRadar => v2,
+        Signal::Omega(_) => (v2 + std::f64::consts::PI.powi(2)) / R,
+        Signal::Pressure(_) => 0.5 * std::f64::consts::TAU.powi(2),
+    }
+}
+
+/// Tiny deterministic generator (xorshift64*), enough for jitter and noise in tests.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Sample times over `[0, duration_s]` at `rate_hz`, each moved by up to ±`jitter` of a period.
+pub fn jittered_times(duration_s: f64, rate_hz: f64, jitter: f64, seed: u64) -> Vec<f64> {
+    let mut rng = Rng::new(seed);
+    let n = (duration_s * rate_hz).floor() as usize + 1;
+    let h = 1.0 / rate_hz;
+    (0..n)
+        .map(|k| {
+            let j = if k == 0 { 0.0 } else { (rng.uniform() * 2.0 - 1.0) * jitter * h };
+            k as f64 * h + j
+        })
+        .collect()
+}
+
+/// One log with a single time column (CSV shape).
+pub struct Table {
+    pub time_s: Vec<f64>,
+    pub columns: Vec<Vec<f64>>,
+}
+
+impl Table {
+    pub fn analytic(duration_s: f64, rate_hz: f64, jitter: f64, seed: u64) -> Table {
+        let time_s = jittered_times(duration_s, rate_hz, jitter, seed);
+        let columns = Signal::ALL.iter().map(|s| time_s.iter().map(|t| analytic(*s, *t)).collect()).collect();
+        Table { time_s, columns }
+    }
+
+    pub fn column(&self, s: Signal) -> &[f64] {
+        &self.columns[s.index()]
+    }
+
+    pub fn write_csv(&self, path: &Path) {
+        let cols: [&[f64]; 9] = std::array::from_fn(|i| self.columns[i].as_slice());
+        format::write_canonical_csv(BufWriter::new(File::create(path).unwrap()), &self.time_s, cols).unwrap();
+    }
+
+    pub fn csv_bytes(&self) -> Vec<u8> {
+        let cols: [&[f64]; 9] = std::array::from_fn(|i| self.columns[i].as_slice());
+        let mut out = Vec::new();
+        format::write_canonical_csv(&mut out, &self.time_s, cols).unwrap();
+        out
+    }
+}
+
+/// One log with a time base per signal (MCAP shape, channels at different rates).
+pub struct MultiRate {
+    pub times: Vec<Vec<f64>>,
+    pub values: Vec<Vec<f64>>,
+}
+
+impl MultiRate {
+    /// Radar at `radar_hz`, tachometers at `tacho_hz`, pressures at `pressure_hz`, all jittered.
+    pub fn analytic(duration_s: f64, radar_hz: f64, tacho_hz: f64, pressure_hz: f64, jitter: f64, seed: u64) -> Self {
+        let mut times = Vec::new();
+        let mut values = Vec::new();
+        for (i, s) in Signal::ALL.iter().enumerate() {
+            let rate = match s {
+                Signal::VRadar => radar_hz,
+                Signal::Omega(_) => tacho_hz,
+                Signal::Pressure(_) => pressure_hz,
+            };
+            let t = jittered_times(duration_s, rate, jitter, seed + i as u64);
+            values.push(t.iter().map(|t| analytic(*s, *t)).collect());
+            times.push(t);
+        }
+        MultiRate { times, values }
+    }
+
+    pub fn from_table(t: &Table) -> Self {
+        MultiRate { times: vec![t.time_s.clone(); 9], values: t.columns.clone() }
+    }
+
+    pub fn series(&self) -> Vec<SeriesRef<'_>> {
+        Signal::ALL
+            .iter()
+            .map(|s| SeriesRef { signal: *s, time_s: &self.times[s.index()], values: &self.values[s.index()] })
+            .collect()
+    }
+
+    pub fn mcap_bytes(&self, metadata: &RunMetadata, compression: McapCompression) -> Vec<u8> {
+        let mut cur = std::io::Cursor::new(Vec::new());
+        format::write_mcap(&mut cur, &self.series(), metadata, compression, 1_700_000_000_000_000_000).unwrap();
+        cur.into_inner()
+    }
+}
+
+pub fn soap_metadata() -> RunMetadata {
+    RunMetadata {
+        ambient_temperature_c: Some(5.0),
+        initial_speed_kmh: Some(120.0),
+        vehicle: Some("UIC-Z1".into()),
+        condition: Some("soap".into()),
+        direction: Some("forward".into()),
+        other: Default::default(),
+    }
+}
