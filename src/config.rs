@@ -594,13 +594,15 @@ impl Checker<'_> {
         };
         let max_gap_ms = match i.max_gap_ms {
             None if gap_rule.contains(50.0) => 50.0,
-            None => return Err(self.missing(
-                "ingest.max_gap_ms",
-                format!(
+            None => {
+                return Err(self.missing(
+                    "ingest.max_gap_ms",
+                    format!(
                     "the default 50 ms is not longer than one sample period at {} Hz; {gap_rule}",
                     g(fs)
                 ),
-            )),
+                ))
+            }
             Some(x) if !gap_rule.contains(x) => {
                 return Err(self.invalid(
                     "ingest.max_gap_ms",

@@ -55,7 +55,11 @@ pub fn jittered_times(duration_s: f64, rate_hz: f64, jitter: f64, seed: u64) -> 
     let h = 1.0 / rate_hz;
     (0..n)
         .map(|k| {
-            let j = if k == 0 { 0.0 } else { (rng.uniform() * 2.0 - 1.0) * jitter * h };
+            let j = if k == 0 {
+                0.0
+            } else {
+                (rng.uniform() * 2.0 - 1.0) * jitter * h
+            };
             k as f64 * h + j
         })
         .collect()
@@ -70,7 +74,10 @@ pub struct Table {
 impl Table {
     pub fn analytic(duration_s: f64, rate_hz: f64, jitter: f64, seed: u64) -> Table {
         let time_s = jittered_times(duration_s, rate_hz, jitter, seed);
-        let columns = Signal::ALL.iter().map(|s| time_s.iter().map(|t| analytic(*s, *t)).collect()).collect();
+        let columns = Signal::ALL
+            .iter()
+            .map(|s| time_s.iter().map(|t| analytic(*s, *t)).collect())
+            .collect();
         Table { time_s, columns }
     }
 
@@ -80,7 +87,12 @@ impl Table {
 
     pub fn write_csv(&self, path: &Path) {
         let cols: [&[f64]; 9] = std::array::from_fn(|i| self.columns[i].as_slice());
-        format::write_canonical_csv(BufWriter::new(File::create(path).unwrap()), &self.time_s, cols).unwrap();
+        format::write_canonical_csv(
+            BufWriter::new(File::create(path).unwrap()),
+            &self.time_s,
+            cols,
+        )
+        .unwrap();
     }
 
     pub fn csv_bytes(&self) -> Vec<u8> {
@@ -99,7 +111,14 @@ pub struct MultiRate {
 
 impl MultiRate {
     /// Radar at `radar_hz`, tachometers at `tacho_hz`, pressures at `pressure_hz`, all jittered.
-    pub fn analytic(duration_s: f64, radar_hz: f64, tacho_hz: f64, pressure_hz: f64, jitter: f64, seed: u64) -> Self {
+    pub fn analytic(
+        duration_s: f64,
+        radar_hz: f64,
+        tacho_hz: f64,
+        pressure_hz: f64,
+        jitter: f64,
+        seed: u64,
+    ) -> Self {
         let mut times = Vec::new();
         let mut values = Vec::new();
         for (i, s) in Signal::ALL.iter().enumerate() {
@@ -116,19 +135,33 @@ impl MultiRate {
     }
 
     pub fn from_table(t: &Table) -> Self {
-        MultiRate { times: vec![t.time_s.clone(); 9], values: t.columns.clone() }
+        MultiRate {
+            times: vec![t.time_s.clone(); 9],
+            values: t.columns.clone(),
+        }
     }
 
     pub fn series(&self) -> Vec<SeriesRef<'_>> {
         Signal::ALL
             .iter()
-            .map(|s| SeriesRef { signal: *s, time_s: &self.times[s.index()], values: &self.values[s.index()] })
+            .map(|s| SeriesRef {
+                signal: *s,
+                time_s: &self.times[s.index()],
+                values: &self.values[s.index()],
+            })
             .collect()
     }
 
     pub fn mcap_bytes(&self, metadata: &RunMetadata, compression: McapCompression) -> Vec<u8> {
         let mut cur = std::io::Cursor::new(Vec::new());
-        format::write_mcap(&mut cur, &self.series(), metadata, compression, 1_700_000_000_000_000_000).unwrap();
+        format::write_mcap(
+            &mut cur,
+            &self.series(),
+            metadata,
+            compression,
+            1_700_000_000_000_000_000,
+        )
+        .unwrap();
         cur.into_inner()
     }
 }

@@ -1,0 +1,135 @@
+//! The `railgrip` binary at the process boundary: output, exit codes, files written.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use common::*;
+use railgrip::format::McapCompression;
+
+fn railgrip(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+#[test]
+fn help_explains_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = railgrip(&["--help"], dir.path());
+    assert_eq!(o.status.code(), Some(0));
+    let s = text(&o.stdout);
+    assert!(
+        s.contains("ingest") && s.contains("Exit codes: 0 ok, 1 error, 2 usage, 3"),
+        "{s}"
+    );
+    let o = railgrip(&["ingest", "--help"], dir.path());
+    assert_eq!(o.status.code(), Some(0));
+    let s = text(&o.stdout);
+    assert!(
+        s.contains("--pipeline <FILE>")
+            && s.contains("--out <DIR>")
+            && s.contains("runlog.parquet"),
+        "{s}"
+    );
+}
+
+#[test]
+fn usage_errors_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    assert_eq!(railgrip(&["ingest"], dir.path()).status.code(), Some(2));
+    assert_eq!(railgrip(&["frobnicate"], dir.path()).status.code(), Some(2));
+    assert_eq!(
+        railgrip(&["ingest", "x.csv", "--bogus"], dir.path())
+            .status
+            .code(),
+        Some(2)
+    );
+}
+
+#[test]
+fn ingest_prints_a_summary_and_writes_parquet() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(4.0, 417.0, 0.2, 1);
+    table.write_csv(&dir.path().join("run.csv"));
+    std::fs::write(
+        dir.path().join("run.meta.toml"),
+        soap_metadata().to_sidecar_toml(),
+    )
+    .unwrap();
+    let o = railgrip(&["ingest", "run.csv", "--out", "out"], dir.path());
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    assert!(s.contains("file       run.csv (CSV)"), "{s}");
+    assert!(
+        s.contains("vehicle UIC-Z1 · condition soap · ambient 5 °C · initial speed 120 km/h"),
+        "{s}"
+    );
+    assert!(s.contains("samples at 417 Hz"), "{s}");
+    assert!(s.contains("v_radar  m/s"), "{s}");
+    assert!(
+        s.contains("gaps       none") && s.contains("warnings   none"),
+        "{s}"
+    );
+    assert!(s.contains("wrote      out/run.runlog.parquet"), "{s}");
+    assert!(dir.path().join("out/run.runlog.parquet").is_file());
+}
+
+#[test]
+fn lossy_input_exits_3_and_bad_input_exits_1_writing_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = MultiRate::analytic(3.0, 417.0, 417.0, 417.0, 0.0, 2);
+    let i = railgrip::format::Signal::Omega(2).index();
+    let keep: Vec<bool> = run.times[i]
+        .iter()
+        .map(|t| !(*t > 1.0 && *t < 1.5))
+        .collect();
+    let mut k = keep.iter();
+    run.times[i].retain(|_| *k.next().unwrap());
+    let mut k = keep.iter();
+    run.values[i].retain(|_| *k.next().unwrap());
+    std::fs::write(
+        dir.path().join("gap.mcap"),
+        run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
+    )
+    .unwrap();
+    let o = railgrip(&["ingest", "gap.mcap"], dir.path());
+    assert_eq!(o.status.code(), Some(3));
+    let s = text(&o.stdout);
+    assert!(
+        s.contains("gaps       1 not interpolated:") && s.contains("omega2"),
+        "{s}"
+    );
+
+    std::fs::write(dir.path().join("bad.csv"), "t,v_radar\n0,1\n").unwrap();
+    let o = railgrip(&["ingest", "bad.csv", "--out", "out"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.starts_with("error: bad.csv: missing CSV column(s)"),
+        "{e}"
+    );
+    assert!(
+        !dir.path().join("out").exists()
+            || std::fs::read_dir(dir.path().join("out")).unwrap().count() == 0
+    );
+}
+
+#[test]
+fn pipeline_errors_exit_1_and_name_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    Table::analytic(1.0, 417.0, 0.0, 3).write_csv(&dir.path().join("run.csv"));
+    let p = railgrip::config::DEFAULT_PIPELINE_TOML
+        .replace("sample_rate_hz = 417.0", "sample_rate_hz = 0.0");
+    std::fs::write(dir.path().join("p.toml"), p).unwrap();
+    let o = railgrip(&["ingest", "run.csv", "--pipeline", "p.toml"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(text(&o.stderr).trim(), "error: p.toml: ingest.sample_rate_hz = 0: must be >= 1 Hz and <= 100000 Hz (default 417 Hz)");
+}

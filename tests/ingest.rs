@@ -1,0 +1,1097 @@
+//! Ingest over every format, unit mapping, resampling rule and bad input.
+
+mod common;
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use common::*;
+use railgrip::format::{McapCompression, RunMetadata, Signal};
+use railgrip::ingest::{
+    ingest_file, linear_interpolation_bound, write_runlog_parquet, IngestError, RunLog, WarningKind,
+};
+use railgrip::Pipeline;
+
+fn default() -> Pipeline {
+    Pipeline::default_uic_z1()
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    fs::write(&p, bytes).unwrap();
+    p
+}
+
+fn err(path: &Path, p: &Pipeline) -> String {
+    match ingest_file(path, p) {
+        Ok(_) => panic!("{} should fail to ingest", path.display()),
+        Err(e) => e.to_string(),
+    }
+}
+
+/// Every resampled value is within the linear-interpolation bound of the analytic signal.
+fn assert_matches_analytic(log: &RunLog, max_raw_step: impl Fn(Signal) -> f64) {
+    assert!(log.valid.iter().all(|v| *v));
+    for s in Signal::ALL {
+        let bound = linear_interpolation_bound(max_second_derivative(s), max_raw_step(s)) + 1e-9;
+        let worst = log
+            .time_s
+            .iter()
+            .zip(log.signal(s))
+            .map(|(t, v)| (v - analytic(s, *t)).abs())
+            .fold(0.0, f64::max);
+        assert!(worst <= bound, "{s}: worst error {worst} > bound {bound}");
+    }
+}
+
+fn assert_uniform(log: &RunLog) {
+    let h = 1.0 / log.sample_rate_hz;
+    for (i, t) in log.time_s.iter().enumerate() {
+        assert!(
+            (t - (log.time_s[0] + i as f64 * h)).abs() < 1e-9,
+            "sample {i} off the grid"
+        );
+    }
+}
+
+#[test]
+fn canonical_csv_with_jitter_resamples_within_the_interpolation_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(20.0, 417.0, 0.3, 1);
+    let path = dir.path().join("run.csv");
+    table.write_csv(&path);
+    fs::write(
+        dir.path().join("run.meta.toml"),
+        soap_metadata().to_sidecar_toml(),
+    )
+    .unwrap();
+    let log = ingest_file(&path, &default()).unwrap();
+    assert_eq!(log.format.to_string(), "CSV");
+    assert_uniform(&log);
+    assert!((log.duration_s() - 20.0).abs() < 2.0 / 417.0);
+    let max_step = table
+        .time_s
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .fold(0.0, f64::max);
+    assert_matches_analytic(&log, |_| max_step);
+    assert_eq!(log.metadata, soap_metadata());
+    assert!(log.warnings.is_empty(), "{:?}", log.warnings);
+    assert!(!log.lost_data());
+    let radar = &log.channels[0];
+    assert!(
+        (radar.rate_hz - 417.0).abs() < 5.0,
+        "rate found {}",
+        radar.rate_hz
+    );
+    assert_eq!(radar.samples, table.time_s.len());
+}
+
+#[test]
+fn multi_rate_mcap_with_jitter_in_every_compression() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = MultiRate::analytic(12.0, 50.0, 417.0, 200.0, 0.2, 7);
+    for (name, c) in [
+        ("zstd", McapCompression::Zstd),
+        ("lz4", McapCompression::Lz4),
+        ("none", McapCompression::None),
+    ] {
+        let path = write(
+            dir.path(),
+            &format!("{name}.mcap"),
+            &run.mcap_bytes(&soap_metadata(), c),
+        );
+        let log = ingest_file(&path, &default()).unwrap();
+        assert_eq!(log.format.to_string(), "MCAP");
+        assert_eq!(log.start_log_time_ns, Some(1_700_000_000_000_000_000));
+        assert_uniform(&log);
+        assert_matches_analytic(&log, |s| {
+            run.times[s.index()]
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .fold(0.0, f64::max)
+        });
+        assert_eq!(log.metadata, soap_metadata());
+        assert!((log.channels[0].rate_hz - 50.0).abs() < 2.0);
+        assert!((log.channels[1].rate_hz - 417.0).abs() < 10.0);
+        assert!((log.channels[5].rate_hz - 200.0).abs() < 5.0);
+        assert!(log.warnings.is_empty(), "{name}: {:?}", log.warnings);
+    }
+}
+
+#[test]
+fn csv_and_mcap_of_the_same_samples_give_identical_run_logs() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(5.0, 417.0, 0.0, 3);
+    let csv = write(dir.path(), "same.csv", &table.csv_bytes());
+    let mcap = write(
+        dir.path(),
+        "same.mcap",
+        &MultiRate::from_table(&table).mcap_bytes(&RunMetadata::default(), McapCompression::Zstd),
+    );
+    let a = ingest_file(&csv, &default()).unwrap();
+    let b = ingest_file(&mcap, &default()).unwrap();
+    assert_eq!(a.len(), b.len());
+    for s in Signal::ALL {
+        for (x, y) in a.signal(s).iter().zip(b.signal(s)) {
+            // MCAP log times are whole nanoseconds.
+            assert!((x - y).abs() < 1e-6, "{s}: {x} vs {y}");
+        }
+    }
+}
+
+/// Writes the table with custom column names and units; values converted from canonical.
+fn mapped_csv(table: &Table, time_unit: (&str, f64), units: [(&str, f64); 3]) -> Vec<u8> {
+    let mut s = String::from("zeit,radar,w1,w2,w3,w4,bc1,bc2,bc3,bc4,comment\n");
+    for (i, t) in table.time_s.iter().enumerate() {
+        s.push_str(&format!("{:?}", t / time_unit.1));
+        for sig in Signal::ALL {
+            let f = match sig {
+                Signal::VRadar => units[0].1,
+                Signal::Omega(_) => units[1].1,
+                Signal::Pressure(_) => units[2].1,
+            };
+            s.push_str(&format!(",{:?}", table.column(sig)[i] / f));
+        }
+        s.push_str(",x\n");
+    }
+    s.into_bytes()
+}
+
+fn mapping_pipeline(time_unit: &str, units: [&str; 3]) -> Pipeline {
+    let mut text = railgrip::config::DEFAULT_PIPELINE_TOML
+        .split("[ingest.csv]")
+        .next()
+        .unwrap()
+        .to_string();
+    text.push_str("[ingest.csv]\n");
+    text.push_str(&format!(
+        "time = {{ column = \"zeit\", unit = \"{time_unit}\" }}\n"
+    ));
+    text.push_str(&format!(
+        "v_radar = {{ column = \"radar\", unit = \"{}\" }}\n",
+        units[0]
+    ));
+    for a in 1..=4 {
+        text.push_str(&format!(
+            "omega{a} = {{ column = \"w{a}\", unit = \"{}\" }}\n",
+            units[1]
+        ));
+        text.push_str(&format!(
+            "p{a} = {{ column = \"bc{a}\", unit = \"{}\" }}\n",
+            units[2]
+        ));
+    }
+    Pipeline::from_toml(&text, "mapping.toml").unwrap()
+}
+
+#[test]
+fn every_unit_of_the_mapping_converts_to_canonical() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(3.0, 417.0, 0.1, 5);
+    let reference = {
+        let p = write(dir.path(), "canonical.csv", &table.csv_bytes());
+        ingest_file(&p, &default()).unwrap()
+    };
+    let cases: [(&str, f64, [(&str, f64); 3]); 4] = [
+        ("s", 1.0, [("m/s", 1.0), ("rad/s", 1.0), ("bar", 1.0)]),
+        (
+            "ms",
+            1e-3,
+            [
+                ("km/h", 1.0 / 3.6),
+                ("rpm", std::f64::consts::TAU / 60.0),
+                ("kPa", 1e-2),
+            ],
+        ),
+        (
+            "us",
+            1e-6,
+            [
+                ("km/h", 1.0 / 3.6),
+                ("rev/s", std::f64::consts::TAU),
+                ("Pa", 1e-5),
+            ],
+        ),
+        (
+            "ns",
+            1e-9,
+            [
+                ("m/s", 1.0),
+                ("rpm", std::f64::consts::TAU / 60.0),
+                ("MPa", 10.0),
+            ],
+        ),
+    ];
+    for (i, (tu, tf, units)) in cases.iter().enumerate() {
+        let path = write(
+            dir.path(),
+            &format!("mapped{i}.csv"),
+            &mapped_csv(&table, (tu, *tf), *units),
+        );
+        let p = mapping_pipeline(tu, [units[0].0, units[1].0, units[2].0]);
+        let log = ingest_file(&path, &p).unwrap_or_else(|e| panic!("{tu}/{units:?}: {e}"));
+        assert_eq!(log.len(), reference.len(), "{tu}");
+        for s in Signal::ALL {
+            for (x, y) in log.signal(s).iter().zip(reference.signal(s)) {
+                assert!(
+                    (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+                    "{tu} {units:?} {s}: {x} vs {y}"
+                );
+            }
+        }
+        assert!(log.channels[0].source.contains("radar"));
+    }
+}
+
+#[test]
+fn mcap_topics_and_fields_are_configurable_and_may_share_a_topic() {
+    // A logger that puts all four tachometers on one topic, fields w1..w4, in rpm.
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(2.0, 417.0, 0.0, 9);
+    let mut cur = std::io::Cursor::new(Vec::new());
+    {
+        let mut w = mcap::Writer::new(&mut cur).unwrap();
+        let sid = w.add_schema("x", "jsonschema", b"{}").unwrap();
+        let radar = w
+            .add_channel(sid, "/sensors/radar", "json", &Default::default())
+            .unwrap();
+        let axles = w
+            .add_channel(sid, "/sensors/axles", "json", &Default::default())
+            .unwrap();
+        let brake = w
+            .add_channel(sid, "/sensors/brake", "json", &Default::default())
+            .unwrap();
+        let other = w
+            .add_channel(sid, "/diagnostics", "cdr", &Default::default())
+            .unwrap();
+        let rpm = 60.0 / std::f64::consts::TAU;
+        for (i, t) in table.time_s.iter().enumerate() {
+            let ns = (t * 1e9).round() as u64;
+            let c = |s| table.column(s)[i];
+            let msgs = [
+                (radar, format!(r#"{{"speed":{}}}"#, c(Signal::VRadar))),
+                (
+                    axles,
+                    format!(
+                        r#"{{"w1":{},"w2":{},"w3":{},"w4":{}}}"#,
+                        c(Signal::Omega(1)) * rpm,
+                        c(Signal::Omega(2)) * rpm,
+                        c(Signal::Omega(3)) * rpm,
+                        c(Signal::Omega(4)) * rpm
+                    ),
+                ),
+                (
+                    brake,
+                    format!(
+                        r#"{{"p1":{},"p2":{},"p3":{},"p4":{}}}"#,
+                        c(Signal::Pressure(1)),
+                        c(Signal::Pressure(2)),
+                        c(Signal::Pressure(3)),
+                        c(Signal::Pressure(4))
+                    ),
+                ),
+                (other, "\u{1}binary".to_string()),
+            ];
+            for (ch, payload) in msgs {
+                let h = mcap::records::MessageHeader {
+                    channel_id: ch,
+                    sequence: i as u32,
+                    log_time: ns,
+                    publish_time: ns,
+                };
+                w.write_to_known_channel(&h, payload.as_bytes()).unwrap();
+            }
+        }
+        w.finish().unwrap();
+    }
+    let path = write(dir.path(), "shared.mcap", cur.get_ref());
+    let mut text = railgrip::config::DEFAULT_PIPELINE_TOML
+        .split("[ingest.mcap]")
+        .next()
+        .unwrap()
+        .to_string();
+    text.push_str("[ingest.mcap]\nv_radar = { topic = \"/sensors/radar\", field = \"speed\" }\n");
+    for a in 1..=4 {
+        text.push_str(&format!(
+            "omega{a} = {{ topic = \"/sensors/axles\", field = \"w{a}\", unit = \"rpm\" }}\n"
+        ));
+        text.push_str(&format!(
+            "p{a} = {{ topic = \"/sensors/brake\", field = \"p{a}\" }}\n"
+        ));
+    }
+    let p = Pipeline::from_toml(&text, "m.toml").unwrap();
+    let log = ingest_file(&path, &p).unwrap();
+    for s in Signal::ALL {
+        for (t, v) in log.time_s.iter().zip(log.signal(s)) {
+            assert!((v - analytic(s, *t)).abs() < 1e-3, "{s} at {t}: {v}");
+        }
+    }
+    // No "run" metadata record: a warning that loses nothing.
+    assert_eq!(log.warnings.len(), 1);
+    assert_eq!(log.warnings[0].kind, WarningKind::NoMetadata);
+    assert!(!log.lost_data());
+}
+
+#[test]
+fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = MultiRate::analytic(10.0, 417.0, 417.0, 417.0, 0.0, 11);
+    // omega2: remove 4.00–4.20 s (200 ms, longer than the 50 ms limit);
+    // p3: remove 6.00–6.03 s (30 ms, bridged).
+    let cut = |run: &mut MultiRate, s: Signal, a: f64, b: f64| {
+        let i = s.index();
+        let keep: Vec<bool> = run.times[i].iter().map(|t| !(*t > a && *t < b)).collect();
+        let mut k = keep.iter();
+        run.times[i].retain(|_| *k.next().unwrap());
+        let mut k = keep.iter();
+        run.values[i].retain(|_| *k.next().unwrap());
+    };
+    cut(&mut run, Signal::Omega(2), 4.0, 4.2);
+    cut(&mut run, Signal::Pressure(3), 6.0, 6.03);
+    let path = write(
+        dir.path(),
+        "gap.mcap",
+        &run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
+    );
+    let log = ingest_file(&path, &default()).unwrap();
+    assert_eq!(log.gaps.len(), 1);
+    let gap = &log.gaps[0];
+    assert_eq!(gap.signal, Signal::Omega(2));
+    assert!(gap.from_s <= 4.0 && gap.to_s >= 4.2 && gap.to_s - gap.from_s < 0.21);
+    for (i, t) in log.time_s.iter().enumerate() {
+        let inside = *t > gap.from_s && *t < gap.to_s;
+        assert_eq!(log.valid[i], !inside, "t = {t}");
+        assert_eq!(log.omega_radps[1][i].is_nan(), inside, "t = {t}");
+        // Other channels keep their real data inside the gap.
+        assert!(log.omega_radps[0][i].is_finite() && log.p_bar[2][i].is_finite());
+    }
+    let invalid = log.invalid_samples();
+    assert!(
+        (invalid as f64 - 0.2 * 417.0).abs() <= 3.0,
+        "{invalid} invalid samples"
+    );
+    assert_eq!(log.valid_segments().len(), 2);
+    assert!(log.lost_data());
+    let w: Vec<_> = log
+        .warnings
+        .iter()
+        .filter(|w| w.kind == WarningKind::Gap)
+        .collect();
+    assert_eq!(w.len(), 1);
+    assert!(
+        w[0].message
+            .starts_with("omega2: 1 gap(s) longer than 50 ms"),
+        "{}",
+        w[0].message
+    );
+}
+
+#[test]
+fn a_channel_starting_late_trims_the_start_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = MultiRate::analytic(5.0, 417.0, 417.0, 417.0, 0.0, 13);
+    let i = Signal::VRadar.index();
+    let skip = run.times[i].iter().take_while(|t| **t < 1.0).count();
+    run.times[i].drain(..skip);
+    run.values[i].drain(..skip);
+    let path = write(
+        dir.path(),
+        "late.mcap",
+        &run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
+    );
+    let log = ingest_file(&path, &default()).unwrap();
+    assert!(log.time_s[0] >= 1.0 && log.time_s[0] < 1.01);
+    assert!(log.warnings.iter().any(
+        |w| w.kind == WarningKind::Trimmed && w.message.contains("v_radar has no data before")
+    ));
+    assert!(log.lost_data());
+}
+
+#[test]
+fn implausible_samples_are_dropped_with_a_warning_or_rejected_per_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut table = Table::analytic(3.0, 417.0, 0.0, 17);
+    table.columns[Signal::Pressure(1).index()][600] = 25.0; // above 10 bar
+    table.columns[Signal::VRadar.index()][700] = -3.0; // negative speed beyond noise
+    let path = write(dir.path(), "spiky.csv", &table.csv_bytes());
+    let log = ingest_file(&path, &default()).unwrap();
+    assert_eq!(log.channels[5].dropped, 1);
+    assert_eq!(log.channels[0].dropped, 1);
+    assert!(
+        log.valid.iter().all(|v| *v),
+        "single dropped samples are bridged"
+    );
+    assert!(log.lost_data());
+    let msgs: Vec<_> = log
+        .warnings
+        .iter()
+        .filter(|w| w.kind == WarningKind::Implausible)
+        .map(|w| w.message.clone())
+        .collect();
+    assert_eq!(msgs.len(), 2, "{msgs:?}");
+    assert!(
+        msgs.iter().any(|m| m.starts_with(
+            "p1: 1 sample(s) outside [-0.5, 10] bar dropped, the first 25 bar at line 602"
+        )),
+        "{msgs:?}"
+    );
+
+    let strict = Pipeline::from_toml(
+        &railgrip::config::DEFAULT_PIPELINE_TOML
+            .replace(r#"action = "warn""#, r#"action = "error""#),
+        "strict.toml",
+    )
+    .unwrap();
+    let e = err(&path, &strict);
+    // The first signal checked (v_radar, contract order) is the one reported.
+    assert!(e.contains("spiky.csv: line 702: v_radar = -3 m/s is outside the plausibility limits [-0.5, 100] m/s"), "{e}");
+    assert!(e.contains("Hint:"), "{e}");
+}
+
+#[test]
+fn runlog_parquet_reads_back_with_nulls_in_gaps() {
+    use polars::prelude::*;
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(2.0, 417.0, 0.0, 19);
+    let mut run = MultiRate::from_table(&table);
+    let i = Signal::Omega(4).index();
+    let keep: Vec<bool> = run.times[i]
+        .iter()
+        .map(|t| !(*t > 1.0 && *t < 1.2))
+        .collect();
+    let mut k = keep.iter();
+    run.times[i].retain(|_| *k.next().unwrap());
+    let mut k = keep.iter();
+    run.values[i].retain(|_| *k.next().unwrap());
+    let path = write(
+        dir.path(),
+        "r.mcap",
+        &run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
+    );
+    let log = ingest_file(&path, &default()).unwrap();
+    let out = dir.path().join("r.runlog.parquet");
+    write_runlog_parquet(&log, &out).unwrap();
+    let df = ParquetReader::new(fs::File::open(&out).unwrap())
+        .finish()
+        .unwrap();
+    let names: Vec<String> = df
+        .get_column_names()
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "time_s",
+            "v_radar_mps",
+            "omega1_radps",
+            "omega2_radps",
+            "omega3_radps",
+            "omega4_radps",
+            "p1_bar",
+            "p2_bar",
+            "p3_bar",
+            "p4_bar",
+            "valid"
+        ]
+    );
+    assert_eq!(df.height(), log.len());
+    let w4 = df.column("omega4_radps").unwrap().f64().unwrap();
+    assert_eq!(w4.null_count(), log.invalid_samples());
+    let v = df.column("v_radar_mps").unwrap().f64().unwrap();
+    for (a, b) in v.into_no_null_iter().zip(&log.v_radar_mps) {
+        assert_eq!(a.to_bits(), b.to_bits());
+    }
+    assert_eq!(
+        fs::read_dir(dir.path()).unwrap().count(),
+        2,
+        "no temporary files left"
+    );
+}
+
+#[test]
+fn mcap_messages_out_of_order_are_sorted() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = Table::analytic(1.0, 417.0, 0.0, 23);
+    let mut run = MultiRate::from_table(&table);
+    // Write pressures in reverse: MCAP does not promise order within a channel.
+    let i = Signal::Pressure(2).index();
+    let mut cur = std::io::Cursor::new(Vec::new());
+    {
+        let mut w = mcap::Writer::new(&mut cur).unwrap();
+        let sid = w.add_schema("x", "jsonschema", b"{}").unwrap();
+        for s in Signal::ALL {
+            let ch = w
+                .add_channel(sid, s.mcap_topic(), "json", &Default::default())
+                .unwrap();
+            let mut order: Vec<usize> = (0..run.times[s.index()].len()).collect();
+            if s.index() == i {
+                order.reverse();
+            }
+            for k in order {
+                let ns = (run.times[s.index()][k] * 1e9).round() as u64;
+                let payload = format!("{{\"{}\":{}}}", s.mcap_field(), run.values[s.index()][k]);
+                w.write_to_known_channel(
+                    &mcap::records::MessageHeader {
+                        channel_id: ch,
+                        sequence: k as u32,
+                        log_time: ns,
+                        publish_time: ns,
+                    },
+                    payload.as_bytes(),
+                )
+                .unwrap();
+            }
+        }
+        w.finish().unwrap();
+    }
+    let path = write(dir.path(), "unordered.mcap", cur.get_ref());
+    let log = ingest_file(&path, &default()).unwrap();
+    for (t, v) in log.time_s.iter().zip(log.signal(Signal::Pressure(2))) {
+        assert!((v - analytic(Signal::Pressure(2), *t)).abs() < 1e-3);
+    }
+    run.values.clear();
+}
+
+// ---------------------------------------------------------------- bad input, one test each
+
+#[test]
+fn missing_file() {
+    let e = err(Path::new("/no/such/run.csv"), &default());
+    assert_eq!(e, "/no/such/run.csv: file not found. Hint: check the path; railgrip reads .csv and .mcap logs");
+}
+
+#[test]
+fn empty_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "empty.csv", b"");
+    assert!(err(&p, &default()).ends_with(
+        "empty.csv: the file is empty. Hint: the logger wrote nothing; re-export the run"
+    ));
+}
+
+#[test]
+fn neither_csv_nor_mcap_is_sniffed_not_trusted_by_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "photo.csv",
+        &[0xff, 0xd8, 0xff, 0xe0, 0, 0x10, b'J', b'F', b'I', b'F'],
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(
+            "photo.csv: neither CSV nor MCAP: binary data starting with ff d8 ff e0 00 10 4a 46"
+        ),
+        "{e}"
+    );
+    let p = write(
+        dir.path(),
+        "notes.mcap",
+        b"just some notes\nwithout separators\n",
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("notes.mcap: neither CSV nor MCAP: text whose first line has no comma"),
+        "{e}"
+    );
+    // A CSV named .mcap is read as CSV.
+    let table = Table::analytic(1.0, 417.0, 0.0, 1);
+    let p = write(dir.path(), "actually_csv.mcap", &table.csv_bytes());
+    assert_eq!(
+        ingest_file(&p, &default()).unwrap().format.to_string(),
+        "CSV"
+    );
+}
+
+fn small_csv() -> String {
+    String::from_utf8(Table::analytic(0.5, 417.0, 0.0, 2).csv_bytes()).unwrap()
+}
+
+#[test]
+fn csv_cut_mid_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let lines = text.lines().count();
+    let last_start = text.trim_end().rfind('\n').unwrap() + 1;
+    let cut = &text[..last_start + 30];
+    let p = write(dir.path(), "cut.csv", cut.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains(&format!("cut.csv: line {lines}: the last line has")),
+        "{e}"
+    );
+    assert!(
+        e.contains("looks cut off mid-line")
+            && e.contains("Hint: the logger or copy was interrupted"),
+        "{e}"
+    );
+}
+
+fn replace_cell(text: &str, line: usize, col: usize, with: &str) -> String {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i + 1 == line {
+                let mut f: Vec<&str> = l.split(',').collect();
+                f[col] = with;
+                f.join(",")
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+        + "\n"
+}
+
+#[test]
+fn non_numeric_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "text.csv",
+        replace_cell(&small_csv(), 57, 3, "n/a").as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert_eq!(
+        e.rsplit_once("text.csv: ").unwrap().1,
+        "line 57, column \"omega2\": \"n/a\" is not a number. Hint: numbers use '.' as decimal point and no thousands separator"
+    );
+    let p = write(
+        dir.path(),
+        "comma.csv",
+        replace_cell(&small_csv(), 9, 6, "2;5").as_bytes(),
+    );
+    assert!(err(&p, &default()).contains("line 9, column \"p1\": \"2;5\" is not a number"));
+}
+
+#[test]
+fn empty_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "hole.csv",
+        replace_cell(&small_csv(), 120, 1, "").as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("hole.csv: line 120, column \"v_radar\": empty cell. Hint:"),
+        "{e}"
+    );
+}
+
+#[test]
+fn nan_and_inf_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, bad) in ["NaN", "inf", "-inf"].iter().enumerate() {
+        let p = write(
+            dir.path(),
+            &format!("nonfinite{i}.csv"),
+            replace_cell(&small_csv(), 33, 9, bad).as_bytes(),
+        );
+        let e = err(&p, &default());
+        assert!(
+            e.contains(&format!(
+                "line 33, column \"p4\": \"{bad}\" is not a finite number"
+            )),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn timestamps_not_increasing_or_duplicated() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let t10: String = text
+        .lines()
+        .nth(9)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .to_string();
+    let p = write(
+        dir.path(),
+        "dup.csv",
+        replace_cell(&text, 11, 0, &t10).as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(e.contains("dup.csv: line 11: time"), "{e}");
+    assert!(
+        e.contains("does not increase after") && e.contains("strictly increasing"),
+        "{e}"
+    );
+    let p = write(
+        dir.path(),
+        "back.csv",
+        replace_cell(&text, 40, 0, "0.01").as_bytes(),
+    );
+    assert!(err(&p, &default()).contains("back.csv: line 40: time 0.01 s does not increase after"));
+}
+
+#[test]
+fn blank_lines_do_not_shift_reported_line_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    lines.insert(5, String::new());
+    let text = lines.join("\n") + "\n";
+    let p = write(
+        dir.path(),
+        "blank.csv",
+        replace_cell(&text, 50, 2, "oops").as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("blank.csv: line 50, column \"omega1\": \"oops\" is not a number"),
+        "{e}"
+    );
+}
+
+#[test]
+fn header_only_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(
+        dir.path(),
+        "header.csv",
+        b"t,v_radar,omega1,omega2,omega3,omega4,p1,p2,p3,p4\n",
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("header.csv: line 2: the file has a header but no data rows"),
+        "{e}"
+    );
+}
+
+#[test]
+fn required_column_missing_lists_what_exists_and_suggests_a_mapping() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv()
+        .replacen("v_radar", "V_Radar_kmh", 1)
+        .replacen("omega3", "omega_3", 1);
+    let p = write(dir.path(), "names.csv", text.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("names.csv: missing CSV column(s) \"v_radar\" (v_radar), \"omega3\" (omega3)"),
+        "{e}"
+    );
+    assert!(
+        e.contains("the header has \"t\", \"V_Radar_kmh\", \"omega1\""),
+        "{e}"
+    );
+    assert!(
+        e.contains(r#"v_radar = { column = "V_Radar_kmh", unit = "m/s" }"#),
+        "{e}"
+    );
+    assert!(
+        e.contains(r#"omega3 = { column = "omega_3", unit = "rad/s" }"#),
+        "{e}"
+    );
+}
+
+#[test]
+fn unknown_unit_in_pipeline() {
+    let text = railgrip::config::DEFAULT_PIPELINE_TOML.replace(
+        r#"p1 = { column = "p1", unit = "bar" }"#,
+        r#"p1 = { column = "p1", unit = "psi" }"#,
+    );
+    let e = Pipeline::from_toml(&text, "psi.toml")
+        .unwrap_err()
+        .to_string();
+    assert_eq!(
+        e,
+        r#"psi.toml: ingest.csv.p1.unit = "psi": unknown pressure unit; use one of "bar", "kPa", "Pa", "MPa" (default "bar")"#
+    );
+}
+
+fn good_mcap() -> Vec<u8> {
+    MultiRate::analytic(1.0, 100.0, 417.0, 200.0, 0.1, 29)
+        .mcap_bytes(&soap_metadata(), McapCompression::Zstd)
+}
+
+#[test]
+fn truncated_mcap() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = good_mcap();
+    let p = write(dir.path(), "trunc.mcap", &bytes[..bytes.len() * 2 / 3]);
+    let e = err(&p, &default());
+    assert!(
+        e.contains("trunc.mcap: truncated file after") && e.contains("mcap recover"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mcap_bad_crc() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = MultiRate::analytic(1.0, 100.0, 417.0, 200.0, 0.1, 29)
+        .mcap_bytes(&soap_metadata(), McapCompression::None);
+    // Flip one digit inside the first chunk's (uncompressed) message records.
+    let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+    let chunk = &summary.chunk_indexes[0];
+    let at = (chunk.chunk_start_offset + chunk.chunk_length - 20) as usize;
+    bytes[at] ^= 0x01;
+    let p = write(dir.path(), "crc.mcap", &bytes);
+    let e = err(&p, &default());
+    assert!(
+        e.starts_with(&format!("{}: CRC mismatch after", p.display())),
+        "{e}"
+    );
+    assert!(
+        e.contains("Hint: the file is corrupted; copy it again from the logger"),
+        "{e}"
+    );
+}
+
+fn mcap_with(
+    encoding: &str,
+    topics: &[&str],
+    empty_topic: Option<&str>,
+    payload: impl Fn(&str) -> String,
+) -> Vec<u8> {
+    let mut cur = std::io::Cursor::new(Vec::new());
+    let mut w = mcap::Writer::new(&mut cur).unwrap();
+    let sid = w.add_schema("x", "jsonschema", b"{}").unwrap();
+    let mut ids = Vec::new();
+    for t in topics {
+        ids.push((
+            w.add_channel(sid, t, encoding, &Default::default())
+                .unwrap(),
+            *t,
+        ));
+    }
+    if let Some(t) = empty_topic {
+        w.add_channel(sid, t, encoding, &Default::default())
+            .unwrap();
+    }
+    for k in 0..50u64 {
+        for (id, t) in &ids {
+            let ns = k * 2_400_000;
+            w.write_to_known_channel(
+                &mcap::records::MessageHeader {
+                    channel_id: *id,
+                    sequence: k as u32,
+                    log_time: ns,
+                    publish_time: ns,
+                },
+                payload(t).as_bytes(),
+            )
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+    drop(w);
+    cur.into_inner()
+}
+
+fn canonical_payload(topic: &str) -> String {
+    let s = Signal::ALL
+        .iter()
+        .find(|s| s.mcap_topic() == topic)
+        .unwrap();
+    format!("{{\"{}\":1.5}}", s.mcap_field())
+}
+
+#[test]
+fn mcap_encoding_other_than_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let topics: Vec<&str> = Signal::ALL.iter().map(|s| s.mcap_topic()).collect();
+    let p = write(
+        dir.path(),
+        "cdr.mcap",
+        &mcap_with("cdr", &topics, None, canonical_payload),
+    );
+    let e = err(&p, &default());
+    assert!(e.contains("cdr.mcap: topic /radar/speed has message encoding \"cdr\"; railgrip reads \"json\" only"), "{e}");
+}
+
+#[test]
+fn mcap_missing_topic_lists_what_exists() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut topics: Vec<&str> = Signal::ALL.iter().map(|s| s.mcap_topic()).collect();
+    topics.retain(|t| *t != "/axle3/omega");
+    topics.push("/axle3/speed");
+    let p = write(
+        dir.path(),
+        "topics.mcap",
+        &mcap_with("json", &topics, None, |t| {
+            if t == "/axle3/speed" {
+                "{\"omega\":1.0}".into()
+            } else {
+                canonical_payload(t)
+            }
+        }),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("topics.mcap: missing MCAP topic(s) /axle3/omega (omega3); the file has"),
+        "{e}"
+    );
+    assert!(
+        e.contains("/axle3/speed (50 messages)") && e.contains("[ingest.mcap]"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mcap_channel_with_no_messages() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut topics: Vec<&str> = Signal::ALL.iter().map(|s| s.mcap_topic()).collect();
+    topics.retain(|t| *t != "/axle4/brake_pressure");
+    let p = write(
+        dir.path(),
+        "silent.mcap",
+        &mcap_with(
+            "json",
+            &topics,
+            Some("/axle4/brake_pressure"),
+            canonical_payload,
+        ),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("silent.mcap: topic /axle4/brake_pressure (p4) has no messages"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mcap_message_without_the_field_or_not_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let topics: Vec<&str> = Signal::ALL.iter().map(|s| s.mcap_topic()).collect();
+    let p = write(
+        dir.path(),
+        "field.mcap",
+        &mcap_with("json", &topics, None, |t| {
+            if t == "/radar/speed" {
+                "{\"speed\":3.0}".into()
+            } else {
+                canonical_payload(t)
+            }
+        }),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(
+            "field.mcap: topic /radar/speed, message #0 (log_time 0 ns): no number field \"v\""
+        ),
+        "{e}"
+    );
+    let p = write(
+        dir.path(),
+        "garbage.mcap",
+        &mcap_with("json", &topics, None, |t| {
+            if t == "/axle1/omega" {
+                "omega=3".into()
+            } else {
+                canonical_payload(t)
+            }
+        }),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("topic /axle1/omega, message #0") && e.contains("not a JSON object of numbers"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mcap_duplicated_timestamps() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = MultiRate::analytic(0.5, 417.0, 417.0, 417.0, 0.0, 31);
+    let i = Signal::Omega(1).index();
+    run.times[i][20] = run.times[i][19];
+    let p = write(
+        dir.path(),
+        "dupt.mcap",
+        &run.mcap_bytes(&soap_metadata(), McapCompression::None),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("dupt.mcap: topic /axle1/omega, message #20") && e.contains("does not increase"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mcap_bad_metadata_value() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut m = soap_metadata();
+    m.ambient_temperature_c = None;
+    m.other
+        .insert("ambient_temperature_c".into(), "cold".into());
+    let bytes = MultiRate::analytic(0.5, 417.0, 417.0, 417.0, 0.0, 37)
+        .mcap_bytes(&m, McapCompression::Zstd);
+    let p = write(dir.path(), "meta.mcap", &bytes);
+    let e = err(&p, &default());
+    assert!(e.contains("meta.mcap: bad run metadata in metadata record \"run\": ambient_temperature_c = \"cold\" is not a number in °C"), "{e}");
+}
+
+#[test]
+fn csv_bad_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = write(dir.path(), "side.csv", small_csv().as_bytes());
+    fs::write(
+        dir.path().join("side.meta.toml"),
+        "ambient_temperature_c = \"warm\"\n",
+    )
+    .unwrap();
+    let e = err(&p, &default());
+    assert!(
+        e.contains("side.meta.toml: ambient_temperature_c = \"warm\" is not a number in °C"),
+        "{e}"
+    );
+    fs::write(
+        dir.path().join("side.meta.toml"),
+        "ambient_temperature_c = \n",
+    )
+    .unwrap();
+    let e = err(&p, &default());
+    assert!(
+        e.contains("bad run metadata in") && e.contains("side.meta.toml"),
+        "{e}"
+    );
+}
+
+#[test]
+fn channels_that_do_not_overlap() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut run = MultiRate::analytic(2.0, 417.0, 417.0, 417.0, 0.0, 41);
+    let i = Signal::Pressure(4).index();
+    for t in run.times[i].iter_mut() {
+        *t += 5.0;
+    }
+    let p = write(
+        dir.path(),
+        "apart.mcap",
+        &run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("apart.mcap: the channels do not overlap long enough to resample: p4 starts at"),
+        "{e}"
+    );
+}
+
+#[test]
+fn errors_name_the_file_for_every_case_and_never_panic_on_mutations() {
+    // Deterministic mutation sweep (the proptest in tests/no_panic.rs covers random inputs).
+    let dir = tempfile::tempdir().unwrap();
+    let csv = small_csv().into_bytes();
+    let mcap = good_mcap();
+    for (name, base) in [("m.csv", &csv), ("m.mcap", &mcap)] {
+        for k in (0..base.len()).step_by(base.len() / 40 + 1) {
+            let mut b = base.clone();
+            b[k] ^= 0xA5;
+            let p = write(dir.path(), name, &b);
+            if let Err(e) = ingest_file(&p, &default()) {
+                let text = e.to_string();
+                assert!(text.contains(name), "{text}");
+                let _: &IngestError = &e;
+            }
+        }
+    }
+}

@@ -1,0 +1,106 @@
+//! No input panics a reader: random bytes and mutated valid logs, CSV and MCAP (bounded).
+
+mod common;
+
+use std::fs;
+
+use common::*;
+use proptest::prelude::*;
+use railgrip::format::McapCompression;
+use railgrip::ingest::ingest_file;
+use railgrip::Pipeline;
+
+fn seeds() -> (Vec<u8>, Vec<u8>) {
+    let csv = Table::analytic(0.3, 417.0, 0.2, 3).csv_bytes();
+    let mcap = MultiRate::analytic(0.3, 100.0, 417.0, 200.0, 0.2, 4)
+        .mcap_bytes(&soap_metadata(), McapCompression::Zstd);
+    (csv, mcap)
+}
+
+/// Feeds bytes to ingest through a file; any outcome but a panic is fine, and an error must
+/// name the file.
+fn feed(bytes: &[u8], name: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join(name);
+    fs::write(&p, bytes).unwrap();
+    if let Err(e) = ingest_file(&p, &Pipeline::default_uic_z1()) {
+        assert!(
+            e.to_string().contains(name),
+            "error does not name the file: {e}"
+        );
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Mutation {
+    Flip(usize, u8),
+    Truncate(usize),
+    Insert(usize, Vec<u8>),
+    Delete(usize, usize),
+}
+
+fn mutation() -> impl Strategy<Value = Mutation> {
+    prop_oneof![
+        (any::<usize>(), 1u8..=255).prop_map(|(i, x)| Mutation::Flip(i, x)),
+        any::<usize>().prop_map(Mutation::Truncate),
+        (
+            any::<usize>(),
+            proptest::collection::vec(any::<u8>(), 1..16)
+        )
+            .prop_map(|(i, b)| Mutation::Insert(i, b)),
+        (any::<usize>(), 1usize..64).prop_map(|(i, n)| Mutation::Delete(i, n)),
+    ]
+}
+
+fn apply(base: &[u8], ms: &[Mutation]) -> Vec<u8> {
+    let mut b = base.to_vec();
+    for m in ms {
+        if b.is_empty() {
+            break;
+        }
+        match m {
+            Mutation::Flip(i, x) => {
+                let k = i % b.len();
+                b[k] ^= x;
+            }
+            Mutation::Truncate(i) => b.truncate(i % b.len()),
+            Mutation::Insert(i, bytes) => {
+                let k = i % b.len();
+                b.splice(k..k, bytes.iter().copied());
+            }
+            Mutation::Delete(i, n) => {
+                let k = i % b.len();
+                let e = (k + n).min(b.len());
+                b.drain(k..e);
+            }
+        }
+    }
+    b
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 96, failure_persistence: None, .. ProptestConfig::default() })]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..2048), prefix in 0u8..3) {
+        let mut b = match prefix {
+            0 => Vec::new(),
+            1 => mcap::MAGIC.to_vec(),
+            _ => b"t,v_radar,omega1,omega2,omega3,omega4,p1,p2,p3,p4\n".to_vec(),
+        };
+        b.extend(bytes);
+        feed(&b, "random.bin");
+    }
+
+    #[test]
+    fn mutated_csv_never_panics(ms in proptest::collection::vec(mutation(), 1..4)) {
+        let (csv, _) = seeds();
+        feed(&apply(&csv, &ms), "mutated.csv");
+    }
+
+    #[test]
+    fn mutated_mcap_never_panics(ms in proptest::collection::vec(mutation(), 1..4)) {
+        let (_, mcap) = seeds();
+        feed(&apply(&mcap, &ms), "mutated.mcap");
+    }
+}
