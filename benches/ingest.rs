@@ -73,9 +73,23 @@ fn one_hour() -> (Vec<f64>, [Vec<f64>; 9]) {
     let mut rng = Rng::new(42);
     let r = |x: f64, inv: f64| (x * inv).round() / inv;
     let time: Vec<f64> = (0..n)
-        .map(|k| r(k as f64 / RATE + if k == 0 { 0.0 } else { (rng.uniform() - 0.5) * 0.2 / RATE }, 1e6))
+        .map(|k| {
+            r(
+                k as f64 / RATE
+                    + if k == 0 {
+                        0.0
+                    } else {
+                        (rng.uniform() - 0.5) * 0.2 / RATE
+                    },
+                1e6,
+            )
+        })
         .collect();
-    let cols = std::array::from_fn(|i| time.iter().map(|t| r(analytic(Signal::ALL[i], *t), 1e3)).collect());
+    let cols = std::array::from_fn(|i| {
+        time.iter()
+            .map(|t| r(analytic(Signal::ALL[i], *t), 1e3))
+            .collect()
+    });
     (time, cols)
 }
 
@@ -85,17 +99,32 @@ fn data_files() -> (PathBuf, PathBuf) {
     let csv = dir.join("one_hour_v1.csv");
     let mcap = dir.join("one_hour_v1.mcap");
     if !csv.exists() || !mcap.exists() {
-        eprintln!("generating the 1-hour CSV and MCAP in {} (once)…", dir.display());
+        eprintln!(
+            "generating the 1-hour CSV and MCAP in {} (once)…",
+            dir.display()
+        );
         let (time, cols) = one_hour();
         let c: [&[f64]; 9] = std::array::from_fn(|i| cols[i].as_slice());
         let tmp = csv.with_extension("tmp");
         format::write_canonical_csv(BufWriter::new(File::create(&tmp).unwrap()), &time, c).unwrap();
         std::fs::rename(&tmp, &csv).unwrap();
-        let series: Vec<SeriesRef> =
-            Signal::ALL.iter().map(|s| SeriesRef { signal: *s, time_s: &time, values: &cols[s.index()] }).collect();
+        let series: Vec<SeriesRef> = Signal::ALL
+            .iter()
+            .map(|s| SeriesRef {
+                signal: *s,
+                time_s: &time,
+                values: &cols[s.index()],
+            })
+            .collect();
         let tmp = mcap.with_extension("tmp");
-        format::write_mcap(BufWriter::new(File::create(&tmp).unwrap()), &series, &common::soap_metadata(), McapCompression::Zstd, 0)
-            .unwrap();
+        format::write_mcap(
+            BufWriter::new(File::create(&tmp).unwrap()),
+            &series,
+            &common::soap_metadata(),
+            McapCompression::Zstd,
+            0,
+        )
+        .unwrap();
         std::fs::rename(&tmp, &mcap).unwrap();
     }
     (csv, mcap)
@@ -135,14 +164,24 @@ fn bench(c: &mut Criterion) {
     let pipeline = Pipeline::default_uic_z1();
     let rows = (SECONDS * RATE) as u64;
     let mb = |p: &Path| std::fs::metadata(p).unwrap().len() as f64 / 1e6;
-    eprintln!("CSV {:.0} MB, MCAP {:.0} MB, {rows} rows", mb(&csv), mb(&mcap));
+    eprintln!(
+        "CSV {:.0} MB, MCAP {:.0} MB, {rows} rows",
+        mb(&csv),
+        mb(&mcap)
+    );
 
     let mut g = c.benchmark_group("ingest");
-    g.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(20));
+    g.sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(20));
     g.throughput(Throughput::Elements(rows));
-    g.bench_function("csv/1h", |b| b.iter(|| railgrip::ingest_file(&csv, &pipeline).unwrap().len()));
+    g.bench_function("csv/1h", |b| {
+        b.iter(|| railgrip::ingest_file(&csv, &pipeline).unwrap().len())
+    });
     g.bench_function("csv_polars_bare/1h", |b| b.iter(|| polars_bare(&csv)));
-    g.bench_function("mcap/1h", |b| b.iter(|| railgrip::ingest_file(&mcap, &pipeline).unwrap().len()));
+    g.bench_function("mcap/1h", |b| {
+        b.iter(|| railgrip::ingest_file(&mcap, &pipeline).unwrap().len())
+    });
     g.bench_function("mcap_bare/1h", |b| b.iter(|| mcap_bare(&mcap)));
     g.finish();
 
@@ -154,9 +193,17 @@ fn bench(c: &mut Criterion) {
     let (_, peak_mcap_bare) = peak_of(|| mcap_bare(&mcap));
     let m = |b: usize| b as f64 / 1e6;
     eprintln!("peak heap, RunLog itself {:.0} MB:", m(runlog_bytes));
-    eprintln!("  ingest csv   {:>6.0} MB = {:.2} x RunLog", m(peak_csv), peak_csv as f64 / runlog_bytes as f64);
+    eprintln!(
+        "  ingest csv   {:>6.0} MB = {:.2} x RunLog",
+        m(peak_csv),
+        peak_csv as f64 / runlog_bytes as f64
+    );
     eprintln!("  polars bare  {:>6.0} MB", m(peak_polars));
-    eprintln!("  ingest mcap  {:>6.0} MB = {:.2} x RunLog", m(peak_mcap), peak_mcap as f64 / runlog_bytes as f64);
+    eprintln!(
+        "  ingest mcap  {:>6.0} MB = {:.2} x RunLog",
+        m(peak_mcap),
+        peak_mcap as f64 / runlog_bytes as f64
+    );
     eprintln!("  mcap bare    {:>6.0} MB", m(peak_mcap_bare));
 }
 

@@ -9,6 +9,7 @@
 
 pub mod atomic;
 pub mod config;
+pub mod contact;
 pub mod format;
 pub mod ingest;
 pub mod units;
