@@ -1095,3 +1095,19 @@ fn errors_name_the_file_for_every_case_and_never_panic_on_mutations() {
         }
     }
 }
+
+#[test]
+fn corrupt_record_length_is_an_error_not_an_allocation_abort() {
+    // Regression: a mutated length field once made the streaming reader try to allocate 4e18
+    // bytes and abort the process.
+    let dir = tempfile::tempdir().unwrap();
+    let mut bytes = good_mcap();
+    // After the 8-byte magic: the header record's opcode, then its u64 little-endian length.
+    bytes[9..17].copy_from_slice(&0x3FFF_FFFF_FFFF_FFFFu64.to_le_bytes());
+    let p = write(dir.path(), "huge.mcap", &bytes);
+    let e = err(&p, &default());
+    assert!(
+        e.contains("huge.mcap: record larger than the file allows after 0 message(s)"),
+        "{e}"
+    );
+}

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use polars::prelude::*;
+use rayon::prelude::*;
 
 use super::{IngestError, Locator, RawChannel, Warning, WarningKind};
 use crate::config::{CsvColumn, IngestConfig};
@@ -138,22 +139,34 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
         });
     }
 
-    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
-    for (i, (_, c)) in wanted.iter().enumerate() {
-        let col = df.column(names[i].as_str()).and_then(|c| c.f64().cloned());
-        let ok = match &col {
-            Ok(ca) if ca.null_count() == 0 => {
-                let factor = c.unit.to_canonical_factor();
-                let v: Vec<f64> = ca.into_no_null_iter().map(|x| x * factor).collect();
-                if v.iter().all(|x| x.is_finite()) {
-                    Some(v)
-                } else {
-                    None
-                }
+    // Copy each column out of polars' chunks (one copy, no rechunk), converting its unit and
+    // checking finiteness; columns in parallel.
+    let extracted: Vec<Option<Vec<f64>>> = wanted
+        .par_iter()
+        .enumerate()
+        .map(|(i, (_, c))| {
+            let ca = df
+                .column(names[i].as_str())
+                .and_then(|c| c.f64().cloned())
+                .ok()?;
+            if ca.null_count() != 0 {
+                return None;
             }
-            _ => None,
-        };
-        match ok {
+            let factor = c.unit.to_canonical_factor();
+            let mut v = Vec::with_capacity(ca.len());
+            for arr in ca.downcast_iter() {
+                v.extend_from_slice(arr.values());
+            }
+            if factor != 1.0 {
+                v.iter_mut().for_each(|x| *x *= factor);
+            }
+            v.iter().all(|x| x.is_finite()).then_some(v)
+        })
+        .collect();
+    drop(df);
+    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
+    for (v, (_, c)) in extracted.into_iter().zip(&wanted) {
+        match v {
             Some(v) => columns.push(v),
             None => {
                 return Err(
@@ -189,6 +202,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
             time_s: Arc::clone(&time),
             values,
             locate: locate.clone(),
+            dropped: 0,
         })
         .collect())
 }

@@ -7,8 +7,11 @@ use std::fmt;
 use std::path::Path;
 use std::sync::Arc;
 
-use ::mcap::read::{LinearReader, Options, RawMessageStream};
+use std::fs::File;
+use std::io::Read;
+
 use ::mcap::records::Record;
+use ::mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use ::mcap::McapError;
 use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, Visitor};
 
@@ -16,10 +19,13 @@ use super::{IngestError, Location, Locator, RawChannel, Warning, WarningKind};
 use crate::config::IngestConfig;
 use crate::format::{RunMetadata, Signal, MCAP_MESSAGE_ENCODING, MCAP_METADATA_NAME};
 
+/// Largest decompressed chunk accepted when the file itself is smaller, bytes.
+const MAX_CHUNK_BYTES: usize = 256 << 20;
+
 pub(super) struct McapRead {
     pub channels: Vec<RawChannel>,
     pub metadata: RunMetadata,
-    /// Log time of t = 0 s: the earliest message of any mapped channel, ns.
+    /// Log time of t = 0 s: the first message of a mapped topic in the file, ns.
     pub t0_ns: u64,
     pub warnings: Vec<Warning>,
 }
@@ -28,7 +34,7 @@ pub(super) struct McapRead {
 #[derive(Clone)]
 enum Slot {
     Unseen,
-    Ignored,
+    Ignored { channel: u16 },
     Read { topic_index: usize },
 }
 
@@ -46,6 +52,10 @@ fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
         McapError::BadChunkCrc { .. } | McapError::BadDataCrc { .. } | McapError::BadSummaryCrc { .. } => (
             "CRC mismatch",
             "the file is corrupted; copy it again from the logger",
+        ),
+        McapError::RecordTooLarge { .. } | McapError::ChunkTooLarge(_) | McapError::ChunkBufferTooLarge(_) => (
+            "record larger than the file allows",
+            "a length field is corrupt (or the chunk is a decompression bomb); copy the file again from the logger",
         ),
         McapError::UnexpectedEof | McapError::UnexpectedEoc | McapError::BadFooter => (
             "truncated file",
@@ -67,7 +77,7 @@ fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
 }
 
 pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestError> {
-    let bytes = std::fs::read(path).map_err(|e| IngestError::Io {
+    let mut file = File::open(path).map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
         source: e,
     })?;
@@ -88,15 +98,6 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
         });
         topics[t].fields.push((s.index(), m.field.clone()));
     }
-    let mut times: Vec<Vec<u64>> = vec![Vec::new(); topics.len()];
-    let mut values: Vec<Vec<f64>> = vec![Vec::new(); 9];
-    let mut present: BTreeMap<String, usize> = BTreeMap::new();
-    let mut slots: Vec<Slot> = Vec::new();
-    let mut total = 0usize;
-
-    let stream = RawMessageStream::new_with_options(&bytes, Options::ValidateChunkCrcs.into())
-        .map_err(|e| read_error(path, 0, e))?;
-    let mut stream = stream;
     let field_names: Vec<Vec<String>> = topics
         .iter()
         .map(|p| p.fields.iter().map(|(_, f)| f.clone()).collect())
@@ -105,47 +106,120 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
         .iter()
         .map(|v| v.iter().map(String::as_str).collect())
         .collect();
-    while let Some(msg) = stream.next() {
-        let msg = msg.map_err(|e| read_error(path, total, e))?;
+
+    // Times are kept as f64 seconds after `t_ref` (the first mapped message's log time): exact
+    // for offsets below 2^53 ns (104 days).
+    let mut t_ref: Option<u64> = None;
+    let mut times: Vec<Vec<f64>> = vec![Vec::new(); topics.len()];
+    let mut values: Vec<Vec<f64>> = vec![Vec::new(); 9];
+    let mut present: BTreeMap<String, usize> = BTreeMap::new();
+    let mut slots: Vec<Slot> = Vec::new();
+    let mut channel_topics: HashMap<u16, (String, String)> = HashMap::new();
+    let mut run_metadata: Option<BTreeMap<String, String>> = None;
+    let mut total = 0usize;
+
+    // One streaming pass over the file (no whole-file buffer): channel records, messages
+    // (chunks decompressed and CRC-checked by the reader) and the metadata record.
+    // Bound every record and decompressed chunk: no record is longer than the file, and a
+    // chunk decompresses to at most max(file size, 256 MiB), so a corrupt length or a
+    // decompression bomb is an error, not an allocation failure.
+    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0) as usize;
+    let limit = file_len.max(MAX_CHUNK_BYTES);
+    let options = LinearReaderOptions::default()
+        .with_prevalidate_chunk_crcs(true)
+        .with_record_length_limit(limit);
+    let mut reader = LinearReader::new_with_options(options);
+    while let Some(event) = reader.next_event() {
+        let (opcode, data) = match event.map_err(|e| read_error(path, total, e))? {
+            LinearReadEvent::ReadRequest(need) => {
+                if need > limit {
+                    return Err(read_error(
+                        path,
+                        total,
+                        McapError::RecordTooLarge {
+                            opcode: 0,
+                            len: need as u64,
+                        },
+                    ));
+                }
+                let n = loop {
+                    match file.read(reader.insert(need)) {
+                        Ok(n) => break n,
+                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        Err(e) => {
+                            return Err(IngestError::Io {
+                                path: path.to_path_buf(),
+                                source: e,
+                            })
+                        }
+                    }
+                };
+                reader.notify_read(n);
+                continue;
+            }
+            LinearReadEvent::Record { opcode, data } => (opcode, data),
+        };
+        let record = ::mcap::parse_record(opcode, data).map_err(|e| read_error(path, total, e))?;
+        let (header, payload) = match record {
+            Record::Channel(c) => {
+                if let Some(&t) = topic_index.get(&c.topic) {
+                    topics[t].seen_channel = true;
+                }
+                channel_topics.insert(c.id, (c.topic, c.message_encoding));
+                continue;
+            }
+            Record::Metadata(m) => {
+                if m.name == MCAP_METADATA_NAME && run_metadata.is_none() {
+                    run_metadata = Some(m.metadata);
+                }
+                continue;
+            }
+            Record::Message { header, data } => (header, data),
+            _ => continue,
+        };
         total += 1;
-        let id = msg.header.channel_id as usize;
+        let id = header.channel_id as usize;
         if id >= slots.len() {
             slots.resize(id + 1, Slot::Unseen);
         }
         if let Slot::Unseen = slots[id] {
-            let ch = stream.get_channel(msg.header.channel_id).ok_or_else(|| {
+            let (topic, encoding) = channel_topics.get(&header.channel_id).ok_or_else(|| {
                 read_error(
                     path,
                     total,
-                    McapError::UnknownChannel(msg.header.sequence, msg.header.channel_id),
+                    McapError::UnknownChannel(header.sequence, header.channel_id),
                 )
             })?;
-            match topic_index.get(&ch.topic) {
-                None => slots[id] = Slot::Ignored,
+            match topic_index.get(topic) {
+                None => {
+                    slots[id] = Slot::Ignored {
+                        channel: header.channel_id,
+                    }
+                }
                 Some(&t) => {
-                    if ch.message_encoding != MCAP_MESSAGE_ENCODING {
+                    if encoding != MCAP_MESSAGE_ENCODING {
                         return Err(IngestError::McapEncoding {
                             path: path.to_path_buf(),
-                            topic: ch.topic.clone(),
-                            encoding: ch.message_encoding.clone(),
+                            topic: topic.clone(),
+                            encoding: encoding.clone(),
                         });
                     }
-                    topics[t].seen_channel = true;
                     slots[id] = Slot::Read { topic_index: t };
                 }
             }
         }
         let t = match slots[id] {
             Slot::Read { topic_index } => topic_index,
-            _ => {
-                if let Some(ch) = stream.get_channel(msg.header.channel_id) {
-                    // Counting unrelated topics is cheap and helps the missing-topic message.
-                    if present.len() < 200 {
-                        *present.entry(ch.topic.clone()).or_default() += 1;
+            Slot::Ignored { channel } => {
+                // Counting unrelated topics is cheap and helps the missing-topic message.
+                if let Some((topic, _)) = channel_topics.get(&channel) {
+                    if present.len() < 200 || present.contains_key(topic) {
+                        *present.entry(topic.clone()).or_default() += 1;
                     }
                 }
                 continue;
             }
+            Slot::Unseen => unreachable!("resolved above"),
         };
         let plan = &mut topics[t];
         let names = &field_refs[t];
@@ -154,10 +228,10 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
         let loc = || Location::Mcap {
             topic: plan.topic.clone(),
             message: index,
-            log_time_ns: msg.header.log_time,
+            log_time_ns: header.log_time,
         };
         let mut found = [None::<f64>; 8];
-        extract(&msg.data, names, &mut found).map_err(|what| IngestError::McapBadMessage {
+        extract(&payload, names, &mut found).map_err(|what| IngestError::McapBadMessage {
             path: path.to_path_buf(),
             location: loc(),
             what,
@@ -186,7 +260,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
                     return Err(IngestError::McapBadMessage {
                         path: path.to_path_buf(),
                         location: loc(),
-                        what: format!("no number field {field:?} in {}", preview(&msg.data)),
+                        what: format!("no number field {field:?} in {}", preview(&payload)),
                         hint: format!(
                             "set the field name of {} in [ingest.mcap] of the pipeline (field = \"...\")",
                             Signal::ALL[*sig]
@@ -195,11 +269,14 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
                 }
             }
         }
-        times[t].push(msg.header.log_time);
+        let t_ref = *t_ref.get_or_insert(header.log_time);
+        times[t].push((header.log_time as i128 - t_ref as i128) as f64 * 1e-9);
         for (k, (sig, _)) in plan.fields.iter().enumerate() {
             values[*sig].push(found[k].expect("checked above"));
         }
     }
+    let t_ref = t_ref.unwrap_or(0);
+    let log_time = |t_s: f64| (t_ref as i128 + (t_s * 1e9).round() as i128).max(0) as u64;
 
     // Every mapped topic must exist and have messages.
     let missing: Vec<&TopicPlan> = topics.iter().filter(|p| !p.seen_channel).collect();
@@ -212,19 +289,6 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
             listed.push(format!("{} ({} messages)", p.topic, p.messages));
         }
         listed.sort();
-        // A channel record with no messages at all is not in `present`: look at the summary.
-        let declared = declared_topics(&bytes);
-        let empty: Vec<&&TopicPlan> = missing
-            .iter()
-            .filter(|p| declared.contains(&p.topic))
-            .collect();
-        if let Some(p) = empty.first() {
-            return Err(IngestError::McapNoMessages {
-                path: path.to_path_buf(),
-                topic: p.topic.clone(),
-                signal: Signal::ALL[p.fields[0].0],
-            });
-        }
         return Err(IngestError::McapMissingTopics {
             path: path.to_path_buf(),
             missing: missing
@@ -262,7 +326,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
             continue;
         }
         let mut order: Vec<usize> = (0..ts.len()).collect();
-        order.sort_by_key(|&i| (ts[i], i));
+        order.sort_by(|&a, &b| ts[a].total_cmp(&ts[b]).then(a.cmp(&b)));
         for w in order.windows(2) {
             if ts[w[0]] == ts[w[1]] {
                 return Err(IngestError::TimeNotIncreasing {
@@ -270,27 +334,24 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
                     location: Location::Mcap {
                         topic: topics[t].topic.clone(),
                         message: w[1],
-                        log_time_ns: ts[w[1]],
+                        log_time_ns: log_time(ts[w[1]]),
                     },
                     channel: format!("topic {}", topics[t].topic),
-                    t_prev_s: ts[w[0]] as f64 * 1e-9,
-                    t_s: ts[w[1]] as f64 * 1e-9,
+                    t_prev_s: ts[w[0]],
+                    t_s: ts[w[1]],
                 });
             }
         }
         *ts = order.iter().map(|&i| ts[i]).collect();
         orders.push(Some(order));
     }
-    let t0_ns = times
-        .iter()
-        .filter_map(|ts| ts.first().copied())
-        .min()
-        .unwrap_or(0);
 
-    let metadata = read_metadata(path, &bytes)?;
     let mut warnings = Vec::new();
-    let metadata = match metadata {
-        Some(m) => m,
+    let metadata = match run_metadata {
+        Some(pairs) => {
+            let name = format!("metadata record \"{MCAP_METADATA_NAME}\"");
+            super::metadata_from_pairs(path, &name, &pairs)?
+        }
         None => {
             warnings.push(Warning {
                 kind: WarningKind::NoMetadata,
@@ -303,11 +364,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
     };
 
     let mut channels = Vec::with_capacity(9);
-    let shared_times: Vec<Arc<Vec<f64>>> = times
-        .iter()
-        .map(|ts| Arc::new(ts.iter().map(|&t| (t - t0_ns) as f64 * 1e-9).collect()))
-        .collect();
-    let log_times: Vec<Arc<Vec<u64>>> = times.into_iter().map(Arc::new).collect();
+    let shared_times: Vec<Arc<Vec<f64>>> = times.into_iter().map(Arc::new).collect();
     for s in Signal::ALL {
         let m = cfg.mcap_field(s);
         let t = topic_index[&m.topic];
@@ -324,48 +381,17 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
             values: v,
             locate: Locator::Mcap {
                 topic: m.topic.clone(),
-                log_time_ns: Arc::clone(&log_times[t]),
+                t_ref_ns: t_ref,
             },
+            dropped: 0,
         });
     }
     Ok(McapRead {
         channels,
         metadata,
-        t0_ns,
+        t0_ns: t_ref,
         warnings,
     })
-}
-
-/// Topics declared by channel records anywhere in the file (including channels with no
-/// messages), read leniently.
-fn declared_topics(bytes: &[u8]) -> Vec<String> {
-    let mut out = Vec::new();
-    if let Ok(Some(summary)) = ::mcap::Summary::read(bytes) {
-        out.extend(summary.channels.values().map(|c| c.topic.clone()));
-    }
-    if let Ok(reader) = LinearReader::new(bytes) {
-        for rec in reader.flatten() {
-            if let Record::Channel(c) = rec {
-                out.push(c.topic.clone());
-            }
-        }
-    }
-    out
-}
-
-/// The metadata record "run", if any. Other metadata records are ignored.
-fn read_metadata(path: &Path, bytes: &[u8]) -> Result<Option<RunMetadata>, IngestError> {
-    let reader = LinearReader::new(bytes).map_err(|e| read_error(path, 0, e))?;
-    for rec in reader {
-        let rec = rec.map_err(|e| read_error(path, 0, e))?;
-        if let Record::Metadata(m) = rec {
-            if m.name == MCAP_METADATA_NAME {
-                let name = format!("metadata record \"{MCAP_METADATA_NAME}\"");
-                return super::metadata_from_pairs(path, &name, &m.metadata).map(Some);
-            }
-        }
-    }
-    Ok(None)
 }
 
 fn preview(data: &[u8]) -> String {

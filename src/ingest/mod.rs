@@ -22,6 +22,7 @@ use std::sync::Arc;
 
 use crate::config::{IngestConfig, Pipeline, PlausibilityAction};
 use crate::format::{RunMetadata, Signal, AXLES};
+use rayon::prelude::*;
 
 pub use resample::linear_interpolation_bound;
 
@@ -262,7 +263,7 @@ pub struct RunLog {
     pub p_bar: [Vec<f64>; AXLES],
     pub valid: Vec<bool>,
     pub metadata: RunMetadata,
-    /// Log time of t = 0 s, ns (MCAP only).
+    /// Log time of t = 0 s (the file's first message on a mapped topic), ns (MCAP only).
     pub start_log_time_ns: Option<u64>,
     /// In [`Signal::ALL`] order.
     pub channels: Vec<ChannelSummary>,
@@ -337,6 +338,8 @@ pub(crate) struct RawChannel {
     pub values: Vec<f64>,
     /// Where each raw sample came from, for error messages.
     pub locate: Locator,
+    /// Samples set to NaN by the plausibility limits.
+    pub dropped: usize,
 }
 
 /// Maps a raw sample index back to its place in the file.
@@ -344,21 +347,18 @@ pub(crate) struct RawChannel {
 pub(crate) enum Locator {
     /// Sample `i` is on CSV data row `i` (line numbers come from a rescan on the error path).
     CsvRows(Arc<PathBuf>),
-    /// Sample `i` is message `i` of the topic; log times kept for messages.
-    Mcap {
-        topic: String,
-        log_time_ns: Arc<Vec<u64>>,
-    },
+    /// Sample `i` is message `i` (in time order) of the topic, at log time t_ref + t.
+    Mcap { topic: String, t_ref_ns: u64 },
 }
 
 impl Locator {
-    fn locate(&self, i: usize) -> Location {
+    fn locate(&self, i: usize, time_s: &[f64]) -> Location {
         match self {
             Locator::CsvRows(path) => Location::CsvLine(csv::line_of_row(path, i)),
-            Locator::Mcap { topic, log_time_ns } => Location::Mcap {
+            Locator::Mcap { topic, t_ref_ns } => Location::Mcap {
                 topic: topic.clone(),
                 message: i,
-                log_time_ns: log_time_ns.get(i).copied().unwrap_or(0),
+                log_time_ns: (*t_ref_ns as i128 + (time_s[i] * 1e9).round() as i128).max(0) as u64,
             },
         }
     }
@@ -380,13 +380,14 @@ pub fn ingest_file(path: &Path, pipeline: &Pipeline) -> Result<RunLog, IngestErr
         }
     };
     let mut channels = channels;
-    let mut dropped = [0usize; 9];
-    for ch in &mut channels {
-        let idx = ch.signal.index();
-        if let Some(w) = apply_plausibility(path, ch, cfg, &mut dropped[idx])? {
-            warnings.push(w);
-        }
+    let checked: Vec<Result<Option<Warning>, IngestError>> = channels
+        .par_iter_mut()
+        .map(|ch| apply_plausibility(path, ch, cfg))
+        .collect();
+    for w in checked {
+        warnings.extend(w?);
     }
+    let dropped: Vec<usize> = channels.iter().map(|c| c.dropped).collect();
     let r = resample::resample(path, &channels, cfg)?;
     warnings.extend(r.warnings);
     let channel_summaries = channels
@@ -507,7 +508,6 @@ fn apply_plausibility(
     path: &Path,
     ch: &mut RawChannel,
     cfg: &IngestConfig,
-    dropped: &mut usize,
 ) -> Result<Option<Warning>, IngestError> {
     let (lo, hi) = cfg.plausibility.limits(ch.signal);
     let mut first: Option<(usize, f64)> = None;
@@ -531,7 +531,7 @@ fn apply_plausibility(
     if cfg.plausibility.action == PlausibilityAction::Error {
         return Err(IngestError::Implausible {
             path: path.to_path_buf(),
-            location: ch.locate.locate(i),
+            location: ch.locate.locate(i, &ch.time_s),
             signal: ch.signal,
             value,
             min: lo,
@@ -539,13 +539,13 @@ fn apply_plausibility(
             unit,
         });
     }
-    *dropped = count;
+    ch.dropped = count;
     Ok(Some(Warning {
         kind: WarningKind::Implausible,
         message: format!(
             "{}: {count} sample(s) outside [{lo}, {hi}] {unit} dropped, the first {value} {unit} at {} (t = {:.3} s)",
             ch.signal,
-            ch.locate.locate(i),
+            ch.locate.locate(i, &ch.time_s),
             ch.time_s[i]
         ),
     }))
