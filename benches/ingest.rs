@@ -15,7 +15,6 @@
 //! The generated files are cached in target/bench-data/.
 
 #[path = "../tests/common/mod.rs"]
-#[allow(dead_code)]
 mod common;
 
 use std::alloc::{GlobalAlloc, Layout, System};

@@ -8,7 +8,6 @@
 //! no truth table; the scene-driven simulator (a later issue) replaces it.
 
 #[path = "../tests/common/mod.rs"]
-#[allow(dead_code)]
 mod common;
 
 use std::fs::File;

@@ -193,7 +193,9 @@ fn every_unit_of_the_mapping_converts_to_canonical() {
         let p = write(dir.path(), "canonical.csv", &table.csv_bytes());
         ingest_file(&p, &default()).unwrap()
     };
-    let cases: [(&str, f64, [(&str, f64); 3]); 4] = [
+    // (time unit, its factor to s, [(speed, angular, pressure) unit and factor])
+    type Case<'a> = (&'a str, f64, [(&'a str, f64); 3]);
+    let cases: [Case; 4] = [
         ("s", 1.0, [("m/s", 1.0), ("rad/s", 1.0), ("bar", 1.0)]),
         (
             "ms",

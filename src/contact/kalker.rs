@@ -10,6 +10,9 @@
 //! vehicle. So T has the sign of s: T_x = G a b C11 s_x. The seeds write F = −f ξ with the
 //! creepage of the contact point's velocity (r ω − v); that is the same force.
 
+// Kalker's table holds C22 = 3.14 (ν = 0.25, a/b = 0.6; ν = 0.5, a/b = 0.5): a measurement, not π.
+#![allow(clippy::approx_constant)]
+
 use super::{check_finite, ContactError};
 
 /// g = a/b or b/a at the table's rows.

@@ -62,7 +62,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
     let wanted = wanted(cfg);
     let missing: Vec<_> = wanted
         .iter()
-        .filter(|(_, c)| !header.iter().any(|h| *h == c.column))
+        .filter(|(_, c)| !header.contains(&c.column))
         .collect();
     if !missing.is_empty() {
         let mut hints = Vec::new();

@@ -275,6 +275,11 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
             values[*sig].push(found[k].expect("checked above"));
         }
     }
+    // Growth by doubling leaves up to 2x capacity: give it back before resampling allocates.
+    times
+        .iter_mut()
+        .chain(values.iter_mut())
+        .for_each(|v| v.shrink_to_fit());
     let t_ref = t_ref.unwrap_or(0);
     let log_time = |t_s: f64| (t_ref as i128 + (t_s * 1e9).round() as i128).max(0) as u64;
 

@@ -96,7 +96,9 @@ fn interpolate_group(
     let n = grid.len();
     let mut outs: Vec<Vec<f64>> = values.iter().map(|_| vec![0.0; n]).collect();
     let chunks = n.div_ceil(CHUNK);
-    let mut work: Vec<(usize, Vec<&mut [f64]>, &mut [bool])> = Vec::with_capacity(chunks);
+    // Per grid chunk: its first index, each member's output slice, its slice of `valid`.
+    type Work<'a> = (usize, Vec<&'a mut [f64]>, &'a mut [bool]);
+    let mut work: Vec<Work> = Vec::with_capacity(chunks);
     let mut valid_chunks = valid.chunks_mut(CHUNK);
     for c in 0..chunks {
         work.push((
