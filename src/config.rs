@@ -779,6 +779,12 @@ impl Checker<'_> {
     }
 }
 
+/// Checks a raw `[vehicle]` table (shared by pipeline and scene files); `file` names it in
+/// errors.
+pub fn check_vehicle(v: raw::Vehicle, file: &str) -> Result<Vehicle, ConfigError> {
+    Checker { file }.vehicle(Some(v))
+}
+
 /// The path of the pipeline for messages: the file, or the embedded default's name.
 pub fn describe(path: Option<&Path>) -> String {
     path.map(|p| p.display().to_string())

@@ -12,6 +12,7 @@ pub mod config;
 pub mod contact;
 pub mod format;
 pub mod ingest;
+pub mod sim;
 pub mod units;
 
 pub use config::Pipeline;

@@ -1,0 +1,681 @@
+//! Scene-driven braking simulator: runs with known truth for tests, the bundled archive and
+//! closed-loop checks. A scene pays only for the effects it lists: each effect is a stage of
+//! the step loop behind its flag, and [`EffectCounters`] counts every evaluation.
+//!
+//! Model (one rigid car body on two bogies, four axles, axle 1 leading):
+//! - vehicle: M v̇ = −Σ T_i − F_res(v) − M g sin(atan(i/1000)),  M = m_c + 2 m_b;
+//! - axle i: J ω̇_i = T_i r − C_f,i,  C_f,i = α_i p_i while the wheel turns (seed 002 eq. 9–10);
+//!   a wheel that reaches ω = 0 stays locked while T_i r ≤ α_i p_i (static brake) and is
+//!   released when the contact torque exceeds it: no chatter around ω = 0;
+//! - contact: T_i = μ_i N_i with μ_i from Polach (seed 004 eq. 1–2) on the Hertz + Kalker patch
+//!   of the vehicle's wheel at its load, per wheel Q = N_i/2 (the patch stiffness is refreshed
+//!   at the output rate as the load changes, a b ∝ Q^(2/3));
+//! - brake cylinder: first order, ṗ = (p_cmd − p)/τ.
+//!
+//! Integrator: fixed step (default 0.1 ms), explicit Euler for the vehicle and the cylinders
+//! and linearly-implicit (Rosenbrock–Euler) Euler for the wheels,
+//!   ω_{n+1} = ω_n + h f(ω_n) / (1 + h r² k_n / J),  k_n = ∂T/∂Δv ≥ 0 (analytic),
+//! because the creep stiffness k grows like 1/v: near standstill the wheel time constant
+//! J/(r² k) falls below the step and explicit Euler would oscillate, while the implicit
+//! correction keeps the step stable at the cost of one extra derivative per axle.
+
+pub mod rng;
+pub mod scene;
+
+use std::f64::consts::PI;
+use std::path::{Path, PathBuf};
+
+use crate::contact::{hertz, kalker, shear_modulus_pa, ContactError};
+use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES};
+use rng::Rng;
+pub use scene::{AdhesionLaw, Effect, Effects, Scene};
+
+/// Standard gravity, m/s².
+pub const G_MPS2: f64 = 9.80665;
+
+/// Why a simulation could not run or its output could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("scene {scene}: {what}. Hint: {hint}")]
+    Scene {
+        scene: String,
+        what: String,
+        hint: String,
+    },
+    #[error("scene {scene}: contact geometry: {source}. Hint: check [contact] and the vehicle's wheel radius")]
+    Contact {
+        scene: String,
+        #[source]
+        source: ContactError,
+    },
+    #[error("{path}: cannot write: {message}")]
+    Write { path: PathBuf, message: String },
+}
+
+impl From<std::io::Error> for SimError {
+    fn from(e: std::io::Error) -> Self {
+        SimError::Write {
+            path: PathBuf::new(),
+            message: e.to_string(),
+        }
+    }
+}
+
+/// How many times each effect's stage ran.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct EffectCounters(pub [u64; 12]);
+
+impl EffectCounters {
+    #[inline]
+    fn hit(&mut self, e: Effect) {
+        self.0[e.index()] += 1;
+    }
+    pub fn get(&self, e: Effect) -> u64 {
+        self.0[e.index()]
+    }
+}
+
+/// Samples of one measured channel: logger time (s since the start) and value.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Series {
+    pub time_s: Vec<f64>,
+    pub values: Vec<f64>,
+}
+
+/// The true state per output sample and axle.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Truth {
+    pub time_s: Vec<f64>,
+    pub v_mps: Vec<f64>,
+    pub omega_radps: [Vec<f64>; AXLES],
+    pub p_bar: [Vec<f64>; AXLES],
+    pub normal_n: [Vec<f64>; AXLES],
+    pub tangential_n: [Vec<f64>; AXLES],
+    pub mu: [Vec<f64>; AXLES],
+    pub dv_mps: [Vec<f64>; AXLES],
+    pub ddv_mps2: [Vec<f64>; AXLES],
+}
+
+/// What a simulation produced.
+#[derive(Debug, Clone)]
+pub struct SimOutput {
+    pub scene: Scene,
+    /// Measured channels in [`Signal::ALL`] order.
+    pub channels: Vec<Series>,
+    pub truth: Truth,
+    pub metadata: RunMetadata,
+    pub counters: EffectCounters,
+    pub steps: u64,
+    /// Simulated time, s.
+    pub duration_s: f64,
+}
+
+/// Wheel-slide protection state of one axle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum WspState {
+    /// Brake as demanded.
+    Apply,
+    /// A slide was detected; the valve vents after the reaction delay.
+    Detect,
+    /// Venting the cylinder.
+    Dump,
+    /// Keeping the cylinder pressure, at most `hold_max_s`.
+    Hold,
+}
+
+/// Per-axle contact constants: ε = K s / (Q μ) with K = π G a b c11 / 4 at wheel load Q.
+#[derive(Debug, Clone, Copy)]
+struct AxleContact {
+    k0: f64,
+    q0: f64,
+    k: f64,
+}
+
+/// Adhesion of one axle for the current state: the ratio T/N and its slope ∂(T/N)/∂Δv (1/(m/s)).
+#[inline]
+#[allow(clippy::too_many_arguments)]
+fn adhesion(
+    sc: &Scene,
+    fx: Effects,
+    counters: &mut EffectCounters,
+    k_a: f64,
+    k_s: f64,
+    mu_axle: f64,
+    contact: f64,
+    q_wheel: f64,
+    v: f64,
+    w: f64,
+    ddv: f64,
+) -> (f64, f64) {
+    let mut mu = mu_axle;
+    if fx.has(Effect::FallingFriction) {
+        counters.hit(Effect::FallingFriction);
+        let speed = (1.0
+            + sc.speed_coefficient * (sc.reference_speed_mps - v) / sc.reference_speed_mps)
+            .max(0.2);
+        mu *= speed
+            * ((1.0 - sc.polach.a_ratio) * (-sc.polach.b_s_per_m * w.abs()).exp()
+                + sc.polach.a_ratio);
+    }
+    if v <= 0.0 {
+        return (0.0, 0.0);
+    }
+    let eps_per_w = contact / (v * q_wheel * mu);
+    let eps = eps_per_w * w;
+    let (x, y) = (k_a * eps, k_s * eps);
+    let two_mu_pi = 2.0 * mu / PI;
+    let mut ratio = two_mu_pi * (x / (1.0 + x * x) + y.atan());
+    let x2 = x * x;
+    let mut slope = two_mu_pi
+        * (k_a * (1.0 - x2) / ((1.0 + x2) * (1.0 + x2)) + k_s / (1.0 + y * y))
+        * eps_per_w;
+    if fx.has(Effect::Hysteresis) {
+        counters.hit(Effect::Hysteresis);
+        // Recovery branch (dΔv/dt < 0) lower by `depth`, blended smoothly through tanh.
+        let h = 1.0 - sc.hysteresis_depth * 0.5 * (1.0 - (ddv / sc.hysteresis_ddv_mps2).tanh());
+        ratio *= h;
+        slope *= h;
+    }
+    (ratio, slope.max(0.0))
+}
+
+/// Linear interpolation of the brake demand, held after the last point; `cursor` advances.
+#[inline]
+fn demand_at(points: &[(f64, f64)], t: f64, cursor: &mut usize) -> f64 {
+    while *cursor + 1 < points.len() && points[*cursor + 1].0 <= t {
+        *cursor += 1;
+    }
+    let (t0, p0) = points[*cursor];
+    if t <= t0 || *cursor + 1 == points.len() {
+        return if t < points[0].0 { points[0].1 } else { p0 };
+    }
+    let (t1, p1) = points[*cursor + 1];
+    p0 + (p1 - p0) * (t - t0) / (t1 - t0)
+}
+
+/// Static axle load without load transfer, N.
+fn static_axle_load(v: &crate::config::Vehicle) -> f64 {
+    (v.body_mass_kg / 2.0 + v.bogie_mass_kg) * G_MPS2 / 2.0
+}
+
+/// Axle loads from seed 002 eq. 12–13 written out for the four axles, N, for vehicle
+/// deceleration `decel` (m/s², positive when braking). Axle 1 leads:
+///   N_b1,2 = m_c g/2 ± m_c d (h1 − hb)/l1                         (eq. 12)
+///   N_1,2 = (N_b1 + m_b g)/2 ± m_b d h2/l2,  N_3,4 likewise with N_b2 (eq. 13)
+pub fn axle_loads(v: &crate::config::Vehicle, decel_mps2: f64) -> [f64; AXLES] {
+    let (mc, mb) = (v.body_mass_kg, v.bogie_mass_kg);
+    let pitch =
+        mc * decel_mps2 * (v.body_cog_height_m - v.pivot_height_m) / v.bogie_pivot_distance_m;
+    let nb1 = mc * G_MPS2 / 2.0 + pitch;
+    let nb2 = mc * G_MPS2 / 2.0 - pitch;
+    let bogie = mb * decel_mps2 * v.bogie_cog_height_m / v.bogie_wheelbase_m;
+    [
+        (nb1 + mb * G_MPS2) / 2.0 + bogie,
+        (nb1 + mb * G_MPS2) / 2.0 - bogie,
+        (nb2 + mb * G_MPS2) / 2.0 + bogie,
+        (nb2 + mb * G_MPS2) / 2.0 - bogie,
+    ]
+}
+
+/// Runs a scene. `seed` overrides the scene's seed.
+pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
+    if let AdhesionLaw::Model(m) = &sc.law {
+        return Err(SimError::Scene {
+            scene: sc.name.clone(),
+            what: format!("adhesion law \"model\" ({m}) is not available yet"),
+            hint: "learned-model evaluation arrives with the model format (identification stage); use law = \"polach\"".into(),
+        });
+    }
+    let fx = sc.effects;
+    let veh = &sc.vehicle;
+    let r = veh.wheel_radius_m;
+    let j = veh.axle_inertia_kgm2;
+    let mass = veh.body_mass_kg + 2.0 * veh.bogie_mass_kg;
+    let h = sc.step_s;
+    let mut rng = Rng::new(seed.unwrap_or(sc.seed));
+    let mut counters = EffectCounters::default();
+
+    // Contact patch of one wheel at the static load (Hertz, seed 001; Kalker c11).
+    let contact_err = |source| SimError::Contact {
+        scene: sc.name.clone(),
+        source,
+    };
+    let q0 = static_axle_load(veh) / 2.0;
+    let curv_long = 0.5 / r;
+    let curv_lat = 0.5 * (1.0 / sc.wheel_lateral_radius_m + 1.0 / sc.rail_lateral_radius_m);
+    let hz =
+        hertz::hertz_from_curvatures(q0, sc.youngs_modulus_pa, sc.poisson, curv_long, curv_lat)
+            .map_err(contact_err)?;
+    let kc = kalker::coefficients(hz.a_m, hz.b_m, sc.poisson).map_err(contact_err)?;
+    let g_pa = shear_modulus_pa(sc.youngs_modulus_pa, sc.poisson);
+    let k0 = PI * g_pa * hz.a_m * hz.b_m * kc.c11 / 4.0;
+    let mut contact = [AxleContact { k0, q0, k: k0 }; AXLES];
+
+    let (k_a, k_s) = if fx.has(Effect::Temperature) {
+        counters.hit(Effect::Temperature);
+        sc.temperature_law
+            .eval(sc.ambient_temperature_c)
+            .map_err(contact_err)?
+    } else {
+        (sc.polach.k_a, sc.polach.k_s)
+    };
+    let mut mu_axle = [sc.polach.mu0; AXLES];
+    if fx.has(Effect::Cleaning) {
+        for (i, m) in mu_axle.iter_mut().enumerate() {
+            counters.hit(Effect::Cleaning);
+            *m *= 1.0 + sc.cleaning_per_axle * i as f64;
+        }
+    }
+    let grade_force = if fx.has(Effect::Gradient) {
+        counters.hit(Effect::Gradient);
+        mass * G_MPS2 * (sc.gradient_permille / 1000.0).atan().sin()
+    } else {
+        0.0
+    };
+    let k_cyl = 1.0 - (-h / sc.cylinder_time_constant_s).exp();
+
+    // State.
+    let mut v = sc.initial_speed_mps;
+    let mut omega = [v / r; AXLES];
+    let mut theta = [0.0f64; AXLES];
+    let mut p = [0.0f64; AXLES];
+    let mut locked = [false; AXLES];
+    let mut wsp = [WspState::Apply; AXLES];
+    let mut hold_cmd = [0.0f64; AXLES];
+    let mut wsp_timer = [0.0f64; AXLES];
+    let mut ddv = [0.0f64; AXLES];
+    let mut omega_dot = [0.0f64; AXLES];
+    let mut decel = 0.0f64;
+    let mut normal = [static_axle_load(veh); AXLES];
+    let mut tangential = [0.0f64; AXLES];
+    let mut cursor = 0usize;
+
+    // Output schedules: logger sample k of a channel group is at k / rate.
+    let rates = [
+        sc.radar_rate_hz,
+        sc.tacho_rate_hz,
+        sc.pressure_rate_hz,
+        sc.output_rate_hz,
+    ];
+    let mut next_k = [0u64; 4];
+    let mut channels: Vec<Series> = (0..9).map(|_| Series::default()).collect();
+    let mut truth = Truth::default();
+    let pulse_angle = std::f64::consts::TAU / sc.tacho_pulses_per_rev;
+    let window = ((sc.tacho_window_s * sc.tacho_rate_hz).round() as usize).max(1);
+    let mut theta_hist: Vec<[f64; AXLES]> = vec![[0.0; AXLES]; window + 1];
+    let mut spike_prob = sc.radar_spike_rate_hz / sc.radar_rate_hz;
+    if !spike_prob.is_finite() {
+        spike_prob = 0.0;
+    }
+
+    let max_steps = (sc.max_duration_s / h).ceil() as u64;
+    let mut n: u64 = 0;
+    loop {
+        let t = n as f64 * h;
+        // ---- outputs at their logger instants (state at the first step at or after them)
+        for (g, rate) in rates.iter().enumerate() {
+            while (next_k[g] as f64) / rate <= t + 1e-12 {
+                let ts = next_k[g] as f64 / rate;
+                match g {
+                    0 => {
+                        let mut m = v;
+                        if fx.has(Effect::RadarNoise) {
+                            counters.hit(Effect::RadarNoise);
+                            m += sc.radar_noise_mps * rng.normal();
+                        }
+                        if fx.has(Effect::RadarSpikes) {
+                            counters.hit(Effect::RadarSpikes);
+                            if rng.uniform() < spike_prob {
+                                m += if rng.uniform() < 0.5 { -1.0 } else { 1.0 }
+                                    * sc.radar_spike_mps
+                                    * (0.5 + rng.uniform());
+                            }
+                        }
+                        push(&mut channels[0], ts, round_to(m.max(0.0), 1e3));
+                    }
+                    1 => {
+                        let k = next_k[1] as usize;
+                        let slot = k % (window + 1);
+                        theta_hist[slot] = theta;
+                        for a in 0..AXLES {
+                            let m = if fx.has(Effect::TachoQuantization) {
+                                counters.hit(Effect::TachoQuantization);
+                                // Pulses counted over the last `window` samples.
+                                let span = k.min(window);
+                                if span == 0 {
+                                    omega[a]
+                                } else {
+                                    let old = theta_hist[(k - span) % (window + 1)][a];
+                                    let count = (theta[a] / pulse_angle).floor()
+                                        - (old / pulse_angle).floor();
+                                    count * pulse_angle * rate / span as f64
+                                }
+                            } else {
+                                omega[a]
+                            };
+                            push(&mut channels[1 + a], ts, round_to(m, 1e4));
+                        }
+                    }
+                    2 => {
+                        for a in 0..AXLES {
+                            let mut m = p[a];
+                            if fx.has(Effect::PressureNoise) {
+                                counters.hit(Effect::PressureNoise);
+                                m += sc.pressure_noise_bar * rng.normal();
+                            }
+                            push(&mut channels[5 + a], ts, round_to(m, 1e3));
+                        }
+                    }
+                    _ => {
+                        truth.time_s.push(ts);
+                        truth.v_mps.push(v);
+                        for a in 0..AXLES {
+                            truth.omega_radps[a].push(omega[a]);
+                            truth.p_bar[a].push(p[a]);
+                            truth.normal_n[a].push(normal[a]);
+                            truth.tangential_n[a].push(tangential[a]);
+                            truth.mu[a].push(tangential[a] / normal[a]);
+                            truth.dv_mps[a].push(v - r * omega[a]);
+                            truth.ddv_mps2[a].push(ddv[a]);
+                        }
+                        if fx.has(Effect::LoadTransfer) {
+                            // Refresh the patch stiffness for the wheel loads (a b ∝ Q^(2/3)).
+                            for (c, nn) in contact.iter_mut().zip(&normal) {
+                                counters.hit(Effect::LoadTransfer);
+                                c.k = c.k0 * (nn / 2.0 / c.q0).powf(2.0 / 3.0);
+                            }
+                        }
+                    }
+                }
+                next_k[g] += 1;
+            }
+        }
+        if v <= sc.stop_speed_mps || n >= max_steps {
+            break;
+        }
+
+        // ---- loads and resistances
+        if fx.has(Effect::LoadTransfer) {
+            counters.hit(Effect::LoadTransfer);
+            normal = axle_loads(veh, decel);
+        }
+        let mut resist = grade_force;
+        if fx.has(Effect::RunningResistance) {
+            counters.hit(Effect::RunningResistance);
+            resist += sc.davis_a_n + sc.davis_b_n_per_mps * v + sc.davis_c_n_per_mps2 * v * v;
+        }
+        let demand = demand_at(&sc.demand_bar, t, &mut cursor);
+
+        // ---- axles
+        let mut total_t = 0.0;
+        for a in 0..AXLES {
+            let w = v - r * omega[a];
+            let (ratio, slope) = adhesion(
+                sc,
+                fx,
+                &mut counters,
+                k_a,
+                k_s,
+                mu_axle[a],
+                contact[a].k,
+                normal[a] / 2.0,
+                v,
+                w,
+                ddv[a],
+            );
+            let t_a = ratio * normal[a];
+            tangential[a] = t_a;
+            total_t += t_a;
+
+            let cmd = if fx.has(Effect::Wsp) {
+                counters.hit(Effect::Wsp);
+                let wheel_decel_excess = -r * omega_dot[a] - decel;
+                let dump_at = sc.dump_slip_mps.max(sc.dump_slip_ratio * v);
+                let sliding = w > dump_at || wheel_decel_excess > sc.decel_limit_mps2;
+                wsp_timer[a] += h;
+                let next = match wsp[a] {
+                    WspState::Apply if sliding => WspState::Detect,
+                    WspState::Detect if wsp_timer[a] >= sc.reaction_delay_s => WspState::Dump,
+                    WspState::Dump if w < dump_at && ddv[a] < 0.0 => {
+                        hold_cmd[a] = p[a];
+                        WspState::Hold
+                    }
+                    WspState::Hold if w < sc.reapply_slip_mps || wsp_timer[a] >= sc.hold_max_s => {
+                        WspState::Apply
+                    }
+                    WspState::Hold if w > dump_at && ddv[a] > 0.0 => WspState::Dump,
+                    s => s,
+                };
+                if next != wsp[a] {
+                    wsp_timer[a] = 0.0;
+                    wsp[a] = next;
+                }
+                match wsp[a] {
+                    WspState::Apply | WspState::Detect => demand,
+                    WspState::Dump => 0.0,
+                    WspState::Hold => hold_cmd[a].min(demand),
+                }
+            } else {
+                demand
+            };
+            p[a] += (cmd - p[a]) * k_cyl;
+            let brake = veh.brake_torque_nm_per_bar[a] * p[a];
+            let old = omega[a];
+            if locked[a] && t_a * r > brake {
+                locked[a] = false;
+            }
+            if !locked[a] {
+                let f = (t_a * r - brake) / j;
+                let stiff = h * r * r * slope * normal[a] / j;
+                omega[a] = old + h * f / (1.0 + stiff);
+                if omega[a] <= 0.0 {
+                    omega[a] = 0.0;
+                    locked[a] = true;
+                }
+            }
+            omega_dot[a] = (omega[a] - old) / h;
+            theta[a] += omega[a] * h;
+            let w_new = v - r * omega[a];
+            ddv[a] = (w_new - w) / h;
+        }
+        let v_new = (v + h * (-total_t - resist) / mass).max(0.0);
+        decel = (v - v_new) / h;
+        // Slip rates use the vehicle's change too.
+        for a in 0..AXLES {
+            ddv[a] -= decel;
+        }
+        v = v_new;
+        n += 1;
+    }
+
+    let metadata = RunMetadata {
+        ambient_temperature_c: Some(sc.ambient_temperature_c),
+        initial_speed_kmh: Some(sc.initial_speed_mps * 3.6),
+        vehicle: Some(veh.name.clone()),
+        condition: Some(sc.condition.clone()),
+        direction: Some(sc.direction.clone()),
+        other: [
+            ("scene".to_string(), sc.name.clone()),
+            ("seed".to_string(), seed.unwrap_or(sc.seed).to_string()),
+            ("effects".to_string(), fx.names().join(",")),
+            (
+                "generator".to_string(),
+                concat!("railgrip ", env!("CARGO_PKG_VERSION"), " simulate").to_string(),
+            ),
+        ]
+        .into(),
+    };
+    Ok(SimOutput {
+        scene: sc.clone(),
+        channels,
+        truth,
+        metadata,
+        counters,
+        steps: n,
+        duration_s: n as f64 * h,
+    })
+}
+
+#[inline]
+fn push(s: &mut Series, t: f64, v: f64) {
+    s.time_s.push(t);
+    s.values.push(v);
+}
+
+/// Rounds to a resolution of 1/inv (a logger's resolution; keeps files small and exact).
+#[inline]
+fn round_to(x: f64, inv: f64) -> f64 {
+    (x * inv).round() / inv
+}
+
+/// Output formats of `railgrip simulate`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OutputFormat {
+    Csv,
+    Mcap,
+    Both,
+}
+
+/// Column names of the truth table (`<name>.truth.parquet`), one row per sample and axle.
+pub const TRUTH_COLUMNS: [&str; 10] = [
+    "time_s",
+    "axle",
+    "v_mps",
+    "omega_radps",
+    "p_bar",
+    "normal_N",
+    "tangential_N",
+    "mu",
+    "dv_mps",
+    "ddv_mps2",
+];
+
+impl SimOutput {
+    /// Writes the run to `dir`: `<stem>.csv` + `<stem>.meta.toml` and/or `<stem>.mcap`, and
+    /// `<stem>.truth.parquet`. Every file is written atomically. Returns the paths written.
+    pub fn write(
+        &self,
+        dir: &Path,
+        stem: &str,
+        fmt: OutputFormat,
+    ) -> Result<Vec<PathBuf>, SimError> {
+        let werr = |path: &Path| {
+            let path = path.to_path_buf();
+            move |e: std::io::Error| SimError::Write {
+                path: path.clone(),
+                message: e.to_string(),
+            }
+        };
+        std::fs::create_dir_all(dir).map_err(werr(dir))?;
+        let mut written = Vec::new();
+        if matches!(fmt, OutputFormat::Csv | OutputFormat::Both) {
+            if !self.scene.single_rate() {
+                return Err(SimError::Scene {
+                    scene: self.scene.name.clone(),
+                    what: "CSV has one time column, but the scene's sensors run at different rates"
+                        .into(),
+                    hint: "write MCAP (--format mcap) or give every sensor the output rate".into(),
+                });
+            }
+            let path = dir.join(format!("{stem}.csv"));
+            let cols: [&[f64]; 9] = std::array::from_fn(|i| self.channels[i].values.as_slice());
+            crate::atomic::write_atomically(&path, |w| {
+                format::write_canonical_csv(w, &self.channels[0].time_s, cols)
+            })
+            .map_err(werr(&path))?;
+            written.push(path);
+            let side = dir.join(format!("{stem}{}", format::SIDECAR_SUFFIX));
+            let text = self.metadata.to_sidecar_toml();
+            crate::atomic::write_atomically(&side, |w| {
+                std::io::Write::write_all(w, text.as_bytes())
+            })
+            .map_err(werr(&side))?;
+            written.push(side);
+        }
+        if matches!(fmt, OutputFormat::Mcap | OutputFormat::Both) {
+            let path = dir.join(format!("{stem}.mcap"));
+            let series: Vec<SeriesRef> = Signal::ALL
+                .iter()
+                .map(|s| SeriesRef {
+                    signal: *s,
+                    time_s: &self.channels[s.index()].time_s,
+                    values: &self.channels[s.index()].values,
+                })
+                .collect();
+            // A fixed start time keeps the bytes identical for the same scene and seed.
+            crate::atomic::write_atomically(&path, |w| {
+                let mut buf = std::io::Cursor::new(Vec::new());
+                format::write_mcap(
+                    &mut buf,
+                    &series,
+                    &self.metadata,
+                    McapCompression::Zstd,
+                    1_700_000_000_000_000_000,
+                )
+                .map_err(|e| std::io::Error::other(e.to_string()))?;
+                std::io::Write::write_all(w, buf.get_ref())
+            })
+            .map_err(werr(&path))?;
+            written.push(path);
+        }
+        let path = dir.join(format!("{stem}.truth.parquet"));
+        self.write_truth(&path)?;
+        written.push(path);
+        Ok(written)
+    }
+
+    fn write_truth(&self, path: &Path) -> Result<(), SimError> {
+        use polars::prelude::*;
+        let tr = &self.truth;
+        let n = tr.time_s.len();
+        let perr = |e: PolarsError| SimError::Write {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        };
+        let long = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            (0..n)
+                .flat_map(|i| (0..AXLES).map(move |a| (i, a)))
+                .map(|(i, a)| f(i, a))
+                .collect()
+        };
+        let cols = vec![
+            Float64Chunked::from_vec(TRUTH_COLUMNS[0].into(), long(&|i, _| tr.time_s[i]))
+                .into_column(),
+            Int32Chunked::from_vec(
+                TRUTH_COLUMNS[1].into(),
+                (0..n).flat_map(|_| 1..=AXLES as i32).collect(),
+            )
+            .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[2].into(), long(&|i, _| tr.v_mps[i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[3].into(), long(&|i, a| tr.omega_radps[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[4].into(), long(&|i, a| tr.p_bar[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[5].into(), long(&|i, a| tr.normal_n[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[6].into(), long(&|i, a| tr.tangential_n[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[7].into(), long(&|i, a| tr.mu[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[8].into(), long(&|i, a| tr.dv_mps[a][i]))
+                .into_column(),
+            Float64Chunked::from_vec(TRUTH_COLUMNS[9].into(), long(&|i, a| tr.ddv_mps2[a][i]))
+                .into_column(),
+        ];
+        let mut df = DataFrame::new(n * AXLES, cols).map_err(perr)?;
+        crate::atomic::write_atomically(path, |w| {
+            ParquetWriter::new(w)
+                .finish(&mut df)
+                .map(|_| ())
+                .map_err(perr)
+        })
+        .map_err(|e| match e {
+            SimError::Write { message, .. } => SimError::Write {
+                path: path.to_path_buf(),
+                message,
+            },
+            other => other,
+        })
+    }
+}
