@@ -481,8 +481,8 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         let v_new = (v + h * (-total_t - resist) / mass).max(0.0);
         decel = (v - v_new) / h;
         // Slip rates use the vehicle's change too.
-        for a in 0..AXLES {
-            ddv[a] -= decel;
+        for x in ddv.iter_mut() {
+            *x -= decel;
         }
         v = v_new;
         n += 1;
@@ -490,7 +490,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
 
     let metadata = RunMetadata {
         ambient_temperature_c: Some(sc.ambient_temperature_c),
-        initial_speed_kmh: Some(sc.initial_speed_mps * 3.6),
+        initial_speed_kmh: Some(sc.initial_speed_kmh),
         vehicle: Some(veh.name.clone()),
         condition: Some(sc.condition.clone()),
         direction: Some(sc.direction.clone()),

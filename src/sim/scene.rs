@@ -245,6 +245,8 @@ pub struct Scene {
     pub seed: u64,
     pub effects: Effects,
     pub vehicle: Vehicle,
+    /// Initial speed as written in the scene, km/h (reported in the run metadata).
+    pub initial_speed_kmh: f64,
     /// Initial speed, m/s.
     pub initial_speed_mps: f64,
     /// The run ends when the vehicle is slower than this, m/s.
@@ -527,6 +529,7 @@ impl Scene {
             seed: r.seed.unwrap_or(1),
             effects,
             vehicle,
+            initial_speed_kmh: initial_kmh,
             initial_speed_mps: initial_kmh / 3.6,
             stop_speed_mps: stop_kmh / 3.6,
             max_duration_s: c.num(

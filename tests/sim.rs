@@ -1,0 +1,284 @@
+//! The simulator: determinism, read-back through ingest, effects that cost nothing when not
+//! listed, wheel lock without chatter, physics invariants, scene errors.
+
+use std::path::Path;
+
+use railgrip::ingest::ingest_file;
+use railgrip::sim::{self, axle_loads, Effect, OutputFormat, Scene, G_MPS2};
+use railgrip::Pipeline;
+
+const ALL_EFFECTS: &str = r#"effects = ["load_transfer", "wsp", "hysteresis", "falling_friction", "temperature", "cleaning",
+  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise"]"#;
+
+fn scene(extra: &str) -> Scene {
+    let text = format!(
+        "name = \"t\"\nseed = 3\n{extra}\n[run]\ninitial_speed_kmh = 60.0\nmax_duration_s = 8.0\n"
+    );
+    Scene::from_toml(&text, "t.toml", None).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn scene_full(run: &str, rest: &str) -> Scene {
+    let text = format!("name = \"t\"\nseed = 3\n{ALL_EFFECTS}\n[run]\n{run}\n{rest}");
+    Scene::from_toml(&text, "t.toml", None).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn same_scene_and_seed_give_identical_bytes() {
+    let sc = scene(ALL_EFFECTS);
+    let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
+    let wa = sim::simulate(&sc, None)
+        .unwrap()
+        .write(a.path(), "run", OutputFormat::Both)
+        .unwrap();
+    let wb = sim::simulate(&sc, None)
+        .unwrap()
+        .write(b.path(), "run", OutputFormat::Both)
+        .unwrap();
+    assert_eq!(wa.len(), 4);
+    for (x, y) in wa.iter().zip(&wb) {
+        assert_eq!(
+            std::fs::read(x).unwrap(),
+            std::fs::read(y).unwrap(),
+            "{}",
+            x.display()
+        );
+    }
+    let c = tempfile::tempdir().unwrap();
+    sim::simulate(&sc, Some(99))
+        .unwrap()
+        .write(c.path(), "run", OutputFormat::Csv)
+        .unwrap();
+    assert_ne!(
+        std::fs::read(a.path().join("run.csv")).unwrap(),
+        std::fs::read(c.path().join("run.csv")).unwrap(),
+        "the seed moves the noise"
+    );
+}
+
+#[test]
+fn everything_written_reads_back_through_ingest() {
+    let sc = scene(ALL_EFFECTS);
+    let out = sim::simulate(&sc, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    out.write(dir.path(), "run", OutputFormat::Both).unwrap();
+    let p = Pipeline::default_uic_z1();
+    for f in ["run.csv", "run.mcap"] {
+        let log = ingest_file(&dir.path().join(f), &p).unwrap_or_else(|e| panic!("{e}"));
+        assert!(log.warnings.is_empty(), "{f}: {:?}", log.warnings);
+        assert_eq!(log.metadata.condition.as_deref(), Some("soap"));
+        assert_eq!(log.metadata.initial_speed_kmh, Some(60.0));
+        assert_eq!(log.len(), out.truth.time_s.len(), "{f}");
+        // The measured tachometer follows the true wheel speed within its quantisation.
+        for (m, t) in log.omega_radps[1]
+            .iter()
+            .zip(&out.truth.omega_radps[1])
+            .skip(20)
+        {
+            assert!((m - t).abs() < 2.0, "{f}: {m} vs {t}");
+        }
+    }
+}
+
+#[test]
+fn multi_rate_scene_writes_mcap_and_refuses_csv() {
+    let sc = scene(&format!(
+        "{ALL_EFFECTS}\n[sensors]\nradar_rate_hz = 100.0\npressure_rate_hz = 200.0"
+    ));
+    let out = sim::simulate(&sc, None).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let e = out
+        .write(dir.path(), "mr", OutputFormat::Csv)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("CSV has one time column") && e.contains("--format mcap"),
+        "{e}"
+    );
+    assert!(!dir.path().join("mr.csv").exists());
+    out.write(dir.path(), "mr", OutputFormat::Mcap).unwrap();
+    let log = ingest_file(&dir.path().join("mr.mcap"), &Pipeline::default_uic_z1()).unwrap();
+    assert!((log.channels[0].rate_hz - 100.0).abs() < 0.5);
+    assert!((log.channels[1].rate_hz - 417.0).abs() < 1.0);
+    assert!((log.channels[5].rate_hz - 200.0).abs() < 0.5);
+}
+
+#[test]
+fn effects_not_listed_cost_nothing() {
+    let minimal = sim::simulate(&scene("effects = []"), None).unwrap();
+    for e in Effect::ALL {
+        assert_eq!(
+            minimal.counters.get(e),
+            0,
+            "{e} ran in a scene that did not list it"
+        );
+    }
+    let full = sim::simulate(&scene(ALL_EFFECTS), None).unwrap();
+    for e in Effect::ALL {
+        assert!(full.counters.get(e) > 0, "{e} listed but never evaluated");
+    }
+    // Without sensor effects the logged values are the true ones at logger resolution.
+    for (m, t) in minimal.channels[0].values.iter().zip(&minimal.truth.v_mps) {
+        assert!((m - t).abs() <= 0.0005 + 1e-12);
+    }
+    // Per-step effects run once per step (and axle): the count is the work done.
+    assert_eq!(full.counters.get(Effect::RunningResistance), full.steps);
+    assert_eq!(full.counters.get(Effect::FallingFriction), 4 * full.steps);
+}
+
+#[test]
+fn locked_wheel_stays_locked_without_chatter_and_releases() {
+    // No WSP, full brake on soap: the wheels lock; the demand drops at 4 s and they release.
+    let sc = scene("effects = []\n[brake]\ndemand_bar = [[0.0, 3.8], [4.0, 3.8], [4.2, 0.0]]");
+    let out = sim::simulate(&sc, None).unwrap();
+    for a in 0..4 {
+        let w = &out.truth.omega_radps[a];
+        let zero: Vec<bool> = w.iter().map(|x| *x == 0.0).collect();
+        let transitions = zero.windows(2).filter(|p| p[0] != p[1]).count();
+        assert_eq!(
+            transitions,
+            2,
+            "axle {}: locks once and releases once",
+            a + 1
+        );
+        let first = zero.iter().position(|z| *z).unwrap();
+        let t_lock = out.truth.time_s[first];
+        assert!(t_lock < 4.0, "locked at {t_lock}");
+        let last = zero.iter().rposition(|z| *z).unwrap();
+        assert!(out.truth.time_s[last] > 4.0 && out.truth.time_s[last] < 5.0);
+        assert!(w.iter().all(|x| x.is_finite() && *x >= 0.0));
+    }
+}
+
+#[test]
+fn load_transfer_conserves_weight_and_loads_the_leading_axles() {
+    let v = Pipeline::default_uic_z1().vehicle;
+    let weight = (v.body_mass_kg + 2.0 * v.bogie_mass_kg) * G_MPS2;
+    for d in [0.0, 0.5, 1.0, 2.0] {
+        let n = axle_loads(&v, d);
+        assert!((n.iter().sum::<f64>() - weight).abs() < 1e-6 * weight);
+        if d > 0.0 {
+            assert!(
+                n[0] > n[1] && n[1] > n[3] && n[0] > n[2] && n[2] > n[3],
+                "{n:?}"
+            );
+        } else {
+            assert!(n.iter().all(|x| (x - n[0]).abs() < 1e-9));
+        }
+    }
+}
+
+#[test]
+fn truth_obeys_the_torque_balance_the_estimator_uses() {
+    // seed 002 eq. 9: T r = J ω̇ + α p, checked on the truth table by central differences.
+    let sc = scene("effects = [\"load_transfer\", \"wsp\", \"falling_friction\"]");
+    let out = sim::simulate(&sc, None).unwrap();
+    let v = &sc.vehicle;
+    let tr = &out.truth;
+    let dt = 1.0 / sc.output_rate_hz;
+    let mut worst: f64 = 0.0;
+    for a in 0..4 {
+        for i in 1..tr.time_s.len() - 1 {
+            let (w0, w1, w2) = (
+                tr.omega_radps[a][i - 1],
+                tr.omega_radps[a][i],
+                tr.omega_radps[a][i + 1],
+            );
+            if w0 == 0.0 || w1 == 0.0 || w2 == 0.0 {
+                continue;
+            }
+            let wdot = (w2 - w0) / (2.0 * dt);
+            let t_est = (v.axle_inertia_kgm2 * wdot
+                + v.brake_torque_nm_per_bar[a] * tr.p_bar[a][i])
+                / v.wheel_radius_m;
+            // Smooth stretches only: the WSP switches make ω̇ kink within one output step.
+            let wddot = (w2 - 2.0 * w1 + w0) / (dt * dt);
+            if wddot.abs() > 50.0 {
+                continue;
+            }
+            worst = worst.max((t_est - tr.tangential_n[a][i]).abs() / tr.normal_n[a][i]);
+        }
+    }
+    assert!(
+        worst < 0.003,
+        "μ error of the torque balance on truth: {worst}"
+    );
+}
+
+#[test]
+fn stays_stable_down_to_standstill_on_dry_rail() {
+    let sc = scene_full(
+        "initial_speed_kmh = 40.0\nstop_speed_kmh = 0.5\nmax_duration_s = 60.0\ncondition = \"dry\"",
+        "[adhesion]\nmu0 = 0.4\nk_a = 1.0\nk_s = 0.4\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 2.0]]",
+    );
+    let out = sim::simulate(&sc, None).unwrap();
+    assert!(out.truth.v_mps.last().unwrap() * 3.6 <= 0.6);
+    for a in 0..4 {
+        for (i, dv) in out.truth.dv_mps[a].iter().enumerate() {
+            assert!(
+                dv.is_finite() && dv.abs() < 0.5,
+                "axle {} at {}: Δv {dv}",
+                a + 1,
+                out.truth.time_s[i]
+            );
+        }
+        assert!(out.truth.mu[a]
+            .iter()
+            .all(|m| m.is_finite() && m.abs() <= 0.41));
+    }
+}
+
+#[test]
+fn scene_errors_name_the_key_and_the_fix() {
+    let err = |t: &str| Scene::from_toml(t, "s.toml", None).unwrap_err().to_string();
+    let e = err("effects = [\"wind\"]");
+    assert!(
+        e.starts_with(
+            "s.toml: effects = \"wind\": unknown effect; the effects are load_transfer, wsp,"
+        ),
+        "{e}"
+    );
+    let e = err("[run]\nstep_ms = 5.0");
+    assert_eq!(
+        e,
+        "s.toml: run.step_ms = 5: must be >= 0.01 ms and <= 1 ms (default 0.1 ms)"
+    );
+    let e = err("[brake]\ndemand_bar = [[1.0, 2.0], [0.5, 3.0]]");
+    assert!(
+        e.contains("brake.demand_bar") && e.contains("strictly increasing"),
+        "{e}"
+    );
+    let e = err("[wsp]\nreapply_slip_mps = 2.0\ndump_slip_mps = 1.0");
+    assert!(
+        e.contains("wsp.reapply_slip_mps = 2: must be below wsp.dump_slip_mps = 1"),
+        "{e}"
+    );
+    let e = err("[vehicle]\npipeline = \"default\"\nwheel_radius_m = 0.4");
+    assert!(e.contains("give either pipeline"), "{e}");
+    let e = err("[vehicle]\nwheel_radius_m = 0.4");
+    assert!(e.contains("vehicle.body_mass_kg is missing"), "{e}");
+    let e = err("[run]\nbogus = 1");
+    assert!(
+        e.contains("not a valid pipeline file") || e.contains("bogus"),
+        "{e}"
+    );
+    let sc = scene("[adhesion]\nlaw = \"model\"\nmodel = \"m.json\"");
+    let e = sim::simulate(&sc, None).unwrap_err().to_string();
+    assert!(
+        e.contains("adhesion law \"model\" (m.json) is not available yet"),
+        "{e}"
+    );
+}
+
+#[test]
+fn bundled_scenes_load() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes");
+    let mut n = 0;
+    for entry in std::fs::read_dir(dir).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            Scene::load(&p).unwrap_or_else(|e| panic!("{e}"));
+            n += 1;
+        }
+    }
+    assert!(n >= 1);
+}
