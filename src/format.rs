@@ -314,7 +314,8 @@ pub enum McapCompression {
 
 /// Writes a canonical MCAP: one JSON channel per series (topic and field per the contract),
 /// messages interleaved in time order across channels, the metadata record "run", chunks
-/// compressed as asked. `t0_ns` is the log time of t = 0 s.
+/// compressed as asked, chunk indexes but no per-message index records. `t0_ns` is the log
+/// time of t = 0 s.
 pub fn write_mcap<W: Write + Seek>(
     w: W,
     series: &[SeriesRef<'_>],
@@ -331,6 +332,9 @@ pub fn write_mcap<W: Write + Seek>(
         .compression(compression)
         .profile("")
         .library(concat!("railgrip ", env!("CARGO_PKG_VERSION")))
+        // Chunk indexes stay; per-message index records (16 bytes a message, uncompressed)
+        // would double the size of these small-message logs.
+        .emit_message_indexes(false)
         .create(w)?;
     let mut channel_ids = Vec::with_capacity(series.len());
     for s in series {

@@ -282,3 +282,23 @@ fn bundled_scenes_load() {
     }
     assert!(n >= 1);
 }
+
+#[test]
+fn default_temperature_law_follows_seed_004_trend() {
+    let sc = scene("");
+    let k = |t: f64| sc.temperature_law.eval(t).unwrap().0 / sc.polach.k_a;
+    assert!((k(20.0) - 1.0).abs() < 1e-12);
+    assert!(
+        (k(0.0) - 1.225).abs() < 1e-12
+            && (k(-20.0) - 1.3).abs() < 1e-12
+            && (k(-40.0) - 1.225).abs() < 1e-12
+    );
+    assert!(
+        k(-20.0) > k(0.0) && k(0.0) > k(20.0),
+        "rises from +20 to -20 °C"
+    );
+    assert!(
+        k(-40.0) < k(-20.0) && k(-40.0) > k(20.0),
+        "dips slightly to -40 °C"
+    );
+}

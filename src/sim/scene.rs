@@ -775,16 +775,18 @@ impl Scene {
     }
 }
 
-/// Default k(T) shape when a scene gives none: k(T) = k20·(1 + 0.02 (20 − T) − 0.0004 (20 − T)²)
-/// over −40…20 °C: rises from +20 °C to −20 °C (×1.16 at −10 °C… peak at −5 °C) and dips towards
-/// −40 °C, the trend of seed 004 Fig. 2. railgrip's assumption, not published coefficients.
+/// Default k(T) shape when a scene gives none: k(T) = k20·(1 + 0.015 u − 1.875e-4 u²) with
+/// u = 20 − T (°C), over −40…20 °C: ×1.225 at 0 °C, a peak of ×1.30 at −20 °C and ×1.225 at
+/// −40 °C — seed 004's trend (adhesion rises from +20 °C to −20 °C and dips slightly towards
+/// −40 °C). railgrip's assumption, not published coefficients.
 fn default_k_temperature(k20: f64) -> Vec<f64> {
-    // Expand k20 (1 + 0.02 u − 0.0004 u²), u = 20 − T, into powers of T.
-    let (a, b) = (0.02, -0.0004);
-    let c0 = 1.0 + a * 20.0 + b * 400.0;
-    let c1 = -a - 2.0 * b * 20.0;
-    let c2 = b;
-    vec![k20 * c0, k20 * c1, k20 * c2]
+    // Expand k20 (1 + a u + b u²), u = 20 − T, into ascending powers of T.
+    let (a, b) = (0.015, -1.875e-4);
+    vec![
+        k20 * (1.0 + 20.0 * a + 400.0 * b),
+        k20 * (-a - 40.0 * b),
+        k20 * b,
+    ]
 }
 
 struct Check<'a> {
