@@ -302,3 +302,74 @@ fn default_temperature_law_follows_seed_004_trend() {
         "dips slightly to -40 °C"
     );
 }
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn bundled_archive_is_what_its_scenes_produce() {
+    // Golden check: a physics change must come with `bash fixtures/regenerate.sh`.
+    let dir = tempfile::tempdir().unwrap();
+    for (name, fmt, ext) in [
+        ("soap_120kmh_p20", OutputFormat::Csv, "csv"),
+        ("soap_120kmh_multirate_0c", OutputFormat::Mcap, "mcap"),
+    ] {
+        let sc = Scene::load(&root().join(format!("pipelines/scenes/{name}.toml"))).unwrap();
+        sim::simulate(&sc, None)
+            .unwrap()
+            .write(dir.path(), name, fmt)
+            .unwrap();
+        for file in [format!("{name}.{ext}"), format!("{name}.truth.parquet")] {
+            let made = std::fs::read(dir.path().join(&file)).unwrap();
+            let bundled = std::fs::read(root().join("fixtures/archive").join(&file)).unwrap();
+            assert!(
+                made == bundled,
+                "{file} differs from fixtures/archive: run `bash fixtures/regenerate.sh`"
+            );
+        }
+    }
+}
+
+#[test]
+fn every_bundled_run_ingests_cleanly() {
+    let p = Pipeline::default_uic_z1();
+    let mut n = 0;
+    for entry in std::fs::read_dir(root().join("fixtures/archive")).unwrap() {
+        let path = entry.unwrap().path();
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if ext == "csv" || ext == "mcap" {
+            let log = ingest_file(&path, &p).unwrap_or_else(|e| panic!("{e}"));
+            assert!(
+                !log.lost_data() && log.warnings.is_empty(),
+                "{}: {:?}",
+                path.display(),
+                log.warnings
+            );
+            assert!(
+                log.metadata.ambient_temperature_c.is_some() && log.metadata.condition.is_some()
+            );
+            n += 1;
+        }
+    }
+    assert_eq!(n, 8);
+}
+
+#[test]
+fn brake_demand_can_differ_per_axle() {
+    let sc = scene("effects = []\n[brake]\ndemand_bar_per_axle = [[[0.0, 1.0]], [[0.0, 1.5]], [[0.0, 0.0]], [[0.0, 0.5]]]");
+    let out = sim::simulate(&sc, None).unwrap();
+    let last = out.truth.time_s.len() - 1;
+    let p: Vec<f64> = (0..4).map(|a| out.truth.p_bar[a][last]).collect();
+    for (got, want) in p.iter().zip([1.0, 1.5, 0.0, 0.5]) {
+        assert!((got - want).abs() < 1e-6, "{p:?}");
+    }
+    let e = Scene::from_toml(
+        "[brake]\ndemand_bar_per_axle = [[[0.0, 1.0]]]",
+        "s.toml",
+        None,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("must list exactly 4 profiles"), "{e}");
+}

@@ -146,6 +146,7 @@ fn adhesion(
     v: f64,
     w: f64,
     ddv: f64,
+    sc_inv_ddv: f64,
 ) -> (f64, f64) {
     let mut mu = mu_axle;
     if fx.has(Effect::FallingFriction) {
@@ -163,16 +164,17 @@ fn adhesion(
     let eps_per_w = contact / (v * q_wheel * mu);
     let eps = eps_per_w * w;
     let (x, y) = (k_a * eps, k_s * eps);
-    let two_mu_pi = 2.0 * mu / PI;
-    let mut ratio = two_mu_pi * (x / (1.0 + x * x) + y.atan());
-    let x2 = x * x;
-    let mut slope = two_mu_pi
-        * (k_a * (1.0 - x2) / ((1.0 + x2) * (1.0 + x2)) + k_s / (1.0 + y * y))
-        * eps_per_w;
+    let two_mu_pi = 2.0 * mu * (1.0 / PI);
+    let inv_x = 1.0 / (1.0 + x * x);
+    let mut ratio = two_mu_pi * (x * inv_x + y.atan());
+    let mut slope =
+        two_mu_pi * (k_a * (1.0 - x * x) * inv_x * inv_x + k_s / (1.0 + y * y)) * eps_per_w;
     if fx.has(Effect::Hysteresis) {
         counters.hit(Effect::Hysteresis);
-        // Recovery branch (dΔv/dt < 0) lower by `depth`, blended smoothly through tanh.
-        let h = 1.0 - sc.hysteresis_depth * 0.5 * (1.0 - (ddv / sc.hysteresis_ddv_mps2).tanh());
+        // Recovery branch (dΔv/dt < 0) lower by `depth`, blended smoothly by the algebraic
+        // sigmoid z/√(1 + z²), z = (dΔv/dt)/ddv0.
+        let z = ddv * sc_inv_ddv;
+        let h = 1.0 - sc.hysteresis_depth * 0.5 * (1.0 - z / (1.0 + z * z).sqrt());
         ratio *= h;
         slope *= h;
     }
@@ -288,7 +290,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let mut decel = 0.0f64;
     let mut normal = [static_axle_load(veh); AXLES];
     let mut tangential = [0.0f64; AXLES];
-    let mut cursor = 0usize;
+    let mut cursor = [0usize; AXLES];
 
     // Output schedules: logger sample k of a channel group is at k / rate.
     let rates = [
@@ -298,6 +300,10 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         sc.output_rate_hz,
     ];
     let mut next_k = [0u64; 4];
+    // Logger time of the next sample of each group (k / rate), compared without dividing.
+    let mut next_t = [0.0f64; 4];
+    let inv_h = 1.0 / h;
+    let inv_ddv0 = 1.0 / sc.hysteresis_ddv_mps2;
     let mut channels: Vec<Series> = (0..9).map(|_| Series::default()).collect();
     let mut truth = Truth::default();
     let pulse_angle = std::f64::consts::TAU / sc.tacho_pulses_per_rev;
@@ -314,7 +320,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         let t = n as f64 * h;
         // ---- outputs at their logger instants (state at the first step at or after them)
         for (g, rate) in rates.iter().enumerate() {
-            while (next_k[g] as f64) / rate <= t + 1e-12 {
+            while next_t[g] <= t + 1e-12 {
                 // Logger clock at µs resolution.
                 let ts = round_to(next_k[g] as f64 / rate, 1e6);
                 match g {
@@ -389,6 +395,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                     }
                 }
                 next_k[g] += 1;
+                next_t[g] = next_k[g] as f64 / rate;
             }
         }
         if v <= sc.stop_speed_mps || n >= max_steps {
@@ -405,11 +412,11 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
             counters.hit(Effect::RunningResistance);
             resist += sc.davis_a_n + sc.davis_b_n_per_mps * v + sc.davis_c_n_per_mps2 * v * v;
         }
-        let demand = demand_at(&sc.demand_bar, t, &mut cursor);
 
         // ---- axles
         let mut total_t = 0.0;
         for a in 0..AXLES {
+            let demand = demand_at(&sc.demand_bar[a], t, &mut cursor[a]);
             let w = v - r * omega[a];
             let (ratio, slope) = adhesion(
                 sc,
@@ -423,6 +430,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 v,
                 w,
                 ddv[a],
+                inv_ddv0,
             );
             let t_a = ratio * normal[a];
             tangential[a] = t_a;
@@ -474,13 +482,13 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                     locked[a] = true;
                 }
             }
-            omega_dot[a] = (omega[a] - old) / h;
+            omega_dot[a] = (omega[a] - old) * inv_h;
             theta[a] += omega[a] * h;
             let w_new = v - r * omega[a];
-            ddv[a] = (w_new - w) / h;
+            ddv[a] = (w_new - w) * inv_h;
         }
         let v_new = (v + h * (-total_t - resist) / mass).max(0.0);
-        decel = (v - v_new) / h;
+        decel = (v - v_new) * inv_h;
         // Slip rates use the vehicle's change too.
         for x in ddv.iter_mut() {
             *x -= decel;

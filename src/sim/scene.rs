@@ -160,6 +160,7 @@ pub mod raw {
     #[serde(deny_unknown_fields)]
     pub struct Brake {
         pub demand_bar: Option<Vec<[f64; 2]>>,
+        pub demand_bar_per_axle: Option<Vec<Vec<[f64; 2]>>>,
         pub cylinder_time_constant_s: Option<f64>,
     }
 
@@ -261,8 +262,9 @@ pub struct Scene {
     pub gradient_permille: f64,
     pub condition: String,
     pub direction: String,
-    /// Brake-cylinder pressure demand (t s, p bar), piecewise linear, held after the last point.
-    pub demand_bar: Vec<(f64, f64)>,
+    /// Brake-cylinder pressure demand per axle (t s, p bar), piecewise linear, held after the
+    /// last point.
+    pub demand_bar: [Vec<(f64, f64)>; 4],
     pub cylinder_time_constant_s: f64,
     pub law: AdhesionLaw,
     pub polach: PolachParams,
@@ -413,22 +415,50 @@ impl Scene {
                 "must be at most half the output period",
             ));
         }
-        let demand = match &r.brake.demand_bar {
-            None => vec![(0.0, 0.0), (1.0, 0.0), (2.5, 3.8)],
-            Some(d) => {
-                if d.is_empty()
-                    || d.windows(2).any(|w| w[1][0] <= w[0][0])
-                    || d.iter()
-                        .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
-                {
+        let check_profile = |key: &str,
+                             d: &Vec<[f64; 2]>|
+         -> Result<Vec<(f64, f64)>, ConfigError> {
+            if d.is_empty()
+                || d.windows(2).any(|w| w[1][0] <= w[0][0])
+                || d.iter()
+                    .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
+            {
+                return Err(c.invalid(
+                    key,
+                    format!("{d:?}"),
+                    "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
+                ));
+            }
+            Ok(d.iter().map(|p| (p[0], p[1])).collect())
+        };
+        let demand: [Vec<(f64, f64)>; 4] = match (&r.brake.demand_bar, &r.brake.demand_bar_per_axle)
+        {
+            (Some(_), Some(_)) => {
+                return Err(c.invalid(
+                    "brake.demand_bar_per_axle",
+                    "given with brake.demand_bar",
+                    "give one of the two",
+                ))
+            }
+            (_, Some(per)) => {
+                if per.len() != 4 {
                     return Err(c.invalid(
-                        "brake.demand_bar",
-                        format!("{d:?}"),
-                        "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
+                        "brake.demand_bar_per_axle",
+                        format!("{} profiles", per.len()),
+                        "must list exactly 4 profiles, axles 1..4",
                     ));
                 }
-                d.iter().map(|p| (p[0], p[1])).collect()
+                let mut out: [Vec<(f64, f64)>; 4] = Default::default();
+                for (i, d) in per.iter().enumerate() {
+                    out[i] = check_profile(&format!("brake.demand_bar_per_axle[{i}]"), d)?;
+                }
+                out
             }
+            (Some(d), None) => {
+                let one = check_profile("brake.demand_bar", d)?;
+                [one.clone(), one.clone(), one.clone(), one]
+            }
+            (None, None) => std::array::from_fn(|_| vec![(0.0, 0.0), (1.0, 0.0), (2.5, 3.8)]),
         };
         let a = &r.adhesion;
         let law = match (a.law.as_deref(), &a.model) {

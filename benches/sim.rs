@@ -1,0 +1,77 @@
+//! Simulator speed: a 20-s, 4-axle braking at the default 0.1 ms step with every effect
+//! (`sim/full/20s`) against the minimal scene with none (`sim/minimal/20s`); throughput is in
+//! integration steps. Afterwards it prints the real-time factor of each and the step-size
+//! trade-off of the full scene: real-time factor against the error of the truth (μ of axle 1,
+//! vehicle speed) relative to a 0.02 ms reference run.
+//!
+//!     cargo bench --bench sim
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use railgrip::sim::{self, Scene};
+
+const ALL: &str = r#"effects = ["load_transfer", "wsp", "hysteresis", "falling_friction", "temperature", "cleaning",
+  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise"]"#;
+
+fn scene(effects: &str, step_ms: f64) -> Scene {
+    let text = format!(
+        "name = \"bench\"\nseed = 1\n{effects}\n[run]\ninitial_speed_kmh = 120.0\nmax_duration_s = 20.0\nstep_ms = {step_ms}\n"
+    );
+    Scene::from_toml(&text, "bench.toml", None).unwrap()
+}
+
+fn real_time_factor(sc: &Scene) -> f64 {
+    let runs = 5;
+    let t = Instant::now();
+    let mut simulated = 0.0;
+    for _ in 0..runs {
+        simulated += black_box(sim::simulate(sc, None).unwrap()).duration_s;
+    }
+    simulated / t.elapsed().as_secs_f64()
+}
+
+fn bench(c: &mut Criterion) {
+    let full = scene(ALL, 0.1);
+    let minimal = scene("effects = []", 0.1);
+    let steps = sim::simulate(&full, None).unwrap().steps;
+    let mut g = c.benchmark_group("sim");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    g.throughput(Throughput::Elements(steps));
+    g.bench_function("full/20s", |b| {
+        b.iter(|| sim::simulate(black_box(&full), None).unwrap().steps)
+    });
+    g.bench_function("minimal/20s", |b| {
+        b.iter(|| sim::simulate(black_box(&minimal), None).unwrap().steps)
+    });
+    g.finish();
+
+    eprintln!(
+        "real-time factor at 0.1 ms: full {:.0}x, minimal {:.0}x",
+        real_time_factor(&full),
+        real_time_factor(&minimal)
+    );
+    let reference = sim::simulate(&scene(ALL, 0.02), None).unwrap();
+    eprintln!("step ms | real-time factor | RMS μ error axle 1 | max |v - v_ref| m/s  (full scene, vs 0.02 ms)");
+    for step in [0.05, 0.1, 0.2, 0.4] {
+        let sc = scene(ALL, step);
+        let out = sim::simulate(&sc, None).unwrap();
+        let n = out.truth.time_s.len().min(reference.truth.time_s.len());
+        let mut se = 0.0;
+        let mut dv: f64 = 0.0;
+        for i in 0..n {
+            se += (out.truth.mu[0][i] - reference.truth.mu[0][i]).powi(2);
+            dv = dv.max((out.truth.v_mps[i] - reference.truth.v_mps[i]).abs());
+        }
+        eprintln!(
+            "{step:7} | {:16.0} | {:18.5} | {:.4}",
+            real_time_factor(&sc),
+            (se / n as f64).sqrt(),
+            dv
+        );
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
