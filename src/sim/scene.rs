@@ -415,22 +415,21 @@ impl Scene {
                 "must be at most half the output period",
             ));
         }
-        let check_profile = |key: &str,
-                             d: &Vec<[f64; 2]>|
-         -> Result<Vec<(f64, f64)>, ConfigError> {
-            if d.is_empty()
-                || d.windows(2).any(|w| w[1][0] <= w[0][0])
-                || d.iter()
-                    .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
-            {
-                return Err(c.invalid(
+        let check_profile =
+            |key: &str, d: &Vec<[f64; 2]>| -> Result<Vec<(f64, f64)>, ConfigError> {
+                if d.is_empty()
+                    || d.windows(2).any(|w| w[1][0] <= w[0][0])
+                    || d.iter()
+                        .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
+                {
+                    return Err(c.invalid(
                     key,
                     format!("{d:?}"),
                     "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
                 ));
-            }
-            Ok(d.iter().map(|p| (p[0], p[1])).collect())
-        };
+                }
+                Ok(d.iter().map(|p| (p[0], p[1])).collect())
+            };
         let demand: [Vec<(f64, f64)>; 4] = match (&r.brake.demand_bar, &r.brake.demand_bar_per_axle)
         {
             (Some(_), Some(_)) => {
