@@ -389,7 +389,8 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                             // Refresh the patch stiffness for the wheel loads (a b ∝ Q^(2/3)).
                             for (c, nn) in contact.iter_mut().zip(&normal) {
                                 counters.hit(Effect::LoadTransfer);
-                                c.k = c.k0 * (nn / 2.0 / c.q0).powf(2.0 / 3.0);
+                                let ratio = (nn * 0.5 / c.q0).cbrt();
+                                c.k = c.k0 * ratio * ratio;
                             }
                         }
                     }
