@@ -6,7 +6,7 @@
 //! The options are documented in README.md ("Pipeline file").
 
 use std::fmt;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::format::{Signal, AXLES};
 use crate::units::{Quantity, Unit};
@@ -114,66 +114,10 @@ pub mod raw {
         pub unit: Option<String>,
     }
 
-    #[derive(Debug, Default, Deserialize)]
-    #[serde(deny_unknown_fields)]
-    pub struct CsvMapping {
-        pub time: Option<CsvColumn>,
-        pub v_radar: Option<CsvColumn>,
-        pub omega1: Option<CsvColumn>,
-        pub omega2: Option<CsvColumn>,
-        pub omega3: Option<CsvColumn>,
-        pub omega4: Option<CsvColumn>,
-        pub p1: Option<CsvColumn>,
-        pub p2: Option<CsvColumn>,
-        pub p3: Option<CsvColumn>,
-        pub p4: Option<CsvColumn>,
-    }
-
-    #[derive(Debug, Default, Deserialize)]
-    #[serde(deny_unknown_fields)]
-    pub struct McapMapping {
-        pub v_radar: Option<McapField>,
-        pub omega1: Option<McapField>,
-        pub omega2: Option<McapField>,
-        pub omega3: Option<McapField>,
-        pub omega4: Option<McapField>,
-        pub p1: Option<McapField>,
-        pub p2: Option<McapField>,
-        pub p3: Option<McapField>,
-        pub p4: Option<McapField>,
-    }
-
-    impl CsvMapping {
-        pub(crate) fn signals(&self) -> [&Option<CsvColumn>; 9] {
-            [
-                &self.v_radar,
-                &self.omega1,
-                &self.omega2,
-                &self.omega3,
-                &self.omega4,
-                &self.p1,
-                &self.p2,
-                &self.p3,
-                &self.p4,
-            ]
-        }
-    }
-
-    impl McapMapping {
-        pub(crate) fn signals(&self) -> [&Option<McapField>; 9] {
-            [
-                &self.v_radar,
-                &self.omega1,
-                &self.omega2,
-                &self.omega3,
-                &self.omega4,
-                &self.p1,
-                &self.p2,
-                &self.p3,
-                &self.p4,
-            ]
-        }
-    }
+    /// `[ingest.csv]`: signal key (`time`, `v_radar`, `omega1`..`omega4`, `p1`..`p4`) → column.
+    pub type CsvMapping = std::collections::BTreeMap<String, CsvColumn>;
+    /// `[ingest.mcap]`: signal key (`v_radar`, `omega1`..`omega4`, `p1`..`p4`) → topic/field.
+    pub type McapMapping = std::collections::BTreeMap<String, McapField>;
 }
 
 /// A validated pipeline.
@@ -614,24 +558,48 @@ impl Checker<'_> {
         };
         let plausibility = self.plausibility(i.plausibility)?;
 
+        let signal_keys: Vec<&str> = Signal::ALL.iter().map(|s| s.key()).collect();
+        if let Some(k) = i
+            .csv
+            .keys()
+            .find(|k| k.as_str() != "time" && !signal_keys.contains(&k.as_str()))
+        {
+            return Err(self.invalid(
+                &format!("ingest.csv.{k}"),
+                "{ … }",
+                format!(
+                    "unknown signal; the signals are time, {}",
+                    signal_keys.join(", ")
+                ),
+            ));
+        }
+        if let Some(k) = i.mcap.keys().find(|k| !signal_keys.contains(&k.as_str())) {
+            return Err(self.invalid(
+                &format!("ingest.mcap.{k}"),
+                "{ … }",
+                format!("unknown signal; the signals are {}", signal_keys.join(", ")),
+            ));
+        }
         let csv_time = self.csv_column(
             "ingest.csv.time",
-            i.csv.time.as_ref(),
+            i.csv.get("time"),
             crate::format::CSV_TIME_COLUMN,
             Quantity::Time,
         )?;
         let mut csv = Vec::with_capacity(9);
-        for (s, r) in Signal::ALL.iter().zip(i.csv.signals()) {
+        let mut mcap = Vec::with_capacity(9);
+        for s in Signal::ALL {
             csv.push(self.csv_column(
                 &format!("ingest.csv.{}", s.key()),
-                r.as_ref(),
+                i.csv.get(s.key()),
                 s.key(),
                 s.quantity(),
             )?);
-        }
-        let mut mcap = Vec::with_capacity(9);
-        for (s, r) in Signal::ALL.iter().zip(i.mcap.signals()) {
-            mcap.push(self.mcap_field(&format!("ingest.mcap.{}", s.key()), r.as_ref(), *s)?);
+            mcap.push(self.mcap_field(
+                &format!("ingest.mcap.{}", s.key()),
+                i.mcap.get(s.key()),
+                s,
+            )?);
         }
         Ok(IngestConfig {
             sample_rate_hz: fs,
@@ -785,17 +753,6 @@ pub fn check_vehicle(v: raw::Vehicle, file: &str) -> Result<Vehicle, ConfigError
     Checker { file }.vehicle(Some(v))
 }
 
-/// The path of the pipeline for messages: the file, or the embedded default's name.
-pub fn describe(path: Option<&Path>) -> String {
-    path.map(|p| p.display().to_string())
-        .unwrap_or_else(|| DEFAULT_PIPELINE_NAME.to_string())
-}
-
-/// Where the default pipeline lives in the source tree (for docs and `--help`).
-pub fn default_pipeline_path() -> PathBuf {
-    PathBuf::from("pipelines/uic_z1.toml")
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -926,6 +883,15 @@ mod tests {
             e,
             r#"p.toml: ingest.plausibility.action = "ignore": must be "warn" or "error" (default "warn")"#
         );
+    }
+
+    #[test]
+    fn misspelled_signal_in_a_mapping_is_named() {
+        let text = DEFAULT_PIPELINE_TOML.replace("omega4 = { column", "omgea4 = { column");
+        let e = Pipeline::from_toml(&text, "p.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("p.toml: ingest.csv.omgea4 = { … }: unknown signal; the signals are time, v_radar, omega1"), "{e}");
     }
 
     #[test]
