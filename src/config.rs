@@ -347,12 +347,39 @@ fn open_lo(lo: f64, hi: f64, default: Option<f64>, unit: &'static str) -> Rule {
     }
 }
 
-struct Checker<'a> {
-    file: &'a str,
+/// Turns raw values into checked ones, naming the file in every error. Shared by pipeline and
+/// scene files so both report problems the same way.
+pub(crate) struct Checker<'a> {
+    pub(crate) file: &'a str,
 }
 
 impl Checker<'_> {
-    fn invalid(&self, key: &str, value: impl fmt::Display, rule: impl fmt::Display) -> ConfigError {
+    /// A number in the closed range [lo, hi], `default` when absent (an error when there is no
+    /// default).
+    pub(crate) fn num(
+        &self,
+        key: &str,
+        v: Option<f64>,
+        lo: f64,
+        hi: f64,
+        default: Option<f64>,
+        unit: &'static str,
+    ) -> Result<f64, ConfigError> {
+        let rule = closed(lo, hi, default, unit);
+        match (v, default) {
+            (None, Some(d)) => Ok(d),
+            (None, None) => Err(self.missing(key, format!("give it in {unit}, {rule}"))),
+            (Some(x), _) if rule.contains(x) => Ok(x),
+            (Some(x), _) => Err(self.invalid(key, g(x), rule)),
+        }
+    }
+
+    pub(crate) fn invalid(
+        &self,
+        key: &str,
+        value: impl fmt::Display,
+        rule: impl fmt::Display,
+    ) -> ConfigError {
         ConfigError::Invalid {
             file: self.file.to_string(),
             key: key.to_string(),

@@ -319,7 +319,7 @@ impl Scene {
             file: file.to_string(),
             message: e.to_string().trim_end().to_string(),
         })?;
-        let c = Check { file };
+        let c = config::Checker { file };
         let vehicle = match r.vehicle {
             None => Pipeline::default_uic_z1().vehicle,
             Some(mut t) => match t.remove("pipeline") {
@@ -816,53 +816,4 @@ fn default_k_temperature(k20: f64) -> Vec<f64> {
         k20 * (-a - 40.0 * b),
         k20 * b,
     ]
-}
-
-struct Check<'a> {
-    file: &'a str,
-}
-
-impl Check<'_> {
-    fn invalid(&self, key: &str, value: impl fmt::Display, rule: impl fmt::Display) -> ConfigError {
-        ConfigError::Invalid {
-            file: self.file.to_string(),
-            key: key.to_string(),
-            value: value.to_string(),
-            rule: rule.to_string(),
-        }
-    }
-
-    fn num(
-        &self,
-        key: &str,
-        v: Option<f64>,
-        lo: f64,
-        hi: f64,
-        default: Option<f64>,
-        unit: &str,
-    ) -> Result<f64, ConfigError> {
-        let u = if unit.is_empty() {
-            String::new()
-        } else {
-            format!(" {unit}")
-        };
-        match v {
-            None => default.ok_or_else(|| ConfigError::Missing {
-                file: self.file.to_string(),
-                key: key.to_string(),
-                rule: format!("give it in [{lo}, {hi}]{u}"),
-            }),
-            Some(x) if x.is_finite() && x >= lo && x <= hi => Ok(x),
-            Some(x) => Err(self.invalid(
-                key,
-                x,
-                format!(
-                    "must be >= {lo}{u} and <= {hi}{u}{}",
-                    default
-                        .map(|d| format!(" (default {d}{u})"))
-                        .unwrap_or_default()
-                ),
-            )),
-        }
-    }
 }
