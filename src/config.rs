@@ -55,6 +55,33 @@ pub mod raw {
         pub vehicle: Option<Vehicle>,
         #[serde(default)]
         pub ingest: Ingest,
+        #[serde(default)]
+        pub filters: Filters,
+        #[serde(default)]
+        pub estimate: Estimate,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Filters {
+        pub mode: Option<String>,
+        pub radar_cutoff_hz: Option<f64>,
+        pub tacho_cutoff_hz: Option<f64>,
+        pub pressure_cutoff_hz: Option<f64>,
+        pub despike: Option<bool>,
+        pub despike_half_window_s: Option<f64>,
+        pub despike_threshold: Option<f64>,
+        pub despike_min_deviation_mps: Option<f64>,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Estimate {
+        pub phase: Option<String>,
+        pub min_speed_mps: Option<f64>,
+        pub min_pressure_bar: Option<f64>,
+        pub locked_wheel_speed_mps: Option<f64>,
+        pub sliding_threshold_mps: Option<f64>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -129,6 +156,8 @@ pub struct Pipeline {
     pub text: String,
     pub vehicle: Vehicle,
     pub ingest: IngestConfig,
+    pub filters: FilterConfig,
+    pub estimate: EstimateConfig,
 }
 
 /// The vehicle: masses, inertia and the geometry of the load-transfer model of seed 002
@@ -228,6 +257,76 @@ impl IngestConfig {
     }
 }
 
+/// How the low-pass filters run (seed 002, "Data from test runs").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FilterMode {
+    /// Forward–backward (like scipy's `sosfiltfilt` / MATLAB's `filtfilt`): no phase shift,
+    /// squared magnitude response. The default for offline analysis.
+    ZeroPhase,
+    /// One forward pass, as in the paper: delays each signal by the filter's group delay
+    /// (0.277 s at 1.5 Hz, 0.104 s at 4 Hz), which shifts slip against pressure.
+    Causal,
+}
+
+impl FilterMode {
+    pub fn name(self) -> &'static str {
+        match self {
+            FilterMode::ZeroPhase => "zero_phase",
+            FilterMode::Causal => "causal",
+        }
+    }
+}
+
+/// `[filters]`: signal conditioning before estimation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FilterConfig {
+    pub mode: FilterMode,
+    /// Cut-off of the radar speed's 4th-order Butterworth low-pass, Hz.
+    pub radar_cutoff_hz: f64,
+    /// Cut-off for the tachometers (axle angular speeds), Hz.
+    pub tacho_cutoff_hz: f64,
+    /// Cut-off for the brake-cylinder pressures, Hz.
+    pub pressure_cutoff_hz: f64,
+    /// Hampel despiking of the radar speed before the low-pass (None: off).
+    pub despike: Option<DespikeConfig>,
+}
+
+/// Hampel filter parameters (radar speed).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DespikeConfig {
+    /// Half-width of the centred window, s.
+    pub half_window_s: f64,
+    /// Threshold in robust standard deviations (1.4826 × median absolute deviation).
+    pub threshold: f64,
+    /// Deviations from the window median at or below this are never replaced, m/s.
+    pub min_deviation_mps: f64,
+}
+
+/// Which slip definition applies (seed 002 eq. 2–5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Δv = v − rω (eq. 2), slip ratio Δv / v (eq. 4).
+    Braking,
+    /// Δv = rω − v (eq. 3), slip ratio Δv / (rω) (eq. 5).
+    Traction,
+}
+
+/// `[estimate]`: per-sample adhesion estimation and its validity mask.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateConfig {
+    pub phase: Phase,
+    /// Samples with a filtered vehicle speed below this are masked (slip ratio and the
+    /// torque balance lose meaning towards standstill), m/s.
+    pub min_speed_mps: f64,
+    /// Samples whose filtered cylinder pressure is below this are masked (brake not applied), bar.
+    pub min_pressure_bar: f64,
+    /// A wheel whose peripheral speed rω is below this is locked: its brake torque is static
+    /// friction, not αp, so the torque balance does not hold and the sample is masked, m/s.
+    pub locked_wheel_speed_mps: f64,
+    /// Slip velocity above which an axle counts as sliding in summaries, m/s.
+    pub sliding_threshold_mps: f64,
+}
+
 impl Pipeline {
     /// The embedded default pipeline.
     pub fn default_uic_z1() -> Pipeline {
@@ -259,11 +358,15 @@ impl Pipeline {
         let c = Checker { file };
         let vehicle = c.vehicle(raw.vehicle)?;
         let ingest = c.ingest(raw.ingest)?;
+        let filters = c.filters(raw.filters, ingest.sample_rate_hz)?;
+        let estimate = c.estimate(raw.estimate)?;
         Ok(Pipeline {
             source: file.to_string(),
             text: text.to_string(),
             vehicle,
             ingest,
+            filters,
+            estimate,
         })
     }
 }
@@ -545,6 +648,138 @@ impl Checker<'_> {
             bogie_cog_height_m: h2,
             brake_torque_nm_per_bar: alpha,
             max_brake_pressure_bar: pmax,
+        })
+    }
+
+    fn choice<T: Copy>(
+        &self,
+        key: &str,
+        v: Option<String>,
+        options: &[(&str, T)],
+        default: T,
+    ) -> Result<T, ConfigError> {
+        match v {
+            None => Ok(default),
+            Some(s) => options
+                .iter()
+                .find(|(name, _)| *name == s)
+                .map(|(_, t)| *t)
+                .ok_or_else(|| {
+                    let names: Vec<String> =
+                        options.iter().map(|(n, _)| format!("\"{n}\"")).collect();
+                    self.invalid(
+                        key,
+                        format!("\"{s}\""),
+                        format!("must be one of {}", names.join(", ")),
+                    )
+                }),
+        }
+    }
+
+    fn filters(&self, f: raw::Filters, fs: f64) -> Result<FilterConfig, ConfigError> {
+        let mode = self.choice(
+            "filters.mode",
+            f.mode,
+            &[
+                ("zero_phase", FilterMode::ZeroPhase),
+                ("causal", FilterMode::Causal),
+            ],
+            FilterMode::ZeroPhase,
+        )?;
+        let cutoff = |key: &str, v: Option<f64>, default: f64| {
+            let rule = Rule {
+                lo: 0.0,
+                lo_open: true,
+                hi: fs / 2.0,
+                hi_open: true,
+                default: Some(default),
+                unit: "Hz",
+            };
+            match v {
+                None => Ok(default),
+                Some(x) if rule.contains(x) => Ok(x),
+                Some(x) => Err(self.invalid(
+                    key,
+                    g(x),
+                    format!(
+                        "{rule}; the upper bound is half of ingest.sample_rate_hz = {}",
+                        g(fs)
+                    ),
+                )),
+            }
+        };
+        let radar_cutoff_hz = cutoff("filters.radar_cutoff_hz", f.radar_cutoff_hz, 1.5)?;
+        let tacho_cutoff_hz = cutoff("filters.tacho_cutoff_hz", f.tacho_cutoff_hz, 4.0)?;
+        let pressure_cutoff_hz = cutoff("filters.pressure_cutoff_hz", f.pressure_cutoff_hz, 4.0)?;
+        let half_window_s = self.optional(
+            "filters.despike_half_window_s",
+            f.despike_half_window_s,
+            open_lo(0.0, 10.0, Some(0.025), "s"),
+        )?;
+        if half_window_s * fs < 1.0 {
+            return Err(self.invalid(
+                "filters.despike_half_window_s",
+                g(half_window_s),
+                format!(
+                    "must span at least one sample ({} s at ingest.sample_rate_hz = {})",
+                    g(1.0 / fs),
+                    g(fs)
+                ),
+            ));
+        }
+        let threshold = self.optional(
+            "filters.despike_threshold",
+            f.despike_threshold,
+            open_lo(0.0, 100.0, Some(3.0), ""),
+        )?;
+        let min_deviation_mps = self.optional(
+            "filters.despike_min_deviation_mps",
+            f.despike_min_deviation_mps,
+            closed(0.0, 100.0, Some(0.5), "m/s"),
+        )?;
+        let despike = f.despike.unwrap_or(true).then_some(DespikeConfig {
+            half_window_s,
+            threshold,
+            min_deviation_mps,
+        });
+        Ok(FilterConfig {
+            mode,
+            radar_cutoff_hz,
+            tacho_cutoff_hz,
+            pressure_cutoff_hz,
+            despike,
+        })
+    }
+
+    fn estimate(&self, e: raw::Estimate) -> Result<EstimateConfig, ConfigError> {
+        let phase = self.choice(
+            "estimate.phase",
+            e.phase,
+            &[("braking", Phase::Braking), ("traction", Phase::Traction)],
+            Phase::Braking,
+        )?;
+        Ok(EstimateConfig {
+            phase,
+            min_speed_mps: self.optional(
+                "estimate.min_speed_mps",
+                e.min_speed_mps,
+                open_lo(0.0, 100.0, Some(1.0), "m/s"),
+            )?,
+            min_pressure_bar: self.optional(
+                "estimate.min_pressure_bar",
+                e.min_pressure_bar,
+                closed(0.0, 20.0, Some(0.2), "bar"),
+            )?,
+            locked_wheel_speed_mps: self.optional(
+                "estimate.locked_wheel_speed_mps",
+                e.locked_wheel_speed_mps,
+                open_lo(0.0, 10.0, Some(0.1), "m/s"),
+            )?,
+            sliding_threshold_mps: self.optional(
+                "estimate.sliding_threshold_mps",
+                e.sliding_threshold_mps,
+                open_lo(0.0, 10.0, Some(0.2), "m/s"),
+            )?,
         })
     }
 

@@ -3,17 +3,22 @@
 //! Data flows one way (see ARCHITECTURE.md): [`ingest`] reads a log (CSV or MCAP, any column
 //! names and units) into a [`ingest::RunLog`] on a uniform time base in canonical units.
 //! [`format`] owns every channel name, column, topic and unit of the log format; [`config`]
-//! holds the validated pipeline file.
+//! holds the validated pipeline file. [`signal`] filters and differentiates the signals,
+//! [`estimate`] turns them into slip, loads, forces and μ per axle and sample (and calibrates
+//! the brake coefficient); [`vehicle`] is the load-transfer model they share with [`sim`].
 //!
 //! The library never prints, exits or reads the terminal; the `railgrip` binary does.
 
 pub mod atomic;
 pub mod config;
 pub mod contact;
+pub mod estimate;
 pub mod format;
 pub mod ingest;
+pub mod signal;
 pub mod sim;
 pub mod units;
+pub mod vehicle;
 
 pub use config::Pipeline;
 pub use ingest::{ingest_file, RunLog};

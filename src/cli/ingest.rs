@@ -40,7 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     Ok(if log.lost_data() { EXIT_LOSSY } else { EXIT_OK })
 }
 
-fn stem(p: &Path) -> String {
+pub fn stem(p: &Path) -> String {
     p.file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "run".into())

@@ -1,5 +1,6 @@
 //! Command-line interface. The only place that prints or picks exit codes.
 
+mod estimate;
 mod ingest;
 mod simulate;
 
@@ -56,6 +57,16 @@ Writes <DIR>/<name>.csv + <name>.meta.toml (when all sensors share one rate), <n
 tangential_N, mu, dv_mps, ddv_mps2). The same scene and seed give identical bytes."
     )]
     Simulate(simulate::Args),
+    /// Condition a log and estimate slip, loads, forces and μ per axle and sample.
+    #[command(
+        long_about = "Read one log, condition it (radar despiking; 4th-order Butterworth low-passes, zero-phase by default, [filters] in the pipeline) and estimate per axle and sample the slip Δv = v − rω and its rate, the slip ratio, the vehicle deceleration, the normal load N_i (load transfer, seed 002 eq. 12–13), the tangential force T_i = (J ω̇_i + α_i p_i)/r (eq. 9–10) and μ_i = T_i/N_i (eq. 14), with a validity flag.\n\nWrites <DIR>/<stem>.estimates.parquet (and .csv with --csv), one row per sample and axle: time_s, axle, v_mps, omega_radps, p_bar, dv_mps, ddv_mps2, slip_ratio, decel_mps2, normal_N, tangential_N, mu, valid. Prints per axle: peak μ, max slip, time sliding, adhesion utilisation and why samples were masked.\n\nExit codes: 0 ok, 1 error (nothing written), 2 usage, 3 written but some input was lost at ingest."
+    )]
+    Estimate(estimate::Args),
+    /// Estimate the brake-torque coefficient α from a full-adhesion (dry) run.
+    #[command(
+        long_about = "Fit α of C_f = α p (seed 002 eq. 10) from the vehicle's longitudinal balance on a braking run without wheel slides: M v̇ + (J/r) Σ ω̇_i = −Σ α_i p_i / r − c0 − c2 v², by least squares with the resistance terms c0, c2 fitted alongside. Prints α with its standard error (corrected for the autocorrelation of filtered signals) and the TOML line for the pipeline file."
+    )]
+    Calibrate(estimate::CalibrateArgs),
 }
 
 /// Pipeline option shared by commands.
@@ -83,6 +94,8 @@ pub fn main() -> ExitCode {
     let result = match cli.command {
         Command::Ingest(args) => ingest::run(args),
         Command::Simulate(args) => simulate::run(args),
+        Command::Estimate(args) => estimate::run(args),
+        Command::Calibrate(args) => estimate::calibrate_run(args),
     };
     match result {
         Ok(code) => ExitCode::from(code),

@@ -17,7 +17,12 @@
 //!   ω_{n+1} = ω_n + h f(ω_n) / (1 + h r² k_n / J),  k_n = ∂T/∂Δv ≥ 0 (analytic),
 //! because the creep stiffness k grows like 1/v: near standstill the wheel time constant
 //! J/(r² k) falls below the step and explicit Euler would oscillate, while the implicit
-//! correction keeps the step stable at the cost of one extra derivative per axle.
+//! correction keeps the step stable at the cost of one extra derivative per axle. The force
+//! applied over the step (to the wheel, the vehicle and the truth table) is the creep force
+//! linearised at the new wheel speed, T* = T(ω_n) − r k_n N (ω_{n+1} − ω_n), so J ω̇ = T* r − α p
+//! holds exactly step by step (with T(ω_n) instead, a stiff dry contact would break the balance
+//! by h r² k N / J ≈ 15 % of J ω̇). The hysteresis branch factor is lagged by
+//! `hysteresis_time_constant_s` (an instant one closes an algebraic loop that chatters).
 
 pub mod rng;
 pub mod scene;
@@ -30,8 +35,7 @@ use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES
 use rng::Rng;
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 
-/// Standard gravity, m/s².
-pub const G_MPS2: f64 = 9.80665;
+pub use crate::vehicle::{axle_loads, static_axle_load, G_MPS2};
 
 /// Why a simulation could not run or its output could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -145,8 +149,7 @@ fn adhesion(
     q_wheel: f64,
     v: f64,
     w: f64,
-    ddv: f64,
-    sc_inv_ddv: f64,
+    hyst: f64,
 ) -> (f64, f64) {
     let mut mu = mu_axle;
     if fx.has(Effect::FallingFriction) {
@@ -170,15 +173,23 @@ fn adhesion(
     let mut slope =
         two_mu_pi * (k_a * (1.0 - x * x) * inv_x * inv_x + k_s / (1.0 + y * y)) * eps_per_w;
     if fx.has(Effect::Hysteresis) {
-        counters.hit(Effect::Hysteresis);
-        // Recovery branch (dΔv/dt < 0) lower by `depth`, blended smoothly by the algebraic
-        // sigmoid z/√(1 + z²), z = (dΔv/dt)/ddv0.
-        let z = ddv * sc_inv_ddv;
-        let h = 1.0 - sc.hysteresis_depth * 0.5 * (1.0 - z / (1.0 + z * z).sqrt());
-        ratio *= h;
-        slope *= h;
+        // The branch factor (see `hysteresis_target`), lagged by the step loop.
+        ratio *= hyst;
+        slope *= hyst;
     }
     (ratio, slope.max(0.0))
+}
+
+/// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
+/// by `depth`, blended smoothly by the algebraic sigmoid z/√(1 + z²), z = (dΔv/dt)/ddv0.
+/// The step loop lags it with the time constant `hysteresis_time_constant_s`: the contact's
+/// branch has memory, and applying it instantly closes an algebraic loop (force → slip rate
+/// → force, loop gain ≈ N μ depth r² / (2 ddv0 J) ≈ 6 for the UIC-Z1) that the explicit
+/// step turns into a relay chatter at the step rate.
+#[inline]
+fn hysteresis_target(depth: f64, ddv: f64, inv_ddv0: f64) -> f64 {
+    let z = ddv * inv_ddv0;
+    1.0 - depth * 0.5 * (1.0 - z / (1.0 + z * z).sqrt())
 }
 
 /// Linear interpolation of the brake demand, held after the last point; `cursor` advances.
@@ -193,30 +204,6 @@ fn demand_at(points: &[(f64, f64)], t: f64, cursor: &mut usize) -> f64 {
     }
     let (t1, p1) = points[*cursor + 1];
     p0 + (p1 - p0) * (t - t0) / (t1 - t0)
-}
-
-/// Static axle load without load transfer, N.
-fn static_axle_load(v: &crate::config::Vehicle) -> f64 {
-    (v.body_mass_kg / 2.0 + v.bogie_mass_kg) * G_MPS2 / 2.0
-}
-
-/// Axle loads from seed 002 eq. 12–13 written out for the four axles, N, for vehicle
-/// deceleration `decel` (m/s², positive when braking). Axle 1 leads:
-///   N_b1,2 = m_c g/2 ± m_c d (h1 − hb)/l1                         (eq. 12)
-///   N_1,2 = (N_b1 + m_b g)/2 ± m_b d h2/l2,  N_3,4 likewise with N_b2 (eq. 13)
-pub fn axle_loads(v: &crate::config::Vehicle, decel_mps2: f64) -> [f64; AXLES] {
-    let (mc, mb) = (v.body_mass_kg, v.bogie_mass_kg);
-    let pitch =
-        mc * decel_mps2 * (v.body_cog_height_m - v.pivot_height_m) / v.bogie_pivot_distance_m;
-    let nb1 = mc * G_MPS2 / 2.0 + pitch;
-    let nb2 = mc * G_MPS2 / 2.0 - pitch;
-    let bogie = mb * decel_mps2 * v.bogie_cog_height_m / v.bogie_wheelbase_m;
-    [
-        (nb1 + mb * G_MPS2) / 2.0 + bogie,
-        (nb1 + mb * G_MPS2) / 2.0 - bogie,
-        (nb2 + mb * G_MPS2) / 2.0 + bogie,
-        (nb2 + mb * G_MPS2) / 2.0 - bogie,
-    ]
 }
 
 /// Runs a scene. `seed` overrides the scene's seed.
@@ -275,6 +262,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         0.0
     };
     let k_cyl = 1.0 - (-h / sc.cylinder_time_constant_s).exp();
+    let k_hyst = 1.0 - (-h / sc.hysteresis_time_constant_s).exp();
 
     // State.
     let mut v = sc.initial_speed_mps;
@@ -286,6 +274,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let mut hold_cmd = [0.0f64; AXLES];
     let mut wsp_timer = [0.0f64; AXLES];
     let mut ddv = [0.0f64; AXLES];
+    let mut hyst = [hysteresis_target(sc.hysteresis_depth, 0.0, 1.0); AXLES];
     let mut omega_dot = [0.0f64; AXLES];
     let mut decel = 0.0f64;
     let mut normal = [static_axle_load(veh); AXLES];
@@ -419,6 +408,11 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         for a in 0..AXLES {
             let demand = demand_at(&sc.demand_bar[a], t, &mut cursor[a]);
             let w = v - r * omega[a];
+            if fx.has(Effect::Hysteresis) {
+                counters.hit(Effect::Hysteresis);
+                let target = hysteresis_target(sc.hysteresis_depth, ddv[a], inv_ddv0);
+                hyst[a] += (target - hyst[a]) * k_hyst;
+            }
             let (ratio, slope) = adhesion(
                 sc,
                 fx,
@@ -430,12 +424,9 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 normal[a] / 2.0,
                 v,
                 w,
-                ddv[a],
-                inv_ddv0,
+                hyst[a],
             );
             let t_a = ratio * normal[a];
-            tangential[a] = t_a;
-            total_t += t_a;
 
             let cmd = if fx.has(Effect::Wsp) {
                 counters.hit(Effect::Wsp);
@@ -474,6 +465,11 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
             if locked[a] && t_a * r > brake {
                 locked[a] = false;
             }
+            // Force applied over the step: the creep force linearised at the new wheel speed,
+            // T* = T(ω_n) − r (dμ/dΔv) N (ω_{n+1} − ω_n). With it the wheel's momentum balance
+            // J ω̇ = T* r − α p holds exactly for the linearly implicit step below, and the
+            // vehicle feels the same force (the truth table records T*).
+            let mut t_star = t_a;
             if !locked[a] {
                 let f = (t_a * r - brake) / j;
                 let stiff = h * r * r * slope * normal[a] / j;
@@ -481,8 +477,12 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 if omega[a] <= 0.0 {
                     omega[a] = 0.0;
                     locked[a] = true;
+                } else {
+                    t_star = t_a - r * slope * normal[a] * (omega[a] - old);
                 }
             }
+            tangential[a] = t_star;
+            total_t += t_star;
             omega_dot[a] = (omega[a] - old) * inv_h;
             theta[a] += omega[a] * h;
             let w_new = v - r * omega[a];

@@ -178,6 +178,7 @@ pub mod raw {
         pub reference_speed_kmh: Option<f64>,
         pub hysteresis_depth: Option<f64>,
         pub hysteresis_ddv_mps2: Option<f64>,
+        pub hysteresis_time_constant_s: Option<f64>,
         pub cleaning_per_axle: Option<f64>,
         pub temperature_k_a: Option<Vec<f64>>,
         pub temperature_k_s: Option<Vec<f64>>,
@@ -273,6 +274,8 @@ pub struct Scene {
     pub reference_speed_mps: f64,
     pub hysteresis_depth: f64,
     pub hysteresis_ddv_mps2: f64,
+    /// Lag of the hysteresis branch factor behind the slip rate, s.
+    pub hysteresis_time_constant_s: f64,
     pub cleaning_per_axle: f64,
     pub temperature_law: TemperatureLaw,
     pub youngs_modulus_pa: f64,
@@ -624,6 +627,14 @@ impl Scene {
                 100.0,
                 Some(0.5),
                 "m/s²",
+            )?,
+            hysteresis_time_constant_s: c.num(
+                "adhesion.hysteresis_time_constant_s",
+                a.hysteresis_time_constant_s,
+                1e-3,
+                10.0,
+                Some(0.02),
+                "s",
             )?,
             cleaning_per_axle: c.num(
                 "adhesion.cleaning_per_axle",

@@ -1,0 +1,179 @@
+//! `railgrip estimate` and `railgrip calibrate`.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+use railgrip::estimate::calibrate::{calibrate, AlphaFit, Resistance};
+use railgrip::estimate::{estimate, Estimates};
+
+use super::{PipelineArg, EXIT_LOSSY, EXIT_OK};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The log to estimate: .csv (with optional <stem>.meta.toml sidecar) or .mcap.
+    #[arg(value_name = "RUN")]
+    run: PathBuf,
+    #[command(flatten)]
+    pipeline: PipelineArg,
+    /// Directory for <stem>.estimates.parquet (created if missing).
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Also write <stem>.estimates.csv.
+    #[arg(long)]
+    csv: bool,
+}
+
+pub fn run(args: Args) -> anyhow::Result<u8> {
+    let pipeline = args.pipeline.load()?;
+    let log = railgrip::ingest_file(&args.run, &pipeline)?;
+    let est = estimate(&log, &pipeline)?;
+    let stem = super::ingest::stem(&args.run);
+    let written = est.write(&args.out, &stem, args.csv)?;
+    print!("{}", summary(&est));
+    for w in &log.warnings {
+        println!("warning    {}", w.message);
+    }
+    for p in written {
+        let size = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
+        println!("wrote      {} ({:.1} MB)", p.display(), size as f64 / 1e6);
+    }
+    Ok(if log.lost_data() { EXIT_LOSSY } else { EXIT_OK })
+}
+
+/// The human summary printed by `railgrip estimate`.
+pub fn summary(e: &Estimates) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "file       {}", e.source.display());
+    let gd = e.group_delay_s;
+    let _ = writeln!(
+        s,
+        "filters    {} · group delay radar {:.3} s, tachometers {:.3} s, pressures {:.3} s{}",
+        match e.mode {
+            railgrip::config::FilterMode::ZeroPhase => "zero-phase (forward-backward)",
+            railgrip::config::FilterMode::Causal => "causal (one pass, as in seed 002)",
+        },
+        gd.radar_s,
+        gd.tacho_s,
+        gd.pressure_s,
+        if gd.radar_s != gd.tacho_s {
+            format!(" — slip is skewed by {:.3} s", gd.radar_s - gd.tacho_s)
+        } else {
+            String::new()
+        }
+    );
+    let _ = writeln!(
+        s,
+        "despiking  {} radar sample(s) replaced{}",
+        e.despiked,
+        if e.despiked > 0 { " (warning)" } else { "" }
+    );
+    let _ = writeln!(
+        s,
+        "\n{:<5} {:>8} {:>8} {:>11} {:>10} {:>12}  masked",
+        "axle", "valid", "peak μ", "max Δv m/s", "sliding s", "utilisation"
+    );
+    for (a, sm) in e.summary().iter().enumerate() {
+        let m = &e.axles[a].masked;
+        let reasons: Vec<String> = m
+            .pairs()
+            .iter()
+            .filter(|(_, k)| *k > 0)
+            .map(|(r, k)| format!("{k} {r}"))
+            .collect();
+        let _ = writeln!(
+            s,
+            "{:<5} {:>8} {:>8.4} {:>11.3} {:>10.2} {:>12.2}  {}",
+            sm.axle,
+            sm.valid_samples,
+            sm.peak_mu,
+            sm.max_dv_mps,
+            sm.sliding_s,
+            sm.utilisation,
+            if reasons.is_empty() {
+                "none".to_string()
+            } else {
+                reasons.join(", ")
+            }
+        );
+    }
+    s
+}
+
+#[derive(clap::Args)]
+pub struct CalibrateArgs {
+    /// A full-adhesion (dry) braking run: .csv or .mcap.
+    #[arg(value_name = "RUN")]
+    run: PathBuf,
+    #[command(flatten)]
+    pipeline: PipelineArg,
+    /// Fit one α per axle instead of a common one (needs pressures that differ between axles).
+    #[arg(long)]
+    per_axle: bool,
+    /// Known running resistance A,B,C of A + B v + C v² (N, N·s/m, N·s²/m²), e.g.
+    /// `--davis 1200,30,6`: subtracted instead of fitted, which pins α down much better.
+    #[arg(
+        long,
+        value_name = "A,B,C",
+        value_delimiter = ',',
+        allow_negative_numbers = true
+    )]
+    davis: Option<Vec<f64>>,
+}
+
+pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<u8> {
+    let pipeline = args.pipeline.load()?;
+    let log = railgrip::ingest_file(&args.run, &pipeline)?;
+    let fit = if args.per_axle {
+        AlphaFit::PerAxle
+    } else {
+        AlphaFit::Common
+    };
+    let resistance = match args.davis.as_deref() {
+        None => Resistance::Fit,
+        Some(&[a, b, c]) if [a, b, c].iter().all(|x| x.is_finite() && *x >= 0.0) => {
+            Resistance::Davis {
+                a_n: a,
+                b_n_s_per_m: b,
+                c_n_s2_per_m2: c,
+            }
+        }
+        Some(v) => anyhow::bail!(
+            "--davis {v:?}: give three finite non-negative numbers A,B,C (N, N·s/m, N·s²/m²), e.g. --davis 1200,30,6"
+        ),
+    };
+    let c = calibrate(&log, &pipeline, fit, resistance)?;
+    println!("file       {}", log.source.display());
+    println!(
+        "samples    {} at full adhesion ({:.0} effective after autocorrelation)",
+        c.samples, c.effective_samples
+    );
+    for (a, (al, se)) in c.alpha_nm_per_bar.iter().zip(&c.alpha_se).enumerate() {
+        if fit == AlphaFit::Common && a > 0 {
+            break;
+        }
+        let label = match fit {
+            AlphaFit::Common => "α (all)".to_string(),
+            AlphaFit::PerAxle => format!("α{}", a + 1),
+        };
+        println!("{label:<10} {al:.1} ± {se:.1} N·m/bar (1σ)");
+    }
+    match resistance {
+        Resistance::Fit => println!(
+            "resistance {:.0} N + {:.2} N·s²/m² · v² (fitted alongside; residual RMS {:.0} N)",
+            c.c0_n, c.c2_n_s2_per_m2, c.rms_residual_n
+        ),
+        Resistance::Davis {
+            a_n,
+            b_n_s_per_m,
+            c_n_s2_per_m2,
+        } => println!(
+            "resistance {a_n} N + {b_n_s_per_m} N·s/m · v + {c_n_s2_per_m2} N·s²/m² · v² (given; residual RMS {:.0} N)",
+            c.rms_residual_n
+        ),
+    }
+    let current = pipeline.vehicle.brake_torque_nm_per_bar;
+    println!("pipeline   {} has {:?}", pipeline.source, current);
+    println!("\n# put this line into [vehicle] of your pipeline file:");
+    println!("{}", c.toml_line());
+    Ok(if log.lost_data() { EXIT_LOSSY } else { EXIT_OK })
+}

@@ -1,0 +1,401 @@
+//! Adhesion estimation per axle and sample (seed 002 002_8d8769283f5e9cb6.txt, "Data from
+//! test runs" and "Simplified dynamic model").
+//!
+//! From the conditioned signals (filtered v, ω_i, p_i and their derivatives):
+//! - slip velocity Δv_i = v − r ω_i in braking (eq. 2) or r ω_i − v in traction (eq. 3), m/s,
+//!   and its rate dΔv_i/dt = v̇ − r ω̇_i (braking) or r ω̇_i − v̇ (traction), m/s²;
+//! - slip ratio Δv_i / v in braking (eq. 4) or Δv_i / (r ω_i) in traction (eq. 5), undefined
+//!   (NaN) where the denominator is not positive;
+//! - vehicle deceleration d = −v̇, m/s², and the normal loads N_i(d) of eq. 12–13
+//!   ([`crate::vehicle::axle_loads`]), N;
+//! - tangential force T_i = (J ω̇_i + α_i p_i) / r from the torque balance T_i r = J ω̇_i +
+//!   C_f,i (eq. 9) with C_f,i = α_i p_i (eq. 10), N — eq. 11 in the paper prints the J ω̇ term
+//!   with the wrong sign; eq. 9 and eq. 14 are the consistent pair. The contract logs no motor
+//!   torque, so traction mode changes the slip definitions only;
+//! - adhesion coefficient μ_i = T_i / N_i (eq. 14).
+//!
+//! Each sample gets a validity flag per axle; the first failing reason is counted
+//! ([`MaskCounts`]): no data (unbridged gap), segment too short to filter, within one period
+//! of the lowest cut-off of a segment's ends (filter start-up transients), vehicle speed below
+//! `estimate.min_speed_mps` (towards standstill the slip ratio and the torque balance lose
+//! meaning), cylinder pressure below `estimate.min_pressure_bar` (brake not applied), wheel
+//! locked (r ω below `estimate.locked_wheel_speed_mps`: the brake torque is then static
+//! friction, not α p), and any non-finite result.
+
+pub mod calibrate;
+
+use std::path::{Path, PathBuf};
+
+use crate::config::{FilterMode, Phase, Pipeline};
+use crate::format::{RunMetadata, AXLES};
+use crate::ingest::RunLog;
+use crate::signal::{self, Conditioned, FilterError, GroupDelays};
+use crate::vehicle::axle_loads;
+
+/// Column names of the estimates table, in order (README "Estimates table").
+pub const ESTIMATE_COLUMNS: [&str; 13] = [
+    "time_s",
+    "axle",
+    "v_mps",
+    "omega_radps",
+    "p_bar",
+    "dv_mps",
+    "ddv_mps2",
+    "slip_ratio",
+    "decel_mps2",
+    "normal_N",
+    "tangential_N",
+    "mu",
+    "valid",
+];
+
+/// Why estimation or writing failed.
+#[derive(Debug, thiserror::Error)]
+pub enum EstimateError {
+    #[error("{file}: {source}. Hint: check [filters] in the pipeline file")]
+    Filter {
+        file: PathBuf,
+        #[source]
+        source: FilterError,
+    },
+    #[error("{file}: cannot write: {message}")]
+    Write { file: PathBuf, message: String },
+    #[error("{file}: {what}. Hint: {hint}")]
+    Calibration {
+        file: PathBuf,
+        what: String,
+        hint: String,
+    },
+}
+
+/// Samples masked per reason (each invalid sample counted once, under its first reason).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct MaskCounts {
+    pub no_data: usize,
+    pub short_segment: usize,
+    pub settling: usize,
+    pub low_speed: usize,
+    pub brake_released: usize,
+    pub wheel_locked: usize,
+    pub not_finite: usize,
+}
+
+impl MaskCounts {
+    pub fn total(&self) -> usize {
+        self.no_data
+            + self.short_segment
+            + self.settling
+            + self.low_speed
+            + self.brake_released
+            + self.wheel_locked
+            + self.not_finite
+    }
+
+    /// (reason, count) pairs for messages.
+    pub fn pairs(&self) -> [(&'static str, usize); 7] {
+        [
+            ("no data (gap)", self.no_data),
+            ("segment too short", self.short_segment),
+            ("filter settling", self.settling),
+            ("speed below minimum", self.low_speed),
+            ("brake not applied", self.brake_released),
+            ("wheel locked", self.wheel_locked),
+            ("not finite", self.not_finite),
+        ]
+    }
+}
+
+/// Estimates of one axle, one value per sample of the run.
+#[derive(Debug, Clone, Default)]
+pub struct AxleEstimates {
+    /// Filtered axle angular speed ω_i, rad/s.
+    pub omega_radps: Vec<f64>,
+    /// Filtered brake-cylinder pressure p_i, bar.
+    pub p_bar: Vec<f64>,
+    /// Slip velocity Δv_i, m/s.
+    pub dv_mps: Vec<f64>,
+    /// Slip rate dΔv_i/dt, m/s².
+    pub ddv_mps2: Vec<f64>,
+    /// Slip ratio (dimensionless), NaN where undefined.
+    pub slip_ratio: Vec<f64>,
+    /// Normal load N_i, N.
+    pub normal_n: Vec<f64>,
+    /// Tangential force T_i, N.
+    pub tangential_n: Vec<f64>,
+    /// Adhesion coefficient μ_i = T_i / N_i.
+    pub mu: Vec<f64>,
+    pub valid: Vec<bool>,
+    pub masked: MaskCounts,
+}
+
+/// Per-sample estimates of a run.
+#[derive(Debug, Clone)]
+pub struct Estimates {
+    pub source: PathBuf,
+    pub sample_rate_hz: f64,
+    /// s, the RunLog's time base.
+    pub time_s: Vec<f64>,
+    /// Filtered vehicle speed v, m/s.
+    pub v_mps: Vec<f64>,
+    /// Vehicle deceleration d = −dv/dt, m/s² (positive when braking).
+    pub decel_mps2: Vec<f64>,
+    pub axles: [AxleEstimates; AXLES],
+    pub phase: Phase,
+    pub mode: FilterMode,
+    pub group_delay_s: GroupDelays,
+    /// Radar samples replaced by the despiking filter.
+    pub despiked: usize,
+    pub metadata: RunMetadata,
+    /// Slip velocity above which an axle counts as sliding in [`Estimates::summary`], m/s.
+    pub sliding_threshold_mps: f64,
+}
+
+/// Conditions and estimates a run with a pipeline's settings.
+pub fn estimate(log: &RunLog, pipeline: &Pipeline) -> Result<Estimates, EstimateError> {
+    let cond =
+        signal::condition(log, &pipeline.filters).map_err(|source| EstimateError::Filter {
+            file: log.source.clone(),
+            source,
+        })?;
+    Ok(estimate_conditioned(log, &cond, pipeline))
+}
+
+/// The estimation step on already conditioned signals.
+pub fn estimate_conditioned(log: &RunLog, c: &Conditioned, pipeline: &Pipeline) -> Estimates {
+    let veh = &pipeline.vehicle;
+    let cfg = &pipeline.estimate;
+    let n = log.len();
+    let r = veh.wheel_radius_m;
+    let (inv_r, j) = (1.0 / r, veh.axle_inertia_kgm2);
+    let nan = || vec![f64::NAN; n];
+    let mut axles: [AxleEstimates; AXLES] = std::array::from_fn(|a| AxleEstimates {
+        omega_radps: c.omega_radps[a].clone(),
+        p_bar: c.p_bar[a].clone(),
+        dv_mps: nan(),
+        ddv_mps2: nan(),
+        slip_ratio: nan(),
+        normal_n: nan(),
+        tangential_n: nan(),
+        mu: nan(),
+        valid: vec![false; n],
+        masked: MaskCounts::default(),
+    });
+    let decel_mps2: Vec<f64> = c.accel_mps2.iter().map(|a| -a).collect();
+    let segs = signal::segments(log);
+    let mut has_data = vec![false; n];
+    for (s, e) in segs {
+        has_data[s..e].fill(true);
+    }
+    let braking = cfg.phase == Phase::Braking;
+    for i in 0..n {
+        let v = c.v_mps[i];
+        let acc = c.accel_mps2[i];
+        let loads = axle_loads(veh, -acc);
+        for (a, ax) in axles.iter_mut().enumerate() {
+            let w = ax.omega_radps[i];
+            let wd = c.omega_dot_radps2[a][i];
+            let p = ax.p_bar[i];
+            let rw = r * w;
+            let (dv, ddv, denom) = if braking {
+                (v - rw, acc - r * wd, v)
+            } else {
+                (rw - v, r * wd - acc, rw)
+            };
+            let t = (j * wd + veh.brake_torque_nm_per_bar[a] * p) * inv_r;
+            let nn = loads[a];
+            let mu = if nn > 0.0 { t / nn } else { f64::NAN };
+            ax.dv_mps[i] = dv;
+            ax.ddv_mps2[i] = ddv;
+            ax.slip_ratio[i] = if denom > 0.0 { dv / denom } else { f64::NAN };
+            ax.normal_n[i] = nn;
+            ax.tangential_n[i] = t;
+            ax.mu[i] = mu;
+            let m = &mut ax.masked;
+            let ok = if !c.usable[i] {
+                if has_data[i] {
+                    m.short_segment += 1;
+                } else {
+                    m.no_data += 1;
+                }
+                false
+            } else if !c.settled[i] {
+                m.settling += 1;
+                false
+            } else if !(v >= cfg.min_speed_mps) {
+                m.low_speed += 1;
+                false
+            } else if !(p >= cfg.min_pressure_bar) {
+                m.brake_released += 1;
+                false
+            } else if !(rw >= cfg.locked_wheel_speed_mps) {
+                m.wheel_locked += 1;
+                false
+            } else if !(dv.is_finite()
+                && ddv.is_finite()
+                && t.is_finite()
+                && mu.is_finite()
+                && ax.slip_ratio[i].is_finite())
+            {
+                m.not_finite += 1;
+                false
+            } else {
+                true
+            };
+            ax.valid[i] = ok;
+        }
+    }
+    Estimates {
+        source: log.source.clone(),
+        sample_rate_hz: log.sample_rate_hz,
+        time_s: log.time_s.clone(),
+        v_mps: c.v_mps.clone(),
+        decel_mps2,
+        axles,
+        phase: cfg.phase,
+        mode: c.mode,
+        group_delay_s: c.group_delay_s,
+        despiked: c.despiked,
+        metadata: log.metadata.clone(),
+        sliding_threshold_mps: cfg.sliding_threshold_mps,
+    }
+}
+
+/// Per-axle figures of a run (printed by `railgrip estimate`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxleSummary {
+    pub axle: usize,
+    pub valid_samples: usize,
+    /// Highest μ over valid samples (NaN when none).
+    pub peak_mu: f64,
+    /// Largest slip velocity over valid samples, m/s (NaN when none).
+    pub max_dv_mps: f64,
+    /// Time with Δv above the sliding threshold (valid samples), s.
+    pub sliding_s: f64,
+    /// Adhesion utilisation: mean μ over the valid samples ÷ peak μ — the share of the best
+    /// adhesion this axle found that it used on average while braking (NaN when none).
+    pub utilisation: f64,
+}
+
+impl Estimates {
+    pub fn len(&self) -> usize {
+        self.time_s.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.time_s.is_empty()
+    }
+
+    /// Per-axle figures.
+    pub fn summary(&self) -> [AxleSummary; AXLES] {
+        let dt = 1.0 / self.sample_rate_hz;
+        std::array::from_fn(|a| {
+            let ax = &self.axles[a];
+            let (mut k, mut peak, mut max_dv, mut sliding, mut sum) =
+                (0usize, f64::NEG_INFINITY, f64::NEG_INFINITY, 0usize, 0.0);
+            for i in (0..self.len()).filter(|&i| ax.valid[i]) {
+                k += 1;
+                peak = peak.max(ax.mu[i]);
+                max_dv = max_dv.max(ax.dv_mps[i]);
+                sum += ax.mu[i];
+                if ax.dv_mps[i] > self.sliding_threshold_mps {
+                    sliding += 1;
+                }
+            }
+            let none = k == 0;
+            AxleSummary {
+                axle: a + 1,
+                valid_samples: k,
+                peak_mu: if none { f64::NAN } else { peak },
+                max_dv_mps: if none { f64::NAN } else { max_dv },
+                sliding_s: sliding as f64 * dt,
+                utilisation: if none || peak <= 0.0 {
+                    f64::NAN
+                } else {
+                    sum / k as f64 / peak
+                },
+            }
+        })
+    }
+
+    /// The long table (one row per sample and axle, time-major) as a polars DataFrame with
+    /// [`ESTIMATE_COLUMNS`].
+    pub fn to_dataframe(&self) -> polars::prelude::PolarsResult<polars::prelude::DataFrame> {
+        use polars::prelude::*;
+        let n = self.len();
+        let long = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            let mut out = Vec::with_capacity(n * AXLES);
+            for i in 0..n {
+                for a in 0..AXLES {
+                    out.push(f(i, a));
+                }
+            }
+            out
+        };
+        let ax = &self.axles;
+        let f64col =
+            |name: &str, v: Vec<f64>| Float64Chunked::from_vec(name.into(), v).into_column();
+        let c = ESTIMATE_COLUMNS;
+        let axle: Vec<i32> = (0..n).flat_map(|_| 1..=AXLES as i32).collect();
+        let valid: Vec<bool> = (0..n)
+            .flat_map(|i| (0..AXLES).map(move |a| ax[a].valid[i]))
+            .collect();
+        DataFrame::new(
+            n * AXLES,
+            vec![
+                f64col(c[0], long(&|i, _| self.time_s[i])),
+                Int32Chunked::from_vec(c[1].into(), axle).into_column(),
+                f64col(c[2], long(&|i, _| self.v_mps[i])),
+                f64col(c[3], long(&|i, a| ax[a].omega_radps[i])),
+                f64col(c[4], long(&|i, a| ax[a].p_bar[i])),
+                f64col(c[5], long(&|i, a| ax[a].dv_mps[i])),
+                f64col(c[6], long(&|i, a| ax[a].ddv_mps2[i])),
+                f64col(c[7], long(&|i, a| ax[a].slip_ratio[i])),
+                f64col(c[8], long(&|i, _| self.decel_mps2[i])),
+                f64col(c[9], long(&|i, a| ax[a].normal_n[i])),
+                f64col(c[10], long(&|i, a| ax[a].tangential_n[i])),
+                f64col(c[11], long(&|i, a| ax[a].mu[i])),
+                BooleanChunked::from_slice(c[12].into(), &valid).into_column(),
+            ],
+        )
+    }
+
+    /// Writes `<dir>/<stem>.estimates.parquet` (zstd) and, with `csv`, the same table as
+    /// `<dir>/<stem>.estimates.csv`, each atomically. Returns the paths written.
+    pub fn write(&self, dir: &Path, stem: &str, csv: bool) -> Result<Vec<PathBuf>, EstimateError> {
+        use polars::prelude::*;
+        let werr = |p: &Path| {
+            let file = p.to_path_buf();
+            move |e: std::io::Error| EstimateError::Write {
+                file: file.clone(),
+                message: e.to_string(),
+            }
+        };
+        std::fs::create_dir_all(dir).map_err(werr(dir))?;
+        let pq = dir.join(format!("{stem}.estimates.parquet"));
+        let mut df = self.to_dataframe().map_err(|e| EstimateError::Write {
+            file: pq.clone(),
+            message: e.to_string(),
+        })?;
+        crate::atomic::write_atomically(&pq, |f| {
+            ParquetWriter::new(f)
+                .with_compression(ParquetCompression::Zstd(None))
+                .finish(&mut df)
+                .map(|_| ())
+                .map_err(std::io::Error::other)
+        })
+        .map_err(werr(&pq))?;
+        let mut written = vec![pq];
+        if csv {
+            let path = dir.join(format!("{stem}.estimates.csv"));
+            crate::atomic::write_atomically(&path, |f| {
+                CsvWriter::new(f)
+                    .include_header(true)
+                    .finish(&mut df)
+                    .map_err(std::io::Error::other)
+            })
+            .map_err(werr(&path))?;
+            written.push(path);
+        }
+        Ok(written)
+    }
+}

@@ -1,0 +1,218 @@
+//! Signal conditioning: a [`RunLog`] in, [`Conditioned`] signals out.
+//!
+//! Per seed 002 (002_8d8769283f5e9cb6.txt, "Data from test runs"): the radar speed is
+//! despiked ([`despike`], Hampel) and low-passed at 1.5 Hz, the tachometers at 4 Hz, the
+//! brake-cylinder pressures at 4 Hz (configurable), all with a 4th-order Butterworth
+//! ([`filter`]), zero-phase by default or causal as in the paper. Derivatives
+//! ([`derivative`]) of the filtered vehicle speed and axle speeds follow.
+//!
+//! The filters never run across a hole: samples the RunLog marks invalid (unbridged gaps) or
+//! that are not finite split the run into segments, each conditioned on its own. Segments
+//! shorter than [`filter::MIN_LEN`] samples stay NaN and are counted.
+
+pub mod derivative;
+pub mod despike;
+pub mod filter;
+
+use crate::config::{FilterConfig, FilterMode};
+use crate::format::AXLES;
+use crate::ingest::RunLog;
+pub use filter::{FilterError, LowPass4};
+
+/// Filtered signals and derivatives on the RunLog's time base; NaN outside usable segments.
+#[derive(Debug, Clone)]
+pub struct Conditioned {
+    pub sample_rate_hz: f64,
+    pub mode: FilterMode,
+    /// Filtered radar speed, m/s.
+    pub v_mps: Vec<f64>,
+    /// dv/dt of the filtered radar speed, m/s² (negative when braking).
+    pub accel_mps2: Vec<f64>,
+    /// Filtered axle angular speeds, rad/s.
+    pub omega_radps: [Vec<f64>; AXLES],
+    /// dω/dt of the filtered axle speeds, rad/s².
+    pub omega_dot_radps2: [Vec<f64>; AXLES],
+    /// Filtered brake-cylinder pressures, bar.
+    pub p_bar: [Vec<f64>; AXLES],
+    /// True where the sample lies in a segment that was conditioned.
+    pub usable: Vec<bool>,
+    /// True where the sample is usable and at least [`Conditioned::settle_s`] from both ends
+    /// of its segment, where the filters' start-up transients have died out.
+    pub settled: Vec<bool>,
+    /// Settling margin at segment ends: one period of the lowest cut-off, s.
+    pub settle_s: f64,
+    /// Radar samples replaced by the Hampel filter.
+    pub despiked: usize,
+    /// Samples in segments too short to filter (between holes).
+    pub short_segment_samples: usize,
+    /// Group delay at DC of the radar, tachometer and pressure filters, s (0 in zero-phase
+    /// mode). In causal mode the radar lags the tachometers by the difference, which shifts
+    /// the slip Δv = v − rω against the pressure.
+    pub group_delay_s: GroupDelays,
+}
+
+/// Group delays at DC of the three filters, s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GroupDelays {
+    pub radar_s: f64,
+    pub tacho_s: f64,
+    pub pressure_s: f64,
+}
+
+/// The three low-pass filters of a pipeline.
+#[derive(Debug, Clone, Copy)]
+pub struct Filters {
+    pub radar: LowPass4,
+    pub tacho: LowPass4,
+    pub pressure: LowPass4,
+}
+
+impl Filters {
+    /// Designs the filters for `sample_rate_hz` (the pipeline checks 0 < fc < fs/2 already;
+    /// this repeats it for callers that build configs by hand).
+    pub fn design(cfg: &FilterConfig, sample_rate_hz: f64) -> Result<Filters, FilterError> {
+        Ok(Filters {
+            radar: LowPass4::butterworth(cfg.radar_cutoff_hz, sample_rate_hz)?,
+            tacho: LowPass4::butterworth(cfg.tacho_cutoff_hz, sample_rate_hz)?,
+            pressure: LowPass4::butterworth(cfg.pressure_cutoff_hz, sample_rate_hz)?,
+        })
+    }
+}
+
+/// Contiguous ranges `[start, end)` of samples that are valid and finite in every channel.
+pub fn segments(log: &RunLog) -> Vec<(usize, usize)> {
+    let n = log.len();
+    let ok = |i: usize| {
+        log.valid[i]
+            && log.v_radar_mps[i].is_finite()
+            && log.omega_radps.iter().all(|w| w[i].is_finite())
+            && log.p_bar.iter().all(|p| p[i].is_finite())
+    };
+    let mut out = Vec::new();
+    let mut start = None;
+    for i in 0..n {
+        match (ok(i), start) {
+            (true, None) => start = Some(i),
+            (false, Some(s)) => {
+                out.push((s, i));
+                start = None;
+            }
+            _ => {}
+        }
+    }
+    if let Some(s) = start {
+        out.push((s, n));
+    }
+    out
+}
+
+/// Channels in the order they are filtered together: radar, ω1..ω4, p1..p4.
+const LANES: usize = 1 + 2 * AXLES;
+
+/// Conditions a run: despiking, low-pass, derivatives. The nine channels are filtered in
+/// lockstep ([`filter::zero_phase_lanes`]), segment by segment.
+pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, FilterError> {
+    let fs = log.sample_rate_hz;
+    let f = Filters::design(cfg, fs)?;
+    let segs: Vec<(usize, usize)> = segments(log)
+        .into_iter()
+        .filter(|(a, b)| b - a >= filter::MIN_LEN)
+        .collect();
+    let n = log.len();
+    let bank: [LowPass4; LANES] = std::array::from_fn(|l| match l {
+        0 => f.radar,
+        l if l <= AXLES => f.tacho,
+        _ => f.pressure,
+    });
+    let inputs: [&[f64]; LANES] = std::array::from_fn(|l| match l {
+        0 => &log.v_radar_mps[..],
+        l if l <= AXLES => &log.omega_radps[l - 1][..],
+        l => &log.p_bar[l - 1 - AXLES][..],
+    });
+    let mut outs: [Vec<f64>; LANES] = std::array::from_fn(|_| vec![f64::NAN; n]);
+    let mut radar = Vec::new();
+    let mut buf: Vec<[f64; LANES]> = Vec::new();
+    let mut despiked = 0;
+    let pad = match cfg.mode {
+        FilterMode::ZeroPhase => filter::PAD,
+        FilterMode::Causal => 0,
+    };
+    for &(a, b) in &segs {
+        radar.clear();
+        radar.extend_from_slice(&log.v_radar_mps[a..b]);
+        if let Some(d) = cfg.despike {
+            let k = ((d.half_window_s * fs).round() as usize).max(1);
+            despiked += despike::hampel(&mut radar, k, d.threshold, d.min_deviation_mps);
+        }
+        buf.clear();
+        buf.resize(b - a + 2 * pad, [0.0; LANES]);
+        for (j, row) in buf[pad..pad + b - a].iter_mut().enumerate() {
+            row[0] = radar[j];
+            for l in 1..LANES {
+                row[l] = inputs[l][a + j];
+            }
+        }
+        match cfg.mode {
+            FilterMode::ZeroPhase => filter::zero_phase_lanes(&bank, &mut buf)?,
+            FilterMode::Causal => filter::causal_lanes(&bank, &mut buf),
+        }
+        for (l, out) in outs.iter_mut().enumerate() {
+            for (o, row) in out[a..b].iter_mut().zip(&buf[pad..]) {
+                *o = row[l];
+            }
+        }
+    }
+    let dt = 1.0 / fs;
+    let deriv = |y: &[f64]| {
+        let mut d = vec![f64::NAN; n];
+        for &(a, b) in &segs {
+            derivative::derivative(&y[a..b], dt, &mut d[a..b]);
+        }
+        d
+    };
+    let [v_mps, o1, o2, o3, o4, p1, p2, p3, p4] = outs;
+    let omega_radps = [o1, o2, o3, o4];
+    let accel_mps2 = deriv(&v_mps);
+    let omega_dot_radps2: [Vec<f64>; AXLES] = std::array::from_fn(|a| deriv(&omega_radps[a]));
+    let p_bar = [p1, p2, p3, p4];
+    let mode = cfg.mode;
+    let mut usable = vec![false; n];
+    let mut settled = vec![false; n];
+    let lowest = cfg
+        .radar_cutoff_hz
+        .min(cfg.tacho_cutoff_hz)
+        .min(cfg.pressure_cutoff_hz);
+    let settle_s = 1.0 / lowest;
+    let guard = (settle_s * fs).ceil() as usize;
+    for &(a, b) in &segs {
+        usable[a..b].fill(true);
+        if b - a > 2 * guard {
+            settled[a + guard..b - guard].fill(true);
+        }
+    }
+    let all_ok: usize = segments(log).iter().map(|(a, b)| b - a).sum();
+    let used: usize = segs.iter().map(|(a, b)| b - a).sum();
+    let delay = |lp: &LowPass4| match mode {
+        FilterMode::ZeroPhase => 0.0,
+        FilterMode::Causal => lp.dc_group_delay_s(),
+    };
+    Ok(Conditioned {
+        sample_rate_hz: fs,
+        mode,
+        v_mps,
+        accel_mps2,
+        omega_radps,
+        omega_dot_radps2,
+        p_bar,
+        usable,
+        settled,
+        settle_s,
+        despiked,
+        short_segment_samples: all_ok - used,
+        group_delay_s: GroupDelays {
+            radar_s: delay(&f.radar),
+            tacho_s: delay(&f.tacho),
+            pressure_s: delay(&f.pressure),
+        },
+    })
+}
