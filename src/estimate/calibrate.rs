@@ -26,6 +26,9 @@
 //! Samples used: conditioned and settled (away from segment ends), speed ≥ `estimate.min_speed_mps`, every wheel rolling and none
 //! sliding (Δv_i below `estimate.sliding_threshold_mps`) — full adhesion is the premise.
 
+// `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 use crate::config::Pipeline;
 use crate::format::AXLES;
 use crate::ingest::RunLog;
@@ -144,8 +147,8 @@ pub fn calibrate(
         match fit {
             AlphaFit::Common => x[0] = (0..AXLES).map(|a| c.p_bar[a][i]).sum::<f64>() / r,
             AlphaFit::PerAxle => {
-                for a in 0..AXLES {
-                    x[a] = c.p_bar[a][i] / r;
+                for (xa, p) in x.iter_mut().zip(&c.p_bar) {
+                    *xa = p[i] / r;
                 }
             }
         }

@@ -22,6 +22,9 @@
 //! locked (r ω below `estimate.locked_wheel_speed_mps`: the brake torque is then static
 //! friction, not α p), and any non-finite result.
 
+// `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod calibrate;
 
 use std::path::{Path, PathBuf};
@@ -116,8 +119,6 @@ pub struct AxleEstimates {
     pub dv_mps: Vec<f64>,
     /// Slip rate dΔv_i/dt, m/s².
     pub ddv_mps2: Vec<f64>,
-    /// Slip ratio (dimensionless), NaN where undefined.
-    pub slip_ratio: Vec<f64>,
     /// Normal load N_i, N.
     pub normal_n: Vec<f64>,
     /// Tangential force T_i, N.
@@ -148,6 +149,18 @@ pub struct Estimates {
     pub metadata: RunMetadata,
     /// Slip velocity above which an axle counts as sliding in [`Estimates::summary`], m/s.
     pub sliding_threshold_mps: f64,
+    /// Wheel radius r used for the slip, m.
+    pub wheel_radius_m: f64,
+}
+
+#[inline]
+fn slip_ratio(braking: bool, dv: f64, v: f64, rw: f64) -> f64 {
+    let denom = if braking { v } else { rw };
+    if denom > 0.0 {
+        dv / denom
+    } else {
+        f64::NAN
+    }
 }
 
 /// Conditions and estimates a run with a pipeline's settings.
@@ -157,106 +170,131 @@ pub fn estimate(log: &RunLog, pipeline: &Pipeline) -> Result<Estimates, Estimate
             file: log.source.clone(),
             source,
         })?;
-    Ok(estimate_conditioned(log, &cond, pipeline))
+    Ok(estimate_conditioned(log, cond, pipeline))
 }
 
-/// The estimation step on already conditioned signals.
-pub fn estimate_conditioned(log: &RunLog, c: &Conditioned, pipeline: &Pipeline) -> Estimates {
+/// The estimation step on already conditioned signals (consumed: the filtered ω and p move
+/// into the result).
+pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -> Estimates {
     let veh = &pipeline.vehicle;
     let cfg = &pipeline.estimate;
     let n = log.len();
     let r = veh.wheel_radius_m;
     let (inv_r, j) = (1.0 / r, veh.axle_inertia_kgm2);
-    let nan = || vec![f64::NAN; n];
-    let mut axles: [AxleEstimates; AXLES] = std::array::from_fn(|a| AxleEstimates {
-        omega_radps: c.omega_radps[a].clone(),
-        p_bar: c.p_bar[a].clone(),
-        dv_mps: nan(),
-        ddv_mps2: nan(),
-        slip_ratio: nan(),
-        normal_n: nan(),
-        tangential_n: nan(),
-        mu: nan(),
-        valid: vec![false; n],
-        masked: MaskCounts::default(),
-    });
-    let decel_mps2: Vec<f64> = c.accel_mps2.iter().map(|a| -a).collect();
-    let segs = signal::segments(log);
-    let mut has_data = vec![false; n];
-    for (s, e) in segs {
-        has_data[s..e].fill(true);
-    }
+    let Conditioned {
+        v_mps,
+        accel_mps2,
+        omega_radps,
+        omega_dot_radps2,
+        p_bar,
+        has_data,
+        usable,
+        settled,
+        mode,
+        group_delay_s,
+        despiked,
+        ..
+    } = c;
     let braking = cfg.phase == Phase::Braking;
-    for i in 0..n {
-        let v = c.v_mps[i];
-        let acc = c.accel_mps2[i];
-        let loads = axle_loads(veh, -acc);
-        for (a, ax) in axles.iter_mut().enumerate() {
-            let w = ax.omega_radps[i];
-            let wd = c.omega_dot_radps2[a][i];
-            let p = ax.p_bar[i];
-            let rw = r * w;
-            let (dv, ddv, denom) = if braking {
-                (v - rw, acc - r * wd, v)
-            } else {
-                (rw - v, r * wd - acc, rw)
-            };
-            let t = (j * wd + veh.brake_torque_nm_per_bar[a] * p) * inv_r;
-            let nn = loads[a];
-            let mu = if nn > 0.0 { t / nn } else { f64::NAN };
-            ax.dv_mps[i] = dv;
-            ax.ddv_mps2[i] = ddv;
-            ax.slip_ratio[i] = if denom > 0.0 { dv / denom } else { f64::NAN };
-            ax.normal_n[i] = nn;
-            ax.tangential_n[i] = t;
-            ax.mu[i] = mu;
-            let m = &mut ax.masked;
-            let ok = if !c.usable[i] {
-                if has_data[i] {
-                    m.short_segment += 1;
+    // The loads of eq. 12–13 are affine in the deceleration: N_i = N0_i + dN_i · d.
+    let n0 = axle_loads(veh, 0.0);
+    let dn: [f64; AXLES] = {
+        let one = axle_loads(veh, 1.0);
+        std::array::from_fn(|a| one[a] - n0[a])
+    };
+    let mut decel_mps2 = accel_mps2;
+    // Column by column: each loop is a plain map over slices, which the compiler vectorises.
+    let mut omega_radps = omega_radps.into_iter();
+    let mut p_bar = p_bar.into_iter();
+    let mut omega_dot = omega_dot_radps2.into_iter();
+    let axles: [AxleEstimates; AXLES] = std::array::from_fn(|a| {
+        let omega = omega_radps.next().expect("4 axles");
+        let p = p_bar.next().expect("4 axles");
+        let mut wd = omega_dot.next().expect("4 axles");
+        let alpha = veh.brake_torque_nm_per_bar[a];
+        let acc = &decel_mps2; // still dv/dt here
+        let dv_mps: Vec<f64> = if braking {
+            v_mps.iter().zip(&omega).map(|(v, w)| v - r * w).collect()
+        } else {
+            v_mps.iter().zip(&omega).map(|(v, w)| r * w - v).collect()
+        };
+        let normal_n: Vec<f64> = acc.iter().map(|x| n0[a] - dn[a] * x).collect();
+        let tangential_n: Vec<f64> = wd
+            .iter()
+            .zip(&p)
+            .map(|(w, p)| (j * w + alpha * p) * inv_r)
+            .collect();
+        // dΔv/dt = v̇ − r ω̇ (braking), written over ω̇, which is not needed after T.
+        let sign = if braking { 1.0 } else { -1.0 };
+        for (w, a) in wd.iter_mut().zip(acc) {
+            *w = sign * (a - r * *w);
+        }
+        let ddv_mps2 = wd;
+        let mu: Vec<f64> = tangential_n
+            .iter()
+            .zip(&normal_n)
+            .map(|(t, nn)| if *nn > 0.0 { t / nn } else { f64::NAN })
+            .collect();
+        let mut masked = MaskCounts::default();
+        let valid: Vec<bool> = (0..n)
+            .map(|i| {
+                let m = &mut masked;
+                if !usable[i] {
+                    if has_data[i] {
+                        m.short_segment += 1;
+                    } else {
+                        m.no_data += 1;
+                    }
+                } else if !settled[i] {
+                    m.settling += 1;
+                } else if !(v_mps[i] >= cfg.min_speed_mps) {
+                    m.low_speed += 1;
+                } else if !(p[i] >= cfg.min_pressure_bar) {
+                    m.brake_released += 1;
+                } else if !(r * omega[i] >= cfg.locked_wheel_speed_mps) {
+                    m.wheel_locked += 1;
+                } else if !(dv_mps[i].is_finite()
+                    && ddv_mps2[i].is_finite()
+                    && tangential_n[i].is_finite()
+                    && mu[i].is_finite()
+                    && slip_ratio(braking, dv_mps[i], v_mps[i], r * omega[i]).is_finite())
+                {
+                    m.not_finite += 1;
                 } else {
-                    m.no_data += 1;
+                    return true;
                 }
                 false
-            } else if !c.settled[i] {
-                m.settling += 1;
-                false
-            } else if !(v >= cfg.min_speed_mps) {
-                m.low_speed += 1;
-                false
-            } else if !(p >= cfg.min_pressure_bar) {
-                m.brake_released += 1;
-                false
-            } else if !(rw >= cfg.locked_wheel_speed_mps) {
-                m.wheel_locked += 1;
-                false
-            } else if !(dv.is_finite()
-                && ddv.is_finite()
-                && t.is_finite()
-                && mu.is_finite()
-                && ax.slip_ratio[i].is_finite())
-            {
-                m.not_finite += 1;
-                false
-            } else {
-                true
-            };
-            ax.valid[i] = ok;
+            })
+            .collect();
+        AxleEstimates {
+            omega_radps: omega,
+            p_bar: p,
+            dv_mps,
+            ddv_mps2,
+            normal_n,
+            tangential_n,
+            mu,
+            valid,
+            masked,
         }
+    });
+    for x in decel_mps2.iter_mut() {
+        *x = -*x;
     }
     Estimates {
         source: log.source.clone(),
         sample_rate_hz: log.sample_rate_hz,
         time_s: log.time_s.clone(),
-        v_mps: c.v_mps.clone(),
+        v_mps,
         decel_mps2,
         axles,
         phase: cfg.phase,
-        mode: c.mode,
-        group_delay_s: c.group_delay_s,
-        despiked: c.despiked,
+        mode,
+        group_delay_s,
+        despiked,
         metadata: log.metadata.clone(),
         sliding_threshold_mps: cfg.sliding_threshold_mps,
+        wheel_radius_m: r,
     }
 }
 
@@ -283,6 +321,19 @@ impl Estimates {
 
     pub fn is_empty(&self) -> bool {
         self.time_s.is_empty()
+    }
+
+    /// Slip ratio of axle `a` (0-based) at sample `i`: Δv / v in braking (seed 002 eq. 4),
+    /// Δv / (r ω) in traction (eq. 5); NaN where the denominator is not positive. Derived on
+    /// demand (it is Δv over a stored speed), not stored.
+    pub fn slip_ratio(&self, a: usize, i: usize) -> f64 {
+        let ax = &self.axles[a];
+        slip_ratio(
+            self.phase == Phase::Braking,
+            ax.dv_mps[i],
+            self.v_mps[i],
+            self.wheel_radius_m * ax.omega_radps[i],
+        )
     }
 
     /// Per-axle figures.
@@ -349,7 +400,7 @@ impl Estimates {
                 f64col(c[4], long(&|i, a| ax[a].p_bar[i])),
                 f64col(c[5], long(&|i, a| ax[a].dv_mps[i])),
                 f64col(c[6], long(&|i, a| ax[a].ddv_mps2[i])),
-                f64col(c[7], long(&|i, a| ax[a].slip_ratio[i])),
+                f64col(c[7], long(&|i, a| self.slip_ratio(a, i))),
                 f64col(c[8], long(&|i, _| self.decel_mps2[i])),
                 f64col(c[9], long(&|i, a| ax[a].normal_n[i])),
                 f64col(c[10], long(&|i, a| ax[a].tangential_n[i])),

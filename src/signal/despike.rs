@@ -16,8 +16,11 @@
 //! floor d_min (m/s) departs from the textbook filter: on a quantised or noise-free trace
 //! MAD = 0 and every quantisation step would count as a spike.
 //!
-//! Cost: the window is kept sorted across samples (one binary-search removal and insertion
-//! per sample) and the MAD is only computed for samples farther than d_min from the median.
+//! Cost: a sliding minimum and maximum (monotonic deques, O(1) amortised per sample) bound
+//! the median; only where the window spans more than d_min is it sorted for the median and
+//! the MAD — near spikes and fast changes, a small share of a radar trace.
+
+use std::collections::VecDeque;
 
 /// Replaces outliers of `x` in place; returns how many samples were replaced.
 /// `half_window` = k in samples (≥ 1), `threshold` = t (> 0), `min_deviation` = d_min (≥ 0,
@@ -28,20 +31,49 @@ pub fn hampel(x: &mut [f64], half_window: usize, threshold: f64, min_deviation: 
         return 0;
     }
     let k = half_window;
-    let original = x.to_vec();
-    let mut w: Vec<f64> = Vec::with_capacity(2 * k + 1);
-    for &v in &original[..(k + 1).min(n)] {
-        insert(&mut w, v);
-    }
     let scale = threshold * 1.482_602_218_505_602;
-    let mut replaced = 0;
+    // Replacements are applied after the pass: the window always sees the original samples.
+    let mut replace: Vec<(usize, f64)> = Vec::new();
+    let original: &[f64] = x;
+    // Sliding minimum and maximum (monotonic deques of indices). The median lies between
+    // them, so when max − min ≤ d_min no sample of the window can be an outlier and the
+    // median is not needed: the common case on a smooth trace.
+    let mut lo: VecDeque<usize> = VecDeque::with_capacity(2 * k + 2);
+    let mut hi: VecDeque<usize> = VecDeque::with_capacity(2 * k + 2);
+    let mut w: Vec<f64> = Vec::with_capacity(2 * k + 1);
     for i in 0..n {
-        if i > k {
-            remove(&mut w, original[i - k - 1]);
+        // Window [i − k, i + k] ∩ [0, n).
+        let (start, end) = (i.saturating_sub(k), (i + k + 1).min(n));
+        let push = if i == 0 {
+            0..end
+        } else if i + k < n {
+            end - 1..end
+        } else {
+            end..end
+        };
+        for j in push {
+            while lo.back().is_some_and(|&b| original[b] >= original[j]) {
+                lo.pop_back();
+            }
+            lo.push_back(j);
+            while hi.back().is_some_and(|&b| original[b] <= original[j]) {
+                hi.pop_back();
+            }
+            hi.push_back(j);
         }
-        if i > 0 && i + k < n {
-            insert(&mut w, original[i + k]);
+        while lo.front().is_some_and(|&f| f < start) {
+            lo.pop_front();
         }
+        while hi.front().is_some_and(|&f| f < start) {
+            hi.pop_front();
+        }
+        let (min, max) = (original[lo[0]], original[hi[0]]);
+        if max - min <= min_deviation {
+            continue;
+        }
+        w.clear();
+        w.extend_from_slice(&original[start..end]);
+        w.sort_unstable_by(f64::total_cmp);
         let m = w.len();
         let med = if m % 2 == 1 {
             w[m / 2]
@@ -49,26 +81,14 @@ pub fn hampel(x: &mut [f64], half_window: usize, threshold: f64, min_deviation: 
             0.5 * (w[m / 2 - 1] + w[m / 2])
         };
         let d = (original[i] - med).abs();
-        if d <= min_deviation {
-            continue;
-        }
-        if d > scale * mad(&w, med) {
-            x[i] = med;
-            replaced += 1;
+        if d > min_deviation && d > scale * mad(&w, med) {
+            replace.push((i, med));
         }
     }
-    replaced
-}
-
-fn insert(w: &mut Vec<f64>, v: f64) {
-    let pos = w.partition_point(|a| a.total_cmp(&v).is_le());
-    w.insert(pos, v);
-}
-
-fn remove(w: &mut Vec<f64>, v: f64) {
-    let pos = w.partition_point(|a| a.total_cmp(&v).is_lt());
-    debug_assert!(pos < w.len() && w[pos].total_cmp(&v).is_eq());
-    w.remove(pos);
+    for &(i, med) in &replace {
+        x[i] = med;
+    }
+    replace.len()
 }
 
 /// Median of |w_j − med| for sorted `w`: merges the distances below and above the median,

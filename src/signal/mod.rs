@@ -34,6 +34,8 @@ pub struct Conditioned {
     pub omega_dot_radps2: [Vec<f64>; AXLES],
     /// Filtered brake-cylinder pressures, bar.
     pub p_bar: [Vec<f64>; AXLES],
+    /// True where every channel has a finite, valid sample (no unbridged gap).
+    pub has_data: Vec<bool>,
     /// True where the sample lies in a segment that was conditioned.
     pub usable: Vec<bool>,
     /// True where the sample is usable and at least [`Conditioned::settle_s`] from both ends
@@ -114,8 +116,10 @@ const LANES: usize = 1 + 2 * AXLES;
 pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, FilterError> {
     let fs = log.sample_rate_hz;
     let f = Filters::design(cfg, fs)?;
-    let segs: Vec<(usize, usize)> = segments(log)
-        .into_iter()
+    let all_segs = segments(log);
+    let segs: Vec<(usize, usize)> = all_segs
+        .iter()
+        .copied()
         .filter(|(a, b)| b - a >= filter::MIN_LEN)
         .collect();
     let n = log.len();
@@ -129,14 +133,24 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
         l if l <= AXLES => &log.omega_radps[l - 1][..],
         l => &log.p_bar[l - 1 - AXLES][..],
     });
-    let mut outs: [Vec<f64>; LANES] = std::array::from_fn(|_| vec![f64::NAN; n]);
+    // Zeroed allocations come from the OS already zero (no fill pass); only the samples
+    // outside the conditioned segments are set to NaN.
+    let nan_outside = |v: &mut Vec<f64>| {
+        let mut at = 0;
+        for &(a, b) in &segs {
+            v[at..a].fill(f64::NAN);
+            at = b;
+        }
+        v[at..].fill(f64::NAN);
+    };
+    let mut outs: [Vec<f64>; LANES] = std::array::from_fn(|_| {
+        let mut v = vec![0.0; n];
+        nan_outside(&mut v);
+        v
+    });
     let mut radar = Vec::new();
     let mut buf: Vec<[f64; LANES]> = Vec::new();
     let mut despiked = 0;
-    let pad = match cfg.mode {
-        FilterMode::ZeroPhase => filter::PAD,
-        FilterMode::Causal => 0,
-    };
     for &(a, b) in &segs {
         radar.clear();
         radar.extend_from_slice(&log.v_radar_mps[a..b]);
@@ -144,27 +158,33 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
             let k = ((d.half_window_s * fs).round() as usize).max(1);
             despiked += despike::hampel(&mut radar, k, d.threshold, d.min_deviation_mps);
         }
-        buf.clear();
-        buf.resize(b - a + 2 * pad, [0.0; LANES]);
-        for (j, row) in buf[pad..pad + b - a].iter_mut().enumerate() {
-            row[0] = radar[j];
-            for l in 1..LANES {
-                row[l] = inputs[l][a + j];
-            }
-        }
+        let x: [&[f64]; LANES] = std::array::from_fn(|l| match l {
+            0 => &radar[..],
+            l => &inputs[l][a..b],
+        });
         match cfg.mode {
-            FilterMode::ZeroPhase => filter::zero_phase_lanes(&bank, &mut buf)?,
-            FilterMode::Causal => filter::causal_lanes(&bank, &mut buf),
-        }
-        for (l, out) in outs.iter_mut().enumerate() {
-            for (o, row) in out[a..b].iter_mut().zip(&buf[pad..]) {
-                *o = row[l];
+            FilterMode::ZeroPhase => {
+                let mut it = outs.iter_mut();
+                let y: [&mut [f64]; LANES] =
+                    std::array::from_fn(|_| &mut it.next().expect("LANES outputs")[a..b]);
+                filter::zero_phase_many(&bank, x, y)?;
+            }
+            FilterMode::Causal => {
+                buf.clear();
+                buf.extend((0..b - a).map(|j| std::array::from_fn(|l| x[l][j])));
+                filter::causal_lanes(&bank, &mut buf);
+                for (l, out) in outs.iter_mut().enumerate() {
+                    for (o, row) in out[a..b].iter_mut().zip(&buf) {
+                        *o = row[l];
+                    }
+                }
             }
         }
     }
     let dt = 1.0 / fs;
     let deriv = |y: &[f64]| {
-        let mut d = vec![f64::NAN; n];
+        let mut d = vec![0.0; n];
+        nan_outside(&mut d);
         for &(a, b) in &segs {
             derivative::derivative(&y[a..b], dt, &mut d[a..b]);
         }
@@ -190,7 +210,11 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
             settled[a + guard..b - guard].fill(true);
         }
     }
-    let all_ok: usize = segments(log).iter().map(|(a, b)| b - a).sum();
+    let mut has_data = vec![false; n];
+    for &(a, b) in &all_segs {
+        has_data[a..b].fill(true);
+    }
+    let all_ok: usize = all_segs.iter().map(|(a, b)| b - a).sum();
     let used: usize = segs.iter().map(|(a, b)| b - a).sum();
     let delay = |lp: &LowPass4| match mode {
         FilterMode::ZeroPhase => 0.0,
@@ -204,6 +228,7 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
         omega_radps,
         omega_dot_radps2,
         p_bar,
+        has_data,
         usable,
         settled,
         settle_s,
