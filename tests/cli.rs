@@ -133,3 +133,99 @@ fn pipeline_errors_exit_1_and_name_the_key() {
     assert_eq!(o.status.code(), Some(1));
     assert_eq!(text(&o.stderr).trim(), "error: p.toml: ingest.sample_rate_hz = 0: must be >= 1 Hz and <= 100000 Hz (default 417 Hz)");
 }
+
+fn archive(name: &str) -> String {
+    format!("{}/fixtures/archive/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn estimate_writes_the_table_and_prints_per_axle_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = archive("soap_120kmh_p20.csv");
+    let o = railgrip(&["estimate", &run, "--out", "est", "--csv"], dir.path());
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    for needle in [
+        "zero-phase",
+        "despiking",
+        "peak μ",
+        "utilisation",
+        "filter settling",
+    ] {
+        assert!(s.contains(needle), "{needle}: {s}");
+    }
+    // Four axle rows.
+    for a in 1..=4 {
+        assert!(
+            s.lines().any(|l| l.starts_with(&format!("{a}     "))),
+            "{s}"
+        );
+    }
+    assert!(dir
+        .path()
+        .join("est/soap_120kmh_p20.estimates.parquet")
+        .exists());
+    let csv =
+        std::fs::read_to_string(dir.path().join("est/soap_120kmh_p20.estimates.csv")).unwrap();
+    assert!(csv.starts_with("time_s,axle,v_mps,omega_radps,p_bar,dv_mps,ddv_mps2,slip_ratio,decel_mps2,normal_N,tangential_N,mu,valid\n"));
+}
+
+#[test]
+fn estimate_errors_name_the_problem_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(
+        &bad,
+        railgrip::config::DEFAULT_PIPELINE_TOML
+            .replace("radar_cutoff_hz = 1.5", "radar_cutoff_hz = 0.0"),
+    )
+    .unwrap();
+    let run = archive("soap_120kmh_p20.csv");
+    let o = railgrip(
+        &[
+            "estimate",
+            &run,
+            "--out",
+            "est",
+            "--pipeline",
+            bad.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("filters.radar_cutoff_hz = 0: must be > 0 Hz"),
+        "{e}"
+    );
+    assert!(!dir.path().join("est").exists());
+    let o = railgrip(&["estimate", "nope.csv", "--out", "est"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("nope.csv"));
+}
+
+#[test]
+fn calibrate_prints_the_pipeline_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = archive("dry_120kmh_p20.csv");
+    let o = railgrip(&["calibrate", &run, "--davis", "1200,30,6"], dir.path());
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    let line = s
+        .lines()
+        .find(|l| l.starts_with("brake_torque_nm_per_bar = ["))
+        .unwrap_or_else(|| panic!("{s}"));
+    let alpha: f64 = line
+        .trim_start_matches("brake_torque_nm_per_bar = [")
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((alpha - 1600.0).abs() < 16.0, "{line}");
+    let o = railgrip(&["calibrate", &run, "--per-axle"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("use the common fit"));
+    let o = railgrip(&["calibrate", &run, "--davis", "1,2"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+}
