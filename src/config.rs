@@ -59,6 +59,43 @@ pub mod raw {
         pub filters: Filters,
         #[serde(default)]
         pub estimate: Estimate,
+        #[serde(default)]
+        pub contact: Contact,
+        #[serde(default)]
+        pub train: Train,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Contact {
+        pub youngs_modulus_pa: Option<f64>,
+        pub poisson: Option<f64>,
+        pub wheel_lateral_radius_m: Option<f64>,
+        pub rail_lateral_radius_m: Option<f64>,
+    }
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Train {
+        pub hidden: Option<f64>,
+        pub inputs: Option<Vec<String>>,
+        pub split: Option<String>,
+        pub train_axles: Option<Vec<u8>>,
+        pub val_axles: Option<Vec<u8>>,
+        pub val_every: Option<f64>,
+        pub block_s: Option<f64>,
+        pub decimate: Option<f64>,
+        pub seed: Option<u64>,
+        pub epochs: Option<f64>,
+        pub goal: Option<f64>,
+        pub max_fail: Option<f64>,
+        pub min_grad: Option<f64>,
+        pub mu: Option<f64>,
+        pub mu_dec: Option<f64>,
+        pub mu_inc: Option<f64>,
+        pub mu_max: Option<f64>,
+        pub creep_blend_mps: Option<f64>,
+        pub temperature_degree: Option<f64>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -158,6 +195,8 @@ pub struct Pipeline {
     pub ingest: IngestConfig,
     pub filters: FilterConfig,
     pub estimate: EstimateConfig,
+    pub contact: ContactConfig,
+    pub train: TrainConfig,
 }
 
 /// The vehicle: masses, inertia and the geometry of the load-transfer model of seed 002
@@ -327,6 +366,57 @@ pub struct EstimateConfig {
     pub sliding_threshold_mps: f64,
 }
 
+/// `[contact]`: wheel–rail contact geometry and material for the Hertz patch (seed 001
+/// eq. 1–5) behind the Polach fits and the models' linear creep region.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactConfig {
+    /// Young's modulus E, Pa.
+    pub youngs_modulus_pa: f64,
+    /// Poisson's ratio ν.
+    pub poisson: f64,
+    /// Lateral profile radius of the wheel, m (negative: concave).
+    pub wheel_lateral_radius_m: f64,
+    /// Lateral profile radius of the rail head, m.
+    pub rail_lateral_radius_m: f64,
+}
+
+/// How training and validation samples are chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SplitConfig {
+    /// By axle, pooled over the runs (seed 002: train on axle 2, validate on axle 3).
+    Axles { train: Vec<u8>, val: Vec<u8> },
+    /// Every `every`-th run validates.
+    Runs { every: usize },
+    /// Every `every`-th block of `block_s` seconds validates.
+    Blocks { block_s: f64, every: usize },
+}
+
+/// `[train]`: the network, its data and MATLAB trainlm's settings
+/// (../shared/design/reference-values.md).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainConfig {
+    pub hidden: usize,
+    /// Speed v as a third input.
+    pub with_speed: bool,
+    pub split: SplitConfig,
+    /// Keep every n-th valid sample of a run and axle.
+    pub decimate: usize,
+    pub seed: u64,
+    pub epochs: u64,
+    pub goal: f64,
+    pub max_fail: u32,
+    pub min_grad: f64,
+    pub mu: f64,
+    pub mu_dec: f64,
+    pub mu_inc: f64,
+    pub mu_max: f64,
+    /// Width of the small-slip region where the model blends from the linear creep law into
+    /// the network, m/s.
+    pub creep_blend_mps: f64,
+    /// Polynomial degree of the k_A(T), k_S(T) fits.
+    pub temperature_degree: usize,
+}
+
 impl Pipeline {
     /// The embedded default pipeline.
     pub fn default_uic_z1() -> Pipeline {
@@ -360,6 +450,8 @@ impl Pipeline {
         let ingest = c.ingest(raw.ingest)?;
         let filters = c.filters(raw.filters, ingest.sample_rate_hz)?;
         let estimate = c.estimate(raw.estimate)?;
+        let contact = c.contact(raw.contact)?;
+        let train = c.train(raw.train)?;
         Ok(Pipeline {
             source: file.to_string(),
             text: text.to_string(),
@@ -367,6 +459,8 @@ impl Pipeline {
             ingest,
             filters,
             estimate,
+            contact,
+            train,
         })
     }
 }
@@ -780,6 +874,130 @@ impl Checker<'_> {
                 e.sliding_threshold_mps,
                 open_lo(0.0, 10.0, Some(0.2), "m/s"),
             )?,
+        })
+    }
+
+    fn contact(&self, c: raw::Contact) -> Result<ContactConfig, ConfigError> {
+        Ok(ContactConfig {
+            youngs_modulus_pa: self.optional(
+                "contact.youngs_modulus_pa",
+                c.youngs_modulus_pa,
+                closed(1e9, 1e12, Some(2.1e11), "Pa"),
+            )?,
+            poisson: self.optional(
+                "contact.poisson",
+                c.poisson,
+                closed(0.0, 0.49, Some(0.3), ""),
+            )?,
+            wheel_lateral_radius_m: self.optional(
+                "contact.wheel_lateral_radius_m",
+                c.wheel_lateral_radius_m,
+                closed(-1e3, 1e3, Some(-0.5), "m"),
+            )?,
+            rail_lateral_radius_m: self.optional(
+                "contact.rail_lateral_radius_m",
+                c.rail_lateral_radius_m,
+                closed(0.05, 1e3, Some(0.3), "m"),
+            )?,
+        })
+    }
+
+    fn train(&self, t: raw::Train) -> Result<TrainConfig, ConfigError> {
+        let int = |key: &str,
+                   v: Option<f64>,
+                   lo: f64,
+                   hi: f64,
+                   default: f64|
+         -> Result<f64, ConfigError> {
+            let x = self.num(key, v, lo, hi, Some(default), "")?;
+            if x.fract() != 0.0 {
+                return Err(self.invalid(key, g(x), "must be a whole number"));
+            }
+            Ok(x)
+        };
+        let with_speed = match t.inputs.as_deref() {
+            None => false,
+            Some([a, b]) if a == "dv_mps" && b == "ddv_mps2" => false,
+            Some([a, b, c]) if a == "dv_mps" && b == "ddv_mps2" && c == "v_mps" => true,
+            Some(other) => {
+                return Err(self.invalid(
+                    "train.inputs",
+                    format!("{other:?}"),
+                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002) or [\"dv_mps\", \"ddv_mps2\", \"v_mps\"]",
+                ))
+            }
+        };
+        let every = int("train.val_every", t.val_every, 2.0, 1000.0, 4.0)? as usize;
+        let axles = |key: &str, v: Option<Vec<u8>>, default: u8| -> Result<Vec<u8>, ConfigError> {
+            let v = v.unwrap_or_else(|| vec![default]);
+            if v.is_empty() || v.iter().any(|a| !(1..=AXLES as u8).contains(a)) {
+                return Err(self.invalid(key, format!("{v:?}"), "must list axles 1..4"));
+            }
+            Ok(v)
+        };
+        let split = match t.split.as_deref().unwrap_or("axles") {
+            "axles" => {
+                let train = axles("train.train_axles", t.train_axles, 2)?;
+                let val = axles("train.val_axles", t.val_axles, 3)?;
+                if let Some(a) = train.iter().find(|a| val.contains(a)) {
+                    return Err(self.invalid(
+                        "train.val_axles",
+                        format!("{val:?}"),
+                        format!(
+                            "must not repeat a training axle (axle {a} is in train.train_axles)"
+                        ),
+                    ));
+                }
+                SplitConfig::Axles { train, val }
+            }
+            "runs" => SplitConfig::Runs { every },
+            "blocks" => SplitConfig::Blocks {
+                block_s: self.optional(
+                    "train.block_s",
+                    t.block_s,
+                    open_lo(0.0, 3600.0, Some(5.0), "s"),
+                )?,
+                every,
+            },
+            other => {
+                return Err(self.invalid(
+                    "train.split",
+                    format!("\"{other}\""),
+                    "must be one of \"axles\", \"runs\", \"blocks\"",
+                ))
+            }
+        };
+        let mu_dec = self.num("train.mu_dec", t.mu_dec, 1e-6, 0.999, Some(0.1), "")?;
+        let mu_inc = self.num("train.mu_inc", t.mu_inc, 1.001, 1e6, Some(10.0), "")?;
+        Ok(TrainConfig {
+            hidden: int("train.hidden", t.hidden, 1.0, 200.0, 10.0)? as usize,
+            with_speed,
+            split,
+            decimate: int("train.decimate", t.decimate, 1.0, 1000.0, 4.0)? as usize,
+            seed: t.seed.unwrap_or(1),
+            epochs: int("train.epochs", t.epochs, 1.0, 1e6, 1000.0)? as u64,
+            goal: self.num("train.goal", t.goal, 0.0, 1.0, Some(0.0), "")?,
+            max_fail: int("train.max_fail", t.max_fail, 1.0, 1e6, 6.0)? as u32,
+            min_grad: self.num("train.min_grad", t.min_grad, 0.0, 1.0, Some(1e-7), "")?,
+            mu: self.num("train.mu", t.mu, 1e-12, 1e6, Some(1e-3), "")?,
+            mu_dec,
+            mu_inc,
+            mu_max: self.num("train.mu_max", t.mu_max, 1.0, 1e20, Some(1e10), "")?,
+            creep_blend_mps: self.num(
+                "train.creep_blend_mps",
+                t.creep_blend_mps,
+                1e-3,
+                5.0,
+                Some(0.2),
+                "m/s",
+            )?,
+            temperature_degree: int(
+                "train.temperature_degree",
+                t.temperature_degree,
+                0.0,
+                5.0,
+                2.0,
+            )? as usize,
         })
     }
 

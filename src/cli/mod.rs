@@ -2,6 +2,7 @@
 
 mod estimate;
 mod ingest;
+mod model;
 mod simulate;
 
 use std::path::PathBuf;
@@ -67,6 +68,21 @@ tangential_N, mu, dv_mps, ddv_mps2). The same scene and seed give identical byte
         long_about = "Fit α of C_f = α p (seed 002 eq. 10) from the vehicle's longitudinal balance on a braking run without wheel slides: M v̇ + (J/r) Σ ω̇_i = −Σ α_i p_i / r − c0 − c2 v², by least squares with the resistance terms c0, c2 fitted alongside. Prints α with its standard error (corrected for the autocorrelation of filtered signals) and the TOML line for the pipeline file."
     )]
     Calibrate(estimate::CalibrateArgs),
+    /// Train the seed 002 network μ(Δv, dΔv/dt) by Levenberg–Marquardt and write a model file.
+    #[command(
+        long_about = "Train a tanh MLP (default 10 hidden neurons, inputs Δv and dΔv/dt; [train] in the \
+pipeline) on the valid estimates of the inputs with Levenberg–Marquardt (MATLAB trainlm semantics: \
+mu schedule, epochs, min_grad, goal, validation early stopping with max_fail). Default split as in \
+seed 002: train on axle 2, validate on axle 3, pooled over the runs.\n\n\
+Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fly). Writes \
+<DIR>/<name>.json (model file, see models/schema/) and <DIR>/<name>.history.csv, printing one \
+line per epoch."
+    )]
+    Train(model::TrainArgs),
+    /// Write a header-only C99 evaluator of a model file.
+    Export(model::ExportArgs),
+    /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps]) and write mu.
+    Eval(model::EvalArgs),
 }
 
 /// Pipeline option shared by commands.
@@ -96,6 +112,9 @@ pub fn main() -> ExitCode {
         Command::Simulate(args) => simulate::run(args),
         Command::Estimate(args) => estimate::run(args),
         Command::Calibrate(args) => estimate::calibrate_run(args),
+        Command::Train(args) => model::train(args),
+        Command::Export(args) => model::export(args),
+        Command::Eval(args) => model::eval(args),
     };
     match result {
         Ok(code) => ExitCode::from(code),

@@ -32,6 +32,7 @@
 use crate::config::Pipeline;
 use crate::format::AXLES;
 use crate::ingest::RunLog;
+use crate::linalg::{cho_solve, cholesky, effective_samples};
 use crate::signal;
 use crate::vehicle::total_mass_kg;
 
@@ -275,77 +276,4 @@ pub fn calibrate(
         effective_samples: n_eff,
         rms_residual_n: (rss / n as f64).sqrt(),
     })
-}
-
-/// Effective number of independent samples of a residual series, n / (1 + 2 Σ_k ρ_k), with
-/// the autocorrelations ρ_k summed up to the first lag where they are no longer positive
-/// (Geyer's initial positive sequence, simplified). Filtered signals at 417 Hz are
-/// correlated over hundreds of samples; treating them as independent would shrink the
-/// standard errors by an order of magnitude.
-fn effective_samples(e: &[f64]) -> f64 {
-    let n = e.len();
-    let c0: f64 = e.iter().map(|x| x * x).sum();
-    if n < 2 || c0 <= 0.0 {
-        return n as f64;
-    }
-    let mut tau = 1.0;
-    for k in 1..n / 2 {
-        let ck: f64 = e[..n - k].iter().zip(&e[k..]).map(|(a, b)| a * b).sum();
-        let rho = ck / c0;
-        if rho <= 0.0 {
-            break;
-        }
-        tau += 2.0 * rho;
-    }
-    (n as f64 / tau).clamp(1.0, n as f64)
-}
-
-/// Lower-triangular Cholesky factor of the symmetric k×k matrix `a` (row-major), or None when
-/// it is not positive definite.
-fn cholesky(a: &[f64], k: usize) -> Option<Vec<f64>> {
-    let mut l = vec![0.0; k * k];
-    for i in 0..k {
-        for j in 0..=i {
-            let s: f64 = a[i * k + j] - (0..j).map(|p| l[i * k + p] * l[j * k + p]).sum::<f64>();
-            if i == j {
-                if !(s > 0.0) {
-                    return None;
-                }
-                l[i * k + i] = s.sqrt();
-            } else {
-                l[i * k + j] = s / l[j * k + j];
-            }
-        }
-    }
-    Some(l)
-}
-
-/// Solves L Lᵀ x = b.
-fn cho_solve(l: &[f64], k: usize, b: &[f64]) -> Vec<f64> {
-    let mut y = vec![0.0; k];
-    for i in 0..k {
-        y[i] = (b[i] - (0..i).map(|p| l[i * k + p] * y[p]).sum::<f64>()) / l[i * k + i];
-    }
-    let mut x = vec![0.0; k];
-    for i in (0..k).rev() {
-        x[i] = (y[i] - (i + 1..k).map(|p| l[p * k + i] * x[p]).sum::<f64>()) / l[i * k + i];
-    }
-    x
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cholesky_solves_a_small_system() {
-        let a = [4.0, 2.0, 0.6, 2.0, 5.0, 1.0, 0.6, 1.0, 3.0];
-        let l = cholesky(&a, 3).unwrap();
-        let x = cho_solve(&l, 3, &[1.0, 2.0, 3.0]);
-        for i in 0..3 {
-            let r: f64 = (0..3).map(|j| a[i * 3 + j] * x[j]).sum();
-            assert!((r - [1.0, 2.0, 3.0][i]).abs() < 1e-12);
-        }
-        assert!(cholesky(&[1.0, 1.0, 1.0, 1.0], 2).is_none());
-    }
 }

@@ -52,6 +52,10 @@ pub const ESTIMATE_COLUMNS: [&str; 13] = [
     "valid",
 ];
 
+/// Parquet key-value metadata key under which the run's metadata travels with the estimates
+/// table (JSON object of string pairs, the keys of the data contract's metadata).
+pub const PARQUET_METADATA_KEY: &str = "railgrip.run_metadata";
+
 /// Why estimation or writing failed.
 #[derive(Debug, thiserror::Error)]
 pub enum EstimateError {
@@ -427,9 +431,15 @@ impl Estimates {
             file: pq.clone(),
             message: e.to_string(),
         })?;
+        let meta = serde_json::to_string(&self.metadata.to_pairs()).unwrap_or_default();
+        let kv = polars::io::parquet::write::KeyValueMetadata::from_static(vec![(
+            PARQUET_METADATA_KEY.to_string(),
+            meta,
+        )]);
         crate::atomic::write_atomically(&pq, |f| {
             ParquetWriter::new(f)
                 .with_compression(ParquetCompression::Zstd(None))
+                .with_key_value_metadata(Some(kv))
                 .finish(&mut df)
                 .map(|_| ())
                 .map_err(std::io::Error::other)

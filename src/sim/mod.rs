@@ -24,7 +24,6 @@
 //! by h r² k N / J ≈ 15 % of J ω̇). The hysteresis branch factor is lagged by
 //! `hysteresis_time_constant_s` (an instant one closes an algebraic loop that chatters).
 
-pub mod rng;
 pub mod scene;
 
 use std::f64::consts::PI;
@@ -32,7 +31,7 @@ use std::path::{Path, PathBuf};
 
 use crate::contact::{hertz, kalker, shear_modulus_pa, ContactError};
 use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES};
-use rng::Rng;
+use crate::rng::Rng;
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 
 pub use crate::vehicle::{axle_loads, static_axle_load, G_MPS2};

@@ -1,4 +1,4 @@
-//! Deterministic random numbers for sensor models: SplitMix64 (Steele, Lea & Flood 2014) and
+//! Deterministic random numbers (sensor models, network initialisation): SplitMix64 (Steele, Lea & Flood 2014) and
 //! normal deviates by Box–Muller. Same seed → same sequence on every platform.
 
 /// SplitMix64 generator.

@@ -1,0 +1,260 @@
+//! `railgrip train`, `railgrip export`, `railgrip eval`.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use railgrip::identify::dataset::sha256_file;
+use railgrip::identify::train::{creep_spec, median_speed, train_mlp, utc_now_rfc3339};
+use railgrip::identify::RunTable;
+use railgrip::model::{c_header, InputFile, Model, ModelFile, Provenance};
+use rayon::prelude::*;
+
+use super::{PipelineArg, EXIT_OK};
+
+#[derive(clap::Args)]
+pub struct TrainArgs {
+    /// Estimates tables (<stem>.estimates.parquet from `railgrip estimate`) or run logs
+    /// (.csv/.mcap, estimated on the fly), any mix.
+    #[arg(value_name = "INPUT", required = true)]
+    inputs: Vec<PathBuf>,
+    #[command(flatten)]
+    pipeline: PipelineArg,
+    /// Output directory for <name>.json and <name>.history.csv.
+    #[arg(long, value_name = "DIR")]
+    out: PathBuf,
+    /// Model name (file stem).
+    #[arg(long, default_value = "mlp")]
+    name: String,
+    /// Only print the final summary, not every epoch.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Reads the inputs as run tables, in parallel, in the order given.
+pub fn load_tables(
+    inputs: &[PathBuf],
+    pipeline: &railgrip::Pipeline,
+) -> anyhow::Result<Vec<RunTable>> {
+    inputs
+        .par_iter()
+        .map(|p| -> anyhow::Result<RunTable> {
+            let name = p.display().to_string();
+            if name.ends_with(".parquet") {
+                return Ok(RunTable::read_parquet(p)?);
+            }
+            let log = railgrip::ingest_file(p, pipeline)?;
+            let e = railgrip::estimate::estimate(&log, pipeline)?;
+            let sha = sha256_file(p).with_context(|| format!("{name}: cannot read"))?;
+            Ok(RunTable::from_estimates(
+                &super::ingest::stem(p),
+                &name,
+                &sha,
+                &e,
+            ))
+        })
+        .collect()
+}
+
+pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
+    if !c_header::valid_prefix(&args.name) {
+        bail!(
+            "--name {:?}: use letters, digits and '_' (it names files and C symbols)",
+            args.name
+        );
+    }
+    let pipeline = args.pipeline.load()?;
+    let tables = load_tables(&args.inputs, &pipeline)?;
+    let samples: usize = tables.iter().map(|t| t.len()).sum();
+    eprintln!(
+        "data       {} run(s), {} valid samples; [train] split {:?}, decimate {}",
+        tables.len(),
+        samples,
+        pipeline.train.split,
+        pipeline.train.decimate
+    );
+    let quiet = args.quiet;
+    let progress: Box<dyn FnMut(&railgrip::identify::lm::Epoch) + Send> = Box::new(move |e| {
+        if !quiet {
+            eprintln!(
+                "epoch {:>4}  train MSE {:.4e}  val MSE {:.4e}  mu {:.1e}  |grad| {:.2e}  {:.2} s",
+                e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
+            );
+        }
+    });
+    let trained = train_mlp(&tables, &pipeline.train, Some(progress))?;
+    let mut trained = trained;
+    trained.reference_speed_mps = median_speed(&tables);
+    let creep = creep_spec(&pipeline, trained.reference_speed_mps)?;
+    let provenance = Provenance {
+        inputs: tables
+            .iter()
+            .map(|t| InputFile {
+                path: t.source.clone(),
+                sha256: t.sha256.clone(),
+            })
+            .collect(),
+        pipeline: pipeline.source.clone(),
+        pipeline_sha256: railgrip::identify::dataset::sha256_bytes(pipeline.text.as_bytes()),
+        seed: pipeline.train.seed,
+        crate_version: env!("CARGO_PKG_VERSION").into(),
+        created: utc_now_rfc3339(),
+    };
+    let file = ModelFile::from_trained(&trained, creep, provenance);
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
+    let path = args.out.join(format!("{}.json", args.name));
+    file.write(&path)?;
+    let hist = args.out.join(format!("{}.history.csv", args.name));
+    write_history(&hist, &trained.history)?;
+    println!(
+        "model      {} inputs, {} hidden tanh neurons, {} parameters",
+        trained.shape.inputs,
+        trained.shape.hidden,
+        trained.shape.n_params()
+    );
+    println!(
+        "data       {} training, {} validation samples",
+        trained.n_train, trained.n_val
+    );
+    println!(
+        "trained    {} epochs ({}), {:.2} s",
+        trained.history.len(),
+        trained.stop.text(),
+        trained.history.last().map(|e| e.elapsed_s).unwrap_or(0.0)
+    );
+    println!(
+        "error      RMSE of μ: training {:.5}, validation {:.5}",
+        trained.train_mse.sqrt(),
+        trained.val_mse.sqrt()
+    );
+    println!("wrote      {}", path.display());
+    println!("wrote      {}", hist.display());
+    Ok(EXIT_OK)
+}
+
+fn write_history(path: &Path, h: &[railgrip::identify::lm::Epoch]) -> anyhow::Result<()> {
+    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s\n");
+    for e in h {
+        text.push_str(&format!(
+            "{},{:?},{:?},{:?},{:?},{:?}\n",
+            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
+        ));
+    }
+    railgrip::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))
+}
+
+#[derive(clap::Args)]
+pub struct ExportArgs {
+    /// A model file written by `railgrip train`.
+    #[arg(value_name = "MODEL")]
+    model: PathBuf,
+    /// Write a header-only C99 evaluator here.
+    #[arg(long, value_name = "FILE")]
+    c_header: PathBuf,
+    /// Prefix of the C symbols (`<prefix>_mu`, `<prefix>_mu_v`).
+    #[arg(long, default_value = "railgrip")]
+    prefix: String,
+}
+
+pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
+    if !c_header::valid_prefix(&args.prefix) {
+        bail!(
+            "--prefix {:?}: must be a C identifier (letters, digits, '_', starting with a letter)",
+            args.prefix
+        );
+    }
+    let m = ModelFile::read(&args.model)?;
+    let text = c_header::c_header(&m, &args.prefix, &args.model.display().to_string());
+    railgrip::atomic::write_atomically(&args.c_header, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", args.c_header.display()))?;
+    println!(
+        "wrote      {} ({}_mu, {}_mu_v; {} inputs, {} hidden)",
+        args.c_header.display(),
+        args.prefix,
+        args.prefix,
+        m.inputs.len(),
+        m.layers[0].shape[0]
+    );
+    Ok(EXIT_OK)
+}
+
+#[derive(clap::Args)]
+pub struct EvalArgs {
+    /// A model file written by `railgrip train`.
+    #[arg(value_name = "MODEL")]
+    model: PathBuf,
+    /// CSV with columns dv_mps, ddv_mps2 (and v_mps for 3-input models).
+    #[arg(long, value_name = "CSV")]
+    input: PathBuf,
+    /// Output CSV: the input columns and mu.
+    #[arg(long, value_name = "CSV")]
+    output: PathBuf,
+}
+
+pub fn eval(args: EvalArgs) -> anyhow::Result<u8> {
+    let model = Model::load(&args.model)?;
+    let file = args.input.display().to_string();
+    let text =
+        std::fs::read_to_string(&args.input).with_context(|| format!("{file}: cannot read"))?;
+    let mut lines = text.lines();
+    let header: Vec<String> = lines
+        .next()
+        .unwrap_or("")
+        .split(',')
+        .map(|s| s.trim().trim_matches('"').to_string())
+        .collect();
+    let col = |name: &str| header.iter().position(|h| h == name);
+    let (Some(cdv), Some(cddv)) = (col("dv_mps"), col("ddv_mps2")) else {
+        bail!("{file}: line 1: the header needs columns dv_mps and ddv_mps2 (found {header:?})");
+    };
+    let cv = col("v_mps");
+    if model.n_inputs() == 3 && cv.is_none() {
+        bail!("{file}: line 1: this model takes speed as a third input: add a column v_mps");
+    }
+    let mut out = String::new();
+    out.push_str(if cv.is_some() {
+        "dv_mps,ddv_mps2,v_mps,mu\n"
+    } else {
+        "dv_mps,ddv_mps2,mu\n"
+    });
+    for (n, line) in lines.enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let cells: Vec<&str> = line.split(',').map(|s| s.trim()).collect();
+        let num = |c: usize, name: &str| -> anyhow::Result<f64> {
+            let s = cells.get(c).copied().unwrap_or("");
+            let x: f64 = s.parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "{file}: line {}, column \"{name}\": \"{s}\" is not a number",
+                    n + 2
+                )
+            })?;
+            if !x.is_finite() {
+                bail!(
+                    "{file}: line {}, column \"{name}\": {s} is not finite",
+                    n + 2
+                );
+            }
+            Ok(x)
+        };
+        let dv = num(cdv, "dv_mps")?;
+        let ddv = num(cddv, "ddv_mps2")?;
+        match cv {
+            Some(c) => {
+                let v = num(c, "v_mps")?;
+                out.push_str(&format!(
+                    "{dv:?},{ddv:?},{v:?},{:?}\n",
+                    model.mu_v(dv, ddv, v)
+                ));
+            }
+            None => out.push_str(&format!("{dv:?},{ddv:?},{:?}\n", model.mu(dv, ddv))),
+        }
+    }
+    railgrip::atomic::write_atomically(&args.output, |w| w.write_all(out.as_bytes()))
+        .with_context(|| format!("{}: cannot write", args.output.display()))?;
+    println!("wrote      {}", args.output.display());
+    Ok(EXIT_OK)
+}

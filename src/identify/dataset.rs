@@ -1,0 +1,357 @@
+//! Training data for the identification: the valid estimates of each run ([`RunTable`]),
+//! split into training and validation sets ([`Split`]; seed 002 trains on axle 2 and validates
+//! on axle 3, pooled over the runs), decimated, and scaled by mapminmax ([`MapMinMax`]).
+
+use std::io::Read;
+use std::path::Path;
+
+use sha2::{Digest, Sha256};
+
+use crate::estimate::Estimates;
+use crate::format::RunMetadata;
+
+use super::IdentifyError;
+
+/// The network's inputs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputSet {
+    /// (Δv, dΔv/dt) — seed 002.
+    DvDdv,
+    /// (Δv, dΔv/dt, v) — speed as a third input.
+    DvDdvV,
+}
+
+impl InputSet {
+    /// Input names (estimates-table column names) and units.
+    pub fn names(self) -> &'static [(&'static str, &'static str)] {
+        match self {
+            InputSet::DvDdv => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²")],
+            InputSet::DvDdvV => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²"), ("v_mps", "m/s")],
+        }
+    }
+    pub fn len(self) -> usize {
+        self.names().len()
+    }
+    pub fn is_empty(self) -> bool {
+        false
+    }
+}
+
+/// Valid estimates of one run.
+#[derive(Debug, Clone, Default)]
+pub struct RunTable {
+    /// Short name (file stem).
+    pub name: String,
+    /// The file it came from (a log or an estimates table).
+    pub source: String,
+    /// SHA-256 of that file, hex.
+    pub sha256: String,
+    pub metadata: RunMetadata,
+    pub axle: Vec<u8>,
+    pub time_s: Vec<f64>,
+    pub v_mps: Vec<f64>,
+    pub dv_mps: Vec<f64>,
+    pub ddv_mps2: Vec<f64>,
+    pub mu: Vec<f64>,
+}
+
+impl RunTable {
+    /// The valid samples of `e`, axle by axle in time order.
+    pub fn from_estimates(name: &str, source: &str, sha256: &str, e: &Estimates) -> RunTable {
+        let mut t = RunTable {
+            name: name.to_string(),
+            source: source.to_string(),
+            sha256: sha256.to_string(),
+            metadata: e.metadata.clone(),
+            ..RunTable::default()
+        };
+        for (a, ax) in e.axles.iter().enumerate() {
+            for i in (0..e.len()).filter(|&i| ax.valid[i]) {
+                t.axle.push(a as u8 + 1);
+                t.time_s.push(e.time_s[i]);
+                t.v_mps.push(e.v_mps[i]);
+                t.dv_mps.push(ax.dv_mps[i]);
+                t.ddv_mps2.push(ax.ddv_mps2[i]);
+                t.mu.push(ax.mu[i]);
+            }
+        }
+        t
+    }
+
+    /// Reads the valid rows of an estimates table written by `railgrip estimate`.
+    pub fn read_parquet(path: &Path) -> Result<RunTable, IdentifyError> {
+        use polars::prelude::*;
+        let bad = |message: String| {
+            IdentifyError::Input {
+            file: path.display().to_string(),
+            message,
+            hint: "give an estimates table written by `railgrip estimate` (or the run logs themselves)".into(),
+        }
+        };
+        let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+        let mut reader = ParquetReader::new(file);
+        let metadata = reader
+            .get_metadata()
+            .ok()
+            .and_then(|m| m.key_value_metadata().clone())
+            .and_then(|kv| {
+                kv.into_iter()
+                    .find(|k| k.key == crate::estimate::PARQUET_METADATA_KEY)
+                    .and_then(|k| k.value)
+            })
+            .and_then(|text| {
+                let pairs: std::collections::BTreeMap<String, String> =
+                    serde_json::from_str(&text).ok()?;
+                RunMetadata::from_pairs(&pairs).ok()
+            })
+            .unwrap_or_default();
+        let df = reader.finish().map_err(|e| bad(e.to_string()))?;
+        let f64col = |name: &str| -> Result<Vec<f64>, IdentifyError> {
+            let c = df
+                .column(name)
+                .map_err(|_| bad(format!("no column \"{name}\"")))?;
+            let c = c
+                .cast(&DataType::Float64)
+                .map_err(|e| bad(format!("column \"{name}\": {e}")))?;
+            let ca = c.f64().map_err(|e| bad(e.to_string()))?;
+            if ca.null_count() > 0 {
+                return Err(bad(format!("column \"{name}\" has empty cells")));
+            }
+            Ok(ca.into_no_null_iter().collect())
+        };
+        let valid_ca = df
+            .column("valid")
+            .map_err(|_| bad("no column \"valid\"".into()))?
+            .bool()
+            .map_err(|e| bad(format!("column \"valid\": {e}")))?
+            .clone();
+        if valid_ca.null_count() > 0 {
+            return Err(bad("column \"valid\" has empty cells".into()));
+        }
+        let valid: Vec<bool> = valid_ca
+            .downcast_iter()
+            .flat_map(|arr| arr.values_iter())
+            .collect();
+        let (time, axle, v, dv, ddv, mu) = (
+            f64col("time_s")?,
+            f64col("axle")?,
+            f64col("v_mps")?,
+            f64col("dv_mps")?,
+            f64col("ddv_mps2")?,
+            f64col("mu")?,
+        );
+        let mut t = RunTable {
+            name: path
+                .file_name()
+                .map(|s| {
+                    s.to_string_lossy()
+                        .trim_end_matches(".estimates.parquet")
+                        .to_string()
+                })
+                .unwrap_or_default(),
+            source: path.display().to_string(),
+            sha256: sha256_file(path).map_err(|e| bad(e.to_string()))?,
+            metadata,
+            ..RunTable::default()
+        };
+        // Axle-major order like `from_estimates`.
+        for a in 1..=crate::format::AXLES as u8 {
+            for i in 0..valid.len() {
+                if valid[i] && axle[i] == a as f64 {
+                    t.axle.push(a);
+                    t.time_s.push(time[i]);
+                    t.v_mps.push(v[i]);
+                    t.dv_mps.push(dv[i]);
+                    t.ddv_mps2.push(ddv[i]);
+                    t.mu.push(mu[i]);
+                }
+            }
+        }
+        Ok(t)
+    }
+
+    pub fn len(&self) -> usize {
+        self.mu.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.mu.is_empty()
+    }
+
+    fn input(&self, inputs: InputSet, i: usize, out: &mut Vec<f64>) {
+        out.push(self.dv_mps[i]);
+        out.push(self.ddv_mps2[i]);
+        if inputs == InputSet::DvDdvV {
+            out.push(self.v_mps[i]);
+        }
+    }
+}
+
+/// SHA-256 of a file, lowercase hex.
+pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+    let mut f = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = f.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        h.update(&buf[..n]);
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// SHA-256 of bytes, lowercase hex.
+pub fn sha256_bytes(b: &[u8]) -> String {
+    Sha256::digest(b)
+        .iter()
+        .map(|x| format!("{x:02x}"))
+        .collect()
+}
+
+/// How samples are divided between training and validation.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Split {
+    /// By axle, pooled over all runs (seed 002: train [2], validate [3]).
+    Axles { train: Vec<u8>, val: Vec<u8> },
+    /// Whole runs: every `every`-th run (in the order given) validates, the others train.
+    Runs { every: usize },
+    /// Contiguous blocks of `block_s` seconds per run and axle: every `every`-th validates.
+    Blocks { block_s: f64, every: usize },
+}
+
+/// Training and validation sets in physical units; `x` is row-major, `inputs.len()` columns.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dataset {
+    pub inputs: InputSet,
+    pub train_x: Vec<f64>,
+    pub train_y: Vec<f64>,
+    pub val_x: Vec<f64>,
+    pub val_y: Vec<f64>,
+}
+
+impl Dataset {
+    /// Builds the sets: valid samples only (the tables hold nothing else), every `decimate`-th
+    /// sample of each run and axle.
+    pub fn build(
+        tables: &[RunTable],
+        inputs: InputSet,
+        split: &Split,
+        decimate: usize,
+    ) -> Result<Dataset, IdentifyError> {
+        let decimate = decimate.max(1);
+        let mut d = Dataset {
+            inputs,
+            train_x: Vec::new(),
+            train_y: Vec::new(),
+            val_x: Vec::new(),
+            val_y: Vec::new(),
+        };
+        for (r, t) in tables.iter().enumerate() {
+            let mut kept = [0usize; 256];
+            let t0 = t.time_s.first().copied().unwrap_or(0.0);
+            for i in 0..t.len() {
+                let a = t.axle[i];
+                let k = &mut kept[a as usize];
+                *k += 1;
+                if (*k - 1) % decimate != 0 {
+                    continue;
+                }
+                let to_val = match split {
+                    Split::Axles { train, val } => {
+                        if val.contains(&a) {
+                            Some(true)
+                        } else if train.contains(&a) {
+                            Some(false)
+                        } else {
+                            None
+                        }
+                    }
+                    Split::Runs { every } => Some(*every > 0 && r % every == every - 1),
+                    Split::Blocks { block_s, every } => {
+                        let b = ((t.time_s[i] - t0) / block_s).floor() as usize;
+                        Some(*every > 0 && b % every == every - 1)
+                    }
+                };
+                match to_val {
+                    Some(true) => {
+                        t.input(inputs, i, &mut d.val_x);
+                        d.val_y.push(t.mu[i]);
+                    }
+                    Some(false) => {
+                        t.input(inputs, i, &mut d.train_x);
+                        d.train_y.push(t.mu[i]);
+                    }
+                    None => {}
+                }
+            }
+        }
+        if d.train_y.is_empty() {
+            return Err(IdentifyError::Data {
+                what: format!("no valid samples for training ({split:?}) in {} run(s)", tables.len()),
+                hint: "check that the runs brake with slip (railgrip estimate prints valid samples per axle) and that [train] split names axles that exist".into(),
+            });
+        }
+        Ok(d)
+    }
+
+    pub fn n_train(&self) -> usize {
+        self.train_y.len()
+    }
+    pub fn n_val(&self) -> usize {
+        self.val_y.len()
+    }
+}
+
+/// MATLAB `mapminmax` to [−1, 1] per row: y = 2 (x − min)/(max − min) − 1; a constant row
+/// passes through unchanged (range 0 → identity).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MapMinMax {
+    pub min: Vec<f64>,
+    pub max: Vec<f64>,
+}
+
+impl MapMinMax {
+    /// Fits the ranges of the columns of row-major `x` with `k` columns.
+    pub fn fit(x: &[f64], k: usize) -> MapMinMax {
+        let mut min = vec![f64::INFINITY; k];
+        let mut max = vec![f64::NEG_INFINITY; k];
+        for row in x.chunks_exact(k) {
+            for c in 0..k {
+                min[c] = min[c].min(row[c]);
+                max[c] = max[c].max(row[c]);
+            }
+        }
+        MapMinMax { min, max }
+    }
+
+    /// (gain, offset) of column `c`: y = gain·x + offset.
+    #[inline]
+    pub fn gain_offset(&self, c: usize) -> (f64, f64) {
+        let range = self.max[c] - self.min[c];
+        if range > 0.0 && range.is_finite() {
+            let g = 2.0 / range;
+            (g, -1.0 - g * self.min[c])
+        } else {
+            (1.0, 0.0)
+        }
+    }
+
+    /// Scales row-major `x` in place.
+    pub fn apply(&self, x: &mut [f64]) {
+        let k = self.min.len();
+        let go: Vec<(f64, f64)> = (0..k).map(|c| self.gain_offset(c)).collect();
+        for row in x.chunks_exact_mut(k) {
+            for c in 0..k {
+                row[c] = go[c].0 * row[c] + go[c].1;
+            }
+        }
+    }
+
+    /// Inverse of `apply` for column `c`.
+    #[inline]
+    pub fn reverse(&self, c: usize, y: f64) -> f64 {
+        let (g, o) = self.gain_offset(c);
+        (y - o) / g
+    }
+}

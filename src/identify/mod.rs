@@ -1,0 +1,29 @@
+//! Identification (seed 002 002_8d8769283f5e9cb6.txt, "Neural network" and Fig. 9–11): the
+//! adhesion curve μ(Δv, dΔv/dt) learned by a tanh MLP trained with Levenberg–Marquardt.
+//!
+//! [`dataset`] turns estimates into training/validation sets, [`mlp`] is the network and its
+//! analytic Jacobian, [`lm`] the trainlm-style solver (an argmin `Solver`), and [`train`] ties
+//! them together.
+
+pub mod dataset;
+pub mod lm;
+pub mod mlp;
+pub mod train;
+
+pub use dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};
+pub use train::{train_mlp, TrainedMlp};
+
+/// Why identification failed.
+#[derive(Debug, thiserror::Error)]
+pub enum IdentifyError {
+    #[error("{file}: {message}. Hint: {hint}")]
+    Input {
+        file: String,
+        message: String,
+        hint: String,
+    },
+    #[error("{what}. Hint: {hint}")]
+    Data { what: String, hint: String },
+    #[error("training failed: {0}")]
+    Solver(String),
+}

@@ -1,0 +1,510 @@
+//! Adhesion model files (ONNX-free JSON, schema `models/schema/adhesion-model.schema.json`)
+//! and their evaluators.
+//!
+//! A model file holds everything a simulator needs to evaluate μ(Δv, dΔv/dt[, v]) without
+//! railgrip: the inputs with units, mapminmax normalisation and the validity domain seen in
+//! training, the network's weights and biases with shapes and activations, the output
+//! de-normalisation, the linear creep region used at small slip, provenance and metrics.
+//!
+//! Evaluation ([`Model::mu`]), exactly as the C header does it ([`c_header`]):
+//! 1. Mirror: for Δv < 0 evaluate at (−Δv, −dΔv/dt) and negate (the force follows the slip).
+//! 2. Network N(Δv, dΔv/dt, v): each input clamped to its domain [min, max], scaled by
+//!    mapminmax (x_n = g x + o), ŷ = b2 + Σ_h w2_h tanh(b1_h + Σ_i W1_hi x_n,i), μ = (ŷ − o_y)/g_y.
+//! 3. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
+//!    is replaced by the linear law", eq. 6–8): below the blend slip Δv_b the model blends, with
+//!    the weight w = t²(3 − 2t), t = Δv/Δv_b, from the Kalker linear law saturated by
+//!    Shen–Hedrick–Elkins, μ_lin = μ_s·S(k Δv/μ_s) with S(x) = x − x²/3 + x³/27 for x < 3 and 1
+//!    above, μ_s = |N(Δv_b, dΔv/dt, v)|, k = C / (Q v) (C = G a b c11 the creep stiffness, N; Q
+//!    the wheel load, N; v the speed input or, for two-input models, the median training speed),
+//!    to the network at Δv_b: μ = w N(Δv, …) + (1 − w) μ_lin. Continuous in every input.
+
+pub mod c_header;
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::identify::lm::Epoch;
+use crate::identify::{InputSet, TrainedMlp};
+
+/// Format id written into every model file.
+pub const FORMAT_ID: &str = "railgrip-adhesion-model";
+/// Current format version.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Why a model file could not be read or used.
+#[derive(Debug, thiserror::Error)]
+pub enum ModelError {
+    #[error("{file}: {message}. Hint: {hint}")]
+    Invalid {
+        file: String,
+        message: String,
+        hint: String,
+    },
+    #[error("{file}: cannot write: {message}")]
+    Write { file: String, message: String },
+}
+
+/// Model kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelKind {
+    Mlp,
+}
+
+/// One input of the model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSpec {
+    /// Estimates-table column name: `dv_mps`, `ddv_mps2`, `v_mps`.
+    pub name: String,
+    pub unit: String,
+    /// mapminmax: the training range mapped to [−1, 1].
+    pub norm_min: f64,
+    pub norm_max: f64,
+    /// Validity domain: the range seen in training and validation data. Inputs outside are
+    /// clamped to it.
+    pub domain_min: f64,
+    pub domain_max: f64,
+}
+
+/// The output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    pub name: String,
+    pub unit: String,
+    pub norm_min: f64,
+    pub norm_max: f64,
+}
+
+/// One dense layer: `weights[row][col]` maps `col` inputs to `row` outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Layer {
+    /// [rows, cols].
+    pub shape: [usize; 2],
+    pub weights: Vec<Vec<f64>>,
+    pub biases: Vec<f64>,
+    /// `tanh` or `linear`.
+    pub activation: String,
+}
+
+/// The linear creep region at small slip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CreepSpec {
+    /// Δv_b: below it the model blends from the linear law into the network, m/s.
+    pub blend_mps: f64,
+    /// C = G a b c11, Kalker's longitudinal creep stiffness of one wheel's patch, N.
+    pub creep_stiffness_n: f64,
+    /// Q, the static wheel load the patch was computed for, N.
+    pub wheel_load_n: f64,
+    /// Speed used for the creepage when the model has no speed input, m/s.
+    pub reference_speed_mps: f64,
+}
+
+/// Where the model came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    /// Input files with their SHA-256.
+    pub inputs: Vec<InputFile>,
+    /// Pipeline file name and the SHA-256 of its text.
+    pub pipeline: String,
+    pub pipeline_sha256: String,
+    pub seed: u64,
+    pub crate_version: String,
+    /// UTC, RFC 3339.
+    pub created: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputFile {
+    pub path: String,
+    pub sha256: String,
+}
+
+/// Quality figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metrics {
+    pub train_samples: usize,
+    pub val_samples: usize,
+    /// Mean squared errors of μ.
+    pub train_mse: f64,
+    pub val_mse: Option<f64>,
+    pub epochs: usize,
+    pub stop_reason: String,
+}
+
+/// A model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    pub format: String,
+    pub version: u32,
+    pub kind: ModelKind,
+    pub inputs: Vec<InputSpec>,
+    pub output: OutputSpec,
+    /// What the evaluator does with inputs outside the domain: `clamp`.
+    pub outside_domain: String,
+    pub layers: Vec<Layer>,
+    pub creep: CreepSpec,
+    pub provenance: Provenance,
+    pub metrics: Metrics,
+    pub history: Vec<Epoch>,
+}
+
+impl ModelFile {
+    /// Builds the file of a trained network.
+    pub fn from_trained(t: &TrainedMlp, creep: CreepSpec, provenance: Provenance) -> ModelFile {
+        let k = t.shape.inputs;
+        let nh = t.shape.hidden;
+        let inputs = t
+            .inputs
+            .names()
+            .iter()
+            .enumerate()
+            .map(|(c, (name, unit))| InputSpec {
+                name: name.to_string(),
+                unit: unit.to_string(),
+                norm_min: t.x_norm.min[c],
+                norm_max: t.x_norm.max[c],
+                domain_min: t.domain[c].0,
+                domain_max: t.domain[c].1,
+            })
+            .collect();
+        let th = &t.theta;
+        let hidden = Layer {
+            shape: [nh, k],
+            weights: (0..nh).map(|h| th[h * k..(h + 1) * k].to_vec()).collect(),
+            biases: th[nh * k..nh * k + nh].to_vec(),
+            activation: "tanh".into(),
+        };
+        let out = Layer {
+            shape: [1, nh],
+            weights: vec![th[nh * k + nh..nh * k + 2 * nh].to_vec()],
+            biases: vec![th[nh * k + 2 * nh]],
+            activation: "linear".into(),
+        };
+        ModelFile {
+            format: FORMAT_ID.into(),
+            version: FORMAT_VERSION,
+            kind: ModelKind::Mlp,
+            inputs,
+            output: OutputSpec {
+                name: "mu".into(),
+                unit: "1".into(),
+                norm_min: t.y_norm.min[0],
+                norm_max: t.y_norm.max[0],
+            },
+            outside_domain: "clamp".into(),
+            layers: vec![hidden, out],
+            creep,
+            provenance,
+            metrics: Metrics {
+                train_samples: t.n_train,
+                val_samples: t.n_val,
+                train_mse: t.train_mse,
+                val_mse: t.val_mse.is_finite().then_some(t.val_mse),
+                epochs: t.history.len(),
+                stop_reason: t.stop.text().into(),
+            },
+            history: t.history.clone(),
+        }
+    }
+
+    /// JSON text (f64 in shortest round-trip form: reading it back gives the same bits).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("model files serialise") + "\n"
+    }
+
+    /// Writes the file atomically.
+    pub fn write(&self, path: &Path) -> Result<(), ModelError> {
+        let text = self.to_json();
+        crate::atomic::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+            .map_err(|e: std::io::Error| ModelError::Write {
+                file: path.display().to_string(),
+                message: e.to_string(),
+            })
+    }
+
+    /// Parses and checks a model file's text; `file` names it in errors.
+    pub fn from_json(text: &str, file: &str) -> Result<ModelFile, ModelError> {
+        let bad = |message: String| {
+            ModelError::Invalid {
+            file: file.to_string(),
+            message,
+            hint: "give a model file written by `railgrip train` (format railgrip-adhesion-model, see models/schema/)".into(),
+        }
+        };
+        let m: ModelFile =
+            serde_json::from_str(text).map_err(|e| bad(format!("not a model file: {e}")))?;
+        if m.format != FORMAT_ID {
+            return Err(bad(format!(
+                "format \"{}\" is not \"{FORMAT_ID}\"",
+                m.format
+            )));
+        }
+        if m.version != FORMAT_VERSION {
+            return Err(bad(format!(
+                "format version {} is not supported (this railgrip reads version {FORMAT_VERSION})",
+                m.version
+            )));
+        }
+        m.check().map_err(bad)?;
+        Ok(m)
+    }
+
+    /// Reads a model file.
+    pub fn read(path: &Path) -> Result<ModelFile, ModelError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| ModelError::Invalid {
+            file: file.clone(),
+            message: e.to_string(),
+            hint: "check the path".into(),
+        })?;
+        Self::from_json(&text, &file)
+    }
+
+    /// Shapes, names and numbers are consistent and finite.
+    fn check(&self) -> Result<(), String> {
+        let k = self.inputs.len();
+        let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
+        if names != ["dv_mps", "ddv_mps2"] && names != ["dv_mps", "ddv_mps2", "v_mps"] {
+            return Err(format!(
+                "inputs {names:?} are not [dv_mps, ddv_mps2] or [dv_mps, ddv_mps2, v_mps]"
+            ));
+        }
+        if self.outside_domain != "clamp" {
+            return Err(format!(
+                "outside_domain \"{}\" is not \"clamp\"",
+                self.outside_domain
+            ));
+        }
+        let [h, o] = match self.layers.as_slice() {
+            [h, o] => [h, o],
+            _ => return Err(format!("{} layers; an MLP model has 2", self.layers.len())),
+        };
+        let nh = h.shape[0];
+        if h.activation != "tanh" || o.activation != "linear" {
+            return Err("activations must be tanh (hidden) and linear (output)".into());
+        }
+        if h.shape != [nh, k]
+            || h.weights.len() != nh
+            || h.weights.iter().any(|r| r.len() != k)
+            || h.biases.len() != nh
+            || o.shape != [1, nh]
+            || o.weights.len() != 1
+            || o.weights[0].len() != nh
+            || o.biases.len() != 1
+            || nh == 0
+        {
+            return Err("layer shapes do not match the inputs and each other".into());
+        }
+        let mut nums: Vec<f64> = h
+            .weights
+            .iter()
+            .flatten()
+            .chain(&h.biases)
+            .copied()
+            .collect();
+        nums.extend(o.weights[0].iter().chain(&o.biases));
+        for i in &self.inputs {
+            nums.extend([i.norm_min, i.norm_max, i.domain_min, i.domain_max]);
+            if i.domain_min > i.domain_max || i.norm_min > i.norm_max {
+                return Err(format!("input {}: min above max", i.name));
+            }
+        }
+        nums.extend([self.output.norm_min, self.output.norm_max]);
+        let c = &self.creep;
+        nums.extend([
+            c.blend_mps,
+            c.creep_stiffness_n,
+            c.wheel_load_n,
+            c.reference_speed_mps,
+        ]);
+        if nums.iter().any(|v| !v.is_finite()) {
+            return Err("a number is not finite".into());
+        }
+        if !(c.blend_mps > 0.0
+            && c.creep_stiffness_n > 0.0
+            && c.wheel_load_n > 0.0
+            && c.reference_speed_mps > 0.0)
+        {
+            return Err("creep: blend_mps, creep_stiffness_n, wheel_load_n and reference_speed_mps must be > 0".into());
+        }
+        Ok(())
+    }
+
+    pub fn input_set(&self) -> InputSet {
+        if self.inputs.len() == 3 {
+            InputSet::DvDdvV
+        } else {
+            InputSet::DvDdv
+        }
+    }
+}
+
+/// mapminmax gain and offset for a (min, max) range: constant ranges pass through.
+#[inline]
+fn gain_offset(min: f64, max: f64) -> (f64, f64) {
+    let range = max - min;
+    if range > 0.0 {
+        let g = 2.0 / range;
+        (g, -1.0 - g * min)
+    } else {
+        (1.0, 0.0)
+    }
+}
+
+/// A loaded model, ready to evaluate without allocating.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub file: ModelFile,
+    k: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    gx: [f64; 3],
+    ox: [f64; 3],
+    w1: Vec<f64>,
+    b1: Vec<f64>,
+    w2: Vec<f64>,
+    b2: f64,
+    gy: f64,
+    oy: f64,
+    blend: f64,
+    /// C / Q: μ per unit creepage.
+    creep_per_creepage: f64,
+    v_ref: f64,
+}
+
+/// Shen–Hedrick–Elkins saturation S(x) = x − x²/3 + x³/27 below 3, 1 above (seed 002 eq. 8,
+/// as corrected in `contact::saturation`).
+#[inline]
+fn she(x: f64) -> f64 {
+    if x < 3.0 {
+        x - x * x / 3.0 + x * x * x / 27.0
+    } else {
+        1.0
+    }
+}
+
+impl Model {
+    pub fn new(file: ModelFile) -> Model {
+        let k = file.inputs.len();
+        let mut lo = [0.0; 3];
+        let mut hi = [0.0; 3];
+        let mut gx = [1.0; 3];
+        let mut ox = [0.0; 3];
+        for (c, i) in file.inputs.iter().enumerate() {
+            lo[c] = i.domain_min;
+            hi[c] = i.domain_max;
+            (gx[c], ox[c]) = gain_offset(i.norm_min, i.norm_max);
+        }
+        let (gy, oy) = gain_offset(file.output.norm_min, file.output.norm_max);
+        let h = &file.layers[0];
+        let o = &file.layers[1];
+        Model {
+            k,
+            lo,
+            hi,
+            gx,
+            ox,
+            w1: h.weights.iter().flatten().copied().collect(),
+            b1: h.biases.clone(),
+            w2: o.weights[0].clone(),
+            b2: o.biases[0],
+            gy,
+            oy,
+            blend: file.creep.blend_mps,
+            creep_per_creepage: file.creep.creep_stiffness_n / file.creep.wheel_load_n,
+            v_ref: file.creep.reference_speed_mps,
+            file,
+        }
+    }
+
+    /// Reads and checks a model file.
+    pub fn load(path: &Path) -> Result<Model, ModelError> {
+        Ok(Model::new(ModelFile::read(path)?))
+    }
+
+    /// Number of inputs (2 or 3).
+    pub fn n_inputs(&self) -> usize {
+        self.k
+    }
+
+    /// The network alone at physical inputs (clamped to the domain).
+    #[inline]
+    fn net(&self, x: [f64; 3]) -> f64 {
+        let mut xn = [0.0; 3];
+        for c in 0..self.k {
+            xn[c] = self.gx[c] * x[c].clamp(self.lo[c], self.hi[c]) + self.ox[c];
+        }
+        let mut y = self.b2;
+        for (h, (b1, w2)) in self.b1.iter().zip(&self.w2).enumerate() {
+            let mut z = *b1;
+            for (w, x) in self.w1[h * self.k..(h + 1) * self.k].iter().zip(&xn) {
+                z += w * x;
+            }
+            y += w2 * z.tanh();
+        }
+        (y - self.oy) / self.gy
+    }
+
+    /// μ at slip `dv_mps` (m/s), slip rate `ddv_mps2` (m/s²) and speed `v_mps` (m/s; used as
+    /// the third input of 3-input models and for the creep slope; NaN → the reference speed).
+    #[inline]
+    pub fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        let (s, dv, ddv) = if dv_mps < 0.0 {
+            (-1.0, -dv_mps, -ddv_mps2)
+        } else {
+            (1.0, dv_mps, ddv_mps2)
+        };
+        let v = if v_mps.is_finite() { v_mps } else { self.v_ref };
+        let net = self.net([dv, ddv, v]);
+        if dv >= self.blend {
+            return s * net;
+        }
+        let sat = self.net([self.blend, ddv, v]).abs();
+        let v_creep = if self.k == 3 { v.max(1.0) } else { self.v_ref };
+        let slope = self.creep_per_creepage / v_creep;
+        let lin = if sat > 0.0 {
+            sat * she(slope * dv / sat)
+        } else {
+            0.0
+        };
+        let t = dv / self.blend;
+        let w = t * t * (3.0 - 2.0 * t);
+        s * (w * net + (1.0 - w) * lin)
+    }
+
+    /// μ(Δv, dΔv/dt) of a two-input model (3-input models use their reference speed).
+    #[inline]
+    pub fn mu(&self, dv_mps: f64, ddv_mps2: f64) -> f64 {
+        self.mu_v(dv_mps, ddv_mps2, f64::NAN)
+    }
+
+    /// Batch evaluation into `out` (same length as the inputs); `v_mps` may be empty for
+    /// two-input models.
+    pub fn mu_batch(&self, dv_mps: &[f64], ddv_mps2: &[f64], v_mps: &[f64], out: &mut [f64]) {
+        assert!(dv_mps.len() == ddv_mps2.len() && out.len() == dv_mps.len());
+        assert!(v_mps.is_empty() || v_mps.len() == dv_mps.len());
+        for i in 0..out.len() {
+            let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
+            out[i] = self.mu_v(dv_mps[i], ddv_mps2[i], v);
+        }
+    }
+
+    /// True when every input lies in the domain seen in training.
+    pub fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+        let x = [
+            dv_mps.abs(),
+            if dv_mps < 0.0 { -ddv_mps2 } else { ddv_mps2 },
+            v_mps,
+        ];
+        (0..self.k).all(|c| x[c] >= self.lo[c] && x[c] <= self.hi[c])
+    }
+}

@@ -1,0 +1,542 @@
+//! Identification and model files: the LM solver's hard cases by name, the analytic Jacobian
+//! against finite differences, determinism, the model file's round trip, golden file and
+//! schema, the C header against the Rust evaluator, and seed 002's figures on simulated runs.
+
+use std::path::PathBuf;
+
+use proptest::prelude::*;
+use railgrip::identify::dataset::{Dataset, InputSet, RunTable, Split};
+use railgrip::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings};
+use railgrip::identify::mlp::{self, Shape};
+use railgrip::identify::train::{creep_spec, train_on, MlpProblem};
+use railgrip::identify::TrainedMlp;
+use railgrip::model::{c_header, InputFile, Model, ModelFile, Provenance};
+use railgrip::Pipeline;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A smooth synthetic law with a loss/recovery difference: μ(Δv, dΔv/dt).
+fn law(dv: f64, ddv: f64) -> f64 {
+    let base = 0.09 * (1.0 - (-8.0 * dv).exp()) * (0.45 + 0.55 * (-0.5 * dv).exp());
+    base * (1.0 + 0.15 * (ddv / 2.0).tanh())
+}
+
+/// Samples of `law` on a deterministic scatter, as one run with axles 2 (train) and 3 (val).
+fn synthetic_table(n: usize) -> RunTable {
+    let mut rng = railgrip::rng::Rng::new(11);
+    let mut t = RunTable {
+        name: "synthetic".into(),
+        source: "synthetic".into(),
+        sha256: "0".repeat(64),
+        ..RunTable::default()
+    };
+    for axle in [2u8, 3] {
+        for i in 0..n {
+            let dv = 4.0 * rng.uniform();
+            let ddv = 6.0 * rng.uniform() - 3.0;
+            t.axle.push(axle);
+            t.time_s.push(i as f64 / 100.0);
+            t.v_mps.push(20.0 + 10.0 * rng.uniform());
+            t.dv_mps.push(dv);
+            t.ddv_mps2.push(ddv);
+            t.mu.push(law(dv, ddv));
+        }
+    }
+    t
+}
+
+fn axles_2_3() -> Split {
+    Split::Axles {
+        train: vec![2],
+        val: vec![3],
+    }
+}
+
+fn assert_finite_model(t: &TrainedMlp) {
+    assert!(t.theta.iter().all(|v| v.is_finite()), "{:?}", t.theta);
+    assert!(t.train_mse.is_finite());
+    for e in &t.history {
+        assert!(e.train_mse.is_finite() && e.mu.is_finite() && e.grad_norm.is_finite());
+    }
+    for dv in [-1.0, 0.0, 0.1, 1.0, 5.0] {
+        for ddv in [-5.0, 0.0, 5.0] {
+            assert!(t.eval_raw(&[dv, ddv, 20.0][..t.shape.inputs]).is_finite());
+        }
+    }
+}
+
+fn quick() -> LmSettings {
+    LmSettings {
+        epochs: 60,
+        ..LmSettings::default()
+    }
+}
+
+// ------------------------------------------------------------------ the solver's hard cases
+
+#[test]
+fn learns_a_smooth_law() {
+    let d = Dataset::build(&[synthetic_table(3000)], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    let t = train_on(&d, 10, 1, LmSettings::default(), None).unwrap();
+    assert_finite_model(&t);
+    eprintln!(
+        "{} epochs ({}), RMSE train {:.2e} val {:.2e}",
+        t.history.len(),
+        t.stop.text(),
+        t.train_mse.sqrt(),
+        t.val_mse.sqrt()
+    );
+    assert!(t.val_mse.sqrt() < 1e-3, "{}", t.val_mse.sqrt());
+    // trainlm never accepts a step that raises the training error.
+    assert!(t
+        .history
+        .windows(2)
+        .all(|w| w[1].train_mse <= w[0].train_mse));
+}
+
+#[test]
+fn rank_deficient_jacobian() {
+    // Speed as a third input, equal to Δv: two identical input columns make J rank-deficient.
+    let mut tab = synthetic_table(500);
+    tab.v_mps = tab.dv_mps.clone();
+    let d = Dataset::build(&[tab], InputSet::DvDdvV, &axles_2_3(), 1).unwrap();
+    let t = train_on(&d, 10, 3, quick(), None).unwrap();
+    assert_finite_model(&t);
+    assert!(t.train_mse.sqrt() < 0.01);
+}
+
+#[test]
+fn duplicated_samples() {
+    let mut tab = synthetic_table(1);
+    for _ in 0..9 {
+        let one = synthetic_table(1);
+        for k in 0..one.len() {
+            tab.axle.push(one.axle[k]);
+            tab.time_s.push(one.time_s[k]);
+            tab.v_mps.push(one.v_mps[k]);
+            tab.dv_mps.push(one.dv_mps[k]);
+            tab.ddv_mps2.push(one.ddv_mps2[k]);
+            tab.mu.push(one.mu[k]);
+        }
+    }
+    let d = Dataset::build(&[tab], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    assert_eq!(d.n_train(), 10);
+    let t = train_on(&d, 10, 1, quick(), None).unwrap();
+    assert_finite_model(&t);
+}
+
+#[test]
+fn saturated_neurons() {
+    // Start from weights 1000× Nguyen–Widrow: every tanh saturated, their derivatives ~0.
+    let d = Dataset::build(&[synthetic_table(500)], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    let shape = Shape {
+        inputs: 2,
+        hidden: 10,
+    };
+    let mut x = d.train_x.clone();
+    let xn = railgrip::identify::MapMinMax::fit(&x, 2);
+    xn.apply(&mut x);
+    let y = d.train_y.clone();
+    let problem = MlpProblem::new(shape, x, y, Vec::new(), Vec::new(), 1.0);
+    let theta0: Vec<f64> = mlp::nguyen_widrow(shape, 1)
+        .iter()
+        .map(|v| v * 1000.0)
+        .collect();
+    let e0 = problem.sse(&theta0);
+    let (solver, problem) = lm::run(problem, LevenbergMarquardt::new(quick()), theta0).unwrap();
+    let best = solver.best().unwrap();
+    assert!(best.iter().all(|v| v.is_finite()));
+    let e1 = problem.sse(best);
+    assert!(e1.is_finite() && e1 <= e0, "{e0} → {e1}");
+}
+
+#[test]
+fn constant_target() {
+    let mut tab = synthetic_table(300);
+    tab.mu.iter_mut().for_each(|m| *m = 0.05);
+    let d = Dataset::build(&[tab], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    let t = train_on(&d, 10, 1, quick(), None).unwrap();
+    assert_finite_model(&t);
+    // A constant target passes mapminmax unchanged and is learned.
+    assert!(
+        (t.eval_raw(&[1.0, 0.0]) - 0.05).abs() < 1e-6,
+        "{}",
+        t.eval_raw(&[1.0, 0.0])
+    );
+}
+
+#[test]
+fn one_sample() {
+    let tab = synthetic_table(1);
+    let d = Dataset::build(&[tab], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    assert_eq!((d.n_train(), d.n_val()), (1, 1));
+    let t = train_on(&d, 10, 1, quick(), None).unwrap();
+    assert_finite_model(&t);
+    // The weights returned are those of the best validation epoch.
+    let best = t
+        .history
+        .iter()
+        .map(|e| e.val_mse)
+        .fold(f64::INFINITY, f64::min);
+    assert!(t.val_mse <= best * (1.0 + 1e-12), "{} vs {best}", t.val_mse);
+}
+
+#[test]
+fn no_training_samples_is_a_clear_error() {
+    let tab = synthetic_table(10);
+    let e = Dataset::build(
+        &[tab],
+        InputSet::DvDdv,
+        &Split::Axles {
+            train: vec![4],
+            val: vec![3],
+        },
+        1,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("no valid samples for training") && e.contains("Hint"),
+        "{e}"
+    );
+}
+
+#[test]
+fn deterministic_and_independent_of_the_thread_count() {
+    let d = Dataset::build(&[synthetic_table(5000)], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    let a = train_on(&d, 10, 7, quick(), None).unwrap();
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let b = one.install(|| train_on(&d, 10, 7, quick(), None).unwrap());
+    assert_eq!(a.theta, b.theta);
+    assert_eq!(a.history.len(), b.history.len());
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    #[test]
+    fn analytic_jacobian_matches_finite_differences(
+        seed in 0u64..1000,
+        hidden in 1usize..13,
+        three in proptest::bool::ANY,
+        x in proptest::collection::vec(-1.0f64..1.0, 3),
+        scale in 0.1f64..3.0,
+    ) {
+        let shape = Shape { inputs: if three { 3 } else { 2 }, hidden };
+        let theta: Vec<f64> = mlp::nguyen_widrow(shape, seed).iter().map(|v| v * scale).collect();
+        let x = &x[..shape.inputs];
+        let mut g = vec![0.0; shape.n_params()];
+        let y = mlp::forward_grad(shape, &theta, x, &mut g);
+        prop_assert!((y - mlp::forward(shape, &theta, x)).abs() < 1e-14);
+        for p in 0..shape.n_params() {
+            let h = 1e-6 * (1.0 + theta[p].abs());
+            let mut tp = theta.clone();
+            tp[p] += h;
+            let mut tm = theta.clone();
+            tm[p] -= h;
+            let fd = (mlp::forward(shape, &tp, x) - mlp::forward(shape, &tm, x)) / (2.0 * h);
+            prop_assert!((fd - g[p]).abs() < 1e-7 * (1.0 + g[p].abs()), "param {}: {} vs {}", p, fd, g[p]);
+        }
+    }
+}
+
+// ------------------------------------------------------------------ model files
+
+fn synthetic_model() -> ModelFile {
+    let d = Dataset::build(&[synthetic_table(800)], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
+    let mut t = train_on(&d, 10, 1, quick(), None).unwrap();
+    t.reference_speed_mps = 25.0;
+    // Timings would make the file differ from run to run.
+    for e in &mut t.history {
+        e.elapsed_s = 0.0;
+    }
+    let p = Pipeline::default_uic_z1();
+    let creep = creep_spec(&p, t.reference_speed_mps).unwrap();
+    ModelFile::from_trained(
+        &t,
+        creep,
+        Provenance {
+            inputs: vec![InputFile {
+                path: "synthetic".into(),
+                sha256: "0".repeat(64),
+            }],
+            pipeline: p.source.clone(),
+            pipeline_sha256: railgrip::identify::dataset::sha256_bytes(p.text.as_bytes()),
+            seed: 1,
+            crate_version: "golden".into(),
+            created: "2026-01-01T00:00:00Z".into(),
+        },
+    )
+}
+
+#[test]
+fn model_file_round_trips_exactly_and_matches_the_golden_file() {
+    let m = synthetic_model();
+    let text = m.to_json();
+    let back = ModelFile::from_json(&text, "mem").unwrap();
+    assert_eq!(back, m, "reading back changed a value");
+    assert_eq!(back.to_json(), text);
+    let golden = root().join("models/golden/synthetic_mlp.json");
+    if std::env::var("UPDATE_GOLDEN").as_deref() == Ok("1") {
+        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+        std::fs::write(&golden, &text).unwrap();
+    }
+    let committed = std::fs::read_to_string(&golden)
+        .expect("models/golden/synthetic_mlp.json (refresh with UPDATE_GOLDEN=1 cargo test --test identify)");
+    assert_eq!(
+        committed, text,
+        "the model file changed; if intended, refresh with UPDATE_GOLDEN=1"
+    );
+}
+
+fn schema_check(json: &str, what: &str) {
+    let schema: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("models/schema/adhesion-model.schema.json")).unwrap(),
+    )
+    .unwrap();
+    let v: serde_json::Value = serde_json::from_str(json).unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let errors: Vec<String> = validator
+        .iter_errors(&v)
+        .map(|e| format!("{e} at {}", e.instance_path()))
+        .collect();
+    assert!(errors.is_empty(), "{what}: {errors:#?}");
+}
+
+#[test]
+fn model_files_follow_the_schema() {
+    schema_check(&synthetic_model().to_json(), "synthetic model");
+    let golden = std::fs::read_to_string(root().join("models/golden/synthetic_mlp.json")).unwrap();
+    schema_check(&golden, "golden file");
+    // And the schema rejects what the reader rejects.
+    let mut v: serde_json::Value = serde_json::from_str(&golden).unwrap();
+    v["version"] = 2.into();
+    let schema: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("models/schema/adhesion-model.schema.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(!jsonschema::is_valid(&schema, &v));
+    let e = ModelFile::from_json(&v.to_string(), "v2.json")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("v2.json") && e.contains("version 2"), "{e}");
+}
+
+#[test]
+fn evaluator_is_continuous_odd_and_clamped() {
+    let model = Model::new(synthetic_model());
+    let blend = model.file.creep.blend_mps;
+    for ddv in [-2.0, 0.0, 2.0] {
+        // Continuous across the blend point and at zero.
+        let below = model.mu(blend * (1.0 - 1e-9), ddv);
+        let above = model.mu(blend * (1.0 + 1e-9), ddv);
+        assert!((below - above).abs() < 1e-8, "{below} {above}");
+        assert_eq!(model.mu(0.0, ddv), 0.0);
+        assert!(model.mu(1e-9, ddv).abs() < 1e-6);
+        // Odd in (Δv, dΔv/dt).
+        for dv in [0.05, 0.5, 2.0] {
+            assert_eq!(model.mu(-dv, -ddv), -model.mu(dv, ddv));
+        }
+        // Clamped outside the domain: constant beyond the largest Δv seen.
+        let hi = model.file.inputs[0].domain_max;
+        assert_eq!(model.mu(hi + 1.0, ddv), model.mu(hi + 50.0, ddv));
+    }
+    // Batch = single.
+    let dv = [0.01, 0.3, 1.0, 3.0];
+    let ddv = [0.0, 1.0, -1.0, 0.5];
+    let mut out = [0.0; 4];
+    model.mu_batch(&dv, &ddv, &[], &mut out);
+    for i in 0..4 {
+        assert_eq!(out[i], model.mu(dv[i], ddv[i]));
+    }
+    // The network learned the law where there was data.
+    assert!((model.mu(1.5, 0.0) - law(1.5, 0.0)).abs() < 2e-3);
+}
+
+#[test]
+fn c_header_agrees_with_the_rust_evaluator() {
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    if std::process::Command::new(&cc)
+        .arg("--version")
+        .output()
+        .is_err()
+    {
+        eprintln!("SKIPPED: no C compiler ({cc}) found; install gcc or set CC");
+        return;
+    }
+    let model = Model::new(synthetic_model());
+    let dir = tempfile::tempdir().unwrap();
+    let header = c_header::c_header(&model.file, "rg", "synthetic");
+    std::fs::write(dir.path().join("model.h"), header).unwrap();
+    let grid: Vec<(f64, f64)> = (0..=60)
+        .flat_map(|i| (0..=10).map(move |j| (-1.0 + i as f64 * 0.1, -5.0 + j as f64)))
+        .collect();
+    let mut c = String::from("#include <stdio.h>\n#include \"model.h\"\nint main(void) {\n");
+    for (dv, ddv) in &grid {
+        c.push_str(&format!(
+            "  printf(\"%.17g\\n\", rg_mu({dv:?}, {ddv:?}));\n"
+        ));
+    }
+    c.push_str("  return 0;\n}\n");
+    std::fs::write(dir.path().join("main.c"), c).unwrap();
+    let exe = dir.path().join("eval");
+    let out = std::process::Command::new(&cc)
+        .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(dir.path().join("main.c"))
+        .arg("-lm")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = std::process::Command::new(&exe).output().unwrap();
+    let text = String::from_utf8(run.stdout).unwrap();
+    let values: Vec<f64> = text.lines().map(|l| l.parse().unwrap()).collect();
+    assert_eq!(values.len(), grid.len());
+    let mut worst: f64 = 0.0;
+    for ((dv, ddv), c) in grid.iter().zip(&values) {
+        worst = worst.max((model.mu(*dv, *ddv) - c).abs());
+    }
+    eprintln!(
+        "C header vs Rust: max |Δμ| = {worst:.1e} over {} points",
+        grid.len()
+    );
+    assert!(worst <= 1e-12, "{worst}");
+}
+
+// ------------------------------------------------------------------ seed 002 on simulated runs
+
+fn archive_tables(p: &Pipeline) -> Vec<RunTable> {
+    let runs = [
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_0c.csv",
+        "soap_120kmh_m20.csv",
+        "soap_160kmh_p20.csv",
+        "soap_160kmh_0c.mcap",
+        "soap_160kmh_m20.mcap",
+    ];
+    runs.iter()
+        .map(|r| {
+            let path = root().join("fixtures/archive").join(r);
+            let log = railgrip::ingest_file(&path, p).unwrap();
+            let e = railgrip::estimate::estimate(&log, p).unwrap();
+            RunTable::from_estimates(r, &path.display().to_string(), "", &e)
+        })
+        .collect()
+}
+
+/// Truth μ at the estimate's samples of one axle of one run (aligned by time).
+fn truth_mu(run: &str, axle: u8, times: &[f64]) -> Vec<f64> {
+    use polars::prelude::*;
+    let path = root().join(format!("fixtures/archive/{run}.truth.parquet"));
+    let df = ParquetReader::new(std::fs::File::open(path).unwrap())
+        .finish()
+        .unwrap();
+    let col = |n: &str| -> Vec<f64> {
+        df.column(n)
+            .unwrap()
+            .cast(&DataType::Float64)
+            .unwrap()
+            .f64()
+            .unwrap()
+            .into_no_null_iter()
+            .collect()
+    };
+    let (t, a, mu) = (col("time_s"), col("axle"), col("mu"));
+    let t0 = t[0];
+    let per: Vec<f64> = (0..t.len())
+        .filter(|&i| a[i] == axle as f64)
+        .map(|i| mu[i])
+        .collect();
+    times
+        .iter()
+        .map(|x| per[(((x - t0) * 417.0).round() as usize).min(per.len() - 1)])
+        .collect()
+}
+
+#[test]
+fn seed002_figures_on_simulated_runs() {
+    let p = Pipeline::default_uic_z1();
+    let tables = archive_tables(&p);
+    let trained = railgrip::identify::train_mlp(&tables, &p.train, None).unwrap();
+    let h = &trained.history;
+    eprintln!(
+        "{} epochs ({}), RMSE train {:.5} val {:.5}",
+        h.len(),
+        trained.stop.text(),
+        trained.train_mse.sqrt(),
+        trained.val_mse.sqrt()
+    );
+    // Fig. 9: the validation error falls with the training error and stays close to it.
+    assert!(h.len() >= 5);
+    assert!(h.last().unwrap().train_mse < 0.5 * h[0].train_mse);
+    assert!(trained.val_mse < 0.5 * h[0].val_mse);
+    assert!(
+        trained.val_mse < 2.0 * trained.train_mse,
+        "{} vs {}",
+        trained.val_mse,
+        trained.train_mse
+    );
+    // Fig. 10: on validation data (axle 3) the network follows the estimated μ.
+    let mut model_t = trained.clone();
+    model_t.reference_speed_mps = railgrip::identify::train::median_speed(&tables);
+    let creep = creep_spec(&p, model_t.reference_speed_mps).unwrap();
+    let file = ModelFile::from_trained(
+        &model_t,
+        creep,
+        Provenance {
+            inputs: vec![],
+            pipeline: p.source.clone(),
+            pipeline_sha256: "0".repeat(64),
+            seed: 1,
+            crate_version: "test".into(),
+            created: "2026-01-01T00:00:00Z".into(),
+        },
+    );
+    let model = Model::new(file);
+    let (mut se_est, mut se_truth, mut var, mut n) = (0.0, 0.0, 0.0, 0usize);
+    for t in &tables {
+        let idx: Vec<usize> = (0..t.len())
+            .filter(|&i| t.axle[i] == 3 && t.dv_mps[i] > 0.2)
+            .collect();
+        let times: Vec<f64> = idx.iter().map(|&i| t.time_s[i]).collect();
+        let stem = t.name.rsplit_once('.').unwrap().0;
+        let truth = truth_mu(stem, 3, &times);
+        let mean: f64 = idx.iter().map(|&i| t.mu[i]).sum::<f64>() / idx.len() as f64;
+        for (k, &i) in idx.iter().enumerate() {
+            let m = model.mu(t.dv_mps[i], t.ddv_mps2[i]);
+            se_est += (m - t.mu[i]).powi(2);
+            se_truth += (m - truth[k]).powi(2);
+            var += (t.mu[i] - mean).powi(2);
+            n += 1;
+        }
+    }
+    let (rmse_est, rmse_truth) = ((se_est / n as f64).sqrt(), (se_truth / n as f64).sqrt());
+    let r2 = 1.0 - se_est / var;
+    eprintln!("validation (axle 3, Δv > 0.2 m/s, {n} samples): RMSE vs estimated μ {rmse_est:.5}, vs the simulator's truth {rmse_truth:.5}, R² {r2:.3}");
+    assert!(rmse_est < 0.01 && r2 > 0.5, "{rmse_est} {r2}");
+    // Against the simulator's truth law (stated in README): the learned curve is as close to the
+    // truth as to the estimates it was trained on.
+    assert!(rmse_truth < 0.01, "{rmse_truth}");
+    // Fig. 11: a ramp 0 → 9 m/s → 0 at ±2 m/s² traces a loop: the loss branch (slip growing)
+    // lies above the recovery branch.
+    let (mut up, mut down) = (0.0, 0.0);
+    for k in 1..=40 {
+        let dv = 0.1 * k as f64;
+        up += model.mu(dv, 2.0);
+        down += model.mu(dv, -2.0);
+    }
+    eprintln!(
+        "ramp: mean μ loss branch {:.4}, recovery branch {:.4}",
+        up / 40.0,
+        down / 40.0
+    );
+    assert!(up > down * 1.05, "{up} {down}");
+}
