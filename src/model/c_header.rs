@@ -45,7 +45,10 @@ pub fn c_header(m: &ModelFile, prefix: &str, source: &str) -> String {
         (gx[c], ox[c]) = gain_offset(i.norm_min, i.norm_max);
     }
     let (gy, oy) = gain_offset(m.output.norm_min, m.output.norm_max);
-    let w1: Vec<f64> = h.weights.iter().flatten().copied().collect();
+    // Column-major, as the evaluator loops over the neurons.
+    let w1c: Vec<f64> = (0..k)
+        .flat_map(|c| h.weights.iter().map(move |row| row[c]))
+        .collect();
     let cpc = m.creep.creep_stiffness_n / m.creep.wheel_load_n;
     let inputs: Vec<String> = m
         .inputs
@@ -75,6 +78,8 @@ pub fn c_header(m: &ModelFile, prefix: &str, source: &str) -> String {
 #define {guard}
 
 #include <math.h>
+#include <stdint.h>
+#include <string.h>
 
 #define {P}_N_INPUTS {k}
 #define {P}_N_HIDDEN {nh}
@@ -93,7 +98,7 @@ pub fn c_header(m: &ModelFile, prefix: &str, source: &str) -> String {
     s.push_str(&array(&format!("{p}_hi"), &hi));
     s.push_str(&array(&format!("{p}_gx"), &gx));
     s.push_str(&array(&format!("{p}_ox"), &ox));
-    s.push_str(&array(&format!("{p}_w1"), &w1));
+    s.push_str(&array(&format!("{p}_w1c"), &w1c));
     s.push_str(&array(&format!("{p}_b1"), &h.biases));
     s.push_str(&array(&format!("{p}_w2"), &o.weights[0]));
     let _ = write!(
@@ -109,19 +114,60 @@ static double {p}_clamp(double x, double lo, double hi) {{
     return x < lo ? lo : (x > hi ? hi : x);
 }}
 
+/* tanh as railgrip::model::tanh_fast: branch-free, the same operations in the same order. */
+static inline double {p}_tanh(double z) {{
+    const double magic = 6755399441055744.0;
+    const double log2e = 1.4426950408889634;
+    const double ln2_hi = 0.6931471803691238;
+    const double ln2_lo = 1.9082149292705877e-10;
+    static const double inv_factorial[13] = {{
+        1.0, 1.0 / 2.0, 1.0 / 6.0, 1.0 / 24.0, 1.0 / 120.0, 1.0 / 720.0, 1.0 / 5040.0,
+        1.0 / 40320.0, 1.0 / 362880.0, 1.0 / 3628800.0, 1.0 / 39916800.0, 1.0 / 479001600.0,
+        1.0 / 6227020800.0
+    }};
+    double x = 2.0 * fabs(z), t, n, r, p, scale, em1;
+    uint64_t bits;
+    x = x < 40.0 ? x : 40.0;
+    t = x * log2e + magic;
+    n = t - magic;
+    r = (x - n * ln2_hi) - n * ln2_lo;
+    {{
+        const double *c = inv_factorial;
+        double r2 = r * r, r4 = r2 * r2, r8 = r4 * r4;
+        double q0 = c[0] + c[1] * r, q1 = c[2] + c[3] * r, q2 = c[4] + c[5] * r;
+        double q3 = c[6] + c[7] * r, q4 = c[8] + c[9] * r, q5 = c[10] + c[11] * r;
+        double s0 = q0 + q1 * r2, s1 = q2 + q3 * r2, s2 = q4 + q5 * r2;
+        double u0 = s0 + s1 * r4, u1 = s2 + c[12] * r4;
+        p = (u0 + u1 * r8) * r;
+    }}
+    memcpy(&bits, &t, sizeof bits);
+    bits = (bits + 1023u) << 52;
+    memcpy(&scale, &bits, sizeof scale);
+    em1 = scale * p + (scale - 1.0);
+    return copysign(em1 / (em1 + 2.0), z);
+}}
+
 static double {p}_net(const double x[3]) {{
     double xn[3] = {{0.0, 0.0, 0.0}};
+    double z[{P}_N_HIDDEN];
     double y = {p}_b2;
     int c, h;
     for (c = 0; c < {P}_N_INPUTS; ++c) {{
         xn[c] = {p}_gx[c] * {p}_clamp(x[c], {p}_lo[c], {p}_hi[c]) + {p}_ox[c];
     }}
     for (h = 0; h < {P}_N_HIDDEN; ++h) {{
-        double z = {p}_b1[h];
-        for (c = 0; c < {P}_N_INPUTS; ++c) {{
-            z += {p}_w1[h * {P}_N_INPUTS + c] * xn[c];
+        z[h] = {p}_b1[h];
+    }}
+    for (c = 0; c < {P}_N_INPUTS; ++c) {{
+        for (h = 0; h < {P}_N_HIDDEN; ++h) {{
+            z[h] += {p}_w1c[c * {P}_N_HIDDEN + h] * xn[c];
         }}
-        y += {p}_w2[h] * tanh(z);
+    }}
+    for (h = 0; h < {P}_N_HIDDEN; ++h) {{
+        z[h] = {p}_w2[h] * {p}_tanh(z[h]);
+    }}
+    for (h = 0; h < {P}_N_HIDDEN; ++h) {{
+        y += z[h];
     }}
     return (y - {p}_oy) / {p}_gy;
 }}
@@ -135,6 +181,9 @@ static double {p}_she(double x) {{
 static double {p}_mu_v(double dv_mps, double ddv_mps2, double v_mps) {{
     double s = 1.0, dv = dv_mps, ddv = ddv_mps2, v, net, sat, v_creep, slope, lin, t, w;
     double x[3], xb[3];
+    if (!(isfinite(dv_mps) && isfinite(ddv_mps2))) {{
+        return NAN;
+    }}
     if (dv_mps < 0.0) {{
         s = -1.0;
         dv = -dv_mps;

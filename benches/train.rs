@@ -1,0 +1,250 @@
+//! Levenberg–Marquardt training on 50 000 samples against scipy, and model evaluation.
+//!
+//!     cargo bench --bench train
+//!
+//! Data: the bundled soap runs (estimated here), training axle 2 / validation axle 3 as in
+//! seed 002, the first 50 000 samples of each after decimation by 2; the 10-neuron network from
+//! Nguyen–Widrow weights (seed 1). Criterion times one LM epoch (`train/normal_equations_50k`:
+//! JᵀJ, Jᵀr over 50 000 samples) and one model evaluation (`model/mu`, `model/mu_batch_1k`).
+//! Then, once each, side by side on the same problem and initial weights:
+//! - railgrip: trainlm defaults with validation stop, wall time and the validation MSE of the
+//!   weights it returns, and the time at which its validation MSE first reached scipy's;
+//! - scipy: `benches/peers/lm_scipy.py` (`least_squares(method='lm')`, MINPACK, analytic
+//!   Jacobian) — skipped with a message when python3 with numpy and scipy is missing;
+//! - the exported C header: ns per call, compiled with the system `cc -O2` (skipped without cc).
+//!
+//! `RAILGRIP_BENCH_QUICK=1` skips the scipy run (4 minutes) and repeats training once.
+
+use std::hint::black_box;
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use railgrip::identify::dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};
+use railgrip::identify::lm::{LeastSquares, LmSettings};
+use railgrip::identify::mlp::{self, Shape};
+use railgrip::identify::train::{creep_spec, median_speed, train_on, MlpProblem};
+use railgrip::model::{c_header, Model, ModelFile, Provenance};
+use railgrip::Pipeline;
+
+const N: usize = 50_000;
+
+fn data() -> (Dataset, f64) {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let p = Pipeline::default_uic_z1();
+    let mut tables = Vec::new();
+    for entry in std::fs::read_dir(root.join("fixtures/archive")).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        if name.starts_with("soap_") && (name.ends_with(".csv") || name.ends_with(".mcap")) {
+            let log = railgrip::ingest_file(&path, &p).unwrap();
+            let e = railgrip::estimate::estimate(&log, &p).unwrap();
+            tables.push((name.clone(), RunTable::from_estimates(&name, &name, "", &e)));
+        }
+    }
+    tables.sort_by(|a, b| a.0.cmp(&b.0));
+    let tables: Vec<RunTable> = tables.into_iter().map(|(_, t)| t).collect();
+    let split = Split::Axles {
+        train: vec![2],
+        val: vec![3],
+    };
+    let mut d = Dataset::build(&tables, InputSet::DvDdv, &split, 2).unwrap();
+    assert!(
+        d.n_train() >= N && d.n_val() >= N,
+        "{} {}",
+        d.n_train(),
+        d.n_val()
+    );
+    d.train_x.truncate(2 * N);
+    d.train_y.truncate(N);
+    d.val_x.truncate(2 * N);
+    d.val_y.truncate(N);
+    (d, median_speed(&tables))
+}
+
+fn bench(c: &mut Criterion) {
+    let (d, v_ref) = data();
+    let shape = Shape {
+        inputs: 2,
+        hidden: 10,
+    };
+    let xn = MapMinMax::fit(&d.train_x, 2);
+    let yn = MapMinMax::fit(&d.train_y, 1);
+    let (mut x, mut y, mut vx, mut vy) = (
+        d.train_x.clone(),
+        d.train_y.clone(),
+        d.val_x.clone(),
+        d.val_y.clone(),
+    );
+    xn.apply(&mut x);
+    yn.apply(&mut y);
+    xn.apply(&mut vx);
+    yn.apply(&mut vy);
+    let scale = 1.0 / yn.gain_offset(0).0.powi(2);
+    let theta0 = mlp::nguyen_widrow(shape, 1);
+
+    // The problem as scipy will see it.
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
+    std::fs::create_dir_all(&dir).unwrap();
+    let problem_json = dir.join("lm_problem_50k.json");
+    let json = serde_json::json!({
+        "inputs": 2, "hidden": 10, "train_x": x, "train_y": y, "val_x": vx, "val_y": vy,
+        "theta0": theta0, "scale": scale,
+    });
+    std::fs::write(&problem_json, json.to_string()).unwrap();
+
+    let problem = MlpProblem::new(shape, x, y, vx, vy, scale);
+    let mut g = c.benchmark_group("train");
+    g.sample_size(20).measurement_time(Duration::from_secs(5));
+    g.bench_function("normal_equations_50k", |b| {
+        b.iter(|| problem.normal_equations(black_box(&theta0)).sse)
+    });
+    g.finish();
+
+    // Full training, railgrip (best of 3 wall times; the result is deterministic).
+    let mut best_s = f64::INFINITY;
+    let mut trained = None;
+    let repeats = if std::env::var("RAILGRIP_BENCH_QUICK").as_deref() == Ok("1") {
+        1
+    } else {
+        3
+    };
+    for _ in 0..repeats {
+        let t0 = Instant::now();
+        let t = train_on(&d, 10, 1, LmSettings::default(), None).unwrap();
+        best_s = best_s.min(t0.elapsed().as_secs_f64());
+        trained = Some(t);
+    }
+    let mut trained = trained.unwrap();
+    eprintln!(
+        "railgrip LM: {:.3} s, {} epochs ({}), train MSE {:.4e}, val MSE {:.4e}",
+        best_s,
+        trained.history.len(),
+        trained.stop.text(),
+        trained.train_mse,
+        trained.val_mse
+    );
+
+    // scipy peer (RAILGRIP_BENCH_QUICK=1 skips it while iterating on the evaluator).
+    let quick = std::env::var("RAILGRIP_BENCH_QUICK").as_deref() == Ok("1");
+    let peer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/lm_scipy.py");
+    match Command::new("python3").arg(&peer).arg(&problem_json).output() {
+        _ if quick => eprintln!("SKIPPED scipy peer: RAILGRIP_BENCH_QUICK=1"),
+        Ok(o) if o.status.success() => {
+            let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            let (s, val) = (v["seconds"].as_f64().unwrap(), v["val_mse"].as_f64().unwrap());
+            eprintln!(
+                "scipy least_squares(method='lm'): {:.3} s, {} evaluations, train MSE {:.4e}, val MSE {:.4e} ({})",
+                s, v["nfev"], v["train_mse"].as_f64().unwrap(), val, v["message"]
+            );
+            let reach = trained.history.iter().find(|e| e.val_mse <= val).map(|e| e.elapsed_s);
+            eprintln!(
+                "speed-up {:.1}x to finish; railgrip's validation MSE {} scipy's{}",
+                s / best_s,
+                if trained.val_mse <= val { "is at or below" } else { "is above" },
+                match reach {
+                    Some(r) => format!(" (first reached after {r:.3} s: {:.1}x)", s / r),
+                    None => String::new(),
+                }
+            );
+        }
+        Ok(o) => eprintln!(
+            "SKIPPED scipy peer: python3 {} failed: {} (needs numpy and scipy: pip install numpy scipy)",
+            peer.display(),
+            String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or("")
+        ),
+        Err(e) => eprintln!("SKIPPED scipy peer: no python3 ({e})"),
+    }
+
+    // Model evaluation.
+    trained.reference_speed_mps = v_ref;
+    let p = Pipeline::default_uic_z1();
+    let file = ModelFile::from_trained(
+        &trained,
+        creep_spec(&p, v_ref).unwrap(),
+        Provenance {
+            inputs: vec![],
+            pipeline: p.source.clone(),
+            pipeline_sha256: "0".repeat(64),
+            seed: 1,
+            crate_version: env!("CARGO_PKG_VERSION").into(),
+            created: "2026-01-01T00:00:00Z".into(),
+        },
+    );
+    let model = Model::new(file.clone());
+    let inputs: Vec<(f64, f64)> = (0..1024)
+        .map(|i| (0.004 * i as f64, ((i * 7919) % 1000) as f64 / 100.0 - 5.0))
+        .collect();
+    let dv: Vec<f64> = inputs.iter().map(|p| p.0).collect();
+    let ddv: Vec<f64> = inputs.iter().map(|p| p.1).collect();
+    let mut out = vec![0.0; 1024];
+    let mut g = c.benchmark_group("model");
+    g.sample_size(30).measurement_time(Duration::from_secs(4));
+    g.throughput(criterion::Throughput::Elements(1024));
+    g.bench_function("mu_1k", |b| {
+        b.iter(|| {
+            let mut s = 0.0;
+            for (a, d) in &inputs {
+                s += model.mu(black_box(*a), black_box(*d));
+            }
+            s
+        })
+    });
+    g.bench_function("mu_batch_1k", |b| {
+        b.iter(|| {
+            model.mu_batch(black_box(&dv), &ddv, &[], &mut out);
+            out[7]
+        })
+    });
+    g.finish();
+
+    // The C header, timed by a small C program.
+    let header = c_header::c_header(&file, "rg", "bench");
+    let cdir = tempfile::tempdir().unwrap();
+    std::fs::write(cdir.path().join("model.h"), header).unwrap();
+    let prog = r#"#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <time.h>
+#include "model.h"
+int main(void) {
+    double dv[1024], ddv[1024], s = 0.0, best = 1e30;
+    int i, r, k;
+    for (i = 0; i < 1024; ++i) { dv[i] = 0.004 * i; ddv[i] = ((i * 7919) % 1000) / 100.0 - 5.0; }
+    for (r = 0; r < 20; ++r) {
+        struct timespec a, b;
+        clock_gettime(CLOCK_MONOTONIC, &a);
+        for (k = 0; k < 200; ++k) for (i = 0; i < 1024; ++i) s += rg_mu(dv[i], ddv[i]);
+        clock_gettime(CLOCK_MONOTONIC, &b);
+        double ns = ((b.tv_sec - a.tv_sec) * 1e9 + (b.tv_nsec - a.tv_nsec)) / (200.0 * 1024.0);
+        if (ns < best) best = ns;
+    }
+    printf("%.2f %g\n", best, s);
+    return 0;
+}
+"#;
+    std::fs::write(cdir.path().join("bench.c"), prog).unwrap();
+    let exe = cdir.path().join("bench");
+    match Command::new("cc")
+        .args(["-std=c99", "-O2", "-o"])
+        .arg(&exe)
+        .arg(cdir.path().join("bench.c"))
+        .arg("-lm")
+        .output()
+    {
+        Ok(o) if o.status.success() => {
+            let run = Command::new(&exe).output().unwrap();
+            let text = String::from_utf8_lossy(&run.stdout);
+            let ns: f64 = text.split_whitespace().next().unwrap().parse().unwrap();
+            eprintln!("C header (cc -O2): {ns:.1} ns per call (best of 20 × 204 800 calls)");
+        }
+        Ok(o) => eprintln!(
+            "SKIPPED C header timing: cc failed: {}",
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Err(e) => eprintln!("SKIPPED C header timing: no cc ({e})"),
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
