@@ -414,8 +414,8 @@ const INV_FACTORIAL: [f64; 13] = [
 #[inline(always)]
 pub fn tanh_fast(z: f64) -> f64 {
     const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
-    const LOG2E: f64 = 1.442_695_040_888_963_4;
-    const LN2_HI: f64 = 6.931_471_803_691_238_2e-1;
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    const LN2_HI: f64 = 6.931_471_803_691_238e-1;
     const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
     let x = (2.0 * z.abs()).min(40.0);
     let t = x * LOG2E + MAGIC;
