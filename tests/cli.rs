@@ -229,3 +229,109 @@ fn calibrate_prints_the_pipeline_line() {
     let o = railgrip(&["calibrate", &run, "--davis", "1,2"], dir.path());
     assert_eq!(o.status.code(), Some(1));
 }
+
+#[test]
+fn train_eval_export_work_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = archive("soap_120kmh_p20.csv");
+    let b = archive("soap_160kmh_0c.mcap");
+    let o = railgrip(&["train", &a, &b, "--out", "models", "--quiet"], dir.path());
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    for needle in [
+        "10 hidden tanh neurons",
+        "trained",
+        "validation",
+        "Polach",
+        "k(T)",
+    ] {
+        assert!(s.contains(needle), "{needle}: {s}");
+    }
+    let model = dir.path().join("models/mlp.json");
+    assert!(model.exists() && dir.path().join("models/mlp.history.csv").exists());
+    assert!(dir.path().join("models/mlp.polach.json").exists());
+
+    std::fs::write(
+        dir.path().join("grid.csv"),
+        "dv_mps,ddv_mps2\n0.5,1.0\n2.0,-1.0\n-0.5,0\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &[
+            "eval",
+            "models/mlp.json",
+            "--input",
+            "grid.csv",
+            "--output",
+            "pred.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let pred = std::fs::read_to_string(dir.path().join("pred.csv")).unwrap();
+    let rows: Vec<&str> = pred.lines().collect();
+    assert_eq!(rows[0], "dv_mps,ddv_mps2,mu");
+    assert_eq!(rows.len(), 4);
+    let mu: f64 = rows[1].split(',').nth(2).unwrap().parse().unwrap();
+    assert!(mu > 0.01 && mu < 0.2, "{mu}");
+
+    std::fs::write(
+        dir.path().join("bad.csv"),
+        "dv_mps,ddv_mps2\n0.5,1.0\n0.7,abc\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &[
+            "eval",
+            "models/mlp.json",
+            "--input",
+            "bad.csv",
+            "--output",
+            "p2.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("bad.csv: line 3, column \"ddv_mps2\""),
+        "{}",
+        text(&o.stderr)
+    );
+    assert!(!dir.path().join("p2.csv").exists());
+
+    let o = railgrip(
+        &["export", "models/mlp.json", "--c-header", "mlp.h"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let h = std::fs::read_to_string(dir.path().join("mlp.h")).unwrap();
+    assert!(h.contains("static double railgrip_mu(double dv_mps, double ddv_mps2)"));
+    let o = railgrip(
+        &[
+            "export",
+            "models/mlp.json",
+            "--c-header",
+            "x.h",
+            "--prefix",
+            "9bad",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+
+    let o = railgrip(&["train", "missing.csv", "--out", "m2"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("missing.csv"));
+    let o = railgrip(
+        &[
+            "eval", "grid.csv", "--input", "grid.csv", "--output", "p3.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("not a model file"),
+        "{}",
+        text(&o.stderr)
+    );
+}

@@ -540,3 +540,118 @@ fn seed002_figures_on_simulated_runs() {
     );
     assert!(up > down * 1.05, "{up} {down}");
 }
+
+// ------------------------------------------------------------------ Polach and k(T)
+
+#[test]
+fn polach_fit_recovers_known_parameters() {
+    use railgrip::contact::polach::{polach, PolachParams};
+    use railgrip::identify::polach_fit::fit_polach;
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let truth = PolachParams {
+        mu0: 0.12,
+        a_ratio: 0.35,
+        b_s_per_m: 0.5,
+        k_a: 0.15,
+        k_s: 0.05,
+    };
+    let mut rng = railgrip::rng::Rng::new(5);
+    let mut t = RunTable::default();
+    for i in 0..4000 {
+        let v = 5.0 + 30.0 * rng.uniform();
+        let dv = 0.01 + 4.0 * rng.uniform() * rng.uniform();
+        let mu = polach(&patch, &truth, q, v, dv, 0.0).unwrap().fx_n / q + 0.002 * rng.normal();
+        t.axle.push(2);
+        t.time_s.push(i as f64 * 0.01);
+        t.v_mps.push(v);
+        t.dv_mps.push(dv);
+        t.ddv_mps2.push(0.0);
+        t.mu.push(mu);
+    }
+    let f = fit_polach(
+        "synthetic",
+        &[&t],
+        patch,
+        q,
+        1,
+        PolachParams {
+            mu0: 0.1,
+            a_ratio: 0.4,
+            b_s_per_m: 0.3,
+            k_a: 0.3,
+            k_s: 0.1,
+        },
+    )
+    .unwrap();
+    eprintln!("{f:?}");
+    let got = [f.mu0, f.a_ratio, f.b_s_per_m, f.k_a, f.k_s];
+    let want = [0.12, 0.35, 0.5, 0.15, 0.05];
+    for k in 0..5 {
+        assert!(
+            (got[k] - want[k]).abs() < 4.0 * f.se[k] + 0.02 * want[k],
+            "param {k}: {} ± {} vs {}",
+            got[k],
+            f.se[k],
+            want[k]
+        );
+        assert!(f.se[k] > 0.0 && f.se[k].is_finite());
+    }
+    assert!((f.rmse - 0.002).abs() < 3e-4, "{}", f.rmse);
+}
+
+#[test]
+fn temperature_law_recovers_a_quadratic_and_archive_adhesion_rises_in_the_cold() {
+    use railgrip::identify::polach_fit::{fit_campaign, fit_temperature, PolachFit};
+    let fit = |t: f64| PolachFit {
+        group: format!("T = {t}"),
+        mu0: 0.1,
+        a_ratio: 0.4,
+        b_s_per_m: 0.3,
+        k_a: 0.1 * (1.0 + 0.015 * (20.0 - t) - 1.875e-4 * (20.0 - t).powi(2)),
+        k_s: 0.05 * (1.0 + 0.015 * (20.0 - t) - 1.875e-4 * (20.0 - t).powi(2)),
+        se: [0.0; 5],
+        samples: 100,
+        effective_samples: 10.0,
+        rmse: 0.0,
+        ambient_temperature_c: Some(t),
+    };
+    let fits: Vec<PolachFit> = [-40.0, -20.0, 0.0, 20.0].iter().map(|t| fit(*t)).collect();
+    let law = fit_temperature(&fits, 2).unwrap();
+    let l = law.law().unwrap();
+    for t in [-35.0, -10.0, 5.0, 15.0] {
+        let (ka, ks) = l.eval(t).unwrap();
+        assert!((ka - fit(t).k_a).abs() < 1e-12 && (ks - fit(t).k_s).abs() < 1e-12);
+    }
+    assert!(law.residuals.iter().all(|r| r.1.abs() < 1e-12));
+    // One temperature: a clear error, no law.
+    assert!(fit_temperature(&fits[..1], 2)
+        .unwrap_err()
+        .to_string()
+        .contains("two or more"));
+
+    // The bundled archive (soap at +20, 0, −20 °C): k_A is higher in the cold (seed 004).
+    let p = Pipeline::default_uic_z1();
+    let tables = archive_tables(&p);
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (report, notes) = fit_campaign(&tables, patch, q, 8, 2);
+    assert!(notes.is_empty(), "{notes:?}");
+    let ka = |t: f64| {
+        report
+            .per_temperature
+            .iter()
+            .find(|f| f.ambient_temperature_c == Some(t))
+            .unwrap()
+            .k_a
+    };
+    eprintln!(
+        "k_A at +20/0/−20 °C: {:.4} {:.4} {:.4}",
+        ka(20.0),
+        ka(0.0),
+        ka(-20.0)
+    );
+    assert!(ka(0.0) > 1.1 * ka(20.0) && ka(-20.0) > 1.1 * ka(20.0));
+    let law = report.temperature.unwrap();
+    assert_eq!(law.degree, 2);
+    assert_eq!(law.fitted_range_c, (-20.0, 20.0));
+}

@@ -107,6 +107,19 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     file.write(&path)?;
     let hist = args.out.join(format!("{}.history.csv", args.name));
     write_history(&hist, &trained.history)?;
+    // Polach fits per run and temperature, and k(T).
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&pipeline)?;
+    let (report, notes) = railgrip::identify::polach_fit::fit_campaign(
+        &tables,
+        patch,
+        q,
+        pipeline.train.decimate,
+        pipeline.train.temperature_degree,
+    );
+    let polach_path = args.out.join(format!("{}.polach.json", args.name));
+    let text = serde_json::to_string_pretty(&report)? + "\n";
+    railgrip::atomic::write_atomically(&polach_path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", polach_path.display()))?;
     println!(
         "model      {} inputs, {} hidden tanh neurons, {} parameters",
         trained.shape.inputs,
@@ -128,8 +141,37 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         trained.train_mse.sqrt(),
         trained.val_mse.sqrt()
     );
+    println!("\nPolach     μ0 ± se      A ± se      B s/m ± se   k_A ± se     k_S ± se     RMSE    group");
+    for f in report.per_run.iter().chain(&report.per_temperature) {
+        println!(
+            "           {:.4}±{:.4} {:.3}±{:.3} {:.3}±{:.3} {:.4}±{:.4} {:.4}±{:.4} {:.4}  {}",
+            f.mu0,
+            f.se[0],
+            f.a_ratio,
+            f.se[1],
+            f.b_s_per_m,
+            f.se[2],
+            f.k_a,
+            f.se[3],
+            f.k_s,
+            f.se[4],
+            f.rmse,
+            f.group
+        );
+    }
+    match &report.temperature {
+        Some(t) => println!(
+            "k(T)       k_A = {:?}, k_S = {:?} (ascending powers of T in °C, degree {}, fitted over {} … {} °C)",
+            t.k_a, t.k_s, t.degree, t.fitted_range_c.0, t.fitted_range_c.1
+        ),
+        None => println!("k(T)       not fitted: {}", report.temperature_note.clone().unwrap_or_default()),
+    }
+    for n in &notes {
+        println!("warning    {n}");
+    }
     println!("wrote      {}", path.display());
     println!("wrote      {}", hist.display());
+    println!("wrote      {}", polach_path.display());
     Ok(EXIT_OK)
 }
 

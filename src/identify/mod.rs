@@ -8,6 +8,7 @@
 pub mod dataset;
 pub mod lm;
 pub mod mlp;
+pub mod polach_fit;
 pub mod train;
 
 pub use dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};

@@ -296,12 +296,11 @@ pub fn train_on(
     })
 }
 
-/// The creep region of a model for a pipeline: Kalker's creep stiffness C = G a b c11 of one
-/// wheel's Hertz patch (seed 001 eq. 1–5, 10–11) at the static wheel load Q.
-pub fn creep_spec(
+/// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001
+/// eq. 1–5; Kalker's c11, c22) and that load Q, N.
+pub fn pipeline_patch(
     pipeline: &crate::Pipeline,
-    reference_speed_mps: f64,
-) -> Result<crate::model::CreepSpec, IdentifyError> {
+) -> Result<(crate::contact::polach::ContactPatch, f64), IdentifyError> {
     use crate::contact::{hertz, kalker, shear_modulus_pa};
     let veh = &pipeline.vehicle;
     let co = &pipeline.contact;
@@ -316,9 +315,28 @@ pub fn creep_spec(
         .map_err(err)?;
     let kc = kalker::coefficients(hz.a_m, hz.b_m, co.poisson).map_err(err)?;
     let g = shear_modulus_pa(co.youngs_modulus_pa, co.poisson);
+    Ok((
+        crate::contact::polach::ContactPatch {
+            a_m: hz.a_m,
+            b_m: hz.b_m,
+            g_pa: g,
+            c11: kc.c11,
+            c22: kc.c22,
+        },
+        q,
+    ))
+}
+
+/// The creep region of a model for a pipeline: Kalker's creep stiffness C = G a b c11 of one
+/// wheel's Hertz patch (seed 001 eq. 1–5, 10–11) at the static wheel load Q.
+pub fn creep_spec(
+    pipeline: &crate::Pipeline,
+    reference_speed_mps: f64,
+) -> Result<crate::model::CreepSpec, IdentifyError> {
+    let (patch, q) = pipeline_patch(pipeline)?;
     Ok(crate::model::CreepSpec {
         blend_mps: pipeline.train.creep_blend_mps,
-        creep_stiffness_n: g * hz.a_m * hz.b_m * kc.c11,
+        creep_stiffness_n: patch.g_pa * patch.a_m * patch.b_m * patch.c11,
         wheel_load_n: q,
         reference_speed_mps,
     })
