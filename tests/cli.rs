@@ -335,3 +335,30 @@ fn train_eval_export_work_end_to_end() {
         text(&o.stderr)
     );
 }
+
+#[test]
+fn train_reads_estimates_tables_with_their_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    for run in ["soap_120kmh_p20.csv", "soap_120kmh_m20.csv"] {
+        let o = railgrip(&["estimate", &archive(run), "--out", "est"], dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    }
+    let o = railgrip(
+        &[
+            "train",
+            "est/soap_120kmh_p20.estimates.parquet",
+            "est/soap_120kmh_m20.estimates.parquet",
+            "--out",
+            "m",
+            "--quiet",
+        ],
+        dir.path(),
+    );
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    // The ambient temperatures travelled in the tables' metadata: k(T) over −20 … 20 °C.
+    assert!(s.contains("fitted over -20 … 20 °C"), "{s}");
+    let model = std::fs::read_to_string(dir.path().join("m/mlp.json")).unwrap();
+    assert!(model.contains("soap_120kmh_p20.estimates.parquet"));
+    assert!(model.contains("\"sha256\": \""));
+}
