@@ -305,7 +305,7 @@ fn train_eval_export_work_end_to_end() {
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     let h = std::fs::read_to_string(dir.path().join("mlp.h")).unwrap();
-    assert!(h.contains("static double railgrip_mu(double dv_mps, double ddv_mps2)"));
+    assert!(h.contains("static inline double railgrip_mu(double dv_mps, double ddv_mps2)"));
     let o = railgrip(
         &[
             "export",

@@ -353,6 +353,30 @@ fn evaluator_is_continuous_odd_and_clamped() {
     for i in 0..4 {
         assert_eq!(out[i], model.mu(dv[i], ddv[i]));
     }
+    // A long batch takes the vectorised path (AVX-512/AVX2 where the CPU has it): identical
+    // to single calls, bit for bit, including mirrored, creep-region, clamped and NaN inputs.
+    let mut rng = railgrip::rng::Rng::new(9);
+    let n = 1003;
+    let dv: Vec<f64> = (0..n)
+        .map(|i| {
+            if i == 17 {
+                f64::NAN
+            } else {
+                12.0 * rng.uniform() - 3.0
+            }
+        })
+        .collect();
+    let ddv: Vec<f64> = (0..n).map(|_| 16.0 * rng.uniform() - 8.0).collect();
+    let mut out = vec![0.0; n];
+    model.mu_batch(&dv, &ddv, &[], &mut out);
+    for i in 0..n {
+        let single = model.mu(dv[i], ddv[i]);
+        assert!(
+            out[i].to_bits() == single.to_bits() || (out[i].is_nan() && single.is_nan()),
+            "{i}: {} vs {single}",
+            out[i]
+        );
+    }
     // The network learned the law where there was data.
     assert!((model.mu(1.5, 0.0) - law(1.5, 0.0)).abs() < 2e-3);
 }
@@ -381,6 +405,19 @@ fn c_header_agrees_with_the_rust_evaluator() {
             "  printf(\"%.17g\\n\", rg_mu({dv:?}, {ddv:?}));\n"
         ));
     }
+    // The batch function over the same grid.
+    let list = |f: &dyn Fn(&(f64, f64)) -> f64| {
+        grid.iter()
+            .map(|p| format!("{:?}", f(p)))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    c.push_str(&format!(
+        "  {{ static const double dv[] = {{{}}}; static const double ddv[] = {{{}}}; static double out[{n}]; int i;\n    rg_mu_batch(dv, ddv, 0, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]); }}\n",
+        list(&|p| p.0),
+        list(&|p| p.1),
+        n = grid.len()
+    ));
     c.push_str("  return 0;\n}\n");
     std::fs::write(dir.path().join("main.c"), c).unwrap();
     let exe = dir.path().join("eval");
@@ -399,9 +436,9 @@ fn c_header_agrees_with_the_rust_evaluator() {
     let run = std::process::Command::new(&exe).output().unwrap();
     let text = String::from_utf8(run.stdout).unwrap();
     let values: Vec<f64> = text.lines().map(|l| l.parse().unwrap()).collect();
-    assert_eq!(values.len(), grid.len());
+    assert_eq!(values.len(), 2 * grid.len());
     let mut worst: f64 = 0.0;
-    for ((dv, ddv), c) in grid.iter().zip(&values) {
+    for ((dv, ddv), c) in grid.iter().chain(&grid).zip(&values) {
         worst = worst.max((model.mu(*dv, *ddv) - c).abs());
     }
     eprintln!(
