@@ -191,6 +191,23 @@ fn hysteresis_target(depth: f64, ddv: f64, inv_ddv0: f64) -> f64 {
     1.0 - depth * 0.5 * (1.0 - z / (1.0 + z * z).sqrt())
 }
 
+/// μ and dμ/dΔv from a learned model at slip `w` (m/s), slip rate `ddv` (m/s²), speed `v`
+/// (m/s); the slope by a central difference over ±0.1 mm/s (the model is continuous; the
+/// implicit wheel step only needs the stiffness's size), never negative.
+fn model_adhesion(m: &crate::model::Model, w: f64, ddv: f64, v: f64) -> (f64, f64) {
+    const H: f64 = 1e-4;
+    let mu = m.mu_v(w, ddv, v);
+    let slope = (m.mu_v(w + H, ddv, v) - m.mu_v(w - H, ddv, v)) / (2.0 * H);
+    (
+        mu,
+        if slope.is_finite() {
+            slope.max(0.0)
+        } else {
+            0.0
+        },
+    )
+}
+
 /// Linear interpolation of the brake demand, held after the last point; `cursor` advances.
 #[inline]
 fn demand_at(points: &[(f64, f64)], t: f64, cursor: &mut usize) -> f64 {
@@ -207,14 +224,40 @@ fn demand_at(points: &[(f64, f64)], t: f64, cursor: &mut usize) -> f64 {
 
 /// Runs a scene. `seed` overrides the scene's seed.
 pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
-    if let AdhesionLaw::Model(m) = &sc.law {
-        return Err(SimError::Scene {
-            scene: sc.name.clone(),
-            what: format!("adhesion law \"model\" ({m}) is not available yet"),
-            hint: "learned-model evaluation arrives with the model format (identification stage); use law = \"polach\"".into(),
-        });
-    }
     let fx = sc.effects;
+    let model = match &sc.law {
+        AdhesionLaw::Polach => None,
+        AdhesionLaw::Model(path) => {
+            let clash: Vec<&str> = [
+                Effect::FallingFriction,
+                Effect::Hysteresis,
+                Effect::Temperature,
+                Effect::Cleaning,
+            ]
+            .into_iter()
+            .filter(|e| fx.has(*e))
+            .map(|e| e.name())
+            .collect();
+            if !clash.is_empty() {
+                return Err(SimError::Scene {
+                    scene: sc.name.clone(),
+                    what: format!(
+                        "effects {} describe the Polach truth law, but adhesion.law = \"model\"",
+                        clash.join(", ")
+                    ),
+                    hint: "a learned model carries those effects itself: remove them from effects"
+                        .into(),
+                });
+            }
+            Some(
+                crate::model::Model::load(path).map_err(|e| SimError::Scene {
+                    scene: sc.name.clone(),
+                    what: format!("adhesion.model: {e}"),
+                    hint: "give a model file written by `railgrip train`".into(),
+                })?,
+            )
+        }
+    };
     let veh = &sc.vehicle;
     let r = veh.wheel_radius_m;
     let j = veh.axle_inertia_kgm2;
@@ -274,6 +317,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let mut wsp_timer = [0.0f64; AXLES];
     let mut ddv = [0.0f64; AXLES];
     let mut hyst = [hysteresis_target(sc.hysteresis_depth, 0.0, 1.0); AXLES];
+    let mut ddv_lag = [0.0f64; AXLES];
     let mut omega_dot = [0.0f64; AXLES];
     let mut decel = 0.0f64;
     let mut normal = [static_axle_load(veh); AXLES];
@@ -412,19 +456,27 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 let target = hysteresis_target(sc.hysteresis_depth, ddv[a], inv_ddv0);
                 hyst[a] += (target - hyst[a]) * k_hyst;
             }
-            let (ratio, slope) = adhesion(
-                sc,
-                fx,
-                &mut counters,
-                k_a,
-                k_s,
-                mu_axle[a],
-                contact[a].k,
-                normal[a] / 2.0,
-                v,
-                w,
-                hyst[a],
-            );
+            let (ratio, slope) = match &model {
+                None => adhesion(
+                    sc,
+                    fx,
+                    &mut counters,
+                    k_a,
+                    k_s,
+                    mu_axle[a],
+                    contact[a].k,
+                    normal[a] / 2.0,
+                    v,
+                    w,
+                    hyst[a],
+                ),
+                Some(m) => {
+                    // The model's slip-rate input is lagged like the hysteresis branch: fed
+                    // instantly it closes the same force → slip-rate → force loop.
+                    ddv_lag[a] += (ddv[a] - ddv_lag[a]) * k_hyst;
+                    model_adhesion(m, w, ddv_lag[a], v)
+                }
+            };
             let t_a = ratio * normal[a];
 
             let cmd = if fx.has(Effect::Wsp) {

@@ -235,9 +235,11 @@ pub enum AdhesionLaw {
     /// the scene lists (falling friction and speed dependence, hysteresis, k(T), cleaning) —
     /// the truth law of the bundled archive.
     Polach,
-    /// A learned model file (the identification stage's output). The seam exists; the
-    /// evaluator arrives with the model format.
-    Model(String),
+    /// A learned model file (`railgrip train`'s output, README "Model files"): μ(Δv, dΔv/dt[, v])
+    /// from the model's evaluator. The model carries the adhesion effects itself, so a scene
+    /// with it may not list falling_friction, hysteresis, temperature or cleaning. The path is
+    /// resolved against the scene file's folder.
+    Model(std::path::PathBuf),
 }
 
 /// A validated scene.
@@ -465,7 +467,13 @@ impl Scene {
         let a = &r.adhesion;
         let law = match (a.law.as_deref(), &a.model) {
             (None | Some("polach"), None) => AdhesionLaw::Polach,
-            (Some("model"), Some(m)) => AdhesionLaw::Model(m.clone()),
+            (Some("model"), Some(m)) => {
+                let p = std::path::Path::new(m);
+                AdhesionLaw::Model(match dir {
+                    Some(d) if p.is_relative() => d.join(p),
+                    _ => p.to_path_buf(),
+                })
+            }
             (Some("model"), None) => {
                 return Err(c.invalid(
                     "adhesion.model",
