@@ -20,8 +20,8 @@ use std::time::Duration;
 
 use biquad::{Biquad, DirectForm2Transposed};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use railgrip::format::{RunMetadata, Signal, AXLES};
-use railgrip::ingest::{LogFormat, RunLog};
+use railgrip::format::{Signal, AXLES};
+use railgrip::ingest::RunLog;
 use railgrip::signal::LowPass4;
 use railgrip::Pipeline;
 
@@ -46,21 +46,10 @@ fn hour() -> RunLog {
             })
             .collect()
     };
-    RunLog {
-        source: PathBuf::from("hour.csv"),
-        format: LogFormat::Csv,
-        sample_rate_hz: FS,
-        v_radar_mps: sig(Signal::VRadar),
-        omega_radps: std::array::from_fn(|a| sig(Signal::Omega(a as u8 + 1))),
-        p_bar: std::array::from_fn(|a| sig(Signal::Pressure(a as u8 + 1))),
-        valid: vec![true; n],
-        metadata: RunMetadata::default(),
-        start_log_time_ns: None,
-        channels: Vec::new(),
-        gaps: Vec::new(),
-        warnings: Vec::new(),
-        time_s,
-    }
+    let v = sig(Signal::VRadar);
+    let omega = std::array::from_fn(|a| sig(Signal::Omega(a as u8 + 1)));
+    let p = std::array::from_fn(|a| sig(Signal::Pressure(a as u8 + 1)));
+    common::runlog("hour.csv", FS, time_s, v, omega, p)
 }
 
 /// The bare filtering: each of the 9 channels forward and backward through two biquads.

@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 use railgrip::config::FilterMode;
 use railgrip::estimate::calibrate::{calibrate, AlphaFit, Resistance};
 use railgrip::estimate::{estimate, Estimates, ESTIMATE_COLUMNS};
-use railgrip::format::{RunMetadata, AXLES};
-use railgrip::ingest::{LogFormat, RunLog};
+use railgrip::format::AXLES;
+use railgrip::ingest::RunLog;
 use railgrip::sim::{simulate, Scene};
 use railgrip::vehicle::axle_loads;
 use railgrip::Pipeline;
@@ -39,36 +39,20 @@ struct Truth {
 }
 
 fn read_truth(path: &Path) -> Truth {
-    use polars::prelude::*;
-    let df = ParquetReader::new(std::fs::File::open(path).unwrap())
-        .finish()
-        .unwrap();
-    let f = |name: &str| -> Vec<f64> {
-        df.column(name)
-            .unwrap()
-            .cast(&DataType::Float64)
-            .unwrap()
-            .f64()
-            .unwrap()
-            .into_no_null_iter()
-            .collect()
-    };
-    let (time, mu, dv, tg, nn) = (
-        f("time_s"),
-        f("mu"),
-        f("dv_mps"),
-        f("tangential_N"),
-        f("normal_N"),
+    let c = common::parquet_columns(
+        path,
+        &["time_s", "mu", "dv_mps", "tangential_N", "normal_N"],
     );
+    let (time, mu, dv, tg, nn) = (&c[0], &c[1], &c[2], &c[3], &c[4]);
     let per_axle = |x: &[f64]| -> [Vec<f64>; AXLES] {
         std::array::from_fn(|a| x.iter().skip(a).step_by(AXLES).copied().collect())
     };
     Truth {
         t0: time[0],
-        mu: per_axle(&mu),
-        dv: per_axle(&dv),
-        tangential: per_axle(&tg),
-        normal: per_axle(&nn),
+        mu: per_axle(mu),
+        dv: per_axle(dv),
+        tangential: per_axle(tg),
+        normal: per_axle(nn),
     }
 }
 
@@ -254,21 +238,14 @@ fn braking_log(seconds: f64, v0: f64, d: f64, dv: f64, p: f64) -> RunLog {
     let time_s: Vec<f64> = (0..n).map(|i| i as f64 / FS).collect();
     let v: Vec<f64> = time_s.iter().map(|t| (v0 - d * t).max(0.0)).collect();
     let omega: Vec<f64> = v.iter().map(|v| ((v - dv) / common::R).max(0.0)).collect();
-    RunLog {
-        source: PathBuf::from("synthetic.csv"),
-        format: LogFormat::Csv,
-        sample_rate_hz: FS,
-        v_radar_mps: v,
-        omega_radps: std::array::from_fn(|_| omega.clone()),
-        p_bar: std::array::from_fn(|_| vec![p; n]),
-        valid: vec![true; n],
-        metadata: RunMetadata::default(),
-        start_log_time_ns: None,
-        channels: Vec::new(),
-        gaps: Vec::new(),
-        warnings: Vec::new(),
+    common::runlog(
+        "synthetic.csv",
+        FS,
         time_s,
-    }
+        v,
+        std::array::from_fn(|_| omega.clone()),
+        std::array::from_fn(|_| vec![p; n]),
+    )
 }
 
 fn exact_mu(p: &Pipeline, d: f64, pressure: f64) -> [f64; AXLES] {

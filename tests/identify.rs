@@ -2,6 +2,8 @@
 //! against finite differences, determinism, the model file's round trip, golden file and
 //! schema, the C header against the Rust evaluator, and seed 002's figures on simulated runs.
 
+mod common;
+
 use std::path::PathBuf;
 
 use proptest::prelude::*;
@@ -471,22 +473,9 @@ fn archive_tables(p: &Pipeline) -> Vec<RunTable> {
 
 /// Truth μ at the estimate's samples of one axle of one run (aligned by time).
 fn truth_mu(run: &str, axle: u8, times: &[f64]) -> Vec<f64> {
-    use polars::prelude::*;
     let path = root().join(format!("fixtures/archive/{run}.truth.parquet"));
-    let df = ParquetReader::new(std::fs::File::open(path).unwrap())
-        .finish()
-        .unwrap();
-    let col = |n: &str| -> Vec<f64> {
-        df.column(n)
-            .unwrap()
-            .cast(&DataType::Float64)
-            .unwrap()
-            .f64()
-            .unwrap()
-            .into_no_null_iter()
-            .collect()
-    };
-    let (t, a, mu) = (col("time_s"), col("axle"), col("mu"));
+    let c = common::parquet_columns(&path, &["time_s", "axle", "mu"]);
+    let (t, a, mu) = (&c[0], &c[1], &c[2]);
     let t0 = t[0];
     let per: Vec<f64> = (0..t.len())
         .filter(|&i| a[i] == axle as f64)

@@ -28,6 +28,23 @@ use serde::{Deserialize, Serialize};
 use crate::identify::lm::Epoch;
 use crate::identify::{InputSet, TrainedMlp};
 
+/// `Model::block` compiled for a target feature (called only after detecting it).
+macro_rules! block_with_feature {
+    ($name:ident, $feature:literal) => {
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $feature)]
+        unsafe fn $name(
+            &self,
+            dv: &[f64; LANES],
+            ddv: &[f64; LANES],
+            v: &[f64; LANES],
+            out: &mut [f64; LANES],
+        ) {
+            self.block(dv, ddv, v, out)
+        }
+    };
+}
+
 /// Samples per block of [`Model::mu_batch`].
 pub const LANES: usize = 16;
 
@@ -618,29 +635,8 @@ impl Model {
         self.block(dv, ddv, v, out)
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn block_avx512(
-        &self,
-        dv: &[f64; LANES],
-        ddv: &[f64; LANES],
-        v: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
-        self.block(dv, ddv, v, out)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn block_avx2(
-        &self,
-        dv: &[f64; LANES],
-        ddv: &[f64; LANES],
-        v: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
-        self.block(dv, ddv, v, out)
-    }
+    block_with_feature!(block_avx512, "avx512f");
+    block_with_feature!(block_avx2, "avx2");
 
     /// [`Model::mu_v`] for a block of samples, lane by lane the same operations. The lane loops
     /// are indexed on purpose: plain fixed-length loops the compiler turns into SIMD.

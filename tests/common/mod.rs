@@ -176,3 +176,51 @@ pub fn soap_metadata() -> RunMetadata {
         other: Default::default(),
     }
 }
+
+/// A RunLog built directly from signals on a uniform time base (no file, every sample valid).
+pub fn runlog(
+    name: &str,
+    sample_rate_hz: f64,
+    time_s: Vec<f64>,
+    v_radar_mps: Vec<f64>,
+    omega_radps: [Vec<f64>; 4],
+    p_bar: [Vec<f64>; 4],
+) -> railgrip::RunLog {
+    let n = time_s.len();
+    railgrip::RunLog {
+        source: std::path::PathBuf::from(name),
+        format: railgrip::ingest::LogFormat::Csv,
+        sample_rate_hz,
+        v_radar_mps,
+        omega_radps,
+        p_bar,
+        valid: vec![true; n],
+        metadata: RunMetadata::default(),
+        start_log_time_ns: None,
+        channels: Vec::new(),
+        gaps: Vec::new(),
+        warnings: Vec::new(),
+        time_s,
+    }
+}
+
+/// Columns of a Parquet file as f64 (any numeric type).
+pub fn parquet_columns(path: &Path, names: &[&str]) -> Vec<Vec<f64>> {
+    use polars::prelude::*;
+    let df = ParquetReader::new(File::open(path).unwrap())
+        .finish()
+        .unwrap();
+    names
+        .iter()
+        .map(|name| {
+            df.column(name)
+                .unwrap()
+                .cast(&DataType::Float64)
+                .unwrap()
+                .f64()
+                .unwrap()
+                .into_no_null_iter()
+                .collect()
+        })
+        .collect()
+}
