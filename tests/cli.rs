@@ -30,6 +30,18 @@ fn help_explains_every_command() {
         s.contains("ingest") && s.contains("Exit codes: 0 ok, 1 error, 2 usage, 3"),
         "{s}"
     );
+    for cmd in [
+        "simulate",
+        "estimate",
+        "calibrate",
+        "train",
+        "export",
+        "eval",
+    ] {
+        assert!(s.contains(cmd), "{cmd}: {s}");
+        let o = railgrip(&[cmd, "--help"], dir.path());
+        assert_eq!(o.status.code(), Some(0), "{cmd} --help");
+    }
     let o = railgrip(&["ingest", "--help"], dir.path());
     assert_eq!(o.status.code(), Some(0));
     let s = text(&o.stdout);
