@@ -65,7 +65,8 @@ pub mod raw {
         pub train: Train,
     }
 
-    #[derive(Debug, Default, Deserialize)]
+    /// `[contact]` of a pipeline file, and of a scene file (same keys, same checks).
+    #[derive(Debug, Default, Clone, Deserialize)]
     #[serde(deny_unknown_fields)]
     pub struct Contact {
         pub youngs_modulus_pa: Option<f64>,
@@ -877,7 +878,7 @@ impl Checker<'_> {
         })
     }
 
-    fn contact(&self, c: raw::Contact) -> Result<ContactConfig, ConfigError> {
+    pub(crate) fn contact(&self, c: raw::Contact) -> Result<ContactConfig, ConfigError> {
         Ok(ContactConfig {
             youngs_modulus_pa: self.optional(
                 "contact.youngs_modulus_pa",

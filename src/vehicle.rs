@@ -1,7 +1,9 @@
 //! The vehicle model shared by the estimator and the simulator: static axle loads and the
 //! load transfer of seed 002 (002_8d8769283f5e9cb6.txt) eq. 12–13.
 
-use crate::config::Vehicle;
+use crate::config::{ContactConfig, Vehicle};
+use crate::contact::polach::ContactPatch;
+use crate::contact::{hertz, kalker, shear_modulus_pa, ContactError};
 use crate::format::AXLES;
 
 /// Standard gravity, m/s².
@@ -11,6 +13,27 @@ pub const G_MPS2: f64 = 9.80665;
 /// its two axles), N.
 pub fn static_axle_load(v: &Vehicle) -> f64 {
     (v.body_mass_kg / 2.0 + v.bogie_mass_kg) * G_MPS2 / 2.0
+}
+
+/// The contact patch of one wheel at the static wheel load Q, and Q (N): Hertz semi-axes from
+/// the rolling radius and the lateral profile radii (seed 001 eq. 1–5), Kalker's c11, c22 and
+/// the shear modulus G. Shared by the simulator's truth law, the Polach fits and the models'
+/// creep region.
+pub fn wheel_patch(v: &Vehicle, co: &ContactConfig) -> Result<(ContactPatch, f64), ContactError> {
+    let q = static_axle_load(v) / 2.0;
+    let curv_long = 0.5 / v.wheel_radius_m;
+    let curv_lat = 0.5 * (1.0 / co.wheel_lateral_radius_m + 1.0 / co.rail_lateral_radius_m);
+    let hz =
+        hertz::hertz_from_curvatures(q, co.youngs_modulus_pa, co.poisson, curv_long, curv_lat)?;
+    let kc = kalker::coefficients(hz.a_m, hz.b_m, co.poisson)?;
+    let patch = ContactPatch {
+        a_m: hz.a_m,
+        b_m: hz.b_m,
+        g_pa: shear_modulus_pa(co.youngs_modulus_pa, co.poisson),
+        c11: kc.c11,
+        c22: kc.c22,
+    };
+    Ok((patch, q))
 }
 
 /// Translating mass of the vehicle: body and two bogies, kg.

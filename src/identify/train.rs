@@ -301,30 +301,12 @@ pub fn train_on(
 pub fn pipeline_patch(
     pipeline: &crate::Pipeline,
 ) -> Result<(crate::contact::polach::ContactPatch, f64), IdentifyError> {
-    use crate::contact::{hertz, kalker, shear_modulus_pa};
-    let veh = &pipeline.vehicle;
-    let co = &pipeline.contact;
-    let q = crate::vehicle::static_axle_load(veh) / 2.0;
-    let err = |e: crate::contact::ContactError| IdentifyError::Data {
-        what: format!("contact patch of the pipeline's [contact] section: {e}"),
-        hint: "check [contact] and vehicle.wheel_radius_m in the pipeline file".into(),
-    };
-    let curv_long = 0.5 / veh.wheel_radius_m;
-    let curv_lat = 0.5 * (1.0 / co.wheel_lateral_radius_m + 1.0 / co.rail_lateral_radius_m);
-    let hz = hertz::hertz_from_curvatures(q, co.youngs_modulus_pa, co.poisson, curv_long, curv_lat)
-        .map_err(err)?;
-    let kc = kalker::coefficients(hz.a_m, hz.b_m, co.poisson).map_err(err)?;
-    let g = shear_modulus_pa(co.youngs_modulus_pa, co.poisson);
-    Ok((
-        crate::contact::polach::ContactPatch {
-            a_m: hz.a_m,
-            b_m: hz.b_m,
-            g_pa: g,
-            c11: kc.c11,
-            c22: kc.c22,
-        },
-        q,
-    ))
+    crate::vehicle::wheel_patch(&pipeline.vehicle, &pipeline.contact).map_err(|e| {
+        IdentifyError::Data {
+            what: format!("contact patch of the pipeline's [contact] section: {e}"),
+            hint: "check [contact] and vehicle.wheel_radius_m in the pipeline file".into(),
+        }
+    })
 }
 
 /// The creep region of a model for a pipeline: Kalker's creep stiffness C = G a b c11 of one

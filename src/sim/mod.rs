@@ -29,7 +29,7 @@ pub mod scene;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use crate::contact::{hertz, kalker, shear_modulus_pa, ContactError};
+use crate::contact::ContactError;
 use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES};
 use crate::rng::Rng;
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
@@ -271,15 +271,8 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         scene: sc.name.clone(),
         source,
     };
-    let q0 = static_axle_load(veh) / 2.0;
-    let curv_long = 0.5 / r;
-    let curv_lat = 0.5 * (1.0 / sc.wheel_lateral_radius_m + 1.0 / sc.rail_lateral_radius_m);
-    let hz =
-        hertz::hertz_from_curvatures(q0, sc.youngs_modulus_pa, sc.poisson, curv_long, curv_lat)
-            .map_err(contact_err)?;
-    let kc = kalker::coefficients(hz.a_m, hz.b_m, sc.poisson).map_err(contact_err)?;
-    let g_pa = shear_modulus_pa(sc.youngs_modulus_pa, sc.poisson);
-    let k0 = PI * g_pa * hz.a_m * hz.b_m * kc.c11 / 4.0;
+    let (patch, q0) = crate::vehicle::wheel_patch(veh, &sc.contact).map_err(contact_err)?;
+    let k0 = PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
     let mut contact = [AxleContact { k0, q0, k: k0 }; AXLES];
 
     let (k_a, k_s) = if fx.has(Effect::Temperature) {

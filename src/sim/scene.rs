@@ -133,7 +133,7 @@ pub mod raw {
         #[serde(default)]
         pub adhesion: Adhesion,
         #[serde(default)]
-        pub contact: Contact,
+        pub contact: crate::config::raw::Contact,
         #[serde(default)]
         pub wsp: Wsp,
         #[serde(default)]
@@ -183,15 +183,6 @@ pub mod raw {
         pub temperature_k_a: Option<Vec<f64>>,
         pub temperature_k_s: Option<Vec<f64>>,
         pub temperature_range_c: Option<[f64; 2]>,
-    }
-
-    #[derive(Debug, Default, Deserialize)]
-    #[serde(deny_unknown_fields)]
-    pub struct Contact {
-        pub youngs_modulus_pa: Option<f64>,
-        pub poisson: Option<f64>,
-        pub wheel_lateral_radius_m: Option<f64>,
-        pub rail_lateral_radius_m: Option<f64>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -280,10 +271,8 @@ pub struct Scene {
     pub hysteresis_time_constant_s: f64,
     pub cleaning_per_axle: f64,
     pub temperature_law: TemperatureLaw,
-    pub youngs_modulus_pa: f64,
-    pub poisson: f64,
-    pub wheel_lateral_radius_m: f64,
-    pub rail_lateral_radius_m: f64,
+    /// Wheel–rail contact material and profile radii (the pipeline's `[contact]` keys).
+    pub contact: crate::config::ContactConfig,
     pub dump_slip_mps: f64,
     pub reapply_slip_mps: f64,
     pub decel_limit_mps2: f64,
@@ -563,7 +552,6 @@ impl Scene {
             ));
         }
         let s = &r.sensors;
-        let co = &r.contact;
         Ok(Scene {
             name: r.name.unwrap_or_else(|| "scene".into()),
             seed: r.seed.unwrap_or(1),
@@ -653,31 +641,7 @@ impl Scene {
                 "",
             )?,
             temperature_law,
-            youngs_modulus_pa: c.num(
-                "contact.youngs_modulus_pa",
-                co.youngs_modulus_pa,
-                1e9,
-                1e12,
-                Some(2.1e11),
-                "Pa",
-            )?,
-            poisson: c.num("contact.poisson", co.poisson, 0.0, 0.49, Some(0.3), "")?,
-            wheel_lateral_radius_m: c.num(
-                "contact.wheel_lateral_radius_m",
-                co.wheel_lateral_radius_m,
-                -1e3,
-                1e3,
-                Some(-0.5),
-                "m",
-            )?,
-            rail_lateral_radius_m: c.num(
-                "contact.rail_lateral_radius_m",
-                co.rail_lateral_radius_m,
-                0.05,
-                1e3,
-                Some(0.3),
-                "m",
-            )?,
+            contact: c.contact(r.contact.clone())?,
             dump_slip_mps: dump,
             reapply_slip_mps: reapply,
             decel_limit_mps2: c.num(
