@@ -22,7 +22,8 @@ use std::process::Command;
 use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use railgrip::identify::dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};
+use railgrip::config::SplitConfig;
+use railgrip::identify::dataset::{Dataset, InputSet, MapMinMax, RunTable};
 use railgrip::identify::lm::{LeastSquares, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::{creep_spec, median_speed, train_on, MlpProblem};
@@ -46,7 +47,7 @@ fn data() -> (Dataset, f64) {
     }
     tables.sort_by(|a, b| a.0.cmp(&b.0));
     let tables: Vec<RunTable> = tables.into_iter().map(|(_, t)| t).collect();
-    let split = Split::Axles {
+    let split = SplitConfig::Axles {
         train: vec![2],
         val: vec![3],
     };

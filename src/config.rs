@@ -1282,6 +1282,77 @@ mod tests {
     }
 
     #[test]
+    fn bad_filter_estimate_contact_and_train_keys_name_the_key_and_the_rule() {
+        let err = |from: &str, to: &str| {
+            assert!(DEFAULT_PIPELINE_TOML.contains(from), "{from}");
+            Pipeline::from_toml(&DEFAULT_PIPELINE_TOML.replace(from, to), "p.toml")
+                .unwrap_err()
+                .to_string()
+        };
+        let cases = [
+            (
+                "mode = \"zero_phase\"",
+                "mode = \"acausal\"",
+                "p.toml: filters.mode = \"acausal\": must be one of \"zero_phase\", \"causal\"",
+            ),
+            (
+                "despike_half_window_s = 0.025",
+                "despike_half_window_s = 0.001",
+                "filters.despike_half_window_s = 0.001: must span at least one sample",
+            ),
+            (
+                "phase = \"braking\"",
+                "phase = \"coasting\"",
+                "estimate.phase = \"coasting\": must be one of \"braking\", \"traction\"",
+            ),
+            (
+                "min_speed_mps = 1.0",
+                "min_speed_mps = 0.0",
+                "estimate.min_speed_mps = 0: must be > 0 m/s",
+            ),
+            (
+                "poisson = 0.3",
+                "poisson = 0.5",
+                "contact.poisson = 0.5: must be >= 0 and <= 0.49",
+            ),
+            (
+                "split = \"axles\"",
+                "split = \"random\"",
+                "train.split = \"random\": must be one of \"axles\", \"runs\", \"blocks\"",
+            ),
+            (
+                "val_axles = [3]",
+                "val_axles = [2]",
+                "train.val_axles = [2]: must not repeat a training axle",
+            ),
+            (
+                "train_axles = [2]",
+                "train_axles = [5]",
+                "train.train_axles = [5]: must list axles 1..4",
+            ),
+            (
+                "inputs = [\"dv_mps\", \"ddv_mps2\"]",
+                "inputs = [\"v_mps\"]",
+                "train.inputs = [\"v_mps\"]: must be [\"dv_mps\", \"ddv_mps2\"]",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 2.5",
+                "train.hidden = 2.5: must be a whole number",
+            ),
+            (
+                "mu_dec = 0.1",
+                "mu_dec = 1.5",
+                "train.mu_dec = 1.5: must be >= 0",
+            ),
+        ];
+        for (from, to, want) in cases {
+            let e = err(from, to);
+            assert!(e.contains(want), "{to}: {e}");
+        }
+    }
+
+    #[test]
     fn implausible_vehicle_is_rejected() {
         let text = DEFAULT_PIPELINE_TOML.replace("wheel_radius_m = 0.445", "wheel_radius_m = 4.45");
         let e = Pipeline::from_toml(&text, "p.toml")

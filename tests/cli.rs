@@ -331,6 +331,36 @@ fn train_eval_export_work_end_to_end() {
     );
     assert_eq!(o.status.code(), Some(1));
 
+    std::fs::write(dir.path().join("nodv.csv"), "speed,ddv_mps2\n0.5,1.0\n").unwrap();
+    let o = railgrip(
+        &[
+            "eval",
+            "models/mlp.json",
+            "--input",
+            "nodv.csv",
+            "--output",
+            "p4.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("nodv.csv: line 1: the header needs columns dv_mps and ddv_mps2"),
+        "{}",
+        text(&o.stderr)
+    );
+    // A Parquet file that is not an estimates table (here a truth table).
+    let truth = archive("soap_120kmh_p20.truth.parquet");
+    let o = railgrip(&["train", &truth, "--out", "m3"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("soap_120kmh_p20.truth.parquet")
+            && e.contains("no column \"valid\"")
+            && e.contains("railgrip estimate"),
+        "{e}"
+    );
+    assert!(!dir.path().join("m3/mlp.json").exists());
     let o = railgrip(&["train", "missing.csv", "--out", "m2"], dir.path());
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o.stderr).contains("missing.csv"));

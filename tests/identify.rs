@@ -7,7 +7,8 @@ mod common;
 use std::path::PathBuf;
 
 use proptest::prelude::*;
-use railgrip::identify::dataset::{Dataset, InputSet, RunTable, Split};
+use railgrip::config::SplitConfig;
+use railgrip::identify::dataset::{Dataset, InputSet, RunTable};
 use railgrip::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::{creep_spec, train_on, MlpProblem};
@@ -49,8 +50,8 @@ fn synthetic_table(n: usize) -> RunTable {
     t
 }
 
-fn axles_2_3() -> Split {
-    Split::Axles {
+fn axles_2_3() -> SplitConfig {
+    SplitConfig::Axles {
         train: vec![2],
         val: vec![3],
     }
@@ -191,7 +192,7 @@ fn no_training_samples_is_a_clear_error() {
     let e = Dataset::build(
         &[tab],
         InputSet::DvDdv,
-        &Split::Axles {
+        &SplitConfig::Axles {
             train: vec![4],
             val: vec![3],
         },
@@ -346,6 +347,9 @@ fn evaluator_is_continuous_odd_and_clamped() {
         // Clamped outside the domain: constant beyond the largest Δv seen.
         let hi = model.file.inputs[0].domain_max;
         assert_eq!(model.mu(hi + 1.0, ddv), model.mu(hi + 50.0, ddv));
+        assert!(!model.in_domain(hi + 1.0, ddv, f64::NAN));
+        assert!(model.in_domain(1.0, ddv, f64::NAN) && model.in_domain(-1.0, -ddv, f64::NAN));
+        assert!(!model.in_domain(1.0, 100.0, f64::NAN));
     }
     // Batch = single.
     let dv = [0.01, 0.3, 1.0, 3.0];

@@ -1,5 +1,5 @@
 //! Training data for the identification: the valid estimates of each run ([`RunTable`]),
-//! split into training and validation sets ([`Split`]; seed 002 trains on axle 2 and validates
+//! split into training and validation sets ([`SplitConfig`]; seed 002 trains on axle 2 and validates
 //! on axle 3, pooled over the runs), decimated, and scaled by mapminmax ([`MapMinMax`]).
 
 use std::io::Read;
@@ -7,6 +7,7 @@ use std::path::Path;
 
 use sha2::{Digest, Sha256};
 
+use crate::config::SplitConfig;
 use crate::estimate::Estimates;
 use crate::format::RunMetadata;
 
@@ -29,11 +30,9 @@ impl InputSet {
             InputSet::DvDdvV => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²"), ("v_mps", "m/s")],
         }
     }
-    pub fn len(self) -> usize {
+    /// Number of inputs (2 or 3).
+    pub fn count(self) -> usize {
         self.names().len()
-    }
-    pub fn is_empty(self) -> bool {
-        false
     }
 }
 
@@ -209,18 +208,7 @@ pub fn sha256_bytes(b: &[u8]) -> String {
         .collect()
 }
 
-/// How samples are divided between training and validation.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Split {
-    /// By axle, pooled over all runs (seed 002: train [2], validate [3]).
-    Axles { train: Vec<u8>, val: Vec<u8> },
-    /// Whole runs: every `every`-th run (in the order given) validates, the others train.
-    Runs { every: usize },
-    /// Contiguous blocks of `block_s` seconds per run and axle: every `every`-th validates.
-    Blocks { block_s: f64, every: usize },
-}
-
-/// Training and validation sets in physical units; `x` is row-major, `inputs.len()` columns.
+/// Training and validation sets in physical units; `x` is row-major, `inputs.count()` columns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {
     pub inputs: InputSet,
@@ -236,7 +224,7 @@ impl Dataset {
     pub fn build(
         tables: &[RunTable],
         inputs: InputSet,
-        split: &Split,
+        split: &SplitConfig,
         decimate: usize,
     ) -> Result<Dataset, IdentifyError> {
         let decimate = decimate.max(1);
@@ -258,7 +246,7 @@ impl Dataset {
                     continue;
                 }
                 let to_val = match split {
-                    Split::Axles { train, val } => {
+                    SplitConfig::Axles { train, val } => {
                         if val.contains(&a) {
                             Some(true)
                         } else if train.contains(&a) {
@@ -267,8 +255,8 @@ impl Dataset {
                             None
                         }
                     }
-                    Split::Runs { every } => Some(*every > 0 && r % every == every - 1),
-                    Split::Blocks { block_s, every } => {
+                    SplitConfig::Runs { every } => Some(*every > 0 && r % every == every - 1),
+                    SplitConfig::Blocks { block_s, every } => {
                         let b = ((t.time_s[i] - t0) / block_s).floor() as usize;
                         Some(*every > 0 && b % every == every - 1)
                     }

@@ -11,7 +11,7 @@ pub mod mlp;
 pub mod polach_fit;
 pub mod train;
 
-pub use dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};
+pub use dataset::{Dataset, InputSet, MapMinMax, RunTable};
 pub use train::{train_mlp, TrainedMlp};
 
 /// Why identification failed.

@@ -168,15 +168,15 @@ impl PolachFit {
     }
 }
 
-fn samples(tables: &[&RunTable], decimate: usize) -> Vec<Sample> {
+/// Samples with slip, every `decimate`-th. The tables hold no loads, so every sample gets the
+/// static wheel load `q_n`: load transfer moves it by a few per cent, far below the scatter of μ.
+fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sample> {
     let mut out = Vec::new();
     for t in tables {
-        // Loads from μ's definition are not in the table; the static load is used for Q:
-        // load transfer moves it by a few per cent, far below the scatter of μ.
         for i in (0..t.len()).step_by(decimate.max(1)) {
             if t.dv_mps[i] > 0.0 && t.v_mps[i] > 0.0 {
                 out.push(Sample {
-                    q_n: f64::NAN,
+                    q_n,
                     v: t.v_mps[i],
                     dv: t.dv_mps[i],
                     mu: t.mu[i],
@@ -197,10 +197,7 @@ pub fn fit_polach(
     decimate: usize,
     start: PolachParams,
 ) -> Result<PolachFit, IdentifyError> {
-    let mut s = samples(tables, decimate);
-    for x in &mut s {
-        x.q_n = q_n;
-    }
+    let s = samples(tables, q_n, decimate);
     if s.len() < 20 {
         return Err(IdentifyError::Data {
             what: format!(

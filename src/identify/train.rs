@@ -2,13 +2,13 @@
 
 use rayon::prelude::*;
 
-use super::dataset::{Dataset, InputSet, MapMinMax, RunTable, Split};
+use super::dataset::{Dataset, InputSet, MapMinMax, RunTable};
 use super::lm::{
     self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations, StopReason,
 };
 use super::mlp::{self, Shape};
 use super::IdentifyError;
-use crate::config::{SplitConfig, TrainConfig};
+use crate::config::TrainConfig;
 
 /// Samples per chunk when accumulating JᵀJ: fixed, so the sums (chunk results added in order)
 /// do not depend on the number of threads.
@@ -173,21 +173,6 @@ impl TrainedMlp {
     }
 }
 
-/// The split of a pipeline's `[train]` section.
-pub fn split_of(cfg: &TrainConfig) -> Split {
-    match &cfg.split {
-        SplitConfig::Axles { train, val } => Split::Axles {
-            train: train.clone(),
-            val: val.clone(),
-        },
-        SplitConfig::Runs { every } => Split::Runs { every: *every },
-        SplitConfig::Blocks { block_s, every } => Split::Blocks {
-            block_s: *block_s,
-            every: *every,
-        },
-    }
-}
-
 /// LM settings of a pipeline's `[train]` section.
 pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
     LmSettings {
@@ -214,7 +199,7 @@ pub fn train_mlp(
     } else {
         InputSet::DvDdv
     };
-    let data = Dataset::build(tables, inputs, &split_of(cfg), cfg.decimate)?;
+    let data = Dataset::build(tables, inputs, &cfg.split, cfg.decimate)?;
     train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress)
 }
 
@@ -226,7 +211,7 @@ pub fn train_on(
     settings: LmSettings,
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
-    let k = data.inputs.len();
+    let k = data.inputs.count();
     let shape = Shape { inputs: k, hidden };
     if let Some(bad) = data
         .train_x

@@ -5,7 +5,7 @@
 
 use std::fmt::Write as _;
 
-use super::{gain_offset, ModelFile};
+use super::ModelFile;
 
 /// Shortest decimal form that reads back to the same double (C's strtod rounds correctly).
 fn lit(x: f64) -> String {
@@ -35,20 +35,15 @@ pub fn c_header(m: &ModelFile, prefix: &str, source: &str) -> String {
     let nh = h.shape[0];
     let p = prefix;
     let guard = format!("{}_ADHESION_MODEL_H", prefix.to_uppercase());
-    let mut lo = [0.0; 3];
-    let mut hi = [0.0; 3];
-    let mut gx = [1.0; 3];
-    let mut ox = [0.0; 3];
-    for (c, i) in m.inputs.iter().enumerate() {
-        lo[c] = i.domain_min;
-        hi[c] = i.domain_max;
-        (gx[c], ox[c]) = gain_offset(i.norm_min, i.norm_max);
-    }
-    let (gy, oy) = gain_offset(m.output.norm_min, m.output.norm_max);
-    // Column-major, as the evaluator loops over the neurons.
-    let w1c: Vec<f64> = (0..k)
-        .flat_map(|c| h.weights.iter().map(move |row| row[c]))
-        .collect();
+    let super::Scaling {
+        lo,
+        hi,
+        gx,
+        ox,
+        gy,
+        oy,
+        w1c,
+    } = m.scaling();
     let cpc = m.creep.creep_stiffness_n / m.creep.wheel_load_n;
     let inputs: Vec<String> = m
         .inputs

@@ -45,6 +45,31 @@ macro_rules! block_with_feature {
     };
 }
 
+/// The SIMD width the batch path runs with, detected once per batch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Simd {
+    #[allow(dead_code)] // only constructed on x86_64
+    Avx512,
+    #[allow(dead_code)]
+    Avx2,
+    Baseline,
+}
+
+impl Simd {
+    fn detect() -> Simd {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                return Simd::Avx512;
+            }
+            if std::arch::is_x86_feature_detected!("avx2") {
+                return Simd::Avx2;
+            }
+        }
+        Simd::Baseline
+    }
+}
+
 /// Samples per block of [`Model::mu_batch`].
 pub const LANES: usize = 16;
 
@@ -373,6 +398,46 @@ impl ModelFile {
     }
 }
 
+/// The numbers the evaluators work with, derived once from a model file (shared by the Rust
+/// evaluator and the C header so both start from the same doubles).
+pub(crate) struct Scaling {
+    /// Input domain per input (unused inputs 0).
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    /// mapminmax gain and offset per input, x_n = g x + o.
+    pub gx: [f64; 3],
+    pub ox: [f64; 3],
+    /// Output mapminmax gain and offset.
+    pub gy: f64,
+    pub oy: f64,
+    /// Hidden-layer weights, column-major: w1c[c · hidden + h] = W1[h][c].
+    pub w1c: Vec<f64>,
+}
+
+impl ModelFile {
+    pub(crate) fn scaling(&self) -> Scaling {
+        let k = self.inputs.len();
+        let mut s = Scaling {
+            lo: [0.0; 3],
+            hi: [0.0; 3],
+            gx: [1.0; 3],
+            ox: [0.0; 3],
+            gy: 1.0,
+            oy: 0.0,
+            w1c: (0..k)
+                .flat_map(|c| self.layers[0].weights.iter().map(move |row| row[c]))
+                .collect(),
+        };
+        for (c, i) in self.inputs.iter().enumerate() {
+            s.lo[c] = i.domain_min;
+            s.hi[c] = i.domain_max;
+            (s.gx[c], s.ox[c]) = gain_offset(i.norm_min, i.norm_max);
+        }
+        (s.gy, s.oy) = gain_offset(self.output.norm_min, self.output.norm_max);
+        s
+    }
+}
+
 /// mapminmax gain and offset for a (min, max) range: constant ranges pass through.
 #[inline]
 fn gain_offset(min: f64, max: f64) -> (f64, f64) {
@@ -479,16 +544,15 @@ fn she(x: f64) -> f64 {
 impl Model {
     pub fn new(file: ModelFile) -> Model {
         let k = file.inputs.len();
-        let mut lo = [0.0; 3];
-        let mut hi = [0.0; 3];
-        let mut gx = [1.0; 3];
-        let mut ox = [0.0; 3];
-        for (c, i) in file.inputs.iter().enumerate() {
-            lo[c] = i.domain_min;
-            hi[c] = i.domain_max;
-            (gx[c], ox[c]) = gain_offset(i.norm_min, i.norm_max);
-        }
-        let (gy, oy) = gain_offset(file.output.norm_min, file.output.norm_max);
+        let Scaling {
+            lo,
+            hi,
+            gx,
+            ox,
+            gy,
+            oy,
+            w1c,
+        } = file.scaling();
         let h = &file.layers[0];
         let o = &file.layers[1];
         Model {
@@ -497,9 +561,7 @@ impl Model {
             hi,
             gx,
             ox,
-            w1c: (0..k)
-                .flat_map(|c| h.weights.iter().map(move |row| row[c]))
-                .collect(),
+            w1c,
             b1: h.biases.clone(),
             w2: o.weights[0].clone(),
             b2: o.biases[0],
@@ -597,6 +659,7 @@ impl Model {
         assert!(v_mps.is_empty() || v_mps.len() == dv_mps.len());
         let n = out.len();
         let full = n - n % LANES;
+        let simd = Simd::detect();
         for b in (0..full).step_by(LANES) {
             let dv: &[f64; LANES] = dv_mps[b..b + LANES].try_into().expect("block");
             let ddv: &[f64; LANES] = ddv_mps2[b..b + LANES].try_into().expect("block");
@@ -606,7 +669,7 @@ impl Model {
                 v_mps[b..b + LANES].try_into().expect("block")
             };
             let o: &mut [f64; LANES] = (&mut out[b..b + LANES]).try_into().expect("block");
-            self.block_dispatch(dv, ddv, &v, o);
+            self.block_dispatch(simd, dv, ddv, &v, o);
         }
         for i in full..n {
             let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
@@ -616,23 +679,21 @@ impl Model {
 
     fn block_dispatch(
         &self,
+        simd: Simd,
         dv: &[f64; LANES],
         ddv: &[f64; LANES],
         v: &[f64; LANES],
         out: &mut [f64; LANES],
     ) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU supports AVX-512F (checked just above).
-                return unsafe { self.block_avx512(dv, ddv, v, out) };
-            }
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2 (checked just above).
-                return unsafe { self.block_avx2(dv, ddv, v, out) };
-            }
+        match simd {
+            // SAFETY: `Simd::detect` found AVX-512F on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx512 => unsafe { self.block_avx512(dv, ddv, v, out) },
+            // SAFETY: `Simd::detect` found AVX2 on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Simd::Avx2 => unsafe { self.block_avx2(dv, ddv, v, out) },
+            _ => self.block(dv, ddv, v, out),
         }
-        self.block(dv, ddv, v, out)
     }
 
     block_with_feature!(block_avx512, "avx512f");

@@ -45,8 +45,6 @@ pub struct Conditioned {
     pub settle_s: f64,
     /// Radar samples replaced by the Hampel filter.
     pub despiked: usize,
-    /// Samples in segments too short to filter (between holes).
-    pub short_segment_samples: usize,
     /// Group delay at DC of the radar, tachometer and pressure filters, s (0 in zero-phase
     /// mode). In causal mode the radar lags the tachometers by the difference, which shifts
     /// the slip Δv = v − rω against the pressure.
@@ -214,8 +212,6 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
     for &(a, b) in &all_segs {
         has_data[a..b].fill(true);
     }
-    let all_ok: usize = all_segs.iter().map(|(a, b)| b - a).sum();
-    let used: usize = segs.iter().map(|(a, b)| b - a).sum();
     let delay = |lp: &LowPass4| match mode {
         FilterMode::ZeroPhase => 0.0,
         FilterMode::Causal => lp.dc_group_delay_s(),
@@ -233,7 +229,6 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
         settled,
         settle_s,
         despiked,
-        short_segment_samples: all_ok - used,
         group_delay_s: GroupDelays {
             radar_s: delay(&f.radar),
             tacho_s: delay(&f.tacho),
