@@ -76,6 +76,9 @@ pub const LANES: usize = 16;
 /// Largest hidden layer the evaluators take.
 pub const MAX_HIDDEN: usize = 256;
 
+/// Neurons per chunk of the single-call path (one AVX2 register of f64).
+const CHUNK: usize = 4;
+
 /// Format id written into every model file.
 pub const FORMAT_ID: &str = "railgrip-adhesion-model";
 /// Current format version.
@@ -459,7 +462,12 @@ pub struct Model {
     hi: [f64; 3],
     gx: [f64; 3],
     ox: [f64; 3],
-    /// Hidden-layer weights, column-major: w1c[c · hidden + h] = W1[h][c].
+    /// Hidden neurons, and that number rounded up to a multiple of [`CHUNK`].
+    nh: usize,
+    pad: usize,
+    /// Hidden-layer weights, column-major with stride `pad`: w1c[c · pad + h] = W1[h][c];
+    /// `b1` and `w2` likewise padded. The padding neurons have zero weights and are never
+    /// summed: they only let the single-call path run in fixed-width chunks.
     w1c: Vec<f64>,
     b1: Vec<f64>,
     w2: Vec<f64>,
@@ -555,15 +563,24 @@ impl Model {
         } = file.scaling();
         let h = &file.layers[0];
         let o = &file.layers[1];
+        let nh = h.biases.len();
+        let pad = nh.div_ceil(CHUNK) * CHUNK;
+        let padded = |v: &[f64]| {
+            let mut p = v.to_vec();
+            p.resize(pad, 0.0);
+            p
+        };
         Model {
             k,
             lo,
             hi,
             gx,
             ox,
-            w1c,
-            b1: h.biases.clone(),
-            w2: o.weights[0].clone(),
+            nh,
+            pad,
+            w1c: w1c.chunks(nh).flat_map(padded).collect(),
+            b1: padded(&h.biases),
+            w2: padded(&o.weights[0]),
             b2: o.biases[0],
             gy,
             oy,
@@ -584,30 +601,38 @@ impl Model {
         self.k
     }
 
-    /// The network alone at physical inputs (clamped to the domain). Laid out so the compiler
-    /// vectorises over the hidden neurons (column-major weights, tanh into a buffer, then the
-    /// output sum in neuron order — the same operations as the scalar rule, same results).
-    #[inline]
+    /// The network alone at physical inputs (clamped to the domain). The hidden layer runs in
+    /// fixed-width chunks of [`CHUNK`] neurons (zero-padded) so the compiler turns each into
+    /// SIMD; the output sum runs over the neurons in order — the same
+    /// operations as the batch path and the C header, same results.
+    #[inline(always)]
     fn net(&self, x: [f64; 3]) -> f64 {
-        let nh = self.b1.len();
         let mut xn = [0.0; 3];
         for c in 0..self.k {
             xn[c] = self.gx[c] * x[c].clamp(self.lo[c], self.hi[c]) + self.ox[c];
         }
-        let mut buf = [0.0f64; MAX_HIDDEN];
-        let z = &mut buf[..nh];
-        z.copy_from_slice(&self.b1);
-        for (c, xc) in xn.iter().enumerate().take(self.k) {
-            for (zh, w) in z.iter_mut().zip(&self.w1c[c * nh..(c + 1) * nh]) {
-                *zh += w * xc;
-            }
-        }
-        for (zh, w2) in z.iter_mut().zip(&self.w2) {
-            *zh = w2 * tanh_fast(*zh);
-        }
         let mut y = self.b2;
-        for t in z.iter() {
-            y += t;
+        for j in 0..self.pad / CHUNK {
+            let at = |v: &[f64], c: usize| -> [f64; CHUNK] {
+                v[c * self.pad + j * CHUNK..c * self.pad + (j + 1) * CHUNK]
+                    .try_into()
+                    .expect("chunk")
+            };
+            let mut z = at(&self.b1, 0);
+            for (c, xc) in xn.iter().enumerate().take(self.k) {
+                let w = at(&self.w1c, c);
+                for i in 0..CHUNK {
+                    z[i] += w[i] * xc;
+                }
+            }
+            let w2 = at(&self.w2, 0);
+            let mut t = [0.0; CHUNK];
+            for i in 0..CHUNK {
+                t[i] = w2[i] * tanh_fast(z[i]);
+            }
+            for ti in &t[..CHUNK.min(self.nh - j * CHUNK)] {
+                y += ti;
+            }
         }
         (y - self.oy) / self.gy
     }
@@ -617,6 +642,24 @@ impl Model {
     /// Non-finite Δv or dΔv/dt give NaN.
     #[inline]
     pub fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 was just detected on this CPU.
+            return unsafe { self.mu_v_avx2(dv_mps, ddv_mps2, v_mps) };
+        }
+        self.mu_v_impl(dv_mps, ddv_mps2, v_mps)
+    }
+
+    /// [`Model::mu_v`] compiled for AVX2: the same IEEE operations (Rust never contracts a
+    /// multiply and an add into an FMA on its own), four neurons per instruction.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn mu_v_avx2(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        self.mu_v_impl(dv_mps, ddv_mps2, v_mps)
+    }
+
+    #[inline(always)]
+    fn mu_v_impl(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         if !(dv_mps.is_finite() && ddv_mps2.is_finite()) {
             return f64::NAN;
         }
@@ -730,12 +773,11 @@ impl Model {
                 xn[c][l] = g * x[c][l].clamp(lo, hi) + o;
             }
         }
-        let nh = self.b1.len();
         let mut y = [self.b2; LANES];
-        for h in 0..nh {
+        for h in 0..self.nh {
             let mut z = [self.b1[h]; LANES];
             for c in 0..self.k {
-                let w = self.w1c[c * nh + h];
+                let w = self.w1c[c * self.pad + h];
                 for l in 0..LANES {
                     z[l] += w * xn[c][l];
                 }
@@ -753,7 +795,7 @@ impl Model {
                 sgn[l] * net
             } else {
                 // The creep region (rare in a batch): the scalar rule.
-                self.mu_v(dv_in[l], ddv_in[l], v_in[l])
+                self.mu_v_impl(dv_in[l], ddv_in[l], v_in[l])
             };
         }
     }
@@ -772,6 +814,19 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dispatched_single_call_equals_the_portable_path_bit_for_bit() {
+        let text = include_str!("../../models/golden/synthetic_mlp.json");
+        let m = Model::new(ModelFile::from_json(text, "golden").unwrap());
+        for i in 0..400 {
+            let dv = -4.5 + 0.0225 * i as f64;
+            for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
+                let (a, b) = (m.mu(dv, ddv), m.mu_v_impl(dv, ddv, f64::NAN));
+                assert_eq!(a.to_bits(), b.to_bits(), "({dv}, {ddv})");
+            }
+        }
+    }
 
     #[test]
     fn tanh_fast_matches_the_c_library() {
