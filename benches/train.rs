@@ -174,7 +174,7 @@ fn bench(c: &mut Criterion) {
             created: "2026-01-01T00:00:00Z".into(),
         },
     );
-    let model = Model::new(file.clone());
+    let model = Model::new(file.clone()).unwrap();
     let inputs: Vec<(f64, f64)> = (0..1024)
         .map(|i| (0.004 * i as f64, ((i * 7919) % 1000) as f64 / 100.0 - 5.0))
         .collect();

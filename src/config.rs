@@ -97,6 +97,7 @@ pub mod raw {
         pub mu_max: Option<f64>,
         pub creep_blend_mps: Option<f64>,
         pub temperature_degree: Option<f64>,
+        pub condition: Option<String>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -416,6 +417,9 @@ pub struct TrainConfig {
     pub creep_blend_mps: f64,
     /// Polynomial degree of the k_A(T), k_S(T) fits.
     pub temperature_degree: usize,
+    /// Rail condition (run metadata `condition`) whose runs train the models; None: the
+    /// campaign's most common condition.
+    pub condition: Option<String>,
 }
 
 impl Pipeline {
@@ -999,6 +1003,16 @@ impl Checker<'_> {
                 5.0,
                 2.0,
             )? as usize,
+            condition: match t.condition {
+                Some(c) if c.trim().is_empty() => {
+                    return Err(self.invalid(
+                        "train.condition",
+                        "\"\"",
+                        "a rail condition as in the runs' metadata, e.g. \"soap\"; leave the key out for the most common one",
+                    ))
+                }
+                c => c,
+            },
         })
     }
 

@@ -261,7 +261,50 @@ fn train_eval_export_work_end_to_end() {
     }
     let model = dir.path().join("models/mlp.json");
     assert!(model.exists() && dir.path().join("models/mlp.history.csv").exists());
-    assert!(dir.path().join("models/mlp.polach.json").exists());
+    assert!(dir.path().join("models/mlp.polach-fits.json").exists());
+    // The campaign's Polach model: a model file of kind polach with k(T) (two temperatures).
+    let polach = std::fs::read_to_string(dir.path().join("models/mlp.polach.json")).unwrap();
+    assert!(
+        polach.contains("\"kind\": \"polach\"") && polach.contains("\"temperature\""),
+        "{polach}"
+    );
+    std::fs::write(
+        dir.path().join("pgrid.csv"),
+        "dv_mps,v_mps,ambient_temperature_c\n1.0,30,0\n1.0,30,20\n-1.0,30,20\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &[
+            "eval",
+            "models/mlp.polach.json",
+            "--input",
+            "pgrid.csv",
+            "--output",
+            "ppred.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let pred = std::fs::read_to_string(dir.path().join("ppred.csv")).unwrap();
+    let rows: Vec<&str> = pred.lines().collect();
+    assert_eq!(rows[0], "dv_mps,v_mps,ambient_temperature_c,mu");
+    let mu: Vec<f64> = rows[1..]
+        .iter()
+        .map(|r| r.split(',').nth(3).unwrap().parse().unwrap())
+        .collect();
+    assert!(
+        mu[0] > 0.01 && mu[0] < 0.3 && mu[1] > 0.01 && mu[1] < 0.3,
+        "{mu:?}"
+    );
+    assert_eq!(mu[2], -mu[1]);
+    let o = railgrip(
+        &["export", "models/mlp.polach.json", "--c-header", "polach.h"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("Polach with k(T)"));
+    let h = std::fs::read_to_string(dir.path().join("polach.h")).unwrap();
+    assert!(h.contains("static inline double railgrip_mu_vt(") && h.contains("atan("));
 
     std::fs::write(
         dir.path().join("grid.csv"),
@@ -345,7 +388,7 @@ fn train_eval_export_work_end_to_end() {
     );
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        text(&o.stderr).contains("nodv.csv: line 1: the header needs columns dv_mps and ddv_mps2"),
+        text(&o.stderr).contains("nodv.csv: line 1: the header needs a column dv_mps"),
         "{}",
         text(&o.stderr)
     );

@@ -276,6 +276,23 @@ fn synthetic_model() -> ModelFile {
     )
 }
 
+/// Compares `text` with the committed golden file `models/golden/<name>`, rewriting it first
+/// when UPDATE_GOLDEN=1.
+fn golden_check(name: &str, text: &str) {
+    let golden = root().join("models/golden").join(name);
+    if std::env::var("UPDATE_GOLDEN").as_deref() == Ok("1") {
+        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
+        std::fs::write(&golden, text).unwrap();
+    }
+    let committed = std::fs::read_to_string(&golden).unwrap_or_else(|_| {
+        panic!("models/golden/{name} (refresh with UPDATE_GOLDEN=1 cargo test --test identify)")
+    });
+    assert_eq!(
+        committed, text,
+        "{name}: the model file changed; if intended, refresh with UPDATE_GOLDEN=1"
+    );
+}
+
 #[test]
 fn model_file_round_trips_exactly_and_matches_the_golden_file() {
     let m = synthetic_model();
@@ -283,17 +300,7 @@ fn model_file_round_trips_exactly_and_matches_the_golden_file() {
     let back = ModelFile::from_json(&text, "mem").unwrap();
     assert_eq!(back, m, "reading back changed a value");
     assert_eq!(back.to_json(), text);
-    let golden = root().join("models/golden/synthetic_mlp.json");
-    if std::env::var("UPDATE_GOLDEN").as_deref() == Ok("1") {
-        std::fs::create_dir_all(golden.parent().unwrap()).unwrap();
-        std::fs::write(&golden, &text).unwrap();
-    }
-    let committed = std::fs::read_to_string(&golden)
-        .expect("models/golden/synthetic_mlp.json (refresh with UPDATE_GOLDEN=1 cargo test --test identify)");
-    assert_eq!(
-        committed, text,
-        "the model file changed; if intended, refresh with UPDATE_GOLDEN=1"
-    );
+    golden_check("synthetic_mlp.json", &text);
 }
 
 fn schema_check(json: &str, what: &str) {
@@ -331,8 +338,8 @@ fn model_files_follow_the_schema() {
 
 #[test]
 fn evaluator_is_continuous_odd_and_clamped() {
-    let model = Model::new(synthetic_model());
-    let blend = model.file.creep.blend_mps;
+    let model = Model::new(synthetic_model()).unwrap();
+    let blend = model.file.creep.as_ref().unwrap().blend_mps;
     for ddv in [-2.0, 0.0, 2.0] {
         // Continuous across the blend point and at zero.
         let below = model.mu(blend * (1.0 - 1e-9), ddv);
@@ -387,8 +394,21 @@ fn evaluator_is_continuous_odd_and_clamped() {
     assert!((model.mu(1.5, 0.0) - law(1.5, 0.0)).abs() < 2e-3);
 }
 
-#[test]
-fn c_header_agrees_with_the_rust_evaluator() {
+/// A C literal for a double (NaN as NAN, ±∞ as ±INFINITY).
+fn c_lit(x: f64) -> String {
+    if x.is_nan() {
+        "NAN".into()
+    } else if x.is_infinite() {
+        if x > 0.0 { "INFINITY" } else { "-INFINITY" }.into()
+    } else {
+        format!("{x:?}")
+    }
+}
+
+/// Compiles `model`'s C header with the system cc, evaluates `rg_mu_vt` at every point
+/// (Δv, dΔv/dt, v, T) and `rg_mu_batch` over the same points (without T), and returns the
+/// largest difference to the Rust evaluator; None when there is no C compiler.
+fn c_header_error(model: &Model, points: &[[f64; 4]]) -> Option<f64> {
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
     if std::process::Command::new(&cc)
         .arg("--version")
@@ -396,33 +416,34 @@ fn c_header_agrees_with_the_rust_evaluator() {
         .is_err()
     {
         eprintln!("SKIPPED: no C compiler ({cc}) found; install gcc or set CC");
-        return;
+        return None;
     }
-    let model = Model::new(synthetic_model());
     let dir = tempfile::tempdir().unwrap();
-    let header = c_header::c_header(&model.file, "rg", "synthetic");
+    let header = c_header::c_header(&model.file, "rg", "test");
     std::fs::write(dir.path().join("model.h"), header).unwrap();
-    let grid: Vec<(f64, f64)> = (0..=60)
-        .flat_map(|i| (0..=10).map(move |j| (-1.0 + i as f64 * 0.1, -5.0 + j as f64)))
-        .collect();
     let mut c = String::from("#include <stdio.h>\n#include \"model.h\"\nint main(void) {\n");
-    for (dv, ddv) in &grid {
+    for p in points {
         c.push_str(&format!(
-            "  printf(\"%.17g\\n\", rg_mu({dv:?}, {ddv:?}));\n"
+            "  printf(\"%.17g\\n\", rg_mu_vt({}, {}, {}, {}));\n",
+            c_lit(p[0]),
+            c_lit(p[1]),
+            c_lit(p[2]),
+            c_lit(p[3])
         ));
     }
-    // The batch function over the same grid.
-    let list = |f: &dyn Fn(&(f64, f64)) -> f64| {
-        grid.iter()
-            .map(|p| format!("{:?}", f(p)))
+    let list = |k: usize| {
+        points
+            .iter()
+            .map(|p| c_lit(p[k]))
             .collect::<Vec<_>>()
             .join(", ")
     };
     c.push_str(&format!(
-        "  {{ static const double dv[] = {{{}}}; static const double ddv[] = {{{}}}; static double out[{n}]; int i;\n    rg_mu_batch(dv, ddv, 0, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]); }}\n",
-        list(&|p| p.0),
-        list(&|p| p.1),
-        n = grid.len()
+        "  {{ static const double dv[] = {{{}}}; static const double ddv[] = {{{}}}; static const double v[] = {{{}}}; static double out[{n}]; int i;\n    rg_mu_batch(dv, ddv, v, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]); }}\n",
+        list(0),
+        list(1),
+        list(2),
+        n = points.len()
     ));
     c.push_str("  return 0;\n}\n");
     std::fs::write(dir.path().join("main.c"), c).unwrap();
@@ -442,16 +463,237 @@ fn c_header_agrees_with_the_rust_evaluator() {
     let run = std::process::Command::new(&exe).output().unwrap();
     let text = String::from_utf8(run.stdout).unwrap();
     let values: Vec<f64> = text.lines().map(|l| l.parse().unwrap()).collect();
-    assert_eq!(values.len(), 2 * grid.len());
+    assert_eq!(values.len(), 2 * points.len());
+    let mut rust: Vec<f64> = points
+        .iter()
+        .map(|p| model.mu_vt(p[0], p[1], p[2], p[3]))
+        .collect();
+    rust.extend(points.iter().map(|p| model.mu_v(p[0], p[1], p[2])));
     let mut worst: f64 = 0.0;
-    for ((dv, ddv), c) in grid.iter().chain(&grid).zip(&values) {
-        worst = worst.max((model.mu(*dv, *ddv) - c).abs());
+    for (r, c) in rust.iter().zip(&values) {
+        worst = worst.max((r - c).abs());
     }
-    eprintln!(
-        "C header vs Rust: max |Δμ| = {worst:.1e} over {} points",
-        grid.len()
+    Some(worst)
+}
+
+#[test]
+fn c_header_agrees_with_the_rust_evaluator() {
+    let model = Model::new(synthetic_model()).unwrap();
+    let grid: Vec<[f64; 4]> = (0..=60)
+        .flat_map(|i| {
+            (0..=10).map(move |j| [-1.0 + i as f64 * 0.1, -5.0 + j as f64, f64::NAN, f64::NAN])
+        })
+        .collect();
+    if let Some(worst) = c_header_error(&model, &grid) {
+        eprintln!(
+            "C header vs Rust: max |Δμ| = {worst:.1e} over {} points",
+            grid.len()
+        );
+        assert!(worst <= 1e-12, "{worst}");
+    }
+}
+
+// ------------------------------------------------------------------ Polach model files
+
+/// A Polach model file with a temperature law over −20 … +20 °C.
+fn polach_model(with_temperature: bool) -> ModelFile {
+    use railgrip::identify::polach_fit::{PolachFit, TemperatureFit};
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let fit = PolachFit {
+        group: "all runs".into(),
+        mu0: 0.12,
+        a_ratio: 0.35,
+        b_s_per_m: 0.5,
+        k_a: 0.15,
+        k_s: 0.05,
+        se: [0.001, 0.01, f64::INFINITY, 0.003, 0.001],
+        samples: 4000,
+        effective_samples: 400.0,
+        rmse: 0.002,
+        ambient_temperature_c: None,
+        iterations: 12,
+        stop_reason: "minimum gradient reached".into(),
+    };
+    let t = TemperatureFit {
+        k_a: vec![0.15, -0.002, 1e-5],
+        k_s: vec![0.05, -0.0005, 0.0],
+        fitted_range_c: (-20.0, 20.0),
+        degree: 2,
+        residuals: vec![],
+    };
+    ModelFile::from_polach(
+        &fit,
+        &patch,
+        q,
+        with_temperature.then_some(&t),
+        (0.01, 4.5),
+        (3.0, 44.0),
+        25.0,
+        railgrip::model::Provenance {
+            inputs: vec![],
+            pipeline: "uic_z1.toml".into(),
+            pipeline_sha256: "0".repeat(64),
+            seed: 0,
+            crate_version: "0.1.0".into(),
+            created: "2026-01-01T00:00:00Z".into(),
+        },
+    )
+    .unwrap()
+}
+
+#[test]
+fn polach_model_files_evaluate_the_contact_librarys_law_and_round_trip() {
+    use railgrip::contact::polach::{polach, PolachParams};
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    golden_check("synthetic_polach.json", &polach_model(true).to_json());
+    for with_t in [false, true] {
+        let file = polach_model(with_t);
+        schema_check(&file.to_json(), "Polach model file");
+        let back = ModelFile::from_json(&file.to_json(), "p.json").unwrap();
+        assert_eq!(back, file);
+        assert_eq!(back.to_json(), file.to_json());
+        let model = Model::new(file).unwrap();
+        let base = PolachParams {
+            mu0: 0.12,
+            a_ratio: 0.35,
+            b_s_per_m: 0.5,
+            k_a: 0.15,
+            k_s: 0.05,
+        };
+        let mut worst: f64 = 0.0;
+        for i in 0..200 {
+            let dv = -5.0 + 0.05 * i as f64 + 0.001;
+            for v in [0.5, 3.0, 20.0, 44.0, 60.0] {
+                let want = polach(&patch, &base, q, v, dv, 0.0).unwrap().fx_n / q;
+                let got = model.mu_v(dv, 0.7, v);
+                worst = worst.max(((got - want) / want).abs());
+                // dΔv/dt is not an input of this law.
+                assert_eq!(got, model.mu_v(dv, -3.0, v));
+            }
+        }
+        assert!(
+            worst < 1e-13,
+            "relative difference to contact::polach {worst:e}"
+        );
+        // Zero slip, NaN speed (→ reference speed), standstill (→ the speed floor).
+        assert_eq!(model.mu_v(0.0, 0.0, 30.0), 0.0);
+        assert_eq!(model.mu(1.0, 0.0), model.mu_v(1.0, 0.0, 25.0));
+        assert!(model.mu_v(1.0, 0.0, 0.0).is_finite());
+        assert_eq!(model.mu_v(1.0, 0.0, 0.0), model.mu_v(1.0, 0.0, 0.1));
+        assert!(model.mu_v(f64::NAN, 0.0, 30.0).is_nan());
+        assert!(model.in_domain(1.0, 0.0, 30.0) && !model.in_domain(1.0, 0.0, 50.0));
+        if with_t {
+            // k(T) replaces k_A, k_S; T is clamped to the fitted range; NaN → the base values.
+            let at = |t: f64| {
+                let (ka, ks) = (0.15 - 0.002 * t + 1e-5 * t * t, 0.05 - 0.0005 * t);
+                polach(
+                    &patch,
+                    &PolachParams {
+                        k_a: ka,
+                        k_s: ks,
+                        ..base
+                    },
+                    q,
+                    30.0,
+                    1.5,
+                    0.0,
+                )
+                .unwrap()
+                .fx_n
+                    / q
+            };
+            for t in [-20.0, -5.0, 0.0, 13.0, 20.0] {
+                let got = model.mu_vt(1.5, 0.0, 30.0, t);
+                assert!(((got - at(t)) / at(t)).abs() < 1e-13, "{t}");
+                let fixed = model.at_temperature(t).unwrap();
+                assert!(((fixed.mu_v(1.5, 0.0, 30.0) - got) / got).abs() < 1e-15);
+            }
+            assert_eq!(
+                model.mu_vt(1.5, 0.0, 30.0, -40.0),
+                model.mu_vt(1.5, 0.0, 30.0, -20.0)
+            );
+            assert_eq!(
+                model.mu_vt(1.5, 0.0, 30.0, f64::NAN),
+                model.mu_v(1.5, 0.0, 30.0)
+            );
+            let e = model.at_temperature(35.0).unwrap_err().to_string();
+            assert!(e.contains("outside the range") && e.contains("20"), "{e}");
+            assert!(model.mu_vt(1.5, 0.0, 30.0, -20.0) > model.mu_vt(1.5, 0.0, 30.0, 20.0));
+        } else {
+            let e = model.at_temperature(0.0).unwrap_err().to_string();
+            assert!(e.contains("no temperature law"), "{e}");
+        }
+    }
+    // A network has no temperature law either.
+    let e = Model::new(synthetic_model())
+        .unwrap()
+        .at_temperature(0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no temperature law"), "{e}");
+}
+
+#[test]
+fn polach_model_files_reject_what_they_cannot_evaluate() {
+    let good = polach_model(true).to_json();
+    let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
+        let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
+        edit(&mut v);
+        let e = ModelFile::from_json(&v.to_string(), "bad.polach.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("bad.polach.json") && e.contains(needle),
+            "{needle}: {e}"
+        );
+    };
+    // k_A(T) leaves (0, 1] inside the fitted range.
+    bad(
+        &|v| v["polach"]["temperature"]["k_a"] = serde_json::json!([0.15, 0.0, 0.01]),
+        "k_A",
     );
-    assert!(worst <= 1e-12, "{worst}");
+    bad(&|v| v["polach"]["k_s"] = 0.5.into(), "k_S");
+    bad(&|v| v["polach"]["patch"]["c11"] = (-1.0).into(), "c11");
+    bad(
+        &|v| {
+            v["polach"].as_object_mut().unwrap().remove("temperature");
+        },
+        "temperature input goes with a temperature law",
+    );
+    bad(&|v| v["outside_domain"] = "clamp".into(), "\"law\"");
+    bad(
+        &|v| {
+            v.as_object_mut().unwrap().remove("polach");
+        },
+        "needs a \"polach\" section",
+    );
+}
+
+#[test]
+fn polach_c_header_agrees_with_the_rust_evaluator() {
+    for with_t in [false, true] {
+        let model = Model::new(polach_model(with_t)).unwrap();
+        let mut pts = Vec::new();
+        for i in 0..=80 {
+            let dv = -4.0 + 0.1 * i as f64;
+            for v in [f64::NAN, 0.0, 0.05, 2.0, 30.0, 80.0] {
+                for t in [f64::NAN, -30.0, -20.0, 0.0, 7.5, 20.0, 40.0] {
+                    pts.push([dv, 0.3, v, t]);
+                }
+            }
+        }
+        pts.push([f64::NAN, 0.0, 30.0, 0.0]);
+        pts.push([1.0, f64::INFINITY, 30.0, 0.0]);
+        if let Some(worst) = c_header_error(&model, &pts) {
+            eprintln!(
+                "Polach C header (k(T): {with_t}) vs Rust: max |Δμ| = {worst:.1e} over {} points",
+                pts.len()
+            );
+            assert!(worst <= 1e-12, "{worst}");
+        }
+    }
 }
 
 // ------------------------------------------------------------------ seed 002 on simulated runs
@@ -530,7 +772,7 @@ fn seed002_figures_on_simulated_runs() {
             created: "2026-01-01T00:00:00Z".into(),
         },
     );
-    let model = Model::new(file);
+    let model = Model::new(file).unwrap();
     let (mut se_est, mut se_truth, mut var, mut n) = (0.0, 0.0, 0.0, 0usize);
     for t in &tables {
         let idx: Vec<usize> = (0..t.len())
@@ -645,6 +887,8 @@ fn temperature_law_recovers_a_quadratic_and_archive_adhesion_rises_in_the_cold()
         effective_samples: 10.0,
         rmse: 0.0,
         ambient_temperature_c: Some(t),
+        iterations: 10,
+        stop_reason: "minimum gradient reached".into(),
     };
     let fits: Vec<PolachFit> = [-40.0, -20.0, 0.0, 20.0].iter().map(|t| fit(*t)).collect();
     let law = fit_temperature(&fits, 2).unwrap();
@@ -684,4 +928,46 @@ fn temperature_law_recovers_a_quadratic_and_archive_adhesion_rises_in_the_cold()
     let law = report.temperature.unwrap();
     assert_eq!(law.degree, 2);
     assert_eq!(law.fitted_range_c, (-20.0, 20.0));
+}
+
+#[test]
+fn one_rail_condition_trains_a_campaign() {
+    use railgrip::identify::train::select_condition;
+    let run = |name: &str, condition: Option<&str>| {
+        let mut t = synthetic_table(10);
+        t.name = name.into();
+        t.metadata.condition = condition.map(String::from);
+        t
+    };
+    let tables = || {
+        vec![
+            run("dry1", Some("dry")),
+            run("soap1", Some("soap")),
+            run("x", None),
+            run("soap2", Some("soap")),
+        ]
+    };
+    let c = select_condition(tables(), None).unwrap();
+    assert_eq!(c.condition, "soap");
+    let names: Vec<&str> = c.used.iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(names, ["soap1", "soap2"]);
+    assert_eq!(
+        c.skipped,
+        [
+            ("dry1".to_string(), "dry".to_string()),
+            ("x".to_string(), "unknown".to_string())
+        ]
+    );
+    let c = select_condition(tables(), Some("dry")).unwrap();
+    assert_eq!(c.used.len(), 1);
+    // A tie goes to the alphabetically first condition.
+    let c = select_condition(vec![run("w", Some("wet")), run("d", Some("dry"))], None).unwrap();
+    assert_eq!(c.condition, "dry");
+    let e = select_condition(tables(), Some("wet"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("train.condition = \"wet\"") && e.contains("soap"),
+        "{e}"
+    );
 }

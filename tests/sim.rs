@@ -314,6 +314,60 @@ fn a_learned_model_drives_the_wheels() {
 }
 
 #[test]
+fn a_polach_model_file_with_its_temperature_law_drives_the_wheels() {
+    // A campaign's Polach model (kind polach, k(T) over −20 … +20 °C): with the temperature
+    // effect the simulator brakes on k_A(T), k_S(T) at the scene's ambient temperature.
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_polach.json");
+    let model = railgrip::model::Model::load(&golden).unwrap();
+    let text = |effects: &str, ambient: f64| {
+        format!(
+            "name = \"t\"\nseed = 3\neffects = [{effects}]\n[run]\ninitial_speed_kmh = 60.0\nmax_duration_s = 6.0\nambient_temperature_c = {ambient}\n[adhesion]\nlaw = \"model\"\nmodel = \"{}\"\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]",
+            golden.display()
+        )
+    };
+    let run = |effects: &str, ambient: f64| {
+        let sc = Scene::from_toml(&text(effects, ambient), "t.toml", None).unwrap();
+        sim::simulate(&sc, None)
+    };
+    for ambient in [-15.0, 15.0] {
+        let out = run("\"temperature\"", ambient).unwrap();
+        let fixed = model.at_temperature(ambient).unwrap();
+        let tr = &out.truth;
+        let mut worst: f64 = 0.0;
+        for a in 0..4 {
+            for i in 0..tr.time_s.len() {
+                let want = fixed.mu_v(tr.dv_mps[a][i], 0.0, tr.v_mps[i]);
+                worst = worst.max((tr.mu[a][i] - want).abs());
+            }
+        }
+        assert!(worst < 2e-3, "{ambient} °C: |μ − model| max {worst}");
+    }
+    // Colder rail, more adhesion (the golden law's k_A falls with T): less slip at the same
+    // brake demand.
+    let slip = |ambient: f64| {
+        let out = run("\"temperature\"", ambient).unwrap();
+        out.truth.dv_mps[0].iter().copied().fold(0.0f64, f64::max)
+    };
+    assert!(slip(-15.0) <= slip(15.0));
+    // Outside the fitted range, or a model without a law: a clear error naming the scene.
+    let e = run("\"temperature\"", 30.0).unwrap_err().to_string();
+    assert!(
+        e.contains("effect temperature") && e.contains("outside the range"),
+        "{e}"
+    );
+    let mlp = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp.json");
+    let sc = Scene::from_toml(
+        &text("\"temperature\"", 0.0)
+            .replace(&golden.display().to_string(), &mlp.display().to_string()),
+        "t.toml",
+        None,
+    )
+    .unwrap();
+    let e = sim::simulate(&sc, None).unwrap_err().to_string();
+    assert!(e.contains("no temperature law"), "{e}");
+}
+
+#[test]
 fn bundled_scenes_load() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes");
     let mut n = 0;

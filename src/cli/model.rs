@@ -64,15 +64,25 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         );
     }
     let pipeline = args.pipeline.load()?;
-    let tables = load_tables(&args.inputs, &pipeline)?;
+    let choice = railgrip::identify::train::select_condition(
+        load_tables(&args.inputs, &pipeline)?,
+        pipeline.train.condition.as_deref(),
+    )?;
+    let tables = choice.used;
     let samples: usize = tables.iter().map(|t| t.len()).sum();
     eprintln!(
-        "data       {} run(s), {} valid samples; [train] split {:?}, decimate {}",
+        "data       {} run(s) on {} rail, {} valid samples; [train] split {:?}, decimate {}",
         tables.len(),
+        choice.condition,
         samples,
         pipeline.train.split,
         pipeline.train.decimate
     );
+    for (run, condition) in &choice.skipped {
+        eprintln!(
+            "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
+        );
+    }
     let quiet = args.quiet;
     let progress: Box<dyn FnMut(&railgrip::identify::lm::Epoch) + Send> = Box::new(move |e| {
         if !quiet {
@@ -100,7 +110,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: utc_now_rfc3339(),
     };
-    let file = ModelFile::from_trained(&trained, creep, provenance);
+    let file = ModelFile::from_trained(&trained, creep, provenance.clone());
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
     let path = args.out.join(format!("{}.json", args.name));
@@ -116,10 +126,42 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         pipeline.train.decimate,
         pipeline.train.temperature_degree,
     );
-    let polach_path = args.out.join(format!("{}.polach.json", args.name));
+    let mut notes = notes;
+    let fits_path = args.out.join(format!("{}.polach-fits.json", args.name));
     let text = serde_json::to_string_pretty(&report)? + "\n";
-    railgrip::atomic::write_atomically(&polach_path, |w| w.write_all(text.as_bytes()))
-        .with_context(|| format!("{}: cannot write", polach_path.display()))?;
+    railgrip::atomic::write_atomically(&fits_path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", fits_path.display()))?;
+    // The campaign's Polach model file: the pooled fit with k(T) when there is one.
+    let polach_path = args.out.join(format!("{}.polach.json", args.name));
+    let polach_model = report.pooled.as_ref().map(|pooled| {
+        let make = |t| {
+            ModelFile::from_polach(
+                pooled,
+                &patch,
+                q,
+                t,
+                report.dv_range_mps,
+                report.v_range_mps,
+                trained.reference_speed_mps,
+                provenance.clone(),
+            )
+        };
+        make(report.temperature.as_ref()).or_else(|e| {
+            notes.push(format!("Polach model written without k(T): {e}"));
+            make(None)
+        })
+    });
+    let polach_written = match polach_model {
+        Some(Ok(m)) => {
+            m.write(&polach_path)?;
+            true
+        }
+        Some(Err(e)) => {
+            notes.push(format!("no Polach model file: {e}"));
+            false
+        }
+        None => false,
+    };
     println!(
         "model      {} inputs, {} hidden tanh neurons, {} parameters",
         trained.shape.inputs,
@@ -142,7 +184,12 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         trained.val_mse.sqrt()
     );
     println!("\nPolach     μ0 ± se      A ± se      B s/m ± se   k_A ± se     k_S ± se     RMSE    group");
-    for f in report.per_run.iter().chain(&report.per_temperature) {
+    for f in report
+        .pooled
+        .iter()
+        .chain(&report.per_run)
+        .chain(&report.per_temperature)
+    {
         println!(
             "           {:.4}±{:.4} {:.3}±{:.3} {:.3}±{:.3} {:.4}±{:.4} {:.4}±{:.4} {:.4}  {}",
             f.mu0,
@@ -171,7 +218,10 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     }
     println!("wrote      {}", path.display());
     println!("wrote      {}", hist.display());
-    println!("wrote      {}", polach_path.display());
+    if polach_written {
+        println!("wrote      {}", polach_path.display());
+    }
+    println!("wrote      {}", fits_path.display());
     Ok(EXIT_OK)
 }
 
@@ -211,13 +261,25 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
     let text = c_header::c_header(&m, &args.prefix, &args.model.display().to_string());
     railgrip::atomic::write_atomically(&args.c_header, |w| w.write_all(text.as_bytes()))
         .with_context(|| format!("{}: cannot write", args.c_header.display()))?;
+    let what = match m.kind {
+        railgrip::model::ModelKind::Mlp => format!(
+            "network: {} inputs, {} hidden",
+            m.inputs.len(),
+            m.layers[0].shape[0]
+        ),
+        railgrip::model::ModelKind::Polach => format!(
+            "Polach{}",
+            if m.inputs.len() == 3 {
+                " with k(T)"
+            } else {
+                ""
+            }
+        ),
+    };
+    let p = &args.prefix;
     println!(
-        "wrote      {} ({}_mu, {}_mu_v; {} inputs, {} hidden)",
+        "wrote      {} ({p}_mu, {p}_mu_v, {p}_mu_vt, {p}_mu_batch; {what})",
         args.c_header.display(),
-        args.prefix,
-        args.prefix,
-        m.inputs.len(),
-        m.layers[0].shape[0]
     );
     Ok(EXIT_OK)
 }
@@ -227,7 +289,9 @@ pub struct EvalArgs {
     /// A model file written by `railgrip train`.
     #[arg(value_name = "MODEL")]
     model: PathBuf,
-    /// CSV with columns dv_mps, ddv_mps2 (and v_mps for 3-input models).
+    /// CSV with columns dv_mps, ddv_mps2 (v_mps for 3-input networks; optional otherwise:
+    /// without it the reference speed); Polach models need only dv_mps and use
+    /// ambient_temperature_c when present.
     #[arg(long, value_name = "CSV")]
     input: PathBuf,
     /// Output CSV: the input columns and mu.
@@ -248,19 +312,31 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<u8> {
         .map(|s| s.trim().trim_matches('"').to_string())
         .collect();
     let col = |name: &str| header.iter().position(|h| h == name);
-    let (Some(cdv), Some(cddv)) = (col("dv_mps"), col("ddv_mps2")) else {
-        bail!("{file}: line 1: the header needs columns dv_mps and ddv_mps2 (found {header:?})");
+    let polach = model.file.kind == railgrip::model::ModelKind::Polach;
+    let Some(cdv) = col("dv_mps") else {
+        bail!("{file}: line 1: the header needs a column dv_mps (found {header:?})");
     };
+    let cddv = col("ddv_mps2");
+    if cddv.is_none() && !polach {
+        bail!("{file}: line 1: this network takes dv_mps and ddv_mps2: add a column ddv_mps2 (found {header:?})");
+    }
     let cv = col("v_mps");
-    if model.n_inputs() == 3 && cv.is_none() {
+    if model.n_inputs() == 3 && !polach && cv.is_none() {
         bail!("{file}: line 1: this model takes speed as a third input: add a column v_mps");
     }
-    let mut out = String::new();
-    out.push_str(if cv.is_some() {
-        "dv_mps,ddv_mps2,v_mps,mu\n"
-    } else {
-        "dv_mps,ddv_mps2,mu\n"
-    });
+    let ct = col(railgrip::model::polach::TEMPERATURE_INPUT);
+    // Echo the input columns used, then mu.
+    let used: Vec<(usize, &str)> = [
+        (Some(cdv), "dv_mps"),
+        (cddv, "ddv_mps2"),
+        (cv, "v_mps"),
+        (ct, railgrip::model::polach::TEMPERATURE_INPUT),
+    ]
+    .into_iter()
+    .filter_map(|(c, n)| c.map(|c| (c, n)))
+    .collect();
+    let mut out = used.iter().map(|u| u.1).collect::<Vec<_>>().join(",");
+    out.push_str(",mu\n");
     for (n, line) in lines.enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -282,18 +358,27 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<u8> {
             }
             Ok(x)
         };
-        let dv = num(cdv, "dv_mps")?;
-        let ddv = num(cddv, "ddv_mps2")?;
-        match cv {
-            Some(c) => {
-                let v = num(c, "v_mps")?;
-                out.push_str(&format!(
-                    "{dv:?},{ddv:?},{v:?},{:?}\n",
-                    model.mu_v(dv, ddv, v)
-                ));
+        let mut vals = [0.0, 0.0, f64::NAN, f64::NAN];
+        for (slot, (c, name)) in [
+            (Some(cdv), "dv_mps"),
+            (cddv, "ddv_mps2"),
+            (cv, "v_mps"),
+            (ct, railgrip::model::polach::TEMPERATURE_INPUT),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if let Some(c) = c {
+                vals[slot] = num(c, name)?;
             }
-            None => out.push_str(&format!("{dv:?},{ddv:?},{:?}\n", model.mu(dv, ddv))),
         }
+        let [dv, ddv, v, t] = vals;
+        let mu = model.mu_vt(dv, ddv, v, t);
+        let row: Vec<String> = used
+            .iter()
+            .map(|(c, _)| cells.get(*c).copied().unwrap_or("").to_string())
+            .collect();
+        out.push_str(&format!("{},{mu:?}\n", row.join(",")));
     }
     railgrip::atomic::write_atomically(&args.output, |w| w.write_all(out.as_bytes()))
         .with_context(|| format!("{}: cannot write", args.output.display()))?;

@@ -154,6 +154,9 @@ pub struct PolachFit {
     pub rmse: f64,
     /// Ambient temperature of the group, °C (when known).
     pub ambient_temperature_c: Option<f64>,
+    /// Levenberg–Marquardt iterations and why it stopped.
+    pub iterations: usize,
+    pub stop_reason: String,
 }
 
 impl PolachFit {
@@ -217,6 +220,11 @@ pub fn fit_polach(
     let (solver, problem) = lm::run(problem, LevenbergMarquardt::new(settings), theta0)
         .map_err(|e| IdentifyError::Solver(e.to_string()))?;
     let theta = solver.best().expect("solver ran").to_vec();
+    let iterations = solver.history().len();
+    let stop_reason = solver
+        .stop_reason()
+        .map(|r| r.text().to_string())
+        .unwrap_or_else(|| "iteration limit".into());
     let (j, r) = problem.jacobian(&theta);
     let n = r.len();
     let sse: f64 = r.iter().map(|x| x * x).sum();
@@ -267,6 +275,8 @@ pub fn fit_polach(
         effective_samples: n_eff,
         rmse: (sse / n as f64).sqrt(),
         ambient_temperature_c: None,
+        iterations,
+        stop_reason,
     })
 }
 
@@ -386,6 +396,11 @@ pub struct PolachReport {
     /// static wheel load Q (N) it was computed for.
     pub patch: [f64; 5],
     pub wheel_load_n: f64,
+    /// All runs pooled: the parameters of the campaign's `polach` model file.
+    pub pooled: Option<PolachFit>,
+    /// Slip and speed ranges of the samples with slip (m/s): the model's domain.
+    pub dv_range_mps: (f64, f64),
+    pub v_range_mps: (f64, f64),
     pub per_run: Vec<PolachFit>,
     pub per_temperature: Vec<PolachFit>,
     /// k_A(T), k_S(T); absent with fewer than two temperatures.
@@ -411,6 +426,24 @@ pub fn fit_campaign(
         k_s: 0.1,
     };
     let mut notes = Vec::new();
+    let all: Vec<&RunTable> = tables.iter().collect();
+    let pooled = match fit_polach("all runs", &all, patch, q_n, decimate, start) {
+        Ok(f) => Some(f),
+        Err(e) => {
+            notes.push(e.to_string());
+            None
+        }
+    };
+    let pooled_samples = samples(&all, q_n, decimate);
+    let range = |f: fn(&Sample) -> f64| {
+        pooled_samples
+            .iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
     let mut per_run = Vec::new();
     for t in tables {
         match fit_polach(&t.name, &[t], patch, q_n, decimate, start) {
@@ -458,6 +491,9 @@ pub fn fit_campaign(
             version: 1,
             patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
             wheel_load_n: q_n,
+            pooled,
+            dv_range_mps,
+            v_range_mps,
             per_run,
             per_temperature,
             temperature,

@@ -20,6 +20,7 @@
 //!    to the network at Δv_b: μ = w N(Δv, …) + (1 − w) μ_lin. Continuous in every input.
 
 pub mod c_header;
+pub mod polach;
 
 use std::path::Path;
 
@@ -102,6 +103,7 @@ pub enum ModelError {
 #[serde(rename_all = "snake_case")]
 pub enum ModelKind {
     Mlp,
+    Polach,
 }
 
 /// One input of the model.
@@ -200,12 +202,22 @@ pub struct ModelFile {
     pub kind: ModelKind,
     pub inputs: Vec<InputSpec>,
     pub output: OutputSpec,
-    /// What the evaluator does with inputs outside the domain: `clamp`.
+    /// What the evaluator does with inputs outside the domain: `clamp` (mlp) or `law`
+    /// (polach: Δv and v by the physical law, temperature clamped; see [`polach`]).
     pub outside_domain: String,
+    /// kind mlp: the hidden (tanh) and output (linear) layers.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub layers: Vec<Layer>,
-    pub creep: CreepSpec,
+    /// kind mlp: the linear creep region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creep: Option<CreepSpec>,
+    /// kind polach: parameters, contact patch and temperature law.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polach: Option<polach::PolachSpec>,
     pub provenance: Provenance,
     pub metrics: Metrics,
+    /// Training history per epoch (kind mlp; empty for polach).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub history: Vec<Epoch>,
 }
 
@@ -254,7 +266,8 @@ impl ModelFile {
             },
             outside_domain: "clamp".into(),
             layers: vec![hidden, out],
-            creep,
+            creep: Some(creep),
+            polach: None,
             provenance,
             metrics: Metrics {
                 train_samples: t.n_train,
@@ -323,6 +336,19 @@ impl ModelFile {
 
     /// Shapes, names and numbers are consistent and finite.
     fn check(&self) -> Result<(), String> {
+        match self.kind {
+            ModelKind::Mlp => self.check_mlp(),
+            ModelKind::Polach => polach::check(self),
+        }
+    }
+
+    fn check_mlp(&self) -> Result<(), String> {
+        if self.polach.is_some() {
+            return Err("kind mlp has no \"polach\" section".into());
+        }
+        let Some(c) = &self.creep else {
+            return Err("kind mlp needs a \"creep\" section".into());
+        };
         let k = self.inputs.len();
         let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
         if names != ["dv_mps", "ddv_mps2"] && names != ["dv_mps", "ddv_mps2", "v_mps"] {
@@ -372,7 +398,6 @@ impl ModelFile {
             }
         }
         nums.extend([self.output.norm_min, self.output.norm_max]);
-        let c = &self.creep;
         nums.extend([
             c.blend_mps,
             c.creep_stiffness_n,
@@ -457,6 +482,139 @@ fn gain_offset(min: f64, max: f64) -> (f64, f64) {
 #[derive(Debug, Clone)]
 pub struct Model {
     pub file: ModelFile,
+    law: Law,
+}
+
+/// The evaluator of each kind.
+#[derive(Debug, Clone)]
+enum Law {
+    Mlp(Net),
+    Polach(polach::PolachEval),
+}
+
+impl Model {
+    /// Checks `file` and prepares its evaluator.
+    pub fn new(file: ModelFile) -> Result<Model, ModelError> {
+        file.check().map_err(|message| ModelError::Invalid {
+            file: "model".into(),
+            message,
+            hint: "build model files with ModelFile::from_trained or ModelFile::from_polach".into(),
+        })?;
+        Ok(Model::checked(file))
+    }
+
+    /// Reads and checks a model file.
+    pub fn load(path: &Path) -> Result<Model, ModelError> {
+        Ok(Model::checked(ModelFile::read(path)?))
+    }
+
+    fn checked(file: ModelFile) -> Model {
+        let law = match file.kind {
+            ModelKind::Mlp => Law::Mlp(Net::new(&file)),
+            ModelKind::Polach => Law::Polach(polach::PolachEval::new(&file)),
+        };
+        Model { file, law }
+    }
+
+    /// Number of inputs.
+    pub fn n_inputs(&self) -> usize {
+        self.file.inputs.len()
+    }
+
+    /// μ at slip `dv_mps` (m/s), slip rate `ddv_mps2` (m/s²) and speed `v_mps` (m/s; used as
+    /// the third input of 3-input networks, for the creep slope and for Polach's creepage;
+    /// NaN → the reference speed). Non-finite Δv or dΔv/dt give NaN (Polach models ignore
+    /// dΔv/dt).
+    #[inline]
+    pub fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        match &self.law {
+            Law::Mlp(n) => n.mu_v(dv_mps, ddv_mps2, v_mps),
+            Law::Polach(p) => p.mu_vt(dv_mps, ddv_mps2, v_mps, f64::NAN),
+        }
+    }
+
+    /// [`Model::mu_v`] at ambient temperature `t_c` (°C): Polach models with a temperature law
+    /// use k_A(T), k_S(T) with T clamped to the fitted range (NaN → the base k_A, k_S); other
+    /// models ignore it.
+    #[inline]
+    pub fn mu_vt(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> f64 {
+        match &self.law {
+            Law::Mlp(n) => n.mu_v(dv_mps, ddv_mps2, v_mps),
+            Law::Polach(p) => p.mu_vt(dv_mps, ddv_mps2, v_mps, t_c),
+        }
+    }
+
+    /// μ(Δv, dΔv/dt) at the reference speed for models that need a speed.
+    #[inline]
+    pub fn mu(&self, dv_mps: f64, ddv_mps2: f64) -> f64 {
+        self.mu_v(dv_mps, ddv_mps2, f64::NAN)
+    }
+
+    /// Batch evaluation into `out` (same length as the inputs); `v_mps` may be empty (the
+    /// reference speed). Networks run vectorised across samples, blocks of [`LANES`], with
+    /// the widest SIMD the CPU offers (AVX-512F, AVX2 or the baseline SSE2, chosen at run
+    /// time); every lane performs the same IEEE operations as [`Model::mu_v`], so the results
+    /// are identical (tested), whatever the path.
+    pub fn mu_batch(&self, dv_mps: &[f64], ddv_mps2: &[f64], v_mps: &[f64], out: &mut [f64]) {
+        assert!(dv_mps.len() == ddv_mps2.len() && out.len() == dv_mps.len());
+        assert!(v_mps.is_empty() || v_mps.len() == dv_mps.len());
+        match &self.law {
+            Law::Mlp(n) => n.mu_batch(dv_mps, ddv_mps2, v_mps, out),
+            Law::Polach(p) => {
+                for (i, o) in out.iter_mut().enumerate() {
+                    let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
+                    *o = p.mu_vt(dv_mps[i], ddv_mps2[i], v, f64::NAN);
+                }
+            }
+        }
+    }
+
+    /// True when every input lies in the domain seen in training (for Polach models: Δv and
+    /// v in the fitted ranges).
+    pub fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+        match &self.law {
+            Law::Mlp(n) => n.in_domain(dv_mps, ddv_mps2, v_mps),
+            Law::Polach(p) => p.in_domain(dv_mps, v_mps),
+        }
+    }
+
+    /// The model at a fixed ambient temperature (°C): a Polach model with a temperature law
+    /// with k_A, k_S replaced by k_A(T), k_S(T). Errors for other models and for T outside
+    /// the fitted range.
+    pub fn at_temperature(&self, t_c: f64) -> Result<Model, ModelError> {
+        let bad = |message: String, hint: &str| ModelError::Invalid {
+            file: "model".into(),
+            message,
+            hint: hint.into(),
+        };
+        let Law::Polach(p) = &self.law else {
+            return Err(bad(
+                "this model has no temperature law (only Polach models fitted at two or more ambient temperatures have one)".into(),
+                "drop the temperature dependence or use the .polach.json model of a campaign with several ambient temperatures",
+            ));
+        };
+        let law = p.at_temperature(t_c).map_err(|e| {
+            bad(
+                e,
+                "stay inside the temperature range the law was fitted over",
+            )
+        })?;
+        let mut file = self.file.clone();
+        if let Some(s) = file.polach.as_mut() {
+            (s.k_a, s.k_s) = law.k();
+            s.temperature = None;
+        }
+        file.inputs.retain(|i| i.name != polach::TEMPERATURE_INPUT);
+        Ok(Model {
+            file,
+            law: Law::Polach(law),
+        })
+    }
+}
+
+/// The network evaluator (kind mlp).
+#[derive(Debug, Clone)]
+struct Net {
     k: usize,
     lo: [f64; 3],
     hi: [f64; 3],
@@ -549,9 +707,13 @@ fn she(x: f64) -> f64 {
     }
 }
 
-impl Model {
-    pub fn new(file: ModelFile) -> Model {
+impl Net {
+    fn new(file: &ModelFile) -> Net {
         let k = file.inputs.len();
+        let creep = file
+            .creep
+            .as_ref()
+            .expect("checked: kind mlp has a creep section");
         let Scaling {
             lo,
             hi,
@@ -570,7 +732,7 @@ impl Model {
             p.resize(pad, 0.0);
             p
         };
-        Model {
+        Net {
             k,
             lo,
             hi,
@@ -584,21 +746,10 @@ impl Model {
             b2: o.biases[0],
             gy,
             oy,
-            blend: file.creep.blend_mps,
-            creep_per_creepage: file.creep.creep_stiffness_n / file.creep.wheel_load_n,
-            v_ref: file.creep.reference_speed_mps,
-            file,
+            blend: creep.blend_mps,
+            creep_per_creepage: creep.creep_stiffness_n / creep.wheel_load_n,
+            v_ref: creep.reference_speed_mps,
         }
-    }
-
-    /// Reads and checks a model file.
-    pub fn load(path: &Path) -> Result<Model, ModelError> {
-        Ok(Model::new(ModelFile::read(path)?))
-    }
-
-    /// Number of inputs (2 or 3).
-    pub fn n_inputs(&self) -> usize {
-        self.k
     }
 
     /// The network alone at physical inputs (clamped to the domain). The hidden layer runs in
@@ -637,11 +788,9 @@ impl Model {
         (y - self.oy) / self.gy
     }
 
-    /// μ at slip `dv_mps` (m/s), slip rate `ddv_mps2` (m/s²) and speed `v_mps` (m/s; used as
-    /// the third input of 3-input models and for the creep slope; NaN → the reference speed).
-    /// Non-finite Δv or dΔv/dt give NaN.
+    /// [`Model::mu_v`] of the network: AVX2 when the CPU has it, else the portable path.
     #[inline]
-    pub fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+    fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: AVX2 was just detected on this CPU.
@@ -686,20 +835,8 @@ impl Model {
         s * (w * net + (1.0 - w) * lin)
     }
 
-    /// μ(Δv, dΔv/dt) of a two-input model (3-input models use their reference speed).
-    #[inline]
-    pub fn mu(&self, dv_mps: f64, ddv_mps2: f64) -> f64 {
-        self.mu_v(dv_mps, ddv_mps2, f64::NAN)
-    }
-
-    /// Batch evaluation into `out` (same length as the inputs); `v_mps` may be empty for
-    /// two-input models. Vectorised across samples, blocks of [`LANES`], with the widest SIMD
-    /// the CPU offers (AVX-512F, AVX2 or the baseline SSE2, chosen at run time); every lane
-    /// performs the same IEEE operations as [`Model::mu_v`], so the results are identical
-    /// (tested), whatever the path.
-    pub fn mu_batch(&self, dv_mps: &[f64], ddv_mps2: &[f64], v_mps: &[f64], out: &mut [f64]) {
-        assert!(dv_mps.len() == ddv_mps2.len() && out.len() == dv_mps.len());
-        assert!(v_mps.is_empty() || v_mps.len() == dv_mps.len());
+    /// [`Model::mu_batch`] of the network.
+    fn mu_batch(&self, dv_mps: &[f64], ddv_mps2: &[f64], v_mps: &[f64], out: &mut [f64]) {
         let n = out.len();
         let full = n - n % LANES;
         let simd = Simd::detect();
@@ -800,8 +937,7 @@ impl Model {
         }
     }
 
-    /// True when every input lies in the domain seen in training.
-    pub fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+    fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
         let x = [
             dv_mps.abs(),
             if dv_mps < 0.0 { -ddv_mps2 } else { ddv_mps2 },
@@ -818,11 +954,14 @@ mod tests {
     #[test]
     fn dispatched_single_call_equals_the_portable_path_bit_for_bit() {
         let text = include_str!("../../models/golden/synthetic_mlp.json");
-        let m = Model::new(ModelFile::from_json(text, "golden").unwrap());
+        let m = Model::new(ModelFile::from_json(text, "golden").unwrap()).unwrap();
+        let Law::Mlp(net) = &m.law else {
+            panic!("the golden model is a network")
+        };
         for i in 0..400 {
             let dv = -4.5 + 0.0225 * i as f64;
             for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
-                let (a, b) = (m.mu(dv, ddv), m.mu_v_impl(dv, ddv, f64::NAN));
+                let (a, b) = (m.mu(dv, ddv), net.mu_v_impl(dv, ddv, f64::NAN));
                 assert_eq!(a.to_bits(), b.to_bits(), "({dv}, {ddv})");
             }
         }

@@ -228,10 +228,11 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let model = match &sc.law {
         AdhesionLaw::Polach => None,
         AdhesionLaw::Model(path) => {
+            // `temperature` applies to a model with a temperature law (a campaign's Polach
+            // model); checked below when the model is loaded.
             let clash: Vec<&str> = [
                 Effect::FallingFriction,
                 Effect::Hysteresis,
-                Effect::Temperature,
                 Effect::Cleaning,
             ]
             .into_iter()
@@ -249,13 +250,21 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                         .into(),
                 });
             }
-            Some(
-                crate::model::Model::load(path).map_err(|e| SimError::Scene {
-                    scene: sc.name.clone(),
-                    what: format!("adhesion.model: {e}"),
-                    hint: "give a model file written by `railgrip train`".into(),
-                })?,
-            )
+            let m = crate::model::Model::load(path).map_err(|e| SimError::Scene {
+                scene: sc.name.clone(),
+                what: format!("adhesion.model: {e}"),
+                hint: "give a model file written by `railgrip train`".into(),
+            })?;
+            Some(if fx.has(Effect::Temperature) {
+                m.at_temperature(sc.ambient_temperature_c)
+                    .map_err(|e| SimError::Scene {
+                        scene: sc.name.clone(),
+                        what: format!("effect temperature with adhesion.model: {e}"),
+                        hint: "remove temperature from effects, or use a Polach model fitted at several ambient temperatures that cover run.ambient_temperature_c".into(),
+                    })?
+            } else {
+                m
+            })
         }
     };
     let veh = &sc.vehicle;

@@ -226,10 +226,12 @@ pub enum AdhesionLaw {
     /// the scene lists (falling friction and speed dependence, hysteresis, k(T), cleaning) —
     /// the truth law of the bundled archive.
     Polach,
-    /// A learned model file (`railgrip train`'s output, README "Model files"): μ(Δv, dΔv/dt[, v])
-    /// from the model's evaluator. The model carries the adhesion effects itself, so a scene
-    /// with it may not list falling_friction, hysteresis, temperature or cleaning. The path is
-    /// resolved against the scene file's folder.
+    /// A model file (`railgrip train`'s output, README "Model files", kind mlp or polach):
+    /// μ(Δv, dΔv/dt, v) from the model's evaluator. The model carries the adhesion effects
+    /// itself, so a scene with it may not list falling_friction, hysteresis or cleaning;
+    /// `temperature` is allowed for a Polach model with a temperature law and sets k_A(T),
+    /// k_S(T) at the scene's ambient temperature. The path is resolved against the scene
+    /// file's folder.
     Model(std::path::PathBuf),
 }
 
@@ -519,7 +521,8 @@ impl Scene {
             Some(20.0),
             "°C",
         )?;
-        if effects.has(Effect::Temperature) {
+        // With a learned model the model's own temperature law is checked when it is loaded.
+        if effects.has(Effect::Temperature) && !matches!(law, AdhesionLaw::Model(_)) {
             temperature_law.eval(ambient).map_err(|e| {
                 c.invalid(
                     "run.ambient_temperature_c",

@@ -1,0 +1,386 @@
+//! Model files of kind `polach`: Polach's creep-force law with falling friction (seed 004
+//! 004_7d175079b70fb95b.txt eq. 1–2; Polach, Wear 258 (2005) 992–1000) and, when fitted over
+//! several ambient temperatures, k_A(T) and k_S(T) (seed 004 eq. 3), as fitted by
+//! [`crate::identify::polach_fit`].
+//!
+//! Evaluation ([`super::Model::mu_vt`], and the C header step for step), μ = F/Q of one wheel:
+//! 1. w = |Δv| (m/s); w = 0 gives μ = 0. Speed v (m/s): NaN → the reference speed (median of the
+//!    fitted samples), below [`MIN_SPEED_MPS`] → that floor (the creepage w/v grows without
+//!    bound as v → 0 and μ tends to the friction coefficient; the floor keeps it finite).
+//! 2. k_A, k_S: the file's values, or with a temperature law and a finite T,
+//!    k(T) = Σ c_i T^i (Horner, T clamped to the fitted range).
+//! 3. μ_w = μ0 [(1 − A) e^(−B w) + A]; ε = K (w / v) / μ_w with K = π G a b c11 / (4 Q)
+//!    (eq. 2 with C = (3/8)(G/a) c11, the creepage s = w/v and the wheel load Q of the fit);
+//!    μ = sign(Δv) · (2 μ_w / π) [k_A ε / (1 + (k_A ε)²) + arctan(k_S ε)] (eq. 1).
+//!
+//! dΔv/dt is not an input of this law (it is accepted and ignored, so simulators call either
+//! kind the same way). Inputs outside the fitted domain are evaluated by the law
+//! (`outside_domain = "law"`), except the temperature, which is clamped.
+
+use std::f64::consts::PI;
+
+use serde::{Deserialize, Serialize};
+
+use super::{InputSpec, Metrics, ModelError, ModelFile, ModelKind, OutputSpec, Provenance};
+use crate::contact::polach::{ContactPatch, PolachParams};
+use crate::identify::polach_fit::{PolachFit, TemperatureFit};
+
+/// Name of the optional third input of a Polach model with a temperature law.
+pub const TEMPERATURE_INPUT: &str = "ambient_temperature_c";
+
+/// Speeds below this (m/s) are evaluated at this speed.
+pub const MIN_SPEED_MPS: f64 = 0.1;
+
+/// Points of the fitted temperature range at which a temperature law is checked to keep
+/// 0 < k_S(T) ≤ k_A(T) ≤ 1.
+const TEMPERATURE_CHECKS: usize = 1001;
+
+/// Parameters of a `polach` model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PolachSpec {
+    /// μ0, friction coefficient at zero slip velocity (–).
+    pub mu0: f64,
+    /// A = μ∞/μ0 (–).
+    pub a_ratio: f64,
+    /// B, exponential decrease of friction with slip velocity (s/m).
+    pub b_s_per_m: f64,
+    /// k_A, k_S: reduction factors in the areas of adhesion and slip (–).
+    pub k_a: f64,
+    pub k_s: f64,
+    /// Standard errors of (μ0, A, B, k_A, k_S) from the fit's covariance; null where a
+    /// parameter is not identifiable from the data.
+    pub standard_errors: [Option<f64>; 5],
+    /// The Hertz patch of one wheel at the static wheel load.
+    pub patch: PatchSpec,
+    /// Q, the static wheel load the fit used (N).
+    pub wheel_load_n: f64,
+    /// Speed used when the caller gives none (m/s).
+    pub reference_speed_mps: f64,
+    /// k_A(T), k_S(T) when fitted over two or more ambient temperatures.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<TemperatureSpec>,
+}
+
+/// Hertz + Kalker patch of one wheel.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PatchSpec {
+    /// Semi-axes, a in the rolling direction (m).
+    pub a_m: f64,
+    pub b_m: f64,
+    /// Shear modulus G (Pa).
+    pub shear_modulus_pa: f64,
+    /// Kalker's longitudinal coefficient c11 (–).
+    pub c11: f64,
+}
+
+/// k_A(T), k_S(T) as polynomials in the ambient temperature T (°C).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TemperatureSpec {
+    /// Coefficients in ascending powers of T (°C).
+    pub k_a: Vec<f64>,
+    pub k_s: Vec<f64>,
+    /// The temperatures the fit covers (°C); T outside is clamped to it.
+    pub fitted_range_c: [f64; 2],
+}
+
+impl ModelFile {
+    /// A `polach` model file from a campaign fit: `fit` gives μ0, A, B, k_A, k_S; `temperature`
+    /// (when present) k_A(T), k_S(T). `dv_range`, `v_range` are the slip and speed ranges of
+    /// the fitted samples (m/s), `v_ref` the speed for callers that give none (m/s).
+    #[allow(clippy::too_many_arguments)]
+    pub fn from_polach(
+        fit: &PolachFit,
+        patch: &ContactPatch,
+        wheel_load_n: f64,
+        temperature: Option<&TemperatureFit>,
+        dv_range: (f64, f64),
+        v_range: (f64, f64),
+        v_ref: f64,
+        provenance: Provenance,
+    ) -> Result<ModelFile, ModelError> {
+        let input = |name: &str, unit: &str, (lo, hi): (f64, f64)| InputSpec {
+            name: name.into(),
+            unit: unit.into(),
+            norm_min: lo,
+            norm_max: hi,
+            domain_min: lo,
+            domain_max: hi,
+        };
+        let mut inputs = vec![
+            input("dv_mps", "m/s", dv_range),
+            input("v_mps", "m/s", v_range),
+        ];
+        let temperature = temperature.map(|t| TemperatureSpec {
+            k_a: t.k_a.clone(),
+            k_s: t.k_s.clone(),
+            fitted_range_c: [t.fitted_range_c.0, t.fitted_range_c.1],
+        });
+        if let Some(t) = &temperature {
+            inputs.push(input(
+                TEMPERATURE_INPUT,
+                "°C",
+                (t.fitted_range_c[0], t.fitted_range_c[1]),
+            ));
+        }
+        let file = ModelFile {
+            format: super::FORMAT_ID.into(),
+            version: super::FORMAT_VERSION,
+            kind: ModelKind::Polach,
+            inputs,
+            output: OutputSpec {
+                name: "mu".into(),
+                unit: "1".into(),
+                norm_min: 0.0,
+                norm_max: 1.0,
+            },
+            outside_domain: "law".into(),
+            layers: vec![],
+            creep: None,
+            polach: Some(PolachSpec {
+                mu0: fit.mu0,
+                a_ratio: fit.a_ratio,
+                b_s_per_m: fit.b_s_per_m,
+                k_a: fit.k_a,
+                k_s: fit.k_s,
+                standard_errors: fit.se.map(|e| e.is_finite().then_some(e)),
+                patch: PatchSpec {
+                    a_m: patch.a_m,
+                    b_m: patch.b_m,
+                    shear_modulus_pa: patch.g_pa,
+                    c11: patch.c11,
+                },
+                wheel_load_n,
+                reference_speed_mps: v_ref,
+                temperature,
+            }),
+            provenance,
+            metrics: Metrics {
+                train_samples: fit.samples,
+                val_samples: 0,
+                train_mse: fit.rmse * fit.rmse,
+                val_mse: None,
+                epochs: fit.iterations,
+                stop_reason: fit.stop_reason.clone(),
+            },
+            history: vec![],
+        };
+        check(&file).map_err(|message| ModelError::Invalid {
+            file: fit.group.clone(),
+            message,
+            hint: "the Polach fit left its valid domain; check the estimates it was fitted to"
+                .into(),
+        })?;
+        Ok(file)
+    }
+}
+
+/// Evaluates a polynomial with coefficients in ascending powers by Horner's rule.
+#[inline]
+fn horner(c: &[f64], t: f64) -> f64 {
+    c.iter().rev().fold(0.0, |acc, ci| acc * t + ci)
+}
+
+/// Checks a `polach` model file: names, sections, parameter domain, and that a temperature
+/// law keeps 0 < k_S ≤ k_A ≤ 1 over its range.
+pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
+    let Some(p) = &m.polach else {
+        return Err("kind polach needs a \"polach\" section".into());
+    };
+    if !m.layers.is_empty() || m.creep.is_some() || !m.history.is_empty() {
+        return Err("kind polach has no layers, creep or history".into());
+    }
+    let names: Vec<&str> = m.inputs.iter().map(|i| i.name.as_str()).collect();
+    let expected: &[&str] = if p.temperature.is_some() {
+        &["dv_mps", "v_mps", TEMPERATURE_INPUT]
+    } else {
+        &["dv_mps", "v_mps"]
+    };
+    if names != expected {
+        return Err(format!(
+            "inputs {names:?} are not {expected:?} (a temperature input goes with a temperature law)"
+        ));
+    }
+    if m.outside_domain != "law" {
+        return Err(format!(
+            "outside_domain \"{}\" is not \"law\" (kind polach)",
+            m.outside_domain
+        ));
+    }
+    for i in &m.inputs {
+        let all = [i.norm_min, i.norm_max, i.domain_min, i.domain_max];
+        if all.iter().any(|v| !v.is_finite()) || i.domain_min > i.domain_max {
+            return Err(format!(
+                "input {}: range not finite or min above max",
+                i.name
+            ));
+        }
+    }
+    PolachParams {
+        mu0: p.mu0,
+        a_ratio: p.a_ratio,
+        b_s_per_m: p.b_s_per_m,
+        k_a: p.k_a,
+        k_s: p.k_s,
+    }
+    .check()
+    .map_err(|e| format!("polach: {e}"))?;
+    let pt = &p.patch;
+    for (what, x) in [
+        ("patch.a_m", pt.a_m),
+        ("patch.b_m", pt.b_m),
+        ("patch.shear_modulus_pa", pt.shear_modulus_pa),
+        ("patch.c11", pt.c11),
+        ("wheel_load_n", p.wheel_load_n),
+        ("reference_speed_mps", p.reference_speed_mps),
+    ] {
+        if !(x.is_finite() && x > 0.0) {
+            return Err(format!("polach.{what} = {x} must be finite and > 0"));
+        }
+    }
+    if p.standard_errors
+        .iter()
+        .flatten()
+        .any(|s| !(s.is_finite() && *s >= 0.0))
+    {
+        return Err("polach.standard_errors must be finite and >= 0 (or null)".into());
+    }
+    if let Some(t) = &p.temperature {
+        let [lo, hi] = t.fitted_range_c;
+        if t.k_a.is_empty()
+            || t.k_s.is_empty()
+            || t.k_a.iter().chain(&t.k_s).any(|c| !c.is_finite())
+            || !(lo.is_finite() && hi.is_finite() && lo <= hi)
+        {
+            return Err("polach.temperature: coefficients or fitted range not finite".into());
+        }
+        let dom = &m.inputs[2];
+        if dom.domain_min != lo || dom.domain_max != hi {
+            return Err(format!(
+                "input {TEMPERATURE_INPUT}: domain differs from polach.temperature.fitted_range_c"
+            ));
+        }
+        for i in 0..TEMPERATURE_CHECKS {
+            let temp = lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64;
+            let (ka, ks) = (horner(&t.k_a, temp), horner(&t.k_s, temp));
+            if !(ka > 0.0 && ka <= 1.0 && ks > 0.0 && ks <= ka) {
+                return Err(format!(
+                    "polach.temperature: at {temp:.2} °C k_A = {ka:.4}, k_S = {ks:.4} leave 0 < k_S <= k_A <= 1"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The evaluator of a `polach` model.
+#[derive(Debug, Clone)]
+pub(crate) struct PolachEval {
+    mu0: f64,
+    a_ratio: f64,
+    b: f64,
+    k_a: f64,
+    k_s: f64,
+    /// K = π G a b c11 / (4 Q): ε = K s / μ_w.
+    stiffness: f64,
+    v_ref: f64,
+    /// Fitted Δv and v ranges (m/s), for [`super::Model::in_domain`].
+    dv: (f64, f64),
+    v: (f64, f64),
+    temperature: Option<(Vec<f64>, Vec<f64>, f64, f64)>,
+}
+
+impl PolachEval {
+    /// From a checked file.
+    pub(crate) fn new(m: &ModelFile) -> PolachEval {
+        let p = m
+            .polach
+            .as_ref()
+            .expect("checked: kind polach has a polach section");
+        PolachEval {
+            mu0: p.mu0,
+            a_ratio: p.a_ratio,
+            b: p.b_s_per_m,
+            k_a: p.k_a,
+            k_s: p.k_s,
+            stiffness: stiffness(p),
+            v_ref: p.reference_speed_mps,
+            dv: (m.inputs[0].domain_min, m.inputs[0].domain_max),
+            v: (m.inputs[1].domain_min, m.inputs[1].domain_max),
+            temperature: p.temperature.as_ref().map(|t| {
+                (
+                    t.k_a.clone(),
+                    t.k_s.clone(),
+                    t.fitted_range_c[0],
+                    t.fitted_range_c[1],
+                )
+            }),
+        }
+    }
+
+    /// μ at slip `dv` (m/s), speed `v` (m/s) and ambient temperature `t_c` (°C); see the
+    /// module documentation.
+    #[inline]
+    pub(crate) fn mu_vt(&self, dv: f64, ddv: f64, v: f64, t_c: f64) -> f64 {
+        if !(dv.is_finite() && ddv.is_finite()) {
+            return f64::NAN;
+        }
+        let (ka, ks) = match &self.temperature {
+            Some((ca, cs, lo, hi)) if t_c.is_finite() => {
+                let t = t_c.clamp(*lo, *hi);
+                (horner(ca, t), horner(cs, t))
+            }
+            _ => (self.k_a, self.k_s),
+        };
+        let v = if v.is_finite() {
+            v.max(MIN_SPEED_MPS)
+        } else {
+            self.v_ref
+        };
+        let w = dv.abs();
+        if w == 0.0 {
+            return 0.0;
+        }
+        let mu_w = self.mu0 * ((1.0 - self.a_ratio) * (-self.b * w).exp() + self.a_ratio);
+        let eps = self.stiffness * (w / v) / mu_w;
+        let x = ka * eps;
+        let f = 2.0 * mu_w / PI * (x / (1.0 + x * x) + (ks * eps).atan());
+        f.copysign(dv)
+    }
+
+    pub(crate) fn in_domain(&self, dv: f64, v: f64) -> bool {
+        let w = dv.abs();
+        w >= self.dv.0 && w <= self.dv.1 && v >= self.v.0 && v <= self.v.1
+    }
+
+    /// This evaluator with k_A, k_S fixed at k(T); T must lie in the fitted range.
+    pub(crate) fn at_temperature(&self, t_c: f64) -> Result<PolachEval, String> {
+        let Some((ca, cs, lo, hi)) = &self.temperature else {
+            return Err("this Polach model has no temperature law (it was fitted at fewer than two ambient temperatures)".into());
+        };
+        if !(t_c >= *lo && t_c <= *hi) {
+            return Err(format!(
+                "ambient temperature {t_c} °C is outside the range the temperature law was fitted over, {lo} … {hi} °C"
+            ));
+        }
+        Ok(PolachEval {
+            k_a: horner(ca, t_c),
+            k_s: horner(cs, t_c),
+            temperature: None,
+            ..self.clone()
+        })
+    }
+
+    /// (k_A, k_S) in use without a temperature.
+    pub(crate) fn k(&self) -> (f64, f64) {
+        (self.k_a, self.k_s)
+    }
+}
+
+/// K = π G a b c11 / (4 Q) of a spec, the same operations in Rust and C.
+pub(crate) fn stiffness(p: &PolachSpec) -> f64 {
+    let pt = &p.patch;
+    PI * pt.shear_modulus_pa * pt.a_m * pt.b_m * pt.c11 / (4.0 * p.wheel_load_n)
+}
