@@ -1,13 +1,13 @@
 //! `railgrip train`, `railgrip export`, `railgrip eval`.
 
 use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::{bail, Context};
+use railgrip::identify::campaign::train_models;
 use railgrip::identify::dataset::sha256_file;
-use railgrip::identify::train::{creep_spec, median_speed, train_mlp, utc_now_rfc3339};
 use railgrip::identify::RunTable;
-use railgrip::model::{c_header, InputFile, Model, ModelFile, Provenance};
+use railgrip::model::{c_header, Model, ModelFile};
 use rayon::prelude::*;
 
 use super::{PipelineArg, EXIT_OK};
@@ -64,25 +64,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         );
     }
     let pipeline = args.pipeline.load()?;
-    let choice = railgrip::identify::train::select_condition(
-        load_tables(&args.inputs, &pipeline)?,
-        pipeline.train.condition.as_deref(),
-    )?;
-    let tables = choice.used;
-    let samples: usize = tables.iter().map(|t| t.len()).sum();
-    eprintln!(
-        "data       {} run(s) on {} rail, {} valid samples; [train] split {:?}, decimate {}",
-        tables.len(),
-        choice.condition,
-        samples,
-        pipeline.train.split,
-        pipeline.train.decimate
-    );
-    for (run, condition) in &choice.skipped {
-        eprintln!(
-            "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
-        );
-    }
+    let tables = load_tables(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
     let progress: Box<dyn FnMut(&railgrip::identify::lm::Epoch) + Send> = Box::new(move |e| {
         if !quiet {
@@ -92,76 +74,26 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             );
         }
     });
-    let trained = train_mlp(&tables, &pipeline.train, Some(progress))?;
-    let mut trained = trained;
-    trained.reference_speed_mps = median_speed(&tables);
-    let creep = creep_spec(&pipeline, trained.reference_speed_mps)?;
-    let provenance = Provenance {
-        inputs: tables
-            .iter()
-            .map(|t| InputFile {
-                path: t.source.clone(),
-                sha256: t.sha256.clone(),
-            })
-            .collect(),
-        pipeline: pipeline.source.clone(),
-        pipeline_sha256: railgrip::identify::dataset::sha256_bytes(pipeline.text.as_bytes()),
-        seed: pipeline.train.seed,
-        crate_version: env!("CARGO_PKG_VERSION").into(),
-        created: utc_now_rfc3339(),
-    };
-    let file = ModelFile::from_trained(&trained, creep, provenance.clone());
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the output directory", args.out.display()))?;
-    let path = args.out.join(format!("{}.json", args.name));
-    file.write(&path)?;
-    let hist = args.out.join(format!("{}.history.csv", args.name));
-    write_history(&hist, &trained.history)?;
-    // Polach fits per run and temperature, and k(T).
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&pipeline)?;
-    let (report, notes) = railgrip::identify::polach_fit::fit_campaign(
-        &tables,
-        patch,
-        q,
-        pipeline.train.decimate,
-        pipeline.train.temperature_degree,
+    let models = train_models(tables, &pipeline, Some(progress))?;
+    eprintln!(
+        "data       {} run(s) on {} rail, {} valid samples; [train] split {:?}, decimate {}",
+        models.runs,
+        models.condition,
+        models.samples,
+        pipeline.train.split,
+        pipeline.train.decimate
     );
-    let mut notes = notes;
-    let fits_path = args.out.join(format!("{}.polach-fits.json", args.name));
-    let text = serde_json::to_string_pretty(&report)? + "\n";
-    railgrip::atomic::write_atomically(&fits_path, |w| w.write_all(text.as_bytes()))
-        .with_context(|| format!("{}: cannot write", fits_path.display()))?;
-    // The campaign's Polach model file: the pooled fit with k(T) when there is one.
-    let polach_path = args.out.join(format!("{}.polach.json", args.name));
-    let polach_model = report.pooled.as_ref().map(|pooled| {
-        let make = |t| {
-            ModelFile::from_polach(
-                pooled,
-                &patch,
-                q,
-                t,
-                report.dv_range_mps,
-                report.v_range_mps,
-                trained.reference_speed_mps,
-                provenance.clone(),
-            )
-        };
-        make(report.temperature.as_ref()).or_else(|e| {
-            notes.push(format!("Polach model written without k(T): {e}"));
-            make(None)
-        })
-    });
-    let polach_written = match polach_model {
-        Some(Ok(m)) => {
-            m.write(&polach_path)?;
-            true
-        }
-        Some(Err(e)) => {
-            notes.push(format!("no Polach model file: {e}"));
-            false
-        }
-        None => false,
-    };
+    for (run, condition) in &models.skipped {
+        eprintln!(
+            "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
+        );
+    }
+    let written = models
+        .write(&args.out, &args.name, false)
+        .with_context(|| format!("{}: cannot write the models", args.out.display()))?;
+    let trained = &models.trained;
+    let report = &models.polach_fits;
+    let notes = &models.notes;
     println!(
         "model      {} inputs, {} hidden tanh neurons, {} parameters",
         trained.shape.inputs,
@@ -213,28 +145,13 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         ),
         None => println!("k(T)       not fitted: {}", report.temperature_note.clone().unwrap_or_default()),
     }
-    for n in &notes {
+    for n in notes {
         println!("warning    {n}");
     }
-    println!("wrote      {}", path.display());
-    println!("wrote      {}", hist.display());
-    if polach_written {
-        println!("wrote      {}", polach_path.display());
+    for p in written {
+        println!("wrote      {}", p.display());
     }
-    println!("wrote      {}", fits_path.display());
     Ok(EXIT_OK)
-}
-
-fn write_history(path: &Path, h: &[railgrip::identify::lm::Epoch]) -> anyhow::Result<()> {
-    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s\n");
-    for e in h {
-        text.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?},{:?}\n",
-            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
-        ));
-    }
-    railgrip::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
-        .with_context(|| format!("{}: cannot write", path.display()))
 }
 
 #[derive(clap::Args)]

@@ -5,6 +5,7 @@
 //! analytic Jacobian, [`lm`] the trainlm-style solver (an argmin `Solver`), and [`train`] ties
 //! them together.
 
+pub mod campaign;
 pub mod dataset;
 pub mod lm;
 pub mod mlp;

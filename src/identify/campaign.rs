@@ -1,0 +1,175 @@
+//! A campaign's models from its run tables: one rail condition selected, the seed 002 network
+//! trained, Polach fits (pooled, per run, per temperature) and k(T), and the model files built —
+//! shared by `railgrip train` and `railgrip run`.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use super::dataset::{sha256_bytes, RunTable};
+use super::lm::Epoch;
+use super::polach_fit::{fit_campaign, PolachReport};
+use super::train::{
+    creep_spec, median_speed, pipeline_patch, select_condition, train_mlp, utc_now_rfc3339,
+    TrainedMlp,
+};
+use super::IdentifyError;
+use crate::model::{c_header, InputFile, ModelFile, Provenance};
+use crate::Pipeline;
+
+/// Everything trained from a campaign.
+#[derive(Debug)]
+pub struct CampaignModels {
+    /// The rail condition that trained the models, and the runs left out with theirs.
+    pub condition: String,
+    pub skipped: Vec<(String, String)>,
+    /// Runs and valid samples used.
+    pub runs: usize,
+    pub samples: usize,
+    pub trained: TrainedMlp,
+    /// Kind mlp.
+    pub mlp: ModelFile,
+    pub polach_fits: PolachReport,
+    /// Kind polach (pooled fit, with k(T) when it passed its checks); None when the pooled fit
+    /// failed.
+    pub polach: Option<ModelFile>,
+    /// Fits that failed, k(T) left out, and why.
+    pub notes: Vec<String>,
+}
+
+/// Trains the campaign's models from `tables` with the pipeline's `[train]` settings;
+/// `progress` sees every epoch of the network's training.
+pub fn train_models(
+    tables: Vec<RunTable>,
+    pipeline: &Pipeline,
+    progress: Option<Box<dyn FnMut(&Epoch) + Send>>,
+) -> Result<CampaignModels, IdentifyError> {
+    let choice = select_condition(tables, pipeline.train.condition.as_deref())?;
+    let tables = choice.used;
+    let samples = tables.iter().map(|t| t.len()).sum();
+    let mut trained = train_mlp(&tables, &pipeline.train, progress)?;
+    trained.reference_speed_mps = median_speed(&tables);
+    let creep = creep_spec(pipeline, trained.reference_speed_mps)?;
+    let provenance = Provenance {
+        inputs: tables
+            .iter()
+            .map(|t| InputFile {
+                path: t.source.clone(),
+                sha256: t.sha256.clone(),
+            })
+            .collect(),
+        pipeline: pipeline.source.clone(),
+        pipeline_sha256: sha256_bytes(pipeline.text.as_bytes()),
+        seed: pipeline.train.seed,
+        crate_version: env!("CARGO_PKG_VERSION").into(),
+        created: utc_now_rfc3339(),
+    };
+    let mlp = ModelFile::from_trained(&trained, creep, provenance.clone());
+    let (patch, q) = pipeline_patch(pipeline)?;
+    let (report, mut notes) = fit_campaign(
+        &tables,
+        patch,
+        q,
+        pipeline.train.decimate,
+        pipeline.train.temperature_degree,
+    );
+    let polach = match report.pooled.as_ref() {
+        None => None,
+        Some(pooled) => {
+            let make = |t| {
+                ModelFile::from_polach(
+                    pooled,
+                    &patch,
+                    q,
+                    t,
+                    report.dv_range_mps,
+                    report.v_range_mps,
+                    trained.reference_speed_mps,
+                    provenance.clone(),
+                )
+            };
+            match make(report.temperature.as_ref()) {
+                Ok(m) => Some(m),
+                Err(e) if report.temperature.is_some() => {
+                    notes.push(format!("Polach model written without k(T): {e}"));
+                    match make(None) {
+                        Ok(m) => Some(m),
+                        Err(e) => {
+                            notes.push(format!("no Polach model file: {e}"));
+                            None
+                        }
+                    }
+                }
+                Err(e) => {
+                    notes.push(format!("no Polach model file: {e}"));
+                    None
+                }
+            }
+        }
+    };
+    Ok(CampaignModels {
+        condition: choice.condition,
+        skipped: choice.skipped,
+        runs: tables.len(),
+        samples,
+        trained,
+        mlp,
+        polach_fits: report,
+        polach,
+        notes,
+    })
+}
+
+impl CampaignModels {
+    /// Writes, atomically, into `dir`: `<name>.json` (network), `<name>.history.csv`,
+    /// `<name>.polach.json` (when there is a Polach model), `<name>.polach-fits.json`, and with
+    /// `headers` the C headers `<name>.h` and `<name>.polach.h` (symbol prefixes `<name>` and
+    /// `<name>_polach`). Returns the paths written.
+    pub fn write(&self, dir: &Path, name: &str, headers: bool) -> std::io::Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir)?;
+        let mut written = Vec::new();
+        let mut put = |file: String, text: String| -> std::io::Result<()> {
+            let path = dir.join(file);
+            crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes()))?;
+            written.push(path);
+            Ok(())
+        };
+        put(format!("{name}.json"), self.mlp.to_json())?;
+        put(
+            format!("{name}.history.csv"),
+            history_csv(&self.trained.history),
+        )?;
+        if let Some(p) = &self.polach {
+            put(format!("{name}.polach.json"), p.to_json())?;
+        }
+        let fits =
+            serde_json::to_string_pretty(&self.polach_fits).map_err(std::io::Error::other)? + "\n";
+        put(format!("{name}.polach-fits.json"), fits)?;
+        if headers {
+            let source = format!("{name}.json");
+            put(
+                format!("{name}.h"),
+                c_header::c_header(&self.mlp, name, &source),
+            )?;
+            if let Some(p) = &self.polach {
+                let source = format!("{name}.polach.json");
+                put(
+                    format!("{name}.polach.h"),
+                    c_header::c_header(p, &format!("{name}_polach"), &source),
+                )?;
+            }
+        }
+        Ok(written)
+    }
+}
+
+/// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, elapsed_s.
+pub fn history_csv(h: &[Epoch]) -> String {
+    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s\n");
+    for e in h {
+        text.push_str(&format!(
+            "{},{:?},{:?},{:?},{:?},{:?}\n",
+            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
+        ));
+    }
+    text
+}
