@@ -66,7 +66,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
     let tables = load_tables(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
-    let progress: Box<dyn FnMut(&railgrip::identify::lm::Epoch) + Send> = Box::new(move |e| {
+    let progress: railgrip::identify::lm::Progress = Box::new(move |e| {
         if !quiet {
             eprintln!(
                 "epoch {:>4}  train MSE {:.4e}  val MSE {:.4e}  mu {:.1e}  |grad| {:.2e}  {:.2} s",

@@ -6,7 +6,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::dataset::{sha256_bytes, RunTable};
-use super::lm::Epoch;
+use super::lm::{Epoch, Progress};
 use super::polach_fit::{fit_campaign, PolachReport};
 use super::train::{
     creep_spec, median_speed, pipeline_patch, select_condition, train_mlp, utc_now_rfc3339,
@@ -41,7 +41,7 @@ pub struct CampaignModels {
 pub fn train_models(
     tables: Vec<RunTable>,
     pipeline: &Pipeline,
-    progress: Option<Box<dyn FnMut(&Epoch) + Send>>,
+    progress: Option<Progress>,
 ) -> Result<CampaignModels, IdentifyError> {
     let choice = select_condition(tables, pipeline.train.condition.as_deref())?;
     let tables = choice.used;
