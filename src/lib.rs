@@ -10,6 +10,7 @@
 //! The library never prints, exits or reads the terminal; the `railgrip` binary does.
 
 pub mod atomic;
+pub mod campaign;
 pub mod config;
 pub mod contact;
 pub mod estimate;
@@ -18,6 +19,7 @@ pub mod identify;
 pub mod ingest;
 pub mod linalg;
 pub mod model;
+pub mod report;
 pub mod rng;
 pub mod signal;
 pub mod sim;

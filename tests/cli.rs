@@ -2,7 +2,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use common::*;
@@ -31,6 +31,8 @@ fn help_explains_every_command() {
         "{s}"
     );
     for cmd in [
+        "run",
+        "report",
         "simulate",
         "estimate",
         "calibrate",
@@ -446,4 +448,141 @@ fn train_reads_estimates_tables_with_their_metadata() {
     let model = std::fs::read_to_string(dir.path().join("m/mlp.json")).unwrap();
     assert!(model.contains("soap_120kmh_p20.estimates.parquet"));
     assert!(model.contains("\"sha256\": \""));
+}
+
+/// Files below `dir`, recursively.
+fn files_below(dir: &Path) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(files_below(&p));
+        } else {
+            out.push(p);
+        }
+    }
+    out
+}
+
+#[test]
+fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    std::fs::create_dir_all(camp.join("day 2")).unwrap();
+    for f in [
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_p20.meta.toml",
+        "soap_120kmh_m20.csv",
+        "soap_120kmh_m20.meta.toml",
+    ] {
+        std::fs::copy(archive(f), camp.join(f)).unwrap();
+    }
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("day 2/soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+    // Two broken logs in the middle of the campaign.
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    std::fs::write(camp.join("day 2/truncated.mcap"), b"\x89MCAP0\r\n\x01\x02").unwrap();
+
+    let o = railgrip(
+        &["run", "campaign", "--out", "out", "--jobs", "2"],
+        dir.path(),
+    );
+    let (out, err) = (text(&o.stdout), text(&o.stderr));
+    assert_eq!(o.status.code(), Some(3), "{out}{err}");
+    assert!(
+        out.contains("failed     broken:") && out.contains("failed     day_2__truncated:"),
+        "{out}"
+    );
+    assert!(out.contains("2 of 5 run(s) failed"), "{out}");
+    // The errors name the file.
+    assert!(
+        out.contains("broken.csv") && out.contains("truncated.mcap"),
+        "{out}"
+    );
+    let o_dir = dir.path().join("out");
+    for f in [
+        "runs/soap_120kmh_p20/estimates.parquet",
+        "runs/day_2__soap_160kmh_0c/estimates.parquet",
+        "summary.csv",
+        "summary.parquet",
+        "campaign.json",
+        "models/mlp.json",
+        "models/mlp.h",
+        "models/mlp.polach.json",
+        "models/mlp.polach.h",
+        "report/index.html",
+    ] {
+        assert!(o_dir.join(f).exists(), "{f}");
+    }
+    assert!(!o_dir.join("runs/broken/estimates.parquet").exists());
+    // No temporary file left behind.
+    for f in files_below(&o_dir) {
+        let name = f.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(!name.starts_with('.'), "left behind: {}", f.display());
+    }
+    let summary = std::fs::read_to_string(o_dir.join("summary.csv")).unwrap();
+    let rows: Vec<&str> = summary.lines().collect();
+    assert_eq!(rows.len(), 6, "{summary}");
+    assert!(rows[0].starts_with("run,status,error,reused,duration_s,initial_speed_kmh"));
+    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 2);
+    let html = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
+    assert!(
+        html.contains("<svg") && html.contains("Failed runs") && html.contains("truncated.mcap"),
+        "report"
+    );
+    assert!(html.contains("Fig. 9") && html.contains("k_A(T)") && html.contains("Fig. 11"));
+
+    // Unchanged inputs: reused; --json on stdout.
+    let o = railgrip(&["run", "campaign", "--out", "out", "--json"], dir.path());
+    assert_eq!(o.status.code(), Some(3));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["reused"], 3, "{j}");
+    assert_eq!(j["failed"], 2);
+    assert_eq!(j["exit_code"], 3);
+    assert_eq!(j["condition"], "soap");
+    // A changed sidecar invalidates its run only.
+    let meta = camp.join("soap_120kmh_m20.meta.toml");
+    let t = std::fs::read_to_string(&meta).unwrap();
+    std::fs::write(&meta, t + "\n# edited\n").unwrap();
+    let o = railgrip(&["run", "campaign", "--out", "out", "--json"], dir.path());
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["reused"], 2, "{j}");
+    let o = railgrip(
+        &["run", "campaign", "--out", "out", "--json", "--force"],
+        dir.path(),
+    );
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["reused"], 0, "{j}");
+
+    // The report rebuilds from the outputs alone.
+    std::fs::remove_file(o_dir.join("report/index.html")).unwrap();
+    let o = railgrip(&["report", "out"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(o_dir.join("report/index.html").exists());
+}
+
+#[test]
+fn run_refuses_what_is_not_a_campaign() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = railgrip(&["run", "nowhere"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("nowhere"), "{}", text(&o.stderr));
+    std::fs::create_dir(dir.path().join("empty")).unwrap();
+    let o = railgrip(&["run", "empty"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("no .csv or .mcap logs found"),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = railgrip(&["report", "empty"], dir.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("campaign.json"),
+        "{}",
+        text(&o.stderr)
+    );
 }

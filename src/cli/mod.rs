@@ -3,6 +3,7 @@
 mod estimate;
 mod ingest;
 mod model;
+mod run;
 mod simulate;
 
 use std::path::PathBuf;
@@ -33,6 +34,13 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
+    /// The main job: estimate every run of a campaign folder, train the models, write the report.
+    #[command(
+        long_about = "Run the whole pipeline over a test campaign: find the logs below ARCHIVE (recursively: .csv with their .meta.toml, .mcap), ingest, condition and estimate each run in parallel (a run that fails is reported and the rest goes on), train the seed 002 network and the Polach and k(T) models on the pooled estimates of one rail condition, export them (JSON + C headers) and write an HTML validation report.\n\nWithout ARCHIVE it runs on the bundled archive with the embedded default pipeline.\n\nWrites <OUT>/runs/<run>/estimates.parquet and run.json, <OUT>/summary.csv and .parquet (one row per run), <OUT>/models/ (mlp.json, mlp.h, mlp.polach.json, mlp.polach.h, mlp.history.csv, mlp.polach-fits.json), <OUT>/campaign.json and <OUT>/report/index.html. A re-run reuses runs whose log, sidecar and pipeline are unchanged (SHA-256) unless --force.\n\nExit codes: 0 ok, 1 error (no models), 2 usage, 3 completed but some runs failed."
+    )]
+    Run(run::Args),
+    /// Rebuild the HTML report of an output folder of `railgrip run`.
+    Report(run::ReportArgs),
     /// Read one log (CSV or MCAP), resample it onto a uniform time base and print a summary.
     #[command(
         long_about = "Read one braking-test log and print what was found: duration, rate per \
@@ -108,6 +116,8 @@ pub fn main() -> ExitCode {
         }
     };
     let result = match cli.command {
+        Command::Run(args) => run::run(args),
+        Command::Report(args) => run::report(args),
         Command::Ingest(args) => ingest::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Estimate(args) => estimate::run(args),

@@ -417,6 +417,16 @@ impl Estimates {
     /// Writes `<dir>/<stem>.estimates.parquet` (zstd) and, with `csv`, the same table as
     /// `<dir>/<stem>.estimates.csv`, each atomically. Returns the paths written.
     pub fn write(&self, dir: &Path, stem: &str, csv: bool) -> Result<Vec<PathBuf>, EstimateError> {
+        self.write_named(dir, &format!("{stem}.estimates"), csv)
+    }
+
+    /// As [`Estimates::write`] with the file name `<name>.parquet` (and `<name>.csv`).
+    pub fn write_named(
+        &self,
+        dir: &Path,
+        name: &str,
+        csv: bool,
+    ) -> Result<Vec<PathBuf>, EstimateError> {
         use polars::prelude::*;
         let werr = |p: &Path| {
             let file = p.to_path_buf();
@@ -426,7 +436,7 @@ impl Estimates {
             }
         };
         std::fs::create_dir_all(dir).map_err(werr(dir))?;
-        let pq = dir.join(format!("{stem}.estimates.parquet"));
+        let pq = dir.join(format!("{name}.parquet"));
         let mut df = self.to_dataframe().map_err(|e| EstimateError::Write {
             file: pq.clone(),
             message: e.to_string(),
@@ -447,7 +457,7 @@ impl Estimates {
         .map_err(werr(&pq))?;
         let mut written = vec![pq];
         if csv {
-            let path = dir.join(format!("{stem}.estimates.csv"));
+            let path = dir.join(format!("{name}.csv"));
             crate::atomic::write_atomically(&path, |f| {
                 CsvWriter::new(f)
                     .include_header(true)
