@@ -127,6 +127,8 @@ fn chart(
                 c.configure_mesh()
                     .x_desc(x_desc)
                     .y_desc(y_desc)
+                    .x_label_formatter(&|x: &f64| tick(*x))
+                    .y_label_formatter(&|y: &f64| tick(*y))
                     .label_style(("sans-serif", 11))
                     .axis_desc_style(("sans-serif", 12))
                     .light_line_style(RGBColor(235, 235, 235))
@@ -136,11 +138,14 @@ fn chart(
                     let color = s.color;
                     let pts: Vec<(f64, f64)> = s.pts.iter().map(|&(x, y)| (x, $map(y))).collect();
                     let anno = if s.dots {
-                        c.draw_series(
-                            stride(&pts, MAX_SCATTER)
-                                .into_iter()
-                                .map(move |p| Circle::new(p, 1, color.mix(0.5).filled())),
-                        )
+                        c.draw_series(stride(&pts, MAX_SCATTER).into_iter().map(move |p| {
+                            // A few points (fit results) stand out; clouds stay light.
+                            if pts.len() < 50 {
+                                Circle::new(p, 4, color.filled())
+                            } else {
+                                Circle::new(p, 1, color.mix(0.5).filled())
+                            }
+                        }))
                         .map_err(|e| err(e.to_string()))?
                     } else {
                         c.draw_series(LineSeries::new(
@@ -180,6 +185,24 @@ fn chart(
         root.present().map_err(|e| err(e.to_string()))?;
     }
     Ok(svg)
+}
+
+/// A tick label: three significant digits, exponent form for very small or large values.
+fn tick(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{x:.1e}")
+    } else {
+        let d = (2 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let s = format!("{x:.d$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    }
 }
 
 /// Viridis-like colour for t in [0, 1].

@@ -1,0 +1,115 @@
+//! The HTML report in a real browser: headless Chromium opens it from disk, must log no console
+//! message (the report has no scripts, so any message is a fault: a malformed SVG, a blocked
+//! resource) and must paint a non-blank page. Skips, saying so, where Chromium is absent; CI
+//! installs it (`.ci/run`).
+
+use std::path::Path;
+use std::process::Command;
+
+fn chromium() -> Option<String> {
+    for c in ["chromium", "chromium-browser", "google-chrome"] {
+        if Command::new(c)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+        {
+            return Some(c.to_string());
+        }
+    }
+    None
+}
+
+fn archive(name: &str) -> String {
+    format!("{}/fixtures/archive/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+#[test]
+fn report_renders_in_headless_chromium_without_console_errors() {
+    let Some(browser) = chromium() else {
+        // CI installs Chromium (.ci/run): there a missing browser is a failure, not a skip.
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true but no Chromium: .ci/run should have installed it"
+        );
+        eprintln!("SKIPPED: no Chromium found (apt-get install chromium); the report was not opened in a browser");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    std::fs::create_dir_all(&camp).unwrap();
+    for f in [
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_p20.meta.toml",
+        "soap_120kmh_m20.csv",
+        "soap_120kmh_m20.meta.toml",
+    ] {
+        std::fs::copy(archive(f), camp.join(f)).unwrap();
+    }
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["run", "campaign", "--out", "out"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let html = dir.path().join("out/report/index.html");
+    let shot = dir.path().join("shot.png");
+    let profile = dir.path().join("profile");
+    let o = Command::new(&browser)
+        .args([
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--enable-logging=stderr",
+            "--v=0",
+            "--window-size=1300,2000",
+        ])
+        .arg(format!("--user-data-dir={}", profile.display()))
+        .arg(format!("--screenshot={}", shot.display()))
+        .arg(format!("file://{}", html.display()))
+        .output()
+        .unwrap();
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{browser} failed: {log}");
+    let console: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE")).collect();
+    assert!(console.is_empty(), "console messages: {console:#?}");
+    assert_non_blank(&shot);
+}
+
+/// The screenshot has ink: many pixels differ from the background, in several colours.
+fn assert_non_blank(path: &Path) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let bytes = &buf[..info.buffer_size()];
+    let ch = info.color_type.samples();
+    let px: Vec<&[u8]> = bytes.chunks_exact(ch).collect();
+    let bg = px[0];
+    let ink = px.iter().filter(|p| p[..3] != bg[..3]).count();
+    let mut colours: Vec<[u8; 3]> = px.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    colours.sort_unstable();
+    colours.dedup();
+    eprintln!(
+        "screenshot {}×{}: {:.1} % ink, {} colours",
+        info.width,
+        info.height,
+        100.0 * ink as f64 / px.len() as f64,
+        colours.len()
+    );
+    assert!(
+        ink as f64 > 0.05 * px.len() as f64,
+        "screenshot is (nearly) blank"
+    );
+    assert!(
+        colours.len() > 50,
+        "screenshot has {} colours",
+        colours.len()
+    );
+}
