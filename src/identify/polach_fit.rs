@@ -19,6 +19,7 @@
 //! min(`train.temperature_degree`, temperatures − 1), in the contact library's
 //! [`TemperatureLaw`], with their residuals.
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::dataset::RunTable;
@@ -425,15 +426,67 @@ pub fn fit_campaign(
         k_a: 0.3,
         k_s: 0.1,
     };
-    let mut notes = Vec::new();
+    // Every group is fitted independently: in parallel, results kept in group order.
     let all: Vec<&RunTable> = tables.iter().collect();
-    let pooled = match fit_polach("all runs", &all, patch, q_n, decimate, start) {
-        Ok(f) => Some(f),
-        Err(e) => {
-            notes.push(e.to_string());
-            None
+    let mut temps: Vec<f64> = tables
+        .iter()
+        .filter_map(|t| t.metadata.ambient_temperature_c)
+        .collect();
+    temps.sort_by(f64::total_cmp);
+    temps.dedup();
+    enum Group {
+        Pooled,
+        Run(usize),
+        Temperature(f64),
+    }
+    let mut groups = vec![Group::Pooled];
+    groups.extend((0..tables.len()).map(Group::Run));
+    groups.extend(temps.iter().map(|t| Group::Temperature(*t)));
+    let fits: Vec<(&Group, Result<PolachFit, IdentifyError>)> = groups
+        .par_iter()
+        .map(|g| {
+            let r = match g {
+                Group::Pooled => fit_polach("all runs", &all, patch, q_n, decimate, start),
+                Group::Run(i) => {
+                    let t = &tables[*i];
+                    fit_polach(&t.name, &[t], patch, q_n, decimate, start).map(|mut f| {
+                        f.ambient_temperature_c = t.metadata.ambient_temperature_c;
+                        f
+                    })
+                }
+                Group::Temperature(temp) => {
+                    let group: Vec<&RunTable> = tables
+                        .iter()
+                        .filter(|t| t.metadata.ambient_temperature_c == Some(*temp))
+                        .collect();
+                    fit_polach(
+                        &format!("T = {temp} °C"),
+                        &group,
+                        patch,
+                        q_n,
+                        decimate,
+                        start,
+                    )
+                    .map(|mut f| {
+                        f.ambient_temperature_c = Some(*temp);
+                        f
+                    })
+                }
+            };
+            (g, r)
+        })
+        .collect();
+    let mut notes = Vec::new();
+    let (mut pooled, mut per_run, mut per_temperature) = (None, Vec::new(), Vec::new());
+    for (g, r) in fits {
+        match (g, r) {
+            (Group::Pooled, Ok(f)) => pooled = Some(f),
+            (Group::Run(_), Ok(f)) => per_run.push(f),
+            (Group::Temperature(_), Ok(f)) => per_temperature.push(f),
+            (Group::Run(i), Err(e)) => notes.push(format!("{}: {e}", tables[*i].name)),
+            (_, Err(e)) => notes.push(e.to_string()),
         }
-    };
+    }
     let pooled_samples = samples(&all, q_n, decimate);
     let range = |f: fn(&Sample) -> f64| {
         pooled_samples
@@ -444,43 +497,6 @@ pub fn fit_campaign(
             })
     };
     let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
-    let mut per_run = Vec::new();
-    for t in tables {
-        match fit_polach(&t.name, &[t], patch, q_n, decimate, start) {
-            Ok(mut f) => {
-                f.ambient_temperature_c = t.metadata.ambient_temperature_c;
-                per_run.push(f);
-            }
-            Err(e) => notes.push(format!("{}: {e}", t.name)),
-        }
-    }
-    let mut temps: Vec<f64> = tables
-        .iter()
-        .filter_map(|t| t.metadata.ambient_temperature_c)
-        .collect();
-    temps.sort_by(f64::total_cmp);
-    temps.dedup();
-    let mut per_temperature = Vec::new();
-    for temp in &temps {
-        let group: Vec<&RunTable> = tables
-            .iter()
-            .filter(|t| t.metadata.ambient_temperature_c == Some(*temp))
-            .collect();
-        match fit_polach(
-            &format!("T = {temp} °C"),
-            &group,
-            patch,
-            q_n,
-            decimate,
-            start,
-        ) {
-            Ok(mut f) => {
-                f.ambient_temperature_c = Some(*temp);
-                per_temperature.push(f);
-            }
-            Err(e) => notes.push(e.to_string()),
-        }
-    }
     let (temperature, temperature_note) = match fit_temperature(&per_temperature, degree) {
         Ok(t) => (Some(t), None),
         Err(e) => (None, Some(e.to_string())),
