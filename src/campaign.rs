@@ -271,7 +271,8 @@ pub fn process_run(
             }
         }
     }
-    let result = (|| -> anyhow::Result<RunTable> {
+    type AnyError = Box<dyn std::error::Error + Send + Sync>;
+    let result = (|| -> Result<RunTable, AnyError> {
         let log = crate::ingest_file(path, pipeline)?;
         let e = crate::estimate::estimate(&log, pipeline)?;
         e.write_named(&dir, "estimates", false)?;
@@ -299,7 +300,7 @@ pub fn process_run(
             Some(t)
         }
         Err(e) => {
-            rec.error = Some(format!("{e:#}"));
+            rec.error = Some(e.to_string());
             // No stale table that would look like this run's result.
             let _ = std::fs::remove_file(&table_path);
             None
