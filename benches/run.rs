@@ -32,7 +32,8 @@ fn estimate_all(
         logs.par_iter()
             .map(|l| {
                 let name = campaign::run_name(root, l);
-                campaign::process_run(l, &name, &out.join("runs"), p, force)
+                let src = railgrip::ingest::LogSource::File(l.clone());
+                campaign::process_run(&src, &name, &out.join("runs"), p, force)
             })
             .collect()
     })

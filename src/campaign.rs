@@ -19,7 +19,8 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
 use crate::format::AXLES;
-use crate::identify::dataset::{sha256_file, RunTable};
+use crate::identify::dataset::RunTable;
+use crate::ingest::LogSource;
 use crate::Pipeline;
 
 /// What happened to one run.
@@ -200,35 +201,35 @@ pub fn run_name(root: &Path, path: &Path) -> String {
 }
 
 /// SHA-256 (hex) over the log's bytes, its metadata sidecar's (when there is one) and the
-/// pipeline text: what decides whether a run's outputs are still current.
-pub fn input_hash(path: &Path, pipeline: &Pipeline) -> std::io::Result<String> {
+/// pipeline text: what decides whether a run's outputs are still current. Also returns the
+/// SHA-256 of the log alone (the model files' provenance).
+pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(String, String)> {
+    let hex = |d: &[u8]| d.iter().map(|b| format!("{b:02x}")).collect::<String>();
+    let bytes = src.bytes()?;
+    let log = hex(&Sha256::digest(&bytes));
     let mut h = Sha256::new();
-    h.update(std::fs::read(path)?);
+    h.update(&bytes);
     h.update(b"\0sidecar\0");
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let sidecar = path.with_file_name(format!("{stem}{}", crate::format::SIDECAR_SUFFIX));
-    if let Ok(bytes) = std::fs::read(sidecar) {
-        h.update(bytes);
+    if let (_, Some(side)) = src.sidecar()? {
+        h.update(side);
     }
     h.update(b"\0pipeline\0");
     h.update(pipeline.text.as_bytes());
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+    Ok((hex(&h.finalize()), log))
 }
 
 /// Processes one run into `<runs_dir>/<name>/`: reuses earlier outputs for the same inputs
 /// unless `force`, else ingests, estimates and writes. Never fails as a whole: a failure is a
 /// record with status `failed` (and no estimates table left behind).
 pub fn process_run(
-    path: &Path,
+    src: &LogSource,
     name: &str,
     runs_dir: &Path,
     pipeline: &Pipeline,
     force: bool,
 ) -> (RunRecord, Option<RunTable>) {
     let t0 = Instant::now();
+    let path = src.name();
     let dir = runs_dir.join(name);
     let record_path = dir.join("run.json");
     let table_path = dir.join("estimates.parquet");
@@ -247,7 +248,7 @@ pub fn process_run(
         warnings: vec![],
         input_sha256: String::new(),
     };
-    let hash = match input_hash(path, pipeline) {
+    let (hash, log_sha) = match input_hash(src, pipeline) {
         Ok(h) => h,
         Err(e) => {
             rec.error = Some(format!("{}: cannot read: {e}", path.display()));
@@ -273,7 +274,7 @@ pub fn process_run(
     }
     type AnyError = Box<dyn std::error::Error + Send + Sync>;
     let result = (|| -> Result<RunTable, AnyError> {
-        let log = crate::ingest_file(path, pipeline)?;
+        let log = crate::ingest::ingest_source(src, pipeline)?;
         let e = crate::estimate::estimate(&log, pipeline)?;
         e.write_named(&dir, "estimates", false)?;
         rec.initial_speed_kmh = e.metadata.initial_speed_kmh;
@@ -290,8 +291,7 @@ pub fn process_run(
                 e.despiked
             ));
         }
-        let sha = sha256_file(path)?;
-        Ok(RunTable::from_estimates(name, &rec.source, &sha, &e))
+        Ok(RunTable::from_estimates(name, &rec.source, &log_sha, &e))
     })();
     rec.duration_s = t0.elapsed().as_secs_f64();
     let table = match result {

@@ -9,6 +9,7 @@
 //!
 //! The library never prints, exits or reads the terminal; the `railgrip` binary does.
 
+pub mod archive;
 pub mod atomic;
 pub mod campaign;
 pub mod config;

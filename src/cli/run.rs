@@ -8,6 +8,7 @@ use anyhow::{bail, Context};
 use indicatif::{ProgressBar, ProgressStyle};
 use railgrip::campaign::{self, RunRecord};
 use railgrip::identify::campaign::train_models;
+use railgrip::ingest::LogSource;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -15,8 +16,9 @@ use super::{PipelineArg, EXIT_ERROR, EXIT_LOSSY, EXIT_OK};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Campaign folder (searched recursively for .csv + .meta.toml and .mcap logs); default:
-    /// the bundled archive (fixtures/archive of this source tree).
+    /// Campaign folder (searched recursively for .csv + .meta.toml and .mcap logs) or archive
+    /// (.zip, .tar, .tar.gz, .tar.zst; read in place); default: the bundled archive
+    /// (fixtures/archive of this source tree).
     #[arg(value_name = "ARCHIVE")]
     archive: Option<PathBuf>,
     #[command(flatten)]
@@ -117,13 +119,18 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             b
         }
     };
-    if root.is_file() {
-        bail!(
-            "{}: an archive file; railgrip run reads campaign folders in this version. Hint: unpack it (e.g. `tar xf`, `unzip`) and give the folder",
-            root.display()
-        );
-    }
-    let logs = campaign::discover(&root, Some(&args.out))?;
+    // A folder, searched on disk, or an archive file, read in place.
+    let logs: Vec<(String, LogSource)> = if root.is_file() {
+        railgrip::archive::read_archive(&root, railgrip::archive::Limits::default())?
+            .into_iter()
+            .map(|s| (campaign::run_name(&root, s.name()), s))
+            .collect()
+    } else {
+        campaign::discover(&root, Some(&args.out))?
+            .into_iter()
+            .map(|p| (campaign::run_name(&root, &p), LogSource::File(p)))
+            .collect()
+    };
     if logs.is_empty() {
         bail!(
             "{}: no .csv or .mcap logs found (searched recursively). Hint: give the folder that holds the campaign's logs",
@@ -153,10 +160,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     }
     let results: Vec<(RunRecord, Option<railgrip::identify::RunTable>)> = pool.install(|| {
         logs.par_iter()
-            .map(|p| {
-                let name = campaign::run_name(&root, p);
+            .map(|(name, src)| {
+                let name = name.clone();
                 let (rec, table) =
-                    campaign::process_run(p, &name, &runs_dir, &pipeline, args.force);
+                    campaign::process_run(src, &name, &runs_dir, &pipeline, args.force);
                 let line = match (&rec.status[..], rec.reused) {
                     ("ok", true) => format!("run        {name}: unchanged, reused"),
                     ("ok", false) => format!("run        {name}: ok ({:.2} s)", rec.duration_s),

@@ -5,17 +5,15 @@
 //! not increase, [`diagnose`] rescans the file line by line to name the exact line and column.
 
 use std::collections::BTreeMap;
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
-use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use polars::prelude::*;
 use rayon::prelude::*;
 
-use super::{IngestError, Locator, RawChannel, Warning, WarningKind};
+use super::{IngestError, Locator, LogSource, RawChannel, Warning, WarningKind};
 use crate::config::{CsvColumn, IngestConfig};
-use crate::format::{RunMetadata, Signal, SIDECAR_SUFFIX};
+use crate::format::{RunMetadata, Signal};
 
 /// The mapped columns of a CSV log: time first, then the nine signals.
 fn wanted(cfg: &IngestConfig) -> Vec<(&'static str, &CsvColumn)> {
@@ -31,8 +29,9 @@ fn fields(line: &str) -> Vec<&str> {
         .collect()
 }
 
-fn read_header(path: &Path) -> Result<Vec<String>, IngestError> {
-    let f = File::open(path).map_err(|e| IngestError::Io {
+fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
+    let path = src.name();
+    let f = src.open().map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
         source: e,
     })?;
@@ -57,8 +56,9 @@ fn normalise(s: &str) -> String {
         .to_ascii_lowercase()
 }
 
-pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, IngestError> {
-    let header = read_header(path)?;
+pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel>, IngestError> {
+    let path = src.name();
+    let header = read_header(src)?;
     let wanted = wanted(cfg);
     let missing: Vec<_> = wanted
         .iter()
@@ -113,21 +113,25 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
         .iter()
         .map(|n| Field::new(n.clone(), DataType::Float64))
         .collect();
-    let df = CsvReadOptions::default()
+    let options = CsvReadOptions::default()
         .with_has_header(true)
         .with_columns(Some(unique.clone().into()))
-        .with_schema_overwrite(Some(Arc::new(schema)))
-        .try_into_reader_with_file_path(Some(path.to_path_buf()))
-        .and_then(|r| r.finish());
+        .with_schema_overwrite(Some(Arc::new(schema)));
+    let df = match src {
+        LogSource::File(p) => options
+            .try_into_reader_with_file_path(Some(p.clone()))
+            .and_then(|r| r.finish()),
+        LogSource::Memory { bytes, .. } => options
+            .into_reader_with_file_handle(std::io::Cursor::new(Arc::clone(bytes)))
+            .finish(),
+    };
     let df = match df {
         Ok(df) => df,
         Err(e) => {
-            return Err(
-                diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
-                    path: path.to_path_buf(),
-                    message: e.to_string(),
-                }),
-            )
+            return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                path: path.to_path_buf(),
+                message: e.to_string(),
+            }))
         }
     };
     if df.height() == 0 {
@@ -169,26 +173,22 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
         match v {
             Some(v) => columns.push(v),
             None => {
-                return Err(
-                    diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
-                        path: path.to_path_buf(),
-                        message: format!("column {:?} has empty or non-finite cells", c.column),
-                    }),
-                )
+                return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                    path: path.to_path_buf(),
+                    message: format!("column {:?} has empty or non-finite cells", c.column),
+                }))
             }
         }
     }
     let time = columns.remove(0);
     if time.windows(2).any(|w| w[1] <= w[0]) {
-        return Err(
-            diagnose(path, cfg).unwrap_or_else(|| IngestError::CsvParse {
-                path: path.to_path_buf(),
-                message: "the time column does not increase strictly".into(),
-            }),
-        );
+        return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+            path: path.to_path_buf(),
+            message: "the time column does not increase strictly".into(),
+        }));
     }
     let time = Arc::new(time);
-    let locate = Locator::CsvRows(Arc::new(path.to_path_buf()));
+    let locate = Locator::CsvRows(Arc::new(src.clone()));
     Ok(Signal::ALL
         .iter()
         .zip(columns)
@@ -209,9 +209,10 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<Vec<RawChannel>, I
 
 /// Rescans the file and returns the first problem with its line and column, or `None` if the
 /// rescan finds nothing (then the caller reports polars' own message).
-pub(super) fn diagnose(path: &Path, cfg: &IngestConfig) -> Option<IngestError> {
+pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestError> {
+    let path = src.name();
     let mut text = String::new();
-    File::open(path).ok()?.read_to_string(&mut text).ok()?;
+    src.open().ok()?.read_to_string(&mut text).ok()?;
     let ends_with_newline = text.ends_with('\n');
     let mut lines = text
         .lines()
@@ -324,8 +325,8 @@ pub(super) fn diagnose(path: &Path, cfg: &IngestConfig) -> Option<IngestError> {
 }
 
 /// The 1-based line of data row `row` (0-based), skipping blank lines like the reader does.
-pub(super) fn line_of_row(path: &PathBuf, row: usize) -> usize {
-    let Ok(f) = File::open(path) else {
+pub(super) fn line_of_row(src: &LogSource, row: usize) -> usize {
+    let Ok(f) = src.open() else {
         return row + 2;
     };
     let mut seen = 0usize;
@@ -343,15 +344,24 @@ pub(super) fn line_of_row(path: &PathBuf, row: usize) -> usize {
 }
 
 /// Reads `<stem>.meta.toml` beside a CSV log. A missing sidecar is a warning (nothing lost).
-pub(super) fn read_sidecar(path: &Path) -> Result<(RunMetadata, Vec<Warning>), IngestError> {
-    let stem = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let sidecar = path.with_file_name(format!("{stem}{SIDECAR_SUFFIX}"));
-    let text = match std::fs::read_to_string(&sidecar) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+pub(super) fn read_sidecar(src: &LogSource) -> Result<(RunMetadata, Vec<Warning>), IngestError> {
+    let path = src.name();
+    let (sidecar, bytes) = src.sidecar().map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    let text = match bytes.map(String::from_utf8) {
+        Some(Ok(t)) => t,
+        Some(Err(_)) => {
+            return Err(IngestError::Metadata {
+                path: path.to_path_buf(),
+                source_name: sidecar.display().to_string(),
+                what: "not UTF-8 text".into(),
+                hint: "the sidecar is TOML: key = value lines, e.g. ambient_temperature_c = 5.0"
+                    .into(),
+            })
+        }
+        None => {
             return Ok((
                 RunMetadata::default(),
                 vec![Warning {
@@ -363,7 +373,6 @@ pub(super) fn read_sidecar(path: &Path) -> Result<(RunMetadata, Vec<Warning>), I
                 }],
             ))
         }
-        Err(e) => return Err(IngestError::Io { path: sidecar, source: e }),
     };
     let name = sidecar.display().to_string();
     let table: toml::Table = toml::from_str(&text).map_err(|e| IngestError::Metadata {

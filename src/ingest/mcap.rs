@@ -7,7 +7,6 @@ use std::fmt;
 use std::path::Path;
 use std::sync::Arc;
 
-use std::fs::File;
 use std::io::Read;
 
 use ::mcap::records::Record;
@@ -76,8 +75,9 @@ fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
     }
 }
 
-pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestError> {
-    let mut file = File::open(path).map_err(|e| IngestError::Io {
+pub(super) fn read(src: &super::LogSource, cfg: &IngestConfig) -> Result<McapRead, IngestError> {
+    let path = src.name();
+    let mut file = src.open().map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
         source: e,
     })?;
@@ -123,7 +123,7 @@ pub(super) fn read(path: &Path, cfg: &IngestConfig) -> Result<McapRead, IngestEr
     // Bound every record and decompressed chunk: no record is longer than the file, and a
     // chunk decompresses to at most max(file size, 256 MiB), so a corrupt length or a
     // decompression bomb is an error, not an allocation failure.
-    let file_len = file.metadata().map(|m| m.len()).unwrap_or(0) as usize;
+    let file_len = src.len().unwrap_or(0) as usize;
     let limit = file_len.max(MAX_CHUNK_BYTES);
     let options = LinearReaderOptions::default()
         .with_prevalidate_chunk_crcs(true)

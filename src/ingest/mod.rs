@@ -346,7 +346,7 @@ pub(crate) struct RawChannel {
 #[derive(Clone)]
 pub(crate) enum Locator {
     /// Sample `i` is on CSV data row `i` (line numbers come from a rescan on the error path).
-    CsvRows(Arc<PathBuf>),
+    CsvRows(Arc<LogSource>),
     /// Sample `i` is message `i` (in time order) of the topic, at log time t_ref + t.
     Mcap { topic: String, t_ref_ns: u64 },
 }
@@ -364,18 +364,92 @@ impl Locator {
     }
 }
 
+/// Where a log's bytes are: a file, or a member of a campaign archive held in memory (with
+/// its metadata sidecar, for CSV logs). Errors name [`LogSource::name`].
+#[derive(Debug, Clone)]
+pub enum LogSource {
+    File(PathBuf),
+    Memory {
+        /// Shown in messages, e.g. `campaign.zip/day1/run.csv`.
+        name: PathBuf,
+        bytes: Arc<[u8]>,
+        /// The `<stem>.meta.toml` member beside a CSV log, if the archive has one.
+        sidecar: Option<Arc<[u8]>>,
+    },
+}
+
+impl LogSource {
+    /// The name errors and outputs use.
+    pub fn name(&self) -> &Path {
+        match self {
+            LogSource::File(p) => p,
+            LogSource::Memory { name, .. } => name,
+        }
+    }
+
+    /// A reader over the log's bytes from the start.
+    pub(crate) fn open(&self) -> std::io::Result<Box<dyn std::io::Read + Send>> {
+        Ok(match self {
+            LogSource::File(p) => Box::new(std::fs::File::open(p)?),
+            LogSource::Memory { bytes, .. } => Box::new(std::io::Cursor::new(Arc::clone(bytes))),
+        })
+    }
+
+    /// Size in bytes.
+    pub(crate) fn len(&self) -> std::io::Result<u64> {
+        Ok(match self {
+            LogSource::File(p) => std::fs::metadata(p)?.len(),
+            LogSource::Memory { bytes, .. } => bytes.len() as u64,
+        })
+    }
+
+    /// The whole log's bytes (read from disk for a file).
+    pub fn bytes(&self) -> std::io::Result<Arc<[u8]>> {
+        Ok(match self {
+            LogSource::File(p) => std::fs::read(p)?.into(),
+            LogSource::Memory { bytes, .. } => Arc::clone(bytes),
+        })
+    }
+
+    /// The metadata sidecar `<stem>.meta.toml` beside a CSV log: its name and, when it
+    /// exists, its bytes.
+    pub fn sidecar(&self) -> std::io::Result<(PathBuf, Option<Vec<u8>>)> {
+        let name = self.name();
+        let stem = name
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let side = name.with_file_name(format!("{stem}{}", crate::format::SIDECAR_SUFFIX));
+        match self {
+            LogSource::File(_) => match std::fs::read(&side) {
+                Ok(b) => Ok((side, Some(b))),
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok((side, None)),
+                Err(e) => Err(e),
+            },
+            LogSource::Memory { sidecar, .. } => Ok((side, sidecar.as_ref().map(|b| b.to_vec()))),
+        }
+    }
+}
+
 /// Reads the log at `path` with the pipeline's ingest settings.
 pub fn ingest_file(path: &Path, pipeline: &Pipeline) -> Result<RunLog, IngestError> {
+    ingest_source(&LogSource::File(path.to_path_buf()), pipeline)
+}
+
+/// Reads a log from a file or from memory (an archive member) with the pipeline's ingest
+/// settings.
+pub fn ingest_source(src: &LogSource, pipeline: &Pipeline) -> Result<RunLog, IngestError> {
+    let path = src.name();
     let cfg = &pipeline.ingest;
-    let format = sniff(path)?;
+    let format = sniff(src)?;
     let (channels, metadata, start_log_time_ns, mut warnings) = match format {
         LogFormat::Csv => {
-            let channels = csv::read(path, cfg)?;
-            let (metadata, w) = csv::read_sidecar(path)?;
+            let channels = csv::read(src, cfg)?;
+            let (metadata, w) = csv::read_sidecar(src)?;
             (channels, metadata, None, w)
         }
         LogFormat::Mcap => {
-            let r = mcap::read(path, cfg)?;
+            let r = mcap::read(src, cfg)?;
             (r.channels, r.metadata, Some(r.t0_ns), r.warnings)
         }
     };
@@ -427,9 +501,9 @@ pub fn ingest_file(path: &Path, pipeline: &Pipeline) -> Result<RunLog, IngestErr
 }
 
 /// Decides the format from the first bytes, never from the extension.
-fn sniff(path: &Path) -> Result<LogFormat, IngestError> {
-    use std::io::Read;
-    let mut f = std::fs::File::open(path).map_err(|e| match e.kind() {
+fn sniff(src: &LogSource) -> Result<LogFormat, IngestError> {
+    let path = src.name();
+    let mut f = src.open().map_err(|e| match e.kind() {
         std::io::ErrorKind::NotFound => IngestError::NotFound {
             path: path.to_path_buf(),
         },
