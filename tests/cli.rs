@@ -586,3 +586,49 @@ fn run_refuses_what_is_not_a_campaign() {
         text(&o.stderr)
     );
 }
+
+#[test]
+fn interrupting_run_leaves_no_complete_looking_partial_file() {
+    // SIGINT at several moments of a run on the bundled archive: whatever exists under a final
+    // name afterwards is complete (Parquet and JSON parse, CSV has its header); partial files
+    // can only be hidden temporaries.
+    for delay_ms in [150u64, 400, 900] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+            .args(["run", "--out", "out"])
+            .current_dir(dir.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        let _ = child.wait();
+        let out = dir.path().join("out");
+        if !out.exists() {
+            continue;
+        }
+        for f in files_below(&out) {
+            let name = f.file_name().unwrap().to_string_lossy().into_owned();
+            if name.starts_with('.') {
+                continue;
+            }
+            if name.ends_with(".parquet") {
+                let file = std::fs::File::open(&f).unwrap();
+                use polars::prelude::*;
+                ParquetReader::new(file)
+                    .finish()
+                    .unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            } else if name.ends_with(".json") {
+                let t = std::fs::read_to_string(&f).unwrap();
+                serde_json::from_str::<serde_json::Value>(&t)
+                    .unwrap_or_else(|e| panic!("{}: {e}", f.display()));
+            } else if name.ends_with(".html") {
+                let t = std::fs::read_to_string(&f).unwrap();
+                assert!(t.trim_end().ends_with("</html>"), "{}", f.display());
+            }
+        }
+    }
+}
