@@ -193,6 +193,20 @@ fn bench(c: &mut Criterion) {
             s
         })
     });
+    let polach = Model::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("models/golden/synthetic_polach.json"),
+    )
+    .unwrap();
+    g.bench_function("polach_mu_1k", |b| {
+        b.iter(|| {
+            let mut s = 0.0;
+            for (a, d) in &inputs {
+                s += polach.mu_v(black_box(*a), black_box(*d), 30.0);
+            }
+            s
+        })
+    });
     g.bench_function("mu_batch_1k", |b| {
         b.iter(|| {
             model.mu_batch(black_box(&dv), &ddv, &[], &mut out);

@@ -754,33 +754,73 @@ impl Net {
 
     /// The network alone at physical inputs (clamped to the domain). The hidden layer runs in
     /// fixed-width chunks of [`CHUNK`] neurons (zero-padded) so the compiler turns each into
-    /// SIMD; the output sum runs over the neurons in order — the same
-    /// operations as the batch path and the C header, same results.
+    /// SIMD, with the chunk count a compile-time constant for up to 16 neurons; the output sum
+    /// runs over the real neurons in order — the same operations as the batch path and the C
+    /// header, same results.
     #[inline(always)]
     fn net(&self, x: [f64; 3]) -> f64 {
+        // The usual sizes with the chunk count known at compile time (fully unrolled).
+        match self.pad / CHUNK {
+            1 => self.net_chunks::<1>(x),
+            2 => self.net_chunks::<2>(x),
+            3 => self.net_chunks::<3>(x),
+            4 => self.net_chunks::<4>(x),
+            _ => self.net_any(x),
+        }
+    }
+
+    #[inline(always)]
+    fn inputs(&self, x: [f64; 3]) -> [f64; 3] {
         let mut xn = [0.0; 3];
         for c in 0..self.k {
             xn[c] = self.gx[c] * x[c].clamp(self.lo[c], self.hi[c]) + self.ox[c];
         }
+        xn
+    }
+
+    /// Chunk `j` of the hidden layer: w2_h tanh(b1_h + Σ_c W1_hc x_n,c) for its neurons.
+    #[inline(always)]
+    fn chunk(&self, xn: &[f64; 3], j: usize) -> [f64; CHUNK] {
+        let at = |v: &[f64], c: usize| -> [f64; CHUNK] {
+            v[c * self.pad + j * CHUNK..c * self.pad + (j + 1) * CHUNK]
+                .try_into()
+                .expect("chunk")
+        };
+        let mut z = at(&self.b1, 0);
+        for (c, xc) in xn.iter().enumerate().take(self.k) {
+            let w = at(&self.w1c, c);
+            for i in 0..CHUNK {
+                z[i] += w[i] * xc;
+            }
+        }
+        let w2 = at(&self.w2, 0);
+        let mut t = [0.0; CHUNK];
+        for i in 0..CHUNK {
+            t[i] = w2[i] * tanh_fast(z[i]);
+        }
+        t
+    }
+
+    #[inline(always)]
+    fn net_chunks<const C: usize>(&self, x: [f64; 3]) -> f64 {
+        let xn = self.inputs(x);
+        let mut t = [[0.0; CHUNK]; C];
+        for (j, tj) in t.iter_mut().enumerate() {
+            *tj = self.chunk(&xn, j);
+        }
+        let mut y = self.b2;
+        for ti in t.as_flattened().iter().take(self.nh) {
+            y += ti;
+        }
+        (y - self.oy) / self.gy
+    }
+
+    #[inline(always)]
+    fn net_any(&self, x: [f64; 3]) -> f64 {
+        let xn = self.inputs(x);
         let mut y = self.b2;
         for j in 0..self.pad / CHUNK {
-            let at = |v: &[f64], c: usize| -> [f64; CHUNK] {
-                v[c * self.pad + j * CHUNK..c * self.pad + (j + 1) * CHUNK]
-                    .try_into()
-                    .expect("chunk")
-            };
-            let mut z = at(&self.b1, 0);
-            for (c, xc) in xn.iter().enumerate().take(self.k) {
-                let w = at(&self.w1c, c);
-                for i in 0..CHUNK {
-                    z[i] += w[i] * xc;
-                }
-            }
-            let w2 = at(&self.w2, 0);
-            let mut t = [0.0; CHUNK];
-            for i in 0..CHUNK {
-                t[i] = w2[i] * tanh_fast(z[i]);
-            }
+            let t = self.chunk(&xn, j);
             for ti in &t[..CHUNK.min(self.nh - j * CHUNK)] {
                 y += ti;
             }
