@@ -81,15 +81,18 @@ tangential_N, mu, dv_mps, ddv_mps2). The same scene and seed give identical byte
         long_about = "Train a tanh MLP (default 10 hidden neurons, inputs Δv and dΔv/dt; [train] in the \
 pipeline) on the valid estimates of the inputs with Levenberg–Marquardt (MATLAB trainlm semantics: \
 mu schedule, epochs, min_grad, goal, validation early stopping with max_fail). Default split as in \
-seed 002: train on axle 2, validate on axle 3, pooled over the runs.\n\n\
+seed 002: train on axle 2, validate on axle 3, pooled over the runs. Only runs of one rail \
+condition (run metadata `condition`; train.condition, default the most common) are used. Then \
+Polach fits (all runs pooled, per run, per ambient temperature) and k_A(T), k_S(T).\n\n\
 Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fly). Writes \
-<DIR>/<name>.json (model file, see models/schema/) and <DIR>/<name>.history.csv, printing one \
-line per epoch."
+<DIR>/<name>.json (network model file, see models/schema/), <DIR>/<name>.history.csv, \
+<DIR>/<name>.polach.json (Polach model file, with k(T) when fitted) and \
+<DIR>/<name>.polach-fits.json (every fit), printing one line per epoch."
     )]
     Train(model::TrainArgs),
     /// Write a header-only C99 evaluator of a model file.
     Export(model::ExportArgs),
-    /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps]) and write mu.
+    /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps][, ambient_temperature_c]) and write mu.
     Eval(model::EvalArgs),
 }
 

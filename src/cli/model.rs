@@ -20,7 +20,7 @@ pub struct TrainArgs {
     inputs: Vec<PathBuf>,
     #[command(flatten)]
     pipeline: PipelineArg,
-    /// Output directory for <name>.json and <name>.history.csv.
+    /// Output directory for <name>.json, .history.csv, .polach.json and .polach-fits.json.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
     /// Model name (file stem).
