@@ -204,11 +204,21 @@ pub fn run_name(root: &Path, path: &Path) -> String {
 /// pipeline text: what decides whether a run's outputs are still current. Also returns the
 /// SHA-256 of the log alone (the model files' provenance).
 pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(String, String)> {
+    use std::io::Read as _;
     let hex = |d: &[u8]| d.iter().map(|b| format!("{b:02x}")).collect::<String>();
-    let bytes = src.bytes()?;
-    let log = hex(&Sha256::digest(&bytes));
-    let mut h = Sha256::new();
-    h.update(&bytes);
+    // One streaming pass over the log feeds both hashes (no copy of a large file in memory).
+    let (mut log, mut h) = (Sha256::new(), Sha256::new());
+    let mut r = src.open()?;
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        let n = r.read(&mut buf)?;
+        if n == 0 {
+            break;
+        }
+        log.update(&buf[..n]);
+        h.update(&buf[..n]);
+    }
+    let log = hex(&log.finalize());
     h.update(b"\0sidecar\0");
     if let (_, Some(side)) = src.sidecar()? {
         h.update(side);

@@ -1359,6 +1359,11 @@ mod tests {
                 "mu_dec = 1.5",
                 "train.mu_dec = 1.5: must be >= 0",
             ),
+            (
+                "# condition = \"soap\"",
+                "condition = \"\"",
+                "train.condition = \"\": a rail condition as in the runs' metadata",
+            ),
         ];
         for (from, to, want) in cases {
             let e = err(from, to);

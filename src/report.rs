@@ -18,7 +18,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use crate::campaign::{CampaignError, CampaignRecord, RunRecord};
-use crate::contact::polach::{polach, ContactPatch, PolachParams};
+use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
 use crate::format::AXLES;
 use crate::identify::polach_fit::PolachReport;
 use crate::model::{Model, ModelFile};
@@ -733,7 +733,6 @@ th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
             false,
         )?);
         if let Some(t) = &f.temperature {
-            let poly = |c: &[f64], x: f64| c.iter().rev().fold(0.0, |a, ci| a * x + ci);
             let (lo, hi) = t.fitted_range_c;
             let grid: Vec<f64> = (0..=100)
                 .map(|k| lo + (hi - lo) * k as f64 / 100.0)
@@ -755,13 +754,13 @@ th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
                     Series {
                         name: format!("k_A(T), degree {}", t.degree),
                         color: PALETTE[0],
-                        pts: grid.iter().map(|&x| (x, poly(&t.k_a, x))).collect(),
+                        pts: grid.iter().map(|&x| (x, horner(&t.k_a, x))).collect(),
                         dots: false,
                     },
                     Series {
                         name: format!("k_S(T), degree {}", t.degree),
                         color: PALETTE[1],
-                        pts: grid.iter().map(|&x| (x, poly(&t.k_s, x))).collect(),
+                        pts: grid.iter().map(|&x| (x, horner(&t.k_s, x))).collect(),
                         dots: false,
                     },
                     Series {

@@ -468,15 +468,8 @@ fn files_below(dir: &Path) -> Vec<PathBuf> {
 fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
     std::fs::create_dir_all(camp.join("day 2")).unwrap();
-    for f in [
-        "soap_120kmh_p20.csv",
-        "soap_120kmh_p20.meta.toml",
-        "soap_120kmh_m20.csv",
-        "soap_120kmh_m20.meta.toml",
-    ] {
-        std::fs::copy(archive(f), camp.join(f)).unwrap();
-    }
     std::fs::copy(
         archive("soap_160kmh_0c.mcap"),
         camp.join("day 2/soap_160kmh_0c.mcap"),

@@ -3,6 +3,8 @@
 //! resource) and must paint a non-blank page. Skips, saying so, where Chromium is absent; CI
 //! installs it (`.ci/run`).
 
+mod common;
+
 use std::path::Path;
 use std::process::Command;
 
@@ -19,10 +21,6 @@ fn chromium() -> Option<String> {
     None
 }
 
-fn archive(name: &str) -> String {
-    format!("{}/fixtures/archive/{name}", env!("CARGO_MANIFEST_DIR"))
-}
-
 #[test]
 fn report_renders_in_headless_chromium_without_console_errors() {
     let Some(browser) = chromium() else {
@@ -36,15 +34,7 @@ fn report_renders_in_headless_chromium_without_console_errors() {
     };
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
-    std::fs::create_dir_all(&camp).unwrap();
-    for f in [
-        "soap_120kmh_p20.csv",
-        "soap_120kmh_p20.meta.toml",
-        "soap_120kmh_m20.csv",
-        "soap_120kmh_m20.meta.toml",
-    ] {
-        std::fs::copy(archive(f), camp.join(f)).unwrap();
-    }
+    common::two_run_campaign(&camp);
     std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
         .args(["run", "campaign", "--out", "out"])

@@ -214,7 +214,10 @@ pub struct TemperatureLaw {
     pub fitted_range_c: (f64, f64),
 }
 
-fn horner(c: &[f64], t: f64) -> f64 {
+/// A polynomial with coefficients in ascending powers at `t`, by Horner's rule (the k(T)
+/// evaluation every evaluator of k_A(T), k_S(T) shares, C header included).
+#[inline]
+pub fn horner(c: &[f64], t: f64) -> f64 {
     c.iter().rev().fold(0.0, |acc, ci| acc * t + ci)
 }
 

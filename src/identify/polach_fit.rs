@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use super::dataset::RunTable;
 use super::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
 use super::IdentifyError;
-use crate::contact::polach::{polach, ContactPatch, PolachParams, TemperatureLaw};
+use crate::contact::polach::{horner, polach, ContactPatch, PolachParams, TemperatureLaw};
 use crate::linalg::{cho_solve, cholesky, effective_samples, inverse_diagonal};
 
 /// One sample for the fit.
@@ -340,10 +340,9 @@ pub fn fit_temperature(fits: &[PolachFit], degree: usize) -> Result<TemperatureF
     };
     let ca = polyfit(&t, &ka, degree).ok_or_else(fail)?;
     let cs = polyfit(&t, &ks, degree).ok_or_else(fail)?;
-    let eval = |c: &[f64], x: f64| c.iter().rev().fold(0.0, |acc, ci| acc * x + ci);
     let residuals = pts
         .iter()
-        .map(|(ti, a, s)| (*ti, a - eval(&ca, *ti), s - eval(&cs, *ti)))
+        .map(|(ti, a, s)| (*ti, a - horner(&ca, *ti), s - horner(&cs, *ti)))
         .collect();
     let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);

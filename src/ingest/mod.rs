@@ -403,14 +403,6 @@ impl LogSource {
         })
     }
 
-    /// The whole log's bytes (read from disk for a file).
-    pub fn bytes(&self) -> std::io::Result<Arc<[u8]>> {
-        Ok(match self {
-            LogSource::File(p) => std::fs::read(p)?.into(),
-            LogSource::Memory { bytes, .. } => Arc::clone(bytes),
-        })
-    }
-
     /// The metadata sidecar `<stem>.meta.toml` beside a CSV log: its name and, when it
     /// exists, its bytes.
     pub fn sidecar(&self) -> std::io::Result<(PathBuf, Option<Vec<u8>>)> {

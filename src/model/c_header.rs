@@ -18,6 +18,23 @@ fn lit(x: f64) -> String {
     }
 }
 
+/// `name [unit] in [min, max]` of every input, for the header comment.
+fn inputs_line(m: &ModelFile) -> String {
+    m.inputs
+        .iter()
+        .map(|i| {
+            format!(
+                "{} [{}] in [{}, {}]",
+                i.name,
+                i.unit,
+                lit(i.domain_min),
+                lit(i.domain_max)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 fn array(name: &str, v: &[f64]) -> String {
     let items: Vec<String> = v.iter().map(|x| lit(*x)).collect();
     format!(
@@ -56,19 +73,7 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         w1c,
     } = m.scaling();
     let cpc = creep.creep_stiffness_n / creep.wheel_load_n;
-    let inputs: Vec<String> = m
-        .inputs
-        .iter()
-        .map(|i| {
-            format!(
-                "{} [{}] in [{}, {}]",
-                i.name,
-                i.unit,
-                lit(i.domain_min),
-                lit(i.domain_max)
-            )
-        })
-        .collect();
+    let inputs = inputs_line(m);
     let mut s = String::new();
     let _ = write!(
         s,
@@ -98,7 +103,7 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         fv = m.version,
         nt = m.metrics.train_samples,
         vm = m.metrics.val_mse.map(lit).unwrap_or_else(|| "n/a".into()),
-        inputs = inputs.join(", "),
+        inputs = inputs,
         P = p.to_uppercase(),
     );
     s.push_str(&array(&format!("{p}_lo"), &lo));
@@ -301,19 +306,7 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
     let pre = prefix;
     let up = prefix.to_uppercase();
     let guard = format!("{up}_ADHESION_MODEL_H");
-    let inputs: Vec<String> = m
-        .inputs
-        .iter()
-        .map(|i| {
-            format!(
-                "{} [{}] in [{}, {}]",
-                i.name,
-                i.unit,
-                lit(i.domain_min),
-                lit(i.domain_max)
-            )
-        })
-        .collect();
+    let inputs = inputs_line(m);
     let (has_t, ka_t, ks_t, t_lo, t_hi) = match &p.temperature {
         Some(t) => (
             1,
@@ -369,7 +362,7 @@ static const double {pre}_t_hi = {t_hi};
         fv = m.version,
         nt = m.metrics.train_samples,
         rmse = lit(m.metrics.train_mse.sqrt()),
-        inputs = inputs.join(", "),
+        inputs = inputs,
         nka = ka_t.len(),
         nks = ks_t.len(),
         mu0 = lit(p.mu0),

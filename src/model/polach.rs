@@ -22,7 +22,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::{InputSpec, Metrics, ModelError, ModelFile, ModelKind, OutputSpec, Provenance};
-use crate::contact::polach::{ContactPatch, PolachParams};
+use crate::contact::polach::{horner, ContactPatch, PolachParams};
 use crate::identify::polach_fit::{PolachFit, TemperatureFit};
 
 /// Name of the optional third input of a Polach model with a temperature law.
@@ -175,12 +175,6 @@ impl ModelFile {
         })?;
         Ok(file)
     }
-}
-
-/// Evaluates a polynomial with coefficients in ascending powers by Horner's rule.
-#[inline]
-fn horner(c: &[f64], t: f64) -> f64 {
-    c.iter().rev().fold(0.0, |acc, ci| acc * t + ci)
 }
 
 /// Checks a `polach` model file: names, sections, parameter domain, and that a temperature

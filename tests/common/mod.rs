@@ -224,3 +224,23 @@ pub fn parquet_columns(path: &Path, names: &[&str]) -> Vec<Vec<f64>> {
         })
         .collect()
 }
+
+/// A bundled archive file.
+pub fn fixture(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fixtures/archive")
+        .join(name)
+}
+
+/// A small campaign folder at `dir`: two soap CSV runs at 120 km/h with their sidecars.
+pub fn two_run_campaign(dir: &Path) {
+    std::fs::create_dir_all(dir).unwrap();
+    for f in [
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_p20.meta.toml",
+        "soap_120kmh_m20.csv",
+        "soap_120kmh_m20.meta.toml",
+    ] {
+        std::fs::copy(fixture(f), dir.join(f)).unwrap();
+    }
+}
