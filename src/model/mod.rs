@@ -63,7 +63,9 @@ impl Simd {
             if std::arch::is_x86_feature_detected!("avx512f") {
                 return Simd::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma")
+            {
                 return Simd::Avx2;
             }
         }
@@ -664,36 +666,101 @@ const INV_FACTORIAL: [f64; 13] = [
 
 #[inline(always)]
 pub fn tanh_fast(z: f64) -> f64 {
+    let mut a = [z];
+    tanh_lanes(&mut a);
+    a[0]
+}
+
+/// [`tanh_fast`] in place on every lane of `z`, written step by step across the lanes so the
+/// compiler keeps each step one SIMD instruction (per lane exactly the operations of
+/// [`tanh_fast`]).
+#[inline(always)]
+#[allow(clippy::needless_range_loop)]
+pub fn tanh_lanes<const L: usize>(z: &mut [f64; L]) {
     const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
     const LOG2E: f64 = std::f64::consts::LOG2_E;
     const LN2_HI: f64 = 6.931_471_803_691_238e-1;
     const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
-    let x = (2.0 * z.abs()).min(40.0);
-    let t = x * LOG2E + MAGIC;
-    let n = t - MAGIC;
-    let r = (x - n * LN2_HI) - n * LN2_LO;
+    let c = &INV_FACTORIAL;
+    let mut t = [0.0; L];
+    let mut r = [0.0; L];
+    let mut p = [0.0; L];
+    for l in 0..L {
+        let x = (2.0 * z[l].abs()).min(40.0);
+        t[l] = x.mul_add(LOG2E, MAGIC);
+        let n = t[l] - MAGIC;
+        r[l] = (-n).mul_add(LN2_LO, (-n).mul_add(LN2_HI, x));
+    }
     // e^r − 1 = Σ_{k=1..13} r^k/k! by Estrin's scheme (pairs, then powers r², r⁴, r⁸): a
     // short dependency chain instead of Horner's thirteen steps.
-    let c = &INV_FACTORIAL;
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let r8 = r4 * r4;
-    let q0 = c[0] + c[1] * r; // 1 + r/2
-    let q1 = c[2] + c[3] * r;
-    let q2 = c[4] + c[5] * r;
-    let q3 = c[6] + c[7] * r;
-    let q4 = c[8] + c[9] * r;
-    let q5 = c[10] + c[11] * r;
-    let s0 = q0 + q1 * r2;
-    let s1 = q2 + q3 * r2;
-    let s2 = q4 + q5 * r2;
-    let u0 = s0 + s1 * r4;
-    let u1 = s2 + c[12] * r4;
-    let p = (u0 + u1 * r8) * r;
-    // 2^n: the low bits of t hold n; shifted into the exponent field with the bias.
-    let scale = f64::from_bits(t.to_bits().wrapping_add(1023) << 52);
-    let em1 = scale * p + (scale - 1.0);
-    (em1 / (em1 + 2.0)).copysign(z)
+    for l in 0..L {
+        let r = r[l];
+        let r2 = r * r;
+        let r4 = r2 * r2;
+        let r8 = r4 * r4;
+        let q0 = c[1].mul_add(r, c[0]); // 1 + r/2
+        let q1 = c[3].mul_add(r, c[2]);
+        let q2 = c[5].mul_add(r, c[4]);
+        let q3 = c[7].mul_add(r, c[6]);
+        let q4 = c[9].mul_add(r, c[8]);
+        let q5 = c[11].mul_add(r, c[10]);
+        let s0 = q1.mul_add(r2, q0);
+        let s1 = q3.mul_add(r2, q2);
+        let s2 = q5.mul_add(r2, q4);
+        let u0 = s1.mul_add(r4, s0);
+        let u1 = c[12].mul_add(r4, s2);
+        p[l] = u1.mul_add(r8, u0) * r;
+    }
+    for l in 0..L {
+        // 2^n: the low bits of t hold n; shifted into the exponent field with the bias.
+        let scale = f64::from_bits(t[l].to_bits().wrapping_add(1023) << 52);
+        let em1 = scale.mul_add(p[l], scale - 1.0);
+        z[l] = (em1 / (em1 + 2.0)).copysign(z[l]);
+    }
+}
+
+/// [`tanh_fast`] on four lanes with AVX2/FMA intrinsics: exactly its operations, lane by lane
+/// (FMA is correctly rounded, so `vfmadd` and `f64::mul_add` agree to the bit).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+unsafe fn tanh_avx2(z: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    let c = |k: usize| _mm256_set1_pd(INV_FACTORIAL[k]);
+    let sign = _mm256_set1_pd(-0.0);
+    let x = _mm256_min_pd(
+        _mm256_mul_pd(_mm256_set1_pd(2.0), _mm256_andnot_pd(sign, z)),
+        _mm256_set1_pd(40.0),
+    );
+    let magic = _mm256_set1_pd(6_755_399_441_055_744.0);
+    let t = _mm256_fmadd_pd(x, _mm256_set1_pd(std::f64::consts::LOG2_E), magic);
+    let n = _mm256_sub_pd(t, magic);
+    let r = _mm256_fnmadd_pd(
+        n,
+        _mm256_set1_pd(1.908_214_929_270_587_7e-10),
+        _mm256_fnmadd_pd(n, _mm256_set1_pd(6.931_471_803_691_238e-1), x),
+    );
+    let r2 = _mm256_mul_pd(r, r);
+    let r4 = _mm256_mul_pd(r2, r2);
+    let r8 = _mm256_mul_pd(r4, r4);
+    let q0 = _mm256_fmadd_pd(c(1), r, c(0));
+    let q1 = _mm256_fmadd_pd(c(3), r, c(2));
+    let q2 = _mm256_fmadd_pd(c(5), r, c(4));
+    let q3 = _mm256_fmadd_pd(c(7), r, c(6));
+    let q4 = _mm256_fmadd_pd(c(9), r, c(8));
+    let q5 = _mm256_fmadd_pd(c(11), r, c(10));
+    let s0 = _mm256_fmadd_pd(q1, r2, q0);
+    let s1 = _mm256_fmadd_pd(q3, r2, q2);
+    let s2 = _mm256_fmadd_pd(q5, r2, q4);
+    let u0 = _mm256_fmadd_pd(s1, r4, s0);
+    let u1 = _mm256_fmadd_pd(c(12), r4, s2);
+    let p = _mm256_mul_pd(_mm256_fmadd_pd(u1, r8, u0), r);
+    let scale = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
+        _mm256_castpd_si256(t),
+        _mm256_set1_epi64x(1023),
+    )));
+    let em1 = _mm256_fmadd_pd(scale, p, _mm256_sub_pd(scale, _mm256_set1_pd(1.0)));
+    let q = _mm256_div_pd(em1, _mm256_add_pd(em1, _mm256_set1_pd(2.0)));
+    _mm256_or_pd(_mm256_andnot_pd(sign, q), _mm256_and_pd(sign, z))
 }
 
 /// Shen–Hedrick–Elkins saturation S(x) = x − x²/3 + x³/27 below 3, 1 above (seed 002 eq. 8,
@@ -758,15 +825,49 @@ impl Net {
     /// runs over the real neurons in order — the same operations as the batch path and the C
     /// header, same results.
     #[inline(always)]
-    fn net(&self, x: [f64; 3]) -> f64 {
+    fn net<const AVX: bool>(&self, x: [f64; 3]) -> f64 {
         // The usual sizes with the chunk count known at compile time (fully unrolled).
         match self.pad / CHUNK {
-            1 => self.net_chunks::<1>(x),
-            2 => self.net_chunks::<2>(x),
-            3 => self.net_chunks::<3>(x),
-            4 => self.net_chunks::<4>(x),
-            _ => self.net_any(x),
+            1 => self.net_chunks::<1, AVX>(x),
+            2 => self.net_chunks::<2, AVX>(x),
+            3 => self.net_chunks::<3, AVX>(x),
+            4 => self.net_chunks::<4, AVX>(x),
+            _ => self.net_any::<AVX>(x),
         }
+    }
+
+    /// [`Net::chunk`] or, with `AVX` (only inside functions compiled for AVX2 and FMA), the
+    /// same operations written with AVX2/FMA intrinsics.
+    #[inline(always)]
+    fn chunk_with<const AVX: bool>(&self, xn: &[f64; 3], j: usize) -> [f64; CHUNK] {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: AVX is true only in code compiled for (and run on) AVX2 + FMA.
+            return unsafe { self.chunk_avx2(xn, j) };
+        }
+        self.chunk(xn, j)
+    }
+
+    /// [`Net::chunk`] with AVX2/FMA intrinsics: lane by lane the same IEEE operations
+    /// (separate multiply and add where `chunk` has them, fused where it calls `mul_add`).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn chunk_avx2(&self, xn: &[f64; 3], j: usize) -> [f64; CHUNK] {
+        use std::arch::x86_64::*;
+        let at = |v: &[f64], c: usize| -> __m256d {
+            let s = &v[c * self.pad + j * CHUNK..c * self.pad + (j + 1) * CHUNK];
+            // SAFETY: `s` holds exactly four f64 (slice bounds checked above).
+            unsafe { _mm256_loadu_pd(s.as_ptr()) }
+        };
+        let mut z = at(&self.b1, 0);
+        for (c, &xc) in xn.iter().enumerate().take(self.k) {
+            z = _mm256_add_pd(z, _mm256_mul_pd(at(&self.w1c, c), _mm256_set1_pd(xc)));
+        }
+        let t = _mm256_mul_pd(tanh_avx2(z), at(&self.w2, 0));
+        let mut o = [0.0; CHUNK];
+        // SAFETY: `o` holds four f64.
+        unsafe { _mm256_storeu_pd(o.as_mut_ptr(), t) };
+        o
     }
 
     #[inline(always)]
@@ -794,19 +895,19 @@ impl Net {
             }
         }
         let w2 = at(&self.w2, 0);
-        let mut t = [0.0; CHUNK];
+        tanh_lanes(&mut z);
         for i in 0..CHUNK {
-            t[i] = w2[i] * tanh_fast(z[i]);
+            z[i] *= w2[i];
         }
-        t
+        z
     }
 
     #[inline(always)]
-    fn net_chunks<const C: usize>(&self, x: [f64; 3]) -> f64 {
+    fn net_chunks<const C: usize, const AVX: bool>(&self, x: [f64; 3]) -> f64 {
         let xn = self.inputs(x);
         let mut t = [[0.0; CHUNK]; C];
         for (j, tj) in t.iter_mut().enumerate() {
-            *tj = self.chunk(&xn, j);
+            *tj = self.chunk_with::<AVX>(&xn, j);
         }
         let mut y = self.b2;
         for ti in t.as_flattened().iter().take(self.nh) {
@@ -816,11 +917,11 @@ impl Net {
     }
 
     #[inline(always)]
-    fn net_any(&self, x: [f64; 3]) -> f64 {
+    fn net_any<const AVX: bool>(&self, x: [f64; 3]) -> f64 {
         let xn = self.inputs(x);
         let mut y = self.b2;
         for j in 0..self.pad / CHUNK {
-            let t = self.chunk(&xn, j);
+            let t = self.chunk_with::<AVX>(&xn, j);
             for ti in &t[..CHUNK.min(self.nh - j * CHUNK)] {
                 y += ti;
             }
@@ -832,23 +933,24 @@ impl Net {
     #[inline]
     fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: AVX2 was just detected on this CPU.
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: AVX2 and FMA were just detected on this CPU.
             return unsafe { self.mu_v_avx2(dv_mps, ddv_mps2, v_mps) };
         }
-        self.mu_v_impl(dv_mps, ddv_mps2, v_mps)
+        self.mu_v_impl::<false>(dv_mps, ddv_mps2, v_mps)
     }
 
     /// [`Model::mu_v`] compiled for AVX2: the same IEEE operations (Rust never contracts a
     /// multiply and an add into an FMA on its own), four neurons per instruction.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,fma")]
     unsafe fn mu_v_avx2(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
-        self.mu_v_impl(dv_mps, ddv_mps2, v_mps)
+        self.mu_v_impl::<true>(dv_mps, ddv_mps2, v_mps)
     }
 
     #[inline(always)]
-    fn mu_v_impl(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+    fn mu_v_impl<const AVX: bool>(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         if !(dv_mps.is_finite() && ddv_mps2.is_finite()) {
             return f64::NAN;
         }
@@ -858,11 +960,11 @@ impl Net {
             (1.0, dv_mps, ddv_mps2)
         };
         let v = if v_mps.is_finite() { v_mps } else { self.v_ref };
-        let net = self.net([dv, ddv, v]);
+        let net = self.net::<AVX>([dv, ddv, v]);
         if dv >= self.blend {
             return s * net;
         }
-        let sat = self.net([self.blend, ddv, v]).abs();
+        let sat = self.net::<AVX>([self.blend, ddv, v]).abs();
         let v_creep = if self.k == 3 { v.max(1.0) } else { self.v_ref };
         let slope = self.creep_per_creepage / v_creep;
         let lin = if sat > 0.0 {
@@ -917,7 +1019,7 @@ impl Net {
     }
 
     block_with_feature!(block_avx512, "avx512f");
-    block_with_feature!(block_avx2, "avx2");
+    block_with_feature!(block_avx2, "avx2,fma");
 
     /// [`Model::mu_v`] for a block of samples, lane by lane the same operations. The lane loops
     /// are indexed on purpose: plain fixed-length loops the compiler turns into SIMD.
@@ -972,7 +1074,7 @@ impl Net {
                 sgn[l] * net
             } else {
                 // The creep region (rare in a batch): the scalar rule.
-                self.mu_v_impl(dv_in[l], ddv_in[l], v_in[l])
+                self.mu_v_impl::<false>(dv_in[l], ddv_in[l], v_in[l])
             };
         }
     }
@@ -1001,7 +1103,7 @@ mod tests {
         for i in 0..400 {
             let dv = -4.5 + 0.0225 * i as f64;
             for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
-                let (a, b) = (m.mu(dv, ddv), net.mu_v_impl(dv, ddv, f64::NAN));
+                let (a, b) = (m.mu(dv, ddv), net.mu_v_impl::<false>(dv, ddv, f64::NAN));
                 assert_eq!(a.to_bits(), b.to_bits(), "({dv}, {ddv})");
             }
         }
