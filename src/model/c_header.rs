@@ -82,9 +82,11 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
  * Inputs (clamped to the domain seen in training): {inputs}.
  * Header-only C99: #include it and call {p}_mu(dv, ddv), {p}_mu_v(dv, ddv, v),
  * {p}_mu_vt(dv, ddv, v, t_c) (t_c ignored by this kind) or {p}_mu_batch(dv, ddv, v_or_NULL, out, n).
- * Same arithmetic as railgrip's Rust evaluator (railgrip::model::Model::mu_v); compile without
- * FMA contraction (e.g. no -ffp-contract=fast together with -mfma) for bit-identical results.
- * Link with -lm. See railgrip's README, "Model files", for the evaluation rule.
+ * Same arithmetic as railgrip's Rust evaluator (railgrip::model::Model::mu_v), fused
+ * multiply-adds included ({P}_FMA): bit-identical results when those use C99 fma() (targets
+ * with fast FMA, e.g. -march=native on x86-64 since 2013 and every AArch64, or define
+ * {P}_EXACT_FMA) and no other product is contracted (-ffp-contract=off); otherwise within a
+ * few ulp. Link with -lm. See railgrip's README, "Model files", for the evaluation rule.
  */
 #ifndef {guard}
 #define {guard}
@@ -92,6 +94,12 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
 #include <math.h>
 #include <stdint.h>
 #include <string.h>
+
+#if defined(FP_FAST_FMA) || defined({P}_EXACT_FMA)
+#define {P}_FMA(a, b, c) fma((a), (b), (c))
+#else
+#define {P}_FMA(a, b, c) ((a) * (b) + (c))
+#endif
 
 #define {P}_N_INPUTS {k}
 #define {P}_N_HIDDEN {nh}
@@ -126,37 +134,36 @@ static inline double {p}_clamp(double x, double lo, double hi) {{
     return x < lo ? lo : (x > hi ? hi : x);
 }}
 
-/* tanh as railgrip::model::tanh_fast: branch-free, the same operations in the same order. */
+/* tanh as railgrip::model::tanh_fast: branch-free, the same operations in the same order.
+ * x = 2z clamped to [-40, 40]; x = n ln2 + r; e^r - 1 = r P(r) (degree 10, Estrin);
+ * e^x - 1 = 2^n P r + (2^n - 1); tanh z = (e^x - 1)/(e^x - 1 + 2). */
 static inline double {p}_tanh(double z) {{
     const double magic = 6755399441055744.0;
     const double log2e = 1.4426950408889634;
     const double ln2_hi = 0.6931471803691238;
     const double ln2_lo = 1.9082149292705877e-10;
-    static const double inv_factorial[13] = {{
-        1.0, 1.0 / 2.0, 1.0 / 6.0, 1.0 / 24.0, 1.0 / 120.0, 1.0 / 720.0, 1.0 / 5040.0,
-        1.0 / 40320.0, 1.0 / 362880.0, 1.0 / 3628800.0, 1.0 / 39916800.0, 1.0 / 479001600.0,
-        1.0 / 6227020800.0
-    }};
-    double x = 2.0 * fabs(z), t, n, r, p, scale, em1;
+    static const double c[11] = {{ {expm1_p} }};
+    double x = 2.0 * z, t, n, r, p, scale, em1;
     uint64_t bits;
     x = x < 40.0 ? x : 40.0;
-    t = x * log2e + magic;
+    x = x > -40.0 ? x : -40.0;
+    t = {P}_FMA(x, log2e, magic);
     n = t - magic;
-    r = (x - n * ln2_hi) - n * ln2_lo;
+    r = {P}_FMA(-n, ln2_lo, {P}_FMA(-n, ln2_hi, x));
     {{
-        const double *c = inv_factorial;
         double r2 = r * r, r4 = r2 * r2, r8 = r4 * r4;
-        double q0 = c[0] + c[1] * r, q1 = c[2] + c[3] * r, q2 = c[4] + c[5] * r;
-        double q3 = c[6] + c[7] * r, q4 = c[8] + c[9] * r, q5 = c[10] + c[11] * r;
-        double s0 = q0 + q1 * r2, s1 = q2 + q3 * r2, s2 = q4 + q5 * r2;
-        double u0 = s0 + s1 * r4, u1 = s2 + c[12] * r4;
-        p = (u0 + u1 * r8) * r;
+        double q0 = {P}_FMA(c[1], r, c[0]), q1 = {P}_FMA(c[3], r, c[2]);
+        double q2 = {P}_FMA(c[5], r, c[4]), q3 = {P}_FMA(c[7], r, c[6]);
+        double q4 = {P}_FMA(c[9], r, c[8]);
+        double s0 = {P}_FMA(q1, r2, q0), s1 = {P}_FMA(q3, r2, q2), s2 = {P}_FMA(c[10], r2, q4);
+        double u0 = {P}_FMA(s1, r4, s0);
+        p = {P}_FMA(s2, r8, u0) * r;
     }}
     memcpy(&bits, &t, sizeof bits);
     bits = (bits + 1023u) << 52;
     memcpy(&scale, &bits, sizeof scale);
-    em1 = scale * p + (scale - 1.0);
-    return copysign(em1 / (em1 + 2.0), z);
+    em1 = {P}_FMA(scale, p, scale - 1.0);
+    return em1 / (em1 + 2.0);
 }}
 
 static inline double {p}_net(const double x[3]) {{
@@ -165,14 +172,14 @@ static inline double {p}_net(const double x[3]) {{
     double y = {p}_b2;
     int c, h;
     for (c = 0; c < {P}_N_INPUTS; ++c) {{
-        xn[c] = {p}_gx[c] * {p}_clamp(x[c], {p}_lo[c], {p}_hi[c]) + {p}_ox[c];
+        xn[c] = {P}_FMA({p}_gx[c], {p}_clamp(x[c], {p}_lo[c], {p}_hi[c]), {p}_ox[c]);
     }}
     for (h = 0; h < {P}_N_HIDDEN; ++h) {{
         z[h] = {p}_b1[h];
     }}
     for (c = 0; c < {P}_N_INPUTS; ++c) {{
         for (h = 0; h < {P}_N_HIDDEN; ++h) {{
-            z[h] += {p}_w1c[c * {P}_N_HIDDEN + h] * xn[c];
+            z[h] = {P}_FMA({p}_w1c[c * {P}_N_HIDDEN + h], xn[c], z[h]);
         }}
     }}
     for (h = 0; h < {P}_N_HIDDEN; ++h) {{
@@ -236,7 +243,7 @@ static inline void {p}_mu_batch(const double *dv, const double *ddv, const doubl
         }}
         for (c = 0; c < {P}_N_INPUTS; ++c) {{
             for (l = 0; l < {P}_LANES; ++l) {{
-                xn[c][l] = {p}_gx[c] * {p}_clamp(x[c][l], {p}_lo[c], {p}_hi[c]) + {p}_ox[c];
+                xn[c][l] = {P}_FMA({p}_gx[c], {p}_clamp(x[c][l], {p}_lo[c], {p}_hi[c]), {p}_ox[c]);
             }}
         }}
         for (l = 0; l < {P}_LANES; ++l) {{
@@ -248,7 +255,7 @@ static inline void {p}_mu_batch(const double *dv, const double *ddv, const doubl
             }}
             for (c = 0; c < {P}_N_INPUTS; ++c) {{
                 for (l = 0; l < {P}_LANES; ++l) {{
-                    z[l] += {p}_w1c[c * {P}_N_HIDDEN + h] * xn[c][l];
+                    z[l] = {P}_FMA({p}_w1c[c * {P}_N_HIDDEN + h], xn[c][l], z[l]);
                 }}
             }}
             for (l = 0; l < {P}_LANES; ++l) {{
@@ -284,7 +291,8 @@ static inline double {p}_mu_vt(double dv_mps, double ddv_mps2, double v_mps, dou
 
 #endif /* {guard} */
 "#,
-        b2 = lit(o.biases[0]),
+        b2 = lit(o.biases[0] + 0.0),
+        expm1_p = super::simd::EXPM1_P.map(lit).join(", "),
         gy = lit(gy),
         oy = lit(oy),
         blend = lit(creep.blend_mps),

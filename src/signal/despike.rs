@@ -196,7 +196,11 @@ mod tests {
                     .wrapping_mul(6364136223846793005)
                     .wrapping_add(1442695040888963407);
                 let u = (seed >> 11) as f64 / (1u64 << 53) as f64;
-                let spike = if (seed >> 7) % 23 == 0 { 2.0 } else { 0.0 };
+                let spike = if (seed >> 7).is_multiple_of(23) {
+                    2.0
+                } else {
+                    0.0
+                };
                 0.01 * i as f64 + 0.1 * u + spike
             })
             .collect();
