@@ -851,8 +851,11 @@ impl Net {
     #[inline]
     fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512vl") {
-            // SAFETY: AVX-512VL (which implies AVX2 and FMA) was just detected on this CPU.
+        if std::arch::is_x86_feature_detected!("avx512vl")
+            && std::arch::is_x86_feature_detected!("avx2")
+            && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: AVX-512VL, AVX2 and FMA were just detected on this CPU.
             return unsafe { self.mu_v_avx512vl(dv_mps, ddv_mps2, v_mps) };
         }
         #[cfg(target_arch = "x86_64")]
@@ -1089,8 +1092,8 @@ mod tests {
                     .collect();
                 same("AVX2 single call", &got);
             }
-            if std::arch::is_x86_feature_detected!("avx512vl") {
-                // SAFETY: AVX-512VL (with AVX2 and FMA) detected.
+            if std::arch::is_x86_feature_detected!("avx512vl") && has("avx2") {
+                // SAFETY: AVX-512VL, AVX2 and FMA detected.
                 let got: Vec<f64> = points
                     .iter()
                     .map(|&(a, b)| unsafe { net.mu_v_avx512vl(a, b, f64::NAN) })
