@@ -102,132 +102,116 @@ unsafe impl Lanes for f64 {
     }
 }
 
+/// [`Lanes`] for an x86 register type from its intrinsics (AVX2 + FMA for `__m256d`, AVX-512F
+/// for `__m512d`; the two sets name them alike).
+#[cfg(target_arch = "x86_64")]
+macro_rules! x86_lanes {
+    ($t:ty, $n:literal, $set1:ident, $load:ident, $store:ident, $add:ident,
+     $sub:ident, $mul:ident, $div:ident, $fmadd:ident, $fnmadd:ident, $min:ident, $max:ident,
+     $to_int:ident, $to_pd:ident, $slli:ident, $add64:ident, $set1_64:ident) => {
+        // SAFETY: used only inside functions compiled for the register's target features
+        // (see the trait's contract); loads and stores check the slice length first.
+        unsafe impl Lanes for $t {
+            const N: usize = $n;
+            #[inline(always)]
+            unsafe fn splat(x: f64) -> Self {
+                unsafe { $set1(x) }
+            }
+            #[inline(always)]
+            unsafe fn load(p: &[f64]) -> Self {
+                assert!(p.len() >= $n);
+                unsafe { $load(p.as_ptr()) }
+            }
+            #[inline(always)]
+            unsafe fn store(self, p: &mut [f64]) {
+                assert!(p.len() >= $n);
+                unsafe { $store(p.as_mut_ptr(), self) }
+            }
+            #[inline(always)]
+            unsafe fn add(self, b: Self) -> Self {
+                unsafe { $add(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn sub(self, b: Self) -> Self {
+                unsafe { $sub(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn mul(self, b: Self) -> Self {
+                unsafe { $mul(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn div(self, b: Self) -> Self {
+                unsafe { $div(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn fma(self, b: Self, c: Self) -> Self {
+                unsafe { $fmadd(self, b, c) }
+            }
+            #[inline(always)]
+            unsafe fn fnma(self, b: Self, c: Self) -> Self {
+                unsafe { $fnmadd(self, b, c) }
+            }
+            #[inline(always)]
+            unsafe fn min(self, b: Self) -> Self {
+                unsafe { $min(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn max(self, b: Self) -> Self {
+                unsafe { $max(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn pow2_of_magic(self) -> Self {
+                unsafe { $to_pd($slli::<52>($add64($to_int(self), $set1_64(1023)))) }
+            }
+        }
+    };
+}
+
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use super::Lanes;
     use std::arch::x86_64::*;
 
-    // SAFETY: used only inside functions compiled for AVX2 + FMA (see the trait's contract);
-    // loads and stores check the slice length first.
-    unsafe impl Lanes for __m256d {
-        const N: usize = 4;
-        #[inline(always)]
-        unsafe fn splat(x: f64) -> Self {
-            unsafe { _mm256_set1_pd(x) }
-        }
-        #[inline(always)]
-        unsafe fn load(p: &[f64]) -> Self {
-            assert!(p.len() >= 4);
-            unsafe { _mm256_loadu_pd(p.as_ptr()) }
-        }
-        #[inline(always)]
-        unsafe fn store(self, p: &mut [f64]) {
-            assert!(p.len() >= 4);
-            unsafe { _mm256_storeu_pd(p.as_mut_ptr(), self) }
-        }
-        #[inline(always)]
-        unsafe fn add(self, b: Self) -> Self {
-            unsafe { _mm256_add_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn sub(self, b: Self) -> Self {
-            unsafe { _mm256_sub_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn mul(self, b: Self) -> Self {
-            unsafe { _mm256_mul_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn div(self, b: Self) -> Self {
-            unsafe { _mm256_div_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn fma(self, b: Self, c: Self) -> Self {
-            unsafe { _mm256_fmadd_pd(self, b, c) }
-        }
-        #[inline(always)]
-        unsafe fn fnma(self, b: Self, c: Self) -> Self {
-            unsafe { _mm256_fnmadd_pd(self, b, c) }
-        }
-        #[inline(always)]
-        unsafe fn min(self, b: Self) -> Self {
-            unsafe { _mm256_min_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn max(self, b: Self) -> Self {
-            unsafe { _mm256_max_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn pow2_of_magic(self) -> Self {
-            unsafe {
-                _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
-                    _mm256_castpd_si256(self),
-                    _mm256_set1_epi64x(1023),
-                )))
-            }
-        }
-    }
-
-    // SAFETY: used only inside functions compiled for AVX-512F (see the trait's contract);
-    // loads and stores check the slice length first.
-    unsafe impl Lanes for __m512d {
-        const N: usize = 8;
-        #[inline(always)]
-        unsafe fn splat(x: f64) -> Self {
-            unsafe { _mm512_set1_pd(x) }
-        }
-        #[inline(always)]
-        unsafe fn load(p: &[f64]) -> Self {
-            assert!(p.len() >= 8);
-            unsafe { _mm512_loadu_pd(p.as_ptr()) }
-        }
-        #[inline(always)]
-        unsafe fn store(self, p: &mut [f64]) {
-            assert!(p.len() >= 8);
-            unsafe { _mm512_storeu_pd(p.as_mut_ptr(), self) }
-        }
-        #[inline(always)]
-        unsafe fn add(self, b: Self) -> Self {
-            unsafe { _mm512_add_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn sub(self, b: Self) -> Self {
-            unsafe { _mm512_sub_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn mul(self, b: Self) -> Self {
-            unsafe { _mm512_mul_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn div(self, b: Self) -> Self {
-            unsafe { _mm512_div_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn fma(self, b: Self, c: Self) -> Self {
-            unsafe { _mm512_fmadd_pd(self, b, c) }
-        }
-        #[inline(always)]
-        unsafe fn fnma(self, b: Self, c: Self) -> Self {
-            unsafe { _mm512_fnmadd_pd(self, b, c) }
-        }
-        #[inline(always)]
-        unsafe fn min(self, b: Self) -> Self {
-            unsafe { _mm512_min_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn max(self, b: Self) -> Self {
-            unsafe { _mm512_max_pd(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn pow2_of_magic(self) -> Self {
-            unsafe {
-                _mm512_castsi512_pd(_mm512_slli_epi64::<52>(_mm512_add_epi64(
-                    _mm512_castpd_si512(self),
-                    _mm512_set1_epi64(1023),
-                )))
-            }
-        }
-    }
+    x86_lanes!(
+        __m256d,
+        4,
+        _mm256_set1_pd,
+        _mm256_loadu_pd,
+        _mm256_storeu_pd,
+        _mm256_add_pd,
+        _mm256_sub_pd,
+        _mm256_mul_pd,
+        _mm256_div_pd,
+        _mm256_fmadd_pd,
+        _mm256_fnmadd_pd,
+        _mm256_min_pd,
+        _mm256_max_pd,
+        _mm256_castpd_si256,
+        _mm256_castsi256_pd,
+        _mm256_slli_epi64,
+        _mm256_add_epi64,
+        _mm256_set1_epi64x
+    );
+    x86_lanes!(
+        __m512d,
+        8,
+        _mm512_set1_pd,
+        _mm512_loadu_pd,
+        _mm512_storeu_pd,
+        _mm512_add_pd,
+        _mm512_sub_pd,
+        _mm512_mul_pd,
+        _mm512_div_pd,
+        _mm512_fmadd_pd,
+        _mm512_fnmadd_pd,
+        _mm512_min_pd,
+        _mm512_max_pd,
+        _mm512_castpd_si512,
+        _mm512_castsi512_pd,
+        _mm512_slli_epi64,
+        _mm512_add_epi64,
+        _mm512_set1_epi64
+    );
 }
 
 /// Coefficients of P(r) ≈ (e^r − 1)/r on |r| ≤ ln 2 / 2, degree 10, fitted by Chebyshev least
