@@ -24,6 +24,7 @@ pub mod report;
 pub mod rng;
 pub mod signal;
 pub mod sim;
+pub(crate) mod simd;
 pub mod units;
 pub mod vehicle;
 

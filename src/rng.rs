@@ -23,6 +23,15 @@ impl Rng {
         (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
     }
 
+    /// Two independent standard normal deviates (both of Box–Muller's pair).
+    pub fn normal_pair(&mut self) -> (f64, f64) {
+        let u1 = 1.0 - self.uniform(); // (0, 1]
+        let u2 = self.uniform();
+        let rho = (-2.0 * u1.ln()).sqrt();
+        let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
+        (rho * c, rho * s)
+    }
+
     /// Standard normal deviate (Box–Muller, one of the pair).
     pub fn normal(&mut self) -> f64 {
         let u1 = 1.0 - self.uniform(); // (0, 1]
@@ -52,6 +61,21 @@ mod tests {
         assert!(
             mean.abs() < 0.01 && (var - 1.0).abs() < 0.02,
             "{mean} {var}"
+        );
+        // Both of the pair: standard, and uncorrelated with each other.
+        let (mut s, mut s2, mut sxy) = (0.0, 0.0, 0.0);
+        for _ in 0..n / 2 {
+            let (x, y) = a.normal_pair();
+            s += x + y;
+            s2 += x * x + y * y;
+            sxy += x * y;
+        }
+        let mean = s / n as f64;
+        let var = s2 / n as f64 - mean * mean;
+        let corr = sxy / (n / 2) as f64;
+        assert!(
+            mean.abs() < 0.01 && (var - 1.0).abs() < 0.02 && corr.abs() < 0.01,
+            "{mean} {var} {corr}"
         );
     }
 }

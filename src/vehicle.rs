@@ -71,6 +71,19 @@ pub fn axle_loads(v: &Vehicle, decel_mps2: f64) -> [f64; AXLES] {
     ]
 }
 
+/// [`axle_loads`] as N_i = N0_i + d · c_i (it is linear in the deceleration d): returns (N0_i
+/// the static loads (N), c_i = ∂N_i/∂d (N per m/s²)), c = (±m_c (h1 − hb)/(2 l1) ± m_b h2/l2)
+/// from eq. 12–13. The simulator evaluates the loads this way, one fused multiply-add per axle.
+pub fn axle_load_coefficients(v: &Vehicle) -> ([f64; AXLES], [f64; AXLES]) {
+    let pitch =
+        v.body_mass_kg * (v.body_cog_height_m - v.pivot_height_m) / v.bogie_pivot_distance_m / 2.0;
+    let bogie = v.bogie_mass_kg * v.bogie_cog_height_m / v.bogie_wheelbase_m;
+    (
+        axle_loads(v, 0.0),
+        [pitch + bogie, pitch - bogie, -pitch + bogie, -pitch - bogie],
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -87,6 +100,15 @@ mod tests {
             assert!((n.iter().sum::<f64>() - w).abs() < 1e-6 * w);
             assert_eq!(n[0] > n[3], d > 0.0);
             assert_eq!(n[0] > n[1], d > 0.0);
+            let (base, per) = axle_load_coefficients(&v);
+            for i in 0..AXLES {
+                let lin = d.mul_add(per[i], base[i]);
+                assert!(
+                    (lin - n[i]).abs() <= 1e-9 * n[i],
+                    "axle {i}: {lin} vs {}",
+                    n[i]
+                );
+            }
         }
     }
 }

@@ -292,7 +292,7 @@ static inline double {p}_mu_vt(double dv_mps, double ddv_mps2, double v_mps, dou
 #endif /* {guard} */
 "#,
         b2 = lit(o.biases[0] + 0.0),
-        expm1_p = super::simd::EXPM1_P.map(lit).join(", "),
+        expm1_p = crate::simd::EXPM1_P.map(lit).join(", "),
         gy = lit(gy),
         oy = lit(oy),
         blend = lit(creep.blend_mps),

@@ -23,7 +23,7 @@
 
 pub mod c_header;
 pub mod polach;
-mod simd;
+use crate::simd;
 
 use simd::Lanes;
 

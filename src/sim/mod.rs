@@ -25,6 +25,7 @@
 //! `hysteresis_time_constant_s` (an instant one closes an algebraic loop that chatters).
 
 pub mod scene;
+mod step;
 
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
@@ -32,7 +33,9 @@ use std::path::{Path, PathBuf};
 use crate::contact::ContactError;
 use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES};
 use crate::rng::Rng;
+use crate::simd::{exp_lanes, Select};
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
+use step::{polach_axles, wheel_update, AxleArrays, StepConsts};
 
 pub use crate::vehicle::{axle_loads, static_axle_load, G_MPS2};
 
@@ -72,6 +75,10 @@ impl EffectCounters {
     #[inline]
     fn hit(&mut self, e: Effect) {
         self.0[e.index()] += 1;
+    }
+    #[inline]
+    fn add(&mut self, e: Effect, n: u64) {
+        self.0[e.index()] += n;
     }
     pub fn get(&self, e: Effect) -> u64 {
         self.0[e.index()]
@@ -126,57 +133,12 @@ enum WspState {
     Hold,
 }
 
-/// Per-axle contact constants: ε = K s / (Q μ) with K = π G a b c11 / 4 at wheel load Q.
+/// Per-axle contact constants: ε = K Δv / (v Q μ) with K = π G a b c11 / 4 (N) at wheel load
+/// Q; K0 at the static load Q0, K ∝ (Q/Q0)^(2/3) under load transfer.
 #[derive(Debug, Clone, Copy)]
 struct AxleContact {
     k0: f64,
     q0: f64,
-    k: f64,
-}
-
-/// Adhesion of one axle for the current state: the ratio T/N and its slope ∂(T/N)/∂Δv (1/(m/s)).
-#[inline]
-#[allow(clippy::too_many_arguments)]
-fn adhesion(
-    sc: &Scene,
-    fx: Effects,
-    counters: &mut EffectCounters,
-    k_a: f64,
-    k_s: f64,
-    mu_axle: f64,
-    contact: f64,
-    q_wheel: f64,
-    v: f64,
-    w: f64,
-    hyst: f64,
-) -> (f64, f64) {
-    let mut mu = mu_axle;
-    if fx.has(Effect::FallingFriction) {
-        counters.hit(Effect::FallingFriction);
-        let speed = (1.0
-            + sc.speed_coefficient * (sc.reference_speed_mps - v) / sc.reference_speed_mps)
-            .max(0.2);
-        mu *= speed
-            * ((1.0 - sc.polach.a_ratio) * (-sc.polach.b_s_per_m * w.abs()).exp()
-                + sc.polach.a_ratio);
-    }
-    if v <= 0.0 {
-        return (0.0, 0.0);
-    }
-    let eps_per_w = contact / (v * q_wheel * mu);
-    let eps = eps_per_w * w;
-    let (x, y) = (k_a * eps, k_s * eps);
-    let two_mu_pi = 2.0 * mu * (1.0 / PI);
-    let inv_x = 1.0 / (1.0 + x * x);
-    let mut ratio = two_mu_pi * (x * inv_x + y.atan());
-    let mut slope =
-        two_mu_pi * (k_a * (1.0 - x * x) * inv_x * inv_x + k_s / (1.0 + y * y)) * eps_per_w;
-    if fx.has(Effect::Hysteresis) {
-        // The branch factor (see `hysteresis_target`), lagged by the step loop.
-        ratio *= hyst;
-        slope *= hyst;
-    }
-    (ratio, slope.max(0.0))
 }
 
 /// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
@@ -267,12 +229,196 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
             })
         }
     };
+    let seed = seed.unwrap_or(sc.seed);
+    let run = {
+        #[cfg(target_arch = "x86_64")]
+        {
+            let avx2 = std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma");
+            if avx2
+                && std::arch::is_x86_feature_detected!("avx512f")
+                && std::arch::is_x86_feature_detected!("avx512vl")
+            {
+                // SAFETY: AVX2, FMA, AVX-512F and AVX-512VL were detected.
+                unsafe { run_avx512vl(sc, model.as_ref(), seed) }
+            } else if avx2 {
+                // SAFETY: AVX2 and FMA were detected.
+                unsafe { run_avx2(sc, model.as_ref(), seed) }
+            } else {
+                run_portable(sc, model.as_ref(), seed)
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            run_portable(sc, model.as_ref(), seed)
+        }
+    }?;
+    let veh = &sc.vehicle;
+    let h = sc.step_s;
+
+    let metadata = RunMetadata {
+        ambient_temperature_c: Some(sc.ambient_temperature_c),
+        initial_speed_kmh: Some(sc.initial_speed_kmh),
+        vehicle: Some(veh.name.clone()),
+        condition: Some(sc.condition.clone()),
+        direction: Some(sc.direction.clone()),
+        other: [
+            ("scene".to_string(), sc.name.clone()),
+            ("seed".to_string(), seed.to_string()),
+            ("effects".to_string(), fx.names().join(",")),
+            (
+                "generator".to_string(),
+                concat!("railgrip ", env!("CARGO_PKG_VERSION"), " simulate").to_string(),
+            ),
+        ]
+        .into(),
+    };
+    let (channels, truth, counters, n) = run;
+    Ok(SimOutput {
+        scene: sc.clone(),
+        channels,
+        truth,
+        metadata,
+        counters,
+        steps: n,
+        duration_s: n as f64 * h,
+    })
+}
+
+/// Normal deviates for the sensor noise, both of each Box–Muller pair (one log, one sqrt and
+/// one sin_cos per two deviates).
+#[derive(Default)]
+struct Normals {
+    spare: Option<f64>,
+}
+
+impl Normals {
+    fn next(&mut self, rng: &mut Rng) -> f64 {
+        match self.spare.take() {
+            Some(x) => x,
+            None => {
+                let (x, y) = rng.normal_pair();
+                self.spare = Some(y);
+                x
+            }
+        }
+    }
+}
+
+/// What [`prepare`] needs besides the state.
+struct Prepare<'a> {
+    /// μ of each axle with cleaning, 1.
+    mu_axle: &'a [f64; AXLES],
+    /// Static loads N0 (N) and ∂N/∂d (N per m/s², zeros without load transfer).
+    load: &'a [f64; AXLES],
+    per_decel: &'a [f64; AXLES],
+    /// 1/(2K) of each axle, 1/N.
+    half_inv_k: &'a [f64; AXLES],
+    /// Falling friction's A and B (1, s/m), if the effect is on.
+    falling: Option<(f64, f64)>,
+    /// Speed factor s(v) of falling friction (1 without it).
+    speed: f64,
+}
+
+/// The contact law's coefficients for the axle step at deceleration `decel` (m/s²) and slip
+/// `slip` (m/s): N = N0 + d ∂N/∂d (seed 002 eq. 12–13, [`crate::vehicle::axle_load_coefficients`]),
+/// μ = μ_axle s(v) ((1 − A) e^(−B|Δv|) + A), and from them `ax.d_per_v` = (N/2) μ/K and
+/// `ax.pn` = (2/π) μ N; N goes to `normal`.
+///
+/// # Safety
+/// As [`Select`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+unsafe fn prepare<V: Select>(
+    p: &Prepare,
+    decel: f64,
+    slip: &[f64; AXLES],
+    ax: &mut AxleArrays,
+    normal: &mut [f64; AXLES],
+) {
+    let mut i = 0;
+    while i < AXLES {
+        unsafe {
+            let n = V::splat(decel).fma(V::load(&p.per_decel[i..]), V::load(&p.load[i..]));
+            let mut mu = V::load(&p.mu_axle[i..]).mul(V::splat(p.speed));
+            if let Some((a, b)) = p.falling {
+                let e = exp_lanes(V::load_scalars(&slip[i..]).abs().mul(V::splat(-b)));
+                mu = mu.mul(e.fma(V::splat(1.0 - a), V::splat(a)));
+            }
+            n.store(&mut normal[i..]);
+            n.mul(V::load(&p.half_inv_k[i..]))
+                .mul(mu)
+                .store(&mut ax.d_per_v[i..]);
+            V::splat(std::f64::consts::FRAC_2_PI)
+                .mul(mu)
+                .mul(n)
+                .store(&mut ax.pn[i..]);
+        }
+        i += V::N;
+    }
+}
+
+/// What the step loop produced: channels, truth, counters, steps.
+type RunResult = (Vec<Series>, Truth, EffectCounters, u64);
+
+/// The step loop on the portable path (one axle per lane).
+fn run_portable(
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    // SAFETY: f64 lanes need no target features.
+    unsafe { run::<f64>(sc, model, seed) }
+}
+
+/// The step loop with the four axles in one AVX2 register.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run_avx2(
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    // SAFETY: compiled for and called with AVX2 + FMA (the caller's contract).
+    unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
+}
+
+/// [`run_avx2`] compiled with AVX-512VL as well: the same AVX2 operations, with 32 vector
+/// registers instead of 16 (fewer spills) and masked blends.
+///
+/// # Safety
+/// The CPU must have AVX2, FMA, AVX-512F and AVX-512VL.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+unsafe fn run_avx512vl(
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    // SAFETY: compiled for and called with these features (the caller's contract).
+    unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
+}
+
+/// The step loop, generic over the lanes the axles' contact and wheel update run on; every
+/// instantiation performs the same IEEE operations (bit-identical results).
+///
+/// # Safety
+/// As [`Select`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+unsafe fn run<V: Select>(
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    let fx = sc.effects;
     let veh = &sc.vehicle;
     let r = veh.wheel_radius_m;
-    let j = veh.axle_inertia_kgm2;
     let mass = veh.body_mass_kg + 2.0 * veh.bogie_mass_kg;
     let h = sc.step_s;
-    let mut rng = Rng::new(seed.unwrap_or(sc.seed));
+    let mut rng = Rng::new(seed);
+    let mut normals = Normals::default();
     let mut counters = EffectCounters::default();
 
     // Contact patch of one wheel at the static load (Hertz, seed 001; Kalker c11).
@@ -282,7 +428,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     };
     let (patch, q0) = crate::vehicle::wheel_patch(veh, &sc.contact).map_err(contact_err)?;
     let k0 = PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
-    let mut contact = [AxleContact { k0, q0, k: k0 }; AXLES];
+    let contact = [AxleContact { k0, q0 }; AXLES];
 
     let (k_a, k_s) = if fx.has(Effect::Temperature) {
         counters.hit(Effect::Temperature);
@@ -291,6 +437,13 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
             .map_err(contact_err)?
     } else {
         (sc.polach.k_a, sc.polach.k_s)
+    };
+    let consts = StepConsts {
+        r,
+        j: veh.axle_inertia_kgm2,
+        h,
+        k_a,
+        k_s,
     };
     let mut mu_axle = [sc.polach.mu0; AXLES];
     if fx.has(Effect::Cleaning) {
@@ -307,24 +460,67 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     };
     let k_cyl = 1.0 - (-h / sc.cylinder_time_constant_s).exp();
     let k_hyst = 1.0 - (-h / sc.hysteresis_time_constant_s).exp();
-
+    let falling = fx.has(Effect::FallingFriction);
+    let hysteresis = fx.has(Effect::Hysteresis);
+    // Falling friction μ = μ_axle · s(v) · ((1 − A) e^(−B|Δv|) + A), s(v) the speed factor.
+    let speed_slope = sc.speed_coefficient / sc.reference_speed_mps;
+    let speed_at_zero = 1.0 + sc.speed_coefficient;
+    let (fall_a, fall_b) = (sc.polach.a_ratio, sc.polach.b_s_per_m);
     // State.
     let mut v = sc.initial_speed_mps;
-    let mut omega = [v / r; AXLES];
+    let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);
+    let per_decel = if fx.has(Effect::LoadTransfer) {
+        per_decel
+    } else {
+        [0.0; AXLES]
+    };
+    let mut ax = AxleArrays {
+        omega: [v / r; AXLES],
+        hyst: [if hysteresis {
+            hysteresis_target(sc.hysteresis_depth, 0.0, 1.0)
+        } else {
+            1.0
+        }; AXLES],
+        ..Default::default()
+    };
+    let mut half_inv_k = [0.5 / k0; AXLES];
+    // The contact law's slowly varying coefficients — the axle loads (load transfer), the
+    // falling-friction and speed factors — are taken at the start of the previous step
+    // (`prepare`): then the step's critical path starts at the vehicle and wheel speeds alone.
+    let mut normal_next = [0.0; AXLES];
+    // SAFETY: `run`'s contract.
+    unsafe {
+        prepare::<V>(
+            &Prepare {
+                mu_axle: &mu_axle,
+                load: &load,
+                per_decel: &per_decel,
+                half_inv_k: &half_inv_k,
+                falling: falling.then_some((fall_a, fall_b)),
+                speed: if falling {
+                    speed_slope.mul_add(-v, speed_at_zero).max(0.2)
+                } else {
+                    1.0
+                },
+            },
+            0.0,
+            &[0.0; AXLES],
+            &mut ax,
+            &mut normal_next,
+        )
+    };
+    let mut normal = normal_next;
     let mut theta = [0.0f64; AXLES];
     let mut p = [0.0f64; AXLES];
-    let mut locked = [false; AXLES];
     let mut wsp = [WspState::Apply; AXLES];
     let mut hold_cmd = [0.0f64; AXLES];
     let mut wsp_timer = [0.0f64; AXLES];
     let mut ddv = [0.0f64; AXLES];
-    let mut hyst = [hysteresis_target(sc.hysteresis_depth, 0.0, 1.0); AXLES];
     let mut ddv_lag = [0.0f64; AXLES];
     let mut omega_dot = [0.0f64; AXLES];
     let mut decel = 0.0f64;
-    let mut normal = [static_axle_load(veh); AXLES];
-    let mut tangential = [0.0f64; AXLES];
     let mut cursor = [0usize; AXLES];
+    let mut slip = [0.0f64; AXLES];
 
     // Output schedules: logger sample k of a channel group is at k / rate.
     let rates = [
@@ -336,10 +532,44 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let mut next_k = [0u64; 4];
     // Logger time of the next sample of each group (k / rate), compared without dividing.
     let mut next_t = [0.0f64; 4];
+    // The earliest of them.
+    let mut next_due = 0.0f64;
     let inv_h = 1.0 / h;
+    let h_per_mass = h / mass;
     let inv_ddv0 = 1.0 / sc.hysteresis_ddv_mps2;
-    let mut channels: Vec<Series> = (0..9).map(|_| Series::default()).collect();
-    let mut truth = Truth::default();
+    // Room for the whole run up front (at most ten minutes' worth): no reallocation and copy
+    // while the step loop runs.
+    let room = |rate: f64| ((sc.max_duration_s.min(600.0) * rate).ceil() as usize) + 2;
+    let series = |rate: f64| Series {
+        time_s: Vec::with_capacity(room(rate)),
+        values: Vec::with_capacity(room(rate)),
+    };
+    let mut channels: Vec<Series> = (0..9)
+        .map(|i| {
+            series(
+                rates[if i == 0 {
+                    0
+                } else if i < 5 {
+                    1
+                } else {
+                    2
+                }],
+            )
+        })
+        .collect();
+    let column = || Vec::with_capacity(room(sc.output_rate_hz));
+    let columns = || std::array::from_fn(|_| column());
+    let mut truth = Truth {
+        time_s: column(),
+        v_mps: column(),
+        omega_radps: columns(),
+        p_bar: columns(),
+        normal_n: columns(),
+        tangential_n: columns(),
+        mu: columns(),
+        dv_mps: columns(),
+        ddv_mps2: columns(),
+    };
     let pulse_angle = std::f64::consts::TAU / sc.tacho_pulses_per_rev;
     let window = ((sc.tacho_window_s * sc.tacho_rate_hz).round() as usize).max(1);
     let mut theta_hist: Vec<[f64; AXLES]> = vec![[0.0; AXLES]; window + 1];
@@ -352,8 +582,13 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let mut n: u64 = 0;
     loop {
         let t = n as f64 * h;
+        let omega = ax.omega;
         // ---- outputs at their logger instants (state at the first step at or after them)
+        let outputs_due = t + 1e-12 >= next_due;
         for (g, rate) in rates.iter().enumerate() {
+            if !outputs_due {
+                break;
+            }
             while next_t[g] <= t + 1e-12 {
                 // Logger clock at µs resolution.
                 let ts = round_to(next_k[g] as f64 / rate, 1e6);
@@ -362,7 +597,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                         let mut m = v;
                         if fx.has(Effect::RadarNoise) {
                             counters.hit(Effect::RadarNoise);
-                            m += sc.radar_noise_mps * rng.normal();
+                            m += sc.radar_noise_mps * normals.next(&mut rng);
                         }
                         if fx.has(Effect::RadarSpikes) {
                             counters.hit(Effect::RadarSpikes);
@@ -402,7 +637,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                             let mut m = p[a];
                             if fx.has(Effect::PressureNoise) {
                                 counters.hit(Effect::PressureNoise);
-                                m += sc.pressure_noise_bar * rng.normal();
+                                m += sc.pressure_noise_bar * normals.next(&mut rng);
                             }
                             push(&mut channels[5 + a], ts, round_to(m, 1e3));
                         }
@@ -414,17 +649,18 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                             truth.omega_radps[a].push(omega[a]);
                             truth.p_bar[a].push(p[a]);
                             truth.normal_n[a].push(normal[a]);
-                            truth.tangential_n[a].push(tangential[a]);
-                            truth.mu[a].push(tangential[a] / normal[a]);
+                            truth.tangential_n[a].push(ax.t_star[a]);
+                            truth.mu[a].push(ax.t_star[a] / normal[a]);
                             truth.dv_mps[a].push(v - r * omega[a]);
                             truth.ddv_mps2[a].push(ddv[a]);
                         }
                         if fx.has(Effect::LoadTransfer) {
-                            // Refresh the patch stiffness for the wheel loads (a b ∝ Q^(2/3)).
-                            for (c, nn) in contact.iter_mut().zip(&normal) {
+                            // Refresh the patch constant for the wheel loads (a b ∝ Q^(2/3)).
+                            for a in 0..AXLES {
                                 counters.hit(Effect::LoadTransfer);
-                                let ratio = (nn * 0.5 / c.q0).cbrt();
-                                c.k = c.k0 * ratio * ratio;
+                                let c = &contact[a];
+                                let ratio = (normal[a] * 0.5 / c.q0).cbrt();
+                                half_inv_k[a] = 0.5 / (c.k0 * ratio * ratio);
                             }
                         }
                     }
@@ -433,56 +669,40 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 next_t[g] = next_k[g] as f64 / rate;
             }
         }
+        if outputs_due {
+            next_due = next_t.iter().copied().fold(f64::INFINITY, f64::min);
+        }
         if v <= sc.stop_speed_mps || n >= max_steps {
             break;
         }
 
         // ---- loads and resistances
         if fx.has(Effect::LoadTransfer) {
+            // The loads themselves: N = N0 + d ∂N/∂d in the axle step.
             counters.hit(Effect::LoadTransfer);
-            normal = axle_loads(veh, decel);
         }
         let mut resist = grade_force;
         if fx.has(Effect::RunningResistance) {
             counters.hit(Effect::RunningResistance);
             resist += sc.davis_a_n + sc.davis_b_n_per_mps * v + sc.davis_c_n_per_mps2 * v * v;
         }
-
-        // ---- axles
-        let mut total_t = 0.0;
+        let speed_factor = if falling {
+            counters.add(Effect::FallingFriction, AXLES as u64);
+            speed_slope.mul_add(-v, speed_at_zero).max(0.2)
+        } else {
+            1.0
+        };
+        let v_resisted = (-resist).mul_add(h_per_mass, v);
+        // ---- brakes: demand, wheel-slide protection, cylinders (per axle, before the
+        // contact: WSP reads the slip and the wheel's deceleration, not the force)
+        if fx.has(Effect::Wsp) {
+            counters.add(Effect::Wsp, AXLES as u64);
+        }
         for a in 0..AXLES {
             let demand = demand_at(&sc.demand_bar[a], t, &mut cursor[a]);
-            let w = v - r * omega[a];
-            if fx.has(Effect::Hysteresis) {
-                counters.hit(Effect::Hysteresis);
-                let target = hysteresis_target(sc.hysteresis_depth, ddv[a], inv_ddv0);
-                hyst[a] += (target - hyst[a]) * k_hyst;
-            }
-            let (ratio, slope) = match &model {
-                None => adhesion(
-                    sc,
-                    fx,
-                    &mut counters,
-                    k_a,
-                    k_s,
-                    mu_axle[a],
-                    contact[a].k,
-                    normal[a] / 2.0,
-                    v,
-                    w,
-                    hyst[a],
-                ),
-                Some(m) => {
-                    // The model's slip-rate input is lagged like the hysteresis branch: fed
-                    // instantly it closes the same force → slip-rate → force loop.
-                    ddv_lag[a] += (ddv[a] - ddv_lag[a]) * k_hyst;
-                    model_adhesion(m, w, ddv_lag[a], v)
-                }
-            };
-            let t_a = ratio * normal[a];
-
+            let w = (-r).mul_add(omega[a], v);
+            slip[a] = w;
             let cmd = if fx.has(Effect::Wsp) {
-                counters.hit(Effect::Wsp);
                 let wheel_decel_excess = -r * omega_dot[a] - decel;
                 let dump_at = sc.dump_slip_mps.max(sc.dump_slip_ratio * v);
                 let sliding = w > dump_at || wheel_decel_excess > sc.decel_limit_mps2;
@@ -513,70 +733,92 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 demand
             };
             p[a] += (cmd - p[a]) * k_cyl;
-            let brake = veh.brake_torque_nm_per_bar[a] * p[a];
-            let old = omega[a];
-            if locked[a] && t_a * r > brake {
-                locked[a] = false;
-            }
-            // Force applied over the step: the creep force linearised at the new wheel speed,
-            // T* = T(ω_n) − r (dμ/dΔv) N (ω_{n+1} − ω_n). With it the wheel's momentum balance
-            // J ω̇ = T* r − α p holds exactly for the linearly implicit step below, and the
-            // vehicle feels the same force (the truth table records T*).
-            let mut t_star = t_a;
-            if !locked[a] {
-                let f = (t_a * r - brake) / j;
-                let stiff = h * r * r * slope * normal[a] / j;
-                omega[a] = old + h * f / (1.0 + stiff);
-                if omega[a] <= 0.0 {
-                    omega[a] = 0.0;
-                    locked[a] = true;
-                } else {
-                    t_star = t_a - r * slope * normal[a] * (omega[a] - old);
-                }
-            }
-            tangential[a] = t_star;
-            total_t += t_star;
-            omega_dot[a] = (omega[a] - old) * inv_h;
-            theta[a] += omega[a] * h;
-            let w_new = v - r * omega[a];
-            ddv[a] = (w_new - w) * inv_h;
+            ax.brake[a] = veh.brake_torque_nm_per_bar[a] * p[a];
         }
-        let v_new = (v + h * (-total_t - resist) / mass).max(0.0);
+
+        // ---- contact and wheels
+        normal = normal_next;
+        let total_t = match model {
+            // SAFETY: `run`'s contract.
+            None => unsafe { polach_axles::<V>(&consts, v, &mut ax) },
+            Some(m) => {
+                for a in 0..AXLES {
+                    // The model's slip-rate input is lagged like the hysteresis branch: fed
+                    // instantly it closes the same force → slip-rate → force loop.
+                    ddv_lag[a] += (ddv[a] - ddv_lag[a]) * k_hyst;
+                    let (mu, slope) = model_adhesion(m, slip[a], ddv_lag[a], v);
+                    // SAFETY: f64 lanes need no target features.
+                    let (w, l, t) = unsafe {
+                        wheel_update::<f64>(
+                            &consts,
+                            ax.omega[a],
+                            ax.locked[a],
+                            ax.brake[a],
+                            normal[a],
+                            mu,
+                            slope,
+                            1.0,
+                        )
+                    };
+                    (ax.omega[a], ax.locked[a], ax.t_star[a]) = (w, l, t);
+                }
+                (ax.t_star[0] + ax.t_star[2]) + (ax.t_star[1] + ax.t_star[3])
+            }
+        };
+        if hysteresis {
+            counters.add(Effect::Hysteresis, AXLES as u64);
+            // The branch factor for the next step (see `hysteresis_target`), lagged by
+            // `k_hyst`, from this step's starting slip rate: off the step's critical path.
+            let mut i = 0;
+            while i < AXLES {
+                // SAFETY: `run`'s contract.
+                unsafe {
+                    let z = V::load_scalars(&ddv[i..]).mul(V::splat(inv_ddv0));
+                    let target = V::splat(1.0).sub(
+                        V::splat(sc.hysteresis_depth * 0.5)
+                            .mul(V::splat(1.0).sub(z.div(z.fma(z, V::splat(1.0)).sqrt()))),
+                    );
+                    let old = V::load(&ax.hyst[i..]);
+                    target
+                        .sub(old)
+                        .fma(V::splat(k_hyst), old)
+                        .store(&mut ax.hyst[i..]);
+                }
+                i += V::N;
+            }
+        }
+        // The next step's contact coefficients, from this step's start (off the critical path).
+        // SAFETY: `run`'s contract.
+        unsafe {
+            prepare::<V>(
+                &Prepare {
+                    mu_axle: &mu_axle,
+                    load: &load,
+                    per_decel: &per_decel,
+                    half_inv_k: &half_inv_k,
+                    falling: falling.then_some((fall_a, fall_b)),
+                    speed: speed_factor,
+                },
+                decel,
+                &slip,
+                &mut ax,
+                &mut normal_next,
+            )
+        };
+
+        let v_new = total_t.mul_add(-h_per_mass, v_resisted).max(0.0);
         decel = (v - v_new) * inv_h;
-        // Slip rates use the vehicle's change too.
-        for x in ddv.iter_mut() {
-            *x -= decel;
+        for a in 0..AXLES {
+            omega_dot[a] = (ax.omega[a] - omega[a]) * inv_h;
+            theta[a] += ax.omega[a] * h;
+            // Slip rates use the vehicle's change too.
+            let w_new = (-r).mul_add(ax.omega[a], v);
+            ddv[a] = (w_new - slip[a]) * inv_h - decel;
         }
         v = v_new;
         n += 1;
     }
-
-    let metadata = RunMetadata {
-        ambient_temperature_c: Some(sc.ambient_temperature_c),
-        initial_speed_kmh: Some(sc.initial_speed_kmh),
-        vehicle: Some(veh.name.clone()),
-        condition: Some(sc.condition.clone()),
-        direction: Some(sc.direction.clone()),
-        other: [
-            ("scene".to_string(), sc.name.clone()),
-            ("seed".to_string(), seed.unwrap_or(sc.seed).to_string()),
-            ("effects".to_string(), fx.names().join(",")),
-            (
-                "generator".to_string(),
-                concat!("railgrip ", env!("CARGO_PKG_VERSION"), " simulate").to_string(),
-            ),
-        ]
-        .into(),
-    };
-    Ok(SimOutput {
-        scene: sc.clone(),
-        channels,
-        truth,
-        metadata,
-        counters,
-        steps: n,
-        duration_s: n as f64 * h,
-    })
+    Ok((channels, truth, counters, n))
 }
 
 /// A truth value as stored: float32 rounded to 16 significant bits (relative resolution

@@ -1,0 +1,545 @@
+//! The f64 vectors the model evaluators and the simulator's step run on: one trait, [`Lanes`],
+//! with the plain `f64` (the portable path, one lane) and, on x86_64, AVX2 (`__m256d`, four
+//! lanes) and AVX-512F (`__m512d`, eight lanes) implementations, so that tanh, the hidden layer
+//! ([`tanh_of_doubled`]), exp ([`exp_lanes`]) and atan ([`atan_parts`]) are written once and every
+//! path performs the same IEEE operations lane by lane — the results are bit-identical whatever
+//! the CPU (tested in `model::tests` and `sim::tests`). [`Select`] adds comparisons and blends
+//! (f64 and AVX2 only) for the simulator's branch-free axle step. Multiply-adds are
+//! fused everywhere (`f64::mul_add`, `vfmadd`): FMA is correctly rounded, so hardware and
+//! software agree to the bit; on a CPU without FMA the portable path computes it in software.
+//!
+//! Writing the SIMD paths with intrinsics rather than leaving lane loops to the auto-vectoriser
+//! keeps their speed from depending on the compiler's cost model (a change of the polynomial
+//! once made the auto-vectorised batch path 2× slower).
+
+/// f64 lanes with the operations the evaluators use.
+///
+/// # Safety
+/// The x86 implementations may only be used inside functions compiled for (and run on a CPU
+/// with) their target features: AVX2 + FMA for `__m256d`, AVX-512F for `__m512d`. Every method
+/// is `#[inline(always)]` so that it is compiled with the caller's features.
+pub(crate) unsafe trait Lanes: Copy {
+    /// Lanes per vector.
+    const N: usize;
+    unsafe fn splat(x: f64) -> Self;
+    /// Loads `N` values from the front of `p` (which must hold at least `N`).
+    unsafe fn load(p: &[f64]) -> Self;
+    /// Stores `N` values to the front of `p` (which must hold at least `N`).
+    unsafe fn store(self, p: &mut [f64]);
+    unsafe fn add(self, b: Self) -> Self;
+    unsafe fn sub(self, b: Self) -> Self;
+    unsafe fn mul(self, b: Self) -> Self;
+    unsafe fn div(self, b: Self) -> Self;
+    /// self · b + c, one rounding.
+    unsafe fn fma(self, b: Self, c: Self) -> Self;
+    /// −(self · b) + c, one rounding.
+    unsafe fn fnma(self, b: Self, c: Self) -> Self;
+    /// x86 `minpd`: self < b ? self : b.
+    unsafe fn min(self, b: Self) -> Self;
+    /// x86 `maxpd`: self > b ? self : b.
+    unsafe fn max(self, b: Self) -> Self;
+    /// 2ⁿ from t = n + 1.5·2⁵² (n in the low mantissa bits, two's complement, |n| < 1023):
+    /// the bits (t + 1023) shifted into the exponent field.
+    unsafe fn pow2_of_magic(self) -> Self;
+}
+
+// SAFETY: plain f64 arithmetic, no target features needed.
+unsafe impl Lanes for f64 {
+    const N: usize = 1;
+    #[inline(always)]
+    unsafe fn splat(x: f64) -> f64 {
+        x
+    }
+    #[inline(always)]
+    unsafe fn load(p: &[f64]) -> f64 {
+        p[0]
+    }
+    #[inline(always)]
+    unsafe fn store(self, p: &mut [f64]) {
+        p[0] = self;
+    }
+    #[inline(always)]
+    unsafe fn add(self, b: f64) -> f64 {
+        self + b
+    }
+    #[inline(always)]
+    unsafe fn sub(self, b: f64) -> f64 {
+        self - b
+    }
+    #[inline(always)]
+    unsafe fn mul(self, b: f64) -> f64 {
+        self * b
+    }
+    #[inline(always)]
+    unsafe fn div(self, b: f64) -> f64 {
+        self / b
+    }
+    #[inline(always)]
+    unsafe fn fma(self, b: f64, c: f64) -> f64 {
+        self.mul_add(b, c)
+    }
+    #[inline(always)]
+    unsafe fn fnma(self, b: f64, c: f64) -> f64 {
+        (-self).mul_add(b, c)
+    }
+    #[inline(always)]
+    unsafe fn min(self, b: f64) -> f64 {
+        if self < b {
+            self
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    unsafe fn max(self, b: f64) -> f64 {
+        if self > b {
+            self
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    unsafe fn pow2_of_magic(self) -> f64 {
+        f64::from_bits(self.to_bits().wrapping_add(1023) << 52)
+    }
+}
+
+/// [`Lanes`] for an x86 register type from its intrinsics (AVX2 + FMA for `__m256d`, AVX-512F
+/// for `__m512d`; the two sets name them alike).
+#[cfg(target_arch = "x86_64")]
+macro_rules! x86_lanes {
+    ($t:ty, $n:literal, $set1:ident, $load:ident, $store:ident, $add:ident,
+     $sub:ident, $mul:ident, $div:ident, $fmadd:ident, $fnmadd:ident, $min:ident, $max:ident,
+     $to_int:ident, $to_pd:ident, $slli:ident, $add64:ident, $set1_64:ident) => {
+        // SAFETY: used only inside functions compiled for the register's target features
+        // (see the trait's contract); loads and stores check the slice length first.
+        unsafe impl Lanes for $t {
+            const N: usize = $n;
+            #[inline(always)]
+            unsafe fn splat(x: f64) -> Self {
+                unsafe { $set1(x) }
+            }
+            #[inline(always)]
+            unsafe fn load(p: &[f64]) -> Self {
+                assert!(p.len() >= $n);
+                unsafe { $load(p.as_ptr()) }
+            }
+            #[inline(always)]
+            unsafe fn store(self, p: &mut [f64]) {
+                assert!(p.len() >= $n);
+                unsafe { $store(p.as_mut_ptr(), self) }
+            }
+            #[inline(always)]
+            unsafe fn add(self, b: Self) -> Self {
+                unsafe { $add(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn sub(self, b: Self) -> Self {
+                unsafe { $sub(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn mul(self, b: Self) -> Self {
+                unsafe { $mul(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn div(self, b: Self) -> Self {
+                unsafe { $div(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn fma(self, b: Self, c: Self) -> Self {
+                unsafe { $fmadd(self, b, c) }
+            }
+            #[inline(always)]
+            unsafe fn fnma(self, b: Self, c: Self) -> Self {
+                unsafe { $fnmadd(self, b, c) }
+            }
+            #[inline(always)]
+            unsafe fn min(self, b: Self) -> Self {
+                unsafe { $min(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn max(self, b: Self) -> Self {
+                unsafe { $max(self, b) }
+            }
+            #[inline(always)]
+            unsafe fn pow2_of_magic(self) -> Self {
+                unsafe { $to_pd($slli::<52>($add64($to_int(self), $set1_64(1023)))) }
+            }
+        }
+    };
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use super::Lanes;
+    use std::arch::x86_64::*;
+
+    x86_lanes!(
+        __m256d,
+        4,
+        _mm256_set1_pd,
+        _mm256_loadu_pd,
+        _mm256_storeu_pd,
+        _mm256_add_pd,
+        _mm256_sub_pd,
+        _mm256_mul_pd,
+        _mm256_div_pd,
+        _mm256_fmadd_pd,
+        _mm256_fnmadd_pd,
+        _mm256_min_pd,
+        _mm256_max_pd,
+        _mm256_castpd_si256,
+        _mm256_castsi256_pd,
+        _mm256_slli_epi64,
+        _mm256_add_epi64,
+        _mm256_set1_epi64x
+    );
+    x86_lanes!(
+        __m512d,
+        8,
+        _mm512_set1_pd,
+        _mm512_loadu_pd,
+        _mm512_storeu_pd,
+        _mm512_add_pd,
+        _mm512_sub_pd,
+        _mm512_mul_pd,
+        _mm512_div_pd,
+        _mm512_fmadd_pd,
+        _mm512_fnmadd_pd,
+        _mm512_min_pd,
+        _mm512_max_pd,
+        _mm512_castpd_si512,
+        _mm512_castsi512_pd,
+        _mm512_slli_epi64,
+        _mm512_add_epi64,
+        _mm512_set1_epi64
+    );
+}
+
+/// Coefficients of P(r) ≈ (e^r − 1)/r on |r| ≤ ln 2 / 2, degree 10, fitted by Chebyshev least
+/// squares in 60-digit arithmetic and rounded to doubles by
+/// `tests/data/tanh/make_coefficients.py` (max relative error 2.4e-17 ≈ 0.2 ulp; the degree-13
+/// Taylor series it replaced was as accurate with two more terms).
+pub(crate) const EXPM1_P: [f64; 11] = [
+    1.0,
+    0.5000000000000006,
+    0.1666666666666667,
+    0.041666666666573066,
+    0.008333333333326136,
+    0.001388888893251478,
+    0.00019841269874820627,
+    2.480150431378554e-05,
+    2.7557255400206422e-06,
+    2.7626371065696354e-07,
+    2.5105217004720745e-08,
+];
+
+const MAGIC: f64 = 6_755_399_441_055_744.0; // 1.5 · 2^52
+const LOG2E: f64 = std::f64::consts::LOG2_E;
+// fdlibm's Cody–Waite split of ln 2 (LN2_HI has trailing zero bits: n · LN2_HI is exact).
+const LN2_HI: f64 = 6.931_471_803_691_238e-1;
+const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+
+/// e^x = scale · (1 + p) on every lane, for x in [−708, 709] (the caller clamps): Cody–Waite
+/// reduction x = n ln 2 + r (|r| ≤ ln 2 / 2), e^r − 1 = r P(r) with [`EXPM1_P`] (Estrin's scheme),
+/// scale = 2ⁿ. Returns (scale, p) so that e^x − 1 = scale · p + (scale − 1) stays exact but
+/// for one rounding.
+///
+/// # Safety
+/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+unsafe fn exp_parts<V: Lanes>(x: V) -> (V, V) {
+    unsafe {
+        let magic = V::splat(MAGIC);
+        let t = x.fma(V::splat(LOG2E), magic);
+        let n = t.sub(magic);
+        let r = n.fnma(V::splat(LN2_LO), n.fnma(V::splat(LN2_HI), x));
+        let r2 = r.mul(r);
+        let r4 = r2.mul(r2);
+        let r8 = r4.mul(r4);
+        let q0 = V::splat(EXPM1_P[1]).fma(r, V::splat(EXPM1_P[0]));
+        let q1 = V::splat(EXPM1_P[3]).fma(r, V::splat(EXPM1_P[2]));
+        let q2 = V::splat(EXPM1_P[5]).fma(r, V::splat(EXPM1_P[4]));
+        let q3 = V::splat(EXPM1_P[7]).fma(r, V::splat(EXPM1_P[6]));
+        let q4 = V::splat(EXPM1_P[9]).fma(r, V::splat(EXPM1_P[8]));
+        let s0 = q1.fma(r2, q0);
+        let s1 = q3.fma(r2, q2);
+        let s2 = V::splat(EXPM1_P[10]).fma(r2, q4);
+        let u0 = s1.fma(r4, s0);
+        let p = s2.fma(r8, u0).mul(r);
+        (t.pow2_of_magic(), p)
+    }
+}
+
+/// e^x on every lane, x clamped to [−700, 700] (e^−700 ≈ 1e−304 is still a normal double):
+/// [`exp_parts`], within 1 ulp of the C library (tested).
+///
+/// # Safety
+/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+pub(crate) unsafe fn exp_lanes<V: Lanes>(x: V) -> V {
+    unsafe {
+        let x = x.min(V::splat(700.0)).max(V::splat(-700.0));
+        let (scale, p) = exp_parts(x);
+        scale.fma(p, scale)
+    }
+}
+
+/// tanh(z) on every lane given z2 = 2z — see [`crate::model::tanh_fast`] for the method and
+/// accuracy. With x = z2 clamped to [−40, 40]: e^x − 1 = 2ⁿ P r + (2ⁿ − 1) in one fused step
+/// ([`exp_parts`]), tanh = (e^x − 1)/(e^x − 1 + 2).
+///
+/// # Safety
+/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+pub(crate) unsafe fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
+    unsafe {
+        let x = z2.min(V::splat(40.0)).max(V::splat(-40.0));
+        let (scale, p) = exp_parts(x);
+        let em1 = scale.fma(p, scale.sub(V::splat(1.0)));
+        em1.div(em1.add(V::splat(2.0)))
+    }
+}
+
+/// Lanes with comparisons and blends, for branch-free code (the simulator's axle step).
+///
+/// # Safety
+/// As [`Lanes`].
+pub(crate) unsafe trait Select: Lanes {
+    /// Per-lane truth values.
+    type Mask: Copy;
+    /// self ≤ b (false where either is NaN).
+    unsafe fn le(self, b: Self) -> Self::Mask;
+    /// self < b (false where either is NaN).
+    unsafe fn lt(self, b: Self) -> Self::Mask;
+    /// m ? a : b, lane by lane.
+    unsafe fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    unsafe fn and(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    unsafe fn or(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    /// !m & n.
+    unsafe fn and_not(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    /// |self| (clears the sign bit).
+    unsafe fn abs(self) -> Self;
+    /// −self (flips the sign bit).
+    unsafe fn neg(self) -> Self;
+    /// Correctly rounded square root.
+    unsafe fn sqrt(self) -> Self;
+    /// |self| with the sign of `sign`.
+    unsafe fn copysign(self, sign: Self) -> Self;
+    /// [`Lanes::load`] of values that scalar code has just stored: lane by lane, because a
+    /// vector load cannot be forwarded from several narrower stores still in the store buffer
+    /// and would wait for them to reach the cache.
+    unsafe fn load_scalars(p: &[f64]) -> Self;
+    /// (t0 + t2) + (t1 + t3) of four values: the lanes of `last` (four lanes) or, one lane
+    /// at a time, the array the lanes were stored to.
+    unsafe fn total4(last: Self, stored: &[f64; 4]) -> f64;
+}
+
+// SAFETY: plain f64 operations.
+unsafe impl Select for f64 {
+    type Mask = bool;
+    #[inline(always)]
+    unsafe fn le(self, b: f64) -> bool {
+        self <= b
+    }
+    #[inline(always)]
+    unsafe fn lt(self, b: f64) -> bool {
+        self < b
+    }
+    #[inline(always)]
+    unsafe fn select(m: bool, a: f64, b: f64) -> f64 {
+        if m {
+            a
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    unsafe fn and(m: bool, n: bool) -> bool {
+        m & n
+    }
+    #[inline(always)]
+    unsafe fn or(m: bool, n: bool) -> bool {
+        m | n
+    }
+    #[inline(always)]
+    unsafe fn and_not(m: bool, n: bool) -> bool {
+        !m & n
+    }
+    #[inline(always)]
+    unsafe fn abs(self) -> f64 {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    unsafe fn neg(self) -> f64 {
+        -self
+    }
+    #[inline(always)]
+    unsafe fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    unsafe fn copysign(self, sign: f64) -> f64 {
+        f64::copysign(self, sign)
+    }
+    #[inline(always)]
+    unsafe fn load_scalars(p: &[f64]) -> f64 {
+        p[0]
+    }
+    #[inline(always)]
+    unsafe fn total4(_: f64, t: &[f64; 4]) -> f64 {
+        (t[0] + t[2]) + (t[1] + t[3])
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86_select {
+    use super::Select;
+    use std::arch::x86_64::*;
+
+    // SAFETY: AVX (a subset of AVX2) intrinsics, used only inside functions compiled for AVX2.
+    unsafe impl Select for __m256d {
+        type Mask = __m256d;
+        #[inline(always)]
+        unsafe fn le(self, b: Self) -> Self {
+            unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(self, b) }
+        }
+        #[inline(always)]
+        unsafe fn lt(self, b: Self) -> Self {
+            unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(self, b) }
+        }
+        #[inline(always)]
+        unsafe fn select(m: Self, a: Self, b: Self) -> Self {
+            unsafe { _mm256_blendv_pd(b, a, m) }
+        }
+        #[inline(always)]
+        unsafe fn and(m: Self, n: Self) -> Self {
+            unsafe { _mm256_and_pd(m, n) }
+        }
+        #[inline(always)]
+        unsafe fn or(m: Self, n: Self) -> Self {
+            unsafe { _mm256_or_pd(m, n) }
+        }
+        #[inline(always)]
+        unsafe fn and_not(m: Self, n: Self) -> Self {
+            unsafe { _mm256_andnot_pd(m, n) }
+        }
+        #[inline(always)]
+        unsafe fn abs(self) -> Self {
+            unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), self) }
+        }
+        #[inline(always)]
+        unsafe fn neg(self) -> Self {
+            unsafe { _mm256_xor_pd(_mm256_set1_pd(-0.0), self) }
+        }
+        #[inline(always)]
+        unsafe fn sqrt(self) -> Self {
+            unsafe { _mm256_sqrt_pd(self) }
+        }
+        #[inline(always)]
+        unsafe fn copysign(self, sign: Self) -> Self {
+            unsafe {
+                let m = _mm256_set1_pd(-0.0);
+                _mm256_or_pd(_mm256_andnot_pd(m, self), _mm256_and_pd(m, sign))
+            }
+        }
+        #[inline(always)]
+        unsafe fn load_scalars(p: &[f64]) -> Self {
+            unsafe { _mm256_set_pd(p[3], p[2], p[1], p[0]) }
+        }
+        #[inline(always)]
+        unsafe fn total4(last: Self, _: &[f64; 4]) -> f64 {
+            unsafe {
+                let s = _mm_add_pd(
+                    _mm256_castpd256_pd128(last),
+                    _mm256_extractf128_pd::<1>(last),
+                );
+                _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
+            }
+        }
+    }
+}
+
+/// Coefficients of the [6/6] Padé approximant atan(t)/t ≈ P(t²)/Q(t²), from
+/// `tests/data/atan/make_coefficients.py` (mpmath; max relative error of the rounded
+/// coefficients 1.2e-17 for |t| ≤ tan(π/8)).
+pub(crate) const ATAN_P: [f64; 7] = [
+    1.0,
+    2.7866666666666666,
+    2.8904347826086956,
+    1.3693416149068323,
+    0.28994079401402056,
+    0.02213105421074192,
+    0.0002685815488923002,
+];
+pub(crate) const ATAN_Q: [f64; 7] = [
+    1.0,
+    3.12,
+    3.7304347826086954,
+    2.1316770186335403,
+    0.5890160183066362,
+    0.0692960021537219,
+    0.0023098667384573966,
+];
+
+/// atan(b/d) for d > 0 (b, d finite) as off + num/den with den > 0, without dividing: the
+/// caller divides once, usually after folding den into a common denominator.
+///
+/// The argument is reduced to |t| ≤ tan(π/8) as a ratio n/m of the inputs (σ = sign of b):
+/// |b| ≤ tan(π/8)·d: t = b/d; |b| > tan(3π/8)·d: σπ/2 + (−σd)/|b|; otherwise
+/// σπ/4 + (b − σd)/(|b| + d). Then atan(n/m) = (n/m)·P(u)/Q(u), u = n²/m² ([`ATAN_P`],
+/// [`ATAN_Q`]), evaluated homogeneously with S = n², L = m²:
+///   Σ c_k S^k L^(6−k) = (c0 L + c1 S) L⁵ + (c2 L + c3 S) S² L³ + ((c4 L + c5 S) S⁴ L + c6 S⁶),
+/// six multiply levels; num = n Σ p_k…, den = m Σ q_k…. den has the magnitude of
+/// max(|b|, d)¹³ — the caller keeps b and d within about 10^±20.
+///
+/// # Safety
+/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+pub(crate) unsafe fn atan_parts<V: Select>(b: V, d: V) -> (V, V, V) {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
+    unsafe {
+        let ab = b.abs();
+        let sd = d.copysign(b);
+        let low = ab.le(d.mul(V::splat(0.414_213_562_373_095_1)));
+        let high = d.mul(V::splat(2.414_213_562_373_095)).lt(ab);
+        let n = V::select(low, b, V::select(high, sd.neg(), b.sub(sd)));
+        let m = V::select(low, d, V::select(high, ab, ab.add(d)));
+        let off = V::select(
+            low,
+            V::splat(0.0),
+            V::select(high, V::splat(FRAC_PI_2), V::splat(FRAC_PI_4)).copysign(b),
+        );
+        let s = n.mul(n);
+        let l = m.mul(m);
+        let s2 = s.mul(s);
+        let l2 = l.mul(l);
+        let s4 = s2.mul(s2);
+        let l3 = l2.mul(l);
+        let l4 = l2.mul(l2);
+        let mono = [l4.mul(l), s2.mul(l3), s4.mul(l), s4.mul(s2)];
+        (
+            off,
+            n.mul(homogeneous6(&ATAN_P, s, l, &mono)),
+            m.mul(homogeneous6(&ATAN_Q, s, l, &mono)),
+        )
+    }
+}
+
+/// Σ c_k S^k L^(6−k) from the monomials [L⁵, S²L³, S⁴L, S⁶] (see [`atan_parts`]). (A
+/// function, not a closure: closures do not inherit the caller's target features, and the
+/// intrinsics would not inline into them.)
+///
+/// # Safety
+/// As [`Lanes`].
+#[inline(always)]
+unsafe fn homogeneous6<V: Lanes>(c: &[f64; 7], s: V, l: V, mono: &[V; 4]) -> V {
+    unsafe {
+        let p01 = V::splat(c[1]).fma(s, V::splat(c[0]).mul(l));
+        let p23 = V::splat(c[3]).fma(s, V::splat(c[2]).mul(l));
+        let p45 = V::splat(c[5]).fma(s, V::splat(c[4]).mul(l));
+        let t0 = p01.fma(mono[0], p23.mul(mono[1]));
+        let t1 = p45.fma(mono[2], V::splat(c[6]).mul(mono[3]));
+        t0.add(t1)
+    }
+}
