@@ -543,3 +543,86 @@ unsafe fn homogeneous6<V: Lanes>(c: &[f64; 7], s: V, l: V, mono: &[V; 4]) -> V {
         t0.add(t1)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn atan_f64(b: f64, d: f64) -> f64 {
+        // SAFETY: f64 lanes need no target features.
+        let (off, num, den) = unsafe { atan_parts(b, d) };
+        off + num / den
+    }
+
+    #[test]
+    fn atan_parts_matches_the_c_library() {
+        let mut worst: f64 = 0.0;
+        for i in -4000..=4000 {
+            let t = 10f64.powf(i as f64 / 400.0);
+            for s in [1.0, -1.0] {
+                for d in [1e-9, 0.37, 1.0, 2e4] {
+                    let b = s * t * d;
+                    let got = atan_f64(b, d);
+                    let want = (b / d).atan();
+                    worst = worst.max(((got - want) / want).abs());
+                }
+            }
+        }
+        assert!(worst < 1e-15, "worst relative error {worst:e}");
+        assert_eq!(atan_f64(0.0, 3.0), 0.0);
+        // SAFETY: as above.
+        let (_, _, den) = unsafe { atan_parts(-1e6, 1e-3) };
+        assert!(den > 0.0);
+    }
+
+    #[test]
+    fn exp_lanes_matches_the_c_library() {
+        let mut worst: f64 = 0.0;
+        for i in 0..=200_000 {
+            let x = -700.0 + 1400.0 * i as f64 / 200_000.0;
+            // SAFETY: f64 lanes need no target features.
+            let got = unsafe { exp_lanes(x) };
+            worst = worst.max(((got - x.exp()) / x.exp()).abs());
+        }
+        assert!(worst < 4.5e-16, "worst relative error {worst:e}");
+        // SAFETY: as above.
+        assert!(unsafe { exp_lanes(-1e6) } > 0.0 && unsafe { exp_lanes(1e6) }.is_finite());
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_atan_and_exp_give_the_portable_bits() {
+        use std::arch::x86_64::*;
+        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
+            return;
+        }
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn four(b: &[f64; 4], d: &[f64; 4]) -> ([f64; 4], [f64; 4]) {
+            unsafe {
+                let (off, num, den) = atan_parts(__m256d::load(b), __m256d::load(d));
+                let (mut a, mut e) = ([0.0; 4], [0.0; 4]);
+                off.add(num.div(den)).store(&mut a);
+                exp_lanes(__m256d::load(b)).store(&mut e);
+                (a, e)
+            }
+        }
+        for i in 0..2000 {
+            let x = (i as f64 - 1000.0) * 0.037;
+            let b = [x, -x * 3.1, x * 1e-3, x * 40.0];
+            let d = [0.5, 1.7, 1e-4, 3.0];
+            // SAFETY: AVX2 and FMA were detected.
+            let (a, e) = unsafe { four(&b, &d) };
+            for k in 0..4 {
+                assert_eq!(
+                    a[k].to_bits(),
+                    atan_f64(b[k], d[k]).to_bits(),
+                    "{} {}",
+                    b[k],
+                    d[k]
+                );
+                // SAFETY: f64 lanes.
+                assert_eq!(e[k].to_bits(), unsafe { exp_lanes(b[k]) }.to_bits());
+            }
+        }
+    }
+}

@@ -56,7 +56,7 @@ pub(super) struct AxleArrays {
 /// G = E² F den:
 ///   Rn = a d E F den + off G + num E² F,
 ///   Sn = d den (k_A (d² − a²) F + k_S E²).
-/// Returns (Rn, Sn, G). Every quantity is a product of the inputs without division, so no
+/// Returns (Rn, max(Sn, 0), G) with G > 0. Every quantity is a product of the inputs without division, so no
 /// division waits on the slip before the wheel update's one. Magnitudes: G ~ max(|b|, d)¹⁹;
 /// the scene's validated ranges keep d in about [1e−9, 1e4] m/s and |Δv| below 1e3 m/s, far
 /// from overflow and underflow (tested at the extremes).
@@ -77,11 +77,16 @@ pub(super) unsafe fn polach_fractions<V: Select>(c: &StepConsts, dv: V, d: V) ->
         let g = e2f.mul(den);
         let atan_g = off.fma(g, num.mul(e2f));
         let rn = a.mul(d).fma(e.mul(f).mul(den), atan_g);
-        let sn = d.mul(den).mul(
-            V::splat(c.k_a)
-                .mul(a.fnma(a, d2))
-                .fma(f, V::splat(c.k_s).mul(e2)),
-        );
+        // Past the creep peak the slope can turn negative; the implicit step takes no negative
+        // stiffness (it would weaken the wheel's damping and, at worst, divide by ~0).
+        let sn = d
+            .mul(den)
+            .mul(
+                V::splat(c.k_a)
+                    .mul(a.fnma(a, d2))
+                    .fma(f, V::splat(c.k_s).mul(e2)),
+            )
+            .max(V::splat(0.0));
         (rn, sn, g)
     }
 }
@@ -171,5 +176,79 @@ pub(super) unsafe fn polach_axles<V: Select>(c: &StepConsts, v: f64, s: &mut Axl
             i += V::N;
         }
         V::total4(t_star, &s.t_star)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    const C: StepConsts = StepConsts {
+        r: 0.46,
+        j: 120.0,
+        h: 1e-4,
+        k_a: 0.1,
+        k_s: 0.05,
+    };
+
+    /// Polach's T/N and its slope written plainly (seed 004 eq. 1–2, libm atan).
+    fn reference(dv: f64, d: f64) -> (f64, f64) {
+        let eps = dv / d;
+        let (x, y) = (C.k_a * eps, C.k_s * eps);
+        let ratio = x / (1.0 + x * x) + y.atan();
+        let slope = (C.k_a * (1.0 - x * x) / (1.0 + x * x).powi(2) + C.k_s / (1.0 + y * y)) / d;
+        (ratio, slope.max(0.0))
+    }
+
+    fn fractions(dv: f64, d: f64) -> (f64, f64) {
+        // SAFETY: f64 lanes need no target features.
+        let (rn, sn, g) = unsafe { polach_fractions(&C, dv, d) };
+        assert!(g > 0.0 && g.is_finite(), "G = {g} at dv {dv}, d {d}");
+        (rn / g, sn / g)
+    }
+
+    #[test]
+    fn fractions_match_the_plain_formula_over_the_domain() {
+        let mut worst: (f64, f64) = (0.0, 0.0);
+        for i in 0..=600 {
+            let dv = 10f64.powf(-8.0 + 11.0 * i as f64 / 600.0);
+            for d in [1e-9, 1e-5, 3e-3, 0.1, 1.0, 50.0, 1e4] {
+                for s in [1.0, -1.0] {
+                    let (r, k) = fractions(s * dv, d);
+                    let (r0, k0) = reference(s * dv, d);
+                    worst.0 = worst.0.max(((r - r0) / r0).abs());
+                    if k0 > 1e-300 {
+                        worst.1 = worst.1.max((k - k0).abs() / k0.max(1e-12 * C.k_s / d));
+                    }
+                }
+            }
+        }
+        assert!(worst.0 < 1e-14, "T/N worst relative error {:e}", worst.0);
+        assert!(worst.1 < 1e-12, "slope worst relative error {:e}", worst.1);
+        assert_eq!(fractions(0.0, 0.3).0, 0.0);
+    }
+
+    proptest! {
+        #[test]
+        fn ratio_is_odd_and_bounded_slope_even_and_non_negative(dv in -50.0f64..50.0, d in 1e-6f64..1e3) {
+            let (r, k) = fractions(dv, d);
+            let (rm, km) = fractions(-dv, d);
+            prop_assert!((r + rm).abs() <= 1e-15 * r.abs().max(1e-300));
+            prop_assert_eq!(k, km);
+            // |x/(1+x²) + atan y| ≤ 1/2 + π/2.
+            prop_assert!(r.abs() <= 0.5 + std::f64::consts::FRAC_PI_2);
+            prop_assert!(k >= 0.0 && k.is_finite());
+        }
+    }
+
+    #[test]
+    fn wheel_update_keeps_a_locked_wheel_locked_until_the_contact_exceeds_the_brake() {
+        // SAFETY: f64 lanes.
+        let (w, l, t) = unsafe { wheel_update(&C, 0.0, 1.0, 5000.0, 1e4, 0.05, 0.0, 1.0) };
+        assert_eq!((w, l, t), (0.0, 1.0, 500.0));
+        // SAFETY: f64 lanes.
+        let (w, l, _) = unsafe { wheel_update(&C, 0.0, 1.0, 100.0, 1e4, 0.05, 0.0, 1.0) };
+        assert!(w > 0.0 && l == 0.0);
     }
 }
