@@ -158,10 +158,16 @@ struct AxleContact {
 /// branch has memory, and applying it instantly closes an algebraic loop (force → slip rate
 /// → force, loop gain ≈ N μ depth r² / (2 ddv0 J) ≈ 6 for the UIC-Z1) that the explicit
 /// step turns into a relay chatter at the step rate.
-#[inline]
-fn hysteresis_target(depth: f64, ddv: f64, inv_ddv0: f64) -> f64 {
-    let z = ddv * inv_ddv0;
-    1.0 - depth * 0.5 * (1.0 - z / (1.0 + z * z).sqrt())
+///
+/// # Safety
+/// As [`Select`]: only with `V`'s target features enabled in the caller.
+#[inline(always)]
+unsafe fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
+    unsafe {
+        let z = ddv.mul(V::splat(inv_ddv0));
+        let one = V::splat(1.0);
+        one.sub(V::splat(depth * 0.5).mul(one.sub(z.div(z.fma(z, one).sqrt()))))
+    }
 }
 
 /// μ and dμ/dΔv from a learned model at slip `w` (m/s), slip rate `ddv` (m/s²), speed `v`
@@ -323,16 +329,13 @@ struct Prepare<'a> {
     /// Static loads N0 (N) and ∂N/∂d (N per m/s², zeros without load transfer).
     load: &'a [f64; AXLES],
     per_decel: &'a [f64; AXLES],
-    /// 1/(2K) of each axle, 1/N.
-    half_inv_k: &'a [f64; AXLES],
     /// Falling friction's A and B (1, s/m), if the effect is on.
     falling: Option<(f64, f64)>,
-    /// Speed factor s(v) of falling friction (1 without it).
-    speed: f64,
 }
 
-/// The contact law's coefficients for the axle step at deceleration `decel` (m/s²) and slip
-/// `slip` (m/s): N = N0 + d ∂N/∂d (seed 002 eq. 12–13, [`crate::vehicle::axle_load_coefficients`]),
+/// The contact law's coefficients for the axle step at deceleration `decel` (m/s²), slip
+/// `slip` (m/s), speed factor `speed` (1; 1 without falling friction) and 1/(2K) `half_inv_k`
+/// (1/N): N = N0 + d ∂N/∂d (seed 002 eq. 12–13, [`crate::vehicle::axle_load_coefficients`]),
 /// μ = μ_axle s(v) ((1 − A) e^(−B|Δv|) + A), and from them `ax.d_per_v` = (N/2) μ/K and
 /// `ax.pn` = (2/π) μ N; N goes to `normal`.
 ///
@@ -341,6 +344,8 @@ struct Prepare<'a> {
 #[inline(always)]
 unsafe fn prepare<V: Select>(
     p: &Prepare,
+    half_inv_k: &[f64; AXLES],
+    speed: f64,
     decel: f64,
     slip: &[f64; AXLES],
     ax: &mut AxleArrays,
@@ -350,13 +355,13 @@ unsafe fn prepare<V: Select>(
     while i < AXLES {
         unsafe {
             let n = V::splat(decel).fma(V::load(&p.per_decel[i..]), V::load(&p.load[i..]));
-            let mut mu = V::load(&p.mu_axle[i..]).mul(V::splat(p.speed));
+            let mut mu = V::load(&p.mu_axle[i..]).mul(V::splat(speed));
             if let Some((a, b)) = p.falling {
                 let e = exp_lanes(V::load_scalars(&slip[i..]).abs().mul(V::splat(-b)));
                 mu = mu.mul(e.fma(V::splat(1.0 - a), V::splat(a)));
             }
             n.store(&mut normal[i..]);
-            n.mul(V::load(&p.half_inv_k[i..]))
+            n.mul(V::load(&half_inv_k[i..]))
                 .mul(mu)
                 .store(&mut ax.d_per_v[i..]);
             V::splat(std::f64::consts::FRAC_2_PI)
@@ -381,36 +386,40 @@ fn run_portable(
     unsafe { run::<f64>(sc, model, seed) }
 }
 
-/// The step loop with the four axles in one AVX2 register.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
+/// A step-loop entry compiled for x86 target features, with the four axles in one AVX2
+/// register.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-unsafe fn run_avx2(
-    sc: &Scene,
-    model: Option<&crate::model::Model>,
-    seed: u64,
-) -> Result<RunResult, SimError> {
-    // SAFETY: compiled for and called with AVX2 + FMA (the caller's contract).
-    unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
+macro_rules! x86_entry {
+    ($(#[$doc:meta])* $name:ident, $features:literal) => {
+        $(#[$doc])*
+        ///
+        /// # Safety
+        #[doc = concat!("The CPU must have ", $features, ".")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name(
+            sc: &Scene,
+            model: Option<&crate::model::Model>,
+            seed: u64,
+        ) -> Result<RunResult, SimError> {
+            // SAFETY: compiled for and called with these features (the caller's contract).
+            unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
+        }
+    };
 }
 
-/// [`run_avx2`] compiled with AVX-512VL as well: the same AVX2 operations, with 32 vector
-/// registers instead of 16 (fewer spills) and masked blends.
-///
-/// # Safety
-/// The CPU must have AVX2, FMA, AVX-512F and AVX-512VL.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
-unsafe fn run_avx512vl(
-    sc: &Scene,
-    model: Option<&crate::model::Model>,
-    seed: u64,
-) -> Result<RunResult, SimError> {
-    // SAFETY: compiled for and called with these features (the caller's contract).
-    unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
-}
+x86_entry!(
+    /// The step loop with the four axles in one AVX2 register.
+    run_avx2,
+    "avx2,fma"
+);
+#[cfg(target_arch = "x86_64")]
+x86_entry!(
+    /// [`run_avx2`] compiled with AVX-512VL as well: the same AVX2 operations, with 32 vector
+    /// registers instead of 16 (fewer spills) and masked blends.
+    run_avx512vl,
+    "avx2,fma,avx512f,avx512vl"
+);
 
 /// The step loop, generic over the lanes the axles' contact and wheel update run on; every
 /// instantiation performs the same IEEE operations (bit-identical results).
@@ -488,7 +497,8 @@ unsafe fn run<V: Select>(
     let mut ax = AxleArrays {
         omega: [v / r; AXLES],
         hyst: [if hysteresis {
-            hysteresis_target(sc.hysteresis_depth, 0.0, 1.0)
+            // SAFETY: f64 lanes need no target features.
+            unsafe { hysteresis_target(sc.hysteresis_depth, 0.0, 1.0) }
         } else {
             1.0
         }; AXLES],
@@ -499,21 +509,23 @@ unsafe fn run<V: Select>(
     // falling-friction and speed factors — are taken at the start of the previous step
     // (`prepare`): then the step's critical path starts at the vehicle and wheel speeds alone.
     let mut normal_next = [0.0; AXLES];
+    let prep = Prepare {
+        mu_axle: &mu_axle,
+        load: &load,
+        per_decel: &per_decel,
+        falling: falling.then_some((fall_a, fall_b)),
+    };
+    let initial_speed = if falling {
+        speed_slope.mul_add(-v, speed_at_zero).max(0.2)
+    } else {
+        1.0
+    };
     // SAFETY: `run`'s contract.
     unsafe {
         prepare::<V>(
-            &Prepare {
-                mu_axle: &mu_axle,
-                load: &load,
-                per_decel: &per_decel,
-                half_inv_k: &half_inv_k,
-                falling: falling.then_some((fall_a, fall_b)),
-                speed: if falling {
-                    speed_slope.mul_add(-v, speed_at_zero).max(0.2)
-                } else {
-                    1.0
-                },
-            },
+            &prep,
+            &half_inv_k,
+            initial_speed,
             0.0,
             &[0.0; AXLES],
             &mut ax,
@@ -784,10 +796,10 @@ unsafe fn run<V: Select>(
             while i < AXLES {
                 // SAFETY: `run`'s contract.
                 unsafe {
-                    let z = V::load_scalars(&ddv[i..]).mul(V::splat(inv_ddv0));
-                    let target = V::splat(1.0).sub(
-                        V::splat(sc.hysteresis_depth * 0.5)
-                            .mul(V::splat(1.0).sub(z.div(z.fma(z, V::splat(1.0)).sqrt()))),
+                    let target = hysteresis_target(
+                        sc.hysteresis_depth,
+                        V::load_scalars(&ddv[i..]),
+                        inv_ddv0,
                     );
                     let old = V::load(&ax.hyst[i..]);
                     target
@@ -802,14 +814,9 @@ unsafe fn run<V: Select>(
         // SAFETY: `run`'s contract.
         unsafe {
             prepare::<V>(
-                &Prepare {
-                    mu_axle: &mu_axle,
-                    load: &load,
-                    per_decel: &per_decel,
-                    half_inv_k: &half_inv_k,
-                    falling: falling.then_some((fall_a, fall_b)),
-                    speed: speed_factor,
-                },
+                &prep,
+                &half_inv_k,
+                speed_factor,
                 decel,
                 &slip,
                 &mut ax,
