@@ -23,11 +23,12 @@ use std::time::{Duration, Instant};
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use railgrip::config::SplitConfig;
-use railgrip::identify::dataset::{Dataset, InputSet, MapMinMax, RunTable};
+use railgrip::identify::dataset::{Dataset, MapMinMax, RunTable};
 use railgrip::identify::lm::{LeastSquares, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::{creep_spec, median_speed, train_on, MlpProblem};
-use railgrip::model::{c_header, Model, ModelFile, Provenance};
+use railgrip::identify::InputSet;
+use railgrip::model::{c_header, Model, Provenance};
 use railgrip::Pipeline;
 
 const N: usize = 50_000;
@@ -162,7 +163,7 @@ fn bench(c: &mut Criterion) {
     // Model evaluation.
     trained.reference_speed_mps = v_ref;
     let p = Pipeline::default_uic_z1();
-    let file = ModelFile::from_trained(
+    let file = railgrip::identify::export::mlp_file(
         &trained,
         creep_spec(&p, v_ref).unwrap(),
         Provenance {

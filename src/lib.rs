@@ -16,6 +16,7 @@ pub mod config;
 pub mod contact;
 pub mod estimate;
 pub mod format;
+pub mod hash;
 pub mod identify;
 pub mod ingest;
 pub mod linalg;
@@ -25,6 +26,7 @@ pub mod rng;
 pub mod signal;
 pub mod sim;
 pub(crate) mod simd;
+pub mod table;
 pub mod units;
 pub mod vehicle;
 

@@ -1,89 +1,166 @@
 //! The f64 vectors the model evaluators and the simulator's step run on: one trait, [`Lanes`],
-//! with the plain `f64` (the portable path, one lane) and, on x86_64, AVX2 (`__m256d`, four
-//! lanes) and AVX-512F (`__m512d`, eight lanes) implementations, so that tanh, the hidden layer
-//! ([`tanh_of_doubled`]), exp ([`exp_lanes`]) and atan ([`atan_parts`]) are written once and every
-//! path performs the same IEEE operations lane by lane — the results are bit-identical whatever
-//! the CPU (tested in `model::tests` and `sim::tests`). [`Select`] adds comparisons and blends
-//! (f64 and AVX2 only) for the simulator's branch-free axle step. Multiply-adds are
-//! fused everywhere (`f64::mul_add`, `vfmadd`): FMA is correctly rounded, so hardware and
-//! software agree to the bit; on a CPU without FMA the portable path computes it in software.
+//! with the plain `f64` (the portable path, one lane) and, on x86_64, [`F64x4`] (AVX2 + FMA,
+//! four lanes) and [`F64x8`] (AVX-512F, eight lanes) implementations, so that tanh, the hidden
+//! layer ([`tanh_of_doubled`]), exp ([`exp_lanes`]) and atan ([`atan_parts`]) are written once
+//! and every path performs the same IEEE operations lane by lane — the results are
+//! bit-identical whatever the CPU (tested in `model::net::tests` and `sim::tests`). [`Select`]
+//! adds comparisons and blends (f64 and AVX2) for the simulator's branch-free axle step.
+//! Multiply-adds are fused everywhere (`f64::mul_add`, `vfmadd`): FMA is correctly rounded, so
+//! hardware and software agree to the bit; on a CPU without FMA the portable path computes it
+//! in software.
+//!
+//! Safety by construction: CPU features are detected once, in [`Isa::detect`], which alone
+//! creates the tokens [`Avx2`] and [`Avx512`]. A vector of [`F64x4`] or [`F64x8`] can only be
+//! made from its token (or from another vector), so holding one proves the CPU has its
+//! instructions, and every lane operation is a safe method. `unsafe` remains inside this
+//! module's intrinsic wrappers and at the few dispatch points that enter a function compiled
+//! with `#[target_feature]` (each with a SAFETY comment naming the token that proves it).
 //!
 //! Writing the SIMD paths with intrinsics rather than leaving lane loops to the auto-vectoriser
 //! keeps their speed from depending on the compiler's cost model (a change of the polynomial
-//! once made the auto-vectorised batch path 2× slower).
+//! once made the auto-vectorised batch path 2× slower). Every method is `#[inline(always)]`
+//! so that it is compiled with the target features of the function it is used in.
 
-/// f64 lanes with the operations the evaluators use.
-///
-/// # Safety
-/// The x86 implementations may only be used inside functions compiled for (and run on a CPU
-/// with) their target features: AVX2 + FMA for `__m256d`, AVX-512F for `__m512d`. Every method
-/// is `#[inline(always)]` so that it is compiled with the caller's features.
-pub(crate) unsafe trait Lanes: Copy {
-    /// Lanes per vector.
-    const N: usize;
-    unsafe fn splat(x: f64) -> Self;
-    /// Loads `N` values from the front of `p` (which must hold at least `N`).
-    unsafe fn load(p: &[f64]) -> Self;
-    /// Stores `N` values to the front of `p` (which must hold at least `N`).
-    unsafe fn store(self, p: &mut [f64]);
-    unsafe fn add(self, b: Self) -> Self;
-    unsafe fn sub(self, b: Self) -> Self;
-    unsafe fn mul(self, b: Self) -> Self;
-    unsafe fn div(self, b: Self) -> Self;
-    /// self · b + c, one rounding.
-    unsafe fn fma(self, b: Self, c: Self) -> Self;
-    /// −(self · b) + c, one rounding.
-    unsafe fn fnma(self, b: Self, c: Self) -> Self;
-    /// x86 `minpd`: self < b ? self : b.
-    unsafe fn min(self, b: Self) -> Self;
-    /// x86 `maxpd`: self > b ? self : b.
-    unsafe fn max(self, b: Self) -> Self;
-    /// 2ⁿ from t = n + 1.5·2⁵² (n in the low mantissa bits, two's complement, |n| < 1023):
-    /// the bits (t + 1023) shifted into the exponent field.
-    unsafe fn pow2_of_magic(self) -> Self;
+/// The instruction sets railgrip's vector code uses, detected on this CPU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// AVX-512F and VL, with AVX2 and FMA.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    Avx512(Avx512),
+    /// AVX2 and FMA.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+    Avx2(Avx2),
+    /// Plain f64.
+    Portable,
 }
 
-// SAFETY: plain f64 arithmetic, no target features needed.
-unsafe impl Lanes for f64 {
-    const N: usize = 1;
+impl Isa {
+    /// The widest set this CPU has (the one place railgrip asks the CPU).
+    pub(crate) fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx2") && has!("fma") {
+                if has!("avx512f") && has!("avx512vl") {
+                    return Isa::Avx512(Avx512(()));
+                }
+                return Isa::Avx2(Avx2(()));
+            }
+        }
+        Isa::Portable
+    }
+
+    /// This set and every narrower one, the widest last (for tests that compare the paths).
+    #[cfg(test)]
+    pub(crate) fn all_available() -> Vec<Isa> {
+        match Isa::detect() {
+            Isa::Avx512(t) => vec![Isa::Portable, Isa::Avx2(t.avx2()), Isa::Avx512(t)],
+            Isa::Avx2(t) => vec![Isa::Portable, Isa::Avx2(t)],
+            Isa::Portable => vec![Isa::Portable],
+        }
+    }
+}
+
+/// Proof that the CPU has AVX2 and FMA; made only by [`Isa::detect`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Avx2(());
+
+/// Proof that the CPU has AVX-512F, AVX-512VL, AVX2 and FMA; made only by [`Isa::detect`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Avx512(());
+
+impl Avx512 {
+    /// A CPU with AVX-512 as detected here also has AVX2 and FMA.
+    pub(crate) fn avx2(self) -> Avx2 {
+        Avx2(())
+    }
+}
+
+/// The portable path's token: plain f64 needs no CPU feature.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct Portable;
+
+/// f64 lanes with the operations the evaluators use. A vector exists only where its
+/// instructions do (see the module documentation), so every operation is safe.
+pub(crate) trait Lanes: Copy {
+    /// Lanes per vector.
+    const N: usize;
+    /// The token that proves this CPU runs these lanes.
+    type Isa: Copy;
+    /// The token of an existing vector (which proves it).
+    fn isa(self) -> Self::Isa;
+    fn splat(isa: Self::Isa, x: f64) -> Self;
+    /// Loads `N` values from the front of `p` (panics when it holds fewer).
+    fn load(isa: Self::Isa, p: &[f64]) -> Self;
+    /// Stores `N` values to the front of `p` (panics when it holds fewer).
+    fn store(self, p: &mut [f64]);
+    fn add(self, b: Self) -> Self;
+    fn sub(self, b: Self) -> Self;
+    fn mul(self, b: Self) -> Self;
+    fn div(self, b: Self) -> Self;
+    /// self · b + c, one rounding.
+    fn fma(self, b: Self, c: Self) -> Self;
+    /// −(self · b) + c, one rounding.
+    fn fnma(self, b: Self, c: Self) -> Self;
+    /// x86 `minpd`: self < b ? self : b.
+    fn min(self, b: Self) -> Self;
+    /// x86 `maxpd`: self > b ? self : b.
+    fn max(self, b: Self) -> Self;
+    /// 2ⁿ from t = n + 1.5·2⁵² (n in the low mantissa bits, two's complement, |n| < 1023):
+    /// the bits (t + 1023) shifted into the exponent field.
+    fn pow2_of_magic(self) -> Self;
+    /// A vector like `self` with every lane `x`.
     #[inline(always)]
-    unsafe fn splat(x: f64) -> f64 {
+    fn like(self, x: f64) -> Self {
+        Self::splat(self.isa(), x)
+    }
+}
+
+impl Lanes for f64 {
+    const N: usize = 1;
+    type Isa = Portable;
+    #[inline(always)]
+    fn isa(self) -> Portable {
+        Portable
+    }
+    #[inline(always)]
+    fn splat(_: Portable, x: f64) -> f64 {
         x
     }
     #[inline(always)]
-    unsafe fn load(p: &[f64]) -> f64 {
+    fn load(_: Portable, p: &[f64]) -> f64 {
         p[0]
     }
     #[inline(always)]
-    unsafe fn store(self, p: &mut [f64]) {
+    fn store(self, p: &mut [f64]) {
         p[0] = self;
     }
     #[inline(always)]
-    unsafe fn add(self, b: f64) -> f64 {
+    fn add(self, b: f64) -> f64 {
         self + b
     }
     #[inline(always)]
-    unsafe fn sub(self, b: f64) -> f64 {
+    fn sub(self, b: f64) -> f64 {
         self - b
     }
     #[inline(always)]
-    unsafe fn mul(self, b: f64) -> f64 {
+    fn mul(self, b: f64) -> f64 {
         self * b
     }
     #[inline(always)]
-    unsafe fn div(self, b: f64) -> f64 {
+    fn div(self, b: f64) -> f64 {
         self / b
     }
     #[inline(always)]
-    unsafe fn fma(self, b: f64, c: f64) -> f64 {
+    fn fma(self, b: f64, c: f64) -> f64 {
         self.mul_add(b, c)
     }
     #[inline(always)]
-    unsafe fn fnma(self, b: f64, c: f64) -> f64 {
+    fn fnma(self, b: f64, c: f64) -> f64 {
         (-self).mul_add(b, c)
     }
     #[inline(always)]
-    unsafe fn min(self, b: f64) -> f64 {
+    fn min(self, b: f64) -> f64 {
         if self < b {
             self
         } else {
@@ -91,7 +168,7 @@ unsafe impl Lanes for f64 {
         }
     }
     #[inline(always)]
-    unsafe fn max(self, b: f64) -> f64 {
+    fn max(self, b: f64) -> f64 {
         if self > b {
             self
         } else {
@@ -99,83 +176,112 @@ unsafe impl Lanes for f64 {
         }
     }
     #[inline(always)]
-    unsafe fn pow2_of_magic(self) -> f64 {
+    fn pow2_of_magic(self) -> f64 {
         f64::from_bits(self.to_bits().wrapping_add(1023) << 52)
     }
 }
 
-/// [`Lanes`] for an x86 register type from its intrinsics (AVX2 + FMA for `__m256d`, AVX-512F
-/// for `__m512d`; the two sets name them alike).
 #[cfg(target_arch = "x86_64")]
-macro_rules! x86_lanes {
-    ($t:ty, $n:literal, $set1:ident, $load:ident, $store:ident, $add:ident,
-     $sub:ident, $mul:ident, $div:ident, $fmadd:ident, $fnmadd:ident, $min:ident, $max:ident,
-     $to_int:ident, $to_pd:ident, $slli:ident, $add64:ident, $set1_64:ident) => {
-        // SAFETY: used only inside functions compiled for the register's target features
-        // (see the trait's contract); loads and stores check the slice length first.
-        unsafe impl Lanes for $t {
-            const N: usize = $n;
-            #[inline(always)]
-            unsafe fn splat(x: f64) -> Self {
-                unsafe { $set1(x) }
-            }
-            #[inline(always)]
-            unsafe fn load(p: &[f64]) -> Self {
-                assert!(p.len() >= $n);
-                unsafe { $load(p.as_ptr()) }
-            }
-            #[inline(always)]
-            unsafe fn store(self, p: &mut [f64]) {
-                assert!(p.len() >= $n);
-                unsafe { $store(p.as_mut_ptr(), self) }
-            }
-            #[inline(always)]
-            unsafe fn add(self, b: Self) -> Self {
-                unsafe { $add(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn sub(self, b: Self) -> Self {
-                unsafe { $sub(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn mul(self, b: Self) -> Self {
-                unsafe { $mul(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn div(self, b: Self) -> Self {
-                unsafe { $div(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn fma(self, b: Self, c: Self) -> Self {
-                unsafe { $fmadd(self, b, c) }
-            }
-            #[inline(always)]
-            unsafe fn fnma(self, b: Self, c: Self) -> Self {
-                unsafe { $fnmadd(self, b, c) }
-            }
-            #[inline(always)]
-            unsafe fn min(self, b: Self) -> Self {
-                unsafe { $min(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn max(self, b: Self) -> Self {
-                unsafe { $max(self, b) }
-            }
-            #[inline(always)]
-            unsafe fn pow2_of_magic(self) -> Self {
-                unsafe { $to_pd($slli::<52>($add64($to_int(self), $set1_64(1023)))) }
-            }
-        }
-    };
-}
+pub(crate) use x86::{F64x4, F64x8};
 
+/// The x86 vectors. Every intrinsic call below is sound because a value of the vector type
+/// (or its token) exists only after [`Isa::detect`] found the instructions on this CPU.
 #[cfg(target_arch = "x86_64")]
 mod x86 {
-    use super::Lanes;
+    use super::{Avx2, Avx512, Lanes, Select};
     use std::arch::x86_64::*;
 
+    /// Four f64 in an AVX2 register; exists only on a CPU with AVX2 and FMA.
+    #[derive(Clone, Copy)]
+    #[repr(transparent)]
+    pub(crate) struct F64x4(__m256d);
+
+    /// Eight f64 in an AVX-512 register; exists only on a CPU with AVX-512F.
+    #[derive(Clone, Copy)]
+    #[repr(transparent)]
+    pub(crate) struct F64x8(__m512d);
+
+    /// Per-lane truth values of [`F64x4`] (all ones or all zeros per lane).
+    #[derive(Clone, Copy)]
+    #[repr(transparent)]
+    pub(crate) struct Mask4(__m256d);
+
+    /// [`Lanes`] for an x86 vector type from its intrinsics (AVX2 + FMA for `F64x4`,
+    /// AVX-512F for `F64x8`; the two sets name them alike).
+    macro_rules! x86_lanes {
+        ($t:ident, $isa:ident, $n:literal, $set1:ident, $load:ident, $store:ident, $add:ident,
+         $sub:ident, $mul:ident, $div:ident, $fmadd:ident, $fnmadd:ident, $min:ident,
+         $max:ident, $to_int:ident, $to_pd:ident, $slli:ident, $add64:ident,
+         $set1_64:ident) => {
+            impl Lanes for $t {
+                const N: usize = $n;
+                type Isa = $isa;
+                #[inline(always)]
+                fn isa(self) -> $isa {
+                    // A vector of this type was made from its token.
+                    $isa(())
+                }
+                #[inline(always)]
+                fn splat(_: $isa, x: f64) -> Self {
+                    // SAFETY: the token proves the CPU has the instructions.
+                    $t(unsafe { $set1(x) })
+                }
+                #[inline(always)]
+                fn load(_: $isa, p: &[f64]) -> Self {
+                    let p = &p[..$n];
+                    // SAFETY: the token proves the instructions; `p` holds N values.
+                    $t(unsafe { $load(p.as_ptr()) })
+                }
+                #[inline(always)]
+                fn store(self, p: &mut [f64]) {
+                    let p = &mut p[..$n];
+                    // SAFETY: `self` proves the instructions; `p` holds N values.
+                    unsafe { $store(p.as_mut_ptr(), self.0) }
+                }
+                #[inline(always)]
+                fn add(self, b: Self) -> Self {
+                    // SAFETY (here and below): `self` proves the instructions.
+                    $t(unsafe { $add(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn sub(self, b: Self) -> Self {
+                    $t(unsafe { $sub(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn mul(self, b: Self) -> Self {
+                    $t(unsafe { $mul(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn div(self, b: Self) -> Self {
+                    $t(unsafe { $div(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn fma(self, b: Self, c: Self) -> Self {
+                    $t(unsafe { $fmadd(self.0, b.0, c.0) })
+                }
+                #[inline(always)]
+                fn fnma(self, b: Self, c: Self) -> Self {
+                    $t(unsafe { $fnmadd(self.0, b.0, c.0) })
+                }
+                #[inline(always)]
+                fn min(self, b: Self) -> Self {
+                    $t(unsafe { $min(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn max(self, b: Self) -> Self {
+                    $t(unsafe { $max(self.0, b.0) })
+                }
+                #[inline(always)]
+                fn pow2_of_magic(self) -> Self {
+                    $t(unsafe { $to_pd($slli::<52>($add64($to_int(self.0), $set1_64(1023)))) })
+                }
+            }
+        };
+    }
+
     x86_lanes!(
-        __m256d,
+        F64x4,
+        Avx2,
         4,
         _mm256_set1_pd,
         _mm256_loadu_pd,
@@ -195,7 +301,8 @@ mod x86 {
         _mm256_set1_epi64x
     );
     x86_lanes!(
-        __m512d,
+        F64x8,
+        Avx512,
         8,
         _mm512_set1_pd,
         _mm512_loadu_pd,
@@ -214,6 +321,156 @@ mod x86 {
         _mm512_add_epi64,
         _mm512_set1_epi64
     );
+
+    // SAFETY (every block in this impl): a `F64x4` or `Mask4` exists only on a CPU with
+    // AVX2 (see the module documentation); these are AVX/SSE2 intrinsics, subsets of it.
+    impl Select for F64x4 {
+        type Mask = Mask4;
+        #[inline(always)]
+        fn le(self, b: Self) -> Mask4 {
+            Mask4(unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn lt(self, b: Self) -> Mask4 {
+            Mask4(unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(self.0, b.0) })
+        }
+        #[inline(always)]
+        fn select(m: Mask4, a: Self, b: Self) -> Self {
+            F64x4(unsafe { _mm256_blendv_pd(b.0, a.0, m.0) })
+        }
+        #[inline(always)]
+        fn and(m: Mask4, n: Mask4) -> Mask4 {
+            Mask4(unsafe { _mm256_and_pd(m.0, n.0) })
+        }
+        #[inline(always)]
+        fn or(m: Mask4, n: Mask4) -> Mask4 {
+            Mask4(unsafe { _mm256_or_pd(m.0, n.0) })
+        }
+        #[inline(always)]
+        fn and_not(m: Mask4, n: Mask4) -> Mask4 {
+            Mask4(unsafe { _mm256_andnot_pd(m.0, n.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> Self {
+            F64x4(unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn neg(self) -> Self {
+            F64x4(unsafe { _mm256_xor_pd(_mm256_set1_pd(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            F64x4(unsafe { _mm256_sqrt_pd(self.0) })
+        }
+        #[inline(always)]
+        fn copysign(self, sign: Self) -> Self {
+            F64x4(unsafe {
+                let m = _mm256_set1_pd(-0.0);
+                _mm256_or_pd(_mm256_andnot_pd(m, self.0), _mm256_and_pd(m, sign.0))
+            })
+        }
+        #[inline(always)]
+        fn load_scalars(_: Avx2, p: &[f64]) -> Self {
+            F64x4(unsafe { _mm256_set_pd(p[3], p[2], p[1], p[0]) })
+        }
+        #[inline(always)]
+        fn total4(last: Self, _: &[f64; 4]) -> f64 {
+            unsafe {
+                let s = _mm_add_pd(
+                    _mm256_castpd256_pd128(last.0),
+                    _mm256_extractf128_pd::<1>(last.0),
+                );
+                _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
+            }
+        }
+    }
+}
+
+/// Lanes with comparisons and blends, for branch-free code (the simulator's axle step).
+pub(crate) trait Select: Lanes {
+    /// Per-lane truth values.
+    type Mask: Copy;
+    /// self ≤ b (false where either is NaN).
+    fn le(self, b: Self) -> Self::Mask;
+    /// self < b (false where either is NaN).
+    fn lt(self, b: Self) -> Self::Mask;
+    /// m ? a : b, lane by lane.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    fn and(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    fn or(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    /// !m & n.
+    fn and_not(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    /// |self| (clears the sign bit).
+    fn abs(self) -> Self;
+    /// −self (flips the sign bit).
+    fn neg(self) -> Self;
+    /// Correctly rounded square root.
+    fn sqrt(self) -> Self;
+    /// |self| with the sign of `sign`.
+    fn copysign(self, sign: Self) -> Self;
+    /// [`Lanes::load`] of values that scalar code has just stored: lane by lane, because a
+    /// vector load cannot be forwarded from several narrower stores still in the store buffer
+    /// and would wait for them to reach the cache.
+    fn load_scalars(isa: Self::Isa, p: &[f64]) -> Self;
+    /// (t0 + t2) + (t1 + t3) of four values: the lanes of `last` (four lanes) or, one lane
+    /// at a time, the array the lanes were stored to.
+    fn total4(last: Self, stored: &[f64; 4]) -> f64;
+}
+
+impl Select for f64 {
+    type Mask = bool;
+    #[inline(always)]
+    fn le(self, b: f64) -> bool {
+        self <= b
+    }
+    #[inline(always)]
+    fn lt(self, b: f64) -> bool {
+        self < b
+    }
+    #[inline(always)]
+    fn select(m: bool, a: f64, b: f64) -> f64 {
+        if m {
+            a
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    fn and(m: bool, n: bool) -> bool {
+        m & n
+    }
+    #[inline(always)]
+    fn or(m: bool, n: bool) -> bool {
+        m | n
+    }
+    #[inline(always)]
+    fn and_not(m: bool, n: bool) -> bool {
+        !m & n
+    }
+    #[inline(always)]
+    fn abs(self) -> f64 {
+        f64::abs(self)
+    }
+    #[inline(always)]
+    fn neg(self) -> f64 {
+        -self
+    }
+    #[inline(always)]
+    fn sqrt(self) -> f64 {
+        f64::sqrt(self)
+    }
+    #[inline(always)]
+    fn copysign(self, sign: f64) -> f64 {
+        f64::copysign(self, sign)
+    }
+    #[inline(always)]
+    fn load_scalars(_: Portable, p: &[f64]) -> f64 {
+        p[0]
+    }
+    #[inline(always)]
+    fn total4(_: f64, t: &[f64; 4]) -> f64 {
+        (t[0] + t[2]) + (t[1] + t[3])
+    }
 }
 
 /// Coefficients of P(r) ≈ (e^r − 1)/r on |r| ≤ ln 2 / 2, degree 10, fitted by Chebyshev least
@@ -244,220 +501,49 @@ const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
 /// reduction x = n ln 2 + r (|r| ≤ ln 2 / 2), e^r − 1 = r P(r) with [`EXPM1_P`] (Estrin's scheme),
 /// scale = 2ⁿ. Returns (scale, p) so that e^x − 1 = scale · p + (scale − 1) stays exact but
 /// for one rounding.
-///
-/// # Safety
-/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-unsafe fn exp_parts<V: Lanes>(x: V) -> (V, V) {
-    unsafe {
-        let magic = V::splat(MAGIC);
-        let t = x.fma(V::splat(LOG2E), magic);
-        let n = t.sub(magic);
-        let r = n.fnma(V::splat(LN2_LO), n.fnma(V::splat(LN2_HI), x));
-        let r2 = r.mul(r);
-        let r4 = r2.mul(r2);
-        let r8 = r4.mul(r4);
-        let q0 = V::splat(EXPM1_P[1]).fma(r, V::splat(EXPM1_P[0]));
-        let q1 = V::splat(EXPM1_P[3]).fma(r, V::splat(EXPM1_P[2]));
-        let q2 = V::splat(EXPM1_P[5]).fma(r, V::splat(EXPM1_P[4]));
-        let q3 = V::splat(EXPM1_P[7]).fma(r, V::splat(EXPM1_P[6]));
-        let q4 = V::splat(EXPM1_P[9]).fma(r, V::splat(EXPM1_P[8]));
-        let s0 = q1.fma(r2, q0);
-        let s1 = q3.fma(r2, q2);
-        let s2 = V::splat(EXPM1_P[10]).fma(r2, q4);
-        let u0 = s1.fma(r4, s0);
-        let p = s2.fma(r8, u0).mul(r);
-        (t.pow2_of_magic(), p)
-    }
+fn exp_parts<V: Lanes>(x: V) -> (V, V) {
+    let isa = x.isa();
+    let magic = V::splat(isa, MAGIC);
+    let t = x.fma(V::splat(isa, LOG2E), magic);
+    let n = t.sub(magic);
+    let r = n.fnma(V::splat(isa, LN2_LO), n.fnma(V::splat(isa, LN2_HI), x));
+    let r2 = r.mul(r);
+    let r4 = r2.mul(r2);
+    let r8 = r4.mul(r4);
+    let q0 = V::splat(isa, EXPM1_P[1]).fma(r, V::splat(isa, EXPM1_P[0]));
+    let q1 = V::splat(isa, EXPM1_P[3]).fma(r, V::splat(isa, EXPM1_P[2]));
+    let q2 = V::splat(isa, EXPM1_P[5]).fma(r, V::splat(isa, EXPM1_P[4]));
+    let q3 = V::splat(isa, EXPM1_P[7]).fma(r, V::splat(isa, EXPM1_P[6]));
+    let q4 = V::splat(isa, EXPM1_P[9]).fma(r, V::splat(isa, EXPM1_P[8]));
+    let s0 = q1.fma(r2, q0);
+    let s1 = q3.fma(r2, q2);
+    let s2 = V::splat(isa, EXPM1_P[10]).fma(r2, q4);
+    let u0 = s1.fma(r4, s0);
+    let p = s2.fma(r8, u0).mul(r);
+    (t.pow2_of_magic(), p)
 }
 
 /// e^x on every lane, x clamped to [−700, 700] (e^−700 ≈ 1e−304 is still a normal double):
 /// [`exp_parts`], within 1 ulp of the C library (tested).
-///
-/// # Safety
-/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-pub(crate) unsafe fn exp_lanes<V: Lanes>(x: V) -> V {
-    unsafe {
-        let x = x.min(V::splat(700.0)).max(V::splat(-700.0));
-        let (scale, p) = exp_parts(x);
-        scale.fma(p, scale)
-    }
+pub(crate) fn exp_lanes<V: Lanes>(x: V) -> V {
+    let isa = x.isa();
+    let x = x.min(V::splat(isa, 700.0)).max(V::splat(isa, -700.0));
+    let (scale, p) = exp_parts(x);
+    scale.fma(p, scale)
 }
 
 /// tanh(z) on every lane given z2 = 2z — see [`crate::model::tanh_fast`] for the method and
 /// accuracy. With x = z2 clamped to [−40, 40]: e^x − 1 = 2ⁿ P r + (2ⁿ − 1) in one fused step
 /// ([`exp_parts`]), tanh = (e^x − 1)/(e^x − 1 + 2).
-///
-/// # Safety
-/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-pub(crate) unsafe fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
-    unsafe {
-        let x = z2.min(V::splat(40.0)).max(V::splat(-40.0));
-        let (scale, p) = exp_parts(x);
-        let em1 = scale.fma(p, scale.sub(V::splat(1.0)));
-        em1.div(em1.add(V::splat(2.0)))
-    }
-}
-
-/// Lanes with comparisons and blends, for branch-free code (the simulator's axle step).
-///
-/// # Safety
-/// As [`Lanes`].
-pub(crate) unsafe trait Select: Lanes {
-    /// Per-lane truth values.
-    type Mask: Copy;
-    /// self ≤ b (false where either is NaN).
-    unsafe fn le(self, b: Self) -> Self::Mask;
-    /// self < b (false where either is NaN).
-    unsafe fn lt(self, b: Self) -> Self::Mask;
-    /// m ? a : b, lane by lane.
-    unsafe fn select(m: Self::Mask, a: Self, b: Self) -> Self;
-    unsafe fn and(m: Self::Mask, n: Self::Mask) -> Self::Mask;
-    unsafe fn or(m: Self::Mask, n: Self::Mask) -> Self::Mask;
-    /// !m & n.
-    unsafe fn and_not(m: Self::Mask, n: Self::Mask) -> Self::Mask;
-    /// |self| (clears the sign bit).
-    unsafe fn abs(self) -> Self;
-    /// −self (flips the sign bit).
-    unsafe fn neg(self) -> Self;
-    /// Correctly rounded square root.
-    unsafe fn sqrt(self) -> Self;
-    /// |self| with the sign of `sign`.
-    unsafe fn copysign(self, sign: Self) -> Self;
-    /// [`Lanes::load`] of values that scalar code has just stored: lane by lane, because a
-    /// vector load cannot be forwarded from several narrower stores still in the store buffer
-    /// and would wait for them to reach the cache.
-    unsafe fn load_scalars(p: &[f64]) -> Self;
-    /// (t0 + t2) + (t1 + t3) of four values: the lanes of `last` (four lanes) or, one lane
-    /// at a time, the array the lanes were stored to.
-    unsafe fn total4(last: Self, stored: &[f64; 4]) -> f64;
-}
-
-// SAFETY: plain f64 operations.
-unsafe impl Select for f64 {
-    type Mask = bool;
-    #[inline(always)]
-    unsafe fn le(self, b: f64) -> bool {
-        self <= b
-    }
-    #[inline(always)]
-    unsafe fn lt(self, b: f64) -> bool {
-        self < b
-    }
-    #[inline(always)]
-    unsafe fn select(m: bool, a: f64, b: f64) -> f64 {
-        if m {
-            a
-        } else {
-            b
-        }
-    }
-    #[inline(always)]
-    unsafe fn and(m: bool, n: bool) -> bool {
-        m & n
-    }
-    #[inline(always)]
-    unsafe fn or(m: bool, n: bool) -> bool {
-        m | n
-    }
-    #[inline(always)]
-    unsafe fn and_not(m: bool, n: bool) -> bool {
-        !m & n
-    }
-    #[inline(always)]
-    unsafe fn abs(self) -> f64 {
-        f64::abs(self)
-    }
-    #[inline(always)]
-    unsafe fn neg(self) -> f64 {
-        -self
-    }
-    #[inline(always)]
-    unsafe fn sqrt(self) -> f64 {
-        f64::sqrt(self)
-    }
-    #[inline(always)]
-    unsafe fn copysign(self, sign: f64) -> f64 {
-        f64::copysign(self, sign)
-    }
-    #[inline(always)]
-    unsafe fn load_scalars(p: &[f64]) -> f64 {
-        p[0]
-    }
-    #[inline(always)]
-    unsafe fn total4(_: f64, t: &[f64; 4]) -> f64 {
-        (t[0] + t[2]) + (t[1] + t[3])
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-mod x86_select {
-    use super::Select;
-    use std::arch::x86_64::*;
-
-    // SAFETY: AVX (a subset of AVX2) intrinsics, used only inside functions compiled for AVX2.
-    unsafe impl Select for __m256d {
-        type Mask = __m256d;
-        #[inline(always)]
-        unsafe fn le(self, b: Self) -> Self {
-            unsafe { _mm256_cmp_pd::<_CMP_LE_OQ>(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn lt(self, b: Self) -> Self {
-            unsafe { _mm256_cmp_pd::<_CMP_LT_OQ>(self, b) }
-        }
-        #[inline(always)]
-        unsafe fn select(m: Self, a: Self, b: Self) -> Self {
-            unsafe { _mm256_blendv_pd(b, a, m) }
-        }
-        #[inline(always)]
-        unsafe fn and(m: Self, n: Self) -> Self {
-            unsafe { _mm256_and_pd(m, n) }
-        }
-        #[inline(always)]
-        unsafe fn or(m: Self, n: Self) -> Self {
-            unsafe { _mm256_or_pd(m, n) }
-        }
-        #[inline(always)]
-        unsafe fn and_not(m: Self, n: Self) -> Self {
-            unsafe { _mm256_andnot_pd(m, n) }
-        }
-        #[inline(always)]
-        unsafe fn abs(self) -> Self {
-            unsafe { _mm256_andnot_pd(_mm256_set1_pd(-0.0), self) }
-        }
-        #[inline(always)]
-        unsafe fn neg(self) -> Self {
-            unsafe { _mm256_xor_pd(_mm256_set1_pd(-0.0), self) }
-        }
-        #[inline(always)]
-        unsafe fn sqrt(self) -> Self {
-            unsafe { _mm256_sqrt_pd(self) }
-        }
-        #[inline(always)]
-        unsafe fn copysign(self, sign: Self) -> Self {
-            unsafe {
-                let m = _mm256_set1_pd(-0.0);
-                _mm256_or_pd(_mm256_andnot_pd(m, self), _mm256_and_pd(m, sign))
-            }
-        }
-        #[inline(always)]
-        unsafe fn load_scalars(p: &[f64]) -> Self {
-            unsafe { _mm256_set_pd(p[3], p[2], p[1], p[0]) }
-        }
-        #[inline(always)]
-        unsafe fn total4(last: Self, _: &[f64; 4]) -> f64 {
-            unsafe {
-                let s = _mm_add_pd(
-                    _mm256_castpd256_pd128(last),
-                    _mm256_extractf128_pd::<1>(last),
-                );
-                _mm_cvtsd_f64(_mm_add_sd(s, _mm_unpackhi_pd(s, s)))
-            }
-        }
-    }
+pub(crate) fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
+    let isa = z2.isa();
+    let x = z2.min(V::splat(isa, 40.0)).max(V::splat(isa, -40.0));
+    let (scale, p) = exp_parts(x);
+    let em1 = scale.fma(p, scale.sub(V::splat(isa, 1.0)));
+    em1.div(em1.add(V::splat(isa, 2.0)))
 }
 
 /// Coefficients of the [6/6] Padé approximant atan(t)/t ≈ P(t²)/Q(t²), from
@@ -492,56 +578,48 @@ pub(crate) const ATAN_Q: [f64; 7] = [
 ///   Σ c_k S^k L^(6−k) = (c0 L + c1 S) L⁵ + (c2 L + c3 S) S² L³ + ((c4 L + c5 S) S⁴ L + c6 S⁶),
 /// six multiply levels; num = n Σ p_k…, den = m Σ q_k…. den has the magnitude of
 /// max(|b|, d)¹³ — the caller keeps b and d within about 10^±20.
-///
-/// # Safety
-/// As [`Lanes`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-pub(crate) unsafe fn atan_parts<V: Select>(b: V, d: V) -> (V, V, V) {
+pub(crate) fn atan_parts<V: Select>(b: V, d: V) -> (V, V, V) {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
-    unsafe {
-        let ab = b.abs();
-        let sd = d.copysign(b);
-        let low = ab.le(d.mul(V::splat(0.414_213_562_373_095_1)));
-        let high = d.mul(V::splat(2.414_213_562_373_095)).lt(ab);
-        let n = V::select(low, b, V::select(high, sd.neg(), b.sub(sd)));
-        let m = V::select(low, d, V::select(high, ab, ab.add(d)));
-        let off = V::select(
-            low,
-            V::splat(0.0),
-            V::select(high, V::splat(FRAC_PI_2), V::splat(FRAC_PI_4)).copysign(b),
-        );
-        let s = n.mul(n);
-        let l = m.mul(m);
-        let s2 = s.mul(s);
-        let l2 = l.mul(l);
-        let s4 = s2.mul(s2);
-        let l3 = l2.mul(l);
-        let l4 = l2.mul(l2);
-        let mono = [l4.mul(l), s2.mul(l3), s4.mul(l), s4.mul(s2)];
-        (
-            off,
-            n.mul(homogeneous6(&ATAN_P, s, l, &mono)),
-            m.mul(homogeneous6(&ATAN_Q, s, l, &mono)),
-        )
-    }
+    let isa = b.isa();
+    let ab = b.abs();
+    let sd = d.copysign(b);
+    let low = ab.le(d.mul(V::splat(isa, 0.414_213_562_373_095_1)));
+    let high = d.mul(V::splat(isa, 2.414_213_562_373_095)).lt(ab);
+    let n = V::select(low, b, V::select(high, sd.neg(), b.sub(sd)));
+    let m = V::select(low, d, V::select(high, ab, ab.add(d)));
+    let off = V::select(
+        low,
+        V::splat(isa, 0.0),
+        V::select(high, V::splat(isa, FRAC_PI_2), V::splat(isa, FRAC_PI_4)).copysign(b),
+    );
+    let s = n.mul(n);
+    let l = m.mul(m);
+    let s2 = s.mul(s);
+    let l2 = l.mul(l);
+    let s4 = s2.mul(s2);
+    let l3 = l2.mul(l);
+    let l4 = l2.mul(l2);
+    let mono = [l4.mul(l), s2.mul(l3), s4.mul(l), s4.mul(s2)];
+    (
+        off,
+        n.mul(homogeneous6(&ATAN_P, s, l, &mono)),
+        m.mul(homogeneous6(&ATAN_Q, s, l, &mono)),
+    )
 }
 
 /// Σ c_k S^k L^(6−k) from the monomials [L⁵, S²L³, S⁴L, S⁶] (see [`atan_parts`]). (A
 /// function, not a closure: closures do not inherit the caller's target features, and the
 /// intrinsics would not inline into them.)
-///
-/// # Safety
-/// As [`Lanes`].
 #[inline(always)]
-unsafe fn homogeneous6<V: Lanes>(c: &[f64; 7], s: V, l: V, mono: &[V; 4]) -> V {
-    unsafe {
-        let p01 = V::splat(c[1]).fma(s, V::splat(c[0]).mul(l));
-        let p23 = V::splat(c[3]).fma(s, V::splat(c[2]).mul(l));
-        let p45 = V::splat(c[5]).fma(s, V::splat(c[4]).mul(l));
-        let t0 = p01.fma(mono[0], p23.mul(mono[1]));
-        let t1 = p45.fma(mono[2], V::splat(c[6]).mul(mono[3]));
-        t0.add(t1)
-    }
+fn homogeneous6<V: Lanes>(c: &[f64; 7], s: V, l: V, mono: &[V; 4]) -> V {
+    let isa = s.isa();
+    let p01 = V::splat(isa, c[1]).fma(s, V::splat(isa, c[0]).mul(l));
+    let p23 = V::splat(isa, c[3]).fma(s, V::splat(isa, c[2]).mul(l));
+    let p45 = V::splat(isa, c[5]).fma(s, V::splat(isa, c[4]).mul(l));
+    let t0 = p01.fma(mono[0], p23.mul(mono[1]));
+    let t1 = p45.fma(mono[2], V::splat(isa, c[6]).mul(mono[3]));
+    t0.add(t1)
 }
 
 #[cfg(test)]
@@ -549,8 +627,7 @@ mod tests {
     use super::*;
 
     fn atan_f64(b: f64, d: f64) -> f64 {
-        // SAFETY: f64 lanes need no target features.
-        let (off, num, den) = unsafe { atan_parts(b, d) };
+        let (off, num, den) = atan_parts(b, d);
         off + num / den
     }
 
@@ -570,8 +647,7 @@ mod tests {
         }
         assert!(worst < 1e-15, "worst relative error {worst:e}");
         assert_eq!(atan_f64(0.0, 3.0), 0.0);
-        // SAFETY: as above.
-        let (_, _, den) = unsafe { atan_parts(-1e6, 1e-3) };
+        let (_, _, den) = atan_parts(-1e6, 1e-3);
         assert!(den > 0.0);
     }
 
@@ -580,38 +656,35 @@ mod tests {
         let mut worst: f64 = 0.0;
         for i in 0..=200_000 {
             let x = -700.0 + 1400.0 * i as f64 / 200_000.0;
-            // SAFETY: f64 lanes need no target features.
-            let got = unsafe { exp_lanes(x) };
+            let got = exp_lanes(x);
             worst = worst.max(((got - x.exp()) / x.exp()).abs());
         }
         assert!(worst < 4.5e-16, "worst relative error {worst:e}");
-        // SAFETY: as above.
-        assert!(unsafe { exp_lanes(-1e6) } > 0.0 && unsafe { exp_lanes(1e6) }.is_finite());
+        assert!(exp_lanes(-1e6) > 0.0 && exp_lanes(1e6).is_finite());
     }
 
     #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_atan_and_exp_give_the_portable_bits() {
-        use std::arch::x86_64::*;
-        if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
-            return;
-        }
+        let isa = match Isa::detect() {
+            Isa::Avx512(t) => t.avx2(),
+            Isa::Avx2(t) => t,
+            Isa::Portable => return,
+        };
         #[target_feature(enable = "avx2,fma")]
-        unsafe fn four(b: &[f64; 4], d: &[f64; 4]) -> ([f64; 4], [f64; 4]) {
-            unsafe {
-                let (off, num, den) = atan_parts(__m256d::load(b), __m256d::load(d));
-                let (mut a, mut e) = ([0.0; 4], [0.0; 4]);
-                off.add(num.div(den)).store(&mut a);
-                exp_lanes(__m256d::load(b)).store(&mut e);
-                (a, e)
-            }
+        fn four(isa: Avx2, b: &[f64; 4], d: &[f64; 4]) -> ([f64; 4], [f64; 4]) {
+            let (off, num, den) = atan_parts(F64x4::load(isa, b), F64x4::load(isa, d));
+            let (mut a, mut e) = ([0.0; 4], [0.0; 4]);
+            off.add(num.div(den)).store(&mut a);
+            exp_lanes(F64x4::load(isa, b)).store(&mut e);
+            (a, e)
         }
         for i in 0..2000 {
             let x = (i as f64 - 1000.0) * 0.037;
             let b = [x, -x * 3.1, x * 1e-3, x * 40.0];
             let d = [0.5, 1.7, 1e-4, 3.0];
-            // SAFETY: AVX2 and FMA were detected.
-            let (a, e) = unsafe { four(&b, &d) };
+            // SAFETY: `isa` proves AVX2 and FMA.
+            let (a, e) = unsafe { four(isa, &b, &d) };
             for k in 0..4 {
                 assert_eq!(
                     a[k].to_bits(),
@@ -620,8 +693,7 @@ mod tests {
                     b[k],
                     d[k]
                 );
-                // SAFETY: f64 lanes.
-                assert_eq!(e[k].to_bits(), unsafe { exp_lanes(b[k]) }.to_bits());
+                assert_eq!(e[k].to_bits(), exp_lanes(b[k]).to_bits());
             }
         }
     }

@@ -8,10 +8,11 @@ use std::path::PathBuf;
 
 use proptest::prelude::*;
 use railgrip::config::SplitConfig;
-use railgrip::identify::dataset::{Dataset, InputSet, RunTable};
+use railgrip::identify::dataset::{Dataset, RunTable};
 use railgrip::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::{creep_spec, train_on, MlpProblem};
+use railgrip::identify::InputSet;
 use railgrip::identify::TrainedMlp;
 use railgrip::model::{c_header, InputFile, Model, ModelFile, Provenance};
 use railgrip::Pipeline;
@@ -259,7 +260,7 @@ fn synthetic_model() -> ModelFile {
     }
     let p = Pipeline::default_uic_z1();
     let creep = creep_spec(&p, t.reference_speed_mps).unwrap();
-    ModelFile::from_trained(
+    railgrip::identify::export::mlp_file(
         &t,
         creep,
         Provenance {
@@ -268,7 +269,7 @@ fn synthetic_model() -> ModelFile {
                 sha256: "0".repeat(64),
             }],
             pipeline: p.source.clone(),
-            pipeline_sha256: railgrip::identify::dataset::sha256_bytes(p.text.as_bytes()),
+            pipeline_sha256: railgrip::hash::sha256_bytes(p.text.as_bytes()),
             seed: 1,
             crate_version: "golden".into(),
             created: "2026-01-01T00:00:00Z".into(),
@@ -536,7 +537,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         degree: 2,
         residuals: vec![],
     };
-    ModelFile::from_polach(
+    railgrip::identify::export::polach_file(
         &fit,
         &patch,
         q,
@@ -774,7 +775,7 @@ fn seed002_figures_on_simulated_runs() {
     let mut model_t = trained.clone();
     model_t.reference_speed_mps = railgrip::identify::train::median_speed(&tables);
     let creep = creep_spec(&p, model_t.reference_speed_mps).unwrap();
-    let file = ModelFile::from_trained(
+    let file = railgrip::identify::export::mlp_file(
         &model_t,
         creep,
         Provenance {

@@ -4,8 +4,7 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use railgrip::identify::campaign::train_models;
-use railgrip::identify::dataset::sha256_file;
+use railgrip::campaign::{train_models, ModelPaths};
 use railgrip::identify::RunTable;
 use railgrip::model::{c_header, Model, ModelFile};
 use rayon::prelude::*;
@@ -45,7 +44,8 @@ pub fn load_tables(
             }
             let log = railgrip::ingest_file(p, pipeline)?;
             let e = railgrip::estimate::estimate(&log, pipeline)?;
-            let sha = sha256_file(p).with_context(|| format!("{name}: cannot read"))?;
+            let sha =
+                railgrip::hash::sha256_file(p).with_context(|| format!("{name}: cannot read"))?;
             Ok(RunTable::from_estimates(
                 &super::ingest::stem(p),
                 &name,
@@ -88,9 +88,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
         );
     }
-    let written = models
-        .write(&args.out, &args.name, false)
-        .with_context(|| format!("{}: cannot write the models", args.out.display()))?;
+    let written = models.write(&ModelPaths::new(&args.out, &args.name), false)?;
     let trained = &models.trained;
     let report = &models.polach_fits;
     let notes = &models.notes;

@@ -1,15 +1,12 @@
 //! `railgrip run`: the whole job over a campaign folder, and `railgrip report`.
 
 use std::io::IsTerminal as _;
-use std::path::{Path, PathBuf};
-use std::time::Instant;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
 
-use anyhow::{bail, Context};
+use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
-use railgrip::campaign::{self, RunRecord};
-use railgrip::identify::campaign::train_models;
-use railgrip::ingest::LogSource;
-use rayon::prelude::*;
+use railgrip::campaign::{self, Event, OutDir, RunRecord, Stage};
 use serde::Serialize;
 
 use super::{PipelineArg, EXIT_ERROR, EXIT_LOSSY, EXIT_OK};
@@ -37,51 +34,108 @@ pub struct Args {
     json: bool,
 }
 
-/// The bundled archive of this source tree.
-fn bundled_archive() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/archive")
+/// Progress on stderr: a bar per stage on a terminal, plain lines otherwise.
+struct Bars {
+    terminal: bool,
+    estimate: Mutex<Option<ProgressBar>>,
+    train: Mutex<Option<ProgressBar>>,
 }
 
-/// Progress: a bar on a terminal, plain lines otherwise.
-struct Progress {
-    bar: Option<ProgressBar>,
-}
-
-impl Progress {
-    fn new(len: u64, what: &str) -> Progress {
-        if std::io::stderr().is_terminal() {
-            let bar = ProgressBar::new(len);
-            bar.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>10} [{bar:30}] {pos}/{len} {elapsed_precise} {wide_msg}",
-                )
-                .expect("valid template")
-                .progress_chars("=> "),
-            );
-            bar.set_prefix(what.to_string());
-            Progress { bar: Some(bar) }
-        } else {
-            Progress { bar: None }
+impl Bars {
+    fn new() -> Bars {
+        Bars {
+            terminal: std::io::stderr().is_terminal(),
+            estimate: Mutex::new(None),
+            train: Mutex::new(None),
         }
     }
-    fn line(&self, text: String) {
-        match &self.bar {
-            Some(b) => {
-                b.set_message(text);
-                b.inc(1);
+}
+
+fn run_line(r: &RunRecord) -> String {
+    match (r.ok(), r.reused) {
+        (true, true) => format!("run        {}: unchanged, reused", r.run),
+        (true, false) => format!("run        {}: ok ({:.2} s)", r.run, r.duration_s),
+        _ => format!(
+            "run        {}: FAILED: {}",
+            r.run,
+            r.error.as_deref().unwrap_or("")
+        ),
+    }
+}
+
+impl campaign::Progress for Bars {
+    fn event(&self, e: Event<'_>) {
+        match e {
+            Event::EstimateStarts {
+                runs,
+                source,
+                threads,
+            } => {
+                if self.terminal {
+                    let bar = ProgressBar::new(runs as u64);
+                    bar.set_style(
+                        ProgressStyle::with_template(
+                            "{prefix:>10} [{bar:30}] {pos}/{len} {elapsed_precise} {wide_msg}",
+                        )
+                        .expect("valid template")
+                        .progress_chars("=> "),
+                    );
+                    bar.set_prefix("estimate");
+                    *self.estimate.lock().expect("not poisoned") = Some(bar);
+                } else {
+                    eprintln!(
+                        "estimate   {runs} run(s) from {} on {threads} thread(s)",
+                        source.display()
+                    );
+                }
             }
-            None => eprintln!("{text}"),
-        }
-    }
-    fn println(&self, text: String) {
-        match &self.bar {
-            Some(b) => b.println(text),
-            None => eprintln!("{text}"),
-        }
-    }
-    fn finish(&self) {
-        if let Some(b) = &self.bar {
-            b.finish_and_clear();
+            Event::RunDone(r) => {
+                let line = run_line(r);
+                match &*self.estimate.lock().expect("not poisoned") {
+                    Some(b) => {
+                        if !r.ok() {
+                            b.println(line.clone());
+                        }
+                        b.set_message(line);
+                        b.inc(1);
+                    }
+                    None => eprintln!("{line}"),
+                }
+            }
+            Event::TrainStarts => {
+                if self.terminal {
+                    let b = ProgressBar::new_spinner();
+                    b.set_style(
+                        ProgressStyle::with_template(
+                            "{prefix:>10} {spinner} {elapsed_precise} {wide_msg}",
+                        )
+                        .expect("valid template"),
+                    );
+                    b.set_prefix("train");
+                    b.enable_steady_tick(std::time::Duration::from_millis(120));
+                    *self.train.lock().expect("not poisoned") = Some(b);
+                } else {
+                    eprintln!("train      network and Polach fits on the pooled estimates");
+                }
+            }
+            Event::Epoch(e) => {
+                if let Some(b) = &*self.train.lock().expect("not poisoned") {
+                    b.set_message(format!(
+                        "epoch {}  train MSE {:.3e}  val MSE {:.3e}",
+                        e.epoch, e.train_mse, e.val_mse
+                    ));
+                }
+            }
+            Event::StageDone(stage) => {
+                let slot = match stage {
+                    Stage::Estimate => &self.estimate,
+                    Stage::Train => &self.train,
+                    Stage::Report => return,
+                };
+                if let Some(b) = slot.lock().expect("not poisoned").take() {
+                    b.finish_and_clear();
+                }
+            }
         }
     }
 }
@@ -93,23 +147,22 @@ struct JsonSummary<'a> {
     runs: &'a [RunRecord],
     failed: usize,
     reused: usize,
-    condition: Option<String>,
+    condition: &'a Option<String>,
     models: Vec<String>,
-    model_error: Option<String>,
-    notes: Vec<String>,
+    model_error: &'a Option<String>,
+    notes: &'a [String],
     report: Option<String>,
     /// Wall time per stage, s.
-    stages: Vec<(String, f64)>,
+    stages: &'a [(String, f64)],
     exit_code: u8,
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
-    let t_all = Instant::now();
     let pipeline = args.pipeline.load()?;
     let root = match &args.archive {
         Some(a) => a.clone(),
         None => {
-            let b = bundled_archive();
+            let b = campaign::bundled_archive();
             if !b.is_dir() {
                 bail!(
                     "{}: the bundled archive is not there (this binary was built from another source tree). Hint: give a campaign folder: railgrip run <FOLDER>",
@@ -119,157 +172,14 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             b
         }
     };
-    // A folder, searched on disk, or an archive file, read in place.
-    let logs: Vec<(String, LogSource)> = if root.is_file() {
-        railgrip::archive::read_archive(&root, railgrip::archive::Limits::default())?
-            .into_iter()
-            .map(|s| (campaign::run_name(&root, s.name()), s))
-            .collect()
-    } else {
-        campaign::discover(&root, Some(&args.out))?
-            .into_iter()
-            .map(|p| (campaign::run_name(&root, &p), LogSource::File(p)))
-            .collect()
+    let out = OutDir::new(&args.out);
+    let options = campaign::Options {
+        jobs: args.jobs,
+        force: args.force,
     };
-    if logs.is_empty() {
-        bail!(
-            "{}: no .csv or .mcap logs found (searched recursively). Hint: give the folder that holds the campaign's logs",
-            root.display()
-        );
-    }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("{}: cannot create the output folder", args.out.display()))?;
-    let runs_dir = args.out.join("runs");
-    let mut stages = Vec::new();
-
-    // Stage 1: every run, in parallel, each on its own.
-    let t = Instant::now();
-    let jobs = args.jobs.unwrap_or(0);
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs)
-        .build()
-        .context("cannot start the worker threads")?;
-    let progress = Progress::new(logs.len() as u64, "estimate");
-    if progress.bar.is_none() {
-        eprintln!(
-            "estimate   {} run(s) from {} on {} thread(s)",
-            logs.len(),
-            root.display(),
-            pool.current_num_threads()
-        );
-    }
-    let results: Vec<(RunRecord, Option<railgrip::identify::RunTable>)> = pool.install(|| {
-        logs.par_iter()
-            .map(|(name, src)| {
-                let name = name.clone();
-                let (rec, table) =
-                    campaign::process_run(src, &name, &runs_dir, &pipeline, args.force);
-                let line = match (&rec.status[..], rec.reused) {
-                    ("ok", true) => format!("run        {name}: unchanged, reused"),
-                    ("ok", false) => format!("run        {name}: ok ({:.2} s)", rec.duration_s),
-                    _ => format!(
-                        "run        {name}: FAILED: {}",
-                        rec.error.as_deref().unwrap_or("")
-                    ),
-                };
-                if rec.status != "ok" && progress.bar.is_some() {
-                    progress.println(line.clone());
-                }
-                progress.line(line);
-                (rec, table)
-            })
-            .collect()
-    });
-    progress.finish();
-    stages.push(("estimate".to_string(), t.elapsed().as_secs_f64()));
-    let (records, tables): (Vec<RunRecord>, Vec<_>) = results.into_iter().unzip();
-    let tables: Vec<_> = tables.into_iter().flatten().collect();
-    let failed = records.iter().filter(|r| r.status != "ok").count();
-    let reused = records.iter().filter(|r| r.reused).count();
-
-    // Stage 2: the campaign's models.
-    let t = Instant::now();
-    let mut models_written = Vec::new();
-    let mut model_error = None;
-    let mut notes = Vec::new();
-    let mut condition = None;
-    if tables.is_empty() {
-        model_error = Some("no run could be estimated, so no model was trained".to_string());
-    } else {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let b = ProgressBar::new_spinner();
-            b.set_style(
-                ProgressStyle::with_template("{prefix:>10} {spinner} {elapsed_precise} {wide_msg}")
-                    .expect("valid template"),
-            );
-            b.set_prefix("train");
-            b.enable_steady_tick(std::time::Duration::from_millis(120));
-            b
-        });
-        if bar.is_none() {
-            eprintln!("train      network and Polach fits on the pooled estimates");
-        }
-        let b2 = bar.clone();
-        let progress: railgrip::identify::lm::Progress = Box::new(move |e| {
-            if let Some(b) = &b2 {
-                b.set_message(format!(
-                    "epoch {}  train MSE {:.3e}  val MSE {:.3e}",
-                    e.epoch, e.train_mse, e.val_mse
-                ));
-            }
-        });
-        match train_models(tables, &pipeline, Some(progress)) {
-            Ok(m) => {
-                if let Some(b) = &bar {
-                    b.set_message("Polach fits written");
-                }
-                condition = Some(m.condition.clone());
-                notes.extend(m.notes.iter().cloned());
-                for (run, c) in &m.skipped {
-                    notes.push(format!(
-                        "{run}: not used for the models (condition {c}; they train on {})",
-                        m.condition
-                    ));
-                }
-                models_written = m
-                    .write(&args.out.join("models"), "mlp", true)
-                    .with_context(|| format!("{}: cannot write the models", args.out.display()))?;
-            }
-            Err(e) => model_error = Some(e.to_string()),
-        }
-        if let Some(b) = bar {
-            b.finish_and_clear();
-        }
-    }
-    stages.push(("train".to_string(), t.elapsed().as_secs_f64()));
-
-    // Stage 3: summary and report.
-    let t = Instant::now();
-    campaign::write_summary(&args.out, &records)?;
-    campaign::CampaignRecord {
-        archive: root.display().to_string(),
-        runs: records.clone(),
-        condition: condition.clone(),
-        model_error: model_error.clone(),
-        notes: notes.clone(),
-        pipeline: pipeline.source.clone(),
-        validation_axles: match &pipeline.train.split {
-            railgrip::config::SplitConfig::Axles { val, .. } => val.clone(),
-            _ => vec![],
-        },
-    }
-    .write(&args.out)?;
-    let report = match railgrip::report::write_report(&args.out) {
-        Ok(p) => Some(p),
-        Err(e) => {
-            notes.push(format!("report: {e}"));
-            None
-        }
-    };
-    stages.push(("report".to_string(), t.elapsed().as_secs_f64()));
-    stages.push(("total".to_string(), t_all.elapsed().as_secs_f64()));
-
-    let code = if model_error.is_some() && failed == 0 {
+    let o = campaign::run(&root, &out, &pipeline, options, Arc::new(Bars::new()))?;
+    let failed = o.failed();
+    let code = if o.model_error.is_some() && failed == 0 {
         EXIT_ERROR
     } else if failed > 0 {
         EXIT_LOSSY
@@ -280,23 +190,26 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         let s = JsonSummary {
             archive: root.display().to_string(),
             out: args.out.display().to_string(),
-            runs: &records,
+            runs: &o.records,
             failed,
-            reused,
-            condition,
-            models: models_written
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect(),
-            model_error,
-            notes,
-            report: report.as_ref().map(|p| p.display().to_string()),
-            stages,
+            reused: o.reused(),
+            condition: &o.condition,
+            models: o.models.iter().map(|p| p.display().to_string()).collect(),
+            model_error: &o.model_error,
+            notes: &o.notes,
+            report: o.report.as_ref().map(|p| p.display().to_string()),
+            stages: &o.stages,
             exit_code: code,
         };
         println!("{}", serde_json::to_string_pretty(&s)?);
         return Ok(code);
     }
+    print_outcome(&o, &out);
+    Ok(code)
+}
+
+/// The table of runs, failures, notes, files written and stage times.
+fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     println!(
         "\nrun                              status   peak μ (axles 1–4)          max Δv m/s (axles 1–4)"
     );
@@ -306,55 +219,53 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             .collect::<Vec<_>>()
             .join(" ")
     };
-    for r in &records {
+    for r in &o.records {
+        let status = match (r.ok(), r.reused) {
+            (true, true) => "reused",
+            (true, false) => "ok",
+            _ => "FAILED",
+        };
         println!(
             "{:<32} {:<8} {:<27} {}",
             r.run,
-            if r.status == "ok" {
-                if r.reused {
-                    "reused"
-                } else {
-                    "ok"
-                }
-            } else {
-                "FAILED"
-            },
+            status,
             f(&r.peak_mu, 3),
             f(&r.max_dv_mps, 2)
         );
     }
-    for r in records.iter().filter(|r| r.status != "ok") {
+    for r in o.records.iter().filter(|r| !r.ok()) {
         println!("failed     {}: {}", r.run, r.error.as_deref().unwrap_or(""));
     }
-    if let Some(c) = &condition {
+    if let Some(c) = &o.condition {
         println!("\nmodels     trained on {c} rail");
     }
-    if let Some(e) = &model_error {
+    if let Some(e) = &o.model_error {
         println!("\nmodels     none: {e}");
     }
-    for n in &notes {
+    for n in &o.notes {
         println!("note       {n}");
     }
-    for p in &models_written {
+    for p in &o.models {
         println!("wrote      {}", p.display());
     }
-    println!("wrote      {}", args.out.join("summary.csv").display());
-    println!("wrote      {}", args.out.join("summary.parquet").display());
-    if let Some(r) = &report {
+    println!("wrote      {}", out.summary_csv().display());
+    println!("wrote      {}", out.summary_parquet().display());
+    if let Some(r) = &o.report {
         println!("report     {}", r.display());
     }
-    let st: Vec<String> = stages
+    let st: Vec<String> = o
+        .stages
         .iter()
         .map(|(s, t)| format!("{s} {t:.2} s"))
         .collect();
     println!("time       {}", st.join(", "));
+    let failed = o.failed();
     if failed > 0 {
         println!(
             "\n{failed} of {} run(s) failed (listed above and in summary.csv); the rest completed. Exit code 3.",
-            records.len()
+            o.records.len()
         );
     }
-    Ok(code)
 }
 
 #[derive(clap::Args)]
@@ -365,7 +276,7 @@ pub struct ReportArgs {
 }
 
 pub fn report(args: ReportArgs) -> anyhow::Result<u8> {
-    let p = railgrip::report::write_report(&args.out)?;
+    let p = railgrip::report::write_report(&OutDir::new(&args.out))?;
     println!("report     {}", p.display());
     Ok(EXIT_OK)
 }

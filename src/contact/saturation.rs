@@ -15,15 +15,25 @@
 
 use super::{check_finite, ContactError};
 
-/// The saturation coefficient k_s for x = F_R/(μN) ≥ 0.
+/// The saturated force ratio S(x) = |F|/(μN) = x·k_s for x = F_R/(μN) ≥ 0:
+/// x − x²/3 + x³/27 below 3, 1 from there on (the law itself; the model evaluators' creep
+/// region and their C header use exactly these operations).
+#[inline]
+pub fn she_ratio(x: f64) -> f64 {
+    if x < 3.0 {
+        x - x * x / 3.0 + x * x * x / 27.0
+    } else {
+        1.0
+    }
+}
+
+/// The saturation coefficient k_s = S(x)/x for x = F_R/(μN) ≥ 0 ([`she_ratio`]; 1 at x ≤ 0).
 #[inline]
 pub fn she_coefficient(x: f64) -> f64 {
     if x <= 0.0 {
         1.0
-    } else if x <= 3.0 {
-        1.0 - x / 3.0 + x * x / 27.0
     } else {
-        1.0 / x
+        she_ratio(x) / x
     }
 }
 

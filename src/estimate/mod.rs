@@ -65,8 +65,14 @@ pub enum EstimateError {
         #[source]
         source: FilterError,
     },
-    #[error("{file}: cannot write: {message}")]
-    Write { file: PathBuf, message: String },
+    #[error(transparent)]
+    Write(#[from] crate::table::TableError),
+    #[error("{path}: cannot create the folder: {source}")]
+    Folder {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{file}: {what}. Hint: {hint}")]
     Calibration {
         file: PathBuf,
@@ -427,44 +433,21 @@ impl Estimates {
         name: &str,
         csv: bool,
     ) -> Result<Vec<PathBuf>, EstimateError> {
-        use polars::prelude::*;
-        let werr = |p: &Path| {
-            let file = p.to_path_buf();
-            move |e: std::io::Error| EstimateError::Write {
-                file: file.clone(),
-                message: e.to_string(),
-            }
-        };
-        std::fs::create_dir_all(dir).map_err(werr(dir))?;
+        std::fs::create_dir_all(dir).map_err(|source| EstimateError::Folder {
+            path: dir.to_path_buf(),
+            source,
+        })?;
         let pq = dir.join(format!("{name}.parquet"));
-        let mut df = self.to_dataframe().map_err(|e| EstimateError::Write {
-            file: pq.clone(),
-            message: e.to_string(),
+        let mut df = self.to_dataframe().map_err(|e| crate::table::TableError {
+            path: pq.clone(),
+            source: std::io::Error::other(e),
         })?;
         let meta = serde_json::to_string(&self.metadata.to_pairs()).unwrap_or_default();
-        let kv = polars::io::parquet::write::KeyValueMetadata::from_static(vec![(
-            PARQUET_METADATA_KEY.to_string(),
-            meta,
-        )]);
-        crate::atomic::write_atomically(&pq, |f| {
-            ParquetWriter::new(f)
-                .with_compression(ParquetCompression::Zstd(None))
-                .with_key_value_metadata(Some(kv))
-                .finish(&mut df)
-                .map(|_| ())
-                .map_err(std::io::Error::other)
-        })
-        .map_err(werr(&pq))?;
+        crate::table::write_parquet(&mut df, &pq, Some((PARQUET_METADATA_KEY, meta)))?;
         let mut written = vec![pq];
         if csv {
             let path = dir.join(format!("{name}.csv"));
-            crate::atomic::write_atomically(&path, |f| {
-                CsvWriter::new(f)
-                    .include_header(true)
-                    .finish(&mut df)
-                    .map_err(std::io::Error::other)
-            })
-            .map_err(werr(&path))?;
+            crate::table::write_csv(&mut df, &path)?;
             written.push(path);
         }
         Ok(written)

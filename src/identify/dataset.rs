@@ -2,39 +2,13 @@
 //! split into training and validation sets ([`SplitConfig`]; seed 002 trains on axle 2 and validates
 //! on axle 3, pooled over the runs), decimated, and scaled by mapminmax ([`MapMinMax`]).
 
-use std::io::Read;
 use std::path::Path;
-
-use sha2::{Digest, Sha256};
 
 use crate::config::SplitConfig;
 use crate::estimate::Estimates;
 use crate::format::RunMetadata;
 
-use super::IdentifyError;
-
-/// The network's inputs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InputSet {
-    /// (Δv, dΔv/dt) — seed 002.
-    DvDdv,
-    /// (Δv, dΔv/dt, v) — speed as a third input.
-    DvDdvV,
-}
-
-impl InputSet {
-    /// Input names (estimates-table column names) and units.
-    pub fn names(self) -> &'static [(&'static str, &'static str)] {
-        match self {
-            InputSet::DvDdv => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²")],
-            InputSet::DvDdvV => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²"), ("v_mps", "m/s")],
-        }
-    }
-    /// Number of inputs (2 or 3).
-    pub fn count(self) -> usize {
-        self.names().len()
-    }
-}
+use super::{IdentifyError, InputSet};
 
 /// Valid estimates of one run.
 #[derive(Debug, Clone, Default)]
@@ -149,7 +123,7 @@ impl RunTable {
                 })
                 .unwrap_or_default(),
             source: path.display().to_string(),
-            sha256: sha256_file(path).map_err(|e| bad(e.to_string()))?,
+            sha256: crate::hash::sha256_file(path).map_err(|e| bad(e.to_string()))?,
             metadata,
             ..RunTable::default()
         };
@@ -183,29 +157,6 @@ impl RunTable {
             out.push(self.v_mps[i]);
         }
     }
-}
-
-/// SHA-256 of a file, lowercase hex.
-pub fn sha256_file(path: &Path) -> std::io::Result<String> {
-    let mut f = std::fs::File::open(path)?;
-    let mut h = Sha256::new();
-    let mut buf = vec![0u8; 1 << 16];
-    loop {
-        let n = f.read(&mut buf)?;
-        if n == 0 {
-            break;
-        }
-        h.update(&buf[..n]);
-    }
-    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
-}
-
-/// SHA-256 of bytes, lowercase hex.
-pub fn sha256_bytes(b: &[u8]) -> String {
-    Sha256::digest(b)
-        .iter()
-        .map(|x| format!("{x:02x}"))
-        .collect()
 }
 
 /// Training and validation sets in physical units; `x` is row-major, `inputs.count()` columns.

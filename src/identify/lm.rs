@@ -87,28 +87,7 @@ impl Default for LmSettings {
     }
 }
 
-/// One row of the training history (seed 002 Fig. 9).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct Epoch {
-    pub epoch: u64,
-    /// Training MSE after the epoch (reported unit).
-    pub train_mse: f64,
-    /// Validation MSE after the epoch (NaN without validation data; `null` in JSON).
-    #[serde(deserialize_with = "null_as_nan")]
-    pub val_mse: f64,
-    /// μ after the epoch.
-    pub mu: f64,
-    /// ‖2 Jᵀr‖ at the start of the epoch.
-    pub grad_norm: f64,
-    /// Seconds since training started.
-    pub elapsed_s: f64,
-}
-
-/// JSON has no NaN: serde_json writes it as `null`; read `null` back as NaN.
-fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
-    let v: Option<f64> = serde::Deserialize::deserialize(d)?;
-    Ok(v.unwrap_or(f64::NAN))
-}
+pub use crate::model::Epoch;
 
 /// Called after every epoch (the CLI prints progress with it).
 pub type Progress = Box<dyn FnMut(&Epoch) + Send>;

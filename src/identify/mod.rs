@@ -5,14 +5,15 @@
 //! analytic Jacobian, [`lm`] the trainlm-style solver (an argmin `Solver`), and [`train`] ties
 //! them together.
 
-pub mod campaign;
 pub mod dataset;
+pub mod export;
 pub mod lm;
 pub mod mlp;
 pub mod polach_fit;
 pub mod train;
 
-pub use dataset::{Dataset, InputSet, MapMinMax, RunTable};
+pub use crate::model::InputSet;
+pub use dataset::{Dataset, MapMinMax, RunTable};
 pub use train::{train_mlp, TrainedMlp};
 
 /// Why identification failed.
@@ -26,6 +27,19 @@ pub enum IdentifyError {
     },
     #[error("{what}. Hint: {hint}")]
     Data { what: String, hint: String },
-    #[error("training failed: {0}")]
-    Solver(String),
+    /// The solver stopped with an error (not a convergence failure: LM reports those as stop
+    /// reasons).
+    #[error("{fit}: the solver failed: {source}")]
+    Solver {
+        fit: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// A fit produced parameters outside the model file's valid domain.
+    #[error("{group}: {defect}. Hint: the Polach fit left its valid domain; check the estimates it was fitted to")]
+    InvalidModel {
+        group: String,
+        #[source]
+        defect: crate::model::Defect,
+    },
 }

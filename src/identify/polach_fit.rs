@@ -218,8 +218,13 @@ pub fn fit_polach(
         ..LmSettings::default()
     };
     let theta0 = unconstrained(&start).to_vec();
-    let (solver, problem) = lm::run(problem, LevenbergMarquardt::new(settings), theta0)
-        .map_err(|e| IdentifyError::Solver(e.to_string()))?;
+    let (solver, problem) =
+        lm::run(problem, LevenbergMarquardt::new(settings), theta0).map_err(|e| {
+            IdentifyError::Solver {
+                fit: format!("Polach fit {group}"),
+                source: e.into(),
+            }
+        })?;
     let theta = solver.best().expect("solver ran").to_vec();
     let iterations = solver.history().len();
     let stop_reason = solver

@@ -2,12 +2,13 @@
 
 use rayon::prelude::*;
 
-use super::dataset::{Dataset, InputSet, MapMinMax, RunTable};
+use super::dataset::{Dataset, MapMinMax, RunTable};
 use super::lm::{
     self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations, StopReason,
 };
 use super::mlp::{self, Shape};
 use super::IdentifyError;
+use super::InputSet;
 use crate::config::TrainConfig;
 
 /// Samples per chunk when accumulating JᵀJ: fixed, so the sums (chunk results added in order)
@@ -245,7 +246,10 @@ pub fn train_on(
         solver = solver.with_progress(p);
     }
     let (solver, problem) =
-        lm::run(problem, solver, theta0).map_err(|e| IdentifyError::Solver(e.to_string()))?;
+        lm::run(problem, solver, theta0).map_err(|e| IdentifyError::Solver {
+            fit: "network training".into(),
+            source: e.into(),
+        })?;
     let theta = solver.best().expect("set from the first epoch").to_vec();
     let train_mse = problem.sse(&theta) / problem.n_train() as f64 * scale;
     let val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);

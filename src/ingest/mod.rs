@@ -174,8 +174,8 @@ pub enum IngestError {
         what: String,
         hint: String,
     },
-    #[error("{path}: cannot write: {message}")]
-    Write { path: PathBuf, message: String },
+    #[error(transparent)]
+    Write(#[from] crate::table::TableError),
 }
 
 impl From<std::io::Error> for IngestError {
@@ -635,10 +635,6 @@ pub(crate) fn metadata_from_pairs(
 /// in gaps written as null. Atomic: the file appears complete or not at all.
 pub fn write_runlog_parquet(log: &RunLog, out: &Path) -> Result<(), IngestError> {
     use polars::prelude::*;
-    let werr = |e: PolarsError| IngestError::Write {
-        path: out.to_path_buf(),
-        message: e.to_string(),
-    };
     let mut cols: Vec<Column> = Vec::with_capacity(11);
     cols.push(
         Float64Chunked::from_vec(crate::format::RUNLOG_TIME_COLUMN.into(), log.time_s.clone())
@@ -656,18 +652,6 @@ pub fn write_runlog_parquet(log: &RunLog, out: &Path) -> Result<(), IngestError>
         BooleanChunked::from_slice(crate::format::RUNLOG_VALID_COLUMN.into(), &log.valid)
             .into_column(),
     );
-    let mut df = DataFrame::new(log.len(), cols).map_err(werr)?;
-    crate::atomic::write_atomically(out, |w| {
-        ParquetWriter::new(w)
-            .finish(&mut df)
-            .map(|_| ())
-            .map_err(werr)
-    })
-    .map_err(|e| match e {
-        IngestError::Io { source, .. } => IngestError::Write {
-            path: out.to_path_buf(),
-            message: source.to_string(),
-        },
-        other => other,
-    })
+    let mut df = crate::table::frame(log.len(), cols, out)?;
+    Ok(crate::table::write_parquet(&mut df, out, None)?)
 }

@@ -1,7 +1,7 @@
 //! Model files of kind `polach`: Polach's creep-force law with falling friction (seed 004
 //! 004_7d175079b70fb95b.txt eq. 1–2; Polach, Wear 258 (2005) 992–1000) and, when fitted over
 //! several ambient temperatures, k_A(T) and k_S(T) (seed 004 eq. 3), as fitted by
-//! [`crate::identify::polach_fit`].
+//! `identify::polach_fit` and written by `identify::export`.
 //!
 //! Evaluation ([`super::Model::mu_vt`], and the C header step for step), μ = F/Q of one wheel:
 //! 1. w = |Δv| (m/s); w = 0 gives μ = 0. Speed v (m/s): NaN → the reference speed (median of the
@@ -21,9 +21,8 @@ use std::f64::consts::PI;
 
 use serde::{Deserialize, Serialize};
 
-use super::{InputSpec, Metrics, ModelError, ModelFile, ModelKind, OutputSpec, Provenance};
-use crate::contact::polach::{horner, ContactPatch, PolachParams};
-use crate::identify::polach_fit::{PolachFit, TemperatureFit};
+use super::{Defect, ModelFile};
+use crate::contact::polach::{horner, PolachParams};
 
 /// Name of the optional third input of a Polach model with a temperature law.
 pub const TEMPERATURE_INPUT: &str = "ambient_temperature_c";
@@ -86,105 +85,20 @@ pub struct TemperatureSpec {
     pub fitted_range_c: [f64; 2],
 }
 
-impl ModelFile {
-    /// A `polach` model file from a campaign fit: `fit` gives μ0, A, B, k_A, k_S; `temperature`
-    /// (when present) k_A(T), k_S(T). `dv_range`, `v_range` are the slip and speed ranges of
-    /// the fitted samples (m/s), `v_ref` the speed for callers that give none (m/s).
-    #[allow(clippy::too_many_arguments)]
-    pub fn from_polach(
-        fit: &PolachFit,
-        patch: &ContactPatch,
-        wheel_load_n: f64,
-        temperature: Option<&TemperatureFit>,
-        dv_range: (f64, f64),
-        v_range: (f64, f64),
-        v_ref: f64,
-        provenance: Provenance,
-    ) -> Result<ModelFile, ModelError> {
-        let input = |name: &str, unit: &str, (lo, hi): (f64, f64)| InputSpec {
-            name: name.into(),
-            unit: unit.into(),
-            norm_min: lo,
-            norm_max: hi,
-            domain_min: lo,
-            domain_max: hi,
-        };
-        let mut inputs = vec![
-            input("dv_mps", "m/s", dv_range),
-            input("v_mps", "m/s", v_range),
-        ];
-        let temperature = temperature.map(|t| TemperatureSpec {
-            k_a: t.k_a.clone(),
-            k_s: t.k_s.clone(),
-            fitted_range_c: [t.fitted_range_c.0, t.fitted_range_c.1],
-        });
-        if let Some(t) = &temperature {
-            inputs.push(input(
-                TEMPERATURE_INPUT,
-                "°C",
-                (t.fitted_range_c[0], t.fitted_range_c[1]),
-            ));
-        }
-        let file = ModelFile {
-            format: super::FORMAT_ID.into(),
-            version: super::FORMAT_VERSION,
-            kind: ModelKind::Polach,
-            inputs,
-            output: OutputSpec {
-                name: "mu".into(),
-                unit: "1".into(),
-                norm_min: 0.0,
-                norm_max: 1.0,
-            },
-            outside_domain: "law".into(),
-            layers: vec![],
-            creep: None,
-            polach: Some(PolachSpec {
-                mu0: fit.mu0,
-                a_ratio: fit.a_ratio,
-                b_s_per_m: fit.b_s_per_m,
-                k_a: fit.k_a,
-                k_s: fit.k_s,
-                standard_errors: fit.se.map(|e| e.is_finite().then_some(e)),
-                patch: PatchSpec {
-                    a_m: patch.a_m,
-                    b_m: patch.b_m,
-                    shear_modulus_pa: patch.g_pa,
-                    c11: patch.c11,
-                },
-                wheel_load_n,
-                reference_speed_mps: v_ref,
-                temperature,
-            }),
-            provenance,
-            metrics: Metrics {
-                train_samples: fit.samples,
-                val_samples: 0,
-                train_mse: fit.rmse * fit.rmse,
-                val_mse: None,
-                epochs: fit.iterations,
-                stop_reason: fit.stop_reason.clone(),
-            },
-            history: vec![],
-        };
-        check(&file).map_err(|message| ModelError::Invalid {
-            file: fit.group.clone(),
-            message,
-            hint: "the Polach fit left its valid domain; check the estimates it was fitted to"
-                .into(),
-        })?;
-        Ok(file)
-    }
-}
-
 /// Checks a `polach` model file: names, sections, parameter domain, and that a temperature
 /// law keeps 0 < k_S ≤ k_A ≤ 1 over its range.
-pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
+pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
     let Some(p) = &m.polach else {
-        return Err("kind polach needs a \"polach\" section".into());
+        return Err(Defect::MissingSection {
+            kind: "polach",
+            section: "polach",
+        });
     };
     if !m.layers.is_empty() || m.creep.is_some() || !m.history.is_empty() {
-        return Err("kind polach has no layers, creep or history".into());
+        return Err(Defect::ForeignSection {
+            kind: "polach",
+            what: "layers, creep or history",
+        });
     }
     let names: Vec<&str> = m.inputs.iter().map(|i| i.name.as_str()).collect();
     let expected: &[&str] = if p.temperature.is_some() {
@@ -193,23 +107,25 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
         &["dv_mps", "v_mps"]
     };
     if names != expected {
-        return Err(format!(
-            "inputs {names:?} are not {expected:?} (a temperature input goes with a temperature law)"
-        ));
+        return Err(Defect::Inputs {
+            found: names.iter().map(|n| n.to_string()).collect(),
+            expected: format!("{expected:?} (a temperature input goes with a temperature law)"),
+        });
     }
     if m.outside_domain != "law" {
-        return Err(format!(
-            "outside_domain \"{}\" is not \"law\" (kind polach)",
-            m.outside_domain
-        ));
+        return Err(Defect::OutsideDomain {
+            found: m.outside_domain.clone(),
+            expected: "law",
+            note: " (kind polach)",
+        });
     }
     for i in &m.inputs {
         let all = [i.norm_min, i.norm_max, i.domain_min, i.domain_max];
         if all.iter().any(|v| !v.is_finite()) || i.domain_min > i.domain_max {
-            return Err(format!(
-                "input {}: range not finite or min above max",
-                i.name
-            ));
+            return Err(Defect::InputRange {
+                input: i.name.clone(),
+                what: "range not finite or min above max",
+            });
         }
     }
     PolachParams {
@@ -220,7 +136,7 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
         k_s: p.k_s,
     }
     .check()
-    .map_err(|e| format!("polach: {e}"))?;
+    .map_err(Defect::Polach)?;
     let pt = &p.patch;
     for (what, x) in [
         ("patch.a_m", pt.a_m),
@@ -231,7 +147,9 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
         ("reference_speed_mps", p.reference_speed_mps),
     ] {
         if !(x.is_finite() && x > 0.0) {
-            return Err(format!("polach.{what} = {x} must be finite and > 0"));
+            return Err(Defect::Value(format!(
+                "polach.{what} = {x} must be finite and > 0"
+            )));
         }
     }
     if p.standard_errors
@@ -239,7 +157,9 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
         .flatten()
         .any(|s| !(s.is_finite() && *s >= 0.0))
     {
-        return Err("polach.standard_errors must be finite and >= 0 (or null)".into());
+        return Err(Defect::Value(
+            "polach.standard_errors must be finite and >= 0 (or null)".into(),
+        ));
     }
     if let Some(t) = &p.temperature {
         let [lo, hi] = t.fitted_range_c;
@@ -248,25 +168,41 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), String> {
             || t.k_a.iter().chain(&t.k_s).any(|c| !c.is_finite())
             || !(lo.is_finite() && hi.is_finite() && lo <= hi)
         {
-            return Err("polach.temperature: coefficients or fitted range not finite".into());
+            return Err(Defect::Value(
+                "polach.temperature: coefficients or fitted range not finite".into(),
+            ));
         }
         let dom = &m.inputs[2];
         if dom.domain_min != lo || dom.domain_max != hi {
-            return Err(format!(
-                "input {TEMPERATURE_INPUT}: domain differs from polach.temperature.fitted_range_c"
-            ));
+            return Err(Defect::InputRange {
+                input: TEMPERATURE_INPUT.into(),
+                what: "domain differs from polach.temperature.fitted_range_c",
+            });
         }
         for i in 0..TEMPERATURE_CHECKS {
             let temp = lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64;
             let (ka, ks) = (horner(&t.k_a, temp), horner(&t.k_s, temp));
             if !(ka > 0.0 && ka <= 1.0 && ks > 0.0 && ks <= ka) {
-                return Err(format!(
-                    "polach.temperature: at {temp:.2} °C k_A = {ka:.4}, k_S = {ks:.4} leave 0 < k_S <= k_A <= 1"
-                ));
+                return Err(Defect::TemperatureLaw {
+                    t_c: temp,
+                    k_a: ka,
+                    k_s: ks,
+                });
             }
         }
     }
     Ok(())
+}
+
+/// Why a model cannot be fixed at an ambient temperature ([`super::Model::at_temperature`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum TemperatureError {
+    #[error("this model has no temperature law (only Polach models fitted at two or more ambient temperatures have one)")]
+    NotPolach,
+    #[error("this Polach model has no temperature law (it was fitted at fewer than two ambient temperatures)")]
+    NoLaw,
+    #[error("ambient temperature {t_c} °C is outside the range the temperature law was fitted over, {lo} … {hi} °C")]
+    Outside { t_c: f64, lo: f64, hi: f64 },
 }
 
 /// The evaluator of a `polach` model.
@@ -350,14 +286,16 @@ impl PolachEval {
     }
 
     /// This evaluator with k_A, k_S fixed at k(T); T must lie in the fitted range.
-    pub(crate) fn at_temperature(&self, t_c: f64) -> Result<PolachEval, String> {
+    pub(crate) fn at_temperature(&self, t_c: f64) -> Result<PolachEval, TemperatureError> {
         let Some((ca, cs, lo, hi)) = &self.temperature else {
-            return Err("this Polach model has no temperature law (it was fitted at fewer than two ambient temperatures)".into());
+            return Err(TemperatureError::NoLaw);
         };
         if !(t_c >= *lo && t_c <= *hi) {
-            return Err(format!(
-                "ambient temperature {t_c} °C is outside the range the temperature law was fitted over, {lo} … {hi} °C"
-            ));
+            return Err(TemperatureError::Outside {
+                t_c,
+                lo: *lo,
+                hi: *hi,
+            });
         }
         Ok(PolachEval {
             k_a: horner(ca, t_c),

@@ -44,7 +44,9 @@ use std::path::{Path, PathBuf};
 use crate::contact::ContactError;
 use crate::format::{self, McapCompression, RunMetadata, SeriesRef, Signal, AXLES};
 use crate::rng::Rng;
-use crate::simd::{exp_lanes, Select};
+use crate::simd::{exp_lanes, Isa, Portable, Select};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx2, Avx512, F64x4};
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 use step::{polach_axles, wheel_update, AxleArrays, StepConsts};
 
@@ -158,16 +160,14 @@ struct AxleContact {
 /// branch has memory, and applying it instantly closes an algebraic loop (force → slip rate
 /// → force, loop gain ≈ N μ depth r² / (2 ddv0 J) ≈ 6 for the UIC-Z1) that the explicit
 /// step turns into a relay chatter at the step rate.
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-unsafe fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
-    unsafe {
-        let z = ddv.mul(V::splat(inv_ddv0));
-        let one = V::splat(1.0);
-        one.sub(V::splat(depth * 0.5).mul(one.sub(z.div(z.fma(z, one).sqrt()))))
-    }
+fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
+    let z = ddv.mul(ddv.like(inv_ddv0));
+    let one = ddv.like(1.0);
+    one.sub(
+        ddv.like(depth * 0.5)
+            .mul(one.sub(z.div(z.fma(z, one).sqrt()))),
+    )
 }
 
 /// μ and dμ/dΔv from a learned model at slip `w` (m/s), slip rate `ddv` (m/s²), speed `v`
@@ -247,29 +247,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         }
     };
     let seed = seed.unwrap_or(sc.seed);
-    let run = {
-        #[cfg(target_arch = "x86_64")]
-        {
-            let avx2 = std::arch::is_x86_feature_detected!("avx2")
-                && std::arch::is_x86_feature_detected!("fma");
-            if avx2
-                && std::arch::is_x86_feature_detected!("avx512f")
-                && std::arch::is_x86_feature_detected!("avx512vl")
-            {
-                // SAFETY: AVX2, FMA, AVX-512F and AVX-512VL were detected.
-                unsafe { run_avx512vl(sc, model.as_ref(), seed) }
-            } else if avx2 {
-                // SAFETY: AVX2 and FMA were detected.
-                unsafe { run_avx2(sc, model.as_ref(), seed) }
-            } else {
-                run_portable(sc, model.as_ref(), seed)
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            run_portable(sc, model.as_ref(), seed)
-        }
-    }?;
+    let run = run_detected(sc, model.as_ref(), seed)?;
     let veh = &sc.vehicle;
     let h = sc.step_s;
 
@@ -338,11 +316,9 @@ struct Prepare<'a> {
 /// (1/N): N = N0 + d ∂N/∂d (seed 002 eq. 12–13, [`crate::vehicle::axle_load_coefficients`]),
 /// μ = μ_axle s(v) ((1 − A) e^(−B|Δv|) + A), and from them `ax.d_per_v` = (N/2) μ/K and
 /// `ax.pn` = (2/π) μ N; N goes to `normal`.
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-unsafe fn prepare<V: Select>(
+fn prepare<V: Select>(
+    isa: V::Isa,
     p: &Prepare,
     half_inv_k: &[f64; AXLES],
     speed: f64,
@@ -353,22 +329,25 @@ unsafe fn prepare<V: Select>(
 ) {
     let mut i = 0;
     while i < AXLES {
-        unsafe {
-            let n = V::splat(decel).fma(V::load(&p.per_decel[i..]), V::load(&p.load[i..]));
-            let mut mu = V::load(&p.mu_axle[i..]).mul(V::splat(speed));
-            if let Some((a, b)) = p.falling {
-                let e = exp_lanes(V::load_scalars(&slip[i..]).abs().mul(V::splat(-b)));
-                mu = mu.mul(e.fma(V::splat(1.0 - a), V::splat(a)));
-            }
-            n.store(&mut normal[i..]);
-            n.mul(V::load(&half_inv_k[i..]))
-                .mul(mu)
-                .store(&mut ax.d_per_v[i..]);
-            V::splat(std::f64::consts::FRAC_2_PI)
-                .mul(mu)
-                .mul(n)
-                .store(&mut ax.pn[i..]);
+        let n =
+            V::splat(isa, decel).fma(V::load(isa, &p.per_decel[i..]), V::load(isa, &p.load[i..]));
+        let mut mu = V::load(isa, &p.mu_axle[i..]).mul(V::splat(isa, speed));
+        if let Some((a, b)) = p.falling {
+            let e = exp_lanes(
+                V::load_scalars(isa, &slip[i..])
+                    .abs()
+                    .mul(V::splat(isa, -b)),
+            );
+            mu = mu.mul(e.fma(V::splat(isa, 1.0 - a), V::splat(isa, a)));
         }
+        n.store(&mut normal[i..]);
+        n.mul(V::load(isa, &half_inv_k[i..]))
+            .mul(mu)
+            .store(&mut ax.d_per_v[i..]);
+        V::splat(isa, std::f64::consts::FRAC_2_PI)
+            .mul(mu)
+            .mul(n)
+            .store(&mut ax.pn[i..]);
         i += V::N;
     }
 }
@@ -382,52 +361,56 @@ fn run_portable(
     model: Option<&crate::model::Model>,
     seed: u64,
 ) -> Result<RunResult, SimError> {
-    // SAFETY: f64 lanes need no target features.
-    unsafe { run::<f64>(sc, model, seed) }
+    run::<f64>(Portable, sc, model, seed)
 }
 
-/// A step-loop entry compiled for x86 target features, with the four axles in one AVX2
-/// register.
+/// The step loop with the four axles in one AVX2 register.
 #[cfg(target_arch = "x86_64")]
-macro_rules! x86_entry {
-    ($(#[$doc:meta])* $name:ident, $features:literal) => {
-        $(#[$doc])*
-        ///
-        /// # Safety
-        #[doc = concat!("The CPU must have ", $features, ".")]
-        #[target_feature(enable = $features)]
-        unsafe fn $name(
-            sc: &Scene,
-            model: Option<&crate::model::Model>,
-            seed: u64,
-        ) -> Result<RunResult, SimError> {
-            // SAFETY: compiled for and called with these features (the caller's contract).
-            unsafe { run::<std::arch::x86_64::__m256d>(sc, model, seed) }
-        }
-    };
+#[target_feature(enable = "avx2,fma")]
+fn run_avx2(
+    isa: Avx2,
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    run::<F64x4>(isa, sc, model, seed)
 }
 
+/// [`run_avx2`] compiled with AVX-512VL as well: the same AVX2 operations, with 32 vector
+/// registers instead of 16 (fewer spills) and masked blends.
 #[cfg(target_arch = "x86_64")]
-x86_entry!(
-    /// The step loop with the four axles in one AVX2 register.
-    run_avx2,
-    "avx2,fma"
-);
-#[cfg(target_arch = "x86_64")]
-x86_entry!(
-    /// [`run_avx2`] compiled with AVX-512VL as well: the same AVX2 operations, with 32 vector
-    /// registers instead of 16 (fewer spills) and masked blends.
-    run_avx512vl,
-    "avx2,fma,avx512f,avx512vl"
-);
+#[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+fn run_avx512vl(
+    isa: Avx512,
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    run::<F64x4>(isa.avx2(), sc, model, seed)
+}
+
+/// The step loop on the widest path this CPU has.
+fn run_detected(
+    sc: &Scene,
+    model: Option<&crate::model::Model>,
+    seed: u64,
+) -> Result<RunResult, SimError> {
+    match Isa::detect() {
+        // SAFETY: the token proves AVX2, FMA, AVX-512F and AVX-512VL on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512(t) => unsafe { run_avx512vl(t, sc, model, seed) },
+        // SAFETY: the token proves AVX2 and FMA on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2(t) => unsafe { run_avx2(t, sc, model, seed) },
+        _ => run_portable(sc, model, seed),
+    }
+}
 
 /// The step loop, generic over the lanes the axles' contact and wheel update run on; every
 /// instantiation performs the same IEEE operations (bit-identical results).
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-unsafe fn run<V: Select>(
+fn run<V: Select>(
+    isa: V::Isa,
     sc: &Scene,
     model: Option<&crate::model::Model>,
     seed: u64,
@@ -497,8 +480,7 @@ unsafe fn run<V: Select>(
     let mut ax = AxleArrays {
         omega: [v / r; AXLES],
         hyst: [if hysteresis {
-            // SAFETY: f64 lanes need no target features.
-            unsafe { hysteresis_target(sc.hysteresis_depth, 0.0, 1.0) }
+            hysteresis_target(sc.hysteresis_depth, 0.0, 1.0)
         } else {
             1.0
         }; AXLES],
@@ -520,18 +502,16 @@ unsafe fn run<V: Select>(
     } else {
         1.0
     };
-    // SAFETY: `run`'s contract.
-    unsafe {
-        prepare::<V>(
-            &prep,
-            &half_inv_k,
-            initial_speed,
-            0.0,
-            &[0.0; AXLES],
-            &mut ax,
-            &mut normal_next,
-        )
-    };
+    prepare::<V>(
+        isa,
+        &prep,
+        &half_inv_k,
+        initial_speed,
+        0.0,
+        &[0.0; AXLES],
+        &mut ax,
+        &mut normal_next,
+    );
     let mut normal = normal_next;
     let mut theta = [0.0f64; AXLES];
     let mut p = [0.0f64; AXLES];
@@ -762,27 +742,23 @@ unsafe fn run<V: Select>(
         // ---- contact and wheels
         normal = normal_next;
         let total_t = match model {
-            // SAFETY: `run`'s contract.
-            None => unsafe { polach_axles::<V>(&consts, v, &mut ax) },
+            None => polach_axles::<V>(isa, &consts, v, &mut ax),
             Some(m) => {
                 for a in 0..AXLES {
                     // The model's slip-rate input is lagged like the hysteresis branch: fed
                     // instantly it closes the same force → slip-rate → force loop.
                     ddv_lag[a] += (ddv[a] - ddv_lag[a]) * k_hyst;
                     let (mu, slope) = model_adhesion(m, slip[a], ddv_lag[a], v);
-                    // SAFETY: f64 lanes need no target features.
-                    let (w, l, t) = unsafe {
-                        wheel_update::<f64>(
-                            &consts,
-                            ax.omega[a],
-                            ax.locked[a],
-                            ax.brake[a],
-                            normal[a],
-                            mu,
-                            slope,
-                            1.0,
-                        )
-                    };
+                    let (w, l, t) = wheel_update::<f64>(
+                        &consts,
+                        ax.omega[a],
+                        ax.locked[a],
+                        ax.brake[a],
+                        normal[a],
+                        mu,
+                        slope,
+                        1.0,
+                    );
                     (ax.omega[a], ax.locked[a], ax.t_star[a]) = (w, l, t);
                 }
                 (ax.t_star[0] + ax.t_star[2]) + (ax.t_star[1] + ax.t_star[3])
@@ -794,35 +770,30 @@ unsafe fn run<V: Select>(
             // `k_hyst`, from this step's starting slip rate: off the step's critical path.
             let mut i = 0;
             while i < AXLES {
-                // SAFETY: `run`'s contract.
-                unsafe {
-                    let target = hysteresis_target(
-                        sc.hysteresis_depth,
-                        V::load_scalars(&ddv[i..]),
-                        inv_ddv0,
-                    );
-                    let old = V::load(&ax.hyst[i..]);
-                    target
-                        .sub(old)
-                        .fma(V::splat(k_hyst), old)
-                        .store(&mut ax.hyst[i..]);
-                }
+                let target = hysteresis_target(
+                    sc.hysteresis_depth,
+                    V::load_scalars(isa, &ddv[i..]),
+                    inv_ddv0,
+                );
+                let old = V::load(isa, &ax.hyst[i..]);
+                target
+                    .sub(old)
+                    .fma(V::splat(isa, k_hyst), old)
+                    .store(&mut ax.hyst[i..]);
                 i += V::N;
             }
         }
         // The next step's contact coefficients, from this step's start (off the critical path).
-        // SAFETY: `run`'s contract.
-        unsafe {
-            prepare::<V>(
-                &prep,
-                &half_inv_k,
-                speed_factor,
-                decel,
-                &slip,
-                &mut ax,
-                &mut normal_next,
-            )
-        };
+        prepare::<V>(
+            isa,
+            &prep,
+            &half_inv_k,
+            speed_factor,
+            decel,
+            &slip,
+            &mut ax,
+            &mut normal_next,
+        );
 
         let v_new = total_t.mul_add(-h_per_mass, v_resisted).max(0.0);
         decel = (v - v_new) * inv_h;
@@ -1043,16 +1014,18 @@ max_duration_s = 4.0
         let sc = Scene::from_toml(text, "paths.toml", None).unwrap();
         let (channels, truth, counters, n) = run_portable(&sc, None, 3).unwrap();
         let mut paths: Vec<(&str, RunResult)> = Vec::new();
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::is_x86_feature_detected as has;
-            if has!("avx2") && has!("fma") {
-                // SAFETY: detected.
-                paths.push(("avx2", unsafe { run_avx2(&sc, None, 3) }.unwrap()));
-                if has!("avx512f") && has!("avx512vl") {
-                    // SAFETY: detected.
-                    paths.push(("avx512vl", unsafe { run_avx512vl(&sc, None, 3) }.unwrap()));
-                }
+        for isa in Isa::all_available() {
+            match isa {
+                // SAFETY: the token proves the instructions.
+                #[cfg(target_arch = "x86_64")]
+                Isa::Avx2(t) => paths.push(("avx2", unsafe { run_avx2(t, &sc, None, 3) }.unwrap())),
+                // SAFETY: the token proves the instructions.
+                #[cfg(target_arch = "x86_64")]
+                Isa::Avx512(t) => paths.push((
+                    "avx512vl",
+                    unsafe { run_avx512vl(t, &sc, None, 3) }.unwrap(),
+                )),
+                _ => {}
             }
         }
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

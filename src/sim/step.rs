@@ -60,35 +60,31 @@ pub(super) struct AxleArrays {
 /// division waits on the slip before the wheel update's one. Magnitudes: G ~ max(|b|, d)¹⁹;
 /// the scene's validated ranges keep d in about [1e−9, 1e4] m/s and |Δv| below 1e3 m/s, far
 /// from overflow and underflow (tested at the extremes).
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-pub(super) unsafe fn polach_fractions<V: Select>(c: &StepConsts, dv: V, d: V) -> (V, V, V) {
-    unsafe {
-        let a = dv.mul(V::splat(c.k_a));
-        let b = dv.mul(V::splat(c.k_s));
-        let (off, num, den) = atan_parts(b, d);
-        let d2 = d.mul(d);
-        let e = a.fma(a, d2);
-        let f = b.fma(b, d2);
-        let e2 = e.mul(e);
-        let e2f = e2.mul(f);
-        let g = e2f.mul(den);
-        let atan_g = off.fma(g, num.mul(e2f));
-        let rn = a.mul(d).fma(e.mul(f).mul(den), atan_g);
-        // Past the creep peak the slope can turn negative; the implicit step takes no negative
-        // stiffness (it would weaken the wheel's damping and, at worst, divide by ~0).
-        let sn = d
-            .mul(den)
-            .mul(
-                V::splat(c.k_a)
-                    .mul(a.fnma(a, d2))
-                    .fma(f, V::splat(c.k_s).mul(e2)),
-            )
-            .max(V::splat(0.0));
-        (rn, sn, g)
-    }
+pub(super) fn polach_fractions<V: Select>(c: &StepConsts, dv: V, d: V) -> (V, V, V) {
+    let isa = dv.isa();
+    let a = dv.mul(V::splat(isa, c.k_a));
+    let b = dv.mul(V::splat(isa, c.k_s));
+    let (off, num, den) = atan_parts(b, d);
+    let d2 = d.mul(d);
+    let e = a.fma(a, d2);
+    let f = b.fma(b, d2);
+    let e2 = e.mul(e);
+    let e2f = e2.mul(f);
+    let g = e2f.mul(den);
+    let atan_g = off.fma(g, num.mul(e2f));
+    let rn = a.mul(d).fma(e.mul(f).mul(den), atan_g);
+    // Past the creep peak the slope can turn negative; the implicit step takes no negative
+    // stiffness (it would weaken the wheel's damping and, at worst, divide by ~0).
+    let sn = d
+        .mul(den)
+        .mul(
+            V::splat(isa, c.k_a)
+                .mul(a.fnma(a, d2))
+                .fma(f, V::splat(isa, c.k_s).mul(e2)),
+        )
+        .max(V::splat(isa, 0.0));
+    (rn, sn, g)
 }
 
 /// The linearly implicit (Rosenbrock–Euler) wheel update of `V::N` axles given the contact as
@@ -100,12 +96,9 @@ pub(super) unsafe fn polach_fractions<V: Select>(c: &StepConsts, dv: V, d: V) ->
 /// locked while T r ≤ α p and is released when the contact torque exceeds the static brake;
 /// a turning wheel whose update reaches ω ≤ 0 locks (ω = 0, T* = T).
 /// Returns (ω_{n+1}, locked as 1.0/0.0, T*).
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-pub(super) unsafe fn wheel_update<V: Select>(
+pub(super) fn wheel_update<V: Select>(
     c: &StepConsts,
     omega: V,
     locked: V,
@@ -115,68 +108,67 @@ pub(super) unsafe fn wheel_update<V: Select>(
     sn: V,
     g: V,
 ) -> (V, V, V) {
-    unsafe {
-        let r = V::splat(c.r);
-        let pnsn = pn.mul(sn);
-        let den = V::splat(c.j).fma(g, V::splat(c.h * c.r * c.r).mul(pnsn));
-        let torque = pn.mul(rn);
-        let num = brake
-            .mul(V::splat(c.h))
-            .fnma(g, pn.mul(V::splat(c.h * c.r)).mul(rn));
-        let d_omega = num.div(den);
-        let inv_g = V::splat(1.0).div(g);
-        let t = torque.mul(inv_g);
-        let k_r = pnsn.mul(inv_g).mul(r);
-        let was_locked = V::splat(0.5).lt(locked);
-        let releases = V::and(was_locked, brake.lt(t.mul(r)));
-        let stays = V::and_not(releases, was_locked);
-        let candidate = omega.add(d_omega);
-        let lock = V::or(stays, candidate.le(V::splat(0.0)));
-        let zero = V::splat(0.0);
-        (
-            V::select(lock, zero, candidate),
-            V::select(lock, V::splat(1.0), zero),
-            V::select(lock, t, k_r.fnma(d_omega, t)),
-        )
-    }
+    let isa = omega.isa();
+    let r = V::splat(isa, c.r);
+    let pnsn = pn.mul(sn);
+    let den = V::splat(isa, c.j).fma(g, V::splat(isa, c.h * c.r * c.r).mul(pnsn));
+    let torque = pn.mul(rn);
+    let num = brake
+        .mul(V::splat(isa, c.h))
+        .fnma(g, pn.mul(V::splat(isa, c.h * c.r)).mul(rn));
+    let d_omega = num.div(den);
+    let inv_g = V::splat(isa, 1.0).div(g);
+    let t = torque.mul(inv_g);
+    let k_r = pnsn.mul(inv_g).mul(r);
+    let was_locked = V::splat(isa, 0.5).lt(locked);
+    let releases = V::and(was_locked, brake.lt(t.mul(r)));
+    let stays = V::and_not(releases, was_locked);
+    let candidate = omega.add(d_omega);
+    let lock = V::or(stays, candidate.le(V::splat(isa, 0.0)));
+    let zero = V::splat(isa, 0.0);
+    (
+        V::select(lock, zero, candidate),
+        V::select(lock, V::splat(isa, 1.0), zero),
+        V::select(lock, t, k_r.fnma(d_omega, t)),
+    )
 }
 
 /// The Polach step of all four axles at vehicle speed `v` (m/s): the contact from the slip
 /// Δv = v − r ω and d = v · `d_per_v` ([`polach_fractions`]), then [`wheel_update`] with
 /// T = (2/π) μ N · hyst · Rn/G; updates `s.omega`, `s.locked`, `s.t_star` and returns ΣT* (N).
-///
-/// # Safety
-/// As [`Select`]: only with `V`'s target features enabled in the caller.
 #[inline(always)]
-pub(super) unsafe fn polach_axles<V: Select>(c: &StepConsts, v: f64, s: &mut AxleArrays) -> f64 {
-    unsafe {
-        let vv = V::splat(v);
-        let mut i = 0;
-        let mut t_star = vv;
-        while i < 4 {
-            let omega = V::load(&s.omega[i..]);
-            let dv = V::splat(c.r).fnma(omega, vv);
-            let d = vv.mul(V::load(&s.d_per_v[i..]));
-            let (rn, sn, g) = polach_fractions(c, dv, d);
-            let pn = V::load(&s.pn[i..]).mul(V::load(&s.hyst[i..]));
-            let (omega_new, locked);
-            (omega_new, locked, t_star) = wheel_update(
-                c,
-                omega,
-                V::load(&s.locked[i..]),
-                V::load_scalars(&s.brake[i..]),
-                pn,
-                rn,
-                sn,
-                g,
-            );
-            omega_new.store(&mut s.omega[i..]);
-            locked.store(&mut s.locked[i..]);
-            t_star.store(&mut s.t_star[i..]);
-            i += V::N;
-        }
-        V::total4(t_star, &s.t_star)
+pub(super) fn polach_axles<V: Select>(
+    isa: V::Isa,
+    c: &StepConsts,
+    v: f64,
+    s: &mut AxleArrays,
+) -> f64 {
+    let vv = V::splat(isa, v);
+    let mut i = 0;
+    let mut t_star = vv;
+    while i < 4 {
+        let omega = V::load(isa, &s.omega[i..]);
+        let dv = V::splat(isa, c.r).fnma(omega, vv);
+        let d = vv.mul(V::load(isa, &s.d_per_v[i..]));
+        let (rn, sn, g) = polach_fractions(c, dv, d);
+        let pn = V::load(isa, &s.pn[i..]).mul(V::load(isa, &s.hyst[i..]));
+        let (omega_new, locked);
+        (omega_new, locked, t_star) = wheel_update(
+            c,
+            omega,
+            V::load(isa, &s.locked[i..]),
+            V::load_scalars(isa, &s.brake[i..]),
+            pn,
+            rn,
+            sn,
+            g,
+        );
+        omega_new.store(&mut s.omega[i..]);
+        locked.store(&mut s.locked[i..]);
+        t_star.store(&mut s.t_star[i..]);
+        i += V::N;
     }
+    V::total4(t_star, &s.t_star)
 }
 
 #[cfg(test)]
@@ -202,8 +194,7 @@ mod tests {
     }
 
     fn fractions(dv: f64, d: f64) -> (f64, f64) {
-        // SAFETY: f64 lanes need no target features.
-        let (rn, sn, g) = unsafe { polach_fractions(&C, dv, d) };
+        let (rn, sn, g) = polach_fractions(&C, dv, d);
         assert!(g > 0.0 && g.is_finite(), "G = {g} at dv {dv}, d {d}");
         (rn / g, sn / g)
     }
@@ -244,11 +235,9 @@ mod tests {
 
     #[test]
     fn wheel_update_keeps_a_locked_wheel_locked_until_the_contact_exceeds_the_brake() {
-        // SAFETY: f64 lanes.
-        let (w, l, t) = unsafe { wheel_update(&C, 0.0, 1.0, 5000.0, 1e4, 0.05, 0.0, 1.0) };
+        let (w, l, t) = wheel_update(&C, 0.0, 1.0, 5000.0, 1e4, 0.05, 0.0, 1.0);
         assert_eq!((w, l, t), (0.0, 1.0, 500.0));
-        // SAFETY: f64 lanes.
-        let (w, l, _) = unsafe { wheel_update(&C, 0.0, 1.0, 100.0, 1e4, 0.05, 0.0, 1.0) };
+        let (w, l, _) = wheel_update(&C, 0.0, 1.0, 100.0, 1e4, 0.05, 0.0, 1.0);
         assert!(w > 0.0 && l == 0.0);
     }
 }

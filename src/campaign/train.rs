@@ -5,15 +5,16 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use super::dataset::{sha256_bytes, RunTable};
-use super::lm::{Epoch, Progress};
-use super::polach_fit::{fit_campaign, PolachReport};
-use super::train::{
+use super::{CampaignError, ModelPaths};
+use crate::identify::dataset::RunTable;
+use crate::identify::lm::Progress;
+use crate::identify::polach_fit::{fit_campaign, PolachReport};
+use crate::identify::train::{
     creep_spec, median_speed, pipeline_patch, select_condition, train_mlp, utc_now_rfc3339,
     TrainedMlp,
 };
-use super::IdentifyError;
-use crate::model::{c_header, InputFile, ModelFile, Provenance};
+use crate::identify::{export, IdentifyError};
+use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
 use crate::Pipeline;
 
 /// Everything trained from a campaign.
@@ -58,12 +59,12 @@ pub fn train_models(
             })
             .collect(),
         pipeline: pipeline.source.clone(),
-        pipeline_sha256: sha256_bytes(pipeline.text.as_bytes()),
+        pipeline_sha256: crate::hash::sha256_bytes(pipeline.text.as_bytes()),
         seed: pipeline.train.seed,
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: utc_now_rfc3339(),
     };
-    let mlp = ModelFile::from_trained(&trained, creep, provenance.clone());
+    let mlp = export::mlp_file(&trained, creep, provenance.clone());
     let (patch, q) = pipeline_patch(pipeline)?;
     let (report, mut notes) = fit_campaign(
         &tables,
@@ -76,7 +77,7 @@ pub fn train_models(
         None => None,
         Some(pooled) => {
             let make = |t| {
-                ModelFile::from_polach(
+                export::polach_file(
                     pooled,
                     &patch,
                     q,
@@ -120,46 +121,54 @@ pub fn train_models(
 }
 
 impl CampaignModels {
-    /// Writes, atomically, into `dir`: `<name>.json` (network), `<name>.history.csv`,
-    /// `<name>.polach.json` (when there is a Polach model), `<name>.polach-fits.json`, and with
-    /// `headers` the C headers `<name>.h` and `<name>.polach.h` (symbol prefixes `<name>` and
-    /// `<name>_polach`). Returns the paths written.
-    pub fn write(&self, dir: &Path, name: &str, headers: bool) -> std::io::Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir)?;
+    /// Writes, atomically: the network, its history, the Polach model (when there is one) and
+    /// every fit, and with `headers` the C headers of both models (README "Model files").
+    /// Returns the paths written.
+    pub fn write(&self, paths: &ModelPaths, headers: bool) -> Result<Vec<PathBuf>, CampaignError> {
+        std::fs::create_dir_all(&paths.dir).map_err(|source| CampaignError::Write {
+            path: paths.dir.clone(),
+            source,
+        })?;
         let mut written = Vec::new();
-        let mut put = |file: String, text: String| -> std::io::Result<()> {
-            let path = dir.join(file);
-            crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes()))?;
+        let mut put = |path: PathBuf, text: String| -> Result<(), CampaignError> {
+            crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
+                |source| CampaignError::Write {
+                    path: path.clone(),
+                    source,
+                },
+            )?;
             written.push(path);
             Ok(())
         };
-        put(format!("{name}.json"), self.mlp.to_json())?;
-        put(
-            format!("{name}.history.csv"),
-            history_csv(&self.trained.history),
-        )?;
+        put(paths.mlp(), self.mlp.to_json())?;
+        put(paths.history_csv(), history_csv(&self.trained.history))?;
         if let Some(p) = &self.polach {
-            put(format!("{name}.polach.json"), p.to_json())?;
+            put(paths.polach(), p.to_json())?;
         }
-        let fits =
-            serde_json::to_string_pretty(&self.polach_fits).map_err(std::io::Error::other)? + "\n";
-        put(format!("{name}.polach-fits.json"), fits)?;
+        let fits = serde_json::to_string_pretty(&self.polach_fits).expect("fits serialise") + "\n";
+        put(paths.polach_fits(), fits)?;
         if headers {
-            let source = format!("{name}.json");
+            let source = file_name(&paths.mlp());
             put(
-                format!("{name}.h"),
-                c_header::c_header(&self.mlp, name, &source),
+                paths.mlp_header(),
+                c_header::c_header(&self.mlp, &paths.mlp_prefix(), &source),
             )?;
             if let Some(p) = &self.polach {
-                let source = format!("{name}.polach.json");
+                let source = file_name(&paths.polach());
                 put(
-                    format!("{name}.polach.h"),
-                    c_header::c_header(p, &format!("{name}_polach"), &source),
+                    paths.polach_header(),
+                    c_header::c_header(p, &paths.polach_prefix(), &source),
                 )?;
             }
         }
         Ok(written)
     }
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default()
 }
 
 /// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, elapsed_s.

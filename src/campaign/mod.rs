@@ -1,0 +1,315 @@
+//! A test campaign end to end (`railgrip run`), as one library call: [`run`] finds the logs of a
+//! campaign folder or archive, estimates every run in parallel ([`runs`]: a run that fails is a
+//! record, not an abort), trains and exports the models on the pooled estimates of one rail
+//! condition ([`train`]), and writes the summary, `campaign.json` ([`record`]) and the report.
+//! [`OutDir`] owns every output path. Progress goes to a [`Progress`] the caller supplies (the
+//! CLI draws bars from it); the library never prints.
+
+pub mod outdir;
+pub mod record;
+pub mod runs;
+pub mod train;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::Instant;
+
+use rayon::prelude::*;
+
+pub use outdir::{ModelPaths, OutDir};
+pub use record::{write_summary, CampaignRecord, SUMMARY_COLUMNS};
+pub use runs::{discover, input_hash, process_run, run_name, RunRecord, RunStatus};
+pub use train::{train_models, CampaignModels};
+
+use crate::identify::dataset::RunTable;
+use crate::ingest::LogSource;
+use crate::model::Epoch;
+use crate::Pipeline;
+
+/// Why the campaign as a whole could not go on.
+#[derive(Debug, thiserror::Error)]
+pub enum CampaignError {
+    #[error("{path}: {message}. Hint: {hint}")]
+    Input {
+        path: PathBuf,
+        message: String,
+        hint: String,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Table(#[from] crate::table::TableError),
+    #[error(transparent)]
+    Archive(#[from] crate::archive::ArchiveError),
+    #[error("cannot start the worker threads: {0}")]
+    Threads(#[from] rayon::ThreadPoolBuildError),
+}
+
+/// How [`run`] goes about it.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Options {
+    /// Runs estimated in parallel (None: one per core).
+    pub jobs: Option<usize>,
+    /// Recompute every run even when its inputs and the pipeline are unchanged.
+    pub force: bool,
+}
+
+/// The stages of a campaign, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Stage {
+    Estimate,
+    Train,
+    Report,
+}
+
+impl Stage {
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Estimate => "estimate",
+            Stage::Train => "train",
+            Stage::Report => "report",
+        }
+    }
+}
+
+/// What a campaign reports while it works. Runs finish on worker threads, so implementations
+/// are shared (`&self`, `Sync`).
+pub enum Event<'a> {
+    /// The estimate stage starts: `runs` logs from `source` on `threads` worker threads.
+    EstimateStarts {
+        runs: usize,
+        source: &'a Path,
+        threads: usize,
+    },
+    /// One run finished (ok, reused or failed).
+    RunDone(&'a RunRecord),
+    /// The train stage starts.
+    TrainStarts,
+    /// The network finished an epoch.
+    Epoch(&'a Epoch),
+    /// A stage ended.
+    StageDone(Stage),
+}
+
+/// Receives a campaign's [`Event`]s.
+pub trait Progress: Send + Sync {
+    fn event(&self, e: Event<'_>);
+}
+
+/// A [`Progress`] that ignores everything (benchmarks, tests).
+pub struct Quiet;
+
+impl Progress for Quiet {
+    fn event(&self, _: Event<'_>) {}
+}
+
+/// What [`run`] did.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The campaign folder or archive.
+    pub archive: PathBuf,
+    pub records: Vec<RunRecord>,
+    /// The rail condition the models were trained on.
+    pub condition: Option<String>,
+    /// Model files written.
+    pub models: Vec<PathBuf>,
+    /// Why no models were trained.
+    pub model_error: Option<String>,
+    pub notes: Vec<String>,
+    /// The report, when it could be written (else a note says why).
+    pub report: Option<PathBuf>,
+    /// Wall time per stage and in total, s.
+    pub stages: Vec<(String, f64)>,
+}
+
+impl Outcome {
+    pub fn failed(&self) -> usize {
+        self.records.iter().filter(|r| !r.ok()).count()
+    }
+    pub fn reused(&self) -> usize {
+        self.records.iter().filter(|r| r.reused).count()
+    }
+}
+
+/// The bundled archive of this source tree (`fixtures/archive`).
+pub fn bundled_archive() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/archive")
+}
+
+/// The logs of a campaign with their run names: a folder, searched on disk (leaving out
+/// `skip`, the output folder when it lies inside), or an archive file, read in place.
+pub fn sources(
+    root: &Path,
+    skip: Option<&Path>,
+) -> Result<Vec<(String, LogSource)>, CampaignError> {
+    let logs: Vec<(String, LogSource)> = if root.is_file() {
+        crate::archive::read_archive(root, crate::archive::Limits::default())?
+            .into_iter()
+            .map(|s| (run_name(root, s.name()), s))
+            .collect()
+    } else {
+        discover(root, skip)?
+            .into_iter()
+            .map(|p| (run_name(root, &p), LogSource::File(p)))
+            .collect()
+    };
+    if logs.is_empty() {
+        return Err(CampaignError::Input {
+            path: root.to_path_buf(),
+            message: "no .csv or .mcap logs found (searched recursively)".into(),
+            hint: "give the folder that holds the campaign's logs".into(),
+        });
+    }
+    Ok(logs)
+}
+
+/// Runs the campaign at `root` (a folder or an archive file) into `out`: every run, the
+/// models, the summary, `campaign.json` and the report. Fails as a whole only when the
+/// campaign cannot be read or its outputs cannot be written; failed runs and models that
+/// could not be trained are in the [`Outcome`].
+pub fn run(
+    root: &Path,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: Arc<dyn Progress>,
+) -> Result<Outcome, CampaignError> {
+    let t_all = Instant::now();
+    let logs = sources(root, Some(out.root()))?;
+    std::fs::create_dir_all(out.root()).map_err(|source| CampaignError::Write {
+        path: out.root().to_path_buf(),
+        source,
+    })?;
+    let mut stages = Vec::new();
+
+    let t = Instant::now();
+    let (records, tables) = estimate_runs(root, &logs, out, pipeline, options, &*progress)?;
+    stages.push((
+        Stage::Estimate.name().to_string(),
+        t.elapsed().as_secs_f64(),
+    ));
+    progress.event(Event::StageDone(Stage::Estimate));
+
+    let t = Instant::now();
+    let trained = train_stage(tables, out, pipeline, progress.clone())?;
+    stages.push((Stage::Train.name().to_string(), t.elapsed().as_secs_f64()));
+    progress.event(Event::StageDone(Stage::Train));
+
+    let t = Instant::now();
+    write_summary(out, &records)?;
+    CampaignRecord {
+        archive: root.display().to_string(),
+        runs: records.clone(),
+        condition: trained.condition.clone(),
+        model_error: trained.model_error.clone(),
+        notes: trained.notes.clone(),
+        pipeline: pipeline.source.clone(),
+        validation_axles: match &pipeline.train.split {
+            crate::config::SplitConfig::Axles { val, .. } => val.clone(),
+            _ => vec![],
+        },
+    }
+    .write(out)?;
+    let mut notes = trained.notes;
+    let report = match crate::report::write_report(out) {
+        Ok(p) => Some(p),
+        Err(e) => {
+            notes.push(format!("report: {e}"));
+            None
+        }
+    };
+    stages.push((Stage::Report.name().to_string(), t.elapsed().as_secs_f64()));
+    progress.event(Event::StageDone(Stage::Report));
+    stages.push(("total".to_string(), t_all.elapsed().as_secs_f64()));
+    Ok(Outcome {
+        archive: root.to_path_buf(),
+        records,
+        condition: trained.condition,
+        models: trained.models,
+        model_error: trained.model_error,
+        notes,
+        report,
+        stages,
+    })
+}
+
+/// Stage 1: every run, in parallel on a pool of `options.jobs` threads, each on its own.
+/// Records in the order of `logs`; tables of the runs that could be estimated.
+pub fn estimate_runs(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: &dyn Progress,
+) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.jobs.unwrap_or(0))
+        .build()?;
+    progress.event(Event::EstimateStarts {
+        runs: logs.len(),
+        source: root,
+        threads: pool.current_num_threads(),
+    });
+    let results: Vec<(RunRecord, Option<RunTable>)> = pool.install(|| {
+        logs.par_iter()
+            .map(|(name, src)| {
+                let (rec, table) = process_run(src, name, out, pipeline, options.force);
+                progress.event(Event::RunDone(&rec));
+                (rec, table)
+            })
+            .collect()
+    });
+    let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) = results.into_iter().unzip();
+    Ok((records, tables.into_iter().flatten().collect()))
+}
+
+/// What the train stage left.
+struct Trained {
+    condition: Option<String>,
+    models: Vec<PathBuf>,
+    model_error: Option<String>,
+    notes: Vec<String>,
+}
+
+/// Stage 2: the campaign's models from the pooled tables, written with their C headers.
+/// A campaign whose models cannot be trained still completes (the reason is in the outcome);
+/// models that cannot be written fail it.
+fn train_stage(
+    tables: Vec<RunTable>,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    progress: Arc<dyn Progress>,
+) -> Result<Trained, CampaignError> {
+    let mut t = Trained {
+        condition: None,
+        models: vec![],
+        model_error: None,
+        notes: vec![],
+    };
+    if tables.is_empty() {
+        t.model_error = Some("no run could be estimated, so no model was trained".to_string());
+        return Ok(t);
+    }
+    progress.event(Event::TrainStarts);
+    let epochs: crate::identify::lm::Progress = Box::new(move |e| progress.event(Event::Epoch(e)));
+    match train_models(tables, pipeline, Some(epochs)) {
+        Ok(m) => {
+            t.condition = Some(m.condition.clone());
+            t.notes.extend(m.notes.iter().cloned());
+            for (run, c) in &m.skipped {
+                t.notes.push(format!(
+                    "{run}: not used for the models (condition {c}; they train on {})",
+                    m.condition
+                ));
+            }
+            t.models = m.write(&out.models(), true)?;
+        }
+        Err(e) => t.model_error = Some(e.to_string()),
+    }
+    Ok(t)
+}

@@ -1,0 +1,124 @@
+//! The files that describe a campaign as a whole: `campaign.json` ([`CampaignRecord`], what
+//! the report is rebuilt from) and the one-row-per-run summary (`summary.csv`,
+//! `summary.parquet`, [`SUMMARY_COLUMNS`]).
+
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use serde::{Deserialize, Serialize};
+
+use super::{CampaignError, OutDir, RunRecord};
+use crate::format::AXLES;
+
+/// The campaign as `railgrip run` left it (`<out>/campaign.json`): what `railgrip report`
+/// rebuilds the report from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CampaignRecord {
+    /// The campaign folder.
+    pub archive: String,
+    pub runs: Vec<RunRecord>,
+    /// Rail condition the models were trained on.
+    pub condition: Option<String>,
+    /// Why no models were trained.
+    pub model_error: Option<String>,
+    pub notes: Vec<String>,
+    /// Pipeline file name and its validation axles (seed 002 Fig. 10 uses the first).
+    pub pipeline: String,
+    pub validation_axles: Vec<u8>,
+}
+
+impl CampaignRecord {
+    /// Writes `<out>/campaign.json` atomically.
+    pub fn write(&self, out: &OutDir) -> Result<PathBuf, CampaignError> {
+        let path = out.campaign_record();
+        let text = serde_json::to_string_pretty(self).expect("records serialise") + "\n";
+        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
+            |source| CampaignError::Write {
+                path: path.clone(),
+                source,
+            },
+        )?;
+        Ok(path)
+    }
+
+    /// Reads `<out>/campaign.json`.
+    pub fn read(out: &OutDir) -> Result<CampaignRecord, CampaignError> {
+        let path = out.campaign_record();
+        let bad = |message: String| CampaignError::Input {
+            path: path.clone(),
+            message,
+            hint: "give an output folder of `railgrip run` (it writes campaign.json)".into(),
+        };
+        let text = std::fs::read_to_string(&path).map_err(|e| bad(e.to_string()))?;
+        serde_json::from_str(&text).map_err(|e| bad(format!("not a campaign record: {e}")))
+    }
+}
+
+/// Columns of `summary.csv` / `summary.parquet`, in order.
+pub const SUMMARY_COLUMNS: [&str; 17] = [
+    "run",
+    "status",
+    "error",
+    "reused",
+    "duration_s",
+    "initial_speed_kmh",
+    "ambient_temperature_c",
+    "condition",
+    "peak_mu_1",
+    "peak_mu_2",
+    "peak_mu_3",
+    "peak_mu_4",
+    "max_dv_mps_1",
+    "max_dv_mps_2",
+    "max_dv_mps_3",
+    "max_dv_mps_4",
+    "warnings",
+];
+
+/// Writes `summary.csv` and `summary.parquet` into `out`, one row per record.
+pub fn write_summary(out: &OutDir, records: &[RunRecord]) -> Result<Vec<PathBuf>, CampaignError> {
+    use polars::prelude::*;
+    let s = |f: &dyn Fn(&RunRecord) -> Option<String>| -> Vec<Option<String>> {
+        records.iter().map(f).collect()
+    };
+    let n = |f: &dyn Fn(&RunRecord) -> Option<f64>| -> Vec<Option<f64>> {
+        records.iter().map(f).collect()
+    };
+    let mut cols: Vec<Column> = vec![
+        Column::new("run".into(), s(&|r| Some(r.run.clone()))),
+        Column::new("status".into(), s(&|r| Some(r.status.as_str().to_string()))),
+        Column::new("error".into(), s(&|r| r.error.clone())),
+        Column::new(
+            "reused".into(),
+            records.iter().map(|r| r.reused).collect::<Vec<bool>>(),
+        ),
+        Column::new("duration_s".into(), n(&|r| Some(r.duration_s))),
+        Column::new("initial_speed_kmh".into(), n(&|r| r.initial_speed_kmh)),
+        Column::new(
+            "ambient_temperature_c".into(),
+            n(&|r| r.ambient_temperature_c),
+        ),
+        Column::new("condition".into(), s(&|r| r.condition.clone())),
+    ];
+    for a in 0..AXLES {
+        cols.push(Column::new(
+            format!("peak_mu_{}", a + 1).into(),
+            n(&|r| r.peak_mu[a]),
+        ));
+    }
+    for a in 0..AXLES {
+        cols.push(Column::new(
+            format!("max_dv_mps_{}", a + 1).into(),
+            n(&|r| r.max_dv_mps[a]),
+        ));
+    }
+    cols.push(Column::new(
+        "warnings".into(),
+        s(&|r| Some(r.warnings.join("; "))),
+    ));
+    let (csv, pq) = (out.summary_csv(), out.summary_parquet());
+    let mut df = crate::table::frame(records.len(), cols, &pq)?;
+    crate::table::write_csv(&mut df, &csv)?;
+    crate::table::write_parquet(&mut df, &pq, None)?;
+    Ok(vec![csv, pq])
+}

@@ -1,0 +1,291 @@
+//! The per-run stage of a campaign: find the logs, then for each run, independently (one bad
+//! file fails its own run, not the campaign), reuse what is unchanged since the last run or
+//! ingest, condition, estimate and write its estimates table and record.
+//!
+//! A run is reused (not recomputed) when its `run.json` says `ok` for the same input hash —
+//! SHA-256 over the log's bytes, its metadata sidecar's and the pipeline's text — and its
+//! estimates table exists.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::{CampaignError, OutDir};
+use crate::format::AXLES;
+use crate::identify::dataset::RunTable;
+use crate::ingest::LogSource;
+use crate::Pipeline;
+
+/// How a run ended (`"ok"` / `"failed"` in `run.json`, `campaign.json` and the summary).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunStatus {
+    Ok,
+    Failed,
+}
+
+impl RunStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunStatus::Ok => "ok",
+            RunStatus::Failed => "failed",
+        }
+    }
+}
+
+/// What happened to one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    /// Name: the log's path below the campaign folder without extension, `/` → `__`.
+    pub run: String,
+    /// The log file.
+    pub source: String,
+    pub status: RunStatus,
+    /// Why it failed (file, place and what to do, as the stage reported it).
+    pub error: Option<String>,
+    /// True when the outputs of an earlier run with the same inputs were kept.
+    pub reused: bool,
+    /// Time to ingest, condition, estimate and write, s (of the run that computed it).
+    pub duration_s: f64,
+    pub initial_speed_kmh: Option<f64>,
+    pub ambient_temperature_c: Option<f64>,
+    pub condition: Option<String>,
+    /// Per axle 1..4 over valid samples (None when an axle has none).
+    pub peak_mu: [Option<f64>; AXLES],
+    pub max_dv_mps: [Option<f64>; AXLES],
+    /// Ingest warnings and despiking, one line each.
+    pub warnings: Vec<String>,
+    /// SHA-256 of the log, its sidecar and the pipeline text.
+    pub input_sha256: String,
+}
+
+impl RunRecord {
+    pub fn ok(&self) -> bool {
+        self.status == RunStatus::Ok
+    }
+}
+
+/// Log files (`.csv`, `.mcap`) below `root`, recursively, in path order; hidden entries and
+/// `skip` (the output folder, when it lies inside) are left out.
+pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, CampaignError> {
+    let bad = |path: &Path, e: std::io::Error| CampaignError::Input {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+        hint: "give a folder of braking-run logs (.csv with .meta.toml, .mcap)".into(),
+    };
+    let meta = std::fs::metadata(root).map_err(|e| bad(root, e))?;
+    if !meta.is_dir() {
+        return Err(CampaignError::Input {
+            path: root.to_path_buf(),
+            message: "not a folder".into(),
+            hint: "give the folder that holds the campaign's logs".into(),
+        });
+    }
+    let skip = skip.and_then(|s| s.canonicalize().ok());
+    let mut found = Vec::new();
+    let mut stack = vec![root.to_path_buf()];
+    while let Some(dir) = stack.pop() {
+        if skip
+            .as_ref()
+            .is_some_and(|s| dir.canonicalize().ok().as_ref() == Some(s))
+        {
+            continue;
+        }
+        for entry in std::fs::read_dir(&dir).map_err(|e| bad(&dir, e))? {
+            let entry = entry.map_err(|e| bad(&dir, e))?;
+            let path = entry.path();
+            if entry.file_name().to_string_lossy().starts_with('.') {
+                continue;
+            }
+            let ft = entry.file_type().map_err(|e| bad(&path, e))?;
+            if ft.is_dir() {
+                stack.push(path);
+            } else if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("mcap"))
+            {
+                found.push(path);
+            }
+        }
+    }
+    found.sort();
+    Ok(found)
+}
+
+/// The run name of `path` below `root`: the relative path without extension, `/` → `__`,
+/// characters outside `[A-Za-z0-9._-]` → `_`.
+pub fn run_name(root: &Path, path: &Path) -> String {
+    let rel = path.strip_prefix(root).unwrap_or(path).with_extension("");
+    let parts: Vec<String> = rel
+        .components()
+        .map(|c| {
+            c.as_os_str()
+                .to_string_lossy()
+                .chars()
+                .map(|ch| {
+                    if ch.is_ascii_alphanumeric() || "._-".contains(ch) {
+                        ch
+                    } else {
+                        '_'
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    parts.join("__")
+}
+
+/// SHA-256 (hex) over the log's bytes, its metadata sidecar's (when there is one) and the
+/// pipeline text: what decides whether a run's outputs are still current. Also returns the
+/// SHA-256 of the log alone (the model files' provenance). One streaming pass over the log.
+pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(String, String)> {
+    let mut h = Sha256::new();
+    let log = crate::hash::sha256_stream(src.open()?, &mut [&mut h])?;
+    h.update(b"\0sidecar\0");
+    if let (_, Some(side)) = src.sidecar()? {
+        h.update(side);
+    }
+    h.update(b"\0pipeline\0");
+    h.update(pipeline.text.as_bytes());
+    Ok((crate::hash::hex(&h.finalize()), log))
+}
+
+/// Why a run could not be estimated (becomes its record's `error`).
+#[derive(Debug, thiserror::Error)]
+enum RunError {
+    #[error(transparent)]
+    Ingest(#[from] crate::ingest::IngestError),
+    #[error(transparent)]
+    Estimate(#[from] crate::estimate::EstimateError),
+}
+
+/// Processes one run into `out`'s folder for `name`: reuses earlier outputs for the same
+/// inputs unless `force`, else ingests, estimates and writes. Never fails as a whole: a failure
+/// is a record with status failed (and no estimates table left behind).
+pub fn process_run(
+    src: &LogSource,
+    name: &str,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    force: bool,
+) -> (RunRecord, Option<RunTable>) {
+    let t0 = Instant::now();
+    let mut rec = RunRecord {
+        run: name.to_string(),
+        source: src.name().display().to_string(),
+        status: RunStatus::Failed,
+        error: None,
+        reused: false,
+        duration_s: 0.0,
+        initial_speed_kmh: None,
+        ambient_temperature_c: None,
+        condition: None,
+        peak_mu: [None; AXLES],
+        max_dv_mps: [None; AXLES],
+        warnings: vec![],
+        input_sha256: String::new(),
+    };
+    let (hash, log_sha) = match input_hash(src, pipeline) {
+        Ok(h) => h,
+        Err(e) => {
+            rec.error = Some(format!("{}: cannot read: {e}", src.name().display()));
+            return (rec, None);
+        }
+    };
+    rec.input_sha256 = hash;
+    if !force {
+        if let Some(reused) = reuse(&rec, name, out) {
+            return reused;
+        }
+    }
+    let result = estimate_run(src, name, out, pipeline, &mut rec, &log_sha);
+    rec.duration_s = t0.elapsed().as_secs_f64();
+    let table = match result {
+        Ok(t) => {
+            rec.status = RunStatus::Ok;
+            Some(t)
+        }
+        Err(e) => {
+            rec.error = Some(e.to_string());
+            // No stale table that would look like this run's result.
+            let _ = std::fs::remove_file(out.run_estimates(name));
+            None
+        }
+    };
+    let record_path = out.run_record(name);
+    let text = serde_json::to_string_pretty(&rec).expect("records serialise") + "\n";
+    let saved = std::fs::create_dir_all(out.run_dir(name)).and_then(|_| {
+        crate::atomic::write_atomically(&record_path, |w| w.write_all(text.as_bytes()))
+    });
+    if let Err(e) = saved {
+        rec.status = RunStatus::Failed;
+        rec.error = Some(format!("{}: cannot write: {e}", record_path.display()));
+        return (rec, None);
+    }
+    (rec, table)
+}
+
+/// The earlier outputs of run `name` when its record says ok for the same input hash and its
+/// estimates table reads back.
+fn reuse(now: &RunRecord, name: &str, out: &OutDir) -> Option<(RunRecord, Option<RunTable>)> {
+    let text = std::fs::read_to_string(out.run_record(name)).ok()?;
+    let mut old: RunRecord = serde_json::from_str(&text).ok()?;
+    let table_path = out.run_estimates(name);
+    if !(old.ok() && old.input_sha256 == now.input_sha256 && table_path.exists()) {
+        return None;
+    }
+    let mut table = RunTable::read_parquet(&table_path).ok()?;
+    table.name = name.to_string();
+    table.source = now.source.clone();
+    old.reused = true;
+    old.source = now.source.clone();
+    Some((old, Some(table)))
+}
+
+/// Ingests, estimates and writes run `name`, filling `rec`'s figures; the run's table for the
+/// models, with `log_sha` as its provenance.
+fn estimate_run(
+    src: &LogSource,
+    name: &str,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    rec: &mut RunRecord,
+    log_sha: &str,
+) -> Result<RunTable, RunError> {
+    let log = crate::ingest::ingest_source(src, pipeline)?;
+    let e = crate::estimate::estimate(&log, pipeline)?;
+    e.write_named(&out.run_dir(name), OutDir::ESTIMATES_STEM, false)?;
+    rec.initial_speed_kmh = e.metadata.initial_speed_kmh;
+    rec.ambient_temperature_c = e.metadata.ambient_temperature_c;
+    rec.condition = e.metadata.condition.clone();
+    for (a, s) in e.summary().iter().enumerate() {
+        rec.peak_mu[a] = s.peak_mu.is_finite().then_some(s.peak_mu);
+        rec.max_dv_mps[a] = s.max_dv_mps.is_finite().then_some(s.max_dv_mps);
+    }
+    rec.warnings = log.warnings.iter().map(|w| w.message.clone()).collect();
+    if e.despiked > 0 {
+        rec.warnings.push(format!(
+            "{} radar sample(s) replaced by despiking",
+            e.despiked
+        ));
+    }
+    Ok(RunTable::from_estimates(name, &rec.source, log_sha, &e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_names_are_flat_and_safe() {
+        let root = Path::new("/c");
+        assert_eq!(run_name(root, Path::new("/c/a.csv")), "a");
+        assert_eq!(
+            run_name(root, Path::new("/c/day 1/run+2.mcap")),
+            "day_1__run_2"
+        );
+    }
+}

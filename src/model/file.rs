@@ -1,0 +1,442 @@
+//! The model file (README "Model files"; schema `models/schema/adhesion-model.schema.json`):
+//! its types, the exact JSON round trip, and the checks a file passes before an evaluator is
+//! built from it. A problem is a [`Defect`], reported as a [`ModelError`] naming the file.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::{polach, ModelError};
+use crate::contact::ContactError;
+
+/// Largest hidden layer the evaluators take.
+pub const MAX_HIDDEN: usize = 256;
+
+/// Which inputs a network takes, in order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InputSet {
+    /// (Δv, dΔv/dt) — seed 002.
+    DvDdv,
+    /// (Δv, dΔv/dt, v) — speed as a third input.
+    DvDdvV,
+}
+
+impl InputSet {
+    /// Input names (estimates-table column names) and units.
+    pub fn names(self) -> &'static [(&'static str, &'static str)] {
+        match self {
+            InputSet::DvDdv => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²")],
+            InputSet::DvDdvV => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²"), ("v_mps", "m/s")],
+        }
+    }
+    /// Number of inputs (2 or 3).
+    pub fn count(self) -> usize {
+        self.names().len()
+    }
+}
+
+/// One row of the training history (seed 002 Fig. 9), as the file stores it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Epoch {
+    pub epoch: u64,
+    /// Training MSE after the epoch (reported unit).
+    pub train_mse: f64,
+    /// Validation MSE after the epoch (NaN without validation data; `null` in JSON).
+    #[serde(deserialize_with = "null_as_nan")]
+    pub val_mse: f64,
+    /// μ after the epoch.
+    pub mu: f64,
+    /// ‖2 Jᵀr‖ at the start of the epoch.
+    pub grad_norm: f64,
+    /// Seconds since training started.
+    pub elapsed_s: f64,
+}
+
+/// JSON has no NaN: serde_json writes it as `null`; read `null` back as NaN.
+fn null_as_nan<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    let v: Option<f64> = serde::Deserialize::deserialize(d)?;
+    Ok(v.unwrap_or(f64::NAN))
+}
+
+/// What is wrong with the contents of a model file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Defect {
+    #[error("kind {kind} needs a \"{section}\" section")]
+    MissingSection {
+        kind: &'static str,
+        section: &'static str,
+    },
+    #[error("kind {kind} has no {what}")]
+    ForeignSection {
+        kind: &'static str,
+        what: &'static str,
+    },
+    #[error("inputs {found:?} are not {expected}")]
+    Inputs {
+        found: Vec<String>,
+        expected: String,
+    },
+    #[error("outside_domain \"{found}\" is not \"{expected}\"{note}")]
+    OutsideDomain {
+        found: String,
+        expected: &'static str,
+        note: &'static str,
+    },
+    #[error("{0}")]
+    Layers(String),
+    #[error("input {input}: {what}")]
+    InputRange { input: String, what: &'static str },
+    #[error("a number is not finite")]
+    NotFinite,
+    #[error("{0}")]
+    Value(String),
+    #[error("polach: {0}")]
+    Polach(#[source] ContactError),
+    #[error("polach.temperature: at {t_c:.2} °C k_A = {k_a:.4}, k_S = {k_s:.4} leave 0 < k_S <= k_A <= 1")]
+    TemperatureLaw { t_c: f64, k_a: f64, k_s: f64 },
+}
+
+/// Format id written into every model file.
+pub const FORMAT_ID: &str = "railgrip-adhesion-model";
+/// Current format version.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// Model kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ModelKind {
+    Mlp,
+    Polach,
+}
+
+/// One input of the model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputSpec {
+    /// Estimates-table column name: `dv_mps`, `ddv_mps2`, `v_mps`.
+    pub name: String,
+    pub unit: String,
+    /// mapminmax: the training range mapped to [−1, 1].
+    pub norm_min: f64,
+    pub norm_max: f64,
+    /// Validity domain: the range seen in training and validation data. Inputs outside are
+    /// clamped to it.
+    pub domain_min: f64,
+    pub domain_max: f64,
+}
+
+/// The output.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    pub name: String,
+    pub unit: String,
+    pub norm_min: f64,
+    pub norm_max: f64,
+}
+
+/// One dense layer: `weights[row][col]` maps `col` inputs to `row` outputs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Layer {
+    /// [rows, cols].
+    pub shape: [usize; 2],
+    pub weights: Vec<Vec<f64>>,
+    pub biases: Vec<f64>,
+    /// `tanh` or `linear`.
+    pub activation: String,
+}
+
+/// The linear creep region at small slip.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CreepSpec {
+    /// Δv_b: below it the model blends from the linear law into the network, m/s.
+    pub blend_mps: f64,
+    /// C = G a b c11, Kalker's longitudinal creep stiffness of one wheel's patch, N.
+    pub creep_stiffness_n: f64,
+    /// Q, the static wheel load the patch was computed for, N.
+    pub wheel_load_n: f64,
+    /// Speed used for the creepage when the model has no speed input, m/s.
+    pub reference_speed_mps: f64,
+}
+
+/// Where the model came from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    /// Input files with their SHA-256.
+    pub inputs: Vec<InputFile>,
+    /// Pipeline file name and the SHA-256 of its text.
+    pub pipeline: String,
+    pub pipeline_sha256: String,
+    pub seed: u64,
+    pub crate_version: String,
+    /// UTC, RFC 3339.
+    pub created: String,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputFile {
+    pub path: String,
+    pub sha256: String,
+}
+
+/// Quality figures.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Metrics {
+    pub train_samples: usize,
+    pub val_samples: usize,
+    /// Mean squared errors of μ.
+    pub train_mse: f64,
+    pub val_mse: Option<f64>,
+    pub epochs: usize,
+    pub stop_reason: String,
+}
+
+/// A model file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelFile {
+    pub format: String,
+    pub version: u32,
+    pub kind: ModelKind,
+    pub inputs: Vec<InputSpec>,
+    pub output: OutputSpec,
+    /// What the evaluator does with inputs outside the domain: `clamp` (mlp) or `law`
+    /// (polach: Δv and v by the physical law, temperature clamped; see [`polach`]).
+    pub outside_domain: String,
+    /// kind mlp: the hidden (tanh) and output (linear) layers.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub layers: Vec<Layer>,
+    /// kind mlp: the linear creep region.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creep: Option<CreepSpec>,
+    /// kind polach: parameters, contact patch and temperature law.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polach: Option<polach::PolachSpec>,
+    pub provenance: Provenance,
+    pub metrics: Metrics,
+    /// Training history per epoch (kind mlp; empty for polach).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub history: Vec<Epoch>,
+}
+
+impl ModelFile {
+    /// JSON text (f64 in shortest round-trip form: reading it back gives the same bits).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("model files serialise") + "\n"
+    }
+
+    /// Writes the file atomically.
+    pub fn write(&self, path: &Path) -> Result<(), ModelError> {
+        let text = self.to_json();
+        crate::atomic::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+            .map_err(|source| ModelError::Write {
+                file: path.display().to_string(),
+                source,
+            })
+    }
+
+    /// Parses and checks a model file's text; `file` names it in errors.
+    pub fn from_json(text: &str, file: &str) -> Result<ModelFile, ModelError> {
+        let m: ModelFile = serde_json::from_str(text).map_err(|source| ModelError::Parse {
+            file: file.to_string(),
+            source,
+        })?;
+        if m.format != FORMAT_ID {
+            return Err(ModelError::Format {
+                file: file.to_string(),
+                found: m.format,
+            });
+        }
+        if m.version != FORMAT_VERSION {
+            return Err(ModelError::Version {
+                file: file.to_string(),
+                found: m.version,
+            });
+        }
+        m.check().map_err(|defect| ModelError::Invalid {
+            file: file.to_string(),
+            defect,
+        })?;
+        Ok(m)
+    }
+
+    /// Reads a model file.
+    pub fn read(path: &Path) -> Result<ModelFile, ModelError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
+            file: file.clone(),
+            source,
+        })?;
+        Self::from_json(&text, &file)
+    }
+
+    /// Shapes, names and numbers are consistent and finite.
+    pub fn check(&self) -> Result<(), Defect> {
+        match self.kind {
+            ModelKind::Mlp => self.check_mlp(),
+            ModelKind::Polach => polach::check(self),
+        }
+    }
+
+    fn check_mlp(&self) -> Result<(), Defect> {
+        if self.polach.is_some() {
+            return Err(Defect::ForeignSection {
+                kind: "mlp",
+                what: "\"polach\" section",
+            });
+        }
+        let Some(c) = &self.creep else {
+            return Err(Defect::MissingSection {
+                kind: "mlp",
+                section: "creep",
+            });
+        };
+        let k = self.inputs.len();
+        let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
+        if names != ["dv_mps", "ddv_mps2"] && names != ["dv_mps", "ddv_mps2", "v_mps"] {
+            return Err(Defect::Inputs {
+                found: names.iter().map(|n| n.to_string()).collect(),
+                expected: "[dv_mps, ddv_mps2] or [dv_mps, ddv_mps2, v_mps]".into(),
+            });
+        }
+        if self.outside_domain != "clamp" {
+            return Err(Defect::OutsideDomain {
+                found: self.outside_domain.clone(),
+                expected: "clamp",
+                note: "",
+            });
+        }
+        let [h, o] = match self.layers.as_slice() {
+            [h, o] => [h, o],
+            _ => {
+                return Err(Defect::Layers(format!(
+                    "{} layers; an MLP model has 2",
+                    self.layers.len()
+                )))
+            }
+        };
+        let nh = h.shape[0];
+        if h.activation != "tanh" || o.activation != "linear" {
+            return Err(Defect::Layers(
+                "activations must be tanh (hidden) and linear (output)".into(),
+            ));
+        }
+        if h.shape != [nh, k]
+            || h.weights.len() != nh
+            || h.weights.iter().any(|r| r.len() != k)
+            || h.biases.len() != nh
+            || o.shape != [1, nh]
+            || o.weights.len() != 1
+            || o.weights[0].len() != nh
+            || o.biases.len() != 1
+            || nh == 0
+            || nh > MAX_HIDDEN
+        {
+            return Err(Defect::Layers(
+                "layer shapes do not match the inputs and each other".into(),
+            ));
+        }
+        let mut nums: Vec<f64> = h
+            .weights
+            .iter()
+            .flatten()
+            .chain(&h.biases)
+            .copied()
+            .collect();
+        nums.extend(o.weights[0].iter().chain(&o.biases));
+        for i in &self.inputs {
+            nums.extend([i.norm_min, i.norm_max, i.domain_min, i.domain_max]);
+            if i.domain_min > i.domain_max || i.norm_min > i.norm_max {
+                return Err(Defect::InputRange {
+                    input: i.name.clone(),
+                    what: "min above max",
+                });
+            }
+        }
+        nums.extend([self.output.norm_min, self.output.norm_max]);
+        nums.extend([
+            c.blend_mps,
+            c.creep_stiffness_n,
+            c.wheel_load_n,
+            c.reference_speed_mps,
+        ]);
+        if nums.iter().any(|v| !v.is_finite()) {
+            return Err(Defect::NotFinite);
+        }
+        if !(c.blend_mps > 0.0
+            && c.creep_stiffness_n > 0.0
+            && c.wheel_load_n > 0.0
+            && c.reference_speed_mps > 0.0)
+        {
+            return Err(Defect::Value(
+                "creep: blend_mps, creep_stiffness_n, wheel_load_n and reference_speed_mps must be > 0".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    pub fn input_set(&self) -> InputSet {
+        if self.inputs.len() == 3 {
+            InputSet::DvDdvV
+        } else {
+            InputSet::DvDdv
+        }
+    }
+}
+
+/// The numbers the evaluators work with, derived once from a model file (shared by the Rust
+/// evaluator and the C header so both start from the same doubles).
+pub(crate) struct Scaling {
+    /// Input domain per input (unused inputs 0).
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    /// mapminmax gain and offset per input, x_n = g x + o.
+    pub gx: [f64; 3],
+    pub ox: [f64; 3],
+    /// Output mapminmax gain and offset.
+    pub gy: f64,
+    pub oy: f64,
+    /// Hidden-layer weights, column-major: w1c[c · hidden + h] = W1[h][c].
+    pub w1c: Vec<f64>,
+}
+
+impl ModelFile {
+    pub(crate) fn scaling(&self) -> Scaling {
+        let k = self.inputs.len();
+        let mut s = Scaling {
+            lo: [0.0; 3],
+            hi: [0.0; 3],
+            gx: [1.0; 3],
+            ox: [0.0; 3],
+            gy: 1.0,
+            oy: 0.0,
+            w1c: (0..k)
+                .flat_map(|c| self.layers[0].weights.iter().map(move |row| row[c]))
+                .collect(),
+        };
+        for (c, i) in self.inputs.iter().enumerate() {
+            s.lo[c] = i.domain_min;
+            s.hi[c] = i.domain_max;
+            (s.gx[c], s.ox[c]) = gain_offset(i.norm_min, i.norm_max);
+        }
+        (s.gy, s.oy) = gain_offset(self.output.norm_min, self.output.norm_max);
+        s
+    }
+}
+
+/// mapminmax gain and offset for a (min, max) range: constant ranges pass through.
+#[inline]
+fn gain_offset(min: f64, max: f64) -> (f64, f64) {
+    let range = max - min;
+    if range > 0.0 {
+        let g = 2.0 / range;
+        (g, -1.0 - g * min)
+    } else {
+        (1.0, 0.0)
+    }
+}

@@ -1,0 +1,523 @@
+//! The network evaluator of kind `mlp` (see [`super`] for the evaluation rule): allocation-free
+//! single calls with four neurons per AVX2 register, and a batch path vectorised across
+//! samples (AVX-512F, AVX2 or plain f64), every path performing the same IEEE operations lane
+//! by lane — bit-identical results whatever the CPU (tested below).
+
+use super::file::{ModelFile, Scaling};
+use crate::contact::saturation::she_ratio;
+use crate::simd::{self, Isa, Lanes, Portable};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx2, Avx512, F64x4, F64x8};
+
+/// Samples per block of [`super::Model::mu_batch`].
+pub const LANES: usize = 16;
+
+/// Neurons per chunk of the single-call path (one AVX2 register of f64).
+const CHUNK: usize = 4;
+
+/// The network evaluator (kind mlp).
+#[derive(Debug, Clone)]
+pub(super) struct Net {
+    k: usize,
+    lo: [f64; 3],
+    hi: [f64; 3],
+    gx: [f64; 3],
+    ox: [f64; 3],
+    /// Hidden neurons, and that number rounded up to a multiple of [`CHUNK`].
+    nh: usize,
+    pad: usize,
+    /// Hidden-layer weights, column-major with stride `pad`: w1c[c · pad + h] = W1[h][c];
+    /// `b1` and `w2` likewise padded. The padding neurons have zero weights and are never
+    /// summed: they only let the single-call path run in fixed-width chunks.
+    w1c: Vec<f64>,
+    b1: Vec<f64>,
+    w2: Vec<f64>,
+    /// The same weights in blocks of [`CHUNK`] neurons for the single-call path.
+    blocks: Vec<Block>,
+    /// The instruction set of this CPU, detected once.
+    isa: Isa,
+    /// Output bias (−0.0 stored as +0.0 so that adding the padding neurons' exact +0.0 terms
+    /// never changes the sum: see [`Net::net_chunks`]).
+    b2: f64,
+    gy: f64,
+    oy: f64,
+    blend: f64,
+    /// C / Q: μ per unit creepage.
+    creep_per_creepage: f64,
+    v_ref: f64,
+}
+
+/// [`CHUNK`] hidden neurons' weights, contiguous (padding neurons all zero).
+#[derive(Debug, Clone, Default)]
+struct Block {
+    b1: [f64; CHUNK],
+    w1: [[f64; CHUNK]; 3],
+    w2: [f64; CHUNK],
+}
+
+/// tanh for the evaluators, branch-free and inlinable (glibc's `tanh` is a ~10 ns call; ten of
+/// them would be most of an evaluation). With x = 2z clamped to [−40, 40] (beyond, tanh rounds
+/// to ±1): x = n ln 2 + r with n = round(x / ln 2) (by the 1.5·2⁵² rounding trick) and
+/// |r| ≤ ln 2 / 2 (Cody–Waite split of ln 2, fdlibm's constants); e^r − 1 = r P(r) with
+/// `simd::EXPM1_P` (Estrin's scheme); e^x − 1 = 2ⁿ (e^r − 1) + (2ⁿ − 1), exact but for one rounding
+/// (a fused multiply-add), in (−1, ∞); tanh z = (e^x − 1)/(e^x − 1 + 2), whose denominator
+/// never cancels. Every multiply-add is fused (`f64::mul_add`: correctly rounded, so the AVX2
+/// `vfmadd`, a software `fma` and C99 `fma()` give the same bits). Within 4 ulp of the C
+/// library's tanh (tested); tanh_fast(−0.0) is +0.0. The C header computes the same operations.
+#[inline(always)]
+pub fn tanh_fast(z: f64) -> f64 {
+    simd::tanh_of_doubled(2.0 * z)
+}
+
+impl Net {
+    pub(super) fn new(file: &ModelFile) -> Net {
+        let k = file.inputs.len();
+        let creep = file
+            .creep
+            .as_ref()
+            .expect("checked: kind mlp has a creep section");
+        let Scaling {
+            lo,
+            hi,
+            gx,
+            ox,
+            gy,
+            oy,
+            w1c,
+        } = file.scaling();
+        let h = &file.layers[0];
+        let o = &file.layers[1];
+        let nh = h.biases.len();
+        let pad = nh.div_ceil(CHUNK) * CHUNK;
+        let padded = |v: &[f64]| {
+            let mut p = v.to_vec();
+            p.resize(pad, 0.0);
+            p
+        };
+        // Doubled (exact): the evaluators compute 2z, the argument tanh needs as e^(2z).
+        let w1c: Vec<f64> = w1c.chunks(nh).flat_map(padded).map(|w| 2.0 * w).collect();
+        let b1: Vec<f64> = padded(&h.biases).iter().map(|b| 2.0 * b).collect();
+        let w2 = padded(&o.weights[0]);
+        let blocks = (0..pad / CHUNK)
+            .map(|j| {
+                let at = |v: &[f64], c: usize| -> [f64; CHUNK] {
+                    v[c * pad + j * CHUNK..c * pad + (j + 1) * CHUNK]
+                        .try_into()
+                        .expect("chunk")
+                };
+                let mut b = Block {
+                    b1: at(&b1, 0),
+                    w2: at(&w2, 0),
+                    ..Block::default()
+                };
+                for c in 0..k {
+                    b.w1[c] = at(&w1c, c);
+                }
+                b
+            })
+            .collect();
+        Net {
+            k,
+            lo,
+            hi,
+            gx,
+            ox,
+            nh,
+            pad,
+            w1c,
+            b1,
+            w2,
+            blocks,
+            isa: Isa::detect(),
+            b2: o.biases[0] + 0.0,
+            gy,
+            oy,
+            blend: creep.blend_mps,
+            creep_per_creepage: creep.creep_stiffness_n / creep.wheel_load_n,
+            v_ref: creep.reference_speed_mps,
+        }
+    }
+
+    /// The network alone at physical inputs (clamped to the domain). The hidden layer runs in
+    /// fixed-width chunks of [`CHUNK`] neurons (zero-padded) so the compiler turns each into
+    /// SIMD, with the chunk count a compile-time constant for up to 16 neurons; the output sum
+    /// runs over the real neurons in order — the same operations as the batch path and the C
+    /// header, same results.
+    #[inline(always)]
+    fn net<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+        // The usual sizes with the chunk count known at compile time (fully unrolled).
+        match self.pad / CHUNK {
+            1 => self.net_chunks::<V, 1>(isa, x),
+            2 => self.net_chunks::<V, 2>(isa, x),
+            3 => self.net_chunks::<V, 3>(isa, x),
+            4 => self.net_chunks::<V, 4>(isa, x),
+            _ => self.net_any::<V>(isa, x),
+        }
+    }
+
+    /// One block of the hidden layer, w2_h tanh(b1_h + Σ_c W1_hc x_n,c) for its neurons
+    /// (weights doubled: the sum is 2z), on lanes `V`.
+    #[inline(always)]
+    fn chunk<V: Lanes>(&self, isa: V::Isa, b: &Block, xn: &[f64; 3]) -> [f64; CHUNK] {
+        let mut o = [0.0; CHUNK];
+        for i in (0..CHUNK).step_by(V::N) {
+            let mut z2 = V::load(isa, &b.b1[i..]);
+            for (c, &xc) in xn.iter().enumerate().take(self.k) {
+                z2 = V::load(isa, &b.w1[c][i..]).fma(V::splat(isa, xc), z2);
+            }
+            simd::tanh_of_doubled(z2)
+                .mul(V::load(isa, &b.w2[i..]))
+                .store(&mut o[i..]);
+        }
+        o
+    }
+
+    #[inline(always)]
+    fn inputs(&self, x: [f64; 3]) -> [f64; 3] {
+        let mut xn = [0.0; 3];
+        for c in 0..self.k {
+            xn[c] = self.gx[c].mul_add(x[c].clamp(self.lo[c], self.hi[c]), self.ox[c]);
+        }
+        xn
+    }
+
+    /// The network with `C` blocks: the output sum runs over all `C` · [`CHUNK`] terms in
+    /// order; the padding neurons' terms are exactly +0.0 (zero weights, tanh(+0) = +0), and
+    /// y + 0.0 = y for every y but −0.0, which the sum can never hold (it starts at b2 ≠ −0.0,
+    /// and a rounded sum is −0.0 only when both terms are) — so the result is that of summing
+    /// the real neurons only, as the batch path and the C header do.
+    #[inline(always)]
+    fn net_chunks<V: Lanes, const C: usize>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+        let xn = self.inputs(x);
+        let blocks: &[Block; C] = self.blocks[..C].try_into().expect("C blocks");
+        let mut y = self.b2;
+        for b in blocks {
+            for t in self.chunk::<V>(isa, b, &xn) {
+                y += t;
+            }
+        }
+        (y - self.oy) / self.gy
+    }
+
+    #[inline(always)]
+    fn net_any<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+        let xn = self.inputs(x);
+        let mut y = self.b2;
+        for b in &self.blocks {
+            for t in self.chunk::<V>(isa, b, &xn) {
+                y += t;
+            }
+        }
+        (y - self.oy) / self.gy
+    }
+
+    /// [`Model::mu_v`] of the network: four neurons per AVX2 register when the CPU has AVX2
+    /// and FMA (compiled with AVX-512VL's 32 registers when it has those), else the portable
+    /// path (plain f64; `mul_add` is a libm call on CPUs without FMA). Same bits on every path.
+    #[inline]
+    pub(super) fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        match self.isa {
+            // SAFETY: the token proves AVX-512F/VL, AVX2 and FMA on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(t) => unsafe { self.mu_v_avx512vl(t, dv_mps, ddv_mps2, v_mps) },
+            // SAFETY: the token proves AVX2 and FMA on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(t) => unsafe { self.mu_v_avx2(t, dv_mps, ddv_mps2, v_mps) },
+            _ => self.mu_v_impl::<f64>(Portable, dv_mps, ddv_mps2, v_mps),
+        }
+    }
+
+    /// [`Net::mu_v`] on AVX2 registers, compiled with AVX-512VL (its 32 vector registers keep
+    /// tanh's constants in registers; about 5 % faster in development measurements). Rust never
+    /// contracts a multiply and an add on its own, so only the written `fma`s are fused.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+    fn mu_v_avx512vl(&self, isa: Avx512, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        self.mu_v_impl::<F64x4>(isa.avx2(), dv_mps, ddv_mps2, v_mps)
+    }
+
+    /// [`Net::mu_v`] on AVX2 registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn mu_v_avx2(&self, isa: Avx2, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        self.mu_v_impl::<F64x4>(isa, dv_mps, ddv_mps2, v_mps)
+    }
+
+    #[inline(always)]
+    fn mu_v_impl<V: Lanes>(&self, isa: V::Isa, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+        if !(dv_mps.is_finite() && ddv_mps2.is_finite()) {
+            return f64::NAN;
+        }
+        let (s, dv, ddv) = if dv_mps < 0.0 {
+            (-1.0, -dv_mps, -ddv_mps2)
+        } else {
+            (1.0, dv_mps, ddv_mps2)
+        };
+        let v = if v_mps.is_finite() { v_mps } else { self.v_ref };
+        let net = self.net::<V>(isa, [dv, ddv, v]);
+        if dv >= self.blend {
+            return s * net;
+        }
+        let sat = self.net::<V>(isa, [self.blend, ddv, v]).abs();
+        let v_creep = if self.k == 3 { v.max(1.0) } else { self.v_ref };
+        let slope = self.creep_per_creepage / v_creep;
+        let lin = if sat > 0.0 {
+            sat * she_ratio(slope * dv / sat)
+        } else {
+            0.0
+        };
+        let t = dv / self.blend;
+        let w = t * t * (3.0 - 2.0 * t);
+        s * (w * net + (1.0 - w) * lin)
+    }
+
+    /// [`Model::mu_batch`] of the network.
+    pub(super) fn mu_batch(
+        &self,
+        dv_mps: &[f64],
+        ddv_mps2: &[f64],
+        v_mps: &[f64],
+        out: &mut [f64],
+    ) {
+        let n = out.len();
+        let full = n - n % LANES;
+        let isa = self.isa;
+        for b in (0..full).step_by(LANES) {
+            let dv: &[f64; LANES] = dv_mps[b..b + LANES].try_into().expect("block");
+            let ddv: &[f64; LANES] = ddv_mps2[b..b + LANES].try_into().expect("block");
+            let v: [f64; LANES] = if v_mps.is_empty() {
+                [f64::NAN; LANES]
+            } else {
+                v_mps[b..b + LANES].try_into().expect("block")
+            };
+            let o: &mut [f64; LANES] = (&mut out[b..b + LANES]).try_into().expect("block");
+            self.block_dispatch(isa, dv, ddv, &v, o);
+        }
+        for i in full..n {
+            let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
+            out[i] = self.mu_v(dv_mps[i], ddv_mps2[i], v);
+        }
+    }
+
+    fn block_dispatch(
+        &self,
+        isa: Isa,
+        dv: &[f64; LANES],
+        ddv: &[f64; LANES],
+        v: &[f64; LANES],
+        out: &mut [f64; LANES],
+    ) {
+        match isa {
+            // SAFETY: the token proves AVX-512F on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512(t) => unsafe { self.block_avx512(t, dv, ddv, v, out) },
+            // SAFETY: the token proves AVX2 and FMA on this CPU.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(t) => unsafe { self.block_avx2(t, dv, ddv, v, out) },
+            _ => self.block::<f64>(Portable, dv, ddv, v, out),
+        }
+    }
+
+    /// [`Net::block`] on AVX-512 registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn block_avx512(
+        &self,
+        isa: Avx512,
+        dv: &[f64; LANES],
+        ddv: &[f64; LANES],
+        v: &[f64; LANES],
+        out: &mut [f64; LANES],
+    ) {
+        self.block::<F64x8>(isa, dv, ddv, v, out)
+    }
+
+    /// [`Net::block`] on AVX2 registers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn block_avx2(
+        &self,
+        isa: Avx2,
+        dv: &[f64; LANES],
+        ddv: &[f64; LANES],
+        v: &[f64; LANES],
+        out: &mut [f64; LANES],
+    ) {
+        self.block::<F64x4>(isa, dv, ddv, v, out)
+    }
+
+    /// [`Model::mu_v`] for a block of samples on lanes `V`, lane by lane the same operations
+    /// as the single call: inputs, then per neuron in order 2z = fma(2W1, x_n, ·) from 2b1,
+    /// y += w2 · tanh, then (y − o_y)/g_y; the creep region (rare in a batch) by the scalar rule.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
+    fn block<V: Lanes>(
+        &self,
+        isa: V::Isa,
+        dv_in: &[f64; LANES],
+        ddv_in: &[f64; LANES],
+        v_in: &[f64; LANES],
+        out: &mut [f64; LANES],
+    ) {
+        let mut sgn = [1.0; LANES];
+        let mut x = [[0.0; LANES]; 3];
+        for l in 0..LANES {
+            let neg = dv_in[l] < 0.0;
+            sgn[l] = if neg { -1.0 } else { 1.0 };
+            x[0][l] = if neg { -dv_in[l] } else { dv_in[l] };
+            x[1][l] = if neg { -ddv_in[l] } else { ddv_in[l] };
+            x[2][l] = if v_in[l].is_finite() {
+                v_in[l]
+            } else {
+                self.v_ref
+            };
+        }
+        let mut xn = [[0.0; LANES]; 3];
+        for c in 0..self.k {
+            let (lo, hi, g, o) = (self.lo[c], self.hi[c], self.gx[c], self.ox[c]);
+            for l in 0..LANES {
+                xn[c][l] = g.mul_add(x[c][l].clamp(lo, hi), o);
+            }
+        }
+        let mut net = [0.0; LANES];
+        let mut y = [V::splat(isa, self.b2); LANES];
+        let vectors = LANES / V::N;
+        for h in 0..self.nh {
+            let b1 = V::splat(isa, self.b1[h]);
+            let w2 = V::splat(isa, self.w2[h]);
+            for j in 0..vectors {
+                let mut z2 = b1;
+                for c in 0..self.k {
+                    let w = V::splat(isa, self.w1c[c * self.pad + h]);
+                    z2 = w.fma(V::load(isa, &xn[c][j * V::N..]), z2);
+                }
+                y[j] = y[j].add(w2.mul(simd::tanh_of_doubled(z2)));
+            }
+        }
+        let (oy, gy) = (V::splat(isa, self.oy), V::splat(isa, self.gy));
+        for j in 0..vectors {
+            y[j].sub(oy).div(gy).store(&mut net[j * V::N..]);
+        }
+        for l in 0..LANES {
+            out[l] = if !(dv_in[l].is_finite() && ddv_in[l].is_finite()) {
+                f64::NAN
+            } else if x[0][l] >= self.blend {
+                sgn[l] * net[l]
+            } else {
+                self.mu_v(dv_in[l], ddv_in[l], v_in[l])
+            };
+        }
+    }
+
+    pub(super) fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+        let x = [
+            dv_mps.abs(),
+            if dv_mps < 0.0 { -ddv_mps2 } else { ddv_mps2 },
+            v_mps,
+        ];
+        (0..self.k).all(|c| x[c] >= self.lo[c] && x[c] <= self.hi[c])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{Law, Model};
+    use super::*;
+
+    #[test]
+    fn every_compiled_path_gives_the_portable_bits() {
+        let text = include_str!("../../models/golden/synthetic_mlp.json");
+        let m = Model::new(ModelFile::from_json(text, "golden").unwrap()).unwrap();
+        let Law::Mlp(net) = &m.law else {
+            panic!("the golden model is a network")
+        };
+        let mut points = Vec::new();
+        for i in 0..400 {
+            let dv = -4.5 + 0.0225 * i as f64;
+            for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
+                points.push((dv, ddv));
+            }
+        }
+        points.push((f64::NAN, 0.0));
+        points.push((0.5, f64::INFINITY));
+        let portable: Vec<u64> = points
+            .iter()
+            .map(|&(dv, ddv)| net.mu_v_impl::<f64>(Portable, dv, ddv, f64::NAN).to_bits())
+            .collect();
+        let same = |name: &str, got: &[f64]| {
+            for (k, (g, p)) in got.iter().zip(&portable).enumerate() {
+                let p = f64::from_bits(*p);
+                assert!(
+                    g.to_bits() == p.to_bits() || (g.is_nan() && p.is_nan()),
+                    "{name} at {:?}: {g} vs {p}",
+                    points[k]
+                );
+            }
+        };
+        let single: Vec<f64> = points.iter().map(|&(dv, ddv)| m.mu(dv, ddv)).collect();
+        same("dispatched single call", &single);
+        let (dv, ddv): (Vec<f64>, Vec<f64>) = points.iter().copied().unzip();
+        let n = points.len() - points.len() % LANES;
+        let v = [f64::NAN; LANES];
+        // Every instruction set this CPU has, the widest last.
+        let sets = Isa::all_available();
+        for s in &sets {
+            let got: Vec<f64> = points
+                .iter()
+                .map(|&(a, b)| match *s {
+                    // SAFETY: the token proves the instructions.
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx2(t) => unsafe { net.mu_v_avx2(t, a, b, f64::NAN) },
+                    // SAFETY: the token proves the instructions.
+                    #[cfg(target_arch = "x86_64")]
+                    Isa::Avx512(t) => unsafe { net.mu_v_avx512vl(t, a, b, f64::NAN) },
+                    _ => net.mu_v_impl::<f64>(Portable, a, b, f64::NAN),
+                })
+                .collect();
+            same(&format!("{s:?} single call"), &got);
+        }
+        for s in sets {
+            let mut out = vec![0.0; n];
+            for b in (0..n).step_by(LANES) {
+                let o: &mut [f64; LANES] = (&mut out[b..b + LANES]).try_into().unwrap();
+                net.block_dispatch(
+                    s,
+                    dv[b..b + LANES].try_into().unwrap(),
+                    ddv[b..b + LANES].try_into().unwrap(),
+                    &v,
+                    o,
+                );
+            }
+            same(&format!("{s:?} batch block"), &out);
+        }
+    }
+
+    #[test]
+    fn tanh_fast_matches_the_c_library() {
+        let mut worst: f64 = 0.0;
+        let mut z = -25.0;
+        while z <= 25.0 {
+            let (a, b) = (tanh_fast(z), z.tanh());
+            let rel = if b == 0.0 {
+                a.abs()
+            } else {
+                ((a - b) / b).abs()
+            };
+            worst = worst.max(rel);
+            z += 0.000_731;
+        }
+        for z in [
+            0.0, -0.0, 1e-300, -1e-300, 1e-9, 0.1733, 0.3466, 0.5, 19.0, 20.0, 40.0, 1e6, -1e6,
+        ] {
+            let (a, b) = (tanh_fast(z), z.tanh());
+            assert!(
+                (a - b).abs() <= 4.0 * f64::EPSILON * b.abs().max(f64::MIN_POSITIVE),
+                "{z}: {a} vs {b}"
+            );
+            if b != 0.0 {
+                assert_eq!(a.is_sign_negative(), b.is_sign_negative(), "{z}");
+            }
+        }
+        assert!(worst < 4.0 * f64::EPSILON, "{worst:e}");
+    }
+}

@@ -1,0 +1,75 @@
+//! The columns of a run's estimates table that the report draws.
+
+use std::path::Path;
+
+use super::ReportError;
+use crate::format::AXLES;
+
+/// The columns of an estimates table the report draws, per axle.
+pub(super) struct RunData {
+    pub time_s: Vec<f64>,
+    pub v_mps: Vec<f64>,
+    /// Per axle: (t, rω), (t, p), and the valid (Δv, dΔv/dt, μ).
+    pub wheel: [Vec<(f64, f64)>; AXLES],
+    pub pressure: [Vec<(f64, f64)>; AXLES],
+    pub valid: [Vec<(f64, f64, f64, f64)>; AXLES],
+}
+
+pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
+    use polars::prelude::*;
+    let bad = |message: String| ReportError::Data {
+        file: path.display().to_string(),
+        message,
+    };
+    let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+    let df = ParquetReader::new(file)
+        .finish()
+        .map_err(|e| bad(e.to_string()))?;
+    let f = |name: &str| -> Result<Vec<f64>, ReportError> {
+        let c = df
+            .column(name)
+            .map_err(|_| bad(format!("no column {name}")))?
+            .cast(&DataType::Float64)
+            .map_err(|e| bad(e.to_string()))?;
+        let ca = c.f64().map_err(|e| bad(e.to_string()))?;
+        Ok(ca.iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+    };
+    let (t, axle, v, p, dv, ddv, mu) = (
+        f("time_s")?,
+        f("axle")?,
+        f("v_mps")?,
+        f("p_bar")?,
+        f("dv_mps")?,
+        f("ddv_mps2")?,
+        f("mu")?,
+    );
+    let vcol = df
+        .column("valid")
+        .map_err(|_| bad("no column valid".into()))?
+        .bool()
+        .map_err(|e| bad(e.to_string()))?
+        .clone();
+    let valid: Vec<bool> = vcol.iter().map(|x| x.unwrap_or(false)).collect();
+    let mut d = RunData {
+        time_s: vec![],
+        v_mps: vec![],
+        wheel: Default::default(),
+        pressure: Default::default(),
+        valid: Default::default(),
+    };
+    for k in 0..t.len() {
+        let a = (axle[k] as usize).clamp(1, AXLES) - 1;
+        if a == 0 {
+            d.time_s.push(t[k]);
+            d.v_mps.push(v[k]);
+        }
+        if v[k].is_finite() && dv[k].is_finite() {
+            d.wheel[a].push((t[k], v[k] - dv[k]));
+        }
+        d.pressure[a].push((t[k], p[k]));
+        if valid[k] {
+            d.valid[a].push((dv[k], ddv[k], mu[k], t[k]));
+        }
+    }
+    Ok(d)
+}

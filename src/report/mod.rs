@@ -1,0 +1,648 @@
+//! The validation report: one self-contained HTML file (`<out>/report/index.html`, plots as
+//! inline SVG drawn by plotters with the embedded DejaVu Sans for text layout, no external
+//! resources), rebuilt from what `railgrip run` wrote: `campaign.json`, the per-run estimates
+//! tables and the model files.
+//!
+//! Figures follow seed 002 (002_8d8769283f5e9cb6.txt): per run, vehicle speed against wheel
+//! peripheral speeds (Fig. 3), brake pressures (Fig. 4) and μ against Δv per axle (Fig. 7);
+//! across runs, μ against Δv by initial speed (Fig. 8) and by ambient temperature; for the
+//! network, training and validation error per epoch (Fig. 9), network against estimated μ on
+//! validation data (Fig. 10), the hysteresis loop of a slip ramp 0 → 9 m/s → 0 (Fig. 11) and
+//! μ over the (Δv, dΔv/dt) plane; then the Polach fits and k_A(T), k_S(T) (seed 004 eq. 3).
+
+mod data;
+mod plot;
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use plotters::style::RGBColor;
+
+use crate::campaign::{CampaignError, CampaignRecord, OutDir, RunRecord};
+use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
+use crate::format::AXLES;
+use crate::identify::polach_fit::PolachReport;
+use crate::model::{Model, ModelError, ModelFile};
+use data::{read_run, RunData};
+use plot::{chart, heatmap, Series, PALETTE};
+
+/// Why the report could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    #[error(transparent)]
+    Campaign(#[from] CampaignError),
+    /// A model file of the campaign exists but cannot be used.
+    #[error("{0}")]
+    Model(#[from] ModelError),
+    /// The Polach fits file exists but does not parse.
+    #[error("{file}: not a Polach fits file: {source}. Hint: rerun `railgrip run` to rewrite it")]
+    Fits {
+        file: String,
+        #[source]
+        source: serde_json::Error,
+    },
+    #[error("{file}: {message}")]
+    Data { file: String, message: String },
+    #[error("plot \"{plot}\": {message}")]
+    Plot { plot: String, message: String },
+    #[error("{file}: cannot write: {source}")]
+    Write {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+/// Everything the report is built from.
+struct Inputs<'a> {
+    camp: &'a CampaignRecord,
+    mlp: Option<Model>,
+    polach: Option<Model>,
+    fits: Option<PolachReport>,
+    /// The runs that were estimated, with their tables.
+    data: Vec<(&'a RunRecord, RunData)>,
+}
+
+impl<'a> Inputs<'a> {
+    fn load(out: &OutDir, camp: &'a CampaignRecord) -> Result<Inputs<'a>, ReportError> {
+        let models = out.models();
+        let fits = match std::fs::read_to_string(models.polach_fits()) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(source) => {
+                return Err(ReportError::Write {
+                    file: models.polach_fits().display().to_string(),
+                    source,
+                })
+            }
+            Ok(t) => Some(
+                serde_json::from_str(&t).map_err(|source| ReportError::Fits {
+                    file: models.polach_fits().display().to_string(),
+                    source,
+                })?,
+            ),
+        };
+        let mut data = Vec::new();
+        for r in camp.runs.iter().filter(|r| r.ok()) {
+            data.push((r, read_run(&out.run_estimates(&r.run))?));
+        }
+        Ok(Inputs {
+            camp,
+            mlp: optional_model(&models.mlp())?,
+            polach: optional_model(&models.polach())?,
+            fits,
+            data,
+        })
+    }
+
+    /// True for the runs of the condition the models were trained on.
+    fn in_condition(&self, r: &RunRecord) -> bool {
+        self.camp.condition.is_none() || r.condition == self.camp.condition
+    }
+}
+
+/// The model at `path` when the campaign wrote one; a file that is there but cannot be used is
+/// an error naming it.
+fn optional_model(path: &Path) -> Result<Option<Model>, ReportError> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let file = ModelFile::read(path)?;
+    Ok(Some(Model::named(file, &path.display().to_string())?))
+}
+
+/// Writes `<out>/report/index.html` from `<out>/campaign.json` and what it points to; returns
+/// its path.
+pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
+    let camp = CampaignRecord::read(out)?;
+    let i = Inputs::load(out, &camp)?;
+    let mut h = String::new();
+    head(&mut h, &i);
+    runs(&mut h, &i);
+    across_runs(&mut h, &i)?;
+    if let Some(m) = &i.mlp {
+        network(&mut h, &i, m)?;
+    }
+    if let Some(f) = &i.fits {
+        polach_fits(&mut h, &i, f)?;
+    }
+    h.push_str("<h2>Per run</h2>\n");
+    per_run(&mut h, &i)?;
+    if let Some(m) = &i.mlp {
+        provenance(&mut h, m);
+    }
+    h.push_str("</body></html>\n");
+
+    let path = out.report_html();
+    let werr = |source: std::io::Error| ReportError::Write {
+        file: path.display().to_string(),
+        source,
+    };
+    std::fs::create_dir_all(out.report_dir()).map_err(werr)?;
+    crate::atomic::write_atomically(&path, |w| w.write_all(h.as_bytes())).map_err(werr)?;
+    Ok(path)
+}
+
+fn esc(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+fn opt(v: Option<f64>, d: usize) -> String {
+    v.map_or("–".into(), |x| format!("{x:.d$}"))
+}
+
+/// The document head, styles and the campaign line.
+fn head(h: &mut String, i: &Inputs) {
+    let (camp, data) = (i.camp, &i.data);
+    let _ = write!(
+        *h,
+        r#"<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>railgrip report — {title}</title>
+<style>
+body {{ font-family: "DejaVu Sans", Verdana, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; padding: 0 1em; }}
+h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.25em; border-bottom: 1px solid #ccc; margin-top: 2em; }}
+h3 {{ font-size: 1.05em; margin-bottom: 0.3em; }}
+table {{ border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.85em; }}
+th, td {{ border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: right; }}
+th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
+.failed {{ color: #b00; }} .figs {{ display: flex; flex-wrap: wrap; gap: 6px; }}
+.figs svg {{ border: 1px solid #eee; }} p.note {{ font-size: 0.9em; color: #555; }}
+</style></head><body>
+<h1>railgrip validation report</h1>
+<p>Campaign <code>{archive}</code>: {n} run(s), {nok} estimated, {nf} failed. Models trained on
+<b>{cond}</b> rail. Pipeline <code>{pipe}</code>. railgrip {ver}.</p>
+"#,
+        title = esc(&camp.archive),
+        archive = esc(&camp.archive),
+        n = camp.runs.len(),
+        nok = data.len(),
+        nf = camp.runs.len() - data.len(),
+        cond = esc(camp.condition.as_deref().unwrap_or("–")),
+        pipe = esc(&camp.pipeline),
+        ver = env!("CARGO_PKG_VERSION"),
+    );
+}
+
+/// The runs table, failed runs, warnings and notes.
+fn runs(h: &mut String, i: &Inputs) {
+    let camp = i.camp;
+    // Runs table.
+    h.push_str("<h2>Runs</h2>\n<table><tr><th class=\"l\">run</th><th>status</th><th>initial speed km/h</th><th>ambient °C</th><th class=\"l\">condition</th><th>peak μ axles 1–4</th><th>max Δv m/s axles 1–4</th><th>time s</th></tr>\n");
+    for r in &camp.runs {
+        let axles = |v: &[Option<f64>; AXLES], d| {
+            v.iter().map(|x| opt(*x, d)).collect::<Vec<_>>().join(" / ")
+        };
+        let _ = writeln!(
+            *h,
+            "<tr><td class=\"l\">{}</td><td class=\"{}\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.2}</td></tr>",
+            esc(&r.run),
+            if r.ok() { "" } else { "failed" },
+            if r.ok() { if r.reused { "ok (reused)" } else { "ok" } } else { "FAILED" },
+            opt(r.initial_speed_kmh, 0),
+            opt(r.ambient_temperature_c, 0),
+            esc(r.condition.as_deref().unwrap_or("–")),
+            axles(&r.peak_mu, 3),
+            axles(&r.max_dv_mps, 2),
+            r.duration_s
+        );
+    }
+    h.push_str("</table>\n");
+    let failed: Vec<&RunRecord> = camp.runs.iter().filter(|r| !r.ok()).collect();
+    if !failed.is_empty() {
+        h.push_str("<h3 class=\"failed\">Failed runs</h3>\n<table><tr><th class=\"l\">run</th><th class=\"l\">error</th></tr>\n");
+        for r in failed {
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">{}</td><td class=\"l failed\">{}</td></tr>",
+                esc(&r.run),
+                esc(r.error.as_deref().unwrap_or(""))
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    let warned: Vec<&RunRecord> = camp
+        .runs
+        .iter()
+        .filter(|r| !r.warnings.is_empty())
+        .collect();
+    if !warned.is_empty() || !camp.notes.is_empty() || camp.model_error.is_some() {
+        h.push_str("<h3>Warnings and notes</h3>\n<table><tr><th class=\"l\">where</th><th class=\"l\">what</th></tr>\n");
+        for r in warned {
+            for w in &r.warnings {
+                let _ = writeln!(
+                    *h,
+                    "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td></tr>",
+                    esc(&r.run),
+                    esc(w)
+                );
+            }
+        }
+        for n in &camp.notes {
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">campaign</td><td class=\"l\">{}</td></tr>",
+                esc(n)
+            );
+        }
+        if let Some(e) = &camp.model_error {
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">models</td><td class=\"l failed\">{}</td></tr>",
+                esc(e)
+            );
+        }
+        h.push_str("</table>\n");
+    }
+}
+
+/// μ against Δv across runs, by initial speed (seed 002 Fig. 8) and by ambient temperature.
+fn across_runs(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
+    let data = &i.data;
+    // Across runs.
+    h.push_str("<h2>Across runs</h2>\n<p class=\"note\">Valid estimates, axle 2 (the training axle of seed 002), every run of the training condition.</p>\n<div class=\"figs\">\n");
+    let group = |key: &dyn Fn(&RunRecord) -> Option<f64>, unit: &str| -> Vec<Series> {
+        let mut keys: Vec<f64> = data
+            .iter()
+            .filter(|(r, _)| i.in_condition(r))
+            .filter_map(|(r, _)| key(r))
+            .collect();
+        keys.sort_by(f64::total_cmp);
+        keys.dedup();
+        keys.iter()
+            .enumerate()
+            .map(|(k, kv)| Series {
+                name: format!("{kv} {unit}"),
+                color: PALETTE[k % PALETTE.len()],
+                pts: data
+                    .iter()
+                    .filter(|(r, _)| i.in_condition(r) && key(r) == Some(*kv))
+                    .flat_map(|(_, d)| d.valid[1].iter().map(|v| (v.0, v.2)))
+                    .collect(),
+                dots: true,
+            })
+            .collect()
+    };
+    h.push_str(&chart(
+        "μ against Δv by initial speed (seed 002 Fig. 8)",
+        "Δv (m/s)",
+        "μ",
+        &group(&|r| r.initial_speed_kmh, "km/h"),
+        false,
+    )?);
+    h.push_str(&chart(
+        "μ against Δv by ambient temperature",
+        "Δv (m/s)",
+        "μ",
+        &group(&|r| r.ambient_temperature_c, "°C"),
+        false,
+    )?);
+    h.push_str("</div>\n");
+    Ok(())
+}
+
+/// The network: metrics, error per epoch (Fig. 9), against the estimate (Fig. 10), the slip
+/// ramp (Fig. 11) and μ over the (Δv, dΔv/dt) plane.
+fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
+    let (camp, data) = (i.camp, &i.data);
+    h.push_str("<h2>Network μ(Δv, dΔv/dt)</h2>\n");
+    let mt = &m.file.metrics;
+    let _ = writeln!(
+        *h,
+        "<table><tr><th class=\"l\">inputs</th><th>hidden</th><th>training samples</th><th>validation samples</th><th>training RMSE μ</th><th>validation RMSE μ</th><th>epochs</th><th class=\"l\">stop</th></tr>\n<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.5}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr></table>",
+        esc(&m.file.inputs.iter().map(|i| i.name.as_str()).collect::<Vec<_>>().join(", ")),
+        m.file.layers[0].shape[0],
+        mt.train_samples,
+        mt.val_samples,
+        mt.train_mse.sqrt(),
+        opt(mt.val_mse.map(f64::sqrt), 5),
+        mt.epochs,
+        esc(&mt.stop_reason)
+    );
+    h.push_str("<div class=\"figs\">\n");
+    let hist = &m.file.history;
+    h.push_str(&chart(
+        "Error per epoch (seed 002 Fig. 9)",
+        "epoch",
+        "MSE of μ",
+        &[
+            Series {
+                name: "training".into(),
+                color: PALETTE[0],
+                pts: hist.iter().map(|e| (e.epoch as f64, e.train_mse)).collect(),
+                dots: false,
+            },
+            Series {
+                name: "validation".into(),
+                color: PALETTE[1],
+                pts: hist
+                    .iter()
+                    .filter(|e| e.val_mse.is_finite())
+                    .map(|e| (e.epoch as f64, e.val_mse))
+                    .collect(),
+                dots: false,
+            },
+        ],
+        true,
+    )?);
+    // Fig. 10: the first training-condition run, the first validation axle.
+    let va = camp.validation_axles.first().copied().unwrap_or(3) as usize;
+    if let Some((r, d)) = data.iter().find(|(r, _)| i.in_condition(r)) {
+        let pts = &d.valid[(va.clamp(1, AXLES)) - 1];
+        let est: Vec<(f64, f64)> = pts.iter().map(|p| (p.3, p.2)).collect();
+        let net: Vec<(f64, f64)> = pts.iter().map(|p| (p.3, m.mu(p.0, p.1))).collect();
+        h.push_str(&chart(
+            &format!("Network against estimate, {} axle {va} (Fig. 10)", r.run),
+            "time (s)",
+            "μ",
+            &[
+                Series {
+                    name: "estimated".into(),
+                    color: PALETTE[0],
+                    pts: est,
+                    dots: true,
+                },
+                Series {
+                    name: "network".into(),
+                    color: PALETTE[1],
+                    pts: net,
+                    dots: true,
+                },
+            ],
+            false,
+        )?);
+    }
+    // Fig. 11: slip ramp 0 → 9 → 0 m/s at ±2 m/s².
+    let ramp = |up: bool| -> Vec<(f64, f64)> {
+        (0..=180)
+            .map(|k| {
+                let dv = 9.0 * k as f64 / 180.0;
+                let dv = if up { dv } else { 9.0 - dv };
+                (dv, m.mu(dv, if up { 2.0 } else { -2.0 }))
+            })
+            .collect()
+    };
+    h.push_str(&chart(
+        "Slip ramp 0 → 9 → 0 m/s at ±2 m/s² (Fig. 11)",
+        "Δv (m/s)",
+        "μ",
+        &[
+            Series {
+                name: "rising slip".into(),
+                color: PALETTE[0],
+                pts: ramp(true),
+                dots: false,
+            },
+            Series {
+                name: "falling slip".into(),
+                color: PALETTE[1],
+                pts: ramp(false),
+                dots: false,
+            },
+        ],
+        false,
+    )?);
+    h.push_str(&heatmap(m)?);
+    h.push_str("</div>\n<p class=\"note\">Outside the trained domain the network holds its boundary value (inputs clamped); Δv beyond ");
+    let _ = writeln!(
+        *h,
+        "{:.2} m/s and dΔv/dt outside [{:.2}, {:.2}] m/s² were not seen in training.</p>",
+        m.file.inputs[0].domain_max, m.file.inputs[1].domain_min, m.file.inputs[1].domain_max
+    );
+    Ok(())
+}
+
+/// The Polach fits (seed 004 eq. 1–3) over the estimates, and k_A(T), k_S(T).
+fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), ReportError> {
+    let (data, polach_model) = (&i.data, &i.polach);
+    h.push_str("<h2>Polach fits (seed 004 eq. 1–3)</h2>\n<table><tr><th class=\"l\">group</th><th>μ0</th><th>A</th><th>B s/m</th><th>k_A</th><th>k_S</th><th>RMSE μ</th><th>samples</th></tr>\n");
+    let se = |x: f64, s: f64| {
+        if s.is_finite() {
+            format!("{x:.4} ± {s:.4}")
+        } else {
+            format!("{x:.4} (not identifiable)")
+        }
+    };
+    for p in f.pooled.iter().chain(&f.per_temperature).chain(&f.per_run) {
+        let _ = writeln!(
+            *h,
+            "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4}</td><td>{}</td></tr>",
+            esc(&p.group),
+            se(p.mu0, p.se[0]),
+            se(p.a_ratio, p.se[1]),
+            se(p.b_s_per_m, p.se[2]),
+            se(p.k_a, p.se[3]),
+            se(p.k_s, p.se[4]),
+            p.rmse,
+            p.samples
+        );
+    }
+    h.push_str("</table>\n<div class=\"figs\">\n");
+    let patch = ContactPatch {
+        a_m: f.patch[0],
+        b_m: f.patch[1],
+        g_pa: f.patch[2],
+        c11: f.patch[3],
+        c22: f.patch[4],
+    };
+    let v_ref = polach_model
+        .as_ref()
+        .and_then(|m| m.file.polach.as_ref().map(|p| p.reference_speed_mps))
+        .unwrap_or(25.0);
+    let dv_max = f.dv_range_mps.1.max(0.5);
+    let curve = |p: &PolachParams| -> Vec<(f64, f64)> {
+        (1..=200)
+            .filter_map(|k| {
+                let dv = dv_max * k as f64 / 200.0;
+                polach(&patch, p, f.wheel_load_n, v_ref, dv, 0.0)
+                    .ok()
+                    .map(|r| (dv, r.fx_n / f.wheel_load_n))
+            })
+            .collect()
+    };
+    let mut series = Vec::new();
+    for (k, p) in f.per_temperature.iter().enumerate() {
+        series.push(Series {
+            name: p.group.clone(),
+            color: PALETTE[k % PALETTE.len()],
+            pts: curve(&p.params()),
+            dots: false,
+        });
+    }
+    if let Some(p) = &f.pooled {
+        series.push(Series {
+            name: "all runs".into(),
+            color: RGBColor(0, 0, 0),
+            pts: curve(&p.params()),
+            dots: false,
+        });
+    }
+    let scatter: Vec<(f64, f64)> = data
+        .iter()
+        .filter(|(r, _)| i.in_condition(r))
+        .flat_map(|(_, d)| d.valid[1].iter().map(|v| (v.0, v.2)))
+        .collect();
+    series.insert(
+        0,
+        Series {
+            name: String::new(),
+            color: RGBColor(170, 170, 170),
+            pts: scatter,
+            dots: true,
+        },
+    );
+    h.push_str(&chart(
+        &format!("Polach fits at {v_ref:.1} m/s over the estimates"),
+        "Δv (m/s)",
+        "μ",
+        &series,
+        false,
+    )?);
+    if let Some(t) = &f.temperature {
+        let (lo, hi) = t.fitted_range_c;
+        let grid: Vec<f64> = (0..=100)
+            .map(|k| lo + (hi - lo) * k as f64 / 100.0)
+            .collect();
+        let pts = |k: usize| -> Vec<(f64, f64)> {
+            f.per_temperature
+                .iter()
+                .filter_map(|p| {
+                    p.ambient_temperature_c
+                        .map(|tc| (tc, if k == 0 { p.k_a } else { p.k_s }))
+                })
+                .collect()
+        };
+        h.push_str(&chart(
+            "k_A(T), k_S(T) (seed 004 eq. 3)",
+            "ambient temperature (°C)",
+            "k (–)",
+            &[
+                Series {
+                    name: format!("k_A(T), degree {}", t.degree),
+                    color: PALETTE[0],
+                    pts: grid.iter().map(|&x| (x, horner(&t.k_a, x))).collect(),
+                    dots: false,
+                },
+                Series {
+                    name: format!("k_S(T), degree {}", t.degree),
+                    color: PALETTE[1],
+                    pts: grid.iter().map(|&x| (x, horner(&t.k_s, x))).collect(),
+                    dots: false,
+                },
+                Series {
+                    name: "per-temperature fits".into(),
+                    color: RGBColor(60, 60, 60),
+                    pts: [pts(0), pts(1)].concat(),
+                    dots: true,
+                },
+            ],
+            false,
+        )?);
+    }
+    h.push_str("</div>\n");
+    if let Some(n) = &f.temperature_note {
+        let _ = writeln!(*h, "<p class=\"note\">k(T): {}</p>", esc(n));
+    }
+    Ok(())
+}
+
+/// Per run: speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7).
+fn per_run(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
+    let data = &i.data;
+    for (r, d) in data {
+        let _ = writeln!(
+            *h,
+            "<h3>{} — {} km/h, {} °C, {}</h3>\n<div class=\"figs\">",
+            esc(&r.run),
+            opt(r.initial_speed_kmh, 0),
+            opt(r.ambient_temperature_c, 0),
+            esc(r.condition.as_deref().unwrap_or("condition unknown"))
+        );
+        let mut speeds = vec![Series {
+            name: "vehicle v".into(),
+            color: RGBColor(0, 0, 0),
+            pts: d
+                .time_s
+                .iter()
+                .copied()
+                .zip(d.v_mps.iter().copied())
+                .collect(),
+            dots: false,
+        }];
+        for (a, w) in d.wheel.iter().enumerate() {
+            speeds.push(Series {
+                name: format!("rω axle {}", a + 1),
+                color: PALETTE[a],
+                pts: w.clone(),
+                dots: false,
+            });
+        }
+        h.push_str(&chart(
+            "Vehicle and wheel peripheral speeds (Fig. 3)",
+            "time (s)",
+            "speed (m/s)",
+            &speeds,
+            false,
+        )?);
+        let pressures: Vec<Series> = (0..AXLES)
+            .map(|a| Series {
+                name: format!("axle {}", a + 1),
+                color: PALETTE[a],
+                pts: d.pressure[a].clone(),
+                dots: false,
+            })
+            .collect();
+        h.push_str(&chart(
+            "Brake-cylinder pressures (Fig. 4)",
+            "time (s)",
+            "pressure (bar)",
+            &pressures,
+            false,
+        )?);
+        let mus: Vec<Series> = (0..AXLES)
+            .map(|a| Series {
+                name: format!("axle {}", a + 1),
+                color: PALETTE[a],
+                pts: d.valid[a].iter().map(|v| (v.0, v.2)).collect(),
+                dots: true,
+            })
+            .collect();
+        h.push_str(&chart(
+            "μ against Δv per axle (Fig. 7)",
+            "Δv (m/s)",
+            "μ",
+            &mus,
+            false,
+        )?);
+        h.push_str("</div>\n");
+    }
+    Ok(())
+}
+
+/// Where the network came from.
+fn provenance(h: &mut String, m: &Model) {
+    let p = &m.file.provenance;
+    h.push_str("<h2>Provenance</h2>\n<table>");
+    let _ = writeln!(
+        *h,
+        "<tr><th class=\"l\">pipeline</th><td class=\"l\">{} (SHA-256 {})</td></tr>\n<tr><th class=\"l\">seed</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">railgrip</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">created</th><td class=\"l\">{}</td></tr>",
+        esc(&p.pipeline),
+        esc(&p.pipeline_sha256),
+        p.seed,
+        esc(&p.crate_version),
+        esc(&p.created)
+    );
+    for i in &p.inputs {
+        let _ = writeln!(
+            *h,
+            "<tr><th class=\"l\">input</th><td class=\"l\">{} <small>{}</small></td></tr>",
+            esc(&i.path),
+            esc(&i.sha256)
+        );
+    }
+    h.push_str("</table>\n");
+}

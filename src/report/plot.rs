@@ -1,0 +1,271 @@
+//! The report's plots: x–y charts and the μ heat map as inline SVG text (plotters, with DejaVu
+//! Sans embedded for text layout).
+
+use std::ops::Range;
+
+use plotters::prelude::*;
+
+use super::ReportError;
+use crate::model::Model;
+
+const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+pub(super) const SIZE: (u32, u32) = (620, 340);
+/// Most points drawn per line and per scatter series (evenly strided).
+const MAX_LINE: usize = 500;
+const MAX_SCATTER: usize = 400;
+
+pub(super) const PALETTE: [RGBColor; 8] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+];
+
+fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // The font is compiled in and known to parse; a failure would only leave text unset.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// One series of a plot.
+pub(super) struct Series {
+    pub name: String,
+    pub color: RGBColor,
+    pub pts: Vec<(f64, f64)>,
+    /// Dots instead of a line.
+    pub dots: bool,
+}
+
+fn stride<T: Copy>(v: &[T], max: usize) -> Vec<T> {
+    let step = v.len().div_ceil(max.max(1)).max(1);
+    v.iter().step_by(step).copied().collect()
+}
+
+/// Axis range covering every point, padded by 4 %.
+fn range_of(vals: impl Iterator<Item = f64>) -> Range<f64> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return 0.0..1.0;
+    }
+    let pad = ((hi - lo) * 0.04).max(1e-9);
+    (lo - pad)..(hi + pad)
+}
+
+fn plot_err(plot: &str) -> impl Fn(String) -> ReportError + '_ {
+    move |message| ReportError::Plot {
+        plot: plot.to_string(),
+        message,
+    }
+}
+
+/// An x–y chart as SVG text; `log_y` for positive data spanning decades.
+pub(super) fn chart(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    log_y: bool,
+) -> Result<String, ReportError> {
+    register_font();
+    let err = plot_err(title);
+    let xr = range_of(series.iter().flat_map(|s| s.pts.iter().map(|p| p.0)));
+    let yr = range_of(series.iter().flat_map(|s| {
+        s.pts
+            .iter()
+            .map(|p| if log_y { p.1.max(1e-300).log10() } else { p.1 })
+    }));
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let mut b = ChartBuilder::on(&root);
+        b.caption(title, ("sans-serif", 15))
+            .margin(8)
+            .x_label_area_size(38)
+            .y_label_area_size(62);
+        macro_rules! draw {
+            ($chart:expr, $map:expr) => {{
+                let mut c = $chart;
+                c.configure_mesh()
+                    .x_desc(x_desc)
+                    .y_desc(y_desc)
+                    .x_label_formatter(&|x: &f64| tick(*x))
+                    .y_label_formatter(&|y: &f64| tick(*y))
+                    .label_style(("sans-serif", 11))
+                    .axis_desc_style(("sans-serif", 12))
+                    .light_line_style(RGBColor(235, 235, 235))
+                    .draw()
+                    .map_err(|e| err(e.to_string()))?;
+                for s in series {
+                    let color = s.color;
+                    let pts: Vec<(f64, f64)> = s.pts.iter().map(|&(x, y)| (x, $map(y))).collect();
+                    let anno = if s.dots {
+                        c.draw_series(stride(&pts, MAX_SCATTER).into_iter().map(move |p| {
+                            // A few points (fit results) stand out; clouds stay light.
+                            if pts.len() < 50 {
+                                Circle::new(p, 4, color.filled())
+                            } else {
+                                Circle::new(p, 1, color.mix(0.5).filled())
+                            }
+                        }))
+                        .map_err(|e| err(e.to_string()))?
+                    } else {
+                        c.draw_series(LineSeries::new(
+                            stride(&pts, MAX_LINE),
+                            color.stroke_width(1),
+                        ))
+                        .map_err(|e| err(e.to_string()))?
+                    };
+                    if !s.name.is_empty() {
+                        anno.label(s.name.clone()).legend(move |(x, y)| {
+                            PathElement::new(vec![(x, y), (x + 16, y)], color.stroke_width(2))
+                        });
+                    }
+                }
+                if series.iter().any(|s| !s.name.is_empty()) {
+                    c.configure_series_labels()
+                        .label_font(("sans-serif", 11))
+                        .background_style(WHITE.mix(0.85))
+                        .border_style(RGBColor(180, 180, 180))
+                        .position(SeriesLabelPosition::UpperRight)
+                        .draw()
+                        .map_err(|e| err(e.to_string()))?;
+                }
+            }};
+        }
+        if log_y {
+            let c = b
+                .build_cartesian_2d(xr, (10f64.powf(yr.start)..10f64.powf(yr.end)).log_scale())
+                .map_err(|e| err(e.to_string()))?;
+            draw!(c, |y: f64| y);
+        } else {
+            let c = b
+                .build_cartesian_2d(xr, yr)
+                .map_err(|e| err(e.to_string()))?;
+            draw!(c, |y: f64| y);
+        }
+        root.present().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(svg)
+}
+
+/// A tick label: three significant digits, exponent form for very small or large values.
+fn tick(x: f64) -> String {
+    let a = x.abs();
+    if a == 0.0 {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&a) {
+        format!("{x:.1e}")
+    } else {
+        let d = (2 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let s = format!("{x:.d$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    }
+}
+
+/// Viridis-like colour for t in [0, 1].
+fn colormap(t: f64) -> RGBColor {
+    const STOPS: [(f64, f64, f64); 5] = [
+        (68.0, 1.0, 84.0),
+        (59.0, 82.0, 139.0),
+        (33.0, 145.0, 140.0),
+        (94.0, 201.0, 98.0),
+        (253.0, 231.0, 37.0),
+    ];
+    let t = t.clamp(0.0, 1.0) * 4.0;
+    let i = (t.floor() as usize).min(3);
+    let f = t - i as f64;
+    let (a, b) = (STOPS[i], STOPS[i + 1]);
+    let mix = |x: f64, y: f64| (x + (y - x) * f).round() as u8;
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+/// μ over the (Δv, dΔv/dt) plane as a heat map with a colour bar.
+pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
+    register_font();
+    let title = "Network μ over (Δv, dΔv/dt)";
+    let err = plot_err(title);
+    let i0 = &model.file.inputs[0];
+    let i1 = &model.file.inputs[1];
+    let (nx, ny) = (80, 50);
+    let xs = |i: usize| i0.domain_max * i as f64 / nx as f64;
+    let ys = |j: usize| i1.domain_min + (i1.domain_max - i1.domain_min) * j as f64 / ny as f64;
+    let mut grid = vec![0.0; nx * ny];
+    for j in 0..ny {
+        for i in 0..nx {
+            grid[j * nx + i] = model.mu(0.5 * (xs(i) + xs(i + 1)), 0.5 * (ys(j) + ys(j + 1)));
+        }
+    }
+    let lo = grid.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = grid.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let span = (hi - lo).max(1e-12);
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(e.to_string()))?;
+        let (left, right) = root.split_horizontally(SIZE.0 - 90);
+        let mut c = ChartBuilder::on(&left)
+            .caption(title, ("sans-serif", 15))
+            .margin(8)
+            .x_label_area_size(38)
+            .y_label_area_size(62)
+            .build_cartesian_2d(0.0..i0.domain_max, i1.domain_min..i1.domain_max)
+            .map_err(|e| err(e.to_string()))?;
+        c.configure_mesh()
+            .x_desc("Δv (m/s)")
+            .y_desc("dΔv/dt (m/s²)")
+            .label_style(("sans-serif", 11))
+            .axis_desc_style(("sans-serif", 12))
+            .disable_mesh()
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        c.draw_series((0..ny).flat_map(|j| {
+            let grid = &grid;
+            (0..nx).map(move |i| {
+                Rectangle::new(
+                    [(xs(i), ys(j)), (xs(i + 1), ys(j + 1))],
+                    colormap((grid[j * nx + i] - lo) / span).filled(),
+                )
+            })
+        }))
+        .map_err(|e| err(e.to_string()))?;
+        let mut bar = ChartBuilder::on(&right)
+            .margin_top(40)
+            .margin_bottom(46)
+            .margin_right(8)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..1.0, lo..hi)
+            .map_err(|e| err(e.to_string()))?;
+        bar.configure_mesh()
+            .disable_x_axis()
+            .disable_mesh()
+            .y_desc("μ")
+            .label_style(("sans-serif", 10))
+            .draw()
+            .map_err(|e| err(e.to_string()))?;
+        bar.draw_series((0..100).map(|k| {
+            let (a, b) = (
+                lo + span * k as f64 / 100.0,
+                lo + span * (k + 1) as f64 / 100.0,
+            );
+            Rectangle::new([(0.0, a), (1.0, b)], colormap(k as f64 / 99.0).filled())
+        }))
+        .map_err(|e| err(e.to_string()))?;
+        root.present().map_err(|e| err(e.to_string()))?;
+    }
+    Ok(svg)
+}

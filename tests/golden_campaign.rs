@@ -1,0 +1,78 @@
+//! `railgrip run` on the bundled archive gives the committed bytes: `summary.csv` (but for the
+//! wall-clock column `duration_s`), the C headers of both models and the Polach fits.
+//! A refactoring that changes any of them fails here; `UPDATE_GOLDEN=1 cargo test --test
+//! golden_campaign` refreshes the files after an intended change (say why in the commit).
+
+use std::path::Path;
+use std::process::Command;
+
+const GOLDEN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/golden_campaign");
+
+/// summary.csv with every `duration_s` cell blanked (wall time differs run to run).
+fn without_durations(csv: &str) -> String {
+    let mut lines = csv.lines();
+    let header = lines.next().expect("a header line");
+    let col = header
+        .split(',')
+        .position(|c| c == "duration_s")
+        .expect("a duration_s column");
+    let mut out = format!("{header}\n");
+    for l in lines {
+        // Quoted cells (errors, warnings) may hold commas; the columns before duration_s do
+        // not on the bundled archive (no failed runs), which the golden file pins.
+        let mut cells: Vec<&str> = l.splitn(col + 2, ',').collect();
+        cells[col] = "";
+        out.push_str(&cells.join(","));
+        out.push('\n');
+    }
+    out
+}
+
+fn check(name: &str, got: &str) {
+    let path = Path::new(GOLDEN).join(name);
+    if std::env::var("UPDATE_GOLDEN").as_deref() == Ok("1") {
+        std::fs::create_dir_all(GOLDEN).unwrap();
+        std::fs::write(&path, got).unwrap();
+        return;
+    }
+    let want = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (UPDATE_GOLDEN=1 writes it)", path.display()));
+    if got != want {
+        let line = got
+            .lines()
+            .zip(want.lines())
+            .position(|(a, b)| a != b)
+            .unwrap_or(got.lines().count().min(want.lines().count()));
+        panic!(
+            "{name} differs from {} at line {}:\n got: {:?}\nwant: {:?}",
+            path.display(),
+            line + 1,
+            got.lines().nth(line),
+            want.lines().nth(line)
+        );
+    }
+}
+
+#[test]
+fn run_on_the_bundled_archive_gives_the_golden_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["run", "--out", "out", "--jobs", "2"])
+        .env("SOURCE_DATE_EPOCH", "1700000000")
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let out = dir.path().join("out");
+    let read = |p: &str| std::fs::read_to_string(out.join(p)).unwrap();
+    check("summary.csv", &without_durations(&read("summary.csv")));
+    for f in ["mlp.h", "mlp.polach.h", "mlp.polach-fits.json"] {
+        check(f, &read(&format!("models/{f}")));
+    }
+}
