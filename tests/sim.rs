@@ -174,7 +174,7 @@ fn truth_obeys_the_torque_balance_the_estimator_uses() {
     let out = sim::simulate(&sc, None).unwrap();
     let v = &sc.vehicle;
     let tr = &out.truth;
-    let dt = 1.0 / sc.output_rate_hz;
+    let dt = 1.0 / sc.run.output_rate_hz;
     let mut worst: f64 = 0.0;
     for a in 0..4 {
         for i in 1..tr.time_s.len() - 1 {
@@ -384,7 +384,7 @@ fn bundled_scenes_load() {
 #[test]
 fn default_temperature_law_follows_seed_004_trend() {
     let sc = scene("");
-    let k = |t: f64| sc.temperature_law.eval(t).unwrap().0 / sc.polach.k_a;
+    let k = |t: f64| sc.adhesion.temperature_law.eval(t).unwrap().0 / sc.adhesion.polach.k_a;
     assert!((k(20.0) - 1.0).abs() < 1e-12);
     assert!(
         (k(0.0) - 1.225).abs() < 1e-12

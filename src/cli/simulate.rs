@@ -47,7 +47,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         args.seed.unwrap_or(scene.seed),
         out.duration_s,
         out.steps,
-        scene.step_s * 1e3,
+        scene.run.step_s * 1e3,
         elapsed,
         out.duration_s / elapsed
     );

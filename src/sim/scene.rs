@@ -1,14 +1,18 @@
-//! Scene files (`pipelines/scenes/*.toml`): raw serde types, checked into a [`Scene`].
+//! Scene files (`pipelines/scenes/*.toml`): raw serde types, checked into a [`Scene`] of
+//! section structs, one per TOML section (run, vehicle, brake, adhesion, contact, wsp, sensors,
+//! resistance), each with its key table and check side by side.
 //!
-//! Every key is documented in README.md ("Scene file"); a rejected value is reported as
-//! `file: key = value: allowed range (default)`, like the pipeline file.
+//! Every key is documented in README.md ("Scene file", rendered from the key tables; a test
+//! keeps them equal); a rejected value is reported as `file: key = value: allowed range
+//! (default)`, like the pipeline file.
 
 use std::fmt;
 use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::config::{self, ConfigError, Pipeline, Vehicle};
+use crate::config::rule::{closed, Checker, Default, Key, Range};
+use crate::config::{self, ConfigError, ContactConfig, Pipeline, Vehicle};
 use crate::contact::polach::{PolachParams, TemperatureLaw};
 
 /// An effect a scene can ask for. Each is its own stage of the step loop and costs nothing
@@ -242,6 +246,65 @@ pub struct Scene {
     pub seed: u64,
     pub effects: Effects,
     pub vehicle: Vehicle,
+    pub run: RunSection,
+    pub brake: BrakeSection,
+    pub adhesion: AdhesionSection,
+    /// Wheel–rail contact material and profile radii (the pipeline's `[contact]` keys).
+    pub contact: ContactConfig,
+    pub wsp: WspSection,
+    pub sensors: SensorsSection,
+    pub resistance: ResistanceSection,
+}
+
+const fn text(
+    name: &'static str,
+    unit: &'static str,
+    range: &'static str,
+    default: &'static str,
+    meaning: &'static str,
+) -> Key {
+    Key {
+        name,
+        unit,
+        range: Range::Text(range),
+        default: Default::Text(default),
+        meaning,
+    }
+}
+
+// ---------------------------------------------------------------------------------- top level
+
+const NAME: Key = text("name", "", "text", "\"scene\"", "run name in the metadata");
+const SEED: Key = text(
+    "seed",
+    "",
+    "0..2⁶⁴−1",
+    "1",
+    "sensor noise (`railgrip simulate --seed` overrides)",
+);
+const EFFECTS: Key = text(
+    "effects",
+    "",
+    "names from the effects table",
+    "[] (none)",
+    "the effects the step loop evaluates",
+);
+const VEHICLE: Key = text(
+    "vehicle.pipeline",
+    "",
+    "a pipeline file (relative to the scene) or `\"default\"`",
+    "embedded UIC-Z1",
+    "the vehicle; or give the pipeline's `[vehicle]` keys inline instead",
+);
+
+/// The keys of the top level and `[vehicle]`, in README order.
+pub const TOP_KEYS: &[&Key] = &[&NAME, &SEED, &EFFECTS, &VEHICLE];
+
+// ---------------------------------------------------------------------------------- [run]
+
+/// `[run]`: the braking run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunSection {
     /// Initial speed as written in the scene, km/h (reported in the run metadata).
     pub initial_speed_kmh: f64,
     /// Initial speed, m/s.
@@ -258,10 +321,196 @@ pub struct Scene {
     pub gradient_permille: f64,
     pub condition: String,
     pub direction: String,
+}
+
+const INITIAL_SPEED: Key = Key::num(
+    "run.initial_speed_kmh",
+    "km/h",
+    closed(1.0, 400.0),
+    120.0,
+    "start of the braking",
+);
+const STOP_SPEED: Key = Key::num(
+    "run.stop_speed_kmh",
+    "km/h",
+    closed(0.5, 400.0),
+    3.0,
+    "end of the braking, below the initial speed",
+);
+const MAX_DURATION: Key = Key::num(
+    "run.max_duration_s",
+    "s",
+    closed(0.1, 36_000.0),
+    300.0,
+    "longest simulated time",
+);
+const STEP: Key = Key::num(
+    "run.step_ms",
+    "ms",
+    closed(0.01, 1.0),
+    0.1,
+    "integration step, at most half the output period",
+);
+const OUTPUT_RATE: Key = Key::num(
+    "run.output_rate_hz",
+    "Hz",
+    closed(10.0, 10_000.0),
+    417.0,
+    "CSV and truth rate",
+);
+const AMBIENT: Key = Key::num(
+    "run.ambient_temperature_c",
+    "°C",
+    closed(-60.0, 60.0),
+    20.0,
+    "for `temperature` and the metadata",
+);
+const GRADIENT: Key = Key::num(
+    "run.gradient_permille",
+    "‰",
+    closed(-60.0, 60.0),
+    0.0,
+    "for `gradient` (positive uphill)",
+);
+const CONDITION: Key = text("run.condition", "", "text", "\"soap\"", "metadata");
+const DIRECTION: Key = text("run.direction", "", "text", "\"forward\"", "metadata");
+
+/// The keys of `[run]`, in README order.
+pub const RUN_KEYS: &[&Key] = &[
+    &INITIAL_SPEED,
+    &STOP_SPEED,
+    &MAX_DURATION,
+    &STEP,
+    &OUTPUT_RATE,
+    &AMBIENT,
+    &GRADIENT,
+    &CONDITION,
+    &DIRECTION,
+];
+
+impl RunSection {
+    fn check(c: &Checker, r: &raw::Run) -> Result<RunSection, ConfigError> {
+        let initial_kmh = c.value(&INITIAL_SPEED, r.initial_speed_kmh)?;
+        let stop_kmh = c.value(&STOP_SPEED, r.stop_speed_kmh)?;
+        if stop_kmh >= initial_kmh {
+            return Err(c.invalid(
+                STOP_SPEED.name,
+                stop_kmh,
+                format!("must be below {} = {initial_kmh}", INITIAL_SPEED.name),
+            ));
+        }
+        let step_ms = c.value(&STEP, r.step_ms)?;
+        let output_rate_hz = c.value(&OUTPUT_RATE, r.output_rate_hz)?;
+        if step_ms * 1e-3 > 0.5 / output_rate_hz {
+            return Err(c.invalid(STEP.name, step_ms, "must be at most half the output period"));
+        }
+        Ok(RunSection {
+            initial_speed_kmh: initial_kmh,
+            initial_speed_mps: initial_kmh / 3.6,
+            stop_speed_mps: stop_kmh / 3.6,
+            max_duration_s: c.value(&MAX_DURATION, r.max_duration_s)?,
+            step_s: step_ms * 1e-3,
+            output_rate_hz,
+            ambient_temperature_c: c.value(&AMBIENT, r.ambient_temperature_c)?,
+            gradient_permille: c.value(&GRADIENT, r.gradient_permille)?,
+            condition: r.condition.clone().unwrap_or_else(|| "soap".into()),
+            direction: r.direction.clone().unwrap_or_else(|| "forward".into()),
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------- [brake]
+
+/// `[brake]`: the demanded cylinder pressures and the cylinders.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BrakeSection {
     /// Brake-cylinder pressure demand per axle (t s, p bar), piecewise linear, held after the
     /// last point.
     pub demand_bar: [Vec<(f64, f64)>; 4],
     pub cylinder_time_constant_s: f64,
+}
+
+const DEMAND: Key = text(
+    "brake.demand_bar",
+    "[s, bar]",
+    "[t, p] points, t increasing, 0 ≤ p ≤ 20",
+    "[[0, 0], [1, 0], [2.5, 3.8]]",
+    "cylinder-pressure demand of every axle, piecewise linear, held after the last point",
+);
+const DEMAND_PER_AXLE: Key = text(
+    "brake.demand_bar_per_axle",
+    "4 × [s, bar]",
+    "four such profiles",
+    "–",
+    "the demand per axle instead",
+);
+const CYLINDER: Key = Key::num(
+    "brake.cylinder_time_constant_s",
+    "s",
+    closed(0.005, 5.0),
+    0.15,
+    "first-order cylinder",
+);
+
+/// The keys of `[brake]`, in README order.
+pub const BRAKE_KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER];
+
+impl BrakeSection {
+    fn check(c: &Checker, b: &raw::Brake) -> Result<BrakeSection, ConfigError> {
+        let profile = |key: &str, d: &Vec<[f64; 2]>| -> Result<Vec<(f64, f64)>, ConfigError> {
+            if d.is_empty()
+                || d.windows(2).any(|w| w[1][0] <= w[0][0])
+                || d.iter()
+                    .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
+            {
+                return Err(c.invalid(
+                    key,
+                    format!("{d:?}"),
+                    "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
+                ));
+            }
+            Ok(d.iter().map(|p| (p[0], p[1])).collect())
+        };
+        let demand_bar: [Vec<(f64, f64)>; 4] = match (&b.demand_bar, &b.demand_bar_per_axle) {
+            (Some(_), Some(_)) => {
+                return Err(c.invalid(
+                    DEMAND_PER_AXLE.name,
+                    format!("given with {}", DEMAND.name),
+                    "give one of the two",
+                ))
+            }
+            (_, Some(per)) => {
+                if per.len() != 4 {
+                    return Err(c.invalid(
+                        DEMAND_PER_AXLE.name,
+                        format!("{} profiles", per.len()),
+                        "must list exactly 4 profiles, axles 1..4",
+                    ));
+                }
+                let mut out: [Vec<(f64, f64)>; 4] = std::array::from_fn(|_| Vec::new());
+                for (i, d) in per.iter().enumerate() {
+                    out[i] = profile(&format!("{}[{i}]", DEMAND_PER_AXLE.name), d)?;
+                }
+                out
+            }
+            (Some(d), None) => {
+                let one = profile(DEMAND.name, d)?;
+                [one.clone(), one.clone(), one.clone(), one]
+            }
+            (None, None) => std::array::from_fn(|_| vec![(0.0, 0.0), (1.0, 0.0), (2.5, 3.8)]),
+        };
+        Ok(BrakeSection {
+            demand_bar,
+            cylinder_time_constant_s: c.value(&CYLINDER, b.cylinder_time_constant_s)?,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------- [adhesion]
+
+/// `[adhesion]`: the truth law and its effects' parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AdhesionSection {
     pub law: AdhesionLaw,
     pub polach: PolachParams,
     /// μ0 scales by 1 + c (v_ref − v)/v_ref with the falling_friction effect.
@@ -273,193 +522,151 @@ pub struct Scene {
     pub hysteresis_time_constant_s: f64,
     pub cleaning_per_axle: f64,
     pub temperature_law: TemperatureLaw,
-    /// Wheel–rail contact material and profile radii (the pipeline's `[contact]` keys).
-    pub contact: crate::config::ContactConfig,
-    pub dump_slip_mps: f64,
-    pub reapply_slip_mps: f64,
-    pub decel_limit_mps2: f64,
-    /// Relative dump threshold: the WSP dumps above max(dump_slip_mps, ratio·v).
-    pub dump_slip_ratio: f64,
-    /// Time from detecting a slide to venting the cylinder, s.
-    pub reaction_delay_s: f64,
-    /// Longest hold before re-applying, s.
-    pub hold_max_s: f64,
-    pub radar_noise_mps: f64,
-    pub radar_spike_rate_hz: f64,
-    pub radar_spike_mps: f64,
-    pub tacho_pulses_per_rev: f64,
-    pub tacho_window_s: f64,
-    pub pressure_noise_bar: f64,
-    pub radar_rate_hz: f64,
-    pub tacho_rate_hz: f64,
-    pub pressure_rate_hz: f64,
-    pub davis_a_n: f64,
-    pub davis_b_n_per_mps: f64,
-    pub davis_c_n_per_mps2: f64,
 }
 
-impl Scene {
-    /// Reads and checks a scene file.
-    pub fn load(path: &Path) -> Result<Scene, ConfigError> {
-        let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-            file: file.clone(),
-            source,
-        })?;
-        Self::from_toml(&text, &file, path.parent())
-    }
+const LAW: Key = Key {
+    name: "adhesion.law",
+    unit: "",
+    range: Range::Choice(&["polach", "model"]),
+    default: Default::Text("\"polach\""),
+    meaning: "Polach's law with the listed effects, or `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; falling_friction, hysteresis and cleaning may then not be listed, `temperature` only for a Polach model with k(T)",
+};
+const MODEL: Key = text(
+    "adhesion.model",
+    "",
+    "a model file",
+    "–",
+    "with `law = \"model\"`",
+);
+const MU0: Key = Key::num(
+    "adhesion.mu0",
+    "",
+    closed(0.005, 1.5),
+    0.085,
+    "Polach μ0 of soap-contaminated rail [assumed, tuned to seed 002 Fig. 7–8]",
+);
+const A_RATIO: Key = Key::num(
+    "adhesion.a_ratio",
+    "",
+    closed(0.01, 1.0),
+    0.4,
+    "Polach A = μ∞/μ0 [assumed]",
+);
+const B: Key = Key::num(
+    "adhesion.b_s_per_m",
+    "s/m",
+    closed(0.0, 10.0),
+    0.3,
+    "Polach B, friction falling with slip velocity [assumed]",
+);
+const K_A: Key = Key::num(
+    "adhesion.k_a",
+    "",
+    closed(1e-4, 1.0),
+    0.1,
+    "Polach k_A at +20 °C [assumed]",
+);
+const K_S: Key = Key::num(
+    "adhesion.k_s",
+    "",
+    closed(1e-5, 1.0),
+    0.05,
+    "Polach k_S at +20 °C, at most k_A [assumed]",
+);
+const SPEED_COEFFICIENT: Key = Key::num(
+    "adhesion.speed_coefficient",
+    "",
+    closed(-2.0, 2.0),
+    0.25,
+    "`falling_friction`: μ0 × (1 + c (v_ref − v)/v_ref)",
+);
+const REFERENCE_SPEED: Key = Key::num(
+    "adhesion.reference_speed_kmh",
+    "km/h",
+    closed(1.0, 400.0),
+    120.0,
+    "v_ref of the speed dependence",
+);
+const HYSTERESIS_DEPTH: Key = Key::num(
+    "adhesion.hysteresis_depth",
+    "",
+    closed(0.0, 0.9),
+    0.3,
+    "`hysteresis`: recovery branch lower by this fraction",
+);
+const HYSTERESIS_DDV: Key = Key::num(
+    "adhesion.hysteresis_ddv_mps2",
+    "m/s²",
+    closed(1e-3, 100.0),
+    0.5,
+    "slip rate scale of the branch blend",
+);
+const HYSTERESIS_TAU: Key = Key::num(
+    "adhesion.hysteresis_time_constant_s",
+    "s",
+    closed(1e-3, 10.0),
+    0.02,
+    "lag of the branch factor (and of a model's slip-rate input)",
+);
+const CLEANING: Key = Key::num(
+    "adhesion.cleaning_per_axle",
+    "",
+    closed(0.0, 2.0),
+    0.05,
+    "`cleaning`: axle i's μ × (1 + this·(i − 1))",
+);
+const TEMPERATURE_K_A: Key = text(
+    "adhesion.temperature_k_a",
+    "",
+    "coefficients, ascending powers of T in °C",
+    "k20·(1 + 0.015u − 1.875e-4u²), u = 20 − T",
+    "`temperature`: k_A(T) [assumed shape of seed 004's trend]",
+);
+const TEMPERATURE_K_S: Key = text(
+    "adhesion.temperature_k_s",
+    "",
+    "coefficients, ascending powers of T in °C",
+    "the same shape from k_s",
+    "`temperature`: k_S(T) [assumed]",
+);
+const TEMPERATURE_RANGE: Key = text(
+    "adhesion.temperature_range_c",
+    "°C",
+    "[lo, hi]",
+    "[−40, 20]",
+    "where the k(T) polynomials hold",
+);
 
-    /// Parses and checks scene TOML; `dir` resolves `vehicle.pipeline` paths.
-    pub fn from_toml(text: &str, file: &str, dir: Option<&Path>) -> Result<Scene, ConfigError> {
-        let r: raw::Scene = toml::from_str(text).map_err(|e| ConfigError::Syntax {
-            file: file.to_string(),
-            message: e.to_string().trim_end().to_string(),
-        })?;
-        let c = config::Checker { file };
-        let vehicle = match r.vehicle {
-            None => Pipeline::default_uic_z1().vehicle,
-            Some(mut t) => match t.remove("pipeline") {
-                Some(_) if !t.is_empty() => {
-                    return Err(c.invalid(
-                        "vehicle",
-                        "a pipeline and inline keys",
-                        "give either pipeline = \"file\" or the vehicle keys, not both",
-                    ))
-                }
-                Some(toml::Value::String(p)) if p == "default" => {
-                    Pipeline::default_uic_z1().vehicle
-                }
-                Some(toml::Value::String(p)) => {
-                    let path = dir.map(|d| d.join(&p)).unwrap_or_else(|| p.clone().into());
-                    Pipeline::load(Some(&path))?.vehicle
-                }
-                Some(other) => {
-                    return Err(c.invalid(
-                        "vehicle.pipeline",
-                        other,
-                        "must be a file path (string) or \"default\"",
-                    ))
-                }
-                None => {
-                    let raw: config::raw::Vehicle =
-                        t.try_into()
-                            .map_err(|e: toml::de::Error| ConfigError::Syntax {
-                                file: file.to_string(),
-                                message: format!("[vehicle]: {}", e.to_string().trim_end()),
-                            })?;
-                    config::check_vehicle(raw, file)?
-                }
-            },
-        };
-        let mut effects = Effects::none();
-        for name in &r.effects {
-            match Effect::ALL.iter().find(|e| e.name() == name) {
-                Some(e) => effects = effects.with(*e),
-                None => {
-                    return Err(c.invalid(
-                        "effects",
-                        format!("{name:?}"),
-                        format!(
-                            "unknown effect; the effects are {}",
-                            Effect::ALL
-                                .iter()
-                                .map(|e| e.name())
-                                .collect::<Vec<_>>()
-                                .join(", ")
-                        ),
-                    ))
-                }
-            }
-        }
-        let run = &r.run;
-        let initial_kmh = c.num(
-            "run.initial_speed_kmh",
-            run.initial_speed_kmh,
-            1.0,
-            400.0,
-            Some(120.0),
-            "km/h",
-        )?;
-        let stop_kmh = c.num(
-            "run.stop_speed_kmh",
-            run.stop_speed_kmh,
-            0.5,
-            400.0,
-            Some(3.0),
-            "km/h",
-        )?;
-        if stop_kmh >= initial_kmh {
-            return Err(c.invalid(
-                "run.stop_speed_kmh",
-                stop_kmh,
-                format!("must be below run.initial_speed_kmh = {initial_kmh}"),
-            ));
-        }
-        let step_ms = c.num("run.step_ms", run.step_ms, 0.01, 1.0, Some(0.1), "ms")?;
-        let output_rate_hz = c.num(
-            "run.output_rate_hz",
-            run.output_rate_hz,
-            10.0,
-            10_000.0,
-            Some(417.0),
-            "Hz",
-        )?;
-        if step_ms * 1e-3 > 0.5 / output_rate_hz {
-            return Err(c.invalid(
-                "run.step_ms",
-                step_ms,
-                "must be at most half the output period",
-            ));
-        }
-        let check_profile =
-            |key: &str, d: &Vec<[f64; 2]>| -> Result<Vec<(f64, f64)>, ConfigError> {
-                if d.is_empty()
-                    || d.windows(2).any(|w| w[1][0] <= w[0][0])
-                    || d.iter()
-                        .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
-                {
-                    return Err(c.invalid(
-                    key,
-                    format!("{d:?}"),
-                    "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
-                ));
-                }
-                Ok(d.iter().map(|p| (p[0], p[1])).collect())
-            };
-        let demand: [Vec<(f64, f64)>; 4] = match (&r.brake.demand_bar, &r.brake.demand_bar_per_axle)
-        {
-            (Some(_), Some(_)) => {
-                return Err(c.invalid(
-                    "brake.demand_bar_per_axle",
-                    "given with brake.demand_bar",
-                    "give one of the two",
-                ))
-            }
-            (_, Some(per)) => {
-                if per.len() != 4 {
-                    return Err(c.invalid(
-                        "brake.demand_bar_per_axle",
-                        format!("{} profiles", per.len()),
-                        "must list exactly 4 profiles, axles 1..4",
-                    ));
-                }
-                let mut out: [Vec<(f64, f64)>; 4] = Default::default();
-                for (i, d) in per.iter().enumerate() {
-                    out[i] = check_profile(&format!("brake.demand_bar_per_axle[{i}]"), d)?;
-                }
-                out
-            }
-            (Some(d), None) => {
-                let one = check_profile("brake.demand_bar", d)?;
-                [one.clone(), one.clone(), one.clone(), one]
-            }
-            (None, None) => std::array::from_fn(|_| vec![(0.0, 0.0), (1.0, 0.0), (2.5, 3.8)]),
-        };
-        let a = &r.adhesion;
+/// The keys of `[adhesion]`, in README order.
+pub const ADHESION_KEYS: &[&Key] = &[
+    &LAW,
+    &MODEL,
+    &MU0,
+    &A_RATIO,
+    &B,
+    &K_A,
+    &K_S,
+    &SPEED_COEFFICIENT,
+    &REFERENCE_SPEED,
+    &HYSTERESIS_DEPTH,
+    &HYSTERESIS_DDV,
+    &HYSTERESIS_TAU,
+    &CLEANING,
+    &TEMPERATURE_K_A,
+    &TEMPERATURE_K_S,
+    &TEMPERATURE_RANGE,
+];
+
+impl AdhesionSection {
+    fn check(
+        c: &Checker,
+        a: &raw::Adhesion,
+        dir: Option<&Path>,
+    ) -> Result<AdhesionSection, ConfigError> {
         let law = match (a.law.as_deref(), &a.model) {
             (None | Some("polach"), None) => AdhesionLaw::Polach,
             (Some("model"), Some(m)) => {
-                let p = std::path::Path::new(m);
+                let p = Path::new(m);
                 AdhesionLaw::Model(match dir {
                     Some(d) if p.is_relative() => d.join(p),
                     _ => p.to_path_buf(),
@@ -467,34 +674,27 @@ impl Scene {
             }
             (Some("model"), None) => {
                 return Err(c.invalid(
-                    "adhesion.model",
+                    MODEL.name,
                     "missing",
                     "law = \"model\" needs model = \"file.json\"",
                 ))
             }
             (Some(other), _) if other != "polach" => {
                 return Err(c.invalid(
-                    "adhesion.law",
+                    LAW.name,
                     format!("{other:?}"),
                     "must be \"polach\" or \"model\" (default \"polach\")",
                 ))
             }
-            _ => return Err(c.invalid("adhesion.model", "given", "only with law = \"model\"")),
+            _ => return Err(c.invalid(MODEL.name, "given", "only with law = \"model\"")),
         };
         // Soap-contaminated rail (seed 002 Fig. 7–8: μ 0.02–0.10, peak at ~1 m/s slip).
         let polach = PolachParams {
-            mu0: c.num("adhesion.mu0", a.mu0, 0.005, 1.5, Some(0.085), "")?,
-            a_ratio: c.num("adhesion.a_ratio", a.a_ratio, 0.01, 1.0, Some(0.4), "")?,
-            b_s_per_m: c.num(
-                "adhesion.b_s_per_m",
-                a.b_s_per_m,
-                0.0,
-                10.0,
-                Some(0.3),
-                "s/m",
-            )?,
-            k_a: c.num("adhesion.k_a", a.k_a, 1e-4, 1.0, Some(0.1), "")?,
-            k_s: c.num("adhesion.k_s", a.k_s, 1e-5, 1.0, Some(0.05), "")?,
+            mu0: c.value(&MU0, a.mu0)?,
+            a_ratio: c.value(&A_RATIO, a.a_ratio)?,
+            b_s_per_m: c.value(&B, a.b_s_per_m)?,
+            k_a: c.value(&K_A, a.k_a)?,
+            k_s: c.value(&K_S, a.k_s)?,
         };
         polach
             .check()
@@ -513,281 +713,390 @@ impl Scene {
             (t_lo, t_hi),
         )
         .map_err(|e| c.invalid("adhesion.temperature_*", "", e.to_string()))?;
-        let ambient = c.num(
-            "run.ambient_temperature_c",
-            run.ambient_temperature_c,
-            -60.0,
-            60.0,
-            Some(20.0),
-            "°C",
-        )?;
-        // With a learned model the model's own temperature law is checked when it is loaded.
-        if effects.has(Effect::Temperature) && !matches!(law, AdhesionLaw::Model(_)) {
-            temperature_law.eval(ambient).map_err(|e| {
-                c.invalid(
-                    "run.ambient_temperature_c",
-                    ambient,
-                    format!("with the temperature effect: {e}"),
-                )
-            })?;
-        }
-        let reapply = c.num(
-            "wsp.reapply_slip_mps",
-            r.wsp.reapply_slip_mps,
-            0.01,
-            10.0,
-            Some(0.3),
-            "m/s",
-        )?;
-        let dump = c.num(
-            "wsp.dump_slip_mps",
-            r.wsp.dump_slip_mps,
-            0.05,
-            20.0,
-            Some(1.0),
-            "m/s",
-        )?;
+        Ok(AdhesionSection {
+            law,
+            polach,
+            speed_coefficient: c.value(&SPEED_COEFFICIENT, a.speed_coefficient)?,
+            reference_speed_mps: c.value(&REFERENCE_SPEED, a.reference_speed_kmh)? / 3.6,
+            hysteresis_depth: c.value(&HYSTERESIS_DEPTH, a.hysteresis_depth)?,
+            hysteresis_ddv_mps2: c.value(&HYSTERESIS_DDV, a.hysteresis_ddv_mps2)?,
+            hysteresis_time_constant_s: c.value(&HYSTERESIS_TAU, a.hysteresis_time_constant_s)?,
+            cleaning_per_axle: c.value(&CLEANING, a.cleaning_per_axle)?,
+            temperature_law,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------- [wsp]
+
+/// `[wsp]`: wheel-slide protection thresholds (railgrip's [assumed] values; `sim::wsp`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct WspSection {
+    pub dump_slip_mps: f64,
+    pub reapply_slip_mps: f64,
+    pub decel_limit_mps2: f64,
+    /// Relative dump threshold: the WSP dumps above max(dump_slip_mps, ratio·v).
+    pub dump_slip_ratio: f64,
+    /// Time from detecting a slide to venting the cylinder, s.
+    pub reaction_delay_s: f64,
+    /// Longest hold before re-applying, s.
+    pub hold_max_s: f64,
+}
+
+const DUMP_SLIP: Key = Key::num(
+    "wsp.dump_slip_mps",
+    "m/s",
+    closed(0.05, 20.0),
+    1.0,
+    "dump above this slip [assumed]",
+);
+const DUMP_RATIO: Key = Key::num(
+    "wsp.dump_slip_ratio",
+    "",
+    closed(0.0, 1.0),
+    0.1,
+    "… or above this fraction of v [assumed]",
+);
+const REAPPLY: Key = Key::num(
+    "wsp.reapply_slip_mps",
+    "m/s",
+    closed(0.01, 10.0),
+    0.3,
+    "re-apply below this slip, below the dump slip [assumed]",
+);
+const DECEL_LIMIT: Key = Key::num(
+    "wsp.decel_limit_mps2",
+    "m/s²",
+    closed(0.1, 100.0),
+    4.0,
+    "detect when the wheel decelerates this much faster than the vehicle [assumed]",
+);
+const DELAY: Key = Key::num(
+    "wsp.reaction_delay_ms",
+    "ms",
+    closed(0.0, 1000.0),
+    80.0,
+    "from detection to venting [assumed]",
+);
+const HOLD_MAX: Key = Key::num(
+    "wsp.hold_max_s",
+    "s",
+    closed(0.01, 10.0),
+    0.4,
+    "longest hold before re-applying [assumed]",
+);
+
+/// The keys of `[wsp]`, in README order.
+pub const WSP_KEYS: &[&Key] = &[
+    &DUMP_SLIP,
+    &DUMP_RATIO,
+    &REAPPLY,
+    &DECEL_LIMIT,
+    &DELAY,
+    &HOLD_MAX,
+];
+
+impl WspSection {
+    fn check(c: &Checker, w: &raw::Wsp) -> Result<WspSection, ConfigError> {
+        let reapply = c.value(&REAPPLY, w.reapply_slip_mps)?;
+        let dump = c.value(&DUMP_SLIP, w.dump_slip_mps)?;
         if reapply >= dump {
             return Err(c.invalid(
-                "wsp.reapply_slip_mps",
+                REAPPLY.name,
                 reapply,
-                format!("must be below wsp.dump_slip_mps = {dump}"),
+                format!("must be below {} = {dump}", DUMP_SLIP.name),
             ));
         }
-        let s = &r.sensors;
+        Ok(WspSection {
+            dump_slip_mps: dump,
+            reapply_slip_mps: reapply,
+            decel_limit_mps2: c.value(&DECEL_LIMIT, w.decel_limit_mps2)?,
+            dump_slip_ratio: c.value(&DUMP_RATIO, w.dump_slip_ratio)?,
+            reaction_delay_s: c.value(&DELAY, w.reaction_delay_ms)? * 1e-3,
+            hold_max_s: c.value(&HOLD_MAX, w.hold_max_s)?,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------- [sensors]
+
+/// `[sensors]`: what the logger sees of the truth.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorsSection {
+    pub radar_noise_mps: f64,
+    pub radar_spike_rate_hz: f64,
+    pub radar_spike_mps: f64,
+    pub tacho_pulses_per_rev: f64,
+    pub tacho_window_s: f64,
+    pub pressure_noise_bar: f64,
+    pub radar_rate_hz: f64,
+    pub tacho_rate_hz: f64,
+    pub pressure_rate_hz: f64,
+}
+
+const RADAR_NOISE: Key = Key::num(
+    "sensors.radar_noise_mps",
+    "m/s",
+    closed(0.0, 10.0),
+    0.05,
+    "`radar_noise`: standard deviation",
+);
+const SPIKE_RATE: Key = Key::num(
+    "sensors.radar_spike_rate_hz",
+    "Hz",
+    closed(0.0, 100.0),
+    0.3,
+    "`radar_spikes`: mean rate",
+);
+const SPIKE: Key = Key::num(
+    "sensors.radar_spike_mps",
+    "m/s",
+    closed(0.0, 100.0),
+    3.0,
+    "`radar_spikes`: amplitude (× 0.5–1.5, either sign)",
+);
+const PULSES: Key = Key::num(
+    "sensors.tacho_pulses_per_rev",
+    "",
+    closed(1.0, 100_000.0),
+    1000.0,
+    "`tacho_quantization`: pulses per revolution",
+);
+const WINDOW: Key = Key::num(
+    "sensors.tacho_window_ms",
+    "ms",
+    closed(0.1, 1000.0),
+    20.0,
+    "`tacho_quantization`: counting window",
+);
+const PRESSURE_NOISE: Key = Key::num(
+    "sensors.pressure_noise_bar",
+    "bar",
+    closed(0.0, 5.0),
+    0.01,
+    "`pressure_noise`: standard deviation",
+);
+const fn rate(name: &'static str, meaning: &'static str) -> Key {
+    Key {
+        name,
+        unit: "Hz",
+        range: closed(1.0, 10_000.0),
+        default: Default::Text("the output rate"),
+        meaning,
+    }
+}
+const RADAR_RATE: Key = rate(
+    "sensors.radar_rate_hz",
+    "radar logger rate (rates other than the output rate: MCAP only)",
+);
+const TACHO_RATE: Key = rate("sensors.tacho_rate_hz", "tachometer logger rate");
+const PRESSURE_RATE: Key = rate("sensors.pressure_rate_hz", "pressure logger rate");
+
+/// The keys of `[sensors]`, in README order.
+pub const SENSORS_KEYS: &[&Key] = &[
+    &RADAR_NOISE,
+    &SPIKE_RATE,
+    &SPIKE,
+    &PULSES,
+    &WINDOW,
+    &PRESSURE_NOISE,
+    &RADAR_RATE,
+    &TACHO_RATE,
+    &PRESSURE_RATE,
+];
+
+impl SensorsSection {
+    fn check(
+        c: &Checker,
+        s: &raw::Sensors,
+        output_rate_hz: f64,
+    ) -> Result<SensorsSection, ConfigError> {
+        Ok(SensorsSection {
+            radar_noise_mps: c.value(&RADAR_NOISE, s.radar_noise_mps)?,
+            radar_spike_rate_hz: c.value(&SPIKE_RATE, s.radar_spike_rate_hz)?,
+            radar_spike_mps: c.value(&SPIKE, s.radar_spike_mps)?,
+            tacho_pulses_per_rev: c.value(&PULSES, s.tacho_pulses_per_rev)?,
+            tacho_window_s: c.value(&WINDOW, s.tacho_window_ms)? * 1e-3,
+            pressure_noise_bar: c.value(&PRESSURE_NOISE, s.pressure_noise_bar)?,
+            radar_rate_hz: c.value_or(&RADAR_RATE, s.radar_rate_hz, output_rate_hz)?,
+            tacho_rate_hz: c.value_or(&TACHO_RATE, s.tacho_rate_hz, output_rate_hz)?,
+            pressure_rate_hz: c.value_or(&PRESSURE_RATE, s.pressure_rate_hz, output_rate_hz)?,
+        })
+    }
+}
+
+// ---------------------------------------------------------------------------------- [resistance]
+
+/// `[resistance]`: Davis running resistance a + b v + c v².
+#[derive(Debug, Clone, PartialEq)]
+pub struct ResistanceSection {
+    pub davis_a_n: f64,
+    pub davis_b_n_per_mps: f64,
+    pub davis_c_n_per_mps2: f64,
+}
+
+const DAVIS_A: Key = Key::num(
+    "resistance.davis_a_n",
+    "N",
+    closed(0.0, 1e5),
+    1200.0,
+    "`running_resistance`: a",
+);
+const DAVIS_B: Key = Key::num(
+    "resistance.davis_b_n_per_mps",
+    "N/(m/s)",
+    closed(0.0, 1e4),
+    30.0,
+    "b",
+);
+const DAVIS_C: Key = Key::num(
+    "resistance.davis_c_n_per_mps2",
+    "N/(m/s)²",
+    closed(0.0, 1e3),
+    6.0,
+    "c",
+);
+
+/// The keys of `[resistance]`, in README order.
+pub const RESISTANCE_KEYS: &[&Key] = &[&DAVIS_A, &DAVIS_B, &DAVIS_C];
+
+impl ResistanceSection {
+    fn check(c: &Checker, r: &raw::Resistance) -> Result<ResistanceSection, ConfigError> {
+        Ok(ResistanceSection {
+            davis_a_n: c.value(&DAVIS_A, r.davis_a_n)?,
+            davis_b_n_per_mps: c.value(&DAVIS_B, r.davis_b_n_per_mps)?,
+            davis_c_n_per_mps2: c.value(&DAVIS_C, r.davis_c_n_per_mps2)?,
+        })
+    }
+}
+
+/// The scene file's sections and their key tables, in README order (`[contact]` is the
+/// pipeline's).
+pub const SECTIONS: &[(&str, &[&Key])] = &[
+    ("top", TOP_KEYS),
+    ("run", RUN_KEYS),
+    ("brake", BRAKE_KEYS),
+    ("adhesion", ADHESION_KEYS),
+    ("contact", crate::config::contact::KEYS),
+    ("wsp", WSP_KEYS),
+    ("sensors", SENSORS_KEYS),
+    ("resistance", RESISTANCE_KEYS),
+];
+
+impl Scene {
+    /// Reads and checks a scene file.
+    pub fn load(path: &Path) -> Result<Scene, ConfigError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            file: file.clone(),
+            source,
+        })?;
+        Self::from_toml(&text, &file, path.parent())
+    }
+
+    /// Parses and checks scene TOML; `dir` resolves `vehicle.pipeline` and `adhesion.model`
+    /// paths.
+    pub fn from_toml(text: &str, file: &str, dir: Option<&Path>) -> Result<Scene, ConfigError> {
+        let r: raw::Scene = toml::from_str(text).map_err(|e| ConfigError::Syntax {
+            file: file.to_string(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let c = Checker { file };
+        let vehicle = vehicle(&c, r.vehicle, dir)?;
+        let effects = effects(&c, &r.effects)?;
+        let run = RunSection::check(&c, &r.run)?;
+        let adhesion = AdhesionSection::check(&c, &r.adhesion, dir)?;
+        // With a learned model the model's own temperature law is checked when it is loaded.
+        if effects.has(Effect::Temperature) && !matches!(adhesion.law, AdhesionLaw::Model(_)) {
+            let t = run.ambient_temperature_c;
+            adhesion.temperature_law.eval(t).map_err(|e| {
+                c.invalid(AMBIENT.name, t, format!("with the temperature effect: {e}"))
+            })?;
+        }
         Ok(Scene {
             name: r.name.unwrap_or_else(|| "scene".into()),
             seed: r.seed.unwrap_or(1),
             effects,
             vehicle,
-            initial_speed_kmh: initial_kmh,
-            initial_speed_mps: initial_kmh / 3.6,
-            stop_speed_mps: stop_kmh / 3.6,
-            max_duration_s: c.num(
-                "run.max_duration_s",
-                run.max_duration_s,
-                0.1,
-                36_000.0,
-                Some(300.0),
-                "s",
-            )?,
-            step_s: step_ms * 1e-3,
-            output_rate_hz,
-            ambient_temperature_c: ambient,
-            gradient_permille: c.num(
-                "run.gradient_permille",
-                run.gradient_permille,
-                -60.0,
-                60.0,
-                Some(0.0),
-                "‰",
-            )?,
-            condition: run.condition.clone().unwrap_or_else(|| "soap".into()),
-            direction: run.direction.clone().unwrap_or_else(|| "forward".into()),
-            demand_bar: demand,
-            cylinder_time_constant_s: c.num(
-                "brake.cylinder_time_constant_s",
-                r.brake.cylinder_time_constant_s,
-                0.005,
-                5.0,
-                Some(0.15),
-                "s",
-            )?,
-            law,
-            polach,
-            speed_coefficient: c.num(
-                "adhesion.speed_coefficient",
-                a.speed_coefficient,
-                -2.0,
-                2.0,
-                Some(0.25),
-                "",
-            )?,
-            reference_speed_mps: c.num(
-                "adhesion.reference_speed_kmh",
-                a.reference_speed_kmh,
-                1.0,
-                400.0,
-                Some(120.0),
-                "km/h",
-            )? / 3.6,
-            hysteresis_depth: c.num(
-                "adhesion.hysteresis_depth",
-                a.hysteresis_depth,
-                0.0,
-                0.9,
-                Some(0.3),
-                "",
-            )?,
-            hysteresis_ddv_mps2: c.num(
-                "adhesion.hysteresis_ddv_mps2",
-                a.hysteresis_ddv_mps2,
-                1e-3,
-                100.0,
-                Some(0.5),
-                "m/s²",
-            )?,
-            hysteresis_time_constant_s: c.num(
-                "adhesion.hysteresis_time_constant_s",
-                a.hysteresis_time_constant_s,
-                1e-3,
-                10.0,
-                Some(0.02),
-                "s",
-            )?,
-            cleaning_per_axle: c.num(
-                "adhesion.cleaning_per_axle",
-                a.cleaning_per_axle,
-                0.0,
-                2.0,
-                Some(0.05),
-                "",
-            )?,
-            temperature_law,
-            contact: c.contact(r.contact.clone())?,
-            dump_slip_mps: dump,
-            reapply_slip_mps: reapply,
-            decel_limit_mps2: c.num(
-                "wsp.decel_limit_mps2",
-                r.wsp.decel_limit_mps2,
-                0.1,
-                100.0,
-                Some(4.0),
-                "m/s²",
-            )?,
-            dump_slip_ratio: c.num(
-                "wsp.dump_slip_ratio",
-                r.wsp.dump_slip_ratio,
-                0.0,
-                1.0,
-                Some(0.1),
-                "",
-            )?,
-            reaction_delay_s: c.num(
-                "wsp.reaction_delay_ms",
-                r.wsp.reaction_delay_ms,
-                0.0,
-                1000.0,
-                Some(80.0),
-                "ms",
-            )? * 1e-3,
-            hold_max_s: c.num(
-                "wsp.hold_max_s",
-                r.wsp.hold_max_s,
-                0.01,
-                10.0,
-                Some(0.4),
-                "s",
-            )?,
-            radar_noise_mps: c.num(
-                "sensors.radar_noise_mps",
-                s.radar_noise_mps,
-                0.0,
-                10.0,
-                Some(0.05),
-                "m/s",
-            )?,
-            radar_spike_rate_hz: c.num(
-                "sensors.radar_spike_rate_hz",
-                s.radar_spike_rate_hz,
-                0.0,
-                100.0,
-                Some(0.3),
-                "Hz",
-            )?,
-            radar_spike_mps: c.num(
-                "sensors.radar_spike_mps",
-                s.radar_spike_mps,
-                0.0,
-                100.0,
-                Some(3.0),
-                "m/s",
-            )?,
-            tacho_pulses_per_rev: c.num(
-                "sensors.tacho_pulses_per_rev",
-                s.tacho_pulses_per_rev,
-                1.0,
-                100_000.0,
-                Some(1000.0),
-                "",
-            )?,
-            tacho_window_s: c.num(
-                "sensors.tacho_window_ms",
-                s.tacho_window_ms,
-                0.1,
-                1000.0,
-                Some(20.0),
-                "ms",
-            )? * 1e-3,
-            pressure_noise_bar: c.num(
-                "sensors.pressure_noise_bar",
-                s.pressure_noise_bar,
-                0.0,
-                5.0,
-                Some(0.01),
-                "bar",
-            )?,
-            radar_rate_hz: c.num(
-                "sensors.radar_rate_hz",
-                s.radar_rate_hz,
-                1.0,
-                10_000.0,
-                Some(output_rate_hz),
-                "Hz",
-            )?,
-            tacho_rate_hz: c.num(
-                "sensors.tacho_rate_hz",
-                s.tacho_rate_hz,
-                1.0,
-                10_000.0,
-                Some(output_rate_hz),
-                "Hz",
-            )?,
-            pressure_rate_hz: c.num(
-                "sensors.pressure_rate_hz",
-                s.pressure_rate_hz,
-                1.0,
-                10_000.0,
-                Some(output_rate_hz),
-                "Hz",
-            )?,
-            davis_a_n: c.num(
-                "resistance.davis_a_n",
-                r.resistance.davis_a_n,
-                0.0,
-                1e5,
-                Some(1200.0),
-                "N",
-            )?,
-            davis_b_n_per_mps: c.num(
-                "resistance.davis_b_n_per_mps",
-                r.resistance.davis_b_n_per_mps,
-                0.0,
-                1e4,
-                Some(30.0),
-                "N/(m/s)",
-            )?,
-            davis_c_n_per_mps2: c.num(
-                "resistance.davis_c_n_per_mps2",
-                r.resistance.davis_c_n_per_mps2,
-                0.0,
-                1e3,
-                Some(6.0),
-                "N/(m/s)²",
-            )?,
+            brake: BrakeSection::check(&c, &r.brake)?,
+            adhesion,
+            contact: c.contact(r.contact)?,
+            wsp: WspSection::check(&c, &r.wsp)?,
+            sensors: SensorsSection::check(&c, &r.sensors, run.output_rate_hz)?,
+            resistance: ResistanceSection::check(&c, &r.resistance)?,
+            run,
         })
     }
 
     /// True when every channel runs at the output rate (the CSV shape).
     pub fn single_rate(&self) -> bool {
-        [
-            self.radar_rate_hz,
-            self.tacho_rate_hz,
-            self.pressure_rate_hz,
-        ]
-        .iter()
-        .all(|r| *r == self.output_rate_hz)
+        let s = &self.sensors;
+        [s.radar_rate_hz, s.tacho_rate_hz, s.pressure_rate_hz]
+            .iter()
+            .all(|r| *r == self.run.output_rate_hz)
     }
+}
+
+/// The scene's vehicle: the embedded default, a pipeline file's, or inline `[vehicle]` keys.
+fn vehicle(
+    c: &Checker,
+    t: Option<toml::Table>,
+    dir: Option<&Path>,
+) -> Result<Vehicle, ConfigError> {
+    let Some(mut t) = t else {
+        return Ok(Pipeline::default_uic_z1().vehicle);
+    };
+    match t.remove("pipeline") {
+        Some(_) if !t.is_empty() => Err(c.invalid(
+            "vehicle",
+            "a pipeline and inline keys",
+            "give either pipeline = \"file\" or the vehicle keys, not both",
+        )),
+        Some(toml::Value::String(p)) if p == "default" => Ok(Pipeline::default_uic_z1().vehicle),
+        Some(toml::Value::String(p)) => {
+            let path = dir.map(|d| d.join(&p)).unwrap_or_else(|| p.clone().into());
+            Ok(Pipeline::load(Some(&path))?.vehicle)
+        }
+        Some(other) => Err(c.invalid(
+            VEHICLE.name,
+            other,
+            "must be a file path (string) or \"default\"",
+        )),
+        None => {
+            let raw: config::raw::Vehicle =
+                t.try_into()
+                    .map_err(|e: toml::de::Error| ConfigError::Syntax {
+                        file: c.file.to_string(),
+                        message: format!("[vehicle]: {}", e.to_string().trim_end()),
+                    })?;
+            config::check_vehicle(raw, c.file)
+        }
+    }
+}
+
+/// The listed effects.
+fn effects(c: &Checker, names: &[String]) -> Result<Effects, ConfigError> {
+    let mut effects = Effects::none();
+    for name in names {
+        match Effect::ALL.iter().find(|e| e.name() == name) {
+            Some(e) => effects = effects.with(*e),
+            None => {
+                return Err(c.invalid(
+                    EFFECTS.name,
+                    format!("{name:?}"),
+                    format!(
+                        "unknown effect; the effects are {}",
+                        Effect::ALL
+                            .iter()
+                            .map(|e| e.name())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                ))
+            }
+        }
+    }
+    Ok(effects)
 }
 
 /// Default k(T) shape when a scene gives none: k(T) = k20·(1 + 0.015 u − 1.875e-4 u²) with

@@ -1,0 +1,99 @@
+//! `[estimate]`: per-sample adhesion estimation and its validity mask (seed 002 eq. 2–14).
+
+use super::rule::{closed, open_lo, Checker, Default, Key, Range};
+use super::ConfigError;
+
+pub mod raw {
+    use serde::Deserialize;
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Estimate {
+        pub phase: Option<String>,
+        pub min_speed_mps: Option<f64>,
+        pub min_pressure_bar: Option<f64>,
+        pub locked_wheel_speed_mps: Option<f64>,
+        pub sliding_threshold_mps: Option<f64>,
+    }
+}
+
+/// Which slip definition applies (seed 002 eq. 2–5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Δv = v − rω (eq. 2), slip ratio Δv / v (eq. 4).
+    Braking,
+    /// Δv = rω − v (eq. 3), slip ratio Δv / (rω) (eq. 5).
+    Traction,
+}
+
+/// Estimation settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateConfig {
+    pub phase: Phase,
+    /// Samples with a filtered vehicle speed below this are masked (slip ratio and the
+    /// torque balance lose meaning towards standstill), m/s.
+    pub min_speed_mps: f64,
+    /// Samples whose filtered cylinder pressure is below this are masked (brake not applied), bar.
+    pub min_pressure_bar: f64,
+    /// A wheel whose peripheral speed rω is below this is locked: its brake torque is static
+    /// friction, not αp, so the torque balance does not hold and the sample is masked, m/s.
+    pub locked_wheel_speed_mps: f64,
+    /// Slip velocity above which an axle counts as sliding in summaries, m/s.
+    pub sliding_threshold_mps: f64,
+}
+
+const PHASE: Key = Key {
+    name: "estimate.phase",
+    unit: "",
+    range: Range::Choice(&["braking", "traction"]),
+    default: Default::Text("\"braking\""),
+    meaning: "slip definitions of seed 002 eq. 2/4 or 3/5 (the contract logs no motor torque, so T_i is from eq. 9 either way)",
+};
+const MIN_SPEED: Key = Key::num(
+    "estimate.min_speed_mps",
+    "m/s",
+    open_lo(0.0, 100.0),
+    1.0,
+    "slower samples are masked",
+);
+const MIN_PRESSURE: Key = Key::num(
+    "estimate.min_pressure_bar",
+    "bar",
+    closed(0.0, 20.0),
+    0.2,
+    "samples with less cylinder pressure are masked (brake not applied)",
+);
+const LOCKED: Key = Key::num(
+    "estimate.locked_wheel_speed_mps",
+    "m/s",
+    open_lo(0.0, 10.0),
+    0.1,
+    "rω below this: wheel locked, masked",
+);
+const SLIDING: Key = Key::num(
+    "estimate.sliding_threshold_mps",
+    "m/s",
+    open_lo(0.0, 10.0),
+    0.2,
+    "Δv above this counts as sliding in summaries",
+);
+
+/// The keys of `[estimate]`, in README order.
+pub const KEYS: &[&Key] = &[&PHASE, &MIN_SPEED, &MIN_PRESSURE, &LOCKED, &SLIDING];
+
+impl Checker<'_> {
+    pub(crate) fn estimate(&self, e: raw::Estimate) -> Result<EstimateConfig, ConfigError> {
+        Ok(EstimateConfig {
+            phase: self.choice(
+                &PHASE,
+                e.phase,
+                &[("braking", Phase::Braking), ("traction", Phase::Traction)],
+                Phase::Braking,
+            )?,
+            min_speed_mps: self.value(&MIN_SPEED, e.min_speed_mps)?,
+            min_pressure_bar: self.value(&MIN_PRESSURE, e.min_pressure_bar)?,
+            locked_wheel_speed_mps: self.value(&LOCKED, e.locked_wheel_speed_mps)?,
+            sliding_threshold_mps: self.value(&SLIDING, e.sliding_threshold_mps)?,
+        })
+    }
+}

@@ -1,0 +1,333 @@
+//! `[train]`: the network, its data and MATLAB trainlm's settings
+//! (../shared/design/reference-values.md, tag trainlm), the creep region and the k(T) fits.
+
+use super::rule::{closed, int, open_lo, Checker, Default, Key, Range};
+use super::ConfigError;
+use crate::format::AXLES;
+
+pub mod raw {
+    use serde::Deserialize;
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Train {
+        pub hidden: Option<f64>,
+        pub inputs: Option<Vec<String>>,
+        pub split: Option<String>,
+        pub train_axles: Option<Vec<u8>>,
+        pub val_axles: Option<Vec<u8>>,
+        pub val_every: Option<f64>,
+        pub block_s: Option<f64>,
+        pub decimate: Option<f64>,
+        pub seed: Option<u64>,
+        pub epochs: Option<f64>,
+        pub goal: Option<f64>,
+        pub max_fail: Option<f64>,
+        pub min_grad: Option<f64>,
+        pub mu: Option<f64>,
+        pub mu_dec: Option<f64>,
+        pub mu_inc: Option<f64>,
+        pub mu_max: Option<f64>,
+        pub creep_blend_mps: Option<f64>,
+        pub temperature_degree: Option<f64>,
+        pub condition: Option<String>,
+    }
+}
+
+/// How training and validation samples are chosen.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SplitConfig {
+    /// By axle, pooled over the runs (seed 002: train on axle 2, validate on axle 3).
+    Axles { train: Vec<u8>, val: Vec<u8> },
+    /// Every `every`-th run validates.
+    Runs { every: usize },
+    /// Every `every`-th block of `block_s` seconds validates.
+    Blocks { block_s: f64, every: usize },
+}
+
+/// Training settings.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainConfig {
+    pub hidden: usize,
+    /// Speed v as a third input.
+    pub with_speed: bool,
+    pub split: SplitConfig,
+    /// Keep every n-th valid sample of a run and axle.
+    pub decimate: usize,
+    pub seed: u64,
+    pub epochs: u64,
+    pub goal: f64,
+    pub max_fail: u32,
+    pub min_grad: f64,
+    pub mu: f64,
+    pub mu_dec: f64,
+    pub mu_inc: f64,
+    pub mu_max: f64,
+    /// Width of the small-slip region where the model blends from the linear creep law into
+    /// the network, m/s.
+    pub creep_blend_mps: f64,
+    /// Polynomial degree of the k_A(T), k_S(T) fits.
+    pub temperature_degree: usize,
+    /// Rail condition (run metadata `condition`) whose runs train the models; None: the
+    /// campaign's most common condition.
+    pub condition: Option<String>,
+}
+
+const fn text(
+    name: &'static str,
+    range: &'static str,
+    default: &'static str,
+    meaning: &'static str,
+) -> Key {
+    Key {
+        name,
+        unit: "",
+        range: Range::Text(range),
+        default: Default::Text(default),
+        meaning,
+    }
+}
+
+const HIDDEN: Key = Key::num(
+    "train.hidden",
+    "",
+    int(1.0, 200.0),
+    10.0,
+    "hidden tanh neurons [pub]",
+);
+const INPUTS: Key = text(
+    "train.inputs",
+    "`[\"dv_mps\", \"ddv_mps2\"]`, or with `\"v_mps\"`",
+    "`[\"dv_mps\", \"ddv_mps2\"]`",
+    "network inputs (seed 002; speed as a third) [pub]",
+);
+const SPLIT: Key = Key {
+    name: "train.split",
+    unit: "",
+    range: Range::Choice(&["axles", "runs", "blocks"]),
+    default: Default::Text("\"axles\""),
+    meaning: "how validation samples are chosen",
+};
+const TRAIN_AXLES: Key = text(
+    "train.train_axles",
+    "axles 1..4",
+    "[2]",
+    "`\"axles\"` split: training axles (seed 002) [pub]",
+);
+const VAL_AXLES: Key = text(
+    "train.val_axles",
+    "axles 1..4, none of train_axles",
+    "[3]",
+    "`\"axles\"` split: validation axles [pub]",
+);
+const VAL_EVERY: Key = Key::num(
+    "train.val_every",
+    "",
+    int(2.0, 1000.0),
+    4.0,
+    "`\"runs\"`/`\"blocks\"`: every n-th run or block validates",
+);
+const BLOCK: Key = Key::num(
+    "train.block_s",
+    "s",
+    open_lo(0.0, 3600.0),
+    5.0,
+    "`\"blocks\"`: block length",
+);
+const DECIMATE: Key = Key::num(
+    "train.decimate",
+    "",
+    int(1.0, 1000.0),
+    4.0,
+    "keep every n-th valid sample per run and axle",
+);
+const SEED: Key = text(
+    "train.seed",
+    "0..2⁶⁴−1",
+    "1",
+    "Nguyen–Widrow initialisation",
+);
+const EPOCHS: Key = Key::num(
+    "train.epochs",
+    "",
+    int(1.0, 1e6),
+    1000.0,
+    "trainlm: most epochs [pub]",
+);
+const GOAL: Key = Key::num(
+    "train.goal",
+    "",
+    closed(0.0, 1.0),
+    0.0,
+    "trainlm: stop at this training MSE [pub]",
+);
+const MAX_FAIL: Key = Key::num(
+    "train.max_fail",
+    "",
+    int(1.0, 1e6),
+    6.0,
+    "trainlm: validation checks [pub]",
+);
+const MIN_GRAD: Key = Key::num(
+    "train.min_grad",
+    "",
+    closed(0.0, 1.0),
+    1e-7,
+    "trainlm: stop below this gradient norm [pub]",
+);
+const MU: Key = Key::num(
+    "train.mu",
+    "",
+    closed(1e-12, 1e6),
+    1e-3,
+    "trainlm: initial damping μ [pub]",
+);
+const MU_DEC: Key = Key::num(
+    "train.mu_dec",
+    "",
+    closed(1e-6, 0.999),
+    0.1,
+    "trainlm: μ factor after a good step [pub]",
+);
+const MU_INC: Key = Key::num(
+    "train.mu_inc",
+    "",
+    closed(1.001, 1e6),
+    10.0,
+    "trainlm: μ factor after a bad step [pub]",
+);
+const MU_MAX: Key = Key::num(
+    "train.mu_max",
+    "",
+    closed(1.0, 1e20),
+    1e10,
+    "trainlm: stop when μ exceeds this [pub]",
+);
+const CREEP_BLEND: Key = Key::num(
+    "train.creep_blend_mps",
+    "m/s",
+    closed(1e-3, 5.0),
+    0.2,
+    "Δv_b: below it the model blends from the linear creep law into the network",
+);
+const DEGREE: Key = Key::num(
+    "train.temperature_degree",
+    "",
+    int(0.0, 5.0),
+    2.0,
+    "degree of k_A(T), k_S(T) (capped at temperatures − 1)",
+);
+const CONDITION: Key = text(
+    "train.condition",
+    "a run metadata `condition`",
+    "(most common)",
+    "the rail condition whose runs train the network and the Polach fits",
+);
+
+/// The keys of `[train]`, in README order.
+pub const KEYS: &[&Key] = &[
+    &HIDDEN,
+    &INPUTS,
+    &SPLIT,
+    &TRAIN_AXLES,
+    &VAL_AXLES,
+    &VAL_EVERY,
+    &BLOCK,
+    &DECIMATE,
+    &SEED,
+    &EPOCHS,
+    &GOAL,
+    &MAX_FAIL,
+    &MIN_GRAD,
+    &MU,
+    &MU_DEC,
+    &MU_INC,
+    &MU_MAX,
+    &CREEP_BLEND,
+    &DEGREE,
+    &CONDITION,
+];
+
+impl Checker<'_> {
+    pub(crate) fn train(&self, t: raw::Train) -> Result<TrainConfig, ConfigError> {
+        let with_speed = match t.inputs.as_deref() {
+            None => false,
+            Some([a, b]) if a == "dv_mps" && b == "ddv_mps2" => false,
+            Some([a, b, c]) if a == "dv_mps" && b == "ddv_mps2" && c == "v_mps" => true,
+            Some(other) => {
+                return Err(self.invalid(
+                    INPUTS.name,
+                    format!("{other:?}"),
+                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002) or [\"dv_mps\", \"ddv_mps2\", \"v_mps\"]",
+                ))
+            }
+        };
+        let condition = match t.condition.clone() {
+            Some(c) if c.trim().is_empty() => {
+                return Err(self.invalid(
+                    CONDITION.name,
+                    "\"\"",
+                    "a rail condition as in the runs' metadata, e.g. \"soap\"; leave the key out for the most common one",
+                ))
+            }
+            c => c,
+        };
+        Ok(TrainConfig {
+            hidden: self.value(&HIDDEN, t.hidden)? as usize,
+            with_speed,
+            split: self.split(&t)?,
+            decimate: self.value(&DECIMATE, t.decimate)? as usize,
+            seed: t.seed.unwrap_or(1),
+            epochs: self.value(&EPOCHS, t.epochs)? as u64,
+            goal: self.value(&GOAL, t.goal)?,
+            max_fail: self.value(&MAX_FAIL, t.max_fail)? as u32,
+            min_grad: self.value(&MIN_GRAD, t.min_grad)?,
+            mu: self.value(&MU, t.mu)?,
+            mu_dec: self.value(&MU_DEC, t.mu_dec)?,
+            mu_inc: self.value(&MU_INC, t.mu_inc)?,
+            mu_max: self.value(&MU_MAX, t.mu_max)?,
+            creep_blend_mps: self.value(&CREEP_BLEND, t.creep_blend_mps)?,
+            temperature_degree: self.value(&DEGREE, t.temperature_degree)? as usize,
+            condition,
+        })
+    }
+
+    fn split(&self, t: &raw::Train) -> Result<SplitConfig, ConfigError> {
+        let every = self.value(&VAL_EVERY, t.val_every)? as usize;
+        let axles = |k: &Key, v: &Option<Vec<u8>>, default: u8| -> Result<Vec<u8>, ConfigError> {
+            let v = v.clone().unwrap_or_else(|| vec![default]);
+            if v.is_empty() || v.iter().any(|a| !(1..=AXLES as u8).contains(a)) {
+                return Err(self.invalid(k.name, format!("{v:?}"), "must list axles 1..4"));
+            }
+            Ok(v)
+        };
+        let kind = self.choice(
+            &SPLIT,
+            t.split.clone(),
+            &[("axles", 0), ("runs", 1), ("blocks", 2)],
+            0,
+        )?;
+        Ok(match kind {
+            0 => {
+                let train = axles(&TRAIN_AXLES, &t.train_axles, 2)?;
+                let val = axles(&VAL_AXLES, &t.val_axles, 3)?;
+                if let Some(a) = train.iter().find(|a| val.contains(a)) {
+                    return Err(self.invalid(
+                        VAL_AXLES.name,
+                        format!("{val:?}"),
+                        format!(
+                            "must not repeat a training axle (axle {a} is in {})",
+                            TRAIN_AXLES.name
+                        ),
+                    ));
+                }
+                SplitConfig::Axles { train, val }
+            }
+            1 => SplitConfig::Runs { every },
+            _ => SplitConfig::Blocks {
+                block_s: self.value(&BLOCK, t.block_s)?,
+                every,
+            },
+        })
+    }
+}

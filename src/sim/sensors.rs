@@ -1,0 +1,238 @@
+//! The logger: the sensor models and the truth table, sampled at their logger instants k/rate
+//! (µs resolution), from the state of the first step at or after each instant. Each sensor
+//! effect (radar noise and spikes, tachometer pulse counting, pressure noise) runs only when
+//! the scene lists it and is counted where its work is done.
+
+use super::scene::{Effect, Scene};
+use super::state::SimState;
+use super::{EffectCounters, Series, Truth};
+use crate::format::AXLES;
+use crate::rng::Rng;
+
+/// Normal deviates for the sensor noise, both of each Box–Muller pair (one log, one sqrt and
+/// one sin_cos per two deviates).
+#[derive(Default)]
+struct Normals {
+    spare: Option<f64>,
+}
+
+impl Normals {
+    fn next(&mut self, rng: &mut Rng) -> f64 {
+        match self.spare.take() {
+            Some(x) => x,
+            None => {
+                let (x, y) = rng.normal_pair();
+                self.spare = Some(y);
+                x
+            }
+        }
+    }
+}
+
+/// The sample groups, each on its own schedule: radar, tachometers, pressures, truth.
+const RADAR: usize = 0;
+const TACHO: usize = 1;
+const PRESSURE: usize = 2;
+const TRUTH: usize = 3;
+
+/// The logger of one run.
+pub(super) struct Logger<'a> {
+    sc: &'a Scene,
+    rates: [f64; 4],
+    /// Index and logger time (k / rate) of the next sample of each group, and the earliest.
+    next_k: [u64; 4],
+    next_t: [f64; 4],
+    next_due: f64,
+    rng: Rng,
+    normals: Normals,
+    /// Radar spike probability per sample.
+    spike_prob: f64,
+    /// Angle per tachometer pulse (rad), counting window (samples) and the wheel angles of the
+    /// last `window + 1` tachometer samples.
+    pulse_angle: f64,
+    window: usize,
+    theta_hist: Vec<[f64; AXLES]>,
+    /// Measured channels in [`crate::format::Signal::ALL`] order.
+    pub channels: Vec<Series>,
+    pub truth: Truth,
+}
+
+/// Rounds to a resolution of 1/inv (a logger's resolution; keeps files small and exact).
+#[inline]
+fn round_to(x: f64, inv: f64) -> f64 {
+    (x * inv).round() / inv
+}
+
+#[inline]
+fn push(s: &mut Series, t: f64, v: f64) {
+    s.time_s.push(t);
+    s.values.push(v);
+}
+
+impl<'a> Logger<'a> {
+    /// An empty log with room for the whole run (at most ten minutes' worth up front: no
+    /// reallocation and copy while the step loop runs).
+    pub(super) fn new(sc: &'a Scene, seed: u64) -> Logger<'a> {
+        let s = &sc.sensors;
+        let rates = [
+            s.radar_rate_hz,
+            s.tacho_rate_hz,
+            s.pressure_rate_hz,
+            sc.run.output_rate_hz,
+        ];
+        let room = |rate: f64| ((sc.run.max_duration_s.min(600.0) * rate).ceil() as usize) + 2;
+        let series = |rate: f64| Series {
+            time_s: Vec::with_capacity(room(rate)),
+            values: Vec::with_capacity(room(rate)),
+        };
+        let channels: Vec<Series> = (0..9)
+            .map(|i| {
+                series(
+                    rates[match i {
+                        0 => RADAR,
+                        1..=4 => TACHO,
+                        _ => PRESSURE,
+                    }],
+                )
+            })
+            .collect();
+        let column = || Vec::with_capacity(room(sc.run.output_rate_hz));
+        let columns = || std::array::from_fn(|_| column());
+        let window = ((s.tacho_window_s * s.tacho_rate_hz).round() as usize).max(1);
+        let spike_prob = s.radar_spike_rate_hz / s.radar_rate_hz;
+        Logger {
+            sc,
+            rates,
+            next_k: [0; 4],
+            next_t: [0.0; 4],
+            next_due: 0.0,
+            rng: Rng::new(seed),
+            normals: Normals::default(),
+            spike_prob: if spike_prob.is_finite() {
+                spike_prob
+            } else {
+                0.0
+            },
+            pulse_angle: std::f64::consts::TAU / s.tacho_pulses_per_rev,
+            window,
+            theta_hist: vec![[0.0; AXLES]; window + 1],
+            channels,
+            truth: Truth {
+                time_s: column(),
+                v_mps: column(),
+                omega_radps: columns(),
+                p_bar: columns(),
+                normal_n: columns(),
+                tangential_n: columns(),
+                mu: columns(),
+                dv_mps: columns(),
+                ddv_mps2: columns(),
+            },
+        }
+    }
+
+    /// True when a sample of some group is due at step time `t` (s).
+    #[inline(always)]
+    pub(super) fn due(&self, t: f64) -> bool {
+        t + 1e-12 >= self.next_due
+    }
+
+    /// Takes every sample due at step time `t` from the state `st`; true when a truth sample
+    /// was among them.
+    pub(super) fn record(&mut self, t: f64, st: &SimState, counters: &mut EffectCounters) -> bool {
+        let mut truth = false;
+        for g in 0..4 {
+            while self.next_t[g] <= t + 1e-12 {
+                // Logger clock at µs resolution.
+                let ts = round_to(self.next_k[g] as f64 / self.rates[g], 1e6);
+                match g {
+                    RADAR => self.radar(ts, st, counters),
+                    TACHO => self.tachometers(ts, st, counters),
+                    PRESSURE => self.pressures(ts, st, counters),
+                    TRUTH => {
+                        self.truth_sample(ts, st);
+                        truth = true;
+                    }
+                    _ => unreachable!("four groups"),
+                }
+                self.next_k[g] += 1;
+                self.next_t[g] = self.next_k[g] as f64 / self.rates[g];
+            }
+        }
+        self.next_due = self.next_t.iter().copied().fold(f64::INFINITY, f64::min);
+        truth
+    }
+
+    fn radar(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
+        let (fx, s) = (self.sc.effects, &self.sc.sensors);
+        let mut m = st.v;
+        if fx.has(Effect::RadarNoise) {
+            counters.hit(Effect::RadarNoise);
+            m += s.radar_noise_mps * self.normals.next(&mut self.rng);
+        }
+        if fx.has(Effect::RadarSpikes) {
+            counters.hit(Effect::RadarSpikes);
+            if self.rng.uniform() < self.spike_prob {
+                m += if self.rng.uniform() < 0.5 { -1.0 } else { 1.0 }
+                    * s.radar_spike_mps
+                    * (0.5 + self.rng.uniform());
+            }
+        }
+        push(&mut self.channels[0], ts, round_to(m.max(0.0), 1e3));
+    }
+
+    fn tachometers(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
+        let quantized = self.sc.effects.has(Effect::TachoQuantization);
+        let k = self.next_k[TACHO] as usize;
+        let window = self.window;
+        self.theta_hist[k % (window + 1)] = st.theta;
+        for a in 0..AXLES {
+            let omega = st.ax.omega[a];
+            let m = if quantized {
+                counters.hit(Effect::TachoQuantization);
+                // Pulses counted over the last `window` samples.
+                let span = k.min(window);
+                if span == 0 {
+                    omega
+                } else {
+                    let old = self.theta_hist[(k - span) % (window + 1)][a];
+                    let count =
+                        (st.theta[a] / self.pulse_angle).floor() - (old / self.pulse_angle).floor();
+                    count * self.pulse_angle * self.rates[TACHO] / span as f64
+                }
+            } else {
+                omega
+            };
+            push(&mut self.channels[1 + a], ts, round_to(m, 1e4));
+        }
+    }
+
+    fn pressures(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
+        let noisy = self.sc.effects.has(Effect::PressureNoise);
+        for a in 0..AXLES {
+            let mut m = st.p[a];
+            if noisy {
+                counters.hit(Effect::PressureNoise);
+                m += self.sc.sensors.pressure_noise_bar * self.normals.next(&mut self.rng);
+            }
+            push(&mut self.channels[5 + a], ts, round_to(m, 1e3));
+        }
+    }
+
+    fn truth_sample(&mut self, ts: f64, st: &SimState) {
+        let r = self.sc.vehicle.wheel_radius_m;
+        let tr = &mut self.truth;
+        tr.time_s.push(ts);
+        tr.v_mps.push(st.v);
+        for a in 0..AXLES {
+            let omega = st.ax.omega[a];
+            tr.omega_radps[a].push(omega);
+            tr.p_bar[a].push(st.p[a]);
+            tr.normal_n[a].push(st.normal[a]);
+            tr.tangential_n[a].push(st.ax.t_star[a]);
+            tr.mu[a].push(st.ax.t_star[a] / st.normal[a]);
+            tr.dv_mps[a].push(st.v - r * omega);
+            tr.ddv_mps2[a].push(st.ddv[a]);
+        }
+    }
+}

@@ -1,0 +1,424 @@
+//! The simulation's state apart from its loop: [`Setup`] holds what a scene fixes for the whole
+//! run (derived once), [`SimState`] what a step changes. The stages of a step are methods of
+//! [`Setup`] that take the state explicitly — loads and resistances, brakes, contact and wheels,
+//! the hysteresis branch, the next step's contact coefficients, the vehicle — each effect's work
+//! behind its flag and counted where it is done ([`EffectCounters`]).
+
+use std::f64::consts::PI;
+
+use super::scene::{Effect, Effects, Scene};
+use super::step::{polach_axles, wheel_update, AxleArrays, StepConsts};
+use super::wsp::{demand_at, AxleReading, Wsp};
+use super::{EffectCounters, SimError};
+use crate::format::AXLES;
+use crate::model::Model;
+use crate::simd::{exp_lanes, Select};
+use crate::vehicle::G_MPS2;
+
+/// What a scene fixes for the whole run.
+pub(super) struct Setup<'a> {
+    pub sc: &'a Scene,
+    fx: Effects,
+    /// Wheel radius r (m), total mass M (kg), step h (s), 1/h, h/M.
+    pub r: f64,
+    pub h: f64,
+    inv_h: f64,
+    h_per_mass: f64,
+    pub consts: StepConsts,
+    /// Per axle: K0 = π G a b c11 / 4 at the static wheel load Q0 (N, N); K ∝ (Q/Q0)^(2/3).
+    k0: f64,
+    q0: f64,
+    /// μ of each axle with cleaning, 1.
+    mu_axle: [f64; AXLES],
+    /// Static loads N0 (N) and ∂N/∂d under load transfer (N per m/s²).
+    load: [f64; AXLES],
+    per_decel: [f64; AXLES],
+    /// Falling friction's A and B (1, s/m), if the effect is on.
+    falling: Option<(f64, f64)>,
+    /// Speed factor s(v) = speed_at_zero − speed_slope · v (falling friction).
+    speed_slope: f64,
+    speed_at_zero: f64,
+    grade_force: f64,
+    /// First-order lag factors per step: cylinders, hysteresis branch (and a model's slip-rate
+    /// input).
+    k_cyl: f64,
+    k_hyst: f64,
+    inv_ddv0: f64,
+}
+
+/// What a step changes.
+#[derive(Debug, Clone)]
+pub(super) struct SimState {
+    /// Vehicle speed v, m/s.
+    pub v: f64,
+    /// Vehicle deceleration over the last step, m/s².
+    pub decel: f64,
+    /// The axles' wheel speeds and contact coefficients, as the axle step reads them.
+    pub ax: AxleArrays,
+    /// Axle loads N in use this step, and prepared for the next, N.
+    pub normal: [f64; AXLES],
+    pub normal_next: [f64; AXLES],
+    /// 1/(2K) per axle at the current load, 1/N.
+    pub half_inv_k: [f64; AXLES],
+    /// Wheel angle θ, rad (the tachometers count its pulses).
+    pub theta: [f64; AXLES],
+    /// Cylinder pressure, bar.
+    pub p: [f64; AXLES],
+    /// Slip Δv at the start of the step (m/s), slip rate dΔv/dt (m/s²), its lagged value (the
+    /// model law's input) and the wheel's ω̇ (rad/s²) over the last step.
+    pub slip: [f64; AXLES],
+    pub ddv: [f64; AXLES],
+    pub ddv_lag: [f64; AXLES],
+    pub omega_dot: [f64; AXLES],
+    pub wsp: [Wsp; AXLES],
+    /// Position in each axle's brake-demand profile.
+    pub cursor: [usize; AXLES],
+}
+
+/// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
+/// by `depth`, blended smoothly by the algebraic sigmoid z/√(1 + z²), z = (dΔv/dt)/ddv0.
+/// The step loop lags it with the time constant `hysteresis_time_constant_s`: the contact's
+/// branch has memory, and applying it instantly closes an algebraic loop (force → slip rate
+/// → force, loop gain ≈ N μ depth r² / (2 ddv0 J) ≈ 6 for the UIC-Z1) that the explicit
+/// step turns into a relay chatter at the step rate.
+#[inline(always)]
+fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
+    let z = ddv.mul(ddv.like(inv_ddv0));
+    let one = ddv.like(1.0);
+    one.sub(
+        ddv.like(depth * 0.5)
+            .mul(one.sub(z.div(z.fma(z, one).sqrt()))),
+    )
+}
+
+/// μ and dμ/dΔv from a learned model at slip `w` (m/s), slip rate `ddv` (m/s²), speed `v`
+/// (m/s); the slope by a central difference over ±0.1 mm/s (the model is continuous; the
+/// implicit wheel step only needs the stiffness's size), never negative.
+fn model_adhesion(m: &Model, w: f64, ddv: f64, v: f64) -> (f64, f64) {
+    const H: f64 = 1e-4;
+    let mu = m.mu_v(w, ddv, v);
+    let slope = (m.mu_v(w + H, ddv, v) - m.mu_v(w - H, ddv, v)) / (2.0 * H);
+    (
+        mu,
+        if slope.is_finite() {
+            slope.max(0.0)
+        } else {
+            0.0
+        },
+    )
+}
+
+impl<'a> Setup<'a> {
+    /// The run's constants; the effects that act once (temperature, cleaning, gradient) are
+    /// applied and counted here.
+    pub(super) fn new(sc: &'a Scene, counters: &mut EffectCounters) -> Result<Setup<'a>, SimError> {
+        let fx = sc.effects;
+        let veh = &sc.vehicle;
+        let ad = &sc.adhesion;
+        let mass = veh.body_mass_kg + 2.0 * veh.bogie_mass_kg;
+        let h = sc.run.step_s;
+        // Contact patch of one wheel at the static load (Hertz, seed 001; Kalker c11).
+        let contact_err = |source| SimError::Contact {
+            scene: sc.name.clone(),
+            source,
+        };
+        let (patch, q0) = crate::vehicle::wheel_patch(veh, &sc.contact).map_err(contact_err)?;
+        let k0 = PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
+        let (k_a, k_s) = if fx.has(Effect::Temperature) {
+            counters.hit(Effect::Temperature);
+            ad.temperature_law
+                .eval(sc.run.ambient_temperature_c)
+                .map_err(contact_err)?
+        } else {
+            (ad.polach.k_a, ad.polach.k_s)
+        };
+        let mut mu_axle = [ad.polach.mu0; AXLES];
+        if fx.has(Effect::Cleaning) {
+            for (i, m) in mu_axle.iter_mut().enumerate() {
+                counters.hit(Effect::Cleaning);
+                *m *= 1.0 + ad.cleaning_per_axle * i as f64;
+            }
+        }
+        let grade_force = if fx.has(Effect::Gradient) {
+            counters.hit(Effect::Gradient);
+            mass * G_MPS2 * (sc.run.gradient_permille / 1000.0).atan().sin()
+        } else {
+            0.0
+        };
+        let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);
+        Ok(Setup {
+            sc,
+            fx,
+            r: veh.wheel_radius_m,
+            h,
+            inv_h: 1.0 / h,
+            h_per_mass: h / mass,
+            consts: StepConsts {
+                r: veh.wheel_radius_m,
+                j: veh.axle_inertia_kgm2,
+                h,
+                k_a,
+                k_s,
+            },
+            k0,
+            q0,
+            mu_axle,
+            load,
+            per_decel,
+            falling: fx
+                .has(Effect::FallingFriction)
+                .then_some((ad.polach.a_ratio, ad.polach.b_s_per_m)),
+            speed_slope: ad.speed_coefficient / ad.reference_speed_mps,
+            speed_at_zero: 1.0 + ad.speed_coefficient,
+            grade_force,
+            k_cyl: 1.0 - (-h / sc.brake.cylinder_time_constant_s).exp(),
+            k_hyst: 1.0 - (-h / ad.hysteresis_time_constant_s).exp(),
+            inv_ddv0: 1.0 / ad.hysteresis_ddv_mps2,
+        })
+    }
+
+    /// The state at the start: rolling at the initial speed, brakes released, the contact
+    /// coefficients of the first step prepared.
+    pub(super) fn initial_state<V: Select>(
+        &self,
+        isa: V::Isa,
+        counters: &mut EffectCounters,
+    ) -> SimState {
+        let v = self.sc.run.initial_speed_mps;
+        let hyst = if self.fx.has(Effect::Hysteresis) {
+            hysteresis_target(self.sc.adhesion.hysteresis_depth, 0.0, 1.0)
+        } else {
+            1.0
+        };
+        let mut st = SimState {
+            v,
+            decel: 0.0,
+            ax: AxleArrays {
+                omega: [v / self.r; AXLES],
+                hyst: [hyst; AXLES],
+                ..Default::default()
+            },
+            normal: [0.0; AXLES],
+            normal_next: [0.0; AXLES],
+            half_inv_k: [0.5 / self.k0; AXLES],
+            theta: [0.0; AXLES],
+            p: [0.0; AXLES],
+            slip: [0.0; AXLES],
+            ddv: [0.0; AXLES],
+            ddv_lag: [0.0; AXLES],
+            omega_dot: [0.0; AXLES],
+            wsp: [Wsp::default(); AXLES],
+            cursor: [0; AXLES],
+        };
+        let speed = self.speed_factor(v);
+        self.prepare::<V>(isa, speed, &mut st, counters);
+        st.normal = st.normal_next;
+        st
+    }
+
+    /// Falling friction's speed factor s(v) (1 without the effect).
+    #[inline(always)]
+    fn speed_factor(&self, v: f64) -> f64 {
+        if self.falling.is_some() {
+            self.speed_slope.mul_add(-v, self.speed_at_zero).max(0.2)
+        } else {
+            1.0
+        }
+    }
+
+    /// Falling friction's speed factor for this step, counted per axle.
+    #[inline(always)]
+    pub(super) fn speed_factor_counted(&self, v: f64, counters: &mut EffectCounters) -> f64 {
+        if self.falling.is_some() {
+            counters.add(Effect::FallingFriction, AXLES as u64);
+        }
+        self.speed_factor(v)
+    }
+
+    /// The vehicle speed after the step's resistances alone (gradient, running resistance).
+    #[inline(always)]
+    pub(super) fn resisted_speed(&self, v: f64, counters: &mut EffectCounters) -> f64 {
+        let mut resist = self.grade_force;
+        if self.fx.has(Effect::RunningResistance) {
+            counters.hit(Effect::RunningResistance);
+            let d = &self.sc.resistance;
+            resist += d.davis_a_n + d.davis_b_n_per_mps * v + d.davis_c_n_per_mps2 * v * v;
+        }
+        (-resist).mul_add(self.h_per_mass, v)
+    }
+
+    /// The brakes at time `t`: demand, wheel-slide protection (per axle, before the contact:
+    /// it reads the slip and the wheel's deceleration, not the force), cylinders; sets the
+    /// slip at the step's start and the brake torques.
+    #[inline(always)]
+    pub(super) fn brakes(&self, t: f64, st: &mut SimState, counters: &mut EffectCounters) {
+        let sc = self.sc;
+        for a in 0..AXLES {
+            let demand = demand_at(&sc.brake.demand_bar[a], t, &mut st.cursor[a]);
+            let w = (-self.r).mul_add(st.ax.omega[a], st.v);
+            st.slip[a] = w;
+            let cmd = if self.fx.has(Effect::Wsp) {
+                counters.hit(Effect::Wsp);
+                let reading = AxleReading {
+                    v_mps: st.v,
+                    slip_mps: w,
+                    slip_rate_mps2: st.ddv[a],
+                    decel_excess_mps2: -self.r * st.omega_dot[a] - st.decel,
+                    p_bar: st.p[a],
+                };
+                st.wsp[a].command(&sc.wsp, self.h, &reading, demand)
+            } else {
+                demand
+            };
+            st.p[a] += (cmd - st.p[a]) * self.k_cyl;
+            st.ax.brake[a] = sc.vehicle.brake_torque_nm_per_bar[a] * st.p[a];
+        }
+    }
+
+    /// Contact and wheels of the four axles (Polach on `V` lanes, or a learned model one axle
+    /// at a time); returns ΣT* (N).
+    #[inline(always)]
+    pub(super) fn contact_and_wheels<V: Select>(
+        &self,
+        isa: V::Isa,
+        model: Option<&Model>,
+        st: &mut SimState,
+    ) -> f64 {
+        st.normal = st.normal_next;
+        let Some(m) = model else {
+            return polach_axles::<V>(isa, &self.consts, st.v, &mut st.ax);
+        };
+        for a in 0..AXLES {
+            // The model's slip-rate input is lagged like the hysteresis branch: fed
+            // instantly it closes the same force → slip-rate → force loop.
+            st.ddv_lag[a] += (st.ddv[a] - st.ddv_lag[a]) * self.k_hyst;
+            let (mu, slope) = model_adhesion(m, st.slip[a], st.ddv_lag[a], st.v);
+            let ax = &mut st.ax;
+            (ax.omega[a], ax.locked[a], ax.t_star[a]) = wheel_update::<f64>(
+                &self.consts,
+                ax.omega[a],
+                ax.locked[a],
+                ax.brake[a],
+                st.normal[a],
+                mu,
+                slope,
+                1.0,
+            );
+        }
+        let t = &st.ax.t_star;
+        (t[0] + t[2]) + (t[1] + t[3])
+    }
+
+    /// The hysteresis branch factor for the next step (see [`hysteresis_target`]), lagged by
+    /// `k_hyst`, from this step's starting slip rate: off the step's critical path.
+    #[inline(always)]
+    pub(super) fn hysteresis<V: Select>(
+        &self,
+        isa: V::Isa,
+        st: &mut SimState,
+        counters: &mut EffectCounters,
+    ) {
+        if !self.fx.has(Effect::Hysteresis) {
+            return;
+        }
+        counters.add(Effect::Hysteresis, AXLES as u64);
+        let depth = self.sc.adhesion.hysteresis_depth;
+        let mut i = 0;
+        while i < AXLES {
+            let target =
+                hysteresis_target(depth, V::load_scalars(isa, &st.ddv[i..]), self.inv_ddv0);
+            let old = V::load(isa, &st.ax.hyst[i..]);
+            target
+                .sub(old)
+                .fma(V::splat(isa, self.k_hyst), old)
+                .store(&mut st.ax.hyst[i..]);
+            i += V::N;
+        }
+    }
+
+    /// The contact law's coefficients for the next axle step, from the state at this step's
+    /// start (deceleration, slip) and the speed factor `speed` (1; 1 without falling friction):
+    /// N = N0 + d ∂N/∂d under load transfer (seed 002 eq. 12–13,
+    /// [`crate::vehicle::axle_load_coefficients`]; N0 without it), μ = μ_axle s(v)
+    /// ((1 − A) e^(−B|Δv|) + A), and from them `ax.d_per_v` = (N/2) μ/K and `ax.pn` = (2/π) μ N;
+    /// N goes to `normal_next`.
+    #[inline(always)]
+    pub(super) fn prepare<V: Select>(
+        &self,
+        isa: V::Isa,
+        speed: f64,
+        st: &mut SimState,
+        counters: &mut EffectCounters,
+    ) {
+        let transfer = self.fx.has(Effect::LoadTransfer);
+        if transfer {
+            counters.add(Effect::LoadTransfer, AXLES as u64);
+        }
+        let mut i = 0;
+        while i < AXLES {
+            let load = V::load(isa, &self.load[i..]);
+            let n = if transfer {
+                V::splat(isa, st.decel).fma(V::load(isa, &self.per_decel[i..]), load)
+            } else {
+                load
+            };
+            let mut mu = V::load(isa, &self.mu_axle[i..]).mul(V::splat(isa, speed));
+            if let Some((a, b)) = self.falling {
+                let e = exp_lanes(
+                    V::load_scalars(isa, &st.slip[i..])
+                        .abs()
+                        .mul(V::splat(isa, -b)),
+                );
+                mu = mu.mul(e.fma(V::splat(isa, 1.0 - a), V::splat(isa, a)));
+            }
+            n.store(&mut st.normal_next[i..]);
+            n.mul(V::load(isa, &st.half_inv_k[i..]))
+                .mul(mu)
+                .store(&mut st.ax.d_per_v[i..]);
+            V::splat(isa, std::f64::consts::FRAC_2_PI)
+                .mul(mu)
+                .mul(n)
+                .store(&mut st.ax.pn[i..]);
+            i += V::N;
+        }
+    }
+
+    /// Refreshes the patch constant for the wheel loads (a b ∝ Q^(2/3)) under load transfer
+    /// (at the output rate: the loads change slowly).
+    #[inline]
+    pub(super) fn refresh_patch(&self, st: &mut SimState, counters: &mut EffectCounters) {
+        if !self.fx.has(Effect::LoadTransfer) {
+            return;
+        }
+        for a in 0..AXLES {
+            counters.hit(Effect::LoadTransfer);
+            let ratio = (st.normal[a] * 0.5 / self.q0).cbrt();
+            st.half_inv_k[a] = 0.5 / (self.k0 * ratio * ratio);
+        }
+    }
+
+    /// The vehicle and the wheels' derived quantities after a step with ΣT* = `total_t` (N)
+    /// from the speed `v_resisted` the resistances alone leave; `omega` the wheel speeds at
+    /// the step's start.
+    #[inline(always)]
+    #[allow(clippy::needless_range_loop)] // four arrays indexed by axle
+    pub(super) fn advance(
+        &self,
+        st: &mut SimState,
+        omega: &[f64; AXLES],
+        total_t: f64,
+        v_resisted: f64,
+    ) {
+        let v = st.v;
+        let v_new = total_t.mul_add(-self.h_per_mass, v_resisted).max(0.0);
+        st.decel = (v - v_new) * self.inv_h;
+        for a in 0..AXLES {
+            st.omega_dot[a] = (st.ax.omega[a] - omega[a]) * self.inv_h;
+            st.theta[a] += st.ax.omega[a] * self.h;
+            // Slip rates use the vehicle's change too.
+            let w_new = (-self.r).mul_add(st.ax.omega[a], v);
+            st.ddv[a] = (w_new - st.slip[a]) * self.inv_h - st.decel;
+        }
+        st.v = v_new;
+    }
+}
