@@ -21,6 +21,7 @@ pub mod identify;
 pub mod ingest;
 pub mod linalg;
 pub mod model;
+pub mod outdir;
 pub mod report;
 pub mod rng;
 pub mod signal;

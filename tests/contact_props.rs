@@ -42,7 +42,7 @@ fn patch() -> impl Strategy<Value = ContactPatch> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 512, failure_persistence: None, .. ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig::with_cases(512))]
 
     #[test]
     fn hertz_is_finite_scales_as_cube_root_and_puts_the_major_axis_along_the_smaller_curvature(

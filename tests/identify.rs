@@ -417,6 +417,11 @@ fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<
         .output()
         .is_err()
     {
+        // CI installs a C compiler (.ci/run): there a missing one is a failure, not a skip.
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "CI=true but no C compiler ({cc}): .ci/run should have installed gcc"
+        );
         eprintln!("SKIPPED: no C compiler ({cc}) found; install gcc or set CC");
         return None;
     }

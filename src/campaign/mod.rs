@@ -1,11 +1,10 @@
 //! A test campaign end to end (`railgrip run`), as one library call: [`run`] finds the logs of a
 //! campaign folder or archive, estimates every run in parallel ([`runs`]: a run that fails is a
 //! record, not an abort), trains and exports the models on the pooled estimates of one rail
-//! condition ([`train`]), and writes the summary, `campaign.json` ([`record`]) and the report.
-//! [`OutDir`] owns every output path. Progress goes to a [`Progress`] the caller supplies (the
+//! condition ([`train`]), and writes the summary ([`record`]), `campaign.json` and the report.
+//! [`OutDir`] (module `outdir`, shared with the report) owns every output path. Progress goes to a [`Progress`] the caller supplies (the
 //! CLI draws bars from it); the library never prints.
 
-pub mod outdir;
 pub mod record;
 pub mod runs;
 pub mod train;
@@ -16,9 +15,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-pub use outdir::{ModelPaths, OutDir};
-pub use record::{write_summary, CampaignRecord, SUMMARY_COLUMNS};
-pub use runs::{discover, input_hash, process_run, run_name, RunRecord, RunStatus};
+pub use crate::outdir::{CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus};
+pub use record::{write_summary, SUMMARY_COLUMNS};
+pub use runs::{discover, input_hash, process_run, run_name};
 pub use train::{train_models, CampaignModels};
 
 use crate::identify::dataset::RunTable;
@@ -43,6 +42,8 @@ pub enum CampaignError {
     },
     #[error(transparent)]
     Table(#[from] crate::table::TableError),
+    #[error(transparent)]
+    Record(#[from] RecordError),
     #[error(transparent)]
     Archive(#[from] crate::archive::ArchiveError),
     #[error("cannot start the worker threads: {0}")]

@@ -1,58 +1,10 @@
-//! The files that describe a campaign as a whole: `campaign.json` ([`CampaignRecord`], what
-//! the report is rebuilt from) and the one-row-per-run summary (`summary.csv`,
-//! `summary.parquet`, [`SUMMARY_COLUMNS`]).
+//! The one-row-per-run summary of a campaign (`summary.csv`, `summary.parquet`,
+//! [`SUMMARY_COLUMNS`]).
 
-use std::io::Write as _;
 use std::path::PathBuf;
-
-use serde::{Deserialize, Serialize};
 
 use super::{CampaignError, OutDir, RunRecord};
 use crate::format::AXLES;
-
-/// The campaign as `railgrip run` left it (`<out>/campaign.json`): what `railgrip report`
-/// rebuilds the report from.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct CampaignRecord {
-    /// The campaign folder.
-    pub archive: String,
-    pub runs: Vec<RunRecord>,
-    /// Rail condition the models were trained on.
-    pub condition: Option<String>,
-    /// Why no models were trained.
-    pub model_error: Option<String>,
-    pub notes: Vec<String>,
-    /// Pipeline file name and its validation axles (seed 002 Fig. 10 uses the first).
-    pub pipeline: String,
-    pub validation_axles: Vec<u8>,
-}
-
-impl CampaignRecord {
-    /// Writes `<out>/campaign.json` atomically.
-    pub fn write(&self, out: &OutDir) -> Result<PathBuf, CampaignError> {
-        let path = out.campaign_record();
-        let text = serde_json::to_string_pretty(self).expect("records serialise") + "\n";
-        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
-            |source| CampaignError::Write {
-                path: path.clone(),
-                source,
-            },
-        )?;
-        Ok(path)
-    }
-
-    /// Reads `<out>/campaign.json`.
-    pub fn read(out: &OutDir) -> Result<CampaignRecord, CampaignError> {
-        let path = out.campaign_record();
-        let bad = |message: String| CampaignError::Input {
-            path: path.clone(),
-            message,
-            hint: "give an output folder of `railgrip run` (it writes campaign.json)".into(),
-        };
-        let text = std::fs::read_to_string(&path).map_err(|e| bad(e.to_string()))?;
-        serde_json::from_str(&text).map_err(|e| bad(format!("not a campaign record: {e}")))
-    }
-}
 
 /// Columns of `summary.csv` / `summary.parquet`, in order.
 pub const SUMMARY_COLUMNS: [&str; 17] = [

@@ -10,63 +10,13 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 
-use super::{CampaignError, OutDir};
+use super::{CampaignError, OutDir, RunRecord, RunStatus};
 use crate::format::AXLES;
 use crate::identify::dataset::RunTable;
 use crate::ingest::LogSource;
 use crate::Pipeline;
-
-/// How a run ended (`"ok"` / `"failed"` in `run.json`, `campaign.json` and the summary).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum RunStatus {
-    Ok,
-    Failed,
-}
-
-impl RunStatus {
-    pub fn as_str(self) -> &'static str {
-        match self {
-            RunStatus::Ok => "ok",
-            RunStatus::Failed => "failed",
-        }
-    }
-}
-
-/// What happened to one run.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunRecord {
-    /// Name: the log's path below the campaign folder without extension, `/` → `__`.
-    pub run: String,
-    /// The log file.
-    pub source: String,
-    pub status: RunStatus,
-    /// Why it failed (file, place and what to do, as the stage reported it).
-    pub error: Option<String>,
-    /// True when the outputs of an earlier run with the same inputs were kept.
-    pub reused: bool,
-    /// Time to ingest, condition, estimate and write, s (of the run that computed it).
-    pub duration_s: f64,
-    pub initial_speed_kmh: Option<f64>,
-    pub ambient_temperature_c: Option<f64>,
-    pub condition: Option<String>,
-    /// Per axle 1..4 over valid samples (None when an axle has none).
-    pub peak_mu: [Option<f64>; AXLES],
-    pub max_dv_mps: [Option<f64>; AXLES],
-    /// Ingest warnings and despiking, one line each.
-    pub warnings: Vec<String>,
-    /// SHA-256 of the log, its sidecar and the pipeline text.
-    pub input_sha256: String,
-}
-
-impl RunRecord {
-    pub fn ok(&self) -> bool {
-        self.status == RunStatus::Ok
-    }
-}
 
 /// Log files (`.csv`, `.mcap`) below `root`, recursively, in path order; hidden entries and
 /// `skip` (the output folder, when it lies inside) are left out.

@@ -97,9 +97,8 @@ pub fn calibrate(
     fit: AlphaFit,
     resistance: Resistance,
 ) -> Result<Calibration, EstimateError> {
-    let file = log.source.clone();
     let fail = |what: String, hint: &str| EstimateError::Calibration {
-        file: file.clone(),
+        file: log.source.clone(),
         what,
         hint: hint.to_string(),
     };
@@ -107,11 +106,6 @@ pub fn calibrate(
         file: log.source.clone(),
         source,
     })?;
-    let veh = &pipeline.vehicle;
-    let cfg = &pipeline.estimate;
-    let r = veh.wheel_radius_m;
-    let m = total_mass_kg(veh);
-    let j_r = veh.axle_inertia_kgm2 / r;
     let k_alpha = match fit {
         AlphaFit::Common => 1,
         AlphaFit::PerAxle => AXLES,
@@ -120,8 +114,92 @@ pub fn calibrate(
         Resistance::Fit => k_alpha + 2,
         Resistance::Davis { .. } => k_alpha,
     };
-    let mut rows: Vec<([f64; AXLES + 2], f64)> = Vec::new();
-    for i in 0..log.len() {
+    let rows = balance_rows(&c, pipeline, fit, resistance, k_alpha);
+    let n = rows.len();
+    if n < 10 * k {
+        return Err(fail(
+            format!("only {n} samples at full adhesion with the brake data needed"),
+            "calibrate on a dry run where the wheels do not slide (e.g. fixtures/archive/dry_120kmh_p20.csv)",
+        ));
+    }
+    let not_apart =
+        "the axles' pressures move together, so their α cannot be told apart: use the common fit";
+    let ls = least_squares(&rows, k).map_err(|cond| match cond {
+        None => fail(
+            "the regressors are linearly dependent".into(),
+            "the pressures do not vary enough against the speed; use a run with a brake application from coasting",
+        ),
+        Some(cond) => fail(
+            format!("the least-squares problem is ill-conditioned (condition number {cond:.1e})"),
+            match fit {
+                AlphaFit::PerAxle => not_apart,
+                AlphaFit::Common => "the pressure barely varies against the speed; use a run with a brake application from coasting",
+            },
+        ),
+    })?;
+    let (alpha, alpha_se) = match fit {
+        AlphaFit::Common => ([ls.beta[0]; AXLES], [ls.se[0]; AXLES]),
+        AlphaFit::PerAxle => (
+            std::array::from_fn(|a| ls.beta[a]),
+            std::array::from_fn(|a| ls.se[a]),
+        ),
+    };
+    let worst = alpha
+        .iter()
+        .zip(&alpha_se)
+        .map(|(a, e)| e / a.abs())
+        .fold(
+            0.0f64,
+            |m, r| if r.is_nan() { f64::INFINITY } else { m.max(r) },
+        );
+    if worst > 0.2 {
+        return Err(fail(
+            format!(
+                "α is not identifiable from this run: α = {:?} N·m/bar with standard errors up to {:.0} %",
+                alpha.map(|a| (a * 10.0).round() / 10.0),
+                worst * 100.0
+            ),
+            match fit {
+                AlphaFit::PerAxle => not_apart,
+                AlphaFit::Common => "the pressure barely varies against the speed; give the running resistance with --davis or use a run with a brake application from coasting",
+            },
+        ));
+    }
+    if alpha.iter().any(|a| !(*a > 0.0)) {
+        return Err(fail(
+            format!("the fit gives a non-positive brake coefficient {alpha:?}"),
+            "check that the run is a braking run at full adhesion and that the pressures are mapped to the right axles",
+        ));
+    }
+    Ok(Calibration {
+        alpha_nm_per_bar: alpha,
+        alpha_se,
+        fit,
+        c0_n: ls.beta.get(k_alpha).copied().unwrap_or(f64::NAN),
+        c2_n_s2_per_m2: ls.beta.get(k_alpha + 1).copied().unwrap_or(f64::NAN),
+        samples: n,
+        effective_samples: ls.n_eff,
+        rms_residual_n: (ls.rss / n as f64).sqrt(),
+    })
+}
+
+/// One row (regressors, target) of the longitudinal balance per settled full-adhesion sample:
+/// y = −(M v̇ + (J/r) Σ ω̇_i) − R_known(v), x = Σp_i/r (or p_i/r per axle) and, when the
+/// resistance is fitted, 1 and v² (columns `k_alpha`, `k_alpha + 1`).
+fn balance_rows(
+    c: &signal::Conditioned,
+    pipeline: &Pipeline,
+    fit: AlphaFit,
+    resistance: Resistance,
+    k_alpha: usize,
+) -> Vec<([f64; AXLES + 2], f64)> {
+    let veh = &pipeline.vehicle;
+    let cfg = &pipeline.estimate;
+    let r = veh.wheel_radius_m;
+    let m = total_mass_kg(veh);
+    let j_r = veh.axle_inertia_kgm2 / r;
+    let mut rows = Vec::new();
+    for i in 0..c.v_mps.len() {
         let v = c.v_mps[i];
         if !c.settled[i] || !(v >= cfg.min_speed_mps) {
             continue;
@@ -161,14 +239,25 @@ pub fn calibrate(
             rows.push((x, y));
         }
     }
+    rows
+}
+
+/// A least-squares solution with its standard errors.
+struct LeastSquares {
+    beta: Vec<f64>,
+    /// Standard errors from σ²(XᵀX)⁻¹, inflated by √(n / n_eff) for the residuals'
+    /// autocorrelation (filtered signals).
+    se: Vec<f64>,
+    rss: f64,
+    n_eff: f64,
+}
+
+/// Ordinary least squares on the first `k` columns of `rows` by Cholesky on standardised
+/// columns (the constant stays 1, so the normal matrix is well scaled). Err(None) when XᵀX is
+/// not positive definite, Err(Some(κ)) when its condition number κ (estimated from the
+/// Cholesky pivots) exceeds 1e10.
+fn least_squares(rows: &[([f64; AXLES + 2], f64)], k: usize) -> Result<LeastSquares, Option<f64>> {
     let n = rows.len();
-    if n < 10 * k {
-        return Err(fail(
-            format!("only {n} samples at full adhesion with the brake data needed"),
-            "calibrate on a dry run where the wheels do not slide (e.g. fixtures/archive/dry_120kmh_p20.csv)",
-        ));
-    }
-    // Standardise the columns (the constant stays 1) so the normal matrix is well scaled.
     let mut scale = [1.0f64; AXLES + 2];
     for (col, s) in scale.iter_mut().enumerate().take(k) {
         let rms = (rows.iter().map(|(x, _)| x[col] * x[col]).sum::<f64>() / n as f64).sqrt();
@@ -178,7 +267,7 @@ pub fn calibrate(
     }
     let mut ata = vec![0.0; k * k];
     let mut aty = vec![0.0; k];
-    for (x, y) in &rows {
+    for (x, y) in rows {
         for p in 0..k {
             let xp = x[p] / scale[p];
             aty[p] += xp * y;
@@ -192,27 +281,16 @@ pub fn calibrate(
             ata[q * k + p] = ata[p * k + q];
         }
     }
-    let l = cholesky(&ata, k).ok_or_else(|| {
-        fail(
-            "the regressors are linearly dependent".into(),
-            "the pressures do not vary enough against the speed; use a run with a brake application from coasting",
-        )
-    })?;
+    let l = cholesky(&ata, k).ok_or(None)?;
     // Condition number estimate from the Cholesky diagonal (ratio of extreme pivots, squared).
-    let diag: Vec<f64> = (0..k).map(|p| l[p * k + p]).collect();
-    let (dmin, dmax) = diag.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &d| {
-        (lo.min(d), hi.max(d))
-    });
+    let (dmin, dmax) = (0..k)
+        .map(|p| l[p * k + p])
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| {
+            (lo.min(d), hi.max(d))
+        });
     let cond = (dmax / dmin).powi(2);
     if !(cond < 1e10) {
-        let hint = match fit {
-            AlphaFit::PerAxle => "the axles' pressures move together, so their α cannot be told apart: use the common fit",
-            AlphaFit::Common => "the pressure barely varies against the speed; use a run with a brake application from coasting",
-        };
-        return Err(fail(
-            format!("the least-squares problem is ill-conditioned (condition number {cond:.1e})"),
-            hint,
-        ));
+        return Err(Some(cond));
     }
     let beta_s = cho_solve(&l, k, &aty);
     let beta: Vec<f64> = (0..k).map(|p| beta_s[p] / scale[p]).collect();
@@ -224,56 +302,18 @@ pub fn calibrate(
     let sigma2 = rss / (n - k) as f64;
     let n_eff = effective_samples(&resid);
     let inflate = (n as f64 / n_eff).sqrt();
-    let mut se = [0.0; AXLES + 2];
-    for (p, s) in se.iter_mut().enumerate().take(k) {
-        let mut e = vec![0.0; k];
-        e[p] = 1.0;
-        let col = cho_solve(&l, k, &e);
-        *s = (sigma2 * col[p]).sqrt() / scale[p] * inflate;
-    }
-    let (alpha, alpha_se) = match fit {
-        AlphaFit::Common => ([beta[0]; AXLES], [se[0]; AXLES]),
-        AlphaFit::PerAxle => (
-            std::array::from_fn(|a| beta[a]),
-            std::array::from_fn(|a| se[a]),
-        ),
-    };
-    let worst = alpha
-        .iter()
-        .zip(&alpha_se)
-        .map(|(a, e)| e / a.abs())
-        .fold(
-            0.0f64,
-            |m, r| if r.is_nan() { f64::INFINITY } else { m.max(r) },
-        );
-    if worst > 0.2 {
-        let hint = match fit {
-            AlphaFit::PerAxle => "the axles' pressures move together, so their α cannot be told apart: use the common fit",
-            AlphaFit::Common => "the pressure barely varies against the speed; give the running resistance with --davis or use a run with a brake application from coasting",
-        };
-        return Err(fail(
-            format!(
-                "α is not identifiable from this run: α = {:?} N·m/bar with standard errors up to {:.0} %",
-                alpha.map(|a| (a * 10.0).round() / 10.0),
-                worst * 100.0
-            ),
-            hint,
-        ));
-    }
-    if alpha.iter().any(|a| !(*a > 0.0)) {
-        return Err(fail(
-            format!("the fit gives a non-positive brake coefficient {alpha:?}"),
-            "check that the run is a braking run at full adhesion and that the pressures are mapped to the right axles",
-        ));
-    }
-    Ok(Calibration {
-        alpha_nm_per_bar: alpha,
-        alpha_se,
-        fit,
-        c0_n: beta.get(k_alpha).copied().unwrap_or(f64::NAN),
-        c2_n_s2_per_m2: beta.get(k_alpha + 1).copied().unwrap_or(f64::NAN),
-        samples: n,
-        effective_samples: n_eff,
-        rms_residual_n: (rss / n as f64).sqrt(),
+    let se = (0..k)
+        .map(|p| {
+            let mut e = vec![0.0; k];
+            e[p] = 1.0;
+            let col = cho_solve(&l, k, &e);
+            (sigma2 * col[p]).sqrt() / scale[p] * inflate
+        })
+        .collect();
+    Ok(LeastSquares {
+        beta,
+        se,
+        rss,
+        n_eff,
     })
 }

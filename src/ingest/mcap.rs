@@ -9,7 +9,7 @@ use std::sync::Arc;
 
 use std::io::Read;
 
-use ::mcap::records::Record;
+use ::mcap::records::{MessageHeader, Record};
 use ::mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use ::mcap::McapError;
 use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, Visitor};
@@ -75,328 +75,405 @@ fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
     }
 }
 
+/// Reads an MCAP log: one streaming pass collects the mapped topics' messages, then every
+/// mapped topic is checked, each topic ordered by log time, and the channels built.
 pub(super) fn read(src: &super::LogSource, cfg: &IngestConfig) -> Result<McapRead, IngestError> {
     let path = src.name();
-    let mut file = src.open().map_err(|e| IngestError::Io {
+    let file = src.open().map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
         source: e,
     })?;
+    let mut r = Reader::new(path, cfg);
+    r.stream(file, src.len().unwrap_or(0) as usize)?;
+    r.check_topics()?;
+    let orders = r.order_by_time()?;
+    r.finish(cfg, &orders)
+}
 
-    // Plan: topics to read and which fields of each.
-    let mut topics: Vec<TopicPlan> = Vec::new();
-    let mut topic_index: HashMap<String, usize> = HashMap::new();
-    for s in Signal::ALL {
-        let m = cfg.mcap_field(s);
-        let t = *topic_index.entry(m.topic.clone()).or_insert_with(|| {
-            topics.push(TopicPlan {
-                topic: m.topic.clone(),
-                fields: Vec::new(),
-                messages: 0,
-                seen_channel: false,
+/// What one pass over an MCAP log collects.
+struct Reader<'a> {
+    path: &'a Path,
+    /// Topics to read, the signals and JSON fields of each, and the topic of each name.
+    topics: Vec<TopicPlan>,
+    topic_index: HashMap<String, usize>,
+    field_names: Vec<Vec<String>>,
+    /// Times are kept as f64 seconds after `t_ref` (the first mapped message's log time):
+    /// exact for offsets below 2^53 ns (104 days). Per topic.
+    t_ref: Option<u64>,
+    times: Vec<Vec<f64>>,
+    /// Values per signal, in [`Signal::ALL`] order.
+    values: Vec<Vec<f64>>,
+    /// Message counts of unmapped topics (for the missing-topic message).
+    present: BTreeMap<String, usize>,
+    slots: Vec<Slot>,
+    channel_topics: HashMap<u16, (String, String)>,
+    run_metadata: Option<BTreeMap<String, String>>,
+    /// Messages seen so far (all topics).
+    total: usize,
+}
+
+impl<'a> Reader<'a> {
+    /// The plan: topics to read and which fields of each.
+    fn new(path: &'a Path, cfg: &IngestConfig) -> Reader<'a> {
+        let mut topics: Vec<TopicPlan> = Vec::new();
+        let mut topic_index: HashMap<String, usize> = HashMap::new();
+        for s in Signal::ALL {
+            let m = cfg.mcap_field(s);
+            let t = *topic_index.entry(m.topic.clone()).or_insert_with(|| {
+                topics.push(TopicPlan {
+                    topic: m.topic.clone(),
+                    fields: Vec::new(),
+                    messages: 0,
+                    seen_channel: false,
+                });
+                topics.len() - 1
             });
-            topics.len() - 1
-        });
-        topics[t].fields.push((s.index(), m.field.clone()));
+            topics[t].fields.push((s.index(), m.field.clone()));
+        }
+        let field_names = topics
+            .iter()
+            .map(|p| p.fields.iter().map(|(_, f)| f.clone()).collect())
+            .collect();
+        Reader {
+            path,
+            times: vec![Vec::new(); topics.len()],
+            topics,
+            topic_index,
+            field_names,
+            t_ref: None,
+            values: vec![Vec::new(); 9],
+            present: BTreeMap::new(),
+            slots: Vec::new(),
+            channel_topics: HashMap::new(),
+            run_metadata: None,
+            total: 0,
+        }
     }
-    let field_names: Vec<Vec<String>> = topics
-        .iter()
-        .map(|p| p.fields.iter().map(|(_, f)| f.clone()).collect())
-        .collect();
-    let field_refs: Vec<Vec<&str>> = field_names
-        .iter()
-        .map(|v| v.iter().map(String::as_str).collect())
-        .collect();
 
-    // Times are kept as f64 seconds after `t_ref` (the first mapped message's log time): exact
-    // for offsets below 2^53 ns (104 days).
-    let mut t_ref: Option<u64> = None;
-    let mut times: Vec<Vec<f64>> = vec![Vec::new(); topics.len()];
-    let mut values: Vec<Vec<f64>> = vec![Vec::new(); 9];
-    let mut present: BTreeMap<String, usize> = BTreeMap::new();
-    let mut slots: Vec<Slot> = Vec::new();
-    let mut channel_topics: HashMap<u16, (String, String)> = HashMap::new();
-    let mut run_metadata: Option<BTreeMap<String, String>> = None;
-    let mut total = 0usize;
-
-    // One streaming pass over the file (no whole-file buffer): channel records, messages
-    // (chunks decompressed and CRC-checked by the reader) and the metadata record.
-    // Bound every record and decompressed chunk: no record is longer than the file, and a
-    // chunk decompresses to at most max(file size, 256 MiB), so a corrupt length or a
-    // decompression bomb is an error, not an allocation failure.
-    let file_len = src.len().unwrap_or(0) as usize;
-    let limit = file_len.max(MAX_CHUNK_BYTES);
-    let options = LinearReaderOptions::default()
-        .with_prevalidate_chunk_crcs(true)
-        .with_record_length_limit(limit);
-    let mut reader = LinearReader::new_with_options(options);
-    while let Some(event) = reader.next_event() {
-        let (opcode, data) = match event.map_err(|e| read_error(path, total, e))? {
-            LinearReadEvent::ReadRequest(need) => {
-                if need > limit {
-                    return Err(read_error(
-                        path,
-                        total,
-                        McapError::RecordTooLarge {
-                            opcode: 0,
-                            len: need as u64,
-                        },
-                    ));
-                }
-                let n = loop {
-                    match file.read(reader.insert(need)) {
-                        Ok(n) => break n,
-                        Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
-                        Err(e) => {
-                            return Err(IngestError::Io {
-                                path: path.to_path_buf(),
-                                source: e,
-                            })
+    /// One streaming pass over the file (no whole-file buffer): channel records, messages
+    /// (chunks decompressed and CRC-checked by the reader) and the metadata record. Every
+    /// record and decompressed chunk is bounded: no record is longer than the file, and a
+    /// chunk decompresses to at most max(file size, 256 MiB), so a corrupt length or a
+    /// decompression bomb is an error, not an allocation failure.
+    fn stream(&mut self, mut file: impl Read, file_len: usize) -> Result<(), IngestError> {
+        let limit = file_len.max(MAX_CHUNK_BYTES);
+        let options = LinearReaderOptions::default()
+            .with_prevalidate_chunk_crcs(true)
+            .with_record_length_limit(limit);
+        let mut reader = LinearReader::new_with_options(options);
+        while let Some(event) = reader.next_event() {
+            match event.map_err(|e| read_error(self.path, self.total, e))? {
+                LinearReadEvent::ReadRequest(need) => {
+                    if need > limit {
+                        return Err(read_error(
+                            self.path,
+                            self.total,
+                            McapError::RecordTooLarge {
+                                opcode: 0,
+                                len: need as u64,
+                            },
+                        ));
+                    }
+                    let n = loop {
+                        match file.read(reader.insert(need)) {
+                            Ok(n) => break n,
+                            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                            Err(e) => {
+                                return Err(IngestError::Io {
+                                    path: self.path.to_path_buf(),
+                                    source: e,
+                                })
+                            }
                         }
-                    }
-                };
-                reader.notify_read(n);
-                continue;
+                    };
+                    reader.notify_read(n);
+                }
+                LinearReadEvent::Record { opcode, data } => self.record(opcode, data)?,
             }
-            LinearReadEvent::Record { opcode, data } => (opcode, data),
-        };
-        let record = ::mcap::parse_record(opcode, data).map_err(|e| read_error(path, total, e))?;
-        let (header, payload) = match record {
+        }
+        // Growth by doubling leaves up to 2x capacity: give it back before resampling allocates.
+        self.times
+            .iter_mut()
+            .chain(self.values.iter_mut())
+            .for_each(|v| v.shrink_to_fit());
+        Ok(())
+    }
+
+    fn record(&mut self, opcode: u8, data: &[u8]) -> Result<(), IngestError> {
+        let record =
+            ::mcap::parse_record(opcode, data).map_err(|e| read_error(self.path, self.total, e))?;
+        match record {
             Record::Channel(c) => {
-                if let Some(&t) = topic_index.get(&c.topic) {
-                    topics[t].seen_channel = true;
+                if let Some(&t) = self.topic_index.get(&c.topic) {
+                    self.topics[t].seen_channel = true;
                 }
-                channel_topics.insert(c.id, (c.topic, c.message_encoding));
-                continue;
+                self.channel_topics
+                    .insert(c.id, (c.topic, c.message_encoding));
             }
-            Record::Metadata(m) => {
-                if m.name == MCAP_METADATA_NAME && run_metadata.is_none() {
-                    run_metadata = Some(m.metadata);
+            Record::Metadata(m) if m.name == MCAP_METADATA_NAME && self.run_metadata.is_none() => {
+                self.run_metadata = Some(m.metadata);
+            }
+            Record::Message { header, data } => {
+                self.total += 1;
+                if let Some(t) = self.topic_of(&header)? {
+                    self.message(t, &header, &data)?;
                 }
-                continue;
             }
-            Record::Message { header, data } => (header, data),
-            _ => continue,
-        };
-        total += 1;
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// The mapped topic a message belongs to (None for unrelated topics, which are only
+    /// counted); its channel's encoding is checked the first time.
+    fn topic_of(&mut self, header: &MessageHeader) -> Result<Option<usize>, IngestError> {
         let id = header.channel_id as usize;
-        if id >= slots.len() {
-            slots.resize(id + 1, Slot::Unseen);
+        if id >= self.slots.len() {
+            self.slots.resize(id + 1, Slot::Unseen);
         }
-        if let Slot::Unseen = slots[id] {
-            let (topic, encoding) = channel_topics.get(&header.channel_id).ok_or_else(|| {
-                read_error(
-                    path,
-                    total,
-                    McapError::UnknownChannel(header.sequence, header.channel_id),
-                )
-            })?;
-            match topic_index.get(topic) {
-                None => {
-                    slots[id] = Slot::Ignored {
-                        channel: header.channel_id,
-                    }
+        if let Slot::Unseen = self.slots[id] {
+            let (topic, encoding) =
+                self.channel_topics.get(&header.channel_id).ok_or_else(|| {
+                    read_error(
+                        self.path,
+                        self.total,
+                        McapError::UnknownChannel(header.sequence, header.channel_id),
+                    )
+                })?;
+            self.slots[id] = match self.topic_index.get(topic) {
+                None => Slot::Ignored {
+                    channel: header.channel_id,
+                },
+                Some(_) if encoding != MCAP_MESSAGE_ENCODING => {
+                    return Err(IngestError::McapEncoding {
+                        path: self.path.to_path_buf(),
+                        topic: topic.clone(),
+                        encoding: encoding.clone(),
+                    })
                 }
-                Some(&t) => {
-                    if encoding != MCAP_MESSAGE_ENCODING {
-                        return Err(IngestError::McapEncoding {
-                            path: path.to_path_buf(),
-                            topic: topic.clone(),
-                            encoding: encoding.clone(),
-                        });
-                    }
-                    slots[id] = Slot::Read { topic_index: t };
-                }
-            }
+                Some(&t) => Slot::Read { topic_index: t },
+            };
         }
-        let t = match slots[id] {
-            Slot::Read { topic_index } => topic_index,
+        match self.slots[id] {
+            Slot::Read { topic_index } => Ok(Some(topic_index)),
             Slot::Ignored { channel } => {
                 // Counting unrelated topics is cheap and helps the missing-topic message.
-                if let Some((topic, _)) = channel_topics.get(&channel) {
-                    if present.len() < 200 || present.contains_key(topic) {
-                        *present.entry(topic.clone()).or_default() += 1;
+                if let Some((topic, _)) = self.channel_topics.get(&channel) {
+                    if self.present.len() < 200 || self.present.contains_key(topic) {
+                        *self.present.entry(topic.clone()).or_default() += 1;
                     }
                 }
-                continue;
+                Ok(None)
             }
             Slot::Unseen => unreachable!("resolved above"),
-        };
-        let plan = &mut topics[t];
-        let names = &field_refs[t];
+        }
+    }
+
+    /// Extracts the mapped fields of one message of topic `t`.
+    fn message(
+        &mut self,
+        t: usize,
+        header: &MessageHeader,
+        payload: &[u8],
+    ) -> Result<(), IngestError> {
+        let plan = &mut self.topics[t];
+        let names = &self.field_names[t];
         let index = plan.messages;
         plan.messages += 1;
-        let loc = || Location::Mcap {
-            topic: plan.topic.clone(),
-            message: index,
-            log_time_ns: header.log_time,
+        let path = self.path;
+        let bad = |what: String, hint: String| IngestError::McapBadMessage {
+            path: path.to_path_buf(),
+            location: Location::Mcap {
+                topic: plan.topic.clone(),
+                message: index,
+                log_time_ns: header.log_time,
+            },
+            what,
+            hint,
         };
         let mut found = [None::<f64>; 8];
-        extract(&payload, names, &mut found).map_err(|what| IngestError::McapBadMessage {
-            path: path.to_path_buf(),
-            location: loc(),
-            what,
-            hint: format!(
-                "each message on {} must be a JSON object with the number field(s) {}",
-                plan.topic,
-                names
-                    .iter()
-                    .map(|n| format!("{n:?}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
+        extract(payload, names, &mut found).map_err(|what| {
+            bad(
+                what,
+                format!(
+                    "each message on {} must be a JSON object with the number field(s) {}",
+                    plan.topic,
+                    names
+                        .iter()
+                        .map(|n| format!("{n:?}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            )
         })?;
         for (k, (sig, field)) in plan.fields.iter().enumerate() {
             match found[k] {
                 Some(x) if x.is_finite() => {}
                 Some(x) => {
-                    return Err(IngestError::McapBadMessage {
-                        path: path.to_path_buf(),
-                        location: loc(),
-                        what: format!("field {field:?} is {x}, not a finite number"),
-                        hint: "NaN and inf are not measurements; drop such messages when logging".into(),
-                    })
+                    return Err(bad(
+                        format!("field {field:?} is {x}, not a finite number"),
+                        "NaN and inf are not measurements; drop such messages when logging".into(),
+                    ))
                 }
                 None => {
-                    return Err(IngestError::McapBadMessage {
-                        path: path.to_path_buf(),
-                        location: loc(),
-                        what: format!("no number field {field:?} in {}", preview(&payload)),
-                        hint: format!(
+                    return Err(bad(
+                        format!("no number field {field:?} in {}", preview(payload)),
+                        format!(
                             "set the field name of {} in [ingest.mcap] of the pipeline (field = \"...\")",
                             Signal::ALL[*sig]
                         ),
-                    })
+                    ))
                 }
             }
         }
-        let t_ref = *t_ref.get_or_insert(header.log_time);
-        times[t].push((header.log_time as i128 - t_ref as i128) as f64 * 1e-9);
-        for (k, (sig, _)) in plan.fields.iter().enumerate() {
-            values[*sig].push(found[k].expect("checked above"));
+        let t_ref = *self.t_ref.get_or_insert(header.log_time);
+        self.times[t].push((header.log_time as i128 - t_ref as i128) as f64 * 1e-9);
+        for (k, (sig, _)) in self.topics[t].fields.iter().enumerate() {
+            self.values[*sig].push(found[k].expect("checked above"));
         }
+        Ok(())
     }
-    // Growth by doubling leaves up to 2x capacity: give it back before resampling allocates.
-    times
-        .iter_mut()
-        .chain(values.iter_mut())
-        .for_each(|v| v.shrink_to_fit());
-    let t_ref = t_ref.unwrap_or(0);
-    let log_time = |t_s: f64| (t_ref as i128 + (t_s * 1e9).round() as i128).max(0) as u64;
 
-    // Every mapped topic must exist and have messages.
-    let missing: Vec<&TopicPlan> = topics.iter().filter(|p| !p.seen_channel).collect();
-    if !missing.is_empty() {
-        let mut listed: Vec<String> = present
-            .iter()
-            .map(|(t, n)| format!("{t} ({n} messages)"))
-            .collect();
-        for p in topics.iter().filter(|p| p.seen_channel) {
-            listed.push(format!("{} ({} messages)", p.topic, p.messages));
-        }
-        listed.sort();
-        return Err(IngestError::McapMissingTopics {
-            path: path.to_path_buf(),
-            missing: missing
+    /// Log time (ns) of a time in seconds after the reference.
+    fn log_time(&self, t_s: f64) -> u64 {
+        let t_ref = self.t_ref.unwrap_or(0);
+        (t_ref as i128 + (t_s * 1e9).round() as i128).max(0) as u64
+    }
+
+    /// Every mapped topic must exist and have messages.
+    fn check_topics(&self) -> Result<(), IngestError> {
+        let topics = &self.topics;
+        let missing: Vec<&TopicPlan> = topics.iter().filter(|p| !p.seen_channel).collect();
+        if !missing.is_empty() {
+            let mut listed: Vec<String> = self
+                .present
                 .iter()
-                .map(|p| {
-                    let sigs: Vec<&str> = p
-                        .fields
-                        .iter()
-                        .map(|(s, _)| Signal::ALL[*s].key())
-                        .collect();
-                    format!("{} ({})", p.topic, sigs.join(", "))
-                })
-                .collect::<Vec<_>>()
-                .join(", "),
-            present: if listed.is_empty() {
-                "no messages".into()
-            } else {
-                listed.join(", ")
-            },
-        });
-    }
-    if let Some(p) = topics.iter().find(|p| p.messages == 0) {
-        return Err(IngestError::McapNoMessages {
-            path: path.to_path_buf(),
-            topic: p.topic.clone(),
-            signal: Signal::ALL[p.fields[0].0],
-        });
-    }
-
-    // Order by log time within each topic (MCAP does not promise order); equal times are errors.
-    let mut orders: Vec<Option<Vec<usize>>> = Vec::with_capacity(topics.len());
-    for (t, ts) in times.iter_mut().enumerate() {
-        if ts.windows(2).all(|w| w[0] < w[1]) {
-            orders.push(None);
-            continue;
-        }
-        let mut order: Vec<usize> = (0..ts.len()).collect();
-        order.sort_by(|&a, &b| ts[a].total_cmp(&ts[b]).then(a.cmp(&b)));
-        for w in order.windows(2) {
-            if ts[w[0]] == ts[w[1]] {
-                return Err(IngestError::TimeNotIncreasing {
-                    path: path.to_path_buf(),
-                    location: Location::Mcap {
-                        topic: topics[t].topic.clone(),
-                        message: w[1],
-                        log_time_ns: log_time(ts[w[1]]),
-                    },
-                    channel: format!("topic {}", topics[t].topic),
-                    t_prev_s: ts[w[0]],
-                    t_s: ts[w[1]],
-                });
+                .map(|(t, n)| format!("{t} ({n} messages)"))
+                .collect();
+            for p in topics.iter().filter(|p| p.seen_channel) {
+                listed.push(format!("{} ({} messages)", p.topic, p.messages));
             }
-        }
-        *ts = order.iter().map(|&i| ts[i]).collect();
-        orders.push(Some(order));
-    }
-
-    let mut warnings = Vec::new();
-    let metadata = match run_metadata {
-        Some(pairs) => {
-            let name = format!("metadata record \"{MCAP_METADATA_NAME}\"");
-            super::metadata_from_pairs(path, &name, &pairs)?
-        }
-        None => {
-            warnings.push(Warning {
-                kind: WarningKind::NoMetadata,
-                message: format!(
-                    "no metadata: the file has no \"{MCAP_METADATA_NAME}\" metadata record (ambient temperature, initial speed, condition unknown)"
-                ),
+            listed.sort();
+            return Err(IngestError::McapMissingTopics {
+                path: self.path.to_path_buf(),
+                missing: missing
+                    .iter()
+                    .map(|p| {
+                        let sigs: Vec<&str> = p
+                            .fields
+                            .iter()
+                            .map(|(s, _)| Signal::ALL[*s].key())
+                            .collect();
+                        format!("{} ({})", p.topic, sigs.join(", "))
+                    })
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                present: if listed.is_empty() {
+                    "no messages".into()
+                } else {
+                    listed.join(", ")
+                },
             });
-            RunMetadata::default()
         }
-    };
-
-    let mut channels = Vec::with_capacity(9);
-    let shared_times: Vec<Arc<Vec<f64>>> = times.into_iter().map(Arc::new).collect();
-    for s in Signal::ALL {
-        let m = cfg.mcap_field(s);
-        let t = topic_index[&m.topic];
-        let factor = m.unit.to_canonical_factor();
-        let raw = std::mem::take(&mut values[s.index()]);
-        let v: Vec<f64> = match &orders[t] {
-            None => raw.into_iter().map(|x| x * factor).collect(),
-            Some(order) => order.iter().map(|&i| raw[i] * factor).collect(),
-        };
-        channels.push(RawChannel {
-            signal: s,
-            source: format!("{} .{} [{}]", m.topic, m.field, m.unit),
-            time_s: Arc::clone(&shared_times[t]),
-            values: v,
-            locate: Locator::Mcap {
-                topic: m.topic.clone(),
-                t_ref_ns: t_ref,
-            },
-            dropped: 0,
-        });
+        if let Some(p) = topics.iter().find(|p| p.messages == 0) {
+            return Err(IngestError::McapNoMessages {
+                path: self.path.to_path_buf(),
+                topic: p.topic.clone(),
+                signal: Signal::ALL[p.fields[0].0],
+            });
+        }
+        Ok(())
     }
-    Ok(McapRead {
-        channels,
-        metadata,
-        t0_ns: t_ref,
-        warnings,
-    })
+
+    /// Orders each topic by log time (MCAP does not promise order; equal times are errors);
+    /// returns the permutation per topic (None when already in order).
+    fn order_by_time(&mut self) -> Result<Vec<Option<Vec<usize>>>, IngestError> {
+        let mut orders: Vec<Option<Vec<usize>>> = Vec::with_capacity(self.topics.len());
+        for t in 0..self.times.len() {
+            let ts = &self.times[t];
+            if ts.windows(2).all(|w| w[0] < w[1]) {
+                orders.push(None);
+                continue;
+            }
+            let mut order: Vec<usize> = (0..ts.len()).collect();
+            order.sort_by(|&a, &b| ts[a].total_cmp(&ts[b]).then(a.cmp(&b)));
+            for w in order.windows(2) {
+                if ts[w[0]] == ts[w[1]] {
+                    return Err(IngestError::TimeNotIncreasing {
+                        path: self.path.to_path_buf(),
+                        location: Location::Mcap {
+                            topic: self.topics[t].topic.clone(),
+                            message: w[1],
+                            log_time_ns: self.log_time(ts[w[1]]),
+                        },
+                        channel: format!("topic {}", self.topics[t].topic),
+                        t_prev_s: ts[w[0]],
+                        t_s: ts[w[1]],
+                    });
+                }
+            }
+            self.times[t] = order.iter().map(|&i| ts[i]).collect();
+            orders.push(Some(order));
+        }
+        Ok(orders)
+    }
+
+    /// The run metadata and the channels in canonical units, each topic's samples in `orders`.
+    fn finish(
+        mut self,
+        cfg: &IngestConfig,
+        orders: &[Option<Vec<usize>>],
+    ) -> Result<McapRead, IngestError> {
+        let mut warnings = Vec::new();
+        let metadata = match self.run_metadata.take() {
+            Some(pairs) => {
+                let name = format!("metadata record \"{MCAP_METADATA_NAME}\"");
+                super::metadata_from_pairs(self.path, &name, &pairs)?
+            }
+            None => {
+                warnings.push(Warning {
+                    kind: WarningKind::NoMetadata,
+                    message: format!(
+                        "no metadata: the file has no \"{MCAP_METADATA_NAME}\" metadata record (ambient temperature, initial speed, condition unknown)"
+                    ),
+                });
+                RunMetadata::default()
+            }
+        };
+        let t_ref = self.t_ref.unwrap_or(0);
+        let shared_times: Vec<Arc<Vec<f64>>> = std::mem::take(&mut self.times)
+            .into_iter()
+            .map(Arc::new)
+            .collect();
+        let mut channels = Vec::with_capacity(9);
+        for s in Signal::ALL {
+            let m = cfg.mcap_field(s);
+            let t = self.topic_index[&m.topic];
+            let factor = m.unit.to_canonical_factor();
+            let raw = std::mem::take(&mut self.values[s.index()]);
+            let v: Vec<f64> = match &orders[t] {
+                None => raw.into_iter().map(|x| x * factor).collect(),
+                Some(order) => order.iter().map(|&i| raw[i] * factor).collect(),
+            };
+            channels.push(RawChannel {
+                signal: s,
+                source: format!("{} .{} [{}]", m.topic, m.field, m.unit),
+                time_s: Arc::clone(&shared_times[t]),
+                values: v,
+                locate: Locator::Mcap {
+                    topic: m.topic.clone(),
+                    t_ref_ns: t_ref,
+                },
+                dropped: 0,
+            });
+        }
+        Ok(McapRead {
+            channels,
+            metadata,
+            t0_ns: t_ref,
+            warnings,
+        })
+    }
 }
 
 fn preview(data: &[u8]) -> String {
@@ -406,7 +483,11 @@ fn preview(data: &[u8]) -> String {
 
 /// Extracts the named number fields of a JSON object without allocating; other fields are
 /// skipped. `found[k]` receives field `names[k]` (at most 8 fields per topic).
-fn extract(data: &[u8], names: &[&str], found: &mut [Option<f64>; 8]) -> Result<(), String> {
+fn extract<S: AsRef<str>>(
+    data: &[u8],
+    names: &[S],
+    found: &mut [Option<f64>; 8],
+) -> Result<(), String> {
     if names.len() > found.len() {
         return Err(format!(
             "more than {} fields mapped to one topic",
@@ -420,26 +501,26 @@ fn extract(data: &[u8], names: &[&str], found: &mut [Option<f64>; 8]) -> Result<
         .map_err(|e| format!("not a JSON object of numbers: {e} in {}", preview(data)))
 }
 
-struct FieldsSeed<'a, 'b> {
-    names: &'a [&'a str],
+struct FieldsSeed<'a, 'b, S> {
+    names: &'a [S],
     found: &'b mut [Option<f64>; 8],
 }
 
-impl<'de> DeserializeSeed<'de> for FieldsSeed<'_, '_> {
+impl<'de, S: AsRef<str>> DeserializeSeed<'de> for FieldsSeed<'_, '_, S> {
     type Value = ();
     fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
         d.deserialize_map(self)
     }
 }
 
-impl<'de> Visitor<'de> for FieldsSeed<'_, '_> {
+impl<'de, S: AsRef<str>> Visitor<'de> for FieldsSeed<'_, '_, S> {
     type Value = ();
     fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
         f.write_str("a JSON object")
     }
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
         while let Some(key) = map.next_key::<KeyRef<'de>>()? {
-            match self.names.iter().position(|n| *n == key.as_str()) {
+            match self.names.iter().position(|n| n.as_ref() == key.as_str()) {
                 Some(k) => {
                     let v: NumberOrNot = map.next_value()?;
                     match v {

@@ -19,11 +19,11 @@ use std::path::{Path, PathBuf};
 
 use plotters::style::RGBColor;
 
-use crate::campaign::{CampaignError, CampaignRecord, OutDir, RunRecord};
 use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
 use crate::format::AXLES;
 use crate::identify::polach_fit::PolachReport;
 use crate::model::{Model, ModelError, ModelFile};
+use crate::outdir::{CampaignRecord, OutDir, RecordError, RunRecord};
 use data::{read_run, RunData};
 use plot::{chart, heatmap, Series, PALETTE};
 
@@ -31,7 +31,7 @@ use plot::{chart, heatmap, Series, PALETTE};
 #[derive(Debug, thiserror::Error)]
 pub enum ReportError {
     #[error(transparent)]
-    Campaign(#[from] CampaignError),
+    Record(#[from] RecordError),
     /// A model file of the campaign exists but cannot be used.
     #[error("{0}")]
     Model(#[from] ModelError),

@@ -1,5 +1,7 @@
-//! Where a campaign's outputs go: every path below the output folder is spelled here and
-//! nowhere else.
+//! A campaign's output folder: where every output goes (every path below the folder is
+//! spelled here and nowhere else) and the records that describe its runs ([`RunRecord`],
+//! `run.json`) and the whole campaign ([`CampaignRecord`], `campaign.json`). The campaign
+//! writes them, the report reads them.
 //!
 //! ```text
 //! <out>/runs/<run>/estimates.parquet   the run's estimates table (README, "Estimates table")
@@ -11,7 +13,37 @@
 //! <out>/report/index.html              the validation report
 //! ```
 
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::format::AXLES;
+
+/// A record file that could not be read or written.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error(
+        "{path}: {source}. Hint: give an output folder of `railgrip run` (it writes campaign.json)"
+    )]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: not a campaign record: {source}. Hint: rerun `railgrip run` to rewrite it")]
+    Parse {
+        path: PathBuf,
+        #[source]
+        source: serde_json::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+}
 
 /// The output folder of `railgrip run`.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -110,6 +142,97 @@ impl ModelPaths {
     }
     pub fn polach_prefix(&self) -> String {
         format!("{}_polach", self.name)
+    }
+}
+
+/// How a run ended (`"ok"` / `"failed"` in `run.json`, `campaign.json` and the summary).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum RunStatus {
+    Ok,
+    Failed,
+}
+
+impl RunStatus {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            RunStatus::Ok => "ok",
+            RunStatus::Failed => "failed",
+        }
+    }
+}
+
+/// What happened to one run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunRecord {
+    /// Name: the log's path below the campaign folder without extension, `/` → `__`.
+    pub run: String,
+    /// The log file.
+    pub source: String,
+    pub status: RunStatus,
+    /// Why it failed (file, place and what to do, as the stage reported it).
+    pub error: Option<String>,
+    /// True when the outputs of an earlier run with the same inputs were kept.
+    pub reused: bool,
+    /// Time to ingest, condition, estimate and write, s (of the run that computed it).
+    pub duration_s: f64,
+    pub initial_speed_kmh: Option<f64>,
+    pub ambient_temperature_c: Option<f64>,
+    pub condition: Option<String>,
+    /// Per axle 1..4 over valid samples (None when an axle has none).
+    pub peak_mu: [Option<f64>; AXLES],
+    pub max_dv_mps: [Option<f64>; AXLES],
+    /// Ingest warnings and despiking, one line each.
+    pub warnings: Vec<String>,
+    /// SHA-256 of the log, its sidecar and the pipeline text.
+    pub input_sha256: String,
+}
+
+impl RunRecord {
+    pub fn ok(&self) -> bool {
+        self.status == RunStatus::Ok
+    }
+}
+
+/// The campaign as `railgrip run` left it (`<out>/campaign.json`): what `railgrip report`
+/// rebuilds the report from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CampaignRecord {
+    /// The campaign folder.
+    pub archive: String,
+    pub runs: Vec<RunRecord>,
+    /// Rail condition the models were trained on.
+    pub condition: Option<String>,
+    /// Why no models were trained.
+    pub model_error: Option<String>,
+    pub notes: Vec<String>,
+    /// Pipeline file name and its validation axles (seed 002 Fig. 10 uses the first).
+    pub pipeline: String,
+    pub validation_axles: Vec<u8>,
+}
+
+impl CampaignRecord {
+    /// Writes `<out>/campaign.json` atomically.
+    pub fn write(&self, out: &OutDir) -> Result<PathBuf, RecordError> {
+        let path = out.campaign_record();
+        let text = serde_json::to_string_pretty(self).expect("records serialise") + "\n";
+        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
+            |source| RecordError::Write {
+                path: path.clone(),
+                source,
+            },
+        )?;
+        Ok(path)
+    }
+
+    /// Reads `<out>/campaign.json`.
+    pub fn read(out: &OutDir) -> Result<CampaignRecord, RecordError> {
+        let path = out.campaign_record();
+        let text = std::fs::read_to_string(&path).map_err(|source| RecordError::Read {
+            path: path.clone(),
+            source,
+        })?;
+        serde_json::from_str(&text).map_err(|source| RecordError::Parse { path, source })
     }
 }
 
