@@ -555,6 +555,21 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let o = railgrip(&["report", "out"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     assert!(o_dir.join("report/index.html").exists());
+
+    // A corrupt model or fits file is an error naming it, not a report without that section.
+    for (file, bad) in [
+        ("models/mlp.polach-fits.json", "{\"pooled\": 3}"),
+        ("models/mlp.json", "{}"),
+    ] {
+        let path = o_dir.join(file);
+        let good = std::fs::read(&path).unwrap();
+        std::fs::write(&path, bad).unwrap();
+        let o = railgrip(&["report", "out"], dir.path());
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{file}: {err}");
+        assert!(err.contains(file) && err.contains("Hint:"), "{file}: {err}");
+        std::fs::write(&path, good).unwrap();
+    }
 }
 
 #[test]

@@ -1,12 +1,12 @@
 //! A test campaign end to end (`railgrip run`), as one library call: [`run`] finds the logs of a
 //! campaign folder or archive, estimates every run in parallel ([`runs`]: a run that fails is a
 //! record, not an abort), trains and exports the models on the pooled estimates of one rail
-//! condition ([`train`]), and writes the summary ([`record`]), `campaign.json` and the report.
+//! condition ([`train`]), and writes the summary ([`summary`]), `campaign.json` and the report.
 //! [`OutDir`] (module `outdir`, shared with the report) owns every output path. Progress goes to a [`Progress`] the caller supplies (the
 //! CLI draws bars from it); the library never prints.
 
-pub mod record;
 pub mod runs;
+pub mod summary;
 pub mod train;
 
 use std::path::{Path, PathBuf};
@@ -16,8 +16,8 @@ use std::time::Instant;
 use rayon::prelude::*;
 
 pub use crate::outdir::{CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus};
-pub use record::{write_summary, SUMMARY_COLUMNS};
 pub use runs::{discover, input_hash, process_run, run_name};
+pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use train::{train_models, CampaignModels};
 
 use crate::identify::dataset::RunTable;
@@ -33,6 +33,12 @@ pub enum CampaignError {
         path: PathBuf,
         message: String,
         hint: String,
+    },
+    #[error("{path}: {source}. Hint: give a folder of braking-run logs (.csv with .meta.toml, .mcap) or an archive of one")]
+    Read {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
     },
     #[error("{path}: cannot write: {source}")]
     Write {

@@ -21,10 +21,9 @@ use crate::Pipeline;
 /// Log files (`.csv`, `.mcap`) below `root`, recursively, in path order; hidden entries and
 /// `skip` (the output folder, when it lies inside) are left out.
 pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, CampaignError> {
-    let bad = |path: &Path, e: std::io::Error| CampaignError::Input {
+    let bad = |path: &Path, source: std::io::Error| CampaignError::Read {
         path: path.to_path_buf(),
-        message: e.to_string(),
-        hint: "give a folder of braking-run logs (.csv with .meta.toml, .mcap)".into(),
+        source,
     };
     let meta = std::fs::metadata(root).map_err(|e| bad(root, e))?;
     if !meta.is_dir() {

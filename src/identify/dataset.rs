@@ -61,7 +61,10 @@ impl RunTable {
             hint: "give an estimates table written by `railgrip estimate` (or the run logs themselves)".into(),
         }
         };
-        let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+        let file = std::fs::File::open(path).map_err(|source| IdentifyError::Read {
+            file: path.display().to_string(),
+            source,
+        })?;
         let mut reader = ParquetReader::new(file);
         let metadata = reader
             .get_metadata()
@@ -123,7 +126,10 @@ impl RunTable {
                 })
                 .unwrap_or_default(),
             source: path.display().to_string(),
-            sha256: crate::hash::sha256_file(path).map_err(|e| bad(e.to_string()))?,
+            sha256: crate::hash::sha256_file(path).map_err(|source| IdentifyError::Read {
+                file: path.display().to_string(),
+                source,
+            })?,
             metadata,
             ..RunTable::default()
         };

@@ -25,6 +25,12 @@ pub enum IdentifyError {
         message: String,
         hint: String,
     },
+    #[error("{file}: cannot read: {source}")]
+    Read {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{what}. Hint: {hint}")]
     Data { what: String, hint: String },
     /// The solver stopped with an error (not a convergence failure: LM reports those as stop

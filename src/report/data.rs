@@ -21,7 +21,10 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         file: path.display().to_string(),
         message,
     };
-    let file = std::fs::File::open(path).map_err(|e| bad(e.to_string()))?;
+    let file = std::fs::File::open(path).map_err(|source| ReportError::Read {
+        file: path.display().to_string(),
+        source,
+    })?;
     let df = ParquetReader::new(file)
         .finish()
         .map_err(|e| bad(e.to_string()))?;

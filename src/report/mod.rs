@@ -42,6 +42,14 @@ pub enum ReportError {
         #[source]
         source: serde_json::Error,
     },
+    #[error(
+        "{file}: cannot read: {source}. Hint: rerun `railgrip run` to rewrite the output folder"
+    )]
+    Read {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{file}: {message}")]
     Data { file: String, message: String },
     #[error("plot \"{plot}\": {message}")]
@@ -70,7 +78,7 @@ impl<'a> Inputs<'a> {
         let fits = match std::fs::read_to_string(models.polach_fits()) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
             Err(source) => {
-                return Err(ReportError::Write {
+                return Err(ReportError::Read {
                     file: models.polach_fits().display().to_string(),
                     source,
                 })

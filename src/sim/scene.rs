@@ -78,8 +78,10 @@ impl Effect {
         }
     }
 
-    pub fn index(self) -> usize {
-        Effect::ALL.iter().position(|e| *e == self).expect("listed")
+    /// Position in [`Effect::ALL`] (the declaration order; tested).
+    #[inline(always)]
+    pub const fn index(self) -> usize {
+        self as usize
     }
 }
 
@@ -1111,4 +1113,16 @@ fn default_k_temperature(k20: f64) -> Vec<f64> {
         k20 * (-a - 40.0 * b),
         k20 * b,
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn effect_index_is_the_position_in_all() {
+        for (i, e) in Effect::ALL.iter().enumerate() {
+            assert_eq!(e.index(), i, "{e}");
+        }
+    }
 }

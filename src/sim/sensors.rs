@@ -58,12 +58,12 @@ pub(super) struct Logger<'a> {
 }
 
 /// Rounds to a resolution of 1/inv (a logger's resolution; keeps files small and exact).
-#[inline]
+#[inline(always)]
 fn round_to(x: f64, inv: f64) -> f64 {
     (x * inv).round() / inv
 }
 
-#[inline]
+#[inline(always)]
 fn push(s: &mut Series, t: f64, v: f64) {
     s.time_s.push(t);
     s.values.push(v);
@@ -72,6 +72,7 @@ fn push(s: &mut Series, t: f64, v: f64) {
 impl<'a> Logger<'a> {
     /// An empty log with room for the whole run (at most ten minutes' worth up front: no
     /// reallocation and copy while the step loop runs).
+    #[inline(always)]
     pub(super) fn new(sc: &'a Scene, seed: u64) -> Logger<'a> {
         let s = &sc.sensors;
         let rates = [
@@ -138,7 +139,10 @@ impl<'a> Logger<'a> {
     }
 
     /// Takes every sample due at step time `t` from the state `st`; true when a truth sample
-    /// was among them.
+    /// was among them. (Inlined into the step loop like the sensor models below: compiled
+    /// there with the loop's target features, `f64::round` is a few instructions instead of a
+    /// libm call — 8 % of a full scene's time when it was not.)
+    #[inline(always)]
     pub(super) fn record(&mut self, t: f64, st: &SimState, counters: &mut EffectCounters) -> bool {
         let mut truth = false;
         for g in 0..4 {
@@ -163,6 +167,7 @@ impl<'a> Logger<'a> {
         truth
     }
 
+    #[inline(always)]
     fn radar(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
         let (fx, s) = (self.sc.effects, &self.sc.sensors);
         let mut m = st.v;
@@ -181,6 +186,7 @@ impl<'a> Logger<'a> {
         push(&mut self.channels[0], ts, round_to(m.max(0.0), 1e3));
     }
 
+    #[inline(always)]
     fn tachometers(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
         let quantized = self.sc.effects.has(Effect::TachoQuantization);
         let k = self.next_k[TACHO] as usize;
@@ -207,6 +213,7 @@ impl<'a> Logger<'a> {
         }
     }
 
+    #[inline(always)]
     fn pressures(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
         let noisy = self.sc.effects.has(Effect::PressureNoise);
         for a in 0..AXLES {
@@ -219,6 +226,7 @@ impl<'a> Logger<'a> {
         }
     }
 
+    #[inline(always)]
     fn truth_sample(&mut self, ts: f64, st: &SimState) {
         let r = self.sc.vehicle.wheel_radius_m;
         let tr = &mut self.truth;

@@ -110,7 +110,11 @@ fn model_adhesion(m: &Model, w: f64, ddv: f64, v: f64) -> (f64, f64) {
 
 impl<'a> Setup<'a> {
     /// The run's constants; the effects that act once (temperature, cleaning, gradient) are
-    /// applied and counted here.
+    /// applied and counted here. (`Setup::new`, `initial_state` and `Logger::new` are inlined
+    /// into the step loop so that the setup, the state and the counters stay local to it: a
+    /// local whose address escapes into a call is kept in memory, which cost the full scene
+    /// ~10 % more instructions.)
+    #[inline(always)]
     pub(super) fn new(sc: &'a Scene, counters: &mut EffectCounters) -> Result<Setup<'a>, SimError> {
         let fx = sc.effects;
         let veh = &sc.vehicle;
@@ -146,6 +150,12 @@ impl<'a> Setup<'a> {
             0.0
         };
         let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);
+        // Without load transfer the loads stay static: N = N0 + d · 0, the same operations.
+        let per_decel = if fx.has(Effect::LoadTransfer) {
+            per_decel
+        } else {
+            [0.0; AXLES]
+        };
         Ok(Setup {
             sc,
             fx,
@@ -179,6 +189,7 @@ impl<'a> Setup<'a> {
 
     /// The state at the start: rolling at the initial speed, brakes released, the contact
     /// coefficients of the first step prepared.
+    #[inline(always)]
     pub(super) fn initial_state<V: Select>(
         &self,
         isa: V::Isa,
@@ -253,25 +264,36 @@ impl<'a> Setup<'a> {
     #[inline(always)]
     pub(super) fn brakes(&self, t: f64, st: &mut SimState, counters: &mut EffectCounters) {
         let sc = self.sc;
+        let wsp = self.fx.has(Effect::Wsp);
+        if wsp {
+            counters.add(Effect::Wsp, AXLES as u64);
+        }
+        let (r, h, k_cyl, v, decel) = (self.r, self.h, self.k_cyl, st.v, st.decel);
+        let (demand_bar, alpha, wsp_keys) = (
+            &sc.brake.demand_bar,
+            &sc.vehicle.brake_torque_nm_per_bar,
+            &sc.wsp,
+        );
         for a in 0..AXLES {
-            let demand = demand_at(&sc.brake.demand_bar[a], t, &mut st.cursor[a]);
-            let w = (-self.r).mul_add(st.ax.omega[a], st.v);
+            let demand = demand_at(&demand_bar[a], t, &mut st.cursor[a]);
+            let w = (-r).mul_add(st.ax.omega[a], v);
             st.slip[a] = w;
-            let cmd = if self.fx.has(Effect::Wsp) {
-                counters.hit(Effect::Wsp);
+            let p = st.p[a];
+            let cmd = if wsp {
                 let reading = AxleReading {
-                    v_mps: st.v,
+                    v_mps: v,
                     slip_mps: w,
                     slip_rate_mps2: st.ddv[a],
-                    decel_excess_mps2: -self.r * st.omega_dot[a] - st.decel,
-                    p_bar: st.p[a],
+                    decel_excess_mps2: -r * st.omega_dot[a] - decel,
+                    p_bar: p,
                 };
-                st.wsp[a].command(&sc.wsp, self.h, &reading, demand)
+                st.wsp[a].command(wsp_keys, h, &reading, demand)
             } else {
                 demand
             };
-            st.p[a] += (cmd - st.p[a]) * self.k_cyl;
-            st.ax.brake[a] = sc.vehicle.brake_torque_nm_per_bar[a] * st.p[a];
+            let p = p + (cmd - p) * k_cyl;
+            st.p[a] = p;
+            st.ax.brake[a] = alpha[a] * p;
         }
     }
 
@@ -339,7 +361,7 @@ impl<'a> Setup<'a> {
     /// The contact law's coefficients for the next axle step, from the state at this step's
     /// start (deceleration, slip) and the speed factor `speed` (1; 1 without falling friction):
     /// N = N0 + d ∂N/∂d under load transfer (seed 002 eq. 12–13,
-    /// [`crate::vehicle::axle_load_coefficients`]; N0 without it), μ = μ_axle s(v)
+    /// [`crate::vehicle::axle_load_coefficients`]; ∂N/∂d = 0 without it), μ = μ_axle s(v)
     /// ((1 − A) e^(−B|Δv|) + A), and from them `ax.d_per_v` = (N/2) μ/K and `ax.pn` = (2/π) μ N;
     /// N goes to `normal_next`.
     #[inline(always)]
@@ -350,18 +372,16 @@ impl<'a> Setup<'a> {
         st: &mut SimState,
         counters: &mut EffectCounters,
     ) {
-        let transfer = self.fx.has(Effect::LoadTransfer);
-        if transfer {
+        if self.fx.has(Effect::LoadTransfer) {
             counters.add(Effect::LoadTransfer, AXLES as u64);
         }
         let mut i = 0;
         while i < AXLES {
-            let load = V::load(isa, &self.load[i..]);
-            let n = if transfer {
-                V::splat(isa, st.decel).fma(V::load(isa, &self.per_decel[i..]), load)
-            } else {
-                load
-            };
+            // N0 + d ∂N/∂d, with ∂N/∂d = 0 without load transfer (see `Setup::new`).
+            let n = V::splat(isa, st.decel).fma(
+                V::load(isa, &self.per_decel[i..]),
+                V::load(isa, &self.load[i..]),
+            );
             let mut mu = V::load(isa, &self.mu_axle[i..]).mul(V::splat(isa, speed));
             if let Some((a, b)) = self.falling {
                 let e = exp_lanes(
@@ -385,7 +405,7 @@ impl<'a> Setup<'a> {
 
     /// Refreshes the patch constant for the wheel loads (a b ∝ Q^(2/3)) under load transfer
     /// (at the output rate: the loads change slowly).
-    #[inline]
+    #[inline(always)]
     pub(super) fn refresh_patch(&self, st: &mut SimState, counters: &mut EffectCounters) {
         if !self.fx.has(Effect::LoadTransfer) {
             return;

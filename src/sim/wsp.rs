@@ -13,7 +13,7 @@ use super::scene::WspSection;
 
 /// Linear interpolation of the brake demand (t s, p bar), held after the last point; `cursor`
 /// advances with t.
-#[inline]
+#[inline(always)]
 pub(super) fn demand_at(points: &[(f64, f64)], t: f64, cursor: &mut usize) -> f64 {
     while *cursor + 1 < points.len() && points[*cursor + 1].0 <= t {
         *cursor += 1;
@@ -67,7 +67,7 @@ pub(super) struct AxleReading {
 impl Wsp {
     /// The cylinder command (bar) for `demand_bar` after a step of `h` s in which the axle
     /// reads `x`.
-    #[inline]
+    #[inline(always)]
     pub(super) fn command(
         &mut self,
         w: &WspSection,
