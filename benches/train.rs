@@ -68,10 +68,7 @@ fn data() -> (Dataset, f64) {
 
 fn bench(c: &mut Criterion) {
     let (d, v_ref) = data();
-    let shape = Shape {
-        inputs: 2,
-        hidden: 10,
-    };
+    let shape = Shape::one(2, 10);
     let xn = MapMinMax::fit(&d.train_x, 2);
     let yn = MapMinMax::fit(&d.train_y, 1);
     let (mut x, mut y, mut vx, mut vy) = (

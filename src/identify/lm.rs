@@ -55,6 +55,28 @@ pub trait LeastSquares {
     }
 }
 
+/// A borrowed problem is a problem (the solver takes its problem by value).
+impl<T: LeastSquares + ?Sized> LeastSquares for &T {
+    fn n_params(&self) -> usize {
+        (**self).n_params()
+    }
+    fn n_train(&self) -> usize {
+        (**self).n_train()
+    }
+    fn sse(&self, theta: &[f64]) -> f64 {
+        (**self).sse(theta)
+    }
+    fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
+        (**self).normal_equations(theta)
+    }
+    fn validation_mse(&self, theta: &[f64]) -> Option<f64> {
+        (**self).validation_mse(theta)
+    }
+    fn mse_scale(&self) -> f64 {
+        (**self).mse_scale()
+    }
+}
+
 /// trainlm's settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LmSettings {

@@ -1,27 +1,53 @@
-//! The network of seed 002 (002_8d8769283f5e9cb6.txt, "Neural network"): inputs → one hidden
-//! layer of tanh neurons → one linear output, on inputs and target scaled by mapminmax.
+//! The network of seed 002 (002_8d8769283f5e9cb6.txt, "Neural network") and its deeper
+//! variants: inputs → one or two hidden layers of tanh neurons → one linear output, on inputs
+//! and target scaled by mapminmax.
 //!
-//! ŷ = b2 + Σ_h w2_h tanh(z_h),  z_h = b1_h + Σ_i W1_hi x_i            (x, ŷ in [−1, 1] units)
+//! One hidden layer (seed 002):  ŷ = b_o + Σ_h w_o,h t_h,  t_h = tanh(b1_h + Σ_i W1_hi x_i);
+//! two: t2_g = tanh(b2_g + Σ_h W2_gh t_h) feeds the output instead.
 //!
-//! Parameters are one flat vector θ = [W1 (row-major, hidden × inputs), b1, w2, b2] — MATLAB's
-//! order IW, b1, LW, b2 — so the Levenberg–Marquardt solver sees a plain vector. The Jacobian
-//! row of a sample is analytic:
-//! ∂ŷ/∂W1_hi = w2_h (1 − t_h²) x_i, ∂ŷ/∂b1_h = w2_h (1 − t_h²), ∂ŷ/∂w2_h = t_h, ∂ŷ/∂b2 = 1,
-//! with t_h = tanh(z_h) (checked against finite differences in a test).
+//! Parameters are one flat vector θ in MATLAB's order — IW (row-major, hidden × inputs), b1,
+//! [LW2 (row-major, hidden2 × hidden), b2,] LW_out, b_out — so the Levenberg–Marquardt solver
+//! sees a plain vector. The Jacobian row of a sample is analytic (back-propagation):
+//! ∂ŷ/∂w_o,g = t_g (last layer), ∂ŷ/∂b_o = 1, δ_g = w_o,g (1 − t_g²);
+//! two layers: ∂ŷ/∂W2_gh = δ2_g t_h, ∂ŷ/∂b2_g = δ2_g, δ1_h = (1 − t_h²) Σ_g W2_gh δ2_g;
+//! ∂ŷ/∂W1_hi = δ1_h x_i, ∂ŷ/∂b1_h = δ1_h (checked against finite differences in tests).
+//!
+//! tanh is the evaluators' ([`crate::model::tanh_fast`]: branch-free, within 4 ulp of the C
+//! library's), so a trained network is evaluated with the function it was trained with.
+//! [`forward`] and [`forward_grad`] compute one sample; [`block`] a block of samples across SIMD
+//! lanes ([`crate::simd::Lanes`]): residuals and, when asked, the Jacobian columns.
 
 use crate::rng::Rng;
+use crate::simd::{tanh_of_doubled, Lanes};
 
-/// Shape of a network: inputs and hidden neurons.
+/// Shape of a network: inputs, hidden neurons, and neurons of a second hidden layer (0: none).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shape {
     pub inputs: usize,
     pub hidden: usize,
+    pub hidden2: usize,
 }
 
 impl Shape {
-    /// Length of θ: hidden × (inputs + 2) + 1.
+    /// One hidden layer (seed 002).
+    pub fn one(inputs: usize, hidden: usize) -> Shape {
+        Shape {
+            inputs,
+            hidden,
+            hidden2: 0,
+        }
+    }
+    /// Length of θ.
     pub fn n_params(self) -> usize {
-        self.hidden * (self.inputs + 2) + 1
+        self.wo() + self.last() + 1
+    }
+    /// Neurons of the last hidden layer.
+    pub fn last(self) -> usize {
+        if self.hidden2 > 0 {
+            self.hidden2
+        } else {
+            self.hidden
+        }
     }
     fn b1(self) -> usize {
         self.hidden * self.inputs
@@ -30,117 +56,379 @@ impl Shape {
         self.b1() + self.hidden
     }
     fn b2(self) -> usize {
-        self.w2() + self.hidden
+        self.w2() + self.hidden2 * self.hidden
     }
+    /// Offset of the output weights.
+    fn wo(self) -> usize {
+        if self.hidden2 > 0 {
+            self.b2() + self.hidden2
+        } else {
+            self.w2()
+        }
+    }
+    fn bo(self) -> usize {
+        self.wo() + self.last()
+    }
+}
+
+fn tanh(z: f64) -> f64 {
+    tanh_of_doubled(2.0 * z)
 }
 
 /// Network output for normalised inputs `x` (length `shape.inputs`).
-#[inline]
 pub fn forward(shape: Shape, theta: &[f64], x: &[f64]) -> f64 {
-    let (ni, nh) = (shape.inputs, shape.hidden);
-    let mut y = theta[shape.b2()];
-    for h in 0..nh {
-        let mut z = theta[shape.b1() + h];
-        for i in 0..ni {
-            z += theta[h * ni + i] * x[i];
-        }
-        y += theta[shape.w2() + h] * z.tanh();
-    }
-    y
+    forward_impl(shape, theta, x, None)
 }
 
 /// Output and its gradient with respect to θ (`grad.len() == n_params`).
-#[inline]
 pub fn forward_grad(shape: Shape, theta: &[f64], x: &[f64], grad: &mut [f64]) -> f64 {
-    let (ni, nh) = (shape.inputs, shape.hidden);
-    let mut y = theta[shape.b2()];
-    for h in 0..nh {
-        let mut z = theta[shape.b1() + h];
-        for i in 0..ni {
-            z += theta[h * ni + i] * x[i];
-        }
-        let t = z.tanh();
-        let w2 = theta[shape.w2() + h];
-        y += w2 * t;
-        let d = w2 * (1.0 - t * t);
-        for i in 0..ni {
-            grad[h * ni + i] = d * x[i];
-        }
-        grad[shape.b1() + h] = d;
-        grad[shape.w2() + h] = t;
+    forward_impl(shape, theta, x, Some(grad))
+}
+
+fn forward_impl(shape: Shape, theta: &[f64], x: &[f64], grad: Option<&mut [f64]>) -> f64 {
+    let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
+    let t1: Vec<f64> = (0..nh)
+        .map(|h| {
+            let z = (0..ni).fold(theta[shape.b1() + h], |z, i| {
+                theta[h * ni + i].mul_add(x[i], z)
+            });
+            tanh(z)
+        })
+        .collect();
+    let t2: Vec<f64> = (0..nh2)
+        .map(|g| {
+            let z = (0..nh).fold(theta[shape.b2() + g], |z, h| {
+                theta[shape.w2() + g * nh + h].mul_add(t1[h], z)
+            });
+            tanh(z)
+        })
+        .collect();
+    let last = if nh2 > 0 { &t2 } else { &t1 };
+    let y = last
+        .iter()
+        .enumerate()
+        .fold(theta[shape.bo()], |y, (g, t)| {
+            theta[shape.wo() + g].mul_add(*t, y)
+        });
+    let Some(grad) = grad else {
+        return y;
+    };
+    grad[shape.bo()] = 1.0;
+    let mut delta1 = vec![0.0; nh];
+    for (g, t) in last.iter().enumerate() {
+        grad[shape.wo() + g] = *t;
     }
-    grad[shape.b2()] = 1.0;
+    if nh2 > 0 {
+        for g in 0..nh2 {
+            let d2 = theta[shape.wo() + g] * (-t2[g]).mul_add(t2[g], 1.0);
+            grad[shape.b2() + g] = d2;
+            for h in 0..nh {
+                grad[shape.w2() + g * nh + h] = d2 * t1[h];
+                delta1[h] = theta[shape.w2() + g * nh + h].mul_add(d2, delta1[h]);
+            }
+        }
+        for h in 0..nh {
+            delta1[h] *= (-t1[h]).mul_add(t1[h], 1.0);
+        }
+    } else {
+        for h in 0..nh {
+            delta1[h] = theta[shape.wo() + h] * (-t1[h]).mul_add(t1[h], 1.0);
+        }
+    }
+    for h in 0..nh {
+        grad[shape.b1() + h] = delta1[h];
+        for i in 0..ni {
+            grad[h * ni + i] = delta1[h] * x[i];
+        }
+    }
     y
 }
 
+/// Samples per [`block`].
+pub const BLOCK: usize = 256;
+
+/// Scratch space of [`block`] for one shape (the hidden activations of a block).
+pub struct Scratch {
+    t1: Vec<f64>,
+    t2: Vec<f64>,
+    d2: Vec<f64>,
+}
+
+impl Scratch {
+    pub fn new(shape: Shape) -> Scratch {
+        Scratch {
+            t1: vec![0.0; shape.hidden * BLOCK],
+            t2: vec![0.0; shape.hidden2 * BLOCK],
+            d2: vec![0.0; shape.hidden2 * BLOCK],
+        }
+    }
+}
+
+/// One block of `n ≤ BLOCK` samples on lanes `V` (`n` a multiple of `V::N`; the caller pads):
+/// inputs `x[c][s]` (normalised input c of sample s), targets `y[s]`. Writes the residuals
+/// `r[s] = ŷ_s − y_s` and, with `jac`, the Jacobian columns `jac[p · BLOCK + s] = ∂ŷ_s/∂θ_p`.
+/// Every lane performs the operations of [`forward_grad`] in the same order (fused
+/// multiply-adds, the same tanh), so the results are those of one sample at a time.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub(crate) fn block<V: Lanes>(
+    isa: V::Isa,
+    shape: Shape,
+    theta: &[f64],
+    x: &[&[f64]],
+    y: &[f64],
+    n: usize,
+    r: &mut [f64],
+    mut jac: Option<&mut [f64]>,
+    scratch: &mut Scratch,
+) {
+    let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
+    let one = V::splat(isa, 1.0);
+    let two = V::splat(isa, 2.0);
+    let mut s = 0;
+    while s < n {
+        // Hidden layer 1.
+        for h in 0..nh {
+            let mut z = V::splat(isa, theta[shape.b1() + h]);
+            for (i, xi) in x.iter().enumerate().take(ni) {
+                z = V::splat(isa, theta[h * ni + i]).fma(V::load(isa, &xi[s..]), z);
+            }
+            tanh_of_doubled(two.mul(z)).store(&mut scratch.t1[h * BLOCK + s..]);
+        }
+        // Hidden layer 2.
+        for g in 0..nh2 {
+            let mut z = V::splat(isa, theta[shape.b2() + g]);
+            for h in 0..nh {
+                let w = V::splat(isa, theta[shape.w2() + g * nh + h]);
+                z = w.fma(V::load(isa, &scratch.t1[h * BLOCK + s..]), z);
+            }
+            tanh_of_doubled(two.mul(z)).store(&mut scratch.t2[g * BLOCK + s..]);
+        }
+        // Output and residual.
+        let (last, n_last) = if nh2 > 0 {
+            (&scratch.t2, nh2)
+        } else {
+            (&scratch.t1, nh)
+        };
+        let mut out = V::splat(isa, theta[shape.bo()]);
+        for g in 0..n_last {
+            let w = V::splat(isa, theta[shape.wo() + g]);
+            out = w.fma(V::load(isa, &last[g * BLOCK + s..]), out);
+        }
+        out.sub(V::load(isa, &y[s..])).store(&mut r[s..]);
+        if let Some(jac) = jac.as_deref_mut() {
+            one.store(&mut jac[shape.bo() * BLOCK + s..]);
+            for g in 0..n_last {
+                V::load(isa, &last[g * BLOCK + s..])
+                    .store(&mut jac[(shape.wo() + g) * BLOCK + s..]);
+            }
+            // δ of the first layer, through the second when there is one.
+            if nh2 > 0 {
+                for g in 0..nh2 {
+                    let t = V::load(isa, &scratch.t2[g * BLOCK + s..]);
+                    let d2 = V::splat(isa, theta[shape.wo() + g]).mul(t.fnma(t, one));
+                    d2.store(&mut scratch.d2[g * BLOCK + s..]);
+                    d2.store(&mut jac[(shape.b2() + g) * BLOCK + s..]);
+                    for h in 0..nh {
+                        d2.mul(V::load(isa, &scratch.t1[h * BLOCK + s..]))
+                            .store(&mut jac[(shape.w2() + g * nh + h) * BLOCK + s..]);
+                    }
+                }
+            }
+            for h in 0..nh {
+                let t = V::load(isa, &scratch.t1[h * BLOCK + s..]);
+                let d1 = if nh2 > 0 {
+                    let mut acc = V::splat(isa, 0.0);
+                    for g in 0..nh2 {
+                        let w = V::splat(isa, theta[shape.w2() + g * nh + h]);
+                        acc = w.fma(V::load(isa, &scratch.d2[g * BLOCK + s..]), acc);
+                    }
+                    acc.mul(t.fnma(t, one))
+                } else {
+                    V::splat(isa, theta[shape.wo() + h]).mul(t.fnma(t, one))
+                };
+                d1.store(&mut jac[(shape.b1() + h) * BLOCK + s..]);
+                for (i, xi) in x.iter().enumerate().take(ni) {
+                    d1.mul(V::load(isa, &xi[s..]))
+                        .store(&mut jac[(h * ni + i) * BLOCK + s..]);
+                }
+            }
+        }
+        s += V::N;
+    }
+}
+
 /// Nguyen–Widrow initialisation for inputs scaled to [−1, 1] (as MATLAB's `initnw` for a
-/// tansig layer): each hidden neuron's weight row is a random direction of length
+/// tansig layer): each first-layer neuron's weight row is a random direction of length
 /// β = 0.7 · hidden^(1/inputs), and the biases are spread over [−β, β] (with the sign of
-/// the row's first weight) so the neurons' active regions tile the input range. The linear
-/// output layer gets uniform weights and bias in [−1, 1] (MATLAB's `rands`). Same seed →
-/// same θ.
+/// the row's first weight) so the neurons' active regions tile the input range. A second
+/// hidden layer is initialised the same way on its inputs (the first layer's outputs, in
+/// [−1, 1]). The linear output layer gets uniform weights and bias in [−1, 1] (MATLAB's
+/// `rands`). Same seed → same θ; a one-layer network gets the same θ as before deeper
+/// networks existed.
 pub fn nguyen_widrow(shape: Shape, seed: u64) -> Vec<f64> {
-    let (ni, nh) = (shape.inputs, shape.hidden);
     let mut rng = Rng::new(seed);
     let mut theta = vec![0.0; shape.n_params()];
-    let beta = 0.7 * (nh as f64).powf(1.0 / ni as f64);
-    for h in 0..nh {
+    nw_layer(
+        &mut rng,
+        shape.inputs,
+        shape.hidden,
+        &mut theta,
+        0,
+        shape.b1(),
+    );
+    if shape.hidden2 > 0 {
+        nw_layer(
+            &mut rng,
+            shape.hidden,
+            shape.hidden2,
+            &mut theta,
+            shape.w2(),
+            shape.b2(),
+        );
+    }
+    for g in 0..shape.last() {
+        theta[shape.wo() + g] = 2.0 * rng.uniform() - 1.0;
+    }
+    theta[shape.bo()] = 2.0 * rng.uniform() - 1.0;
+    theta
+}
+
+/// Nguyen–Widrow weights (row-major `n_out × n_in` at `w`) and biases (at `b`) of one layer.
+fn nw_layer(rng: &mut Rng, n_in: usize, n_out: usize, theta: &mut [f64], w: usize, b: usize) {
+    let beta = 0.7 * (n_out as f64).powf(1.0 / n_in as f64);
+    for h in 0..n_out {
         let row: Vec<f64> = loop {
-            let r: Vec<f64> = (0..ni).map(|_| 2.0 * rng.uniform() - 1.0).collect();
+            let r: Vec<f64> = (0..n_in).map(|_| 2.0 * rng.uniform() - 1.0).collect();
             let norm = r.iter().map(|v| v * v).sum::<f64>().sqrt();
             if norm > 1e-3 {
                 break r.iter().map(|v| v / norm).collect();
             }
         };
-        for i in 0..ni {
-            theta[h * ni + i] = beta * row[i];
+        for i in 0..n_in {
+            theta[w + h * n_in + i] = beta * row[i];
         }
-        let spread = if nh > 1 {
-            -1.0 + 2.0 * h as f64 / (nh - 1) as f64
+        let spread = if n_out > 1 {
+            -1.0 + 2.0 * h as f64 / (n_out - 1) as f64
         } else {
             0.0
         };
-        theta[shape.b1() + h] = beta * spread * row[0].signum();
+        theta[b + h] = beta * spread * row[0].signum();
     }
-    for h in 0..nh {
-        theta[shape.w2() + h] = 2.0 * rng.uniform() - 1.0;
-    }
-    theta[shape.b2()] = 2.0 * rng.uniform() - 1.0;
-    theta
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::Rng;
+    use proptest::prelude::{prop_assert_eq, proptest, ProptestConfig};
+
+    fn check_gradient(shape: Shape, seed: u64, x: &[f64]) {
+        let theta = nguyen_widrow(shape, seed);
+        let mut g = vec![0.0; shape.n_params()];
+        forward_grad(shape, &theta, x, &mut g);
+        for p in 0..shape.n_params() {
+            let h = 1e-6;
+            let mut tp = theta.clone();
+            tp[p] += h;
+            let mut tm = theta.clone();
+            tm[p] -= h;
+            let fd = (forward(shape, &tp, x) - forward(shape, &tm, x)) / (2.0 * h);
+            assert!(
+                (fd - g[p]).abs() < 1e-7 * (1.0 + g[p].abs()),
+                "{shape:?} param {p}: {fd} vs {}",
+                g[p]
+            );
+        }
+    }
 
     #[test]
     fn analytic_gradient_matches_central_differences() {
-        let shape = Shape {
-            inputs: 3,
-            hidden: 10,
-        };
-        let theta = nguyen_widrow(shape, 42);
-        let mut g = vec![0.0; shape.n_params()];
-        for x in [[0.3, -0.7, 0.1], [-1.0, 1.0, 0.0], [0.9, 0.9, -0.9]] {
-            forward_grad(shape, &theta, &x, &mut g);
-            for p in 0..shape.n_params() {
-                let h = 1e-6;
-                let mut tp = theta.clone();
-                tp[p] += h;
-                let mut tm = theta.clone();
-                tm[p] -= h;
-                let fd = (forward(shape, &tp, &x) - forward(shape, &tm, &x)) / (2.0 * h);
-                assert!((fd - g[p]).abs() < 1e-8, "param {p}: {fd} vs {}", g[p]);
+        for shape in [
+            Shape::one(3, 10),
+            Shape {
+                inputs: 3,
+                hidden: 6,
+                hidden2: 5,
+            },
+        ] {
+            for x in [[0.3, -0.7, 0.1], [-1.0, 1.0, 0.0], [0.9, 0.9, -0.9]] {
+                check_gradient(shape, 42, &x);
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+        #[test]
+        fn block_equals_one_sample_at_a_time(
+            inputs in 1usize..=4, hidden in 1usize..=12, hidden2 in 0usize..=6,
+            seed in 0u64..1000, n_vec in 1usize..=8,
+        ) {
+            let shape = Shape { inputs, hidden, hidden2 };
+            let theta = nguyen_widrow(shape, seed);
+            let n = 4 * n_vec;
+            let mut rng = Rng::new(seed ^ 7);
+            let x: Vec<Vec<f64>> = (0..inputs).map(|_| (0..BLOCK).map(|_| 2.0 * rng.uniform() - 1.0).collect()).collect();
+            let y: Vec<f64> = (0..BLOCK).map(|_| rng.uniform()).collect();
+            let xs: Vec<&[f64]> = x.iter().map(|c| c.as_slice()).collect();
+            let p = shape.n_params();
+            let (mut r, mut jac) = (vec![0.0; BLOCK], vec![0.0; p * BLOCK]);
+            let mut scratch = Scratch::new(shape);
+            block::<f64>(crate::simd::Portable, shape, &theta, &xs, &y, n, &mut r, Some(&mut jac), &mut scratch);
+            let mut g = vec![0.0; p];
+            for s in 0..n {
+                let xi: Vec<f64> = (0..inputs).map(|c| x[c][s]).collect();
+                let out = forward_grad(shape, &theta, &xi, &mut g);
+                prop_assert_eq!(r[s].to_bits(), (out - y[s]).to_bits());
+                for q in 0..p {
+                    prop_assert_eq!(jac[q * BLOCK + s].to_bits(), g[q].to_bits(), "param {}", q);
+                }
             }
         }
     }
 
     #[test]
-    fn initialisation_is_seeded_and_tiles_the_input_range() {
+    fn every_compiled_path_gives_the_portable_bits() {
+        use crate::simd::Isa;
         let shape = Shape {
-            inputs: 2,
-            hidden: 10,
+            inputs: 3,
+            hidden: 7,
+            hidden2: 4,
         };
+        let theta = nguyen_widrow(shape, 3);
+        let mut rng = Rng::new(5);
+        let x: Vec<Vec<f64>> = (0..3)
+            .map(|_| (0..BLOCK).map(|_| 4.0 * rng.uniform() - 2.0).collect())
+            .collect();
+        let y: Vec<f64> = (0..BLOCK).map(|_| rng.uniform()).collect();
+        let xs: Vec<&[f64]> = x.iter().map(|c| c.as_slice()).collect();
+        let p = shape.n_params();
+        let run = |isa: Isa| {
+            let (mut r, mut jac) = (vec![0.0; BLOCK], vec![0.0; p * BLOCK]);
+            let mut sc = Scratch::new(shape);
+            super::super::train::block_dispatch(
+                isa,
+                shape,
+                &theta,
+                &xs,
+                &y,
+                BLOCK,
+                &mut r,
+                Some(&mut jac),
+                &mut sc,
+            );
+            (r, jac)
+        };
+        let portable = run(Isa::Portable);
+        for isa in Isa::all_available() {
+            assert_eq!(run(isa), portable, "{isa:?}");
+        }
+    }
+
+    #[test]
+    fn initialisation_is_seeded_and_tiles_the_input_range() {
+        let shape = Shape::one(2, 10);
         assert_eq!(nguyen_widrow(shape, 1), nguyen_widrow(shape, 1));
         assert_ne!(nguyen_widrow(shape, 1), nguyen_widrow(shape, 2));
         let t = nguyen_widrow(shape, 1);

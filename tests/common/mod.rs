@@ -244,3 +244,63 @@ pub fn two_run_campaign(dir: &Path) {
         std::fs::copy(fixture(f), dir.join(f)).unwrap();
     }
 }
+
+/// Splits `s` into text and numbers: a number starts at a digit, or at `-`/`.` before a digit,
+/// that does not continue a word (`v1`, `mlp_2` stay text).
+fn tokens(s: &str) -> Vec<Result<f64, String>> {
+    let b = s.as_bytes();
+    let mut out: Vec<Result<f64, String>> = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let word_before = i > 0 && (b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'_');
+        let digit_at = |j: usize| j < b.len() && b[j].is_ascii_digit();
+        let starts =
+            !word_before && (digit_at(i) || ((b[i] == b'-' || b[i] == b'.') && digit_at(i + 1)));
+        if starts {
+            let mut j = i + 1;
+            while j < b.len()
+                && (b[j].is_ascii_digit()
+                    || b[j] == b'.'
+                    || b[j] == b'e'
+                    || b[j] == b'E'
+                    || ((b[j] == b'-' || b[j] == b'+') && matches!(b[j - 1], b'e' | b'E')))
+            {
+                j += 1;
+            }
+            // A sentence's full stop or a range's dash may follow the number: back off.
+            while j > i {
+                if let Ok(v) = s[i..j].parse::<f64>() {
+                    out.push(Ok(v));
+                    break;
+                }
+                j -= 1;
+            }
+            if j > i {
+                i = j;
+                continue;
+            }
+        }
+        let c = s[i..].chars().next().unwrap();
+        match out.last_mut() {
+            Some(Err(t)) => t.push(c),
+            _ => out.push(Err(c.to_string())),
+        }
+        i += c.len_utf8();
+    }
+    out
+}
+
+/// `got` equals `want` but for numbers, which may differ by `rel` relative (1e-300 absolute):
+/// for files holding trained weights, whose last bits follow the CPU's matrix kernels.
+pub fn assert_same_up_to_rounding(name: &str, got: &str, want: &str, rel: f64) {
+    let (g, w) = (tokens(got), tokens(want));
+    assert_eq!(g.len(), w.len(), "{name}: a different number of tokens");
+    for (k, (a, b)) in g.iter().zip(&w).enumerate() {
+        let same = match (a, b) {
+            (Ok(x), Ok(y)) => (x - y).abs() <= rel * x.abs().max(y.abs()) + 1e-300,
+            (Err(x), Err(y)) => x == y,
+            _ => false,
+        };
+        assert!(same, "{name}: token {k} differs: got {a:?}, want {b:?}");
+    }
+}

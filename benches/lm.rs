@@ -1,0 +1,244 @@
+//! Levenberg–Marquardt per epoch against the strongest peer a user would pick: MATLAB trainlm
+//! written with numpy (`benches/peers/trainlm_numpy.py`), on identical inputs in the same run.
+//!
+//!     cargo bench --bench lm
+//!
+//! Problems (normalised as railgrip trains them, validation stop off so both run 20 epochs):
+//! - `lm/2-10-1/15k`: the seed 002 network (Δv, dΔv/dt → 10 tanh → μ), the first 15 000
+//!   training (axle 2) and validation (axle 3) samples of the bundled soap runs, decimation 4;
+//! - `lm/3-40-1/15k`: the same with speed as a third input and 40 neurons (P = 201);
+//! - `lm/2-10-1/1M`: one million training and 250 000 validation samples of a smooth synthetic
+//!   law (5 epochs; railgrip only; `LM_SKIP_1M=1` leaves it out).
+//!
+//! `…/normal_equations` and `…/sse` time one epoch's parts: JᵀJ and Jᵀr (the Jacobian built
+//! block by block, the symmetric rank-k update), and one error evaluation (a trial step).
+//!
+//! For each 15k problem, railgrip's per-epoch time (criterion; throughput in epochs/s) is
+//! printed beside numpy's with one BLAS thread and with all threads (best of 3 trainings), and
+//! the per-epoch training MSEs of the two are compared (relative difference over the first
+//! 20 epochs). Without python3 and numpy the peer is skipped with a message.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Duration;
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use railgrip::config::SplitConfig;
+use railgrip::identify::dataset::{Dataset, MapMinMax, RunTable};
+use railgrip::identify::lm::{self, LevenbergMarquardt, LmSettings};
+use railgrip::identify::mlp::{self, Shape};
+use railgrip::identify::train::MlpProblem;
+use railgrip::identify::InputSet;
+use railgrip::model::Epoch;
+use railgrip::Pipeline;
+
+const EPOCHS: u64 = 20;
+
+fn settings(epochs: u64) -> LmSettings {
+    LmSettings {
+        epochs,
+        min_grad: 0.0,
+        max_fail: 1_000_000,
+        ..LmSettings::default()
+    }
+}
+
+/// The bundled soap runs' estimates (sorted by file name).
+fn tables() -> Vec<RunTable> {
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let p = Pipeline::default_uic_z1();
+    let mut t = Vec::new();
+    for entry in std::fs::read_dir(root.join("fixtures/archive")).unwrap() {
+        let path = entry.unwrap().path();
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        if name.starts_with("soap_") && (name.ends_with(".csv") || name.ends_with(".mcap")) {
+            let log = railgrip::ingest_file(&path, &p).unwrap();
+            let e = railgrip::estimate::estimate(&log, &p).unwrap();
+            t.push((name.clone(), RunTable::from_estimates(&name, &name, "", &e)));
+        }
+    }
+    t.sort_by(|a, b| a.0.cmp(&b.0));
+    t.into_iter().map(|(_, t)| t).collect()
+}
+
+/// A normalised problem: row-major x, y, validation, scale, as `train_on` builds it.
+struct Data {
+    k: usize,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    vx: Vec<f64>,
+    vy: Vec<f64>,
+    scale: f64,
+}
+
+fn normalise(d: &Dataset, k: usize, n: usize) -> Data {
+    let (mut x, mut y) = (d.train_x[..n * k].to_vec(), d.train_y[..n].to_vec());
+    let nv = d.val_y.len().min(n);
+    let (mut vx, mut vy) = (d.val_x[..nv * k].to_vec(), d.val_y[..nv].to_vec());
+    let xn = MapMinMax::fit(&x, k);
+    let yn = MapMinMax::fit(&y, 1);
+    xn.apply(&mut x);
+    xn.apply(&mut vx);
+    yn.apply(&mut y);
+    yn.apply(&mut vy);
+    Data {
+        k,
+        x,
+        y,
+        vx,
+        vy,
+        scale: 1.0 / yn.gain_offset(0).0.powi(2),
+    }
+}
+
+fn seed002(tables: &[RunTable], inputs: InputSet, n: usize) -> Data {
+    let split = SplitConfig::Axles {
+        train: vec![2],
+        val: vec![3],
+    };
+    let d = Dataset::build(tables, inputs, &split, 4).unwrap();
+    assert!(
+        d.n_train() >= n && d.n_val() >= n,
+        "{} {}",
+        d.n_train(),
+        d.n_val()
+    );
+    normalise(&d, inputs.count(), n)
+}
+
+/// `n` training and `n / 4` validation samples of
+/// μ = 0.08 (1 − e^(−2Δv)) e^(−0.1Δv) + 0.01 dΔv/dt.
+fn synthetic(n: usize) -> Data {
+    let mut rng = railgrip::rng::Rng::new(5);
+    let mut d = Dataset {
+        inputs: InputSet::DvDdv,
+        train_x: Vec::with_capacity(2 * n),
+        train_y: Vec::with_capacity(n),
+        val_x: vec![],
+        val_y: vec![],
+    };
+    for i in 0..n + n / 4 {
+        let (dv, ddv) = (4.0 * rng.uniform(), 6.0 * rng.uniform() - 3.0);
+        let mu = 0.08 * (1.0 - (-2.0 * dv).exp()) * (-0.1 * dv).exp() + 0.01 * ddv;
+        let (x, y) = if i < n {
+            (&mut d.train_x, &mut d.train_y)
+        } else {
+            (&mut d.val_x, &mut d.val_y)
+        };
+        x.extend([dv, ddv]);
+        y.push(mu);
+    }
+    normalise(&d, 2, n)
+}
+
+fn train(p: &MlpProblem, theta0: &[f64], epochs: u64) -> Vec<Epoch> {
+    let (solver, _) = lm::run(
+        p,
+        LevenbergMarquardt::new(settings(epochs)),
+        theta0.to_vec(),
+    )
+    .unwrap();
+    solver.history().to_vec()
+}
+
+/// numpy's seconds per epoch and training MSEs, with `threads` BLAS threads (None: all).
+fn numpy(problem: &PathBuf, threads: Option<usize>) -> Result<(f64, Vec<f64>), String> {
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
+    let mut cmd = Command::new("python3");
+    cmd.arg(&script).arg(problem).arg("3");
+    if let Some(t) = threads {
+        for var in ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"] {
+            cmd.env(var, t.to_string());
+        }
+    }
+    let out = cmd.output().map_err(|e| format!("no python3 ({e})"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "python3 {} failed: {} (needs numpy: pip install numpy)",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
+    let mse = v["train_mse"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    Ok((v["seconds_per_epoch"].as_f64().unwrap(), mse))
+}
+
+fn bench(c: &mut Criterion) {
+    let tables = tables();
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut g = c.benchmark_group("lm");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    let mut peers = Vec::new();
+    for (name, inputs, hidden) in [
+        ("2-10-1/15k", InputSet::DvDdv, 10),
+        ("3-40-1/15k", InputSet::DvDdvV, 40),
+    ] {
+        let d = seed002(&tables, inputs, 15_000);
+        let shape = Shape::one(d.k, hidden);
+        let theta0 = mlp::nguyen_widrow(shape, 1);
+        let json = dir.join(format!("trainlm_{}.json", name.replace('/', "_")));
+        let s = settings(EPOCHS);
+        let problem = serde_json::json!({
+            "inputs": d.k, "hidden": hidden, "train_x": d.x, "train_y": d.y, "val_x": d.vx,
+            "val_y": d.vy, "theta0": theta0, "scale": d.scale,
+            "settings": { "epochs": s.epochs, "goal": s.goal, "min_grad": s.min_grad, "mu": s.mu,
+                "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max, "max_fail": s.max_fail },
+        });
+        std::fs::write(&json, problem.to_string()).unwrap();
+        let p = MlpProblem::new(shape, d.x, d.y, d.vx, d.vy, d.scale);
+        {
+            use railgrip::identify::lm::LeastSquares;
+            g.throughput(Throughput::Elements(1));
+            g.bench_function(format!("{name}/normal_equations"), |b| {
+                b.iter(|| p.normal_equations(&theta0).sse)
+            });
+            g.bench_function(format!("{name}/sse"), |b| b.iter(|| p.sse(&theta0)));
+        }
+        let ours = train(&p, &theta0, EPOCHS);
+        g.throughput(Throughput::Elements(ours.len() as u64));
+        g.bench_function(name, |b| b.iter(|| train(&p, &theta0, EPOCHS)));
+        peers.push((name, shape.n_params(), json, ours));
+    }
+    for (name, n_params, json, ours) in peers {
+        match (numpy(&json, Some(1)), numpy(&json, None)) {
+            (Ok((one, mse)), Ok((all, _))) => {
+                let worst = ours
+                    .iter()
+                    .zip(&mse)
+                    .take(20)
+                    .map(|(a, b)| ((a.train_mse - b) / b).abs())
+                    .fold(0.0f64, f64::max);
+                eprintln!(
+                    "lm/{name} (P = {n_params}): numpy trainlm {:.3} ms/epoch on 1 BLAS thread, {:.3} ms/epoch on all; {} vs {} epochs; worst relative difference of the training MSE over the first 20 epochs {worst:.2e}",
+                    one * 1e3,
+                    all * 1e3,
+                    ours.len(),
+                    mse.len()
+                );
+            }
+            (Err(e), _) | (_, Err(e)) => eprintln!("SKIPPED numpy peer for lm/{name}: {e}"),
+        }
+    }
+    if std::env::var("LM_SKIP_1M").is_err() {
+        let d = synthetic(1_000_000);
+        let shape = Shape::one(2, 10);
+        let theta0 = mlp::nguyen_widrow(shape, 1);
+        let p = MlpProblem::new(shape, d.x, d.y, d.vx, d.vy, d.scale);
+        g.throughput(Throughput::Elements(5));
+        g.bench_function("2-10-1/1M", |b| b.iter(|| train(&p, &theta0, 5)));
+    }
+    g.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""numpy peer of railgrip's Levenberg-Marquardt training: MATLAB trainlm as a user would write
+it with numpy (benches/lm.rs runs this side by side with railgrip on identical inputs;
+tests/lm_peer.rs checks that both follow the same trajectory).
+
+The way trainlm works: one Jacobian per epoch (J, N x P, built with numpy broadcasting),
+J'J and J'r by BLAS (numpy dispatches J.T @ J to a symmetric rank-k update), then damped
+steps (J'J + mu I) d = J'r (numpy.linalg.solve, one LAPACK call) until the error falls,
+mu *= mu_dec on success and mu *= mu_inc on failure, stop at mu > mu_max, at the goal, at a
+gradient below min_grad, after `epochs`, or when the validation error has not improved for
+max_fail epochs in a row. The network: inputs -> tanh hidden layer -> linear output, theta in
+MATLAB's order (IW row-major, b1, LW, b2), exactly railgrip's problem.
+
+Reads the problem railgrip writes (normalised training and validation data, initial weights,
+shape, settings), trains `repeats` times and prints one JSON line: the seconds per epoch of
+the fastest repeat, the epochs run, and the training MSE (mu^2 units) after every epoch.
+
+Usage: python3 benches/peers/trainlm_numpy.py <problem.json> [repeats]   (needs numpy)
+Thread count: set OPENBLAS_NUM_THREADS (and OMP_NUM_THREADS) before numpy starts.
+Rounding probes, to measure how much the trajectory amplifies rounding (tests/lm_peer.rs):
+TRAINLM_PROBE=gemm computes J'J by a general product (J.T @ J.copy()) instead of syrk, the same
+sums in another order; TRAINLM_PROBE=tanh evaluates tanh as 1 - 2 / (exp(2z) + 1), a few ulp
+from np.tanh.
+"""
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+PROBE = os.environ.get("TRAINLM_PROBE", "")
+
+
+def tanh(z):
+    if PROBE == "tanh":
+        return 1.0 - 2.0 / (np.exp(2.0 * z) + 1.0)
+    return np.tanh(z)
+
+
+def main(path, repeats):
+    with open(path) as f:
+        p = json.load(f)
+    k, h = p["inputs"], p["hidden"]
+    x = np.asarray(p["train_x"], dtype=float).reshape(-1, k)
+    y = np.asarray(p["train_y"], dtype=float)
+    vx = np.asarray(p["val_x"], dtype=float).reshape(-1, k)
+    vy = np.asarray(p["val_y"], dtype=float)
+    theta0 = np.asarray(p["theta0"], dtype=float)
+    scale = p["scale"]
+    s = p["settings"]
+    n_params = h * (k + 2) + 1
+
+    def unpack(t):
+        return t[: h * k].reshape(h, k), t[h * k : h * k + h], t[h * k + h : h * k + 2 * h], t[-1]
+
+    def forward(t, xx):
+        w1, b1, w2, b2 = unpack(t)
+        return tanh(xx @ w1.T + b1) @ w2 + b2
+
+    def sse(t, xx, yy):
+        r = forward(t, xx) - yy
+        return float(r @ r)
+
+    def jacobian(t):
+        w1, b1, w2, b2 = unpack(t)
+        a = tanh(x @ w1.T + b1)
+        d = w2 * (1.0 - a * a)
+        j = np.empty((x.shape[0], n_params))
+        j[:, : h * k] = (d[:, :, None] * x[:, None, :]).reshape(x.shape[0], h * k)
+        j[:, h * k : h * k + h] = d
+        j[:, h * k + h : h * k + 2 * h] = a
+        j[:, -1] = 1.0
+        return j, a @ w2 + b2 - y
+
+    def train():
+        theta = theta0.copy()
+        mu = s["mu"]
+        n = len(y)
+        best_val = sse(theta, vx, vy) / len(vy) * scale if len(vy) else np.inf
+        fails = 0
+        history = []
+        eye = np.eye(n_params)
+        for _ in range(s["epochs"]):
+            j, r = jacobian(theta)
+            e0 = float(r @ r)
+            jtj = j.T @ (j.copy() if PROBE == "gemm" else j)
+            jtr = j.T @ r
+            grad = 2.0 * float(np.sqrt(jtr @ jtr))
+            if e0 / n * scale <= s["goal"] or grad < s["min_grad"]:
+                history.append(e0 / n * scale)
+                break
+            stop = False
+            nxt, e_next = theta, e0
+            while True:
+                try:
+                    # MATLAB's (JJ + mu I) \ Jr: one LAPACK solve (gesv).
+                    step = np.linalg.solve(jtj + mu * eye, jtr)
+                    trial = theta - step
+                    ok = np.all(np.isfinite(trial))
+                except np.linalg.LinAlgError:
+                    ok = False
+                if ok:
+                    e = sse(trial, x, y)
+                    if np.isfinite(e) and e < e0:
+                        nxt, e_next = trial, e
+                        mu *= s["mu_dec"]
+                        break
+                mu *= s["mu_inc"]
+                if mu > s["mu_max"]:
+                    stop = True
+                    break
+            theta = nxt
+            history.append(e_next / n * scale)
+            if len(vy):
+                v = sse(theta, vx, vy) / len(vy) * scale
+                if v < best_val:
+                    best_val, fails = v, 0
+                else:
+                    fails += 1
+                    if fails >= s["max_fail"]:
+                        break
+            if stop:
+                break
+        return history
+
+    best = float("inf")
+    history = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        history = train()
+        best = min(best, (time.perf_counter() - t0) / max(len(history), 1))
+    print(json.dumps({"seconds_per_epoch": best, "epochs": len(history), "train_mse": history}))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1], int(sys.argv[2]) if len(sys.argv) > 2 else 3)
