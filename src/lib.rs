@@ -24,6 +24,7 @@ pub mod model;
 pub mod outdir;
 pub mod report;
 pub mod rng;
+pub mod score;
 pub mod signal;
 pub mod sim;
 pub(crate) mod simd;

@@ -4,6 +4,7 @@
 use std::path::Path;
 
 use railgrip::ingest::ingest_file;
+use railgrip::sim::scene::AdhesionLaw;
 use railgrip::sim::{self, axle_loads, Effect, OutputFormat, Scene, G_MPS2};
 use railgrip::Pipeline;
 
@@ -311,6 +312,96 @@ fn a_learned_model_drives_the_wheels() {
     eprintln!("{n} samples, {sliding} sliding, |μ − model| RMS {rms:.1e}, max {worst:.1e}");
     assert!(rms < 3e-4 && worst < 2e-3, "{rms} {worst}");
     assert!(sliding > 100, "{sliding}");
+}
+
+/// The truth μ of a run against `law(Δv, lagged dΔv/dt, v)`, the slip rate lagged as the
+/// simulator lags it (20 ms); returns (RMS, max, sliding samples, samples with the lagged rate
+/// above +1 and below −1 m/s² while sliding).
+fn against_law(
+    tr: &sim::Truth,
+    law: impl Fn(f64, f64, f64) -> f64,
+) -> (f64, f64, usize, usize, usize) {
+    let k = 1.0 - (-1.0 / (417.0 * 0.02f64)).exp();
+    let (mut worst, mut sq, mut n, mut sliding, mut up, mut down) = (0.0f64, 0.0, 0, 0, 0, 0);
+    for a in 0..4 {
+        let mut lag = 0.0;
+        for i in 0..tr.time_s.len() {
+            lag += (tr.ddv_mps2[a][i] - lag) * k;
+            let want = law(tr.dv_mps[a][i], lag, tr.v_mps[i]);
+            if tr.dv_mps[a][i] > 0.2 {
+                sliding += 1;
+                up += usize::from(lag > 1.0);
+                down += usize::from(lag < -1.0);
+            }
+            worst = worst.max((tr.mu[a][i] - want).abs());
+            sq += (tr.mu[a][i] - want).powi(2);
+            n += 1;
+        }
+    }
+    ((sq / n as f64).sqrt(), worst, sliding, up, down)
+}
+
+#[test]
+fn foreign_laws_drive_the_wheels() {
+    // Laws outside the families railgrip fits (issue 15): the truth follows them, and WSP
+    // cycles visit both the loss and the recovery branch.
+    let lr = Scene::from_toml(
+        "name = \"lr\"\nseed = 3\neffects = [\"load_transfer\", \"wsp\", \"temperature\"]\n[run]\ninitial_speed_kmh = 160.0\nmax_duration_s = 12.0\nambient_temperature_c = -10.0\n[adhesion]\nlaw = \"loss_recovery\"\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]",
+        "lr.toml",
+        None,
+    )
+    .unwrap();
+    let AdhesionLaw::LossRecovery(l) = &lr.adhesion.law else {
+        panic!("{:?}", lr.adhesion.law)
+    };
+    let prepared = l.prepare(Some(-10.0));
+    let out = sim::simulate(&lr, None).unwrap();
+    let (rms, worst, sliding, up, down) = against_law(&out.truth, |w, q, v| prepared.mu(w, q, v));
+    eprintln!(
+        "loss_recovery: RMS {rms:.1e}, max {worst:.1e}, {sliding} sliding, {up} up, {down} down"
+    );
+    assert!(rms < 3e-4 && worst < 3e-3, "{rms} {worst}");
+    assert!(
+        sliding > 300 && up > 50 && down > 50,
+        "{sliding} {up} {down}"
+    );
+    // Colder is grippier: the peaks at −10 °C are 18 % above those at +20 °C.
+    assert!((prepared.peaks(1.0).0 / l.prepare(Some(20.0)).peaks(1.0).0 - 1.18).abs() < 1e-12);
+
+    let tab = scene("effects = [\"load_transfer\", \"wsp\"]\n[adhesion]\nlaw = \"table\"\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]");
+    let AdhesionLaw::Table(t) = &tab.adhesion.law else {
+        panic!()
+    };
+    let out = sim::simulate(&tab, None).unwrap();
+    let (rms, worst, sliding, _, _) = against_law(&out.truth, |w, _, v| t.mu(w, v));
+    eprintln!("table: RMS {rms:.1e}, max {worst:.1e}, {sliding} sliding");
+    assert!(rms < 3e-4 && worst < 3e-3, "{rms} {worst}");
+    assert!(sliding > 100, "{sliding}");
+
+    // What the laws refuse.
+    let err =
+        |extra: &str| match Scene::from_toml(&format!("name = \"x\"\n{extra}"), "x.toml", None) {
+            Err(e) => e.to_string(),
+            Ok(sc) => sim::simulate(&sc, None)
+                .map(|_| ())
+                .unwrap_err()
+                .to_string(),
+        };
+    let e = err("effects = [\"temperature\"]\n[adhesion]\nlaw = \"table\"");
+    assert!(e.contains("no temperature dependence"), "{e}");
+    let e = err("effects = [\"hysteresis\"]\n[adhesion]\nlaw = \"loss_recovery\"");
+    assert!(
+        e.contains("hysteresis") && e.contains("loss_recovery"),
+        "{e}"
+    );
+    let e = err("[adhesion]\nloss_peak_mu = 0.2");
+    assert!(e.contains("only with law = \"loss_recovery\""), "{e}");
+    let e = err("[adhesion]\nlaw = \"table\"\ntable_mu = [[0.0, 0.1]]");
+    assert!(e.contains("table_mu has 1 rows"), "{e}");
+    let e = err("[adhesion]\nlaw = \"loss_recovery\"\nloss_residual = 1.0");
+    assert!(e.contains("adhesion.loss_residual"), "{e}");
+    let e = err("[adhesion]\nlaw = \"magic\"");
+    assert!(e.contains("\"loss_recovery\", \"table\""), "{e}");
 }
 
 #[test]

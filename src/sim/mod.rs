@@ -35,6 +35,7 @@
 //! the previous step, off that chain: a 0.1 ms delay in quantities that change over tens of
 //! milliseconds (the loads by ~1e-3 of themselves per step at most).
 
+pub mod foreign;
 mod output;
 pub mod scene;
 mod sensors;
@@ -50,6 +51,7 @@ use crate::model::Model;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Avx2, Avx512, F64x4};
 use crate::simd::{Isa, Portable, Select};
+use foreign::ScalarLaw;
 pub use output::{truth_f32, OutputFormat, TRUTH_COLUMNS};
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 use sensors::Logger;
@@ -135,20 +137,21 @@ pub struct SimOutput {
     pub duration_s: f64,
 }
 
-/// The model a scene's adhesion law names, loaded and checked against the scene's effects
-/// (None for the Polach law).
-fn load_model(sc: &Scene) -> Result<Option<Model>, SimError> {
-    let AdhesionLaw::Model(path) = &sc.adhesion.law else {
+/// The scalar law a scene's adhesion law names — a model file loaded, a foreign law prepared
+/// — checked against the scene's effects (None for the Polach law).
+fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
+    let law = &sc.adhesion.law;
+    if matches!(law, AdhesionLaw::Polach) {
         return Ok(None);
-    };
+    }
     let fx = sc.effects;
     let err = |what: String, hint: &str| SimError::Scene {
         scene: sc.name.clone(),
         what,
         hint: hint.into(),
     };
-    // `temperature` applies to a model with a temperature law (a campaign's Polach model);
-    // checked below when the model is loaded.
+    // `temperature` applies to a model with a temperature law (a campaign's Polach model) and
+    // to loss_recovery; checked below.
     let clash: Vec<&str> = [
         Effect::FallingFriction,
         Effect::Hysteresis,
@@ -161,23 +164,40 @@ fn load_model(sc: &Scene) -> Result<Option<Model>, SimError> {
     if !clash.is_empty() {
         return Err(err(
             format!(
-                "effects {} describe the Polach truth law, but adhesion.law = \"model\"",
-                clash.join(", ")
+                "effects {} describe the Polach truth law, but adhesion.law = \"{}\"",
+                clash.join(", "),
+                law.name()
             ),
-            "a learned model carries those effects itself: remove them from effects",
+            "this law carries its own speed dependence and branches: remove them from effects",
         ));
     }
+    let with_t = fx.has(Effect::Temperature);
+    let path = match law {
+        AdhesionLaw::Polach => unreachable!("returned above"),
+        AdhesionLaw::LossRecovery(l) => {
+            let t = with_t.then_some(sc.run.ambient_temperature_c);
+            return Ok(Some(ScalarLaw::LossRecovery(l.prepare(t))));
+        }
+        AdhesionLaw::Table(_) if with_t => {
+            return Err(err(
+                "effect temperature with adhesion.law = \"table\"".into(),
+                "the table has no temperature dependence: remove temperature from effects",
+            ));
+        }
+        AdhesionLaw::Table(t) => return Ok(Some(ScalarLaw::Table(t.clone()))),
+        AdhesionLaw::Model(path) => path,
+    };
     let m = Model::load(path).map_err(|e| {
         err(
             format!("adhesion.model: {e}"),
             "give a model file written by `railgrip train`",
         )
     })?;
-    if !fx.has(Effect::Temperature) {
-        return Ok(Some(m));
+    if !with_t {
+        return Ok(Some(ScalarLaw::Model(Box::new(m))));
     }
     m.at_temperature(sc.run.ambient_temperature_c)
-        .map(Some)
+        .map(|m| Some(ScalarLaw::Model(Box::new(m))))
         .map_err(|e| {
             err(
                 format!("effect temperature with adhesion.model: {e}"),
@@ -188,7 +208,7 @@ fn load_model(sc: &Scene) -> Result<Option<Model>, SimError> {
 
 /// Runs a scene. `seed` overrides the scene's seed.
 pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
-    let model = load_model(sc)?;
+    let model = load_law(sc)?;
     let seed = seed.unwrap_or(sc.seed);
     let (channels, truth, counters, n) = run_detected(sc, model.as_ref(), seed)?;
     let metadata = RunMetadata {
@@ -223,7 +243,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
 type RunResult = (Vec<Series>, Truth, EffectCounters, u64);
 
 /// The step loop on the portable path (one axle per lane).
-fn run_portable(sc: &Scene, model: Option<&Model>, seed: u64) -> Result<RunResult, SimError> {
+fn run_portable(sc: &Scene, model: Option<&ScalarLaw>, seed: u64) -> Result<RunResult, SimError> {
     run::<f64>(Portable, sc, model, seed)
 }
 
@@ -233,7 +253,7 @@ fn run_portable(sc: &Scene, model: Option<&Model>, seed: u64) -> Result<RunResul
 fn run_avx2(
     isa: Avx2,
     sc: &Scene,
-    model: Option<&Model>,
+    model: Option<&ScalarLaw>,
     seed: u64,
 ) -> Result<RunResult, SimError> {
     run::<F64x4>(isa, sc, model, seed)
@@ -246,14 +266,14 @@ fn run_avx2(
 fn run_avx512vl(
     isa: Avx512,
     sc: &Scene,
-    model: Option<&Model>,
+    model: Option<&ScalarLaw>,
     seed: u64,
 ) -> Result<RunResult, SimError> {
     run::<F64x4>(isa.avx2(), sc, model, seed)
 }
 
 /// The step loop on the widest path this CPU has.
-fn run_detected(sc: &Scene, model: Option<&Model>, seed: u64) -> Result<RunResult, SimError> {
+fn run_detected(sc: &Scene, model: Option<&ScalarLaw>, seed: u64) -> Result<RunResult, SimError> {
     match Isa::detect() {
         // SAFETY: the token proves AVX2, FMA, AVX-512F and AVX-512VL on this CPU.
         #[cfg(target_arch = "x86_64")]
@@ -274,7 +294,7 @@ fn run_detected(sc: &Scene, model: Option<&Model>, seed: u64) -> Result<RunResul
 fn run<V: Select>(
     isa: V::Isa,
     sc: &Scene,
-    model: Option<&Model>,
+    model: Option<&ScalarLaw>,
     seed: u64,
 ) -> Result<RunResult, SimError> {
     let mut counters = EffectCounters::default();

@@ -189,6 +189,17 @@ pub mod raw {
         pub temperature_k_a: Option<Vec<f64>>,
         pub temperature_k_s: Option<Vec<f64>>,
         pub temperature_range_c: Option<[f64; 2]>,
+        pub loss_peak_mu: Option<f64>,
+        pub loss_peak_slip_mps: Option<f64>,
+        pub loss_residual: Option<f64>,
+        pub recovery_peak_mu: Option<f64>,
+        pub recovery_peak_slip_mps: Option<f64>,
+        pub recovery_residual: Option<f64>,
+        pub peak_speed_coefficient: Option<f64>,
+        pub peak_temperature_coefficient_per_k: Option<f64>,
+        pub table_speeds_kmh: Option<Vec<f64>>,
+        pub table_slips_mps: Option<Vec<f64>>,
+        pub table_mu: Option<Vec<Vec<f64>>>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -239,6 +250,26 @@ pub enum AdhesionLaw {
     /// k_S(T) at the scene's ambient temperature. The path is resolved against the scene
     /// file's folder.
     Model(std::path::PathBuf),
+    /// Separate loss and recovery curves blended by the lagged slip rate
+    /// ([`super::foreign::LossRecovery`]): a law outside the families railgrip fits. Carries its
+    /// own speed dependence and branches, so falling_friction, hysteresis and cleaning may not
+    /// be listed; `temperature` scales its peaks.
+    LossRecovery(super::foreign::LossRecovery),
+    /// μ(Δv) tabulated per speed ([`super::foreign::SlipTable`]): a sharp peak and a plateau.
+    /// No effect of the Polach law may be listed, nor `temperature`.
+    Table(super::foreign::SlipTable),
+}
+
+impl AdhesionLaw {
+    /// The name used in scene files.
+    pub fn name(&self) -> &'static str {
+        match self {
+            AdhesionLaw::Polach => "polach",
+            AdhesionLaw::Model(_) => "model",
+            AdhesionLaw::LossRecovery(_) => "loss_recovery",
+            AdhesionLaw::Table(_) => "table",
+        }
+    }
 }
 
 /// A validated scene.
@@ -529,9 +560,9 @@ pub struct AdhesionSection {
 const LAW: Key = Key {
     name: "adhesion.law",
     unit: "",
-    range: Range::Choice(&["polach", "model"]),
+    range: Range::Choice(&["polach", "model", "loss_recovery", "table"]),
     default: Default::Text("\"polach\""),
-    meaning: "Polach's law with the listed effects, or `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; falling_friction, hysteresis and cleaning may then not be listed, `temperature` only for a Polach model with k(T)",
+    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with k(T) or loss_recovery",
 };
 const MODEL: Key = text(
     "adhesion.model",
@@ -639,6 +670,84 @@ const TEMPERATURE_RANGE: Key = text(
     "where the k(T) polynomials hold",
 );
 
+const LOSS_PEAK: Key = Key::num(
+    "adhesion.loss_peak_mu",
+    "",
+    closed(0.005, 1.5),
+    0.1,
+    "`loss_recovery`: peak μ of the loss branch (growing slip) at v_ref [assumed]",
+);
+const LOSS_SLIP: Key = Key::num(
+    "adhesion.loss_peak_slip_mps",
+    "m/s",
+    closed(0.01, 20.0),
+    0.8,
+    "… the slip at that peak [assumed]",
+);
+const LOSS_RESIDUAL: Key = Key::num(
+    "adhesion.loss_residual",
+    "",
+    closed(0.05, 0.95),
+    0.55,
+    "… μ at large slip as a fraction of the peak [assumed]",
+);
+const RECOVERY_PEAK: Key = Key::num(
+    "adhesion.recovery_peak_mu",
+    "",
+    closed(0.005, 1.5),
+    0.065,
+    "`loss_recovery`: peak μ of the recovery branch (falling slip) at v_ref [assumed]",
+);
+const RECOVERY_SLIP: Key = Key::num(
+    "adhesion.recovery_peak_slip_mps",
+    "m/s",
+    closed(0.01, 20.0),
+    1.6,
+    "… the slip at that peak [assumed]",
+);
+const RECOVERY_RESIDUAL: Key = Key::num(
+    "adhesion.recovery_residual",
+    "",
+    closed(0.05, 0.95),
+    0.8,
+    "… μ at large slip as a fraction of the peak [assumed]",
+);
+const PEAK_SPEED: Key = Key::num(
+    "adhesion.peak_speed_coefficient",
+    "",
+    closed(-0.9, 0.9),
+    0.3,
+    "`loss_recovery`: peaks × (1 + κ (v_ref − v)/(v_ref + v)) [assumed]",
+);
+const PEAK_TEMPERATURE: Key = Key::num(
+    "adhesion.peak_temperature_coefficient_per_k",
+    "1/K",
+    closed(-0.02, 0.02),
+    0.006,
+    "`loss_recovery` with `temperature`: peaks × (1 + τ (20 °C − T)) [assumed]",
+);
+const TABLE_SPEEDS: Key = text(
+    "adhesion.table_speeds_kmh",
+    "km/h",
+    "strictly increasing speeds",
+    "[80, 140, 200]",
+    "`table`: the speed nodes (μ held beyond the first and last) [assumed]",
+);
+const TABLE_SLIPS: Key = text(
+    "adhesion.table_slips_mps",
+    "m/s",
+    "0, then strictly increasing",
+    "[0, 0.15, 0.4, 0.6, 0.8, 1.2, 2.5, 20]",
+    "`table`: the slip nodes (μ held beyond the last) [assumed]",
+);
+const TABLE_MU: Key = text(
+    "adhesion.table_mu",
+    "",
+    "one row per speed, one μ in [0, 1.5] per slip node, 0 at zero slip",
+    "a peak of 0.105 / 0.090 / 0.074 at 0.6 m/s, a plateau from 2.5 m/s",
+    "`table`: μ, linear between nodes [assumed]",
+);
+
 /// The keys of `[adhesion]`, in README order.
 pub const ADHESION_KEYS: &[&Key] = &[
     &LAW,
@@ -657,6 +766,17 @@ pub const ADHESION_KEYS: &[&Key] = &[
     &TEMPERATURE_K_A,
     &TEMPERATURE_K_S,
     &TEMPERATURE_RANGE,
+    &LOSS_PEAK,
+    &LOSS_SLIP,
+    &LOSS_RESIDUAL,
+    &RECOVERY_PEAK,
+    &RECOVERY_SLIP,
+    &RECOVERY_RESIDUAL,
+    &PEAK_SPEED,
+    &PEAK_TEMPERATURE,
+    &TABLE_SPEEDS,
+    &TABLE_SLIPS,
+    &TABLE_MU,
 ];
 
 impl AdhesionSection {
@@ -681,15 +801,41 @@ impl AdhesionSection {
                     "law = \"model\" needs model = \"file.json\"",
                 ))
             }
-            (Some(other), _) if other != "polach" => {
+            (Some("loss_recovery"), None) => AdhesionLaw::LossRecovery(loss_recovery(c, a)?),
+            (Some("table"), None) => AdhesionLaw::Table(slip_table(c, a)?),
+            (Some(other), None) if other != "polach" => {
                 return Err(c.invalid(
                     LAW.name,
                     format!("{other:?}"),
-                    "must be \"polach\" or \"model\" (default \"polach\")",
+                    "must be one of \"polach\", \"model\", \"loss_recovery\", \"table\" (default \"polach\")",
                 ))
             }
             _ => return Err(c.invalid(MODEL.name, "given", "only with law = \"model\"")),
         };
+        let lr_given = [
+            a.loss_peak_mu,
+            a.loss_peak_slip_mps,
+            a.loss_residual,
+            a.recovery_peak_mu,
+            a.recovery_peak_slip_mps,
+            a.recovery_residual,
+            a.peak_speed_coefficient,
+            a.peak_temperature_coefficient_per_k,
+        ]
+        .iter()
+        .any(Option::is_some);
+        if lr_given && !matches!(law, AdhesionLaw::LossRecovery(_)) {
+            return Err(c.invalid(
+                "adhesion.loss_*/recovery_*/peak_*",
+                "given",
+                "only with law = \"loss_recovery\"",
+            ));
+        }
+        let table_given =
+            a.table_speeds_kmh.is_some() || a.table_slips_mps.is_some() || a.table_mu.is_some();
+        if table_given && !matches!(law, AdhesionLaw::Table(_)) {
+            return Err(c.invalid("adhesion.table_*", "given", "only with law = \"table\""));
+        }
         // Soap-contaminated rail (seed 002 Fig. 7–8: μ 0.02–0.10, peak at ~1 m/s slip).
         let polach = PolachParams {
             mu0: c.value(&MU0, a.mu0)?,
@@ -727,6 +873,48 @@ impl AdhesionSection {
             temperature_law,
         })
     }
+}
+
+/// `law = "loss_recovery"`'s parameters (the blend's scale and the speed reference are the
+/// hysteresis and speed keys).
+fn loss_recovery(
+    c: &Checker,
+    a: &raw::Adhesion,
+) -> Result<super::foreign::LossRecovery, ConfigError> {
+    use super::foreign::{Branch, LossRecovery};
+    Ok(LossRecovery {
+        loss: Branch {
+            peak_mu: c.value(&LOSS_PEAK, a.loss_peak_mu)?,
+            peak_slip_mps: c.value(&LOSS_SLIP, a.loss_peak_slip_mps)?,
+            residual: c.value(&LOSS_RESIDUAL, a.loss_residual)?,
+        },
+        recovery: Branch {
+            peak_mu: c.value(&RECOVERY_PEAK, a.recovery_peak_mu)?,
+            peak_slip_mps: c.value(&RECOVERY_SLIP, a.recovery_peak_slip_mps)?,
+            residual: c.value(&RECOVERY_RESIDUAL, a.recovery_residual)?,
+        },
+        blend_ddv_mps2: c.value(&HYSTERESIS_DDV, a.hysteresis_ddv_mps2)?,
+        speed_coefficient: c.value(&PEAK_SPEED, a.peak_speed_coefficient)?,
+        reference_speed_mps: c.value(&REFERENCE_SPEED, a.reference_speed_kmh)? / 3.6,
+        temperature_coefficient_per_k: c
+            .value(&PEAK_TEMPERATURE, a.peak_temperature_coefficient_per_k)?,
+    })
+}
+
+/// `law = "table"`'s table (the built-in one where keys are left out).
+fn slip_table(c: &Checker, a: &raw::Adhesion) -> Result<super::foreign::SlipTable, ConfigError> {
+    let d = super::foreign::SlipTable::default_table();
+    let t = super::foreign::SlipTable {
+        speeds_mps: match &a.table_speeds_kmh {
+            Some(v) => v.iter().map(|x| x / 3.6).collect(),
+            None => d.speeds_mps,
+        },
+        slips_mps: a.table_slips_mps.clone().unwrap_or(d.slips_mps),
+        mu: a.table_mu.clone().unwrap_or(d.mu),
+    };
+    t.check()
+        .map_err(|e| c.invalid("adhesion.table_*", "", e))?;
+    Ok(t)
 }
 
 // ---------------------------------------------------------------------------------- [wsp]
@@ -1008,8 +1196,9 @@ impl Scene {
         let effects = effects(&c, &r.effects)?;
         let run = RunSection::check(&c, &r.run)?;
         let adhesion = AdhesionSection::check(&c, &r.adhesion, dir)?;
-        // With a learned model the model's own temperature law is checked when it is loaded.
-        if effects.has(Effect::Temperature) && !matches!(adhesion.law, AdhesionLaw::Model(_)) {
+        // Only the Polach truth law uses k(T) here; a model's own temperature law is checked when
+        // it is loaded, and loss_recovery scales its peaks with any temperature.
+        if effects.has(Effect::Temperature) && matches!(adhesion.law, AdhesionLaw::Polach) {
             let t = run.ambient_temperature_c;
             adhesion.temperature_law.eval(t).map_err(|e| {
                 c.invalid(AMBIENT.name, t, format!("with the temperature effect: {e}"))

@@ -6,12 +6,12 @@
 
 use std::f64::consts::PI;
 
+use super::foreign::ScalarLaw;
 use super::scene::{Effect, Effects, Scene};
 use super::step::{polach_axles, wheel_update, AxleArrays, StepConsts};
 use super::wsp::{demand_at, AxleReading, Wsp};
 use super::{EffectCounters, SimError};
 use crate::format::AXLES;
-use crate::model::Model;
 use crate::simd::{exp_lanes, Select};
 use crate::vehicle::G_MPS2;
 
@@ -91,13 +91,14 @@ fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
     )
 }
 
-/// μ and dμ/dΔv from a learned model at slip `w` (m/s), slip rate `ddv` (m/s²), speed `v`
-/// (m/s); the slope by a central difference over ±0.1 mm/s (the model is continuous; the
-/// implicit wheel step only needs the stiffness's size), never negative.
-fn model_adhesion(m: &Model, w: f64, ddv: f64, v: f64) -> (f64, f64) {
+/// μ and dμ/dΔv from a scalar law (a learned model, a foreign law) at slip `w` (m/s), slip
+/// rate `ddv` (m/s²), speed `v` (m/s); the slope by a central difference over ±0.1 mm/s (the
+/// laws are continuous; the implicit wheel step only needs the stiffness's size), never
+/// negative.
+fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64) -> (f64, f64) {
     const H: f64 = 1e-4;
-    let mu = m.mu_v(w, ddv, v);
-    let slope = (m.mu_v(w + H, ddv, v) - m.mu_v(w - H, ddv, v)) / (2.0 * H);
+    let mu = m.mu(w, ddv, v);
+    let slope = (m.mu(w + H, ddv, v) - m.mu(w - H, ddv, v)) / (2.0 * H);
     (
         mu,
         if slope.is_finite() {
@@ -128,8 +129,12 @@ impl<'a> Setup<'a> {
         };
         let (patch, q0) = crate::vehicle::wheel_patch(veh, &sc.contact).map_err(contact_err)?;
         let k0 = PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
-        let (k_a, k_s) = if fx.has(Effect::Temperature) {
+        if fx.has(Effect::Temperature) {
+            // Polach: k(T) here; a model or loss_recovery: applied when the law is loaded.
             counters.hit(Effect::Temperature);
+        }
+        let polach_law = matches!(ad.law, super::scene::AdhesionLaw::Polach);
+        let (k_a, k_s) = if fx.has(Effect::Temperature) && polach_law {
             ad.temperature_law
                 .eval(sc.run.ambient_temperature_c)
                 .map_err(contact_err)?
@@ -297,13 +302,13 @@ impl<'a> Setup<'a> {
         }
     }
 
-    /// Contact and wheels of the four axles (Polach on `V` lanes, or a learned model one axle
-    /// at a time); returns ΣT* (N).
+    /// Contact and wheels of the four axles (Polach on `V` lanes, or a scalar law — a learned
+    /// model, a foreign law — one axle at a time); returns ΣT* (N).
     #[inline(always)]
     pub(super) fn contact_and_wheels<V: Select>(
         &self,
         isa: V::Isa,
-        model: Option<&Model>,
+        model: Option<&ScalarLaw>,
         st: &mut SimState,
     ) -> f64 {
         st.normal = st.normal_next;
@@ -311,10 +316,10 @@ impl<'a> Setup<'a> {
             return polach_axles::<V>(isa, &self.consts, st.v, &mut st.ax);
         };
         for a in 0..AXLES {
-            // The model's slip-rate input is lagged like the hysteresis branch: fed
-            // instantly it closes the same force → slip-rate → force loop.
+            // The law's slip-rate input is lagged like the hysteresis branch: fed instantly
+            // it closes the same force → slip-rate → force loop.
             st.ddv_lag[a] += (st.ddv[a] - st.ddv_lag[a]) * self.k_hyst;
-            let (mu, slope) = model_adhesion(m, st.slip[a], st.ddv_lag[a], st.v);
+            let (mu, slope) = scalar_adhesion(m, st.slip[a], st.ddv_lag[a], st.v);
             let ax = &mut st.ax;
             (ax.omega[a], ax.locked[a], ax.t_star[a]) = wheel_update::<f64>(
                 &self.consts,

@@ -1,0 +1,340 @@
+//! Scoring a learned adhesion curve against the truth of simulated runs, only where the runs
+//! hold data (issue 15): a model is judged on the (Δv, dΔv/dt, v) cells its training data
+//! could have taught it, not on validation MSE alone, and not where it extrapolates.
+//!
+//! **Cells.** Centres every 0.1 m/s in slip Δv, at ±{0.25, 0.5, 1, 2, 4, 8} m/s² in slip rate
+//! dΔv/dt and every 10 km/h in speed v. A truth sample of axle i belongs to a cell when
+//! |Δv − Δv_c| ≤ 0.1 m/s, dΔv/dt / q_c ∈ [0.5, 1.5] (so the same sign) and |v − v_c| ≤ 15 km/h;
+//! cells overlap. A cell of axle i is **supported** when at least 20 truth samples of axle i
+//! fall in it.
+//!
+//! **Errors.** On each supported (axle, cell) the error is the mean over its samples of
+//! μ̂(Δv, dΔv/dt, v) − μ (the model at the sample's true inputs against the sample's true μ) —
+//! no interpolation of the truth, so any law can be scored, whatever effects made the run.
+//! [`Score::rmse`] and [`Score::max_error`] are over the supported cells.
+//!
+//! **Hysteresis.** Over supported pairs (Δv_c, +q_c) and (Δv_c, −q_c) of one axle and speed
+//! with 0.5 ≤ Δv_c ≤ 3 m/s: the mean of μ(Δv, +q) − μ(Δv, −q), true (cell means of the truth)
+//! and predicted (cell means of the model) — a law whose recovery branch lies below its loss
+//! branch has a positive value, and a model must reproduce its sign.
+
+use std::collections::BTreeMap;
+
+use crate::sim::Truth;
+
+/// One true sample: slip Δv (m/s), slip rate dΔv/dt (m/s²), speed v (m/s), adhesion μ and
+/// the axle (1-based).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sample {
+    pub axle: u8,
+    pub dv_mps: f64,
+    pub ddv_mps2: f64,
+    pub v_mps: f64,
+    pub mu: f64,
+}
+
+/// Cell geometry and the support threshold (defaults: the module text).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    /// Slip centre spacing and half-width, m/s.
+    pub dv_step_mps: f64,
+    pub dv_half_mps: f64,
+    /// Slip-rate centres (positive; each is used with both signs), m/s², and the window as
+    /// factors of the centre.
+    pub q_centres_mps2: Vec<f64>,
+    pub q_window: (f64, f64),
+    /// Speed centre spacing and half-width, km/h.
+    pub v_step_kmh: f64,
+    pub v_half_kmh: f64,
+    /// Samples of one axle a cell needs to count.
+    pub min_samples: usize,
+}
+
+impl Default for Grid {
+    fn default() -> Self {
+        Grid {
+            dv_step_mps: 0.1,
+            dv_half_mps: 0.1,
+            q_centres_mps2: vec![0.25, 0.5, 1.0, 2.0, 4.0, 8.0],
+            q_window: (0.5, 1.5),
+            v_step_kmh: 10.0,
+            v_half_kmh: 15.0,
+            min_samples: 20,
+        }
+    }
+}
+
+/// One supported cell of one axle: its centre, sample count, and mean true and predicted μ.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Cell {
+    pub axle: u8,
+    pub dv_mps: f64,
+    /// Signed slip-rate centre, m/s².
+    pub ddv_mps2: f64,
+    pub v_kmh: f64,
+    pub samples: usize,
+    pub true_mu: f64,
+    pub predicted_mu: f64,
+}
+
+impl Cell {
+    /// Mean error μ̂ − μ over the cell's samples.
+    pub fn error(&self) -> f64 {
+        self.predicted_mu - self.true_mu
+    }
+}
+
+/// What [`score`] found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Score {
+    /// The supported cells, ordered by axle, speed, slip rate and slip.
+    pub cells: Vec<Cell>,
+    pub rmse: f64,
+    pub max_error: f64,
+    /// Supported cells where the model predicts μ < 0.
+    pub negative_cells: usize,
+    /// Mean μ(Δv, +q) − μ(Δv, −q) over the supported pairs: true and predicted; `None`
+    /// without such pairs.
+    pub hysteresis: Option<(f64, f64)>,
+    /// Pairs behind [`Score::hysteresis`].
+    pub hysteresis_pairs: usize,
+}
+
+/// Errors of [`score`].
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum ScoreError {
+    #[error("no cell has {min} samples of one axle: nothing to score (give longer runs, or lower the threshold)")]
+    NoSupport { min: usize },
+    #[error("sample {index}: {what} is not finite (truth files hold finite values only)")]
+    NotFinite { index: usize, what: &'static str },
+    #[error("the model gave a non-finite μ at Δv = {dv} m/s, dΔv/dt = {ddv} m/s², v = {v} m/s")]
+    Model { dv: f64, ddv: f64, v: f64 },
+}
+
+/// Samples of every axle of a simulated run's truth.
+pub fn samples_from_truth(tr: &Truth) -> Vec<Sample> {
+    let mut out = Vec::with_capacity(4 * tr.time_s.len());
+    for a in 0..tr.mu.len() {
+        for i in 0..tr.time_s.len() {
+            out.push(Sample {
+                axle: a as u8 + 1,
+                dv_mps: tr.dv_mps[a][i],
+                ddv_mps2: tr.ddv_mps2[a][i],
+                v_mps: tr.v_mps[i],
+                mu: tr.mu[a][i],
+            });
+        }
+    }
+    out
+}
+
+/// Sums of one (axle, cell).
+#[derive(Default, Clone, Copy)]
+struct Acc {
+    n: usize,
+    truth: f64,
+    predicted: f64,
+}
+
+/// Cell key: axle, speed index, signed slip-rate index (±(i + 1)), slip index.
+type Key = (u8, i64, i64, i64);
+
+/// Scores `predict(Δv, dΔv/dt, v)` (μ) against `samples` on `grid`'s supported cells.
+pub fn score(
+    samples: &[Sample],
+    grid: &Grid,
+    predict: impl Fn(f64, f64, f64) -> f64,
+) -> Result<Score, ScoreError> {
+    let mut acc: BTreeMap<Key, Acc> = BTreeMap::new();
+    for (index, s) in samples.iter().enumerate() {
+        for (x, what) in [
+            (s.dv_mps, "Δv"),
+            (s.ddv_mps2, "dΔv/dt"),
+            (s.v_mps, "v"),
+            (s.mu, "μ"),
+        ] {
+            if !x.is_finite() {
+                return Err(ScoreError::NotFinite { index, what });
+            }
+        }
+        let keys = cells_of(grid, s);
+        if keys.is_empty() {
+            continue;
+        }
+        let p = predict(s.dv_mps, s.ddv_mps2, s.v_mps);
+        if !p.is_finite() {
+            return Err(ScoreError::Model {
+                dv: s.dv_mps,
+                ddv: s.ddv_mps2,
+                v: s.v_mps,
+            });
+        }
+        for k in keys {
+            let a = acc.entry(k).or_default();
+            a.n += 1;
+            a.truth += s.mu;
+            a.predicted += p;
+        }
+    }
+    let centre = |(axle, vi, qi, di): Key, a: &Acc| Cell {
+        axle,
+        dv_mps: di as f64 * grid.dv_step_mps,
+        ddv_mps2: qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1],
+        v_kmh: vi as f64 * grid.v_step_kmh,
+        samples: a.n,
+        true_mu: a.truth / a.n as f64,
+        predicted_mu: a.predicted / a.n as f64,
+    };
+    let supported: BTreeMap<Key, Cell> = acc
+        .iter()
+        .filter(|(_, a)| a.n >= grid.min_samples)
+        .map(|(k, a)| (*k, centre(*k, a)))
+        .collect();
+    if supported.is_empty() {
+        return Err(ScoreError::NoSupport {
+            min: grid.min_samples,
+        });
+    }
+    let cells: Vec<Cell> = supported.values().copied().collect();
+    let rmse = (cells.iter().map(|c| c.error().powi(2)).sum::<f64>() / cells.len() as f64).sqrt();
+    let max_error = cells.iter().map(|c| c.error().abs()).fold(0.0, f64::max);
+    let negative_cells = cells.iter().filter(|c| c.predicted_mu < 0.0).count();
+    let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
+    for ((axle, vi, qi, di), up) in &supported {
+        let dv = *di as f64 * grid.dv_step_mps;
+        if *qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&dv) {
+            continue;
+        }
+        if let Some(down) = supported.get(&(*axle, *vi, -qi, *di)) {
+            dt += up.true_mu - down.true_mu;
+            dp += up.predicted_mu - down.predicted_mu;
+            pairs += 1;
+        }
+    }
+    Ok(Score {
+        cells,
+        rmse,
+        max_error,
+        negative_cells,
+        hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
+        hysteresis_pairs: pairs,
+    })
+}
+
+/// The cells a sample belongs to.
+fn cells_of(grid: &Grid, s: &Sample) -> Vec<Key> {
+    let mut out = Vec::new();
+    let around = |x: f64, step: f64, half: f64| {
+        let lo = ((x - half) / step).ceil() as i64;
+        let hi = ((x + half) / step).floor() as i64;
+        lo..=hi
+    };
+    let v_kmh = s.v_mps * 3.6;
+    let qs: Vec<i64> = grid
+        .q_centres_mps2
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| {
+            let r = s.ddv_mps2.abs() / **c;
+            r >= grid.q_window.0 && r <= grid.q_window.1 && s.ddv_mps2 != 0.0
+        })
+        .map(|(i, _)| (i as i64 + 1) * s.ddv_mps2.signum() as i64)
+        .collect();
+    if qs.is_empty() {
+        return out;
+    }
+    for vi in around(v_kmh, grid.v_step_kmh, grid.v_half_kmh) {
+        if vi < 0 {
+            continue;
+        }
+        for di in around(s.dv_mps, grid.dv_step_mps, grid.dv_half_mps) {
+            if di <= 0 {
+                continue;
+            }
+            for qi in &qs {
+                out.push((s.axle, vi, *qi, di));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A law with branches: loss (q > 0) above recovery.
+    fn law(dv: f64, q: f64, v: f64) -> f64 {
+        let base = 0.1 * (1.0 - (-2.0 * dv).exp()) * (1.0 - 0.002 * v);
+        base * if q > 0.0 { 1.0 } else { 0.8 }
+    }
+
+    fn samples(n: usize) -> Vec<Sample> {
+        let mut rng = crate::rng::Rng::new(2);
+        (0..n)
+            .map(|i| {
+                let (dv, q, v) = (
+                    3.0 * rng.uniform(),
+                    if i % 2 == 0 { 1.0 } else { -1.0 } * (0.3 + 2.0 * rng.uniform()),
+                    30.0 + 5.0 * rng.uniform(),
+                );
+                Sample {
+                    axle: 1 + ((i / 2) % 2) as u8,
+                    dv_mps: dv,
+                    ddv_mps2: q,
+                    v_mps: v,
+                    mu: law(dv, q, v),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn truth_scores_zero_and_an_offset_scores_the_offset() {
+        let s = samples(40_000);
+        let g = Grid::default();
+        let exact = score(&s, &g, law).unwrap();
+        assert!(exact.rmse < 1e-15 && exact.max_error < 1e-15);
+        assert!(exact.cells.len() > 100, "{}", exact.cells.len());
+        let (t, p) = exact.hysteresis.unwrap();
+        assert!(t > 0.0 && (t - p).abs() < 1e-15, "{t} {p}");
+        let off = score(&s, &g, |a, b, c| law(a, b, c) - 0.01).unwrap();
+        assert!((off.rmse - 0.01).abs() < 1e-12 && (off.max_error - 0.01).abs() < 1e-12);
+        // One branch for both: no hysteresis predicted; negative somewhere near zero slip.
+        let flat = score(&s, &g, |a, _, c| law(a, 1.0, c) - 0.02).unwrap();
+        let (t, p) = flat.hysteresis.unwrap();
+        assert!(p.abs() < 0.1 * t, "{t} {p}");
+        assert!(flat.negative_cells > 0);
+    }
+
+    #[test]
+    fn support_needs_the_threshold_of_one_axle() {
+        let s = samples(40_000);
+        let few = &s[..30];
+        assert_eq!(
+            score(few, &Grid::default(), law).unwrap_err(),
+            ScoreError::NoSupport { min: 20 }
+        );
+        let full = score(&s, &Grid::default(), law).unwrap();
+        assert!(full.cells.iter().all(|c| c.samples >= 20));
+        // Support is counted per axle: samples that support cells on one axle support
+        // nothing when spread over 40.
+        let one: Vec<Sample> = s[..3000].iter().map(|x| Sample { axle: 1, ..*x }).collect();
+        assert!(score(&one, &Grid::default(), law).is_ok());
+        let spread: Vec<Sample> = one
+            .iter()
+            .enumerate()
+            .map(|(i, x)| Sample {
+                axle: (i % 40) as u8,
+                ..*x
+            })
+            .collect();
+        assert!(score(&spread, &Grid::default(), law).is_err());
+        let mut bad = s.clone();
+        bad[7].mu = f64::NAN;
+        assert!(matches!(
+            score(&bad, &Grid::default(), law),
+            Err(ScoreError::NotFinite { index: 7, .. })
+        ));
+    }
+}

@@ -1,0 +1,296 @@
+//! Adhesion laws from outside the families railgrip fits — truth that the identification has
+//! not seen (issue 15: a network or Polach fit tested only on Polach-made data is tested on its
+//! own assumptions).
+//!
+//! - [`LossRecovery`]: separate curves for a growing slip (adhesion being lost) and a falling
+//!   one (being recovered), each of Pacejka's "magic formula" shape (Bakker, Nyborg & Pacejka,
+//!   SAE 870421, 1987; here with E = 0): μ_b(Δv) = D sin(C atan(B Δv)), peak D at
+//!   Δv_p = tan(π/(2C))/B, falling to D sin(Cπ/2) at large slip. The two are blended by the
+//!   lagged slip rate q: μ = β μ_loss + (1 − β) μ_rec, β = ½ (1 + z/√(1 + z²)), z = q/q0.
+//!   Both peaks scale with speed, D(v) = D (1 + κ (v_ref − v)/(v_ref + v)), and, with the
+//!   `temperature` effect, with the ambient temperature, D(T) = D (1 + τ (20 °C − T)).
+//!   Every parameter is [assumed]: chosen to look like soap-contaminated rail (seed 002
+//!   Fig. 7–8, μ 0.02–0.10, peak near 1 m/s), not fitted to anything.
+//! - [`SlipTable`]: μ(Δv) tabulated per speed, linear between nodes in Δv and in speed, held
+//!   constant beyond the last nodes: a sharp peak and a plateau that no smooth law has.
+//!
+//! Both are odd in Δv, like the Polach law (μ(−Δv) = −μ(Δv)).
+
+use std::f64::consts::PI;
+
+/// One branch of [`LossRecovery`]: peak μ, the slip at the peak (m/s) and the large-slip level
+/// as a fraction of the peak.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Branch {
+    pub peak_mu: f64,
+    pub peak_slip_mps: f64,
+    pub residual: f64,
+}
+
+impl Branch {
+    /// Magic-formula coefficients (B in s/m, C): C = 2 − (2/π) asin(residual) so that
+    /// D sin(Cπ/2) = residual · D; B = tan(π/(2C))/Δv_p so that the peak sits at Δv_p.
+    /// Needs 0 < residual < 1 and Δv_p > 0 (checked by the scene).
+    fn shape(self) -> (f64, f64) {
+        let c = 2.0 - 2.0 / PI * self.residual.asin();
+        let b = (PI / (2.0 * c)).tan() / self.peak_slip_mps;
+        (b, c)
+    }
+}
+
+/// Separate loss and recovery curves blended by the lagged slip rate (see the module text).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LossRecovery {
+    pub loss: Branch,
+    pub recovery: Branch,
+    /// q0 of the blend, m/s².
+    pub blend_ddv_mps2: f64,
+    /// κ: the peaks' speed dependence, 1.
+    pub speed_coefficient: f64,
+    /// v_ref, m/s.
+    pub reference_speed_mps: f64,
+    /// τ: the peaks' temperature dependence, 1/K (applied with the `temperature` effect).
+    pub temperature_coefficient_per_k: f64,
+}
+
+/// [`LossRecovery`] prepared for a run: magic-formula coefficients, peaks at the run's ambient
+/// temperature.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PreparedLossRecovery {
+    /// (D, B, C) of the loss and the recovery branch.
+    loss: (f64, f64, f64),
+    recovery: (f64, f64, f64),
+    inv_q0: f64,
+    kappa: f64,
+    v_ref: f64,
+}
+
+impl LossRecovery {
+    /// The law at ambient temperature `t_c` (°C; `None`: no temperature dependence).
+    pub fn prepare(&self, t_c: Option<f64>) -> PreparedLossRecovery {
+        let temp = t_c.map_or(1.0, |t| {
+            1.0 + self.temperature_coefficient_per_k * (20.0 - t)
+        });
+        let coef = |br: Branch| {
+            let (b, c) = br.shape();
+            (br.peak_mu * temp, b, c)
+        };
+        PreparedLossRecovery {
+            loss: coef(self.loss),
+            recovery: coef(self.recovery),
+            inv_q0: 1.0 / self.blend_ddv_mps2,
+            kappa: self.speed_coefficient,
+            v_ref: self.reference_speed_mps,
+        }
+    }
+}
+
+impl PreparedLossRecovery {
+    /// μ at slip `w` (m/s), lagged slip rate `q` (m/s²) and speed `v` (m/s).
+    pub fn mu(&self, w: f64, q: f64, v: f64) -> f64 {
+        let speed = 1.0 + self.kappa * (self.v_ref - v) / (self.v_ref + v.abs());
+        let curve = |(d, b, c): (f64, f64, f64)| d * (c * (b * w).atan()).sin();
+        let z = q * self.inv_q0;
+        let beta = 0.5 * (1.0 + z / (1.0 + z * z).sqrt());
+        speed * (beta * curve(self.loss) + (1.0 - beta) * curve(self.recovery))
+    }
+
+    /// Peak μ of the loss and the recovery branch at speed `v` (m/s).
+    pub fn peaks(&self, v: f64) -> (f64, f64) {
+        let speed = 1.0 + self.kappa * (self.v_ref - v) / (self.v_ref + v.abs());
+        (speed * self.loss.0, speed * self.recovery.0)
+    }
+}
+
+/// μ(Δv) tabulated per speed (see the module text).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SlipTable {
+    /// Speed nodes, m/s, strictly increasing.
+    pub speeds_mps: Vec<f64>,
+    /// Slip nodes, m/s, strictly increasing, the first 0.
+    pub slips_mps: Vec<f64>,
+    /// μ per speed node (rows) and slip node (columns), the first column 0.
+    pub mu: Vec<Vec<f64>>,
+}
+
+/// Index i and weight f with x between nodes i and i + 1 (f = 0 and 1 at them); clamped to
+/// the ends.
+fn bracket(nodes: &[f64], x: f64) -> (usize, f64) {
+    let last = nodes.len() - 1;
+    if last == 0 || x <= nodes[0] {
+        return (0, 0.0);
+    }
+    if x >= nodes[last] {
+        return (last - 1, 1.0);
+    }
+    let i = nodes.partition_point(|n| *n <= x) - 1;
+    (i, (x - nodes[i]) / (nodes[i + 1] - nodes[i]))
+}
+
+impl SlipTable {
+    /// The built-in table: a sharp peak at 0.6 m/s (lower and later at speed), a dip and a
+    /// plateau from 2.5 m/s [assumed].
+    pub fn default_table() -> SlipTable {
+        SlipTable {
+            speeds_mps: vec![80.0 / 3.6, 140.0 / 3.6, 200.0 / 3.6],
+            slips_mps: vec![0.0, 0.15, 0.4, 0.6, 0.8, 1.2, 2.5, 20.0],
+            mu: vec![
+                vec![0.0, 0.045, 0.085, 0.105, 0.080, 0.060, 0.055, 0.055],
+                vec![0.0, 0.035, 0.070, 0.090, 0.072, 0.052, 0.046, 0.046],
+                vec![0.0, 0.028, 0.058, 0.074, 0.064, 0.045, 0.038, 0.038],
+            ],
+        }
+    }
+
+    /// Checks the shape; a message saying what is wrong.
+    pub fn check(&self) -> Result<(), String> {
+        let increasing = |xs: &[f64]| xs.windows(2).all(|w| w[1] > w[0]);
+        if self.speeds_mps.is_empty() || !increasing(&self.speeds_mps) {
+            return Err("table_speeds_kmh must be at least one speed, strictly increasing".into());
+        }
+        if self.slips_mps.len() < 2 || self.slips_mps[0] != 0.0 || !increasing(&self.slips_mps) {
+            return Err(
+                "table_slips_mps must start at 0 and increase strictly (at least two nodes)".into(),
+            );
+        }
+        if self.mu.len() != self.speeds_mps.len() {
+            return Err(format!(
+                "table_mu has {} rows, one per speed needs {}",
+                self.mu.len(),
+                self.speeds_mps.len()
+            ));
+        }
+        for (i, row) in self.mu.iter().enumerate() {
+            if row.len() != self.slips_mps.len() {
+                return Err(format!(
+                    "table_mu row {} has {} values, one per slip node needs {}",
+                    i + 1,
+                    row.len(),
+                    self.slips_mps.len()
+                ));
+            }
+            if row[0] != 0.0 || row.iter().any(|m| !(0.0..=1.5).contains(m)) {
+                return Err(format!(
+                    "table_mu row {}: μ must be in [0, 1.5] and 0 at zero slip",
+                    i + 1
+                ));
+            }
+        }
+        if self
+            .speeds_mps
+            .iter()
+            .chain(&self.slips_mps)
+            .any(|x| !x.is_finite())
+        {
+            return Err("table nodes must be finite".into());
+        }
+        Ok(())
+    }
+
+    /// μ at slip `w` (m/s) and speed `v` (m/s): bilinear, odd in `w`.
+    pub fn mu(&self, w: f64, v: f64) -> f64 {
+        let (j, g) = bracket(&self.slips_mps, w.abs());
+        let (i, f) = bracket(&self.speeds_mps, v);
+        let row = |r: &[f64]| {
+            if self.slips_mps.len() == 1 {
+                r[0]
+            } else {
+                r[j] + g * (r[j + 1] - r[j])
+            }
+        };
+        let lo = row(&self.mu[i]);
+        let m = if self.speeds_mps.len() == 1 {
+            lo
+        } else {
+            lo + f * (row(&self.mu[i + 1]) - lo)
+        };
+        m.copysign(w)
+    }
+}
+
+/// A law evaluated one axle at a time in the step loop (every law but Polach's, which runs on
+/// SIMD lanes): μ at slip `w` (m/s), lagged slip rate `q` (m/s²) and speed `v` (m/s).
+#[derive(Debug, Clone)]
+pub(super) enum ScalarLaw {
+    Model(Box<crate::model::Model>),
+    LossRecovery(PreparedLossRecovery),
+    Table(SlipTable),
+}
+
+impl ScalarLaw {
+    #[inline]
+    pub(super) fn mu(&self, w: f64, q: f64, v: f64) -> f64 {
+        match self {
+            ScalarLaw::Model(m) => m.mu_v(w, q, v),
+            ScalarLaw::LossRecovery(l) => l.mu(w, q, v),
+            ScalarLaw::Table(t) => t.mu(w, v),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn law() -> PreparedLossRecovery {
+        LossRecovery {
+            loss: Branch {
+                peak_mu: 0.1,
+                peak_slip_mps: 0.8,
+                residual: 0.55,
+            },
+            recovery: Branch {
+                peak_mu: 0.065,
+                peak_slip_mps: 1.6,
+                residual: 0.8,
+            },
+            blend_ddv_mps2: 0.5,
+            speed_coefficient: 0.3,
+            reference_speed_mps: 120.0 / 3.6,
+            temperature_coefficient_per_k: 0.006,
+        }
+        .prepare(None)
+    }
+
+    #[test]
+    fn branches_peak_where_asked_and_settle_at_the_residual() {
+        let l = law();
+        let v = 120.0 / 3.6;
+        // Far into growing slip the loss branch alone.
+        let grid = |q: f64| -> (f64, f64) {
+            (1..=4000)
+                .map(|i| i as f64 * 1e-3)
+                .map(|w| (w, l.mu(w, q, v)))
+                .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+        };
+        let (w, m) = grid(1e6);
+        assert!((w - 0.8).abs() <= 1e-3 && (m - 0.1).abs() < 1e-9, "{w} {m}");
+        let (w, m) = grid(-1e6);
+        assert!(
+            (w - 1.6).abs() <= 1e-3 && (m - 0.065).abs() < 1e-9,
+            "{w} {m}"
+        );
+        assert!((l.mu(1e4, 1e6, v) - 0.055).abs() < 1e-3);
+        // Odd in slip; loss above recovery at the loss peak.
+        assert_eq!(l.mu(-0.5, 1.0, v), -l.mu(0.5, 1.0, v));
+        assert!(l.mu(0.8, 2.0, v) > l.mu(0.8, -2.0, v));
+        // Slower is grippier.
+        assert!(l.peaks(80.0 / 3.6).0 > l.peaks(200.0 / 3.6).0);
+    }
+
+    #[test]
+    fn table_interpolates_and_holds_at_the_ends() {
+        let t = SlipTable::default_table();
+        t.check().unwrap();
+        let v80 = 80.0 / 3.6;
+        assert_eq!(t.mu(0.6, v80), 0.105);
+        assert!((t.mu(0.7, v80) - 0.0925).abs() < 1e-12);
+        assert_eq!(t.mu(50.0, v80), 0.055);
+        assert_eq!(t.mu(0.6, 10.0), 0.105);
+        assert!((t.mu(0.6, 110.0 / 3.6) - 0.0975).abs() < 1e-12);
+        assert_eq!(t.mu(-0.6, v80), -0.105);
+        let mut bad = t.clone();
+        bad.mu[1].pop();
+        assert!(bad.check().unwrap_err().contains("row 2"));
+    }
+}
