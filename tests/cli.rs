@@ -245,6 +245,42 @@ fn calibrate_prints_the_pipeline_line() {
 }
 
 #[test]
+fn train_takes_a_campaign_folder_like_run() {
+    // Issue 15: `train` refused a folder ("Is a directory") while `run` took it.
+    let dir = tempfile::tempdir().unwrap();
+    let campaign = dir.path().join("campaign/day1");
+    std::fs::create_dir_all(&campaign).unwrap();
+    for f in [
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_p20.meta.toml",
+        "soap_160kmh_0c.mcap",
+    ] {
+        std::fs::copy(archive(f), campaign.join(f)).unwrap();
+    }
+    let o = railgrip(
+        &["train", "campaign", "--out", "models", "--quiet"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("2 run(s)"), "{}", text(&o.stderr));
+    // Provenance names each log with the hash of its bytes.
+    let model = std::fs::read_to_string(dir.path().join("models/mlp.json")).unwrap();
+    for f in ["soap_120kmh_p20.csv", "soap_160kmh_0c.mcap"] {
+        let sha = railgrip::hash::sha256_file(&campaign.join(f)).unwrap();
+        assert!(model.contains(&sha) && model.contains(f), "{f}: {model}");
+    }
+    // An empty folder: an error naming it.
+    std::fs::create_dir_all(dir.path().join("empty")).unwrap();
+    let o = railgrip(&["train", "empty", "--out", "m2"], dir.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(
+        text(&o.stderr).contains("no .csv or .mcap logs found"),
+        "{}",
+        text(&o.stderr)
+    );
+}
+
+#[test]
 fn train_eval_export_work_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let a = archive("soap_120kmh_p20.csv");

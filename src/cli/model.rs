@@ -6,6 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use railgrip::campaign::{train_models, ModelPaths};
 use railgrip::identify::RunTable;
+use railgrip::ingest::LogSource;
 use railgrip::model::{c_header, Model, ModelFile};
 use rayon::prelude::*;
 
@@ -13,8 +14,9 @@ use super::{PipelineArg, EXIT_OK};
 
 #[derive(clap::Args)]
 pub struct TrainArgs {
-    /// Estimates tables (<stem>.estimates.parquet from `railgrip estimate`) or run logs
-    /// (.csv/.mcap, estimated on the fly), any mix.
+    /// Estimates tables (<stem>.estimates.parquet from `railgrip estimate`), run logs
+    /// (.csv/.mcap, estimated on the fly), campaign folders (searched recursively for logs) or
+    /// archives (.zip, .tar, .tar.gz) — the sources `railgrip run` takes, any mix.
     #[arg(value_name = "INPUT", required = true)]
     inputs: Vec<PathBuf>,
     #[command(flatten)]
@@ -30,28 +32,52 @@ pub struct TrainArgs {
     quiet: bool,
 }
 
-/// Reads the inputs as run tables, in parallel, in the order given.
+/// One input of `train`: an estimates table or a log.
+enum Input {
+    Table(PathBuf),
+    Log(String, LogSource),
+}
+
+/// Expands folders and archives into their logs (as `railgrip run` finds them).
+fn expand(inputs: &[PathBuf]) -> anyhow::Result<Vec<Input>> {
+    let mut out = Vec::new();
+    for p in inputs {
+        let name = p.display().to_string();
+        if name.ends_with(".parquet") {
+            out.push(Input::Table(p.clone()));
+        } else if p.is_dir() || railgrip::archive::kind_of(p).is_some() {
+            for (run, src) in railgrip::campaign::sources(p, None)? {
+                out.push(Input::Log(run, src));
+            }
+        } else {
+            out.push(Input::Log(
+                super::ingest::stem(p),
+                LogSource::File(p.clone()),
+            ));
+        }
+    }
+    Ok(out)
+}
+
+/// Reads the inputs as run tables, in parallel, in the order given (a folder's or archive's
+/// logs in the order `railgrip run` lists them).
 pub fn load_tables(
     inputs: &[PathBuf],
     pipeline: &railgrip::Pipeline,
 ) -> anyhow::Result<Vec<RunTable>> {
-    inputs
+    expand(inputs)?
         .par_iter()
-        .map(|p| -> anyhow::Result<RunTable> {
-            let name = p.display().to_string();
-            if name.ends_with(".parquet") {
-                return Ok(RunTable::read_parquet(p)?);
-            }
-            let log = railgrip::ingest_file(p, pipeline)?;
+        .map(|input| -> anyhow::Result<RunTable> {
+            let (run, src) = match input {
+                Input::Table(p) => return Ok(RunTable::read_parquet(p)?),
+                Input::Log(run, src) => (run, src),
+            };
+            let name = src.name().display().to_string();
+            let log = railgrip::ingest::ingest_source(src, pipeline)?;
             let e = railgrip::estimate::estimate(&log, pipeline)?;
-            let sha =
-                railgrip::hash::sha256_file(p).with_context(|| format!("{name}: cannot read"))?;
-            Ok(RunTable::from_estimates(
-                &super::ingest::stem(p),
-                &name,
-                &sha,
-                &e,
-            ))
+            let (_, sha) = railgrip::campaign::input_hash(src, pipeline)
+                .with_context(|| format!("{name}: cannot read"))?;
+            Ok(RunTable::from_estimates(run, &name, &sha, &e))
         })
         .collect()
 }

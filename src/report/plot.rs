@@ -94,13 +94,13 @@ pub(super) fn chart(
             .x_label_area_size(38)
             .y_label_area_size(62);
         macro_rules! draw {
-            ($chart:expr, $map:expr) => {{
+            ($chart:expr, $map:expr, $ylabel:expr) => {{
                 let mut c = $chart;
                 c.configure_mesh()
                     .x_desc(x_desc)
                     .y_desc(y_desc)
                     .x_label_formatter(&|x: &f64| tick(*x))
-                    .y_label_formatter(&|y: &f64| tick(*y))
+                    .y_label_formatter(&$ylabel)
                     .label_style(("sans-serif", 11))
                     .axis_desc_style(("sans-serif", 12))
                     .light_line_style(RGBColor(235, 235, 235))
@@ -143,16 +143,17 @@ pub(super) fn chart(
                 }
             }};
         }
+        let c = b
+            .build_cartesian_2d(xr, yr)
+            .map_err(|e| err(e.to_string()))?;
         if log_y {
-            let c = b
-                .build_cartesian_2d(xr, (10f64.powf(yr.start)..10f64.powf(yr.end)).log_scale())
-                .map_err(|e| err(e.to_string()))?;
-            draw!(c, |y: f64| y);
+            // log10 of the data on a linear axis, labelled with 10^tick: plotters' own log
+            // axis labels powers of ten only, so a range inside one decade had no labels.
+            draw!(c, |y: f64| y.max(1e-300).log10(), |y: &f64| tick(
+                10f64.powf(*y)
+            ));
         } else {
-            let c = b
-                .build_cartesian_2d(xr, yr)
-                .map_err(|e| err(e.to_string()))?;
-            draw!(c, |y: f64| y);
+            draw!(c, |y: f64| y, |y: &f64| tick(*y));
         }
         root.present().map_err(|e| err(e.to_string()))?;
     }
@@ -268,4 +269,41 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
         root.present().map_err(|e| err(e.to_string()))?;
     }
     Ok(svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Text lines of an SVG chart that are numbers in (0, 0.01): the y tick labels of an MSE
+    /// axis (the x ticks are whole epochs).
+    fn small_labels(svg: &str) -> usize {
+        svg.lines()
+            .filter_map(|l| l.trim().parse::<f64>().ok())
+            .filter(|v| *v > 0.0 && *v < 0.01)
+            .count()
+    }
+
+    #[test]
+    fn a_log_axis_inside_one_decade_still_has_tick_labels() {
+        // Fig. 9 of a training whose MSE stays inside one decade (2.2e-4 … 8e-4): no power
+        // of ten in the data range.
+        let pts: Vec<(f64, f64)> = (0..50)
+            .map(|i| (i as f64, 6e-4 * (-(i as f64) / 10.0).exp() + 2e-4))
+            .collect();
+        let svg = chart(
+            "Error per epoch",
+            "epoch",
+            "MSE",
+            &[Series {
+                name: "training".into(),
+                color: RGBColor(0, 0, 0),
+                pts,
+                dots: false,
+            }],
+            true,
+        )
+        .unwrap();
+        assert!(small_labels(&svg) >= 2, "{svg}");
+    }
 }
