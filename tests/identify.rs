@@ -217,6 +217,48 @@ fn deterministic_and_independent_of_the_thread_count() {
     assert_eq!(a.history.len(), b.history.len());
 }
 
+/// `[train] starts`: K Nguyen–Widrow starts in parallel, the lowest validation error kept —
+/// the same network as training that seed alone, whatever the thread count.
+#[test]
+fn multi_start_keeps_the_best_start_on_any_thread_count() {
+    let table = synthetic_table(3000);
+    let mut cfg = Pipeline::default_uic_z1().train.clone();
+    cfg.split = axles_2_3();
+    cfg.epochs = 40;
+    cfg.decimate = 1;
+    cfg.seed = 5;
+    cfg.starts = 4;
+    let pool = |n| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap()
+    };
+    let tables = [table];
+    let multi =
+        pool(2).install(|| railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap());
+    let again =
+        pool(1).install(|| railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap());
+    assert_eq!(multi.theta, again.theta);
+    assert_eq!(multi.start_val_mse.len(), 4);
+    let singles: Vec<TrainedMlp> = (5..9)
+        .map(|seed| {
+            let mut c = cfg.clone();
+            c.seed = seed;
+            c.starts = 1;
+            railgrip::identify::train::train_mlp(&tables, &c, None).unwrap()
+        })
+        .collect();
+    let best = singles
+        .iter()
+        .min_by(|a, b| a.val_mse.total_cmp(&b.val_mse))
+        .unwrap();
+    assert_eq!(multi.seed, best.seed);
+    assert_eq!(multi.theta, best.theta);
+    let vals: Vec<f64> = singles.iter().map(|t| t.val_mse).collect();
+    assert_eq!(multi.start_val_mse, vals);
+}
+
 /// The same solver trains larger nets: 3 inputs and two hidden layers (P = 455, past
 /// `linalg::BLOCKED_FROM`, so the damped solve is faer's blocked Cholesky), bit-identical for
 /// one and two threads, and it learns.

@@ -134,6 +134,19 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         trained.stop.text(),
         trained.history.last().map(|e| e.elapsed_s).unwrap_or(0.0)
     );
+    if trained.start_val_mse.len() > 1 {
+        let rmse: Vec<String> = trained
+            .start_val_mse
+            .iter()
+            .map(|m| format!("{:.5}", m.sqrt()))
+            .collect();
+        println!(
+            "starts     {} (validation RMSE {}), kept seed {}",
+            rmse.len(),
+            rmse.join(" "),
+            trained.seed
+        );
+    }
     println!(
         "error      RMSE of μ: training {:.5}, validation {:.5}",
         trained.train_mse.sqrt(),

@@ -279,6 +279,11 @@ mod tests {
                 "train.hidden = 2.5: must be a whole number",
             ),
             (
+                "hidden = 10",
+                "hidden = 10\nstarts = 0",
+                "train.starts = 0: must be",
+            ),
+            (
                 "mu_dec = 0.1",
                 "mu_dec = 1.5",
                 "train.mu_dec = 1.5: must be >= 1e-6 and <= 0.999 (default 0.1)",

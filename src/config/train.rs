@@ -20,6 +20,7 @@ pub mod raw {
         pub block_s: Option<f64>,
         pub decimate: Option<f64>,
         pub seed: Option<u64>,
+        pub starts: Option<f64>,
         pub epochs: Option<f64>,
         pub goal: Option<f64>,
         pub max_fail: Option<f64>,
@@ -55,6 +56,9 @@ pub struct TrainConfig {
     /// Keep every n-th valid sample of a run and axle.
     pub decimate: usize,
     pub seed: u64,
+    /// Nguyen–Widrow starts (seeds seed, seed + 1, …) trained in parallel; the one with the
+    /// lowest validation error is kept.
+    pub starts: usize,
     pub epochs: u64,
     pub goal: f64,
     pub max_fail: u32,
@@ -147,6 +151,13 @@ const SEED: Key = text(
     "1",
     "Nguyen–Widrow initialisation",
 );
+const STARTS: Key = Key::num(
+    "train.starts",
+    "",
+    int(1.0, 256.0),
+    1.0,
+    "Nguyen–Widrow starts (seeds seed, seed + 1, …) trained in parallel, the lowest validation error kept",
+);
 const EPOCHS: Key = Key::num(
     "train.epochs",
     "",
@@ -235,6 +246,7 @@ pub const KEYS: &[&Key] = &[
     &BLOCK,
     &DECIMATE,
     &SEED,
+    &STARTS,
     &EPOCHS,
     &GOAL,
     &MAX_FAIL,
@@ -278,6 +290,7 @@ impl Checker<'_> {
             split: self.split(&t)?,
             decimate: self.value(&DECIMATE, t.decimate)? as usize,
             seed: t.seed.unwrap_or(1),
+            starts: self.value(&STARTS, t.starts)? as usize,
             epochs: self.value(&EPOCHS, t.epochs)? as u64,
             goal: self.value(&GOAL, t.goal)?,
             max_fail: self.value(&MAX_FAIL, t.max_fail)? as u32,

@@ -307,7 +307,10 @@ pub struct TrainedMlp {
     pub domain: Vec<(f64, f64)>,
     /// Median vehicle speed of the training samples, m/s.
     pub reference_speed_mps: f64,
+    /// The seed of the kept start.
     pub seed: u64,
+    /// Validation MSE (μ²) of every start, seeds in order (one entry for a single start).
+    pub start_val_mse: Vec<f64>,
     pub settings: LmSettings,
 }
 
@@ -354,7 +357,51 @@ pub fn train_mlp(
         InputSet::DvDdv
     };
     let data = Dataset::build(tables, inputs, &cfg.split, cfg.decimate)?;
-    train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress)
+    if cfg.starts <= 1 {
+        return train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress);
+    }
+    train_starts(&data, cfg, progress)
+}
+
+/// `cfg.starts` trainings from the seeds `cfg.seed`, `cfg.seed + 1`, … in parallel; keeps the
+/// one with the lowest validation error (training error without validation data), the
+/// earliest seed on a tie, so the choice does not depend on the thread count. `progress` sees
+/// the epochs of the first start only (the others run beside it).
+fn train_starts(
+    data: &Dataset,
+    cfg: &TrainConfig,
+    progress: Option<lm::Progress>,
+) -> Result<TrainedMlp, IdentifyError> {
+    let settings = lm_settings(cfg);
+    let progress = std::sync::Mutex::new(progress);
+    let runs: Vec<Result<TrainedMlp, IdentifyError>> = (0..cfg.starts as u64)
+        .into_par_iter()
+        .map(|k| {
+            let p = if k == 0 {
+                progress.lock().map(|mut p| p.take()).unwrap_or(None)
+            } else {
+                None
+            };
+            train_on(data, cfg.hidden, cfg.seed.wrapping_add(k), settings, p)
+        })
+        .collect();
+    let runs: Vec<TrainedMlp> = runs.into_iter().collect::<Result<_, _>>()?;
+    let key = |t: &TrainedMlp| {
+        if t.val_mse.is_finite() {
+            t.val_mse
+        } else if t.train_mse.is_finite() {
+            t.train_mse
+        } else {
+            f64::INFINITY
+        }
+    };
+    let all: Vec<f64> = runs.iter().map(|t| t.val_mse).collect();
+    let mut best = runs
+        .into_iter()
+        .reduce(|a, b| if key(&b) < key(&a) { b } else { a })
+        .expect("at least two starts");
+    best.start_val_mse = all;
+    Ok(best)
 }
 
 /// Trains on a prepared dataset.
@@ -434,6 +481,7 @@ pub fn train_on(
         domain,
         reference_speed_mps: f64::NAN,
         seed,
+        start_val_mse: vec![val_mse],
         settings,
     })
 }
