@@ -400,6 +400,8 @@ fn foreign_laws_drive_the_wheels() {
     assert!(e.contains("table_mu has 1 rows"), "{e}");
     let e = err("[adhesion]\nlaw = \"loss_recovery\"\nloss_residual = 1.0");
     assert!(e.contains("adhesion.loss_residual"), "{e}");
+    let e = err("effects = [\"temperature\"]\n[run]\nambient_temperature_c = -60.0\n[adhesion]\nlaw = \"loss_recovery\"\npeak_temperature_coefficient_per_k = -0.02");
+    assert!(e.contains("must be at least 0.05"), "{e}");
     let e = err("[adhesion]\nlaw = \"magic\"");
     assert!(e.contains("\"loss_recovery\", \"table\""), "{e}");
 }

@@ -278,6 +278,26 @@ mod tests {
         assert!(l.peaks(80.0 / 3.6).0 > l.peaks(200.0 / 3.6).0);
     }
 
+    proptest::proptest! {
+        /// Both laws are finite, odd, have the sign of the slip and never exceed their peaks.
+        #[test]
+        fn finite_odd_and_bounded_by_the_peaks(
+            w in -50.0f64..50.0, q in -100.0f64..100.0, v in 0.0f64..120.0
+        ) {
+            let l = law();
+            let m = l.mu(w, q, v);
+            let (pl, pr) = l.peaks(v);
+            proptest::prop_assert!(m.is_finite());
+            proptest::prop_assert!(m * w.signum() >= 0.0);
+            proptest::prop_assert!(m.abs() <= pl.max(pr) * (1.0 + 1e-12));
+            proptest::prop_assert_eq!(l.mu(-w, q, v), -m);
+            let t = SlipTable::default_table();
+            let m = t.mu(w, v);
+            proptest::prop_assert!(m.is_finite() && m * w.signum() >= 0.0 && m.abs() <= 0.105);
+            proptest::prop_assert_eq!(t.mu(-w, v), -m);
+        }
+    }
+
     #[test]
     fn table_interpolates_and_holds_at_the_ends() {
         let t = SlipTable::default_table();

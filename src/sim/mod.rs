@@ -176,6 +176,19 @@ fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
         AdhesionLaw::Polach => unreachable!("returned above"),
         AdhesionLaw::LossRecovery(l) => {
             let t = with_t.then_some(sc.run.ambient_temperature_c);
+            // The peaks' factor 1 + τ (20 °C − T) must stay positive (μ ≥ 0).
+            if let Some(t) = t {
+                let factor = 1.0 + l.temperature_coefficient_per_k * (20.0 - t);
+                if factor < 0.05 {
+                    return Err(err(
+                        format!(
+                            "adhesion.peak_temperature_coefficient_per_k = {} at run.ambient_temperature_c = {t} scales the peaks by {factor:.3}",
+                            l.temperature_coefficient_per_k
+                        ),
+                        "the factor 1 + τ (20 °C − T) must be at least 0.05: choose a smaller coefficient or another temperature",
+                    ));
+                }
+            }
             return Ok(Some(ScalarLaw::LossRecovery(l.prepare(t))));
         }
         AdhesionLaw::Table(_) if with_t => {
