@@ -22,15 +22,17 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use railgrip::config::SplitConfig;
-use railgrip::identify::dataset::{Dataset, MapMinMax, RunTable};
+use railgrip::identify::dataset::{Dataset, RunTable};
 use railgrip::identify::lm::{self, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::MlpProblem;
 use railgrip::identify::InputSet;
 use railgrip::model::Epoch;
-use railgrip::Pipeline;
 
 const EPOCHS: u64 = 20;
 
@@ -43,25 +45,7 @@ fn settings(epochs: u64) -> LmSettings {
     }
 }
 
-/// The bundled soap runs' estimates (sorted by file name).
-fn tables() -> Vec<RunTable> {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let p = Pipeline::default_uic_z1();
-    let mut t = Vec::new();
-    for entry in std::fs::read_dir(root.join("fixtures/archive")).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_string_lossy().to_string();
-        if name.starts_with("soap_") && (name.ends_with(".csv") || name.ends_with(".mcap")) {
-            let log = railgrip::ingest_file(&path, &p).unwrap();
-            let e = railgrip::estimate::estimate(&log, &p).unwrap();
-            t.push((name.clone(), RunTable::from_estimates(&name, &name, "", &e)));
-        }
-    }
-    t.sort_by(|a, b| a.0.cmp(&b.0));
-    t.into_iter().map(|(_, t)| t).collect()
-}
-
-/// A normalised problem: row-major x, y, validation, scale, as `train_on` builds it.
+/// A normalised problem as `train_on` builds it, and its input count.
 struct Data {
     k: usize,
     x: Vec<f64>,
@@ -71,23 +55,16 @@ struct Data {
     scale: f64,
 }
 
-fn normalise(d: &Dataset, k: usize, n: usize) -> Data {
-    let (mut x, mut y) = (d.train_x[..n * k].to_vec(), d.train_y[..n].to_vec());
-    let nv = d.val_y.len().min(n);
-    let (mut vx, mut vy) = (d.val_x[..nv * k].to_vec(), d.val_y[..nv].to_vec());
-    let xn = MapMinMax::fit(&x, k);
-    let yn = MapMinMax::fit(&y, 1);
-    xn.apply(&mut x);
-    xn.apply(&mut vx);
-    yn.apply(&mut y);
-    yn.apply(&mut vy);
+/// The first `n` samples of each set of `d`, scaled as training scales them.
+fn normalise(d: &Dataset, n: usize) -> Data {
+    let m = d.head(n).normalised();
     Data {
-        k,
-        x,
-        y,
-        vx,
-        vy,
-        scale: 1.0 / yn.gain_offset(0).0.powi(2),
+        k: d.inputs.count(),
+        x: m.x,
+        y: m.y,
+        vx: m.vx,
+        vy: m.vy,
+        scale: m.scale,
     }
 }
 
@@ -103,7 +80,7 @@ fn seed002(tables: &[RunTable], inputs: InputSet, n: usize) -> Data {
         d.n_train(),
         d.n_val()
     );
-    normalise(&d, inputs.count(), n)
+    normalise(&d, n)
 }
 
 /// `n` training and `n / 4` validation samples of
@@ -128,7 +105,7 @@ fn synthetic(n: usize) -> Data {
         x.extend([dv, ddv]);
         y.push(mu);
     }
-    normalise(&d, 2, n)
+    normalise(&d, n)
 }
 
 fn train(p: &MlpProblem, theta0: &[f64], epochs: u64) -> Vec<Epoch> {
@@ -173,7 +150,7 @@ fn numpy(problem: &PathBuf, threads: Option<usize>) -> Result<(f64, Vec<f64>), S
 }
 
 fn bench(c: &mut Criterion) {
-    let tables = tables();
+    let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
     std::fs::create_dir_all(&dir).unwrap();
     let mut g = c.benchmark_group("lm");

@@ -21,9 +21,12 @@ use std::path::PathBuf;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion};
 use railgrip::config::SplitConfig;
-use railgrip::identify::dataset::{Dataset, MapMinMax, RunTable};
+use railgrip::identify::dataset::{Dataset, Normalised};
 use railgrip::identify::lm::{LeastSquares, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::{creep_spec, median_speed, train_on, MlpProblem};
@@ -34,54 +37,32 @@ use railgrip::Pipeline;
 const N: usize = 50_000;
 
 fn data() -> (Dataset, f64) {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let p = Pipeline::default_uic_z1();
-    let mut tables = Vec::new();
-    for entry in std::fs::read_dir(root.join("fixtures/archive")).unwrap() {
-        let path = entry.unwrap().path();
-        let name = path.file_name().unwrap().to_string_lossy().to_string();
-        if name.starts_with("soap_") && (name.ends_with(".csv") || name.ends_with(".mcap")) {
-            let log = railgrip::ingest_file(&path, &p).unwrap();
-            let e = railgrip::estimate::estimate(&log, &p).unwrap();
-            tables.push((name.clone(), RunTable::from_estimates(&name, &name, "", &e)));
-        }
-    }
-    tables.sort_by(|a, b| a.0.cmp(&b.0));
-    let tables: Vec<RunTable> = tables.into_iter().map(|(_, t)| t).collect();
+    let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     let split = SplitConfig::Axles {
         train: vec![2],
         val: vec![3],
     };
-    let mut d = Dataset::build(&tables, InputSet::DvDdv, &split, 2).unwrap();
+    let d = Dataset::build(&tables, InputSet::DvDdv, &split, 2).unwrap();
     assert!(
         d.n_train() >= N && d.n_val() >= N,
         "{} {}",
         d.n_train(),
         d.n_val()
     );
-    d.train_x.truncate(2 * N);
-    d.train_y.truncate(N);
-    d.val_x.truncate(2 * N);
-    d.val_y.truncate(N);
-    (d, median_speed(&tables))
+    (d.head(N), median_speed(&tables))
 }
 
 fn bench(c: &mut Criterion) {
     let (d, v_ref) = data();
     let shape = Shape::one(2, 10);
-    let xn = MapMinMax::fit(&d.train_x, 2);
-    let yn = MapMinMax::fit(&d.train_y, 1);
-    let (mut x, mut y, mut vx, mut vy) = (
-        d.train_x.clone(),
-        d.train_y.clone(),
-        d.val_x.clone(),
-        d.val_y.clone(),
-    );
-    xn.apply(&mut x);
-    yn.apply(&mut y);
-    xn.apply(&mut vx);
-    yn.apply(&mut vy);
-    let scale = 1.0 / yn.gain_offset(0).0.powi(2);
+    let Normalised {
+        x,
+        y,
+        vx,
+        vy,
+        scale,
+        ..
+    } = d.normalised();
     let theta0 = mlp::nguyen_widrow(shape, 1);
 
     // The problem as scipy will see it.

@@ -16,16 +16,17 @@
 //! Needs python3 with numpy; without them the test is skipped with a message, except under
 //! CI=true, where it fails (`.ci/run` installs numpy).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use railgrip::config::SplitConfig;
-use railgrip::identify::dataset::{Dataset, MapMinMax, RunTable};
+use railgrip::identify::dataset::Dataset;
 use railgrip::identify::lm::{self, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
 use railgrip::identify::train::MlpProblem;
 use railgrip::identify::InputSet;
-use railgrip::Pipeline;
 
 const EPOCHS: u64 = 20;
 /// The agreement asked for: relative difference of the training MSE per epoch…
@@ -37,33 +38,16 @@ const FACTOR: f64 = 10.0;
 /// Normalised training and validation data of the seed 002 problem: the first `n` valid
 /// samples of axles 2 and 3 (decimated by 4) of two bundled soap runs.
 fn seed002(inputs: InputSet, n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let p = Pipeline::default_uic_z1();
-    let tables: Vec<RunTable> = ["soap_120kmh_p20.csv", "soap_160kmh_0c.mcap"]
-        .iter()
-        .map(|r| {
-            let path = root.join("fixtures/archive").join(r);
-            let log = railgrip::ingest_file(&path, &p).unwrap();
-            let e = railgrip::estimate::estimate(&log, &p).unwrap();
-            RunTable::from_estimates(r, r, "", &e)
-        })
-        .collect();
+    let tables =
+        common::bundled_tables(|n| n == "soap_120kmh_p20.csv" || n == "soap_160kmh_0c.mcap");
     let split = SplitConfig::Axles {
         train: vec![2],
         val: vec![3],
     };
     let d = Dataset::build(&tables, inputs, &split, 4).unwrap();
-    let k = inputs.count();
     assert!(d.n_train() >= n && d.n_val() >= n);
-    let (mut x, mut y) = (d.train_x[..n * k].to_vec(), d.train_y[..n].to_vec());
-    let (mut vx, mut vy) = (d.val_x[..n * k].to_vec(), d.val_y[..n].to_vec());
-    let xn = MapMinMax::fit(&x, k);
-    let yn = MapMinMax::fit(&y, 1);
-    xn.apply(&mut x);
-    xn.apply(&mut vx);
-    yn.apply(&mut y);
-    yn.apply(&mut vy);
-    (x, y, vx, vy)
+    let m = d.head(n).normalised();
+    (m.x, m.y, m.vx, m.vy)
 }
 
 fn settings() -> LmSettings {

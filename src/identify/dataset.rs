@@ -175,7 +175,57 @@ pub struct Dataset {
     pub val_y: Vec<f64>,
 }
 
+/// A [`Dataset`] scaled as the network sees it: mapminmax fitted on the training set and
+/// applied to both sets (seed 002; MATLAB's `mapminmax`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Normalised {
+    /// Row-major inputs and targets of the training and validation sets, in [−1, 1].
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub vx: Vec<f64>,
+    pub vy: Vec<f64>,
+    pub x_norm: MapMinMax,
+    pub y_norm: MapMinMax,
+    /// Normalised MSE → μ²: (max − min)² / 4 of the training target.
+    pub scale: f64,
+}
+
 impl Dataset {
+    /// The sets scaled by mapminmax fitted on the training set.
+    pub fn normalised(&self) -> Normalised {
+        let k = self.inputs.count();
+        let x_norm = MapMinMax::fit(&self.train_x, k);
+        let y_norm = MapMinMax::fit(&self.train_y, 1);
+        let scaled = |v: &[f64], m: &MapMinMax| {
+            let mut v = v.to_vec();
+            m.apply(&mut v);
+            v
+        };
+        let (g, _) = y_norm.gain_offset(0);
+        Normalised {
+            x: scaled(&self.train_x, &x_norm),
+            y: scaled(&self.train_y, &y_norm),
+            vx: scaled(&self.val_x, &x_norm),
+            vy: scaled(&self.val_y, &y_norm),
+            scale: 1.0 / (g * g),
+            x_norm,
+            y_norm,
+        }
+    }
+
+    /// The first `n` training and (at most) `n` validation samples.
+    pub fn head(&self, n: usize) -> Dataset {
+        let k = self.inputs.count();
+        let (nt, nv) = (self.n_train().min(n), self.n_val().min(n));
+        Dataset {
+            inputs: self.inputs,
+            train_x: self.train_x[..nt * k].to_vec(),
+            train_y: self.train_y[..nt].to_vec(),
+            val_x: self.val_x[..nv * k].to_vec(),
+            val_y: self.val_y[..nv].to_vec(),
+        }
+    }
+
     /// Builds the sets: valid samples only (the tables hold nothing else), every `decimate`-th
     /// sample of each run and axle.
     pub fn build(

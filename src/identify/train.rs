@@ -373,6 +373,8 @@ fn train_starts(
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
     let settings = lm_settings(cfg);
+    // One problem (data scaled and laid out by column) for every start.
+    let prepared = Prepared::new(data, cfg.hidden)?;
     let progress = std::sync::Mutex::new(progress);
     let runs: Vec<Result<TrainedMlp, IdentifyError>> = (0..cfg.starts as u64)
         .into_par_iter()
@@ -382,7 +384,7 @@ fn train_starts(
             } else {
                 None
             };
-            train_on(data, cfg.hidden, cfg.seed.wrapping_add(k), settings, p)
+            prepared.fit(data, cfg.seed.wrapping_add(k), settings, p)
         })
         .collect();
     let runs: Vec<TrainedMlp> = runs.into_iter().collect::<Result<_, _>>()?;
@@ -412,78 +414,99 @@ pub fn train_on(
     settings: LmSettings,
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
-    let k = data.inputs.count();
-    let shape = Shape::one(k, hidden);
-    if let Some(bad) = data
-        .train_x
-        .iter()
-        .chain(&data.train_y)
-        .chain(&data.val_x)
-        .chain(&data.val_y)
-        .find(|v| !v.is_finite())
-    {
-        return Err(IdentifyError::Data {
-            what: format!("a training value is not finite ({bad})"),
-            hint: "train on valid estimates only".into(),
-        });
-    }
-    let x_norm = MapMinMax::fit(&data.train_x, k);
-    let y_norm = MapMinMax::fit(&data.train_y, 1);
-    let mut x = data.train_x.clone();
-    x_norm.apply(&mut x);
-    let mut y = data.train_y.clone();
-    y_norm.apply(&mut y);
-    let mut vx = data.val_x.clone();
-    x_norm.apply(&mut vx);
-    let mut vy = data.val_y.clone();
-    y_norm.apply(&mut vy);
-    let (g, _) = y_norm.gain_offset(0);
-    let scale = 1.0 / (g * g);
-    let problem = MlpProblem::new(shape, x, y, vx, vy, scale);
-    let theta0 = mlp::nguyen_widrow(shape, seed);
-    let mut solver = LevenbergMarquardt::new(settings);
-    if let Some(p) = progress {
-        solver = solver.with_progress(p);
-    }
-    let (solver, problem) =
-        lm::run(problem, solver, theta0).map_err(|e| IdentifyError::Solver {
-            fit: "network training".into(),
-            source: e.into(),
-        })?;
-    let theta = solver.best().expect("set from the first epoch").to_vec();
-    let train_mse = problem.sse(&theta) / problem.n_train() as f64 * scale;
-    let val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
-    let mut domain = Vec::with_capacity(k);
-    for c in 0..k {
-        let (lo, hi) = data
+    Prepared::new(data, hidden)?.fit(data, seed, settings, progress)
+}
+
+/// A dataset checked, scaled and laid out as the least-squares problem of one network shape:
+/// what every start of a training shares.
+struct Prepared {
+    problem: MlpProblem,
+    x_norm: MapMinMax,
+    y_norm: MapMinMax,
+    /// Input ranges seen in training and validation data: (min, max) per input.
+    domain: Vec<(f64, f64)>,
+}
+
+impl Prepared {
+    fn new(data: &Dataset, hidden: usize) -> Result<Prepared, IdentifyError> {
+        let k = data.inputs.count();
+        if let Some(bad) = data
             .train_x
             .iter()
-            .skip(c)
-            .step_by(k)
-            .chain(data.val_x.iter().skip(c).step_by(k))
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                (lo.min(*v), hi.max(*v))
+            .chain(&data.train_y)
+            .chain(&data.val_x)
+            .chain(&data.val_y)
+            .find(|v| !v.is_finite())
+        {
+            return Err(IdentifyError::Data {
+                what: format!("a training value is not finite ({bad})"),
+                hint: "train on valid estimates only".into(),
             });
-        domain.push((lo, hi));
+        }
+        let n = data.normalised();
+        let domain = (0..k)
+            .map(|c| {
+                data.train_x
+                    .iter()
+                    .skip(c)
+                    .step_by(k)
+                    .chain(data.val_x.iter().skip(c).step_by(k))
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                        (lo.min(*v), hi.max(*v))
+                    })
+            })
+            .collect();
+        Ok(Prepared {
+            problem: MlpProblem::new(Shape::one(k, hidden), n.x, n.y, n.vx, n.vy, n.scale),
+            x_norm: n.x_norm,
+            y_norm: n.y_norm,
+            domain,
+        })
     }
-    Ok(TrainedMlp {
-        inputs: data.inputs,
-        shape,
-        theta,
-        x_norm,
-        y_norm,
-        history: solver.history().to_vec(),
-        stop: solver.stop_reason().unwrap_or(StopReason::Epochs),
-        n_train: data.n_train(),
-        n_val: data.n_val(),
-        train_mse,
-        val_mse,
-        domain,
-        reference_speed_mps: f64::NAN,
-        seed,
-        start_val_mse: vec![val_mse],
-        settings,
-    })
+
+    /// One LM training from the Nguyen–Widrow start of `seed`.
+    fn fit(
+        &self,
+        data: &Dataset,
+        seed: u64,
+        settings: LmSettings,
+        progress: Option<lm::Progress>,
+    ) -> Result<TrainedMlp, IdentifyError> {
+        let problem = &self.problem;
+        let shape = problem.shape;
+        let mut solver = LevenbergMarquardt::new(settings);
+        if let Some(p) = progress {
+            solver = solver.with_progress(p);
+        }
+        let (solver, _) =
+            lm::run(problem, solver, mlp::nguyen_widrow(shape, seed)).map_err(|e| {
+                IdentifyError::Solver {
+                    fit: "network training".into(),
+                    source: e.into(),
+                }
+            })?;
+        let theta = solver.best().expect("set from the first epoch").to_vec();
+        let train_mse = problem.sse(&theta) / problem.n_train() as f64 * problem.mse_scale();
+        let val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
+        Ok(TrainedMlp {
+            inputs: data.inputs,
+            shape,
+            theta,
+            x_norm: self.x_norm.clone(),
+            y_norm: self.y_norm.clone(),
+            history: solver.history().to_vec(),
+            stop: solver.stop_reason().unwrap_or(StopReason::Epochs),
+            n_train: data.n_train(),
+            n_val: data.n_val(),
+            train_mse,
+            val_mse,
+            domain: self.domain.clone(),
+            reference_speed_mps: f64::NAN,
+            seed,
+            start_val_mse: vec![val_mse],
+            settings,
+        })
+    }
 }
 
 /// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001

@@ -304,3 +304,24 @@ pub fn assert_same_up_to_rounding(name: &str, got: &str, want: &str, rel: f64) {
         assert!(same, "{name}: token {k} differs: got {a:?}, want {b:?}");
     }
 }
+
+/// Estimates of the bundled runs whose file name `keep` accepts, sorted by file name, as
+/// `railgrip run` makes them (default UIC-Z1 pipeline).
+pub fn bundled_tables(keep: impl Fn(&str) -> bool) -> Vec<railgrip::identify::RunTable> {
+    let p = railgrip::Pipeline::default_uic_z1();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/archive");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .filter(|n| (n.ends_with(".csv") || n.ends_with(".mcap")) && keep(n))
+        .collect();
+    names.sort();
+    names
+        .iter()
+        .map(|name| {
+            let log = railgrip::ingest_file(&dir.join(name), &p).unwrap();
+            let e = railgrip::estimate::estimate(&log, &p).unwrap();
+            railgrip::identify::RunTable::from_estimates(name, name, "", &e)
+        })
+        .collect()
+}
