@@ -19,7 +19,6 @@
 //! 20 epochs). Without python3 and numpy the peer is skipped with a message.
 
 use std::path::PathBuf;
-use std::process::Command;
 use std::time::Duration;
 
 #[path = "../tests/common/mod.rs"]
@@ -118,37 +117,6 @@ fn train(p: &MlpProblem, theta0: &[f64], epochs: u64) -> Vec<Epoch> {
     solver.history().to_vec()
 }
 
-/// numpy's seconds per epoch and training MSEs, with `threads` BLAS threads (None: all).
-fn numpy(problem: &PathBuf, threads: Option<usize>) -> Result<(f64, Vec<f64>), String> {
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
-    let mut cmd = Command::new("python3");
-    cmd.arg(&script).arg(problem).arg("3");
-    if let Some(t) = threads {
-        for var in ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"] {
-            cmd.env(var, t.to_string());
-        }
-    }
-    let out = cmd.output().map_err(|e| format!("no python3 ({e})"))?;
-    if !out.status.success() {
-        return Err(format!(
-            "python3 {} failed: {} (needs numpy: pip install numpy)",
-            script.display(),
-            String::from_utf8_lossy(&out.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
-        ));
-    }
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
-    let mse = v["train_mse"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|x| x.as_f64().unwrap())
-        .collect();
-    Ok((v["seconds_per_epoch"].as_f64().unwrap(), mse))
-}
-
 fn bench(c: &mut Criterion) {
     let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
@@ -164,14 +132,15 @@ fn bench(c: &mut Criterion) {
         let shape = Shape::one(d.k, hidden);
         let theta0 = mlp::nguyen_widrow(shape, 1);
         let json = dir.join(format!("trainlm_{}.json", name.replace('/', "_")));
-        let s = settings(EPOCHS);
-        let problem = serde_json::json!({
-            "inputs": d.k, "hidden": hidden, "train_x": d.x, "train_y": d.y, "val_x": d.vx,
-            "val_y": d.vy, "theta0": theta0, "scale": d.scale,
-            "settings": { "epochs": s.epochs, "goal": s.goal, "min_grad": s.min_grad, "mu": s.mu,
-                "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max, "max_fail": s.max_fail },
-        });
-        std::fs::write(&json, problem.to_string()).unwrap();
+        common::write_trainlm_problem(
+            &json,
+            d.k,
+            hidden,
+            (&d.x, &d.y, &d.vx, &d.vy),
+            d.scale,
+            &theta0,
+            &settings(EPOCHS),
+        );
         let p = MlpProblem::new(shape, d.x, d.y, d.vx, d.vy, d.scale);
         {
             use railgrip::identify::lm::LeastSquares;
@@ -187,7 +156,10 @@ fn bench(c: &mut Criterion) {
         peers.push((name, shape.n_params(), json, ours));
     }
     for (name, n_params, json, ours) in peers {
-        match (numpy(&json, Some(1)), numpy(&json, None)) {
+        match (
+            common::trainlm_numpy(&json, 3, Some(1), ""),
+            common::trainlm_numpy(&json, 3, None, ""),
+        ) {
             (Ok((one, mse)), Ok((all, _))) => {
                 let worst = ours
                     .iter()

@@ -330,6 +330,14 @@ mod tests {
             })
             .collect();
         assert!(score(&spread, &Grid::default(), law).is_err());
+        // A model that is not finite where a sample lies: an error naming the inputs.
+        let e = score(
+            &s,
+            &Grid::default(),
+            |dv, _, _| if dv > 2.0 { f64::NAN } else { 0.1 },
+        )
+        .unwrap_err();
+        assert!(matches!(e, ScoreError::Model { dv, .. } if dv > 2.0), "{e}");
         let mut bad = s.clone();
         bad[7].mu = f64::NAN;
         assert!(matches!(

@@ -18,7 +18,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use railgrip::config::SplitConfig;
@@ -61,27 +61,10 @@ fn settings() -> LmSettings {
 
 /// numpy trainlm's training MSE per epoch (one BLAS thread; `probe`: the script's rounding
 /// probe, "" for none).
-fn numpy(script: &Path, problem: &Path, probe: &str) -> Vec<f64> {
-    let out = Command::new("python3")
-        .arg(script)
-        .arg(problem)
-        .arg("1")
-        .env("OPENBLAS_NUM_THREADS", "1")
-        .env("TRAINLM_PROBE", probe)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    v["train_mse"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|m| m.as_f64().unwrap())
-        .collect()
+fn numpy(problem: &Path, probe: &str) -> Vec<f64> {
+    common::trainlm_numpy(problem, 1, Some(1), probe)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .1
 }
 
 fn numpy_available() -> bool {
@@ -102,7 +85,6 @@ fn trajectory_matches_numpy_trainlm() {
         eprintln!("SKIPPED: python3 with numpy not found (pip install numpy)");
         return;
     }
-    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
     let dir = tempfile::tempdir().unwrap();
     let (mut worst, mut worst_own) = (0.0f64, 0.0f64);
     let two = seed002(InputSet::DvDdv, 6000);
@@ -120,17 +102,10 @@ fn trajectory_matches_numpy_trainlm() {
         let theta0 = mlp::nguyen_widrow(shape, seed);
         let s = settings();
         let scale = 0.01;
-        let problem = serde_json::json!({
-            "inputs": k, "hidden": hidden, "train_x": x, "train_y": y, "val_x": vx,
-            "val_y": vy, "theta0": theta0, "scale": scale,
-            "settings": { "epochs": s.epochs, "goal": s.goal, "min_grad": s.min_grad, "mu": s.mu,
-                "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max,
-                "max_fail": s.max_fail },
-        });
         let json = dir.path().join(format!("problem_{seed}.json"));
-        std::fs::write(&json, problem.to_string()).unwrap();
-        let theirs = numpy(&script, &json, "");
-        let probes = [numpy(&script, &json, "gemm"), numpy(&script, &json, "tanh")];
+        common::write_trainlm_problem(&json, k, hidden, (&x, &y, &vx, &vy), scale, &theta0, &s);
+        let theirs = numpy(&json, "");
+        let probes = [numpy(&json, "gemm"), numpy(&json, "tanh")];
 
         let p = MlpProblem::new(shape, x, y, vx, vy, scale);
         let (solver, _) = lm::run(&p, LevenbergMarquardt::new(s), theta0).unwrap();

@@ -325,3 +325,68 @@ pub fn bundled_tables(keep: impl Fn(&str) -> bool) -> Vec<railgrip::identify::Ru
         })
         .collect()
 }
+
+/// Writes the problem file `benches/peers/trainlm_numpy.py` reads: normalised data
+/// (row-major inputs), initial weights, the network shape and trainlm's settings.
+#[allow(clippy::too_many_arguments)]
+pub fn write_trainlm_problem(
+    path: &Path,
+    inputs: usize,
+    hidden: usize,
+    (x, y, vx, vy): (&[f64], &[f64], &[f64], &[f64]),
+    scale: f64,
+    theta0: &[f64],
+    s: &railgrip::identify::lm::LmSettings,
+) {
+    let problem = serde_json::json!({
+        "inputs": inputs, "hidden": hidden, "train_x": x, "train_y": y, "val_x": vx,
+        "val_y": vy, "theta0": theta0, "scale": scale,
+        "settings": { "epochs": s.epochs, "goal": s.goal, "min_grad": s.min_grad, "mu": s.mu,
+            "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max, "max_fail": s.max_fail },
+    });
+    std::fs::write(path, problem.to_string()).unwrap();
+}
+
+/// Runs the numpy trainlm peer on a problem file: the seconds per epoch of the fastest of
+/// `repeats` trainings and the training MSE after each epoch. `threads`: BLAS threads (None:
+/// all); `probe`: the script's rounding probe ("" for none).
+pub fn trainlm_numpy(
+    problem: &Path,
+    repeats: usize,
+    threads: Option<usize>,
+    probe: &str,
+) -> Result<(f64, Vec<f64>), String> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
+    let mut cmd = std::process::Command::new("python3");
+    cmd.arg(&script)
+        .arg(problem)
+        .arg(repeats.to_string())
+        .env("TRAINLM_PROBE", probe);
+    if let Some(t) = threads {
+        for var in ["OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"] {
+            cmd.env(var, t.to_string());
+        }
+    }
+    let out = cmd.output().map_err(|e| format!("no python3 ({e})"))?;
+    if !out.status.success() {
+        return Err(format!(
+            "python3 {} failed: {} (needs numpy: pip install numpy)",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        ));
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
+    let mse = v["train_mse"]
+        .as_array()
+        .ok_or("no train_mse in the peer's output")?
+        .iter()
+        .filter_map(|x| x.as_f64())
+        .collect();
+    let secs = v["seconds_per_epoch"]
+        .as_f64()
+        .ok_or("no seconds_per_epoch in the peer's output")?;
+    Ok((secs, mse))
+}
