@@ -1,6 +1,7 @@
-//! Synthetic braking logs for tests and benchmarks: smooth analytic signals (known second
-//! derivatives, so resampling errors have a bound), sampled with jitter, written through the
-//! crate's own format writers.
+//! Shared by tests and benchmarks: synthetic braking logs (smooth analytic signals with known
+//! second derivatives, sampled with jitter, written through the crate's own format writers),
+//! the bundled runs' estimates, the numpy trainlm peer, and a golden-file comparison that
+//! allows rounding in numbers.
 #![allow(dead_code)]
 
 use std::fs::File;
