@@ -152,7 +152,9 @@ fn bench(c: &mut Criterion) {
             crate_version: env!("CARGO_PKG_VERSION").into(),
             created: "2026-01-01T00:00:00Z".into(),
         },
-    );
+        None,
+    )
+    .unwrap();
     let model = Model::new(file.clone()).unwrap();
     let inputs: Vec<(f64, f64)> = (0..1024)
         .map(|i| (0.004 * i as f64, ((i * 7919) % 1000) as f64 / 100.0 - 5.0))

@@ -90,6 +90,25 @@ pub fn inverse_diagonal(l: &[f64], k: usize) -> Vec<f64> {
         .collect()
 }
 
+/// tr(A⁻¹) from the Cholesky factor L of A: tr(A⁻¹) = tr(L⁻ᵀ L⁻¹) = ‖L⁻¹‖²_F, with L⁻¹ by
+/// forward substitution column by column (k³/6 multiply-adds).
+pub fn inverse_trace(l: &[f64], k: usize) -> f64 {
+    let mut total = 0.0;
+    let mut col = vec![0.0; k];
+    for j in 0..k {
+        // Column j of L⁻¹: zero above the diagonal.
+        for i in j..k {
+            let mut s = if i == j { 1.0 } else { 0.0 };
+            for p in j..i {
+                s -= l[i * k + p] * col[p];
+            }
+            col[i] = s / l[i * k + i];
+            total += col[i] * col[i];
+        }
+    }
+    total
+}
+
 /// Effective number of independent samples of a residual series, n / (1 + 2 Σ_k ρ_k), with
 /// the autocorrelations ρ_k summed up to the first lag where they are no longer positive
 /// (Geyer's initial positive sequence, simplified). Filtered signals at 417 Hz are correlated
@@ -128,6 +147,8 @@ mod tests {
         }
         let d = inverse_diagonal(&l, 3);
         assert!(d.iter().all(|v| *v > 0.0));
+        let tr = inverse_trace(&l, 3);
+        assert!((tr - d.iter().sum::<f64>()).abs() < 1e-14, "{tr} vs {d:?}");
         assert!(cholesky(&[1.0, 1.0, 1.0, 1.0], 2).is_none());
         assert!(cholesky(&[f64::NAN], 1).is_none());
     }

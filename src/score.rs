@@ -20,8 +20,6 @@
 
 use std::collections::BTreeMap;
 
-use crate::sim::Truth;
-
 /// One true sample: slip Δv (m/s), slip rate dΔv/dt (m/s²), speed v (m/s), adhesion μ and
 /// the axle (1-based).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -109,23 +107,6 @@ pub enum ScoreError {
     NotFinite { index: usize, what: &'static str },
     #[error("the model gave a non-finite μ at Δv = {dv} m/s, dΔv/dt = {ddv} m/s², v = {v} m/s")]
     Model { dv: f64, ddv: f64, v: f64 },
-}
-
-/// Samples of every axle of a simulated run's truth.
-pub fn samples_from_truth(tr: &Truth) -> Vec<Sample> {
-    let mut out = Vec::with_capacity(4 * tr.time_s.len());
-    for a in 0..tr.mu.len() {
-        for i in 0..tr.time_s.len() {
-            out.push(Sample {
-                axle: a as u8 + 1,
-                dv_mps: tr.dv_mps[a][i],
-                ddv_mps2: tr.ddv_mps2[a][i],
-                v_mps: tr.v_mps[i],
-                mu: tr.mu[a][i],
-            });
-        }
-    }
-    out
 }
 
 /// Sums of one (axle, cell).

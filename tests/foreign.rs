@@ -12,7 +12,7 @@ use railgrip::identify::dataset::RunTable;
 use railgrip::identify::export::mlp_file;
 use railgrip::identify::train::{creep_spec, median_speed, train_mlp};
 use railgrip::model::{Model, Provenance};
-use railgrip::score::{samples_from_truth, score, Grid, Sample};
+use railgrip::score::{score, Grid, Sample};
 use railgrip::sim::{self, AdhesionLaw, OutputFormat, Scene};
 use railgrip::Pipeline;
 
@@ -48,7 +48,7 @@ fn foreign_scenes_cover_the_plane_and_their_truth_follows_their_law() {
     for path in all {
         let sc = Scene::load(&path).unwrap();
         let out = sim::simulate(&sc, None).unwrap();
-        let samples = samples_from_truth(&out.truth);
+        let samples = out.truth.samples();
         let s = score(&samples, &Grid::default(), true_law(&sc)).unwrap();
         let name = &sc.name;
         eprintln!(
@@ -85,7 +85,7 @@ fn campaign(scenes: &[Scene], dir: &Path) -> (Vec<RunTable>, Vec<Sample>) {
     for sc in scenes {
         let out = sim::simulate(sc, None).unwrap();
         out.write(dir, &sc.name, OutputFormat::Csv).unwrap();
-        truth.extend(samples_from_truth(&out.truth));
+        truth.extend(out.truth.samples());
         let path = dir.join(format!("{}.csv", sc.name));
         let log = railgrip::ingest_file(&path, &p).unwrap();
         let e = railgrip::estimate::estimate(&log, &p).unwrap();
@@ -126,7 +126,7 @@ fn multi_start_on_a_foreign_law() {
             crate_version: String::new(),
             created: String::new(),
         };
-        let model = Model::new(mlp_file(&net, creep, provenance)).unwrap();
+        let model = Model::new(mlp_file(&net, creep, provenance, None).unwrap()).unwrap();
         let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
         let (t, pr) = s.hysteresis.unwrap();
         eprintln!(
@@ -144,57 +144,158 @@ fn multi_start_on_a_foreign_law() {
     }
 }
 
+/// One training method of the measurement (issue 15, point 7).
+struct Method {
+    name: &'static str,
+    starts: usize,
+    ensemble: usize,
+    bayesian: bool,
+}
+
+const METHODS: &[Method] = &[
+    Method {
+        name: "none",
+        starts: 1,
+        ensemble: 1,
+        bayesian: false,
+    },
+    Method {
+        name: "multi-start 8",
+        starts: 8,
+        ensemble: 1,
+        bayesian: false,
+    },
+    Method {
+        name: "ensemble 4 of 8",
+        starts: 8,
+        ensemble: 4,
+        bayesian: false,
+    },
+    Method {
+        name: "bayesian",
+        starts: 1,
+        ensemble: 1,
+        bayesian: true,
+    },
+    Method {
+        name: "bayesian, multi-start 8",
+        starts: 8,
+        ensemble: 1,
+        bayesian: true,
+    },
+];
+
+/// Scenes of a measurement set: the bundled soap scenes or one foreign law, one speed band
+/// (2-input nets) or all speeds (3-input nets).
+fn measurement_scenes(law: &str, band: Option<&str>) -> Vec<Scene> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes");
+    let paths: Vec<PathBuf> = if law == "bundled" {
+        let mut v: Vec<PathBuf> = std::fs::read_dir(&root)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| {
+                let n = p.file_name().unwrap().to_string_lossy();
+                n.starts_with("soap_") && !n.contains("multirate")
+            })
+            .collect();
+        v.sort();
+        v
+    } else {
+        scenes()
+    };
+    paths
+        .iter()
+        .filter(|p| {
+            let n = p.file_stem().unwrap().to_string_lossy().to_string();
+            let law_ok = law == "bundled" || n.starts_with(&format!("{law}_"));
+            law_ok && band.is_none_or(|b| n.contains(b))
+        })
+        .map(|p| Scene::load(p).unwrap())
+        .collect()
+}
+
 #[test]
 #[ignore = "a measurement, not a check (issue 15 sets its targets)"]
 fn measure_networks_on_foreign_laws() {
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
-    for (law, runs) in [
-        ("lr", "_120kmh"),
-        ("table", "_120kmh"),
-        ("lr", "_120kmh_p10"),
-        ("lr", ""),
-        ("table", ""),
-    ] {
-        let band: Vec<Scene> = scenes()
-            .iter()
-            .filter(|s| {
-                let n = s.file_stem().unwrap().to_string_lossy().to_string();
-                n.starts_with(&format!("{law}{runs}"))
-            })
-            .map(|s| Scene::load(s).unwrap())
-            .collect();
-        let (tables, truth) = campaign(&band, dir.path());
-        for seed in 1..=4 {
-            let mut cfg = p.train.clone();
-            cfg.seed = seed;
-            let t0 = std::time::Instant::now();
-            let mut net = train_mlp(&tables, &cfg, None).unwrap();
-            net.reference_speed_mps = median_speed(&tables);
-            let secs = t0.elapsed().as_secs_f64();
-            // The exported model, as a simulator loads it (creep region, clamped inputs).
-            let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-            let provenance = Provenance {
-                inputs: vec![],
-                pipeline: "uic_z1".into(),
-                pipeline_sha256: String::new(),
-                seed,
-                crate_version: String::new(),
-                created: String::new(),
-            };
-            let model = Model::new(mlp_file(&net, creep, provenance)).unwrap();
-            let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
-            println!(
-                "{law}{runs} ({} runs), 2-input, seed {seed}: RMSE {:.4} max {:.3} negative cells {} hysteresis true {:+.4} predicted {:+.4} ({} pairs); train {secs:.1} s, {} epochs",
-                band.len(),
-                s.rmse,
-                s.max_error,
-                s.negative_cells,
-                s.hysteresis.map_or(f64::NAN, |h| h.0),
-                s.hysteresis.map_or(f64::NAN, |h| h.1),
-                s.hysteresis_pairs,
-                net.history.len()
-            );
+    let seeds: u64 = std::env::var("MEASURE_SEEDS").map_or(8, |v| v.parse().unwrap());
+    let only = std::env::var("MEASURE_ONLY").unwrap_or_default();
+    println!("| data | inputs | method | RMSE median (worst) | worst max error | seeds with μ < 0 | hysteresis sign right | predicted / true (median) | train s (median) |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for law in ["bundled", "lr", "table"] {
+        for with_speed in [false, true] {
+            let band = (!with_speed).then_some("_120kmh");
+            let set = measurement_scenes(law, band);
+            let (tables, truth) = campaign(&set, dir.path());
+            for m in METHODS {
+                let label = format!("{law} {}", if with_speed { 3 } else { 2 });
+                if !only.is_empty() && !label.contains(&only) && !m.name.contains(&only) {
+                    continue;
+                }
+                let mut rows = Vec::new();
+                for seed in 1..=seeds {
+                    let mut cfg = p.train.clone();
+                    cfg.seed = seed;
+                    cfg.with_speed = with_speed;
+                    cfg.starts = m.starts;
+                    cfg.ensemble = m.ensemble;
+                    cfg.bayesian = m.bayesian;
+                    if m.bayesian {
+                        cfg.mu = railgrip::identify::lm::LmSettings::trainbr().mu;
+                    }
+                    let t0 = std::time::Instant::now();
+                    let mut net = train_mlp(&tables, &cfg, None).unwrap();
+                    let secs = t0.elapsed().as_secs_f64();
+                    net.reference_speed_mps = median_speed(&tables);
+                    let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
+                    let provenance = Provenance {
+                        inputs: vec![],
+                        pipeline: "uic_z1".into(),
+                        pipeline_sha256: String::new(),
+                        seed,
+                        crate_version: String::new(),
+                        created: String::new(),
+                    };
+                    let model =
+                        Model::new(mlp_file(&net, creep, provenance, None).unwrap()).unwrap();
+                    let s =
+                        score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
+                    let (t, pr) = s.hysteresis.unwrap_or((f64::NAN, f64::NAN));
+                    eprintln!(
+                        "{label} {} seed {seed}: RMSE {:.4} max {:.3} negative {} hysteresis {t:+.4}/{pr:+.4} {secs:.1} s {} epochs{}",
+                        m.name, s.rmse, s.max_error, s.negative_cells, net.history.len(),
+                        net.history.last().and_then(|e| e.gamma).map_or(String::new(), |g| format!(" γ {g:.1}"))
+                    );
+                    rows.push((s.rmse, s.max_error, s.negative_cells, t, pr, secs));
+                }
+                let median = |mut v: Vec<f64>| {
+                    v.sort_by(f64::total_cmp);
+                    let n = v.len();
+                    if n % 2 == 1 {
+                        v[n / 2]
+                    } else {
+                        0.5 * (v[n / 2 - 1] + v[n / 2])
+                    }
+                };
+                let rmse: Vec<f64> = rows.iter().map(|r| r.0).collect();
+                let worst = rmse.iter().copied().fold(0.0, f64::max);
+                let maxe = rows.iter().map(|r| r.1).fold(0.0, f64::max);
+                let neg = rows.iter().filter(|r| r.2 > 0).count();
+                let sign = rows
+                    .iter()
+                    .filter(|r| r.3.signum() == r.4.signum() || r.3.abs() < 0.003)
+                    .count();
+                let ratio = median(rows.iter().map(|r| r.4 / r.3).collect());
+                let secs = median(rows.iter().map(|r| r.5).collect());
+                println!(
+                    "| {law}{} | {} | {} | {:.4} ({worst:.4}) | {maxe:.3} | {neg} of {seeds} | {sign} of {seeds} | {ratio:.2} | {secs:.1} |",
+                    band.unwrap_or(" all speeds"),
+                    if with_speed { 3 } else { 2 },
+                    m.name,
+                    median(rmse.clone()),
+                );
+            }
         }
     }
 }

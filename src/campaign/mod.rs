@@ -126,6 +126,9 @@ pub struct Outcome {
     pub models: Vec<PathBuf>,
     /// Why no models were trained.
     pub model_error: Option<String>,
+    /// The network's plausibility audit (README "Plausibility audit"); a failed audit still
+    /// writes the model, marked.
+    pub audit: Option<crate::model::AuditSpec>,
     pub notes: Vec<String>,
     /// The report, when it could be written (else a note says why).
     pub report: Option<PathBuf>,
@@ -238,6 +241,7 @@ pub fn run(
         condition: trained.condition,
         models: trained.models,
         model_error: trained.model_error,
+        audit: trained.audit,
         notes,
         report,
         stages,
@@ -280,6 +284,7 @@ struct Trained {
     condition: Option<String>,
     models: Vec<PathBuf>,
     model_error: Option<String>,
+    audit: Option<crate::model::AuditSpec>,
     notes: Vec<String>,
 }
 
@@ -296,6 +301,7 @@ fn train_stage(
         condition: None,
         models: vec![],
         model_error: None,
+        audit: None,
         notes: vec![],
     };
     if tables.is_empty() {
@@ -314,6 +320,7 @@ fn train_stage(
                     m.condition
                 ));
             }
+            t.audit = m.mlp.audit.clone();
             t.models = m.write(&out.models(), true)?;
         }
         Err(e) => t.model_error = Some(e.to_string()),

@@ -64,7 +64,6 @@ pub fn train_models(
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: utc_now_rfc3339(),
     };
-    let mlp = export::mlp_file(&trained, creep, provenance.clone());
     let (patch, q) = pipeline_patch(pipeline)?;
     let (report, mut notes) = fit_campaign(
         &tables,
@@ -107,6 +106,19 @@ pub fn train_models(
             }
         }
     };
+    // The network falls back to the Polach model outside its data (README "Data support").
+    let fallback = match &polach {
+        Some(p) => Some(
+            crate::model::Model::named(p.clone(), "Polach model").map_err(|e| {
+                IdentifyError::Data {
+                    what: format!("the campaign's Polach model: {e}"),
+                    hint: "report this as a bug".into(),
+                }
+            })?,
+        ),
+        None => None,
+    };
+    let mlp = export::mlp_file(&trained, creep, provenance, fallback.as_ref())?;
     Ok(CampaignModels {
         condition: choice.condition,
         skipped: choice.skipped,
@@ -171,14 +183,21 @@ fn file_name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, elapsed_s.
+/// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, elapsed_s, and
+/// gamma (the effective number of parameters) with Bayesian regularisation.
 pub fn history_csv(h: &[Epoch]) -> String {
-    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s\n");
+    let bayes = h.iter().any(|e| e.gamma.is_some());
+    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s");
+    text.push_str(if bayes { ",gamma\n" } else { "\n" });
     for e in h {
         text.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?},{:?}\n",
+            "{},{:?},{:?},{:?},{:?},{:?}",
             e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
         ));
+        if bayes {
+            text.push_str(&format!(",{:?}", e.gamma.unwrap_or(f64::NAN)));
+        }
+        text.push('\n');
     }
     text
 }

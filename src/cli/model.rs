@@ -10,7 +10,7 @@ use railgrip::ingest::LogSource;
 use railgrip::model::{c_header, Model, ModelFile};
 use rayon::prelude::*;
 
-use super::{PipelineArg, EXIT_OK};
+use super::{PipelineArg, EXIT_LOSSY, EXIT_OK};
 
 #[derive(clap::Args)]
 pub struct TrainArgs {
@@ -147,11 +147,33 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             trained.seed
         );
     }
+    if !trained.members.is_empty() {
+        println!(
+            "ensemble   the best {} starts averaged into one network of {} neurons",
+            trained.members.len(),
+            trained.shape.hidden
+        );
+    }
+    if let Some(g) = trained.history.last().and_then(|e| e.gamma) {
+        println!(
+            "bayesian   γ = {g:.1} effective parameters of {}",
+            trained.theta.len()
+        );
+    }
     println!(
         "error      RMSE of μ: training {:.5}, validation {:.5}",
         trained.train_mse.sqrt(),
         trained.val_mse.sqrt()
     );
+    if let Some(s) = &models.mlp.support {
+        let supported = (0..s.len()).filter(|&j| s.supported(j)).count();
+        println!(
+            "support    {supported} of {} cells hold ≥ {} samples; elsewhere the model blends to the {} fallback",
+            s.len(),
+            s.min_samples,
+            s.fallback
+        );
+    }
     println!("\nPolach     μ0 ± se      A ± se      B s/m ± se   k_A ± se     k_S ± se     RMSE    group");
     for f in report
         .pooled
@@ -188,7 +210,43 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     for p in written {
         println!("wrote      {}", p.display());
     }
-    Ok(EXIT_OK)
+    Ok(match &models.mlp.audit {
+        Some(a) => {
+            print_audit(a);
+            if a.passed {
+                EXIT_OK
+            } else {
+                EXIT_LOSSY
+            }
+        }
+        None => EXIT_OK,
+    })
+}
+
+/// The network's plausibility audit: one line when it passed, the failures when not.
+pub(super) fn print_audit(a: &railgrip::model::AuditSpec) {
+    if a.passed {
+        println!(
+            "audit      passed: 0 ≤ μ ≤ {} on every supported cell{}",
+            a.mu_max,
+            match (a.hysteresis_data, a.hysteresis_model) {
+                (Some(d), Some(m)) => format!("; loss − recovery {m:+.4} (data {d:+.4})"),
+                _ => String::new(),
+            }
+        );
+        return;
+    }
+    println!(
+        "\nAUDIT FAILED: {} problem(s); the model is written but marked (audit.passed = false). Exit code 3.",
+        a.failing_cells
+    );
+    for f in &a.failures {
+        println!("  {f}");
+    }
+    if a.failing_cells > a.failures.len() {
+        println!("  … and {} more", a.failing_cells - a.failures.len());
+    }
+    println!("  Hint: train more starts ([train] starts, ensemble), try regularisation = \"bayesian\", or use the Polach model where the network fails.");
 }
 
 #[derive(clap::Args)]

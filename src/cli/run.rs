@@ -150,6 +150,7 @@ struct JsonSummary<'a> {
     condition: &'a Option<String>,
     models: Vec<String>,
     model_error: &'a Option<String>,
+    audit: &'a Option<railgrip::model::AuditSpec>,
     notes: &'a [String],
     report: Option<String>,
     /// Wall time per stage, s.
@@ -179,9 +180,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     };
     let o = campaign::run(&root, &out, &pipeline, options, Arc::new(Bars::new()))?;
     let failed = o.failed();
+    let audit_failed = o.audit.as_ref().is_some_and(|a| !a.passed);
     let code = if o.model_error.is_some() && failed == 0 {
         EXIT_ERROR
-    } else if failed > 0 {
+    } else if failed > 0 || audit_failed {
         EXIT_LOSSY
     } else {
         EXIT_OK
@@ -196,6 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             condition: &o.condition,
             models: o.models.iter().map(|p| p.display().to_string()).collect(),
             model_error: &o.model_error,
+            audit: &o.audit,
             notes: &o.notes,
             report: o.report.as_ref().map(|p| p.display().to_string()),
             stages: &o.stages,
@@ -260,6 +263,9 @@ fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
         .collect();
     println!("time       {}", st.join(", "));
     let failed = o.failed();
+    if let Some(a) = &o.audit {
+        super::model::print_audit(a);
+    }
     if failed > 0 {
         println!(
             "\n{failed} of {} run(s) failed (listed above and in summary.csv); the rest completed. Exit code 3.",

@@ -25,7 +25,7 @@ pub use filters::{DespikeConfig, FilterConfig, FilterMode};
 pub use ingest::{CsvColumn, IngestConfig, McapField, Plausibility, PlausibilityAction};
 pub(crate) use rule::Checker;
 pub use rule::Key;
-pub use train::{SplitConfig, TrainConfig};
+pub use train::{default_support_cells, SplitConfig, TrainConfig, TRAINBR_MU};
 pub use vehicle::Vehicle;
 
 /// The embedded default pipeline (`pipelines/uic_z1.toml`).

@@ -21,6 +21,8 @@ pub mod raw {
         pub decimate: Option<f64>,
         pub seed: Option<u64>,
         pub starts: Option<f64>,
+        pub ensemble: Option<f64>,
+        pub regularisation: Option<String>,
         pub epochs: Option<f64>,
         pub goal: Option<f64>,
         pub max_fail: Option<f64>,
@@ -32,6 +34,9 @@ pub mod raw {
         pub creep_blend_mps: Option<f64>,
         pub temperature_degree: Option<f64>,
         pub condition: Option<String>,
+        pub support_cells: Option<Vec<f64>>,
+        pub support_min_samples: Option<f64>,
+        pub audit_mu_max: Option<f64>,
     }
 }
 
@@ -59,6 +64,11 @@ pub struct TrainConfig {
     /// Nguyen–Widrow starts (seeds seed, seed + 1, …) trained in parallel; the one with the
     /// lowest validation error is kept.
     pub starts: usize,
+    /// The best `ensemble` starts (by validation error) averaged into one network; 1: the best
+    /// start alone.
+    pub ensemble: usize,
+    /// Bayesian regularisation (MATLAB trainbr) instead of trainlm.
+    pub bayesian: bool,
     pub epochs: u64,
     pub goal: f64,
     pub max_fail: u32,
@@ -75,6 +85,24 @@ pub struct TrainConfig {
     /// Rail condition (run metadata `condition`) whose runs train the models; None: the
     /// campaign's most common condition.
     pub condition: Option<String>,
+    /// Cells per input of the model file's data-support grid (one per input).
+    pub support_cells: Vec<usize>,
+    /// Training and validation samples a support cell needs.
+    pub support_min_samples: u64,
+    /// The plausibility audit's ceiling: 0 ≤ μ ≤ this on every supported cell.
+    pub audit_mu_max: f64,
+}
+
+/// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
+pub const TRAINBR_MU: f64 = 0.005;
+
+/// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three (issue 15).
+pub fn default_support_cells(inputs: usize) -> Vec<usize> {
+    if inputs == 3 {
+        vec![16, 16, 8]
+    } else {
+        vec![24, 24]
+    }
 }
 
 const fn text(
@@ -158,6 +186,20 @@ const STARTS: Key = Key::num(
     1.0,
     "Nguyen–Widrow starts (seeds seed, seed + 1, …) trained in parallel, the lowest validation error kept",
 );
+const ENSEMBLE: Key = Key::num(
+    "train.ensemble",
+    "",
+    int(1.0, 256.0),
+    1.0,
+    "the best this many starts averaged into one network (the spread kept as an uncertainty band); at most `starts`",
+);
+const REGULARISATION: Key = Key {
+    name: "train.regularisation",
+    unit: "",
+    range: Range::Choice(&["none", "bayesian"]),
+    default: Default::Text("\"none\""),
+    meaning: "`bayesian`: MATLAB trainbr (γ per epoch; μ 0.005 and validation stop off unless given) [pub]",
+};
 const EPOCHS: Key = Key::num(
     "train.epochs",
     "",
@@ -228,6 +270,26 @@ const DEGREE: Key = Key::num(
     2.0,
     "degree of k_A(T), k_S(T) (capped at temperatures − 1)",
 );
+const SUPPORT_CELLS: Key = text(
+    "train.support_cells",
+    "one count per input, each 2..1024, at most 2²⁰ cells",
+    "`[24, 24]`, or `[16, 16, 8]` with speed",
+    "the model file's data-support grid over the normalised inputs (README \"Data support\")",
+);
+const SUPPORT_MIN: Key = Key::num(
+    "train.support_min_samples",
+    "",
+    int(1.0, 1e9),
+    10.0,
+    "training and validation samples a support cell needs",
+);
+const AUDIT_MU_MAX: Key = Key::num(
+    "train.audit_mu_max",
+    "",
+    open_lo(0.0, 2.0),
+    0.6,
+    "plausibility audit: 0 ≤ μ ≤ this on every supported cell",
+);
 const CONDITION: Key = text(
     "train.condition",
     "a run metadata `condition`",
@@ -247,6 +309,8 @@ pub const KEYS: &[&Key] = &[
     &DECIMATE,
     &SEED,
     &STARTS,
+    &ENSEMBLE,
+    &REGULARISATION,
     &EPOCHS,
     &GOAL,
     &MAX_FAIL,
@@ -258,6 +322,9 @@ pub const KEYS: &[&Key] = &[
     &CREEP_BLEND,
     &DEGREE,
     &CONDITION,
+    &SUPPORT_CELLS,
+    &SUPPORT_MIN,
+    &AUDIT_MU_MAX,
 ];
 
 impl Checker<'_> {
@@ -284,24 +351,77 @@ impl Checker<'_> {
             }
             c => c,
         };
+        let bayesian = self.choice(
+            &REGULARISATION,
+            t.regularisation.clone(),
+            &[("none", false), ("bayesian", true)],
+            false,
+        )?;
+        let starts = self.value(&STARTS, t.starts)? as usize;
+        let ensemble = self.value(&ENSEMBLE, t.ensemble)? as usize;
+        if ensemble > starts {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                format!("must be at most train.starts ({starts}): raise starts or lower ensemble"),
+            ));
+        }
+        let n_inputs = if with_speed { 3 } else { 2 };
+        let support_cells = match &t.support_cells {
+            None => default_support_cells(n_inputs),
+            Some(v) => {
+                let max = crate::model::MAX_CELLS_PER_INPUT as f64;
+                let ok = v.len() == n_inputs
+                    && v.iter()
+                        .all(|c| c.fract() == 0.0 && (2.0..=max).contains(c));
+                let cells: Vec<usize> = v.iter().map(|c| *c as usize).collect();
+                let total = cells.iter().try_fold(1usize, |a, &c| a.checked_mul(c));
+                if !ok || total.is_none_or(|n| n > crate::model::MAX_SUPPORT_CELLS) {
+                    return Err(self.invalid(
+                        SUPPORT_CELLS.name,
+                        format!("{v:?}"),
+                        format!(
+                            "must give {n_inputs} whole counts (one per input), each 2..={}, with at most {} cells in all (e.g. {:?})",
+                            crate::model::MAX_CELLS_PER_INPUT,
+                            crate::model::MAX_SUPPORT_CELLS,
+                            default_support_cells(n_inputs)
+                        ),
+                    ));
+                }
+                cells
+            }
+        };
         Ok(TrainConfig {
             hidden: self.value(&HIDDEN, t.hidden)? as usize,
             with_speed,
             split: self.split(&t)?,
             decimate: self.value(&DECIMATE, t.decimate)? as usize,
             seed: t.seed.unwrap_or(1),
-            starts: self.value(&STARTS, t.starts)? as usize,
+            starts,
+            ensemble,
+            bayesian,
             epochs: self.value(&EPOCHS, t.epochs)? as u64,
             goal: self.value(&GOAL, t.goal)?,
-            max_fail: self.value(&MAX_FAIL, t.max_fail)? as u32,
+            max_fail: if bayesian && t.max_fail.is_none() {
+                0
+            } else {
+                self.value(&MAX_FAIL, t.max_fail)? as u32
+            },
             min_grad: self.value(&MIN_GRAD, t.min_grad)?,
-            mu: self.value(&MU, t.mu)?,
+            mu: if bayesian && t.mu.is_none() {
+                TRAINBR_MU
+            } else {
+                self.value(&MU, t.mu)?
+            },
             mu_dec: self.value(&MU_DEC, t.mu_dec)?,
             mu_inc: self.value(&MU_INC, t.mu_inc)?,
             mu_max: self.value(&MU_MAX, t.mu_max)?,
             creep_blend_mps: self.value(&CREEP_BLEND, t.creep_blend_mps)?,
             temperature_degree: self.value(&DEGREE, t.temperature_degree)? as usize,
             condition,
+            support_cells,
+            support_min_samples: self.value(&SUPPORT_MIN, t.support_min_samples)? as u64,
+            audit_mu_max: self.value(&AUDIT_MU_MAX, t.audit_mu_max)?,
         })
     }
 

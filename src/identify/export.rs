@@ -2,18 +2,42 @@
 //! Polach fit with k(T) ([`polach_file`]), in the format `model` reads and evaluates.
 
 use super::polach_fit::{PolachFit, TemperatureFit};
+use super::support::{audit, support_spec};
 use super::{IdentifyError, TrainedMlp};
 use crate::contact::polach::ContactPatch;
 use crate::model::polach::{PatchSpec, PolachSpec, TemperatureSpec, TEMPERATURE_INPUT};
 use crate::model::{
-    CreepSpec, InputSpec, Layer, Metrics, ModelFile, ModelKind, OutputSpec, Provenance, FORMAT_ID,
-    FORMAT_VERSION,
+    CreepSpec, InputSpec, Layer, Metrics, Model, ModelFile, ModelKind, OutputSpec, Provenance,
+    FORMAT_ID, FORMAT_VERSION,
 };
 
-/// Builds the file of a trained network.
-pub fn mlp_file(t: &TrainedMlp, creep: CreepSpec, provenance: Provenance) -> ModelFile {
+/// The hidden (tanh) and output (linear) layers of a one-hidden-layer network θ.
+fn layers(k: usize, nh: usize, th: &[f64]) -> Vec<Layer> {
+    let hidden = Layer {
+        shape: [nh, k],
+        weights: (0..nh).map(|h| th[h * k..(h + 1) * k].to_vec()).collect(),
+        biases: th[nh * k..nh * k + nh].to_vec(),
+        activation: "tanh".into(),
+    };
+    let out = Layer {
+        shape: [1, nh],
+        weights: vec![th[nh * k + nh..nh * k + 2 * nh].to_vec()],
+        biases: vec![th[nh * k + 2 * nh]],
+        activation: "linear".into(),
+    };
+    vec![hidden, out]
+}
+
+/// Builds the file of a trained network (format version 2): the network, its data-support
+/// grid with the fallback of `polach` (the campaign's Polach model) or else the nearest
+/// supported value, an ensemble's spread, and the plausibility audit ([`super::support`]).
+pub fn mlp_file(
+    t: &TrainedMlp,
+    creep: CreepSpec,
+    provenance: Provenance,
+    polach: Option<&Model>,
+) -> Result<ModelFile, IdentifyError> {
     let k = t.shape.inputs;
-    let nh = t.shape.hidden;
     let inputs = t
         .inputs
         .names()
@@ -28,20 +52,7 @@ pub fn mlp_file(t: &TrainedMlp, creep: CreepSpec, provenance: Provenance) -> Mod
             domain_max: t.domain[c].1,
         })
         .collect();
-    let th = &t.theta;
-    let hidden = Layer {
-        shape: [nh, k],
-        weights: (0..nh).map(|h| th[h * k..(h + 1) * k].to_vec()).collect(),
-        biases: th[nh * k..nh * k + nh].to_vec(),
-        activation: "tanh".into(),
-    };
-    let out = Layer {
-        shape: [1, nh],
-        weights: vec![th[nh * k + nh..nh * k + 2 * nh].to_vec()],
-        biases: vec![th[nh * k + 2 * nh]],
-        activation: "linear".into(),
-    };
-    ModelFile {
+    let mut file = ModelFile {
         format: FORMAT_ID.into(),
         version: FORMAT_VERSION,
         kind: ModelKind::Mlp,
@@ -53,7 +64,7 @@ pub fn mlp_file(t: &TrainedMlp, creep: CreepSpec, provenance: Provenance) -> Mod
             norm_max: t.y_norm.max[0],
         },
         outside_domain: "clamp".into(),
-        layers: vec![hidden, out],
+        layers: layers(k, t.shape.hidden, &t.theta),
         creep: Some(creep),
         polach: None,
         provenance,
@@ -66,7 +77,32 @@ pub fn mlp_file(t: &TrainedMlp, creep: CreepSpec, provenance: Provenance) -> Mod
             stop_reason: t.stop.text().into(),
         },
         history: t.history.clone(),
-    }
+        support: None,
+        audit: None,
+    };
+    let invalid = |defect| IdentifyError::InvalidModel {
+        group: "network".into(),
+        defect,
+    };
+    file.check().map_err(invalid)?;
+    let members: Vec<ModelFile> = t
+        .members
+        .iter()
+        .map(|m| ModelFile {
+            layers: layers(k, t.shape.hidden / t.members.len(), m),
+            history: vec![],
+            ..file.clone()
+        })
+        .collect();
+    let model_error = |e: crate::model::ModelError| IdentifyError::Data {
+        what: format!("the trained network's support grid: {e}"),
+        hint: "report this as a bug".into(),
+    };
+    file.support = Some(support_spec(&file, &t.occupancy, polach, &members).map_err(model_error)?);
+    file.check().map_err(invalid)?;
+    let model = Model::named(file.clone(), "trained network").map_err(model_error)?;
+    file.audit = Some(audit(&model, &t.data, t.audit_mu_max));
+    Ok(file)
 }
 
 /// A `polach` model file from a campaign fit: `fit` gives μ0, A, B, k_A, k_S; `temperature`
@@ -148,6 +184,8 @@ pub fn polach_file(
             stop_reason: fit.stop_reason.clone(),
         },
         history: vec![],
+        support: None,
+        audit: None,
     };
     file.check().map_err(|defect| IdentifyError::InvalidModel {
         group: fit.group.clone(),

@@ -13,6 +13,14 @@
 //! accumulates them over fixed chunks of samples in parallel and sums the chunks in order, so
 //! the result does not depend on the number of threads.
 //!
+//! Bayesian regularisation ([`LmSettings::bayesian`]), as MATLAB `trainbr` does it (MacKay 1992;
+//! Foresee & Hagan 1997; reference-values.md, tag trainbr): LM on F = β E_D + α E_W with
+//! E_D = Σ r² and E_W = Σ θ², step θ' = θ − (β JᵀJ + (μ + α) I)⁻¹ (β Jᵀr + α θ), accepted when F
+//! falls; after each accepted epoch, with JᵀJ of the epoch's start, the effective number of
+//! parameters γ = P − α tr((β JᵀJ + α I)⁻¹) and α = γ / (2 E_W), β = (N − γ) / (2 E_D)
+//! (start: γ = P). Validation data are watched but neither stop training nor choose the
+//! weights (trainbr's max_fail = 0): the last epoch's weights are kept.
+//!
 //! Damped system: Cholesky of JᵀJ + μ I. Fallback: when the factorisation fails (not positive
 //! definite in floating point, e.g. a tiny μ on a rank-deficient J) or the step is not finite,
 //! the step counts as rejected and μ grows — the same path a worse error takes — so the solver
@@ -26,7 +34,7 @@ use argmin::core::{
 };
 use ndarray::Array1;
 
-use crate::linalg::{cho_solve, cholesky};
+use crate::linalg::{cho_solve, cholesky, inverse_trace};
 
 /// JᵀJ (row-major, p×p), Jᵀr and Σr² at one parameter vector.
 #[derive(Debug, Clone, PartialEq)]
@@ -90,8 +98,10 @@ pub struct LmSettings {
     pub mu_inc: f64,
     pub mu_max: f64,
     /// Validation checks: stop after this many epochs in a row without a new best
-    /// validation error.
+    /// validation error (ignored with [`LmSettings::bayesian`]).
     pub max_fail: u32,
+    /// Bayesian regularisation (MATLAB trainbr) instead of plain trainlm.
+    pub bayesian: bool,
 }
 
 impl Default for LmSettings {
@@ -105,8 +115,63 @@ impl Default for LmSettings {
             mu_inc: 10.0,
             mu_max: 1e10,
             max_fail: 6,
+            bayesian: false,
         }
     }
+}
+
+impl LmSettings {
+    /// MATLAB trainbr's defaults (reference-values.md, tag trainbr): μ 0.005, validation stop
+    /// off, the rest as trainlm.
+    pub fn trainbr() -> LmSettings {
+        LmSettings {
+            mu: crate::config::TRAINBR_MU,
+            max_fail: 0,
+            bayesian: true,
+            ..LmSettings::default()
+        }
+    }
+}
+
+/// trainbr's hyperparameters (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bayes {
+    /// Weight of E_W = Σ θ².
+    pub alpha: f64,
+    /// Weight of E_D = Σ r².
+    pub beta: f64,
+    /// Effective number of parameters, 0..P.
+    pub gamma: f64,
+}
+
+impl Bayes {
+    /// trainbr's start: γ = P, α = γ / (2 E_W) (1 for zero weights), β = (N − γ) / (2 E_D)
+    /// (1 for a zero error).
+    fn start(p: usize, n: f64, e_d: f64, e_w: f64) -> Bayes {
+        let gamma = p as f64;
+        Bayes::update(gamma, n, e_d, e_w, 1.0)
+    }
+
+    fn update(gamma: f64, n: f64, e_d: f64, e_w: f64, beta_before: f64) -> Bayes {
+        Bayes {
+            alpha: if e_w > 0.0 { gamma / (2.0 * e_w) } else { 1.0 },
+            beta: if e_d > 0.0 {
+                (n - gamma) / (2.0 * e_d)
+            } else {
+                beta_before
+            },
+            gamma,
+        }
+    }
+
+    /// F = β E_D + α E_W.
+    fn objective(&self, e_d: f64, e_w: f64) -> f64 {
+        self.beta * e_d + self.alpha * e_w
+    }
+}
+
+fn sum_sq(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum()
 }
 
 pub use crate::model::Epoch;
@@ -150,6 +215,8 @@ pub struct LevenbergMarquardt {
     history: Vec<Epoch>,
     start: Instant,
     progress: Option<Progress>,
+    /// trainbr's α, β, γ (with [`LmSettings::bayesian`]).
+    bayes: Option<Bayes>,
 }
 
 impl LevenbergMarquardt {
@@ -164,7 +231,13 @@ impl LevenbergMarquardt {
             history: Vec::new(),
             start: Instant::now(),
             progress: None,
+            bayes: None,
         }
+    }
+
+    /// trainbr's α, β and γ after the last epoch (`None` without Bayesian regularisation).
+    pub fn bayes(&self) -> Option<Bayes> {
+        self.bayes
     }
 
     /// Calls `f` after every epoch (the CLI prints progress with it).
@@ -201,9 +274,22 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
             .get_param()
             .ok_or_else(|| Error::msg("initial parameters are required"))?
             .to_vec();
-        let (sse, n, scale) = problem.problem("cost_count", |o| {
-            Ok((o.sse(&theta), o.n_train().max(1) as f64, o.mse_scale()))
+        let (sse, n, scale, p) = problem.problem("cost_count", |o| {
+            Ok((
+                o.sse(&theta),
+                o.n_train().max(1) as f64,
+                o.mse_scale(),
+                o.n_params(),
+            ))
         })?;
+        if self.settings.bayesian {
+            if n <= p as f64 {
+                return Err(Error::msg(format!(
+                    "Bayesian regularisation needs more training residuals than parameters ({n} residuals, {p} parameters)"
+                )));
+            }
+            self.bayes = Some(Bayes::start(p, n, sse, sum_sq(&theta)));
+        }
         let val = problem.problem("validation_count", |o| Ok(o.validation_mse(&theta)))?;
         if let Some(v) = val {
             self.best_val = v;
@@ -227,23 +313,44 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                 o.n_params(),
             ))
         })?;
-        let grad_norm = 2.0 * ne.jtr.iter().map(|g| g * g).sum::<f64>().sqrt();
+        // The gradient of the objective: 2 Jᵀr (trainlm) or 2 (β Jᵀr + α θ) (trainbr).
+        let rhs: Vec<f64> = match self.bayes {
+            None => ne.jtr.clone(),
+            Some(b) => ne
+                .jtr
+                .iter()
+                .zip(&theta)
+                .map(|(g, t)| b.beta * g + b.alpha * t)
+                .collect(),
+        };
+        let grad_norm = 2.0 * sum_sq(&rhs).sqrt();
         let mse = ne.sse / n * scale;
         if mse <= s.goal {
             self.stop = Some(StopReason::Goal);
         } else if grad_norm < s.min_grad {
             self.stop = Some(StopReason::MinGrad);
         }
+        // trainlm: JᵀJ + μ I; trainbr: β JᵀJ + (μ + α) I.
+        let (data_weight, ridge) = match self.bayes {
+            None => (1.0, 0.0),
+            Some(b) => (b.beta, b.alpha),
+        };
+        let objective = |sse: f64, t: &[f64]| match self.bayes {
+            None => sse,
+            Some(b) => b.objective(sse, sum_sq(t)),
+        };
         let mut next = theta.clone();
         let mut next_sse = ne.sse;
         if self.stop.is_none() {
-            let mut a = ne.jtj.clone();
+            let f0 = objective(ne.sse, &theta);
+            let mut a: Vec<f64> = ne.jtj.iter().map(|v| data_weight * v).collect();
+            let diagonal: Vec<f64> = (0..p).map(|d| a[d * p + d]).collect();
             loop {
                 for d in 0..p {
-                    a[d * p + d] = ne.jtj[d * p + d] + self.mu;
+                    a[d * p + d] = diagonal[d] + (self.mu + ridge);
                 }
                 let trial = cholesky(&a, p).map(|l| {
-                    let step = cho_solve(&l, p, &ne.jtr);
+                    let step = cho_solve(&l, p, &rhs);
                     theta
                         .iter()
                         .zip(&step)
@@ -253,7 +360,7 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                 let accepted = match trial {
                     Some(t) if t.iter().all(|v| v.is_finite()) => {
                         let e = problem.problem("cost_count", |o| Ok(o.sse(&t)))?;
-                        if e.is_finite() && e < ne.sse {
+                        if e.is_finite() && objective(e, &t) < f0 {
                             next = t;
                             next_sse = e;
                             true
@@ -265,6 +372,10 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                 };
                 if accepted {
                     self.mu *= s.mu_dec;
+                    if self.bayes.is_some() {
+                        // trainbr's floor.
+                        self.mu = self.mu.max(1e-20);
+                    }
                     break;
                 }
                 self.mu *= s.mu_inc;
@@ -273,9 +384,21 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                     break;
                 }
             }
+            if let (Some(b), false) = (self.bayes, self.stop == Some(StopReason::MuMax)) {
+                // γ = P − α tr((β JᵀJ + α I)⁻¹) with JᵀJ of the epoch's start (as trainbr).
+                for d in 0..p {
+                    a[d * p + d] = diagonal[d] + b.alpha;
+                }
+                if let Some(l) = cholesky(&a, p) {
+                    let gamma = (p as f64 - b.alpha * inverse_trace(&l, p)).clamp(0.0, p as f64);
+                    self.bayes = Some(Bayes::update(gamma, n, next_sse, sum_sq(&next), b.beta));
+                }
+            }
         }
         let val = problem.problem("validation_count", |o| Ok(o.validation_mse(&next)))?;
         match val {
+            // trainbr: validation is watched, never chooses.
+            _ if self.bayes.is_some() => self.best = Some(next.clone()),
             Some(v) if v < self.best_val => {
                 self.best_val = v;
                 self.best = Some(next.clone());
@@ -296,6 +419,7 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
             mu: self.mu,
             grad_norm,
             elapsed_s: self.start.elapsed().as_secs_f64(),
+            gamma: self.bayes.map(|b| b.gamma),
         };
         self.history.push(epoch);
         if let Some(f) = self.progress.as_mut() {
@@ -417,5 +541,140 @@ mod tests {
         // The error never increased.
         let h = s.history();
         assert!(h.windows(2).all(|w| w[1].train_mse <= w[0].train_mse));
+    }
+
+    /// y = X θ with orthogonal columns (Walsh functions) of different weight and two zero
+    /// columns: trainbr's fixed point is known in closed form per column.
+    struct Linear {
+        x: Vec<[f64; 5]>,
+        y: Vec<f64>,
+    }
+    impl LeastSquares for Linear {
+        fn n_params(&self) -> usize {
+            5
+        }
+        fn n_train(&self) -> usize {
+            self.y.len()
+        }
+        fn sse(&self, t: &[f64]) -> f64 {
+            self.x
+                .iter()
+                .zip(&self.y)
+                .map(|(x, y)| (x.iter().zip(t).map(|(a, b)| a * b).sum::<f64>() - y).powi(2))
+                .sum()
+        }
+        fn normal_equations(&self, t: &[f64]) -> NormalEquations {
+            let mut jtj = vec![0.0; 25];
+            let mut jtr = vec![0.0; 5];
+            let mut sse = 0.0;
+            for (x, y) in self.x.iter().zip(&self.y) {
+                let r = x.iter().zip(t).map(|(a, b)| a * b).sum::<f64>() - y;
+                for p in 0..5 {
+                    jtr[p] += x[p] * r;
+                    for q in 0..5 {
+                        jtj[p * 5 + q] += x[p] * x[q];
+                    }
+                }
+                sse += r * r;
+            }
+            NormalEquations { jtj, jtr, sse }
+        }
+        fn validation_mse(&self, _: &[f64]) -> Option<f64> {
+            None
+        }
+    }
+
+    #[test]
+    fn trainbr_finds_the_known_effective_parameters_of_a_linear_problem() {
+        let n = 256;
+        let walsh = |k: u32, i: usize| {
+            if (i as u32 & k).count_ones() % 2 == 0 {
+                1.0
+            } else {
+                -1.0
+            }
+        };
+        let scale = [1.0, 1.0, 0.01, 0.0, 0.0];
+        let x: Vec<[f64; 5]> = (0..n)
+            .map(|i| {
+                let w = [walsh(0, i), walsh(1, i), walsh(2, i), 0.0, 0.0];
+                std::array::from_fn(|c| scale[c] * w[c])
+            })
+            .collect();
+        // Truth plus a deterministic "noise" along further Walsh functions.
+        let y: Vec<f64> = (0..n)
+            .map(|i| {
+                0.5 * walsh(0, i) - 0.3 * walsh(1, i) + 0.004 * walsh(2, i) + 0.05 * walsh(5, i)
+                    - 0.04 * walsh(9, i)
+                    + 0.03 * walsh(17, i)
+            })
+            .collect();
+        // The fixed point: with D = XᵀX diagonal (d_c = n s_c²) and b = Xᵀy, the minimiser of
+        // F is θ_c = β b_c / (β d_c + α), γ = Σ β d_c / (β d_c + α).
+        let d: Vec<f64> = scale.iter().map(|s| n as f64 * s * s).collect();
+        let b: Vec<f64> = (0..5)
+            .map(|c| x.iter().zip(&y).map(|(r, y)| r[c] * y).sum())
+            .collect();
+        let p = Linear { x, y };
+        let (mut alpha, mut beta) = (1.0, 1.0);
+        let mut gamma = 0.0;
+        for _ in 0..10_000 {
+            let theta: Vec<f64> = (0..5)
+                .map(|c| beta * b[c] / (beta * d[c] + alpha))
+                .collect();
+            gamma = (0..5)
+                .map(|c| beta * d[c] / (beta * d[c] + alpha))
+                .sum::<f64>();
+            alpha = gamma / (2.0 * theta.iter().map(|t| t * t).sum::<f64>());
+            beta = (n as f64 - gamma) / (2.0 * p.sse(&theta));
+        }
+        assert!(gamma > 2.0 && gamma < 2.99, "{gamma}");
+        let (s, _) = run(
+            &p,
+            LevenbergMarquardt::new(LmSettings {
+                epochs: 500,
+                min_grad: 1e-12,
+                ..LmSettings::trainbr()
+            }),
+            vec![0.1, 0.1, 0.1, 0.1, 0.1],
+        )
+        .unwrap();
+        let got = s.bayes().unwrap();
+        assert!(
+            (got.gamma - gamma).abs() < 1e-6,
+            "γ {} vs {gamma}",
+            got.gamma
+        );
+        assert!(
+            (got.alpha / alpha - 1.0).abs() < 1e-6,
+            "α {} vs {alpha}",
+            got.alpha
+        );
+        assert!(
+            (got.beta / beta - 1.0).abs() < 1e-6,
+            "β {} vs {beta}",
+            got.beta
+        );
+        // The unsupported weights are pulled to zero; γ is in every epoch of the history.
+        let t = s.best().unwrap();
+        assert!(t[3].abs() < 1e-6 && t[4].abs() < 1e-6, "{t:?}");
+        assert!(s.history().iter().all(|e| e.gamma.is_some()));
+    }
+
+    #[test]
+    fn trainbr_refuses_fewer_residuals_than_parameters() {
+        let p = Linear {
+            x: vec![[1.0; 5]; 4],
+            y: vec![1.0; 4],
+        };
+        let e = run(
+            &p,
+            LevenbergMarquardt::new(LmSettings::trainbr()),
+            vec![0.0; 5],
+        )
+        .err()
+        .unwrap()
+        .to_string();
+        assert!(e.contains("more training residuals than parameters"), "{e}");
     }
 }

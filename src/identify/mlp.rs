@@ -294,6 +294,28 @@ pub fn nguyen_widrow(shape: Shape, seed: u64) -> Vec<f64> {
     theta
 }
 
+/// The mean of networks of one hidden layer and one shape, as one network: the hidden layers
+/// side by side, the output weights divided by their number and the output bias their mean
+/// (ŷ = Σ_m ŷ_m / M exactly, up to rounding). Returns the wide shape and its θ.
+pub fn average(shape: Shape, members: &[&[f64]]) -> (Shape, Vec<f64>) {
+    assert!(shape.hidden2 == 0 && !members.is_empty());
+    let m = members.len();
+    let wide = Shape::one(shape.inputs, shape.hidden * m);
+    let mut theta = Vec::with_capacity(wide.n_params());
+    for t in members {
+        theta.extend_from_slice(&t[..shape.b1()]);
+    }
+    for t in members {
+        theta.extend_from_slice(&t[shape.b1()..shape.w2()]);
+    }
+    for t in members {
+        theta.extend(t[shape.wo()..shape.bo()].iter().map(|w| w / m as f64));
+    }
+    theta.push(members.iter().map(|t| t[shape.bo()]).sum::<f64>() / m as f64);
+    debug_assert_eq!(theta.len(), wide.n_params());
+    (wide, theta)
+}
+
 /// Nguyen–Widrow weights (row-major `n_out × n_in` at `w`) and biases (at `b`) of one layer.
 fn nw_layer(rng: &mut Rng, n_in: usize, n_out: usize, theta: &mut [f64], w: usize, b: usize) {
     let beta = 0.7 * (n_out as f64).powf(1.0 / n_in as f64);

@@ -10,6 +10,7 @@ pub mod export;
 pub mod lm;
 pub mod mlp;
 pub mod polach_fit;
+pub mod support;
 pub mod train;
 
 pub use crate::model::InputSet;

@@ -19,9 +19,16 @@ use super::lm::{
     self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations, StopReason,
 };
 use super::mlp::{self, Scratch, Shape, BLOCK};
+use super::support::{occupancy, Occupancy};
 use super::IdentifyError;
 use super::InputSet;
-use crate::config::TrainConfig;
+use crate::config::{default_support_cells, TrainConfig};
+use crate::score::Sample;
+
+/// `train.support_min_samples` and `train.audit_mu_max` by default (for [`train_on`], which
+/// takes no pipeline).
+const DEFAULT_SUPPORT_MIN: u64 = 10;
+const DEFAULT_AUDIT_MU_MAX: f64 = 0.6;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Avx2, Avx512, F64x4, F64x8};
 use crate::simd::{Isa, Portable};
@@ -92,6 +99,7 @@ fn block_avx2(
 
 /// Samples stored by input column, padded to whole blocks (padding: inputs and target 0,
 /// masked out of every sum).
+#[derive(Clone)]
 struct Columns {
     x: Vec<Vec<f64>>,
     y: Vec<f64>,
@@ -151,6 +159,18 @@ impl MlpProblem {
             val: Columns::new(&vx, &vy, k),
             scale,
             isa: Isa::detect(),
+        }
+    }
+
+    /// The same data for a network of another shape (same inputs).
+    pub fn with_shape(&self, shape: Shape) -> MlpProblem {
+        assert_eq!(shape.inputs, self.shape.inputs);
+        MlpProblem {
+            shape,
+            train: self.train.clone(),
+            val: self.val.clone(),
+            scale: self.scale,
+            isa: self.isa,
         }
     }
 
@@ -311,6 +331,16 @@ pub struct TrainedMlp {
     pub seed: u64,
     /// Validation MSE (μ²) of every start, seeds in order (one entry for a single start).
     pub start_val_mse: Vec<f64>,
+    /// Training and validation samples per cell of the model file's support grid.
+    pub occupancy: Occupancy,
+    /// The training and validation samples (physical units, pooled as axle 1) the audit
+    /// compares the model's loss/recovery order with.
+    pub data: Vec<Sample>,
+    /// The audit's ceiling μ_max.
+    pub audit_mu_max: f64,
+    /// An ensemble's members (θ of one network of `hidden` neurons each, best first; `theta`
+    /// is their mean as one wide network); empty for a single network.
+    pub members: Vec<Vec<f64>>,
     pub settings: LmSettings,
 }
 
@@ -341,6 +371,7 @@ pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
         mu_inc: cfg.mu_inc,
         mu_max: cfg.mu_max,
         max_fail: cfg.max_fail,
+        bayesian: cfg.bayesian,
     }
 }
 
@@ -357,15 +388,43 @@ pub fn train_mlp(
         InputSet::DvDdv
     };
     let data = Dataset::build(tables, inputs, &cfg.split, cfg.decimate)?;
-    if cfg.starts <= 1 {
-        return train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress);
-    }
-    train_starts(&data, cfg, progress)
+    let mut trained = if cfg.starts <= 1 {
+        train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress)?
+    } else {
+        train_starts(&data, cfg, progress)?
+    };
+    trained.occupancy = occupancy_of(&data, &trained, &cfg.support_cells, cfg.support_min_samples);
+    // The audit's samples: the same split with the speed of every sample.
+    let with_v = Dataset::build(tables, InputSet::DvDdvV, &cfg.split, cfg.decimate)?;
+    trained.data = with_v
+        .train_x
+        .chunks_exact(3)
+        .zip(&with_v.train_y)
+        .chain(with_v.val_x.chunks_exact(3).zip(&with_v.val_y))
+        .map(|(x, mu)| Sample {
+            axle: 1,
+            dv_mps: x[0],
+            ddv_mps2: x[1],
+            v_mps: x[2],
+            mu: *mu,
+        })
+        .collect();
+    trained.audit_mu_max = cfg.audit_mu_max;
+    Ok(trained)
+}
+
+/// The training and validation samples of `data` per support cell of the network `t`.
+fn occupancy_of(data: &Dataset, t: &TrainedMlp, cells: &[usize], min_samples: u64) -> Occupancy {
+    let k = data.inputs.count();
+    let x: Vec<f64> = data.train_x.iter().chain(&data.val_x).copied().collect();
+    let norm: Vec<(f64, f64)> = (0..k).map(|c| (t.x_norm.min[c], t.x_norm.max[c])).collect();
+    occupancy(&x, k, &norm, &t.domain, cells, min_samples)
 }
 
 /// `cfg.starts` trainings from the seeds `cfg.seed`, `cfg.seed + 1`, … in parallel; keeps the
 /// one with the lowest validation error (training error without validation data), the
-/// earliest seed on a tie, so the choice does not depend on the thread count. `progress` sees
+/// earliest seed on a tie, so the choice does not depend on the thread count — or, with
+/// `cfg.ensemble` = M > 1, the best M averaged into one network ([`mlp::average`]). `progress` sees
 /// the epochs of the first start only (the others run beside it).
 fn train_starts(
     data: &Dataset,
@@ -398,11 +457,29 @@ fn train_starts(
         }
     };
     let all: Vec<f64> = runs.iter().map(|t| t.val_mse).collect();
-    let mut best = runs
-        .into_iter()
-        .reduce(|a, b| if key(&b) < key(&a) { b } else { a })
-        .expect("at least two starts");
+    // Best first; a stable sort keeps the earlier seed first on a tie.
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by(|&a, &b| key(&runs[a]).total_cmp(&key(&runs[b])));
+    let mut runs: Vec<Option<TrainedMlp>> = runs.into_iter().map(Some).collect();
+    let mut best = runs[order[0]].take().expect("each start once");
     best.start_val_mse = all;
+    if cfg.ensemble > 1 {
+        let members: Vec<Vec<f64>> = std::iter::once(best.theta.clone())
+            .chain(
+                order[1..cfg.ensemble.min(order.len())]
+                    .iter()
+                    .map(|&i| runs[i].take().expect("each start once").theta),
+            )
+            .collect();
+        let refs: Vec<&[f64]> = members.iter().map(Vec::as_slice).collect();
+        let (wide, theta) = mlp::average(best.shape, &refs);
+        let problem = prepared.problem.with_shape(wide);
+        best.train_mse = problem.sse(&theta) / problem.n_train() as f64 * problem.mse_scale();
+        best.val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
+        best.shape = wide;
+        best.theta = theta;
+        best.members = members;
+    }
     Ok(best)
 }
 
@@ -488,7 +565,7 @@ impl Prepared {
         let theta = solver.best().expect("set from the first epoch").to_vec();
         let train_mse = problem.sse(&theta) / problem.n_train() as f64 * problem.mse_scale();
         let val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
-        Ok(TrainedMlp {
+        let mut t = TrainedMlp {
             inputs: data.inputs,
             shape,
             theta,
@@ -504,8 +581,19 @@ impl Prepared {
             reference_speed_mps: f64::NAN,
             seed,
             start_val_mse: vec![val_mse],
+            members: Vec::new(),
             settings,
-        })
+            occupancy: Occupancy {
+                cells: vec![],
+                min_samples: 1,
+                counts: vec![],
+            },
+            data: Vec::new(),
+            audit_mu_max: DEFAULT_AUDIT_MU_MAX,
+        };
+        let k = data.inputs.count();
+        t.occupancy = occupancy_of(data, &t, &default_support_cells(k), DEFAULT_SUPPORT_MIN);
+        Ok(t)
     }
 }
 

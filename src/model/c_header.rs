@@ -105,6 +105,27 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         array(&format!("{prefix}_w2"), &o.weights[0]),
     ]
     .concat();
+    let sup_arrays = match &m.support {
+        None => String::new(),
+        Some(sup) => {
+            let k = sup.cells.len();
+            let mut n = [1usize; 3];
+            n[..k].copy_from_slice(&sup.cells);
+            let mut stride = [1usize; 3];
+            for c in (0..k.saturating_sub(1)).rev() {
+                stride[c] = stride[c + 1] * n[c + 1];
+            }
+            let s: Vec<f64> = (0..sup.len())
+                .map(|j| if sup.supported(j) { 1.0 } else { 0.0 })
+                .collect();
+            format!(
+                "static const int {prefix}_sup_n[3] = {{{}, {}, {}}};\nstatic const long {prefix}_sup_stride[3] = {{{}, {}, {}}};\n",
+                n[0], n[1], n[2], stride[0], stride[1], stride[2]
+            ) + &array(&format!("{prefix}_sup_half"), &n.map(|v| v as f64 / 2.0))
+                + &array(&format!("{prefix}_sup_s"), &s)
+                + &array(&format!("{prefix}_sup_f"), &sup.fallback_mu)
+        }
+    };
     fill(
         MLP_TEMPLATE,
         &[
@@ -135,6 +156,8 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("blend", lit(creep.blend_mps)),
             ("cpc", lit(creep.creep_stiffness_n / creep.wheel_load_n)),
             ("vref", lit(creep.reference_speed_mps)),
+            ("has_sup", u8::from(m.support.is_some()).to_string()),
+            ("sup_arrays", sup_arrays),
         ],
     )
 }

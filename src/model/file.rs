@@ -50,6 +50,9 @@ pub struct Epoch {
     pub grad_norm: f64,
     /// Seconds since training started.
     pub elapsed_s: f64,
+    /// Effective number of parameters γ after the epoch (Bayesian regularisation only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gamma: Option<f64>,
 }
 
 /// JSON has no NaN: serde_json writes it as `null`; read `null` back as NaN.
@@ -90,6 +93,8 @@ pub enum Defect {
     NotFinite,
     #[error("{0}")]
     Value(String),
+    #[error("support: {0}")]
+    Support(String),
     #[error("polach: {0}")]
     Polach(#[source] ContactError),
     #[error("polach.temperature: at {t_c:.2} °C k_A = {k_a:.4}, k_S = {k_s:.4} leave 0 < k_S <= k_A <= 1")]
@@ -98,8 +103,75 @@ pub enum Defect {
 
 /// Format id written into every model file.
 pub const FORMAT_ID: &str = "railgrip-adhesion-model";
-/// Current format version.
-pub const FORMAT_VERSION: u32 = 1;
+/// Current format version: 2 adds the data-support grid ([`SupportSpec`]) and the plausibility
+/// audit ([`AuditSpec`]) of networks. Version-1 files still load (no support: the network
+/// everywhere, as before).
+pub const FORMAT_VERSION: u32 = 2;
+/// Versions this railgrip reads.
+pub const READ_VERSIONS: [u32; 2] = [1, 2];
+/// Most cells a support grid may have (2²⁰: about 24 MB of JSON at the limit).
+pub const MAX_SUPPORT_CELLS: usize = 1 << 20;
+/// Most cells per input of a support grid.
+pub const MAX_CELLS_PER_INPUT: usize = 1024;
+
+/// Where a network's training data lie (format version 2; README "Model files", "Data
+/// support"): a grid over the normalised inputs [−1, 1]ᵏ (after the mirror of step 1 of the
+/// evaluation rule), `cells[c]` cells along input c. A cell is supported when at least
+/// `min_samples` training and validation samples fall in it. The evaluators return the network
+/// where every neighbouring cell centre is supported and blend to `fallback_mu` towards
+/// unsupported ones (see [`crate::model`], step 4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SupportSpec {
+    /// Cells per input, in input order.
+    pub cells: Vec<usize>,
+    /// Samples a cell needs to count as supported.
+    pub min_samples: u64,
+    /// Training and validation samples per cell, row-major (the last input varies fastest).
+    pub counts: Vec<u64>,
+    /// What `fallback_mu` holds: `polach` (the campaign's Polach model at the cell centre) or
+    /// `nearest` (the network at the nearest supported cell centre).
+    pub fallback: String,
+    /// |μ| of the fallback at every cell centre.
+    pub fallback_mu: Vec<f64>,
+    /// Standard deviation of an ensemble's members' μ at every cell centre (empty for a single
+    /// network).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub spread: Vec<f64>,
+}
+
+impl SupportSpec {
+    /// Number of cells (the product of `cells`).
+    pub fn len(&self) -> usize {
+        self.cells.iter().product()
+    }
+    /// True for a grid without cells (never for a checked file).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Whether cell `j` (flat index) is supported.
+    pub fn supported(&self, j: usize) -> bool {
+        self.counts[j] >= self.min_samples
+    }
+}
+
+/// The plausibility audit a network passed or failed before export (format version 2;
+/// README "Plausibility audit").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AuditSpec {
+    pub passed: bool,
+    /// The ceiling μ_max of the check 0 ≤ μ ≤ μ_max on supported cells.
+    pub mu_max: f64,
+    /// Loss-minus-recovery difference μ(Δv, +q) − μ(Δv, −q) of the training data and of the
+    /// model on the same supported cells (`null` without such cells).
+    pub hysteresis_data: Option<f64>,
+    pub hysteresis_model: Option<f64>,
+    /// Supported cells that failed.
+    pub failing_cells: usize,
+    /// What failed, the first cells by name (at most 50 lines).
+    pub failures: Vec<String>,
+}
 
 /// Model kinds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -222,6 +294,12 @@ pub struct ModelFile {
     /// Training history per epoch (kind mlp; empty for polach).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub history: Vec<Epoch>,
+    /// kind mlp, version 2: where the training data lie.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub support: Option<SupportSpec>,
+    /// kind mlp, version 2: the plausibility audit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub audit: Option<AuditSpec>,
 }
 
 impl ModelFile {
@@ -252,7 +330,7 @@ impl ModelFile {
                 found: m.format,
             });
         }
-        if m.version != FORMAT_VERSION {
+        if !READ_VERSIONS.contains(&m.version) {
             return Err(ModelError::Version {
                 file: file.to_string(),
                 found: m.version,
@@ -279,11 +357,36 @@ impl ModelFile {
     pub fn check(&self) -> Result<(), Defect> {
         match self.kind {
             ModelKind::Mlp => self.check_mlp(),
+            ModelKind::Polach if self.support.is_some() || self.audit.is_some() => {
+                Err(Defect::ForeignSection {
+                    kind: "polach",
+                    what: "\"support\" or \"audit\" section",
+                })
+            }
             ModelKind::Polach => polach::check(self),
         }
     }
 
     fn check_mlp(&self) -> Result<(), Defect> {
+        self.check_mlp_core()?;
+        if self.version < 2 && (self.support.is_some() || self.audit.is_some()) {
+            return Err(Defect::Value(format!(
+                "version {} has no \"support\" or \"audit\" (version 2 does)",
+                self.version
+            )));
+        }
+        if let Some(s) = &self.support {
+            check_support(s, self.inputs.len())?;
+        }
+        if let Some(a) = &self.audit {
+            if !(a.mu_max.is_finite() && a.mu_max > 0.0) {
+                return Err(Defect::Value("audit.mu_max must be finite and > 0".into()));
+            }
+        }
+        Ok(())
+    }
+
+    fn check_mlp_core(&self) -> Result<(), Defect> {
         if self.polach.is_some() {
             return Err(Defect::ForeignSection {
                 kind: "mlp",
@@ -380,6 +483,11 @@ impl ModelFile {
         Ok(())
     }
 
+    /// Whether the audit marked this model as failing.
+    pub fn audit_failed(&self) -> bool {
+        self.audit.as_ref().is_some_and(|a| !a.passed)
+    }
+
     pub fn input_set(&self) -> InputSet {
         if self.inputs.len() == 3 {
             InputSet::DvDdvV
@@ -387,6 +495,66 @@ impl ModelFile {
             InputSet::DvDdv
         }
     }
+}
+
+/// A support grid fits its model's inputs and holds finite, consistent numbers.
+fn check_support(s: &SupportSpec, inputs: usize) -> Result<(), Defect> {
+    let bad = |what: String| Err(Defect::Support(what));
+    if s.cells.len() != inputs {
+        return bad(format!(
+            "{} grid dimensions for {inputs} inputs",
+            s.cells.len()
+        ));
+    }
+    if let Some(n) = s
+        .cells
+        .iter()
+        .find(|&&n| !(2..=MAX_CELLS_PER_INPUT).contains(&n))
+    {
+        return bad(format!(
+            "{n} cells along an input (2..={MAX_CELLS_PER_INPUT})"
+        ));
+    }
+    let n = s
+        .cells
+        .iter()
+        .try_fold(1usize, |a, &c| a.checked_mul(c))
+        .filter(|&n| n <= MAX_SUPPORT_CELLS);
+    let Some(n) = n else {
+        return bad(format!(
+            "{:?} cells exceed the limit of {MAX_SUPPORT_CELLS}",
+            s.cells
+        ));
+    };
+    if s.counts.len() != n
+        || s.fallback_mu.len() != n
+        || !(s.spread.is_empty() || s.spread.len() == n)
+    {
+        return bad(format!(
+            "counts, fallback_mu and spread must hold {n} values (one per cell); they hold {}, {} and {}",
+            s.counts.len(),
+            s.fallback_mu.len(),
+            s.spread.len()
+        ));
+    }
+    if s.min_samples == 0 {
+        return bad("min_samples must be at least 1".into());
+    }
+    if s.fallback != "polach" && s.fallback != "nearest" {
+        return bad(format!(
+            "fallback \"{}\" is not \"polach\" or \"nearest\"",
+            s.fallback
+        ));
+    }
+    if s.fallback_mu.iter().any(|v| !v.is_finite())
+        || s.spread.iter().any(|v| !(v.is_finite() && *v >= 0.0))
+    {
+        return Err(Defect::NotFinite);
+    }
+    if !(0..n).any(|j| s.supported(j)) {
+        return bad("no cell is supported".into());
+    }
+    Ok(())
 }
 
 /// The numbers the evaluators work with, derived once from a model file (shared by the Rust

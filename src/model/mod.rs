@@ -25,13 +25,15 @@ pub mod c_header;
 mod file;
 mod net;
 pub mod polach;
+mod support;
 
 use std::path::Path;
 
 pub(crate) use file::Scaling;
 pub use file::{
-    CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer, Metrics, ModelFile, ModelKind,
-    OutputSpec, Provenance, FORMAT_ID, FORMAT_VERSION, MAX_HIDDEN,
+    AuditSpec, CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer, Metrics, ModelFile,
+    ModelKind, OutputSpec, Provenance, SupportSpec, FORMAT_ID, FORMAT_VERSION, MAX_CELLS_PER_INPUT,
+    MAX_HIDDEN, MAX_SUPPORT_CELLS, READ_VERSIONS,
 };
 use net::Net;
 pub use net::{tanh_fast, LANES};
@@ -57,7 +59,7 @@ pub enum ModelError {
     },
     #[error("{file}: format \"{found}\" is not \"{FORMAT_ID}\". Hint: {HINT}")]
     Format { file: String, found: String },
-    #[error("{file}: format version {found} is not supported (this railgrip reads version {FORMAT_VERSION}). Hint: {HINT}")]
+    #[error("{file}: format version {found} is not supported (this railgrip reads versions 1 and {FORMAT_VERSION}). Hint: {HINT}")]
     Version { file: String, found: u32 },
     #[error("{file}: {defect}. Hint: {HINT}")]
     Invalid {
@@ -198,6 +200,24 @@ impl Model {
         match &self.law {
             Law::Mlp(n) => n.in_domain(dv_mps, ddv_mps2, v_mps),
             Law::Polach(p) => p.in_domain(dv_mps, v_mps),
+        }
+    }
+
+    /// The interpolated data support w ∈ [0, 1] at these inputs (1: the network alone, 0: the
+    /// fallback alone); `None` for models without a support grid.
+    pub fn support_weight(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+        match &self.law {
+            Law::Mlp(n) => n.support_weight(dv_mps, ddv_mps2, v_mps),
+            Law::Polach(_) => None,
+        }
+    }
+
+    /// The ensemble's spread (standard deviation of its members' μ) interpolated at these
+    /// inputs; `None` for single networks and other models.
+    pub fn spread(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+        match &self.law {
+            Law::Mlp(n) => n.spread(dv_mps, ddv_mps2, v_mps),
+            Law::Polach(_) => None,
         }
     }
 

@@ -4,6 +4,7 @@
 //! by lane — bit-identical results whatever the CPU (tested below).
 
 use super::file::{ModelFile, Scaling};
+use super::support::SupportEval;
 use crate::contact::saturation::she_ratio;
 use crate::simd::{self, Isa, Lanes, Portable};
 #[cfg(target_arch = "x86_64")]
@@ -45,6 +46,8 @@ pub(super) struct Net {
     /// C / Q: μ per unit creepage.
     creep_per_creepage: f64,
     v_ref: f64,
+    /// The data-support blend (version-2 files with a support grid).
+    support: Option<SupportEval>,
 }
 
 /// [`CHUNK`] hidden neurons' weights, contiguous (padding neurons all zero).
@@ -135,6 +138,7 @@ impl Net {
             blend: creep.blend_mps,
             creep_per_creepage: creep.creep_stiffness_n / creep.wheel_load_n,
             v_ref: creep.reference_speed_mps,
+            support: file.support.as_ref().map(SupportEval::new),
         }
     }
 
@@ -254,11 +258,11 @@ impl Net {
             (1.0, dv_mps, ddv_mps2)
         };
         let v = if v_mps.is_finite() { v_mps } else { self.v_ref };
-        let net = self.net::<V>(isa, [dv, ddv, v]);
+        let net = self.net_supported::<V>(isa, [dv, ddv, v]);
         if dv >= self.blend {
             return s * net;
         }
-        let sat = self.net::<V>(isa, [self.blend, ddv, v]).abs();
+        let sat = self.net_supported::<V>(isa, [self.blend, ddv, v]).abs();
         let v_creep = if self.k == 3 { v.max(1.0) } else { self.v_ref };
         let slope = self.creep_per_creepage / v_creep;
         let lin = if sat > 0.0 {
@@ -269,6 +273,39 @@ impl Net {
         let t = dv / self.blend;
         let w = t * t * (3.0 - 2.0 * t);
         s * (w * net + (1.0 - w) * lin)
+    }
+
+    /// Steps 2 and 3 of the evaluation rule: the network, blended towards the fallback
+    /// outside the data support (version-2 files with a grid).
+    #[inline(always)]
+    fn net_supported<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+        let n = self.net::<V>(isa, x);
+        match &self.support {
+            None => n,
+            Some(sup) => sup.apply(&self.inputs(x), n),
+        }
+    }
+
+    /// The mirrored inputs of step 1, normalised and clamped (for the support grid).
+    fn mirrored_inputs(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> [f64; 3] {
+        let (dv, ddv) = if dv_mps < 0.0 {
+            (-dv_mps, -ddv_mps2)
+        } else {
+            (dv_mps, ddv_mps2)
+        };
+        self.inputs([dv, ddv, if v_mps.is_finite() { v_mps } else { self.v_ref }])
+    }
+
+    /// The interpolated support w ∈ [0, 1] (1 inside the data; `None` without a grid).
+    pub(super) fn support_weight(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+        let sup = self.support.as_ref()?;
+        Some(sup.weight(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps)))
+    }
+
+    /// The interpolated ensemble spread of μ (`None` without).
+    pub(super) fn spread(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+        let sup = self.support.as_ref()?;
+        sup.spread(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps))
     }
 
     /// [`Model::mu_batch`] of the network.
@@ -402,7 +439,10 @@ impl Net {
             out[l] = if !(dv_in[l].is_finite() && ddv_in[l].is_finite()) {
                 f64::NAN
             } else if x[0][l] >= self.blend {
-                sgn[l] * net[l]
+                match &self.support {
+                    None => sgn[l] * net[l],
+                    Some(sup) => sgn[l] * sup.apply(&[xn[0][l], xn[1][l], xn[2][l]], net[l]),
+                }
             } else {
                 self.mu_v(dv_in[l], ddv_in[l], v_in[l])
             };

@@ -123,6 +123,25 @@ pub struct Truth {
     pub ddv_mps2: [Vec<f64>; AXLES],
 }
 
+impl Truth {
+    /// Samples of every axle, for [`crate::score::score`].
+    pub fn samples(&self) -> Vec<crate::score::Sample> {
+        let mut out = Vec::with_capacity(AXLES * self.time_s.len());
+        for a in 0..AXLES {
+            for i in 0..self.time_s.len() {
+                out.push(crate::score::Sample {
+                    axle: a as u8 + 1,
+                    dv_mps: self.dv_mps[a][i],
+                    ddv_mps2: self.ddv_mps2[a][i],
+                    v_mps: self.v_mps[i],
+                    mu: self.mu[a][i],
+                });
+            }
+        }
+        out
+    }
+}
+
 /// What a simulation produced.
 #[derive(Debug, Clone)]
 pub struct SimOutput {

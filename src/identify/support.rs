@@ -1,0 +1,290 @@
+//! The data support and the plausibility audit of a trained network (issue 15; README "Data
+//! support", "Plausibility audit"): where the training samples lie, what the evaluators fall
+//! back to elsewhere, the ensemble's spread, and the checks a network passes before export.
+
+use std::collections::VecDeque;
+
+use crate::model::{AuditSpec, Model, ModelFile, SupportSpec};
+use crate::score::{score, Grid, Sample};
+
+/// Most failing cells an audit lists by name.
+pub const LISTED_FAILURES: usize = 50;
+/// Loss-minus-recovery differences of the data below this (in μ) set no sign to check.
+pub const HYSTERESIS_FLOOR: f64 = 0.002;
+
+/// What a support grid is built from: the grid, the threshold and the samples per cell.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Occupancy {
+    pub cells: Vec<usize>,
+    pub min_samples: u64,
+    pub counts: Vec<u64>,
+}
+
+/// mapminmax of one input: (gain, offset) for [min, max], constant ranges passed through (the
+/// evaluators' rule).
+fn gain_offset(min: f64, max: f64) -> (f64, f64) {
+    let range = max - min;
+    if range > 0.0 {
+        let g = 2.0 / range;
+        (g, -1.0 - g * min)
+    } else {
+        (1.0, 0.0)
+    }
+}
+
+/// Counts the samples `x` (row-major, `k` physical inputs per sample) per cell: each sample
+/// mirrored as the evaluators mirror it (Δv < 0: (−Δv, −dΔv/dt)), clamped to `domain`,
+/// normalised by `norm` ((min, max) per input) and put in cell ⌊(x_n + 1) · n/2⌋ (limited to
+/// n − 1) along each input.
+pub fn occupancy(
+    x: &[f64],
+    k: usize,
+    norm: &[(f64, f64)],
+    domain: &[(f64, f64)],
+    cells: &[usize],
+    min_samples: u64,
+) -> Occupancy {
+    assert!(cells.len() == k && norm.len() == k && domain.len() == k);
+    let total: usize = cells.iter().product();
+    let mut counts = vec![0u64; total];
+    let go: Vec<(f64, f64)> = norm.iter().map(|&(lo, hi)| gain_offset(lo, hi)).collect();
+    for row in x.chunks_exact(k) {
+        let mut r = [row[0], row[1], if k == 3 { row[2] } else { 0.0 }];
+        if r[0] < 0.0 {
+            r[0] = -r[0];
+            r[1] = -r[1];
+        }
+        let mut j = 0;
+        for c in 0..k {
+            let (g, o) = go[c];
+            let xn = g.mul_add(r[c].clamp(domain[c].0, domain[c].1), o);
+            let n = cells[c];
+            let i = ((xn + 1.0) * (n as f64 / 2.0))
+                .floor()
+                .clamp(0.0, (n - 1) as f64) as usize;
+            j = j * n + i;
+        }
+        counts[j] += 1;
+    }
+    Occupancy {
+        cells: cells.to_vec(),
+        min_samples,
+        counts,
+    }
+}
+
+/// The physical inputs (Δv, dΔv/dt, v) at the centre of every cell, in flat order; v is NaN
+/// (the reference speed) for two-input models.
+pub fn cell_centres(file: &ModelFile, cells: &[usize]) -> Vec<[f64; 3]> {
+    let k = cells.len();
+    let total: usize = cells.iter().product();
+    let go: Vec<(f64, f64)> = file
+        .inputs
+        .iter()
+        .map(|i| gain_offset(i.norm_min, i.norm_max))
+        .collect();
+    (0..total)
+        .map(|flat| {
+            let mut x = [0.0, 0.0, f64::NAN];
+            let mut rest = flat;
+            for c in (0..k).rev() {
+                let n = cells[c];
+                let i = rest % n;
+                rest /= n;
+                let xn = 2.0 * (i as f64 + 0.5) / n as f64 - 1.0;
+                x[c] = (xn - go[c].1) / go[c].0;
+            }
+            x
+        })
+        .collect()
+}
+
+/// The network's |μ| at each cell centre's nearest supported cell — nearest in steps across
+/// cell faces (a breadth-first search from every supported cell at once, sources in flat
+/// order, so ties go to the lower flat index); supported cells keep their own value.
+fn nearest_supported(occ: &Occupancy, own: &[f64]) -> Vec<f64> {
+    let k = occ.cells.len();
+    let total = occ.counts.len();
+    let mut stride = vec![1usize; k];
+    for c in (0..k.saturating_sub(1)).rev() {
+        stride[c] = stride[c + 1] * occ.cells[c + 1];
+    }
+    let mut value = vec![f64::NAN; total];
+    let mut queue = VecDeque::new();
+    for j in 0..total {
+        if occ.counts[j] >= occ.min_samples {
+            value[j] = own[j];
+            queue.push_back(j);
+        }
+    }
+    while let Some(j) = queue.pop_front() {
+        for c in 0..k {
+            let i = j / stride[c] % occ.cells[c];
+            let mut next = Vec::with_capacity(2);
+            if i > 0 {
+                next.push(j - stride[c]);
+            }
+            if i + 1 < occ.cells[c] {
+                next.push(j + stride[c]);
+            }
+            for m in next {
+                if value[m].is_nan() {
+                    value[m] = value[j];
+                    queue.push_back(m);
+                }
+            }
+        }
+    }
+    value
+}
+
+/// The support grid of `file` (a network without one yet): counts from `occ`, the fallback
+/// from `polach` (|μ| of that model at each cell centre, at the network's reference speed for
+/// two-input networks) or else the nearest supported cell's network value, and the spread of
+/// `members` (the ensemble's networks as model files; fewer than two: none).
+pub fn support_spec(
+    file: &ModelFile,
+    occ: &Occupancy,
+    polach: Option<&Model>,
+    members: &[ModelFile],
+) -> Result<SupportSpec, crate::model::ModelError> {
+    let net = Model::named(file.clone(), "trained network")?;
+    let centres = cell_centres(file, &occ.cells);
+    let v_ref = file
+        .creep
+        .as_ref()
+        .map_or(f64::NAN, |c| c.reference_speed_mps);
+    let own: Vec<f64> = centres
+        .iter()
+        .map(|x| net.mu_v(x[0], x[1], x[2]).abs())
+        .collect();
+    let (fallback, fallback_mu) = match polach {
+        Some(p) => (
+            "polach",
+            centres
+                .iter()
+                .map(|x| {
+                    let v = if x[2].is_finite() { x[2] } else { v_ref };
+                    p.mu_v(x[0], x[1], v).abs()
+                })
+                .collect(),
+        ),
+        None => ("nearest", nearest_supported(occ, &own)),
+    };
+    let spread = if members.len() < 2 {
+        Vec::new()
+    } else {
+        let models: Vec<Model> = members
+            .iter()
+            .map(|m| Model::named(m.clone(), "ensemble member"))
+            .collect::<Result<_, _>>()?;
+        centres
+            .iter()
+            .map(|x| {
+                let mu: Vec<f64> = models.iter().map(|m| m.mu_v(x[0], x[1], x[2])).collect();
+                let mean = mu.iter().sum::<f64>() / mu.len() as f64;
+                (mu.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / mu.len() as f64).sqrt()
+            })
+            .collect()
+    };
+    Ok(SupportSpec {
+        cells: occ.cells.clone(),
+        min_samples: occ.min_samples,
+        counts: occ.counts.clone(),
+        fallback: fallback.into(),
+        fallback_mu,
+        spread,
+    })
+}
+
+/// The plausibility audit of a network with its support grid:
+/// 1. on every supported cell centre (where the evaluators return the network alone) μ is
+///    finite and 0 ≤ μ ≤ `mu_max`;
+/// 2. the loss/recovery order: over the data-supported cells of [`crate::score`] (the training
+///    and validation samples `data` as truth), the mean μ(Δv, +q) − μ(Δv, −q) of the model has
+///    the sign of the data's wherever the data's is at least [`HYSTERESIS_FLOOR`].
+pub fn audit(model: &Model, data: &[Sample], mu_max: f64) -> AuditSpec {
+    let mut failures = Vec::new();
+    let mut failing = 0;
+    let file = &model.file;
+    if let Some(sup) = &file.support {
+        let centres = cell_centres(file, &sup.cells);
+        for (j, x) in centres.iter().enumerate() {
+            if !sup.supported(j) {
+                continue;
+            }
+            let mu = model.mu_v(x[0], x[1], x[2]);
+            if !(mu.is_finite() && (0.0..=mu_max).contains(&mu)) {
+                failing += 1;
+                if failures.len() < LISTED_FAILURES {
+                    let v = if x[2].is_finite() {
+                        format!(", v {:.1} km/h", x[2] * 3.6)
+                    } else {
+                        String::new()
+                    };
+                    failures.push(format!(
+                        "cell Δv {:.3} m/s, dΔv/dt {:.3} m/s²{v} ({} samples): μ = {mu:.4} outside [0, {mu_max}]",
+                        x[0], x[1], sup.counts[j]
+                    ));
+                }
+            }
+        }
+    }
+    let (h_data, h_model) = match score(data, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)) {
+        Ok(s) => match s.hysteresis {
+            Some((d, m)) => (Some(d), Some(m)),
+            None => (None, None),
+        },
+        Err(_) => (None, None),
+    };
+    if let (Some(d), Some(m)) = (h_data, h_model) {
+        if d.abs() >= HYSTERESIS_FLOOR && d.signum() != m.signum() {
+            failing += 1;
+            failures.push(format!(
+                "hysteresis: the data's loss-minus-recovery difference is {d:+.4}, the model's {m:+.4} (the loss and recovery branches are swapped)"
+            ));
+        }
+    }
+    AuditSpec {
+        passed: failing == 0,
+        mu_max,
+        hysteresis_data: h_data,
+        hysteresis_model: h_model,
+        failing_cells: failing,
+        failures,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn occupancy_mirrors_clamps_and_counts() {
+        // Δv in [0, 4], dΔv/dt in [−2, 2], 4 × 2 cells.
+        let norm = [(0.0, 4.0), (-2.0, 2.0)];
+        let x = [
+            0.1, 1.0, // cell (0, 1)
+            -0.1, -1.0, // mirrored: the same cell
+            3.9, -1.5, // cell (3, 0)
+            9.0, 9.0, // clamped: cell (3, 1)
+        ];
+        let o = occupancy(&x, 2, &norm, &norm, &[4, 2], 2);
+        assert_eq!(o.counts, vec![0, 2, 0, 0, 0, 0, 1, 1]);
+    }
+
+    #[test]
+    fn nearest_supported_fills_by_steps_and_keeps_supported_values() {
+        let occ = Occupancy {
+            cells: vec![1, 5],
+            min_samples: 1,
+            counts: vec![0, 1, 0, 0, 1],
+        };
+        let own = [10.0, 11.0, 12.0, 13.0, 14.0];
+        // Cell 0 and 2 are one step from cell 1, cell 3 one step from cell 4.
+        assert_eq!(
+            nearest_supported(&occ, &own),
+            vec![11.0, 11.0, 11.0, 14.0, 14.0]
+        );
+    }
+}
