@@ -137,6 +137,10 @@ impl ModelPaths {
     pub fn polach_fits(&self) -> PathBuf {
         self.file(".polach-fits.json")
     }
+    /// Leave-one-run-out scores of the network (JSON: a list of {run, samples, rmse_mu}).
+    pub fn leave_one_run_out(&self) -> PathBuf {
+        self.file(".leave-one-run-out.json")
+    }
     pub fn mlp_prefix(&self) -> String {
         self.name.clone()
     }

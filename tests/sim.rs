@@ -282,8 +282,10 @@ fn scene_errors_name_the_key_and_the_fix() {
 
 #[test]
 fn a_learned_model_drives_the_wheels() {
-    // Closed loop: the simulator braking on the adhesion a model file describes.
-    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp.json");
+    // Closed loop: the simulator braking on the adhesion a model file describes — a version-1
+    // file (no support grid: the golden version-2 file's sparse synthetic support has steep
+    // blend edges in dΔv/dt, where the lag approximation below is too coarse for this check).
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/v1/synthetic_mlp.json");
     let model = railgrip::model::Model::load(&golden).unwrap();
     let sc = scene(&format!(
         "effects = [\"load_transfer\", \"wsp\"]\n[adhesion]\nlaw = \"model\"\nmodel = \"{}\"\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]",

@@ -10,8 +10,8 @@ use crate::identify::dataset::RunTable;
 use crate::identify::lm::Progress;
 use crate::identify::polach_fit::{fit_campaign, PolachReport};
 use crate::identify::train::{
-    creep_spec, median_speed, pipeline_patch, select_condition, train_mlp, utc_now_rfc3339,
-    TrainedMlp,
+    creep_spec, leave_one_run_out, median_speed, pipeline_patch, select_condition, train_mlp,
+    utc_now_rfc3339, HeldOut, TrainedMlp,
 };
 use crate::identify::{export, IdentifyError};
 use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
@@ -35,6 +35,8 @@ pub struct CampaignModels {
     pub polach: Option<ModelFile>,
     /// Fits that failed, k(T) left out, and why.
     pub notes: Vec<String>,
+    /// Leave-one-run-out scores (empty when switched off or with one run).
+    pub held_out: Vec<HeldOut>,
 }
 
 /// Trains the campaign's models from `tables` with the pipeline's `[train]` settings;
@@ -119,6 +121,11 @@ pub fn train_models(
         None => None,
     };
     let mlp = export::mlp_file(&trained, creep, provenance, fallback.as_ref())?;
+    let held_out = if pipeline.train.leave_one_run_out {
+        leave_one_run_out(&tables, pipeline)?
+    } else {
+        Vec::new()
+    };
     Ok(CampaignModels {
         condition: choice.condition,
         skipped: choice.skipped,
@@ -129,6 +136,7 @@ pub fn train_models(
         polach_fits: report,
         polach,
         notes,
+        held_out,
     })
 }
 
@@ -159,6 +167,11 @@ impl CampaignModels {
         }
         let fits = serde_json::to_string_pretty(&self.polach_fits).expect("fits serialise") + "\n";
         put(paths.polach_fits(), fits)?;
+        if !self.held_out.is_empty() {
+            let text =
+                serde_json::to_string_pretty(&self.held_out).expect("scores serialise") + "\n";
+            put(paths.leave_one_run_out(), text)?;
+        }
         if headers {
             let source = file_name(&paths.mlp());
             put(

@@ -4,6 +4,7 @@ mod estimate;
 mod ingest;
 mod model;
 mod run;
+mod score;
 mod simulate;
 
 use std::path::PathBuf;
@@ -90,6 +91,11 @@ Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fl
 <DIR>/<name>.polach-fits.json (every fit), printing one line per epoch."
     )]
     Train(model::TrainArgs),
+    /// Score a model file against the true adhesion of simulated scenes, on data-supported cells.
+    #[command(
+        long_about = "Simulate each SCENE (once per --seeds value, default the scene's seed) and score MODEL against the scene's true adhesion on the cells its data support (railgrip::score): cells every 0.1 m/s of slip, at ±{0.25, 0.5, 1, 2, 4, 8} m/s² of slip rate and every 10 km/h, with at least --min-samples true samples of one axle. Prints per scene and for all scenes together: supported cells, RMSE and largest error of μ, cells where the model predicts μ < 0, and the loss-minus-recovery difference (mean μ(Δv,+q) − μ(Δv,−q) over 0.5–3 m/s), predicted against true.\n\nExit codes: 0 ok, 1 error, 2 usage, 3 the model predicts μ < 0 on a supported cell."
+    )]
+    Score(score::Args),
     /// Write a header-only C99 evaluator of a model file.
     Export(model::ExportArgs),
     /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps][, ambient_temperature_c]) and write mu.
@@ -127,6 +133,7 @@ pub fn main() -> ExitCode {
         Command::Calibrate(args) => estimate::calibrate_run(args),
         Command::Train(args) => model::train(args),
         Command::Export(args) => model::export(args),
+        Command::Score(args) => score::run(args),
         Command::Eval(args) => model::eval(args),
     };
     match result {

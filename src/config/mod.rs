@@ -284,6 +284,31 @@ mod tests {
                 "train.starts = 0: must be",
             ),
             (
+                "hidden = 10",
+                "hidden = 10\nstarts = 4\nensemble = 5",
+                "train.ensemble = 5: must be at most train.starts (4)",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 10\nregularisation = \"ridge\"",
+                "train.regularisation = \"ridge\": must be one of",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 10\nsupport_cells = [24, 24, 8]",
+                "train.support_cells = [24.0, 24.0, 8.0]: must give 2 whole counts (one per input)",
+            ),
+            (
+                "inputs = [\"dv_mps\", \"ddv_mps2\"]",
+                "inputs = [\"dv_mps\", \"ddv_mps2\", \"v_mps\"]\nsupport_cells = [1024, 1024, 2]",
+                "at most 1048576 cells in all",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 10\nsupport_cells = [1000, 2000]",
+                "each 2..=1024",
+            ),
+            (
                 "mu_dec = 0.1",
                 "mu_dec = 1.5",
                 "train.mu_dec = 1.5: must be >= 1e-6 and <= 0.999 (default 0.1)",

@@ -37,6 +37,7 @@ pub mod raw {
         pub support_cells: Option<Vec<f64>>,
         pub support_min_samples: Option<f64>,
         pub audit_mu_max: Option<f64>,
+        pub leave_one_run_out: Option<bool>,
     }
 }
 
@@ -91,6 +92,8 @@ pub struct TrainConfig {
     pub support_min_samples: u64,
     /// The plausibility audit's ceiling: 0 ≤ μ ≤ this on every supported cell.
     pub audit_mu_max: f64,
+    /// Leave-one-run-out scores for the report (one more training per run).
+    pub leave_one_run_out: bool,
 }
 
 /// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
@@ -290,6 +293,12 @@ const AUDIT_MU_MAX: Key = Key::num(
     0.6,
     "plausibility audit: 0 ≤ μ ≤ this on every supported cell",
 );
+const LEAVE_ONE_OUT: Key = text(
+    "train.leave_one_run_out",
+    "`true`, `false`",
+    "`true`",
+    "score networks trained without each run on that run (report; one single-start training per run)",
+);
 const CONDITION: Key = text(
     "train.condition",
     "a run metadata `condition`",
@@ -325,6 +334,7 @@ pub const KEYS: &[&Key] = &[
     &SUPPORT_CELLS,
     &SUPPORT_MIN,
     &AUDIT_MU_MAX,
+    &LEAVE_ONE_OUT,
 ];
 
 impl Checker<'_> {
@@ -422,6 +432,7 @@ impl Checker<'_> {
             support_cells,
             support_min_samples: self.value(&SUPPORT_MIN, t.support_min_samples)? as u64,
             audit_mu_max: self.value(&AUDIT_MU_MAX, t.audit_mu_max)?,
+            leave_one_run_out: t.leave_one_run_out.unwrap_or(true),
         })
     }
 

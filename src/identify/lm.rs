@@ -588,7 +588,7 @@ mod tests {
     fn trainbr_finds_the_known_effective_parameters_of_a_linear_problem() {
         let n = 256;
         let walsh = |k: u32, i: usize| {
-            if (i as u32 & k).count_ones() % 2 == 0 {
+            if (i as u32 & k).count_ones().is_multiple_of(2) {
                 1.0
             } else {
                 -1.0

@@ -118,14 +118,14 @@ fn nearest_supported(occ: &Occupancy, own: &[f64]) -> Vec<f64> {
         }
     }
     while let Some(j) = queue.pop_front() {
-        for c in 0..k {
-            let i = j / stride[c] % occ.cells[c];
+        for (&st, &n) in stride.iter().zip(&occ.cells) {
+            let i = j / st % n;
             let mut next = Vec::with_capacity(2);
             if i > 0 {
-                next.push(j - stride[c]);
+                next.push(j - st);
             }
-            if i + 1 < occ.cells[c] {
-                next.push(j + stride[c]);
+            if i + 1 < n {
+                next.push(j + st);
             }
             for m in next {
                 if value[m].is_nan() {
@@ -198,8 +198,8 @@ pub fn support_spec(
 }
 
 /// The plausibility audit of a network with its support grid:
-/// 1. on every supported cell centre (where the evaluators return the network alone) μ is
-///    finite and 0 ≤ μ ≤ `mu_max`;
+/// 1. on every supported cell centre (where the evaluators return the network, up to the
+///    rounding of the centre's coordinates) μ is finite and 0 ≤ μ ≤ `mu_max`;
 /// 2. the loss/recovery order: over the data-supported cells of [`crate::score`] (the training
 ///    and validation samples `data` as truth), the mean μ(Δv, +q) − μ(Δv, −q) of the model has
 ///    the sign of the data's wherever the data's is at least [`HYSTERESIS_FLOOR`].
@@ -240,7 +240,8 @@ pub fn audit(model: &Model, data: &[Sample], mu_max: f64) -> AuditSpec {
     if let (Some(d), Some(m)) = (h_data, h_model) {
         if d.abs() >= HYSTERESIS_FLOOR && d.signum() != m.signum() {
             failing += 1;
-            failures.push(format!(
+            failures.truncate(LISTED_FAILURES - 1);
+            failures.insert(0, format!(
                 "hysteresis: the data's loss-minus-recovery difference is {d:+.4}, the model's {m:+.4} (the loss and recovery branches are swapped)"
             ));
         }

@@ -597,6 +597,77 @@ impl Prepared {
     }
 }
 
+/// The network of one leave-one-run-out fold scored on its held-out run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct HeldOut {
+    pub run: String,
+    /// Valid samples of the held-out run scored (every `decimate`-th of each axle).
+    pub samples: usize,
+    /// RMSE of the exported model (creep region, clamping and support included) against the
+    /// run's own estimates, μ.
+    pub rmse_mu: f64,
+}
+
+/// Leave-one-run-out validation (issue 15, point 4): for every run, the network trained as
+/// `cfg` says — but from one start, without an ensemble — on the other runs, exported with the
+/// pipeline's creep region, and scored against the held-out run's estimates (all axles,
+/// every `cfg.decimate`-th sample). Folds run in parallel; results in run order. Fewer than
+/// two runs: none.
+pub fn leave_one_run_out(
+    tables: &[RunTable],
+    pipeline: &crate::Pipeline,
+) -> Result<Vec<HeldOut>, IdentifyError> {
+    if tables.len() < 2 {
+        return Ok(Vec::new());
+    }
+    let mut cfg = pipeline.train.clone();
+    cfg.starts = 1;
+    cfg.ensemble = 1;
+    (0..tables.len())
+        .into_par_iter()
+        .map(|i| {
+            let others: Vec<RunTable> = tables
+                .iter()
+                .enumerate()
+                .filter(|(k, _)| *k != i)
+                .map(|(_, t)| t.clone())
+                .collect();
+            let mut t = train_mlp(&others, &cfg, None)?;
+            t.reference_speed_mps = median_speed(&others);
+            let creep = creep_spec(pipeline, t.reference_speed_mps)?;
+            let provenance = crate::model::Provenance {
+                inputs: vec![],
+                pipeline: pipeline.source.clone(),
+                pipeline_sha256: String::new(),
+                seed: cfg.seed,
+                crate_version: env!("CARGO_PKG_VERSION").into(),
+                created: String::new(),
+            };
+            let file = super::export::mlp_file(&t, creep, provenance, None)?;
+            let model =
+                crate::model::Model::named(file, "leave-one-run-out network").map_err(|e| {
+                    IdentifyError::Data {
+                        what: e.to_string(),
+                        hint: "report this as a bug".into(),
+                    }
+                })?;
+            let held = &tables[i];
+            let step = cfg.decimate.max(1);
+            let (mut sq, mut n) = (0.0, 0usize);
+            for k in (0..held.len()).step_by(step) {
+                let e = model.mu_v(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k]) - held.mu[k];
+                sq += e * e;
+                n += 1;
+            }
+            Ok(HeldOut {
+                run: held.name.clone(),
+                samples: n,
+                rmse_mu: (sq / n.max(1) as f64).sqrt(),
+            })
+        })
+        .collect()
+}
+
 /// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001
 /// eq. 1–5; Kalker's c11, c22) and that load Q, N.
 pub fn pipeline_patch(

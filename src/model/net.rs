@@ -47,7 +47,7 @@ pub(super) struct Net {
     creep_per_creepage: f64,
     v_ref: f64,
     /// The data-support blend (version-2 files with a support grid).
-    support: Option<SupportEval>,
+    support: Option<Box<SupportEval>>,
 }
 
 /// [`CHUNK`] hidden neurons' weights, contiguous (padding neurons all zero).
@@ -138,7 +138,7 @@ impl Net {
             blend: creep.blend_mps,
             creep_per_creepage: creep.creep_stiffness_n / creep.wheel_load_n,
             v_ref: creep.reference_speed_mps,
-            support: file.support.as_ref().map(SupportEval::new),
+            support: file.support.as_ref().map(|s| Box::new(SupportEval::new(s))),
         }
     }
 

@@ -66,6 +66,7 @@ impl SupportEval {
     /// their bit patterns (input 0 the highest bit), of Π_c (f_c or 1 − f_c) · value, the
     /// product built from 1.0 input by input.
     #[inline(always)]
+    #[allow(clippy::needless_range_loop)]
     fn interpolate2(&self, xn: &[f64; 3], a: &[f64], b: &[f64]) -> (f64, f64) {
         let (base, f) = self.corner(xn);
         let (mut sa, mut sb) = (0.0, 0.0);

@@ -36,7 +36,7 @@ pub enum ReportError {
     #[error("{0}")]
     Model(#[from] ModelError),
     /// The Polach fits file exists but does not parse.
-    #[error("{file}: not a Polach fits file: {source}. Hint: rerun `railgrip run` to rewrite it")]
+    #[error("{file}: not a file railgrip wrote (its JSON does not parse: {source}). Hint: rerun `railgrip run` to rewrite it")]
     Fits {
         file: String,
         #[source]
@@ -68,6 +68,8 @@ struct Inputs<'a> {
     mlp: Option<Model>,
     polach: Option<Model>,
     fits: Option<PolachReport>,
+    /// Leave-one-run-out scores of the network, when the campaign computed them.
+    held_out: Vec<crate::identify::train::HeldOut>,
     /// The runs that were estimated, with their tables.
     data: Vec<(&'a RunRecord, RunData)>,
 }
@@ -90,6 +92,19 @@ impl<'a> Inputs<'a> {
                 })?,
             ),
         };
+        let held_out = match std::fs::read_to_string(models.leave_one_run_out()) {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+            Err(source) => {
+                return Err(ReportError::Read {
+                    file: models.leave_one_run_out().display().to_string(),
+                    source,
+                })
+            }
+            Ok(t) => serde_json::from_str(&t).map_err(|source| ReportError::Fits {
+                file: models.leave_one_run_out().display().to_string(),
+                source,
+            })?,
+        };
         let mut data = Vec::new();
         for r in camp.runs.iter().filter(|r| r.ok()) {
             data.push((r, read_run(&out.run_estimates(&r.run))?));
@@ -99,6 +114,7 @@ impl<'a> Inputs<'a> {
             mlp: optional_model(&models.mlp())?,
             polach: optional_model(&models.polach())?,
             fits,
+            held_out,
             data,
         })
     }
@@ -126,6 +142,9 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
     let i = Inputs::load(out, &camp)?;
     let mut h = String::new();
     head(&mut h, &i);
+    if let Some(m) = &i.mlp {
+        audit_line(&mut h, m);
+    }
     runs(&mut h, &i);
     across_runs(&mut h, &i)?;
     if let Some(m) = &i.mlp {
@@ -194,6 +213,37 @@ th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
         pipe = esc(&camp.pipeline),
         ver = env!("CARGO_PKG_VERSION"),
     );
+}
+
+/// The plausibility audit at the top: a red line with the failures when the network failed
+/// it, one quiet line when it passed (README "Plausibility audit").
+fn audit_line(h: &mut String, m: &Model) {
+    let Some(a) = &m.file.audit else {
+        return;
+    };
+    if a.passed {
+        let _ = writeln!(
+            *h,
+            "<p class=\"note\">Plausibility audit passed: 0 ≤ μ ≤ {} on every supported cell of the network{}.</p>",
+            a.mu_max,
+            match (a.hysteresis_data, a.hysteresis_model) {
+                (Some(d), Some(m)) => format!(
+                    "; loss − recovery difference {m:+.4} (data {d:+.4})"
+                ),
+                _ => String::new(),
+            }
+        );
+        return;
+    }
+    let _ = writeln!(
+        *h,
+        "<p class=\"failed\" style=\"border: 2px solid #b00; padding: 0.4em\"><b>Plausibility audit FAILED</b> ({} problem(s)): the network model is written but marked <code>audit.passed = false</code>; do not hand it to a simulator unchecked.</p>\n<ul class=\"failed\">",
+        a.failing_cells
+    );
+    for f in &a.failures {
+        let _ = writeln!(*h, "<li>{}</li>", esc(f));
+    }
+    h.push_str("</ul>\n");
 }
 
 /// The runs table, failed runs, warnings and notes.
@@ -331,6 +381,19 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
         mt.epochs,
         esc(&mt.stop_reason)
     );
+    if !i.held_out.is_empty() {
+        h.push_str("<h3>Leave-one-run-out</h3>\n<p class=\"note\">Each row: a network trained (one start) on the other runs, scored against this run's own estimates (all axles) — generalisation across runs, which the axle split above cannot show.</p>\n<table><tr><th class=\"l\">held-out run</th><th>samples</th><th>RMSE μ</th></tr>\n");
+        for r in &i.held_out {
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">{}</td><td>{}</td><td>{:.5}</td></tr>",
+                esc(&r.run),
+                r.samples,
+                r.rmse_mu
+            );
+        }
+        h.push_str("</table>\n");
+    }
     h.push_str("<div class=\"figs\">\n");
     let hist = &m.file.history;
     h.push_str(&chart(
@@ -357,6 +420,26 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
         ],
         true,
     )?);
+    if hist.iter().any(|e| e.gamma.is_some()) {
+        h.push_str(&chart(
+            &format!(
+                "Effective parameters γ per epoch (trainbr; {} weights)",
+                m.file.layers[0].shape[0] * (m.file.inputs.len() + 2) + 1
+            ),
+            "epoch",
+            "γ",
+            &[Series {
+                name: "γ".into(),
+                color: PALETTE[2],
+                pts: hist
+                    .iter()
+                    .filter_map(|e| e.gamma.map(|g| (e.epoch as f64, g)))
+                    .collect(),
+                dots: false,
+            }],
+            false,
+        )?);
+    }
     // Fig. 10: the first training-condition run, the first validation axle.
     let va = camp.validation_axles.first().copied().unwrap_or(3) as usize;
     if let Some((r, d)) = data.iter().find(|(r, _)| i.in_condition(r)) {
@@ -384,34 +467,77 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
             false,
         )?);
     }
-    // Fig. 11: slip ramp 0 → 9 → 0 m/s at ±2 m/s².
-    let ramp = |up: bool| -> Vec<(f64, f64)> {
+    // Fig. 11: slip ramp 0 → 9 → 0 m/s at ±2 m/s²; the ensemble's ±2σ band, and the parts
+    // outside the data support (where the model blends to its fallback) marked.
+    let ramp = |up: bool| -> Vec<(f64, f64, f64, f64)> {
         (0..=180)
             .map(|k| {
                 let dv = 9.0 * k as f64 / 180.0;
                 let dv = if up { dv } else { 9.0 - dv };
-                (dv, m.mu(dv, if up { 2.0 } else { -2.0 }))
+                let q = if up { 2.0 } else { -2.0 };
+                let w = m.support_weight(dv, q, f64::NAN).unwrap_or(1.0);
+                let sd = m.spread(dv, q, f64::NAN).unwrap_or(f64::NAN);
+                (dv, m.mu(dv, q), w, sd)
             })
             .collect()
     };
+    let (up, down) = (ramp(true), ramp(false));
+    let mut series = vec![
+        Series {
+            name: "rising slip".into(),
+            color: PALETTE[0],
+            pts: up.iter().map(|p| (p.0, p.1)).collect(),
+            dots: false,
+        },
+        Series {
+            name: "falling slip".into(),
+            color: PALETTE[1],
+            pts: down.iter().map(|p| (p.0, p.1)).collect(),
+            dots: false,
+        },
+    ];
+    let outside: Vec<(f64, f64)> = up
+        .iter()
+        .chain(&down)
+        .filter(|p| p.2 < 1.0)
+        .map(|p| (p.0, p.1))
+        .collect();
+    if !outside.is_empty() {
+        series.push(Series {
+            name: "outside the data support".into(),
+            color: RGBColor(150, 150, 150),
+            pts: outside,
+            dots: true,
+        });
+    }
+    if up.iter().any(|p| p.3.is_finite()) {
+        let light = |c: RGBColor| {
+            let l = |v: u8| v + ((255 - v) as f64 * 0.6) as u8;
+            RGBColor(l(c.0), l(c.1), l(c.2))
+        };
+        for sign in [2.0, -2.0] {
+            for (k, (branch, c)) in [(&up, PALETTE[0]), (&down, PALETTE[1])]
+                .into_iter()
+                .enumerate()
+            {
+                series.push(Series {
+                    name: if sign > 0.0 && k == 0 {
+                        "ensemble ±2σ".into()
+                    } else {
+                        String::new()
+                    },
+                    color: light(c),
+                    pts: branch.iter().map(|p| (p.0, p.1 + sign * p.3)).collect(),
+                    dots: false,
+                });
+            }
+        }
+    }
     h.push_str(&chart(
         "Slip ramp 0 → 9 → 0 m/s at ±2 m/s² (Fig. 11)",
         "Δv (m/s)",
         "μ",
-        &[
-            Series {
-                name: "rising slip".into(),
-                color: PALETTE[0],
-                pts: ramp(true),
-                dots: false,
-            },
-            Series {
-                name: "falling slip".into(),
-                color: PALETTE[1],
-                pts: ramp(false),
-                dots: false,
-            },
-        ],
+        &series,
         false,
     )?);
     h.push_str(&heatmap(m)?);

@@ -198,7 +198,11 @@ fn colormap(t: f64) -> RGBColor {
 /// μ over the (Δv, dΔv/dt) plane as a heat map with a colour bar.
 pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
     register_font();
-    let title = "Network μ over (Δv, dΔv/dt)";
+    let title = if model.file.support.is_some() {
+        "Network μ over (Δv, dΔv/dt); grey: outside the data"
+    } else {
+        "Network μ over (Δv, dΔv/dt)"
+    };
     let err = plot_err(title);
     let i0 = &model.file.inputs[0];
     let i1 = &model.file.inputs[1];
@@ -241,6 +245,21 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
                     [(xs(i), ys(j)), (xs(i + 1), ys(j + 1))],
                     colormap((grid[j * nx + i] - lo) / span).filled(),
                 )
+            })
+        }))
+        .map_err(|e| err(e.to_string()))?;
+        // Cells outside the data support (the model blends to its fallback there) shaded grey
+        // in proportion to 1 − w.
+        c.draw_series((0..ny).flat_map(|j| {
+            (0..nx).filter_map(move |i| {
+                let (x, y) = (0.5 * (xs(i) + xs(i + 1)), 0.5 * (ys(j) + ys(j + 1)));
+                let w = model.support_weight(x, y, f64::NAN)?;
+                (w < 1.0).then(|| {
+                    Rectangle::new(
+                        [(xs(i), ys(j)), (xs(i + 1), ys(j + 1))],
+                        RGBColor(110, 110, 110).mix(0.75 * (1.0 - w)).filled(),
+                    )
+                })
             })
         }))
         .map_err(|e| err(e.to_string()))?;
