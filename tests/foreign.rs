@@ -177,12 +177,6 @@ const METHODS: &[Method] = &[
         ensemble: 1,
         bayesian: true,
     },
-    Method {
-        name: "bayesian, multi-start 8",
-        starts: 8,
-        ensemble: 1,
-        bayesian: true,
-    },
 ];
 
 /// Scenes of a measurement set: the bundled soap scenes or one foreign law, one speed band

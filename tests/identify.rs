@@ -590,6 +590,14 @@ fn c_header_agrees_with_the_rust_evaluator() {
             (0..=10).map(move |j| [-1.0 + i as f64 * 0.1, -5.0 + j as f64, f64::NAN, f64::NAN])
         })
         .collect();
+    // The grid crosses the data support: points inside (w = 1), in blends and outside (w = 0).
+    let w: Vec<f64> = grid
+        .iter()
+        .map(|p| model.support_weight(p[0], p[1], p[2]).unwrap())
+        .collect();
+    assert!(w.iter().any(|w| *w == 1.0), "inside");
+    assert!(w.iter().any(|w| *w > 0.0 && *w < 1.0), "blends");
+    assert!(w.iter().any(|w| *w == 0.0), "outside");
     // As shipped (fma() only where the target has a fast one), and with fma() forced and no
     // other contraction: then the header claims bit-identical results.
     for flags in [&[][..], &["-DRG_EXACT_FMA", "-ffp-contract=off"][..]] {
