@@ -13,6 +13,10 @@
 //! 1e-9 / 10, allows ten times that movement. A difference in method (damping schedule, step,
 //! Jacobian) shows as 1e-3 or more.
 //!
+//! trainbr (Bayesian regularisation) likewise: the peer's trainbr mode, training MSE and γ per
+//! epoch, same rule (measured: 1.3e-9 and 3.0e-9 relative at most, numpy's own rounding
+//! movement of the same order).
+//!
 //! Needs python3 with numpy; without them the test is skipped with a message, except under
 //! CI=true, where it fails (`.ci/run` installs numpy).
 
@@ -139,4 +143,64 @@ fn trajectory_matches_numpy_trainlm() {
     eprintln!(
         "largest relative difference of the training MSE: railgrip against numpy {worst:.1e}, numpy against itself {worst_own:.1e}"
     );
+}
+
+/// trainbr (`LmSettings::bayesian`) against the numpy peer's trainbr on the seed 002 problem:
+/// the training MSE and γ after each of the first 20 epochs agree (same tolerance rule).
+#[test]
+fn trainbr_trajectory_matches_numpy() {
+    if !numpy_available() {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "python3 with numpy is required under CI=true (pip install numpy)"
+        );
+        eprintln!("SKIPPED: python3 with numpy not found (pip install numpy)");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let (x, y, vx, vy) = seed002(InputSet::DvDdv, 6000);
+    let (mut worst, mut worst_gamma) = (0.0f64, 0.0f64);
+    for seed in [1, 2] {
+        let shape = Shape::one(2, 10);
+        let theta0 = mlp::nguyen_widrow(shape, seed);
+        let s = LmSettings {
+            epochs: EPOCHS,
+            min_grad: 0.0,
+            ..LmSettings::trainbr()
+        };
+        let json = dir.path().join(format!("br_{seed}.json"));
+        common::write_trainlm_problem(&json, 2, 10, (&x, &y, &vx, &vy), 0.01, &theta0, &s);
+        let (mse, gamma) = common::trainbr_numpy(&json, "").unwrap();
+        let probes = [
+            common::trainbr_numpy(&json, "gemm").unwrap(),
+            common::trainbr_numpy(&json, "tanh").unwrap(),
+        ];
+        let p = MlpProblem::new(shape, x.clone(), y.clone(), vx.clone(), vy.clone(), 0.01);
+        let (solver, _) = lm::run(&p, LevenbergMarquardt::new(s), theta0).unwrap();
+        let h = solver.history();
+        assert_eq!(h.len(), mse.len(), "seed {seed}: epochs");
+        let (mut own, mut own_g) = (0.0f64, 0.0f64);
+        for (e, ep) in h.iter().enumerate() {
+            for (pm, pg) in &probes {
+                own = own.max(((pm[e] - mse[e]) / mse[e]).abs());
+                own_g = own_g.max(((pg[e] - gamma[e]) / gamma[e]).abs());
+            }
+            let rel = ((ep.train_mse - mse[e]) / mse[e]).abs();
+            let g = ep.gamma.unwrap();
+            let rel_g = ((g - gamma[e]) / gamma[e]).abs();
+            assert!(
+                rel <= TOL.max(FACTOR * own) && rel_g <= TOL.max(FACTOR * own_g),
+                "seed {seed}, epoch {}: MSE {:e} vs {:e} ({rel:.1e}), γ {g} vs {} ({rel_g:.1e}); numpy against itself {own:.1e} / {own_g:.1e}",
+                e + 1,
+                ep.train_mse,
+                mse[e],
+                gamma[e]
+            );
+            worst = worst.max(rel);
+            worst_gamma = worst_gamma.max(rel_g);
+        }
+        let g = h.last().unwrap().gamma.unwrap();
+        assert!(g > 5.0 && g < 41.0, "γ {g}");
+    }
+    eprintln!("trainbr against numpy: MSE {worst:.1e}, γ {worst_gamma:.1e} (largest relative differences)");
 }

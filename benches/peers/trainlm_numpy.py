@@ -15,6 +15,12 @@ Reads the problem railgrip writes (normalised training and validation data, init
 shape, settings), trains `repeats` times and prints one JSON line: the seconds per epoch of
 the fastest repeat, the epochs run, and the training MSE (mu^2 units) after every epoch.
 
+With "bayesian": true in the settings it trains as MATLAB trainbr: F = beta*E_D + alpha*E_W,
+steps -(beta J'J + (mu + alpha) I) \\ (beta J'r + alpha theta) accepted when F falls, then
+gamma = P - alpha tr((beta J'J + alpha I)^-1) (J'J of the epoch's start), alpha = gamma / (2 E_W),
+beta = (N - gamma) / (2 E_D); validation never stops. The output then also holds "gamma" per
+epoch.
+
 Usage: python3 benches/peers/trainlm_numpy.py <problem.json> [repeats]   (needs numpy)
 Thread count: set OPENBLAS_NUM_THREADS (and OMP_NUM_THREADS) before numpy starts.
 Rounding probes, to measure how much the trajectory amplifies rounding (tests/lm_peer.rs):
@@ -77,16 +83,30 @@ def main(path, repeats):
         theta = theta0.copy()
         mu = s["mu"]
         n = len(y)
+        bayes = bool(s.get("bayesian", False))
         best_val = sse(theta, vx, vy) / len(vy) * scale if len(vy) else np.inf
         fails = 0
         history = []
+        gammas = []
         eye = np.eye(n_params)
+        if bayes:
+            e_d, e_w = sse(theta, x, y), float(theta @ theta)
+            gamma = float(n_params)
+            alpha = gamma / (2.0 * e_w) if e_w > 0 else 1.0
+            beta = (n - gamma) / (2.0 * e_d) if e_d > 0 else 1.0
         for _ in range(s["epochs"]):
             j, r = jacobian(theta)
             e0 = float(r @ r)
             jtj = j.T @ (j.copy() if PROBE == "gemm" else j)
             jtr = j.T @ r
-            grad = 2.0 * float(np.sqrt(jtr @ jtr))
+            if bayes:
+                rhs = beta * jtr + alpha * theta
+                a0 = beta * jtj
+                ridge = alpha
+                f0 = beta * e0 + alpha * float(theta @ theta)
+            else:
+                rhs, a0, ridge, f0 = jtr, jtj, 0.0, e0
+            grad = 2.0 * float(np.sqrt(rhs @ rhs))
             if e0 / n * scale <= s["goal"] or grad < s["min_grad"]:
                 history.append(e0 / n * scale)
                 break
@@ -95,16 +115,19 @@ def main(path, repeats):
             while True:
                 try:
                     # MATLAB's (JJ + mu I) \ Jr: one LAPACK solve (gesv).
-                    step = np.linalg.solve(jtj + mu * eye, jtr)
+                    step = np.linalg.solve(a0 + (mu + ridge) * eye, rhs)
                     trial = theta - step
                     ok = np.all(np.isfinite(trial))
                 except np.linalg.LinAlgError:
                     ok = False
                 if ok:
                     e = sse(trial, x, y)
-                    if np.isfinite(e) and e < e0:
+                    f = beta * e + alpha * float(trial @ trial) if bayes else e
+                    if np.isfinite(e) and f < f0:
                         nxt, e_next = trial, e
                         mu *= s["mu_dec"]
+                        if bayes:
+                            mu = max(mu, 1e-20)
                         break
                 mu *= s["mu_inc"]
                 if mu > s["mu_max"]:
@@ -112,7 +135,15 @@ def main(path, repeats):
                     break
             theta = nxt
             history.append(e_next / n * scale)
-            if len(vy):
+            if bayes and not stop:
+                inv = np.linalg.inv(beta * jtj + alpha * eye)
+                gamma = min(max(n_params - alpha * float(np.trace(inv)), 0.0), float(n_params))
+                e_w = float(theta @ theta)
+                alpha = gamma / (2.0 * e_w) if e_w > 0 else 1.0
+                beta = (n - gamma) / (2.0 * e_next) if e_next > 0 else beta
+            if bayes:
+                gammas.append(gamma)
+            elif len(vy):
                 v = sse(theta, vx, vy) / len(vy) * scale
                 if v < best_val:
                     best_val, fails = v, 0
@@ -122,15 +153,16 @@ def main(path, repeats):
                         break
             if stop:
                 break
-        return history
+        return history, gammas
 
     best = float("inf")
-    history = None
+    history, gammas = None, None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        history = train()
+        history, gammas = train()
         best = min(best, (time.perf_counter() - t0) / max(len(history), 1))
-    print(json.dumps({"seconds_per_epoch": best, "epochs": len(history), "train_mse": history}))
+    print(json.dumps({"seconds_per_epoch": best, "epochs": len(history), "train_mse": history,
+                      "gamma": gammas}))
 
 
 if __name__ == "__main__":

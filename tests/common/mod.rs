@@ -343,7 +343,8 @@ pub fn write_trainlm_problem(
         "inputs": inputs, "hidden": hidden, "train_x": x, "train_y": y, "val_x": vx,
         "val_y": vy, "theta0": theta0, "scale": scale,
         "settings": { "epochs": s.epochs, "goal": s.goal, "min_grad": s.min_grad, "mu": s.mu,
-            "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max, "max_fail": s.max_fail },
+            "mu_dec": s.mu_dec, "mu_inc": s.mu_inc, "mu_max": s.mu_max, "max_fail": s.max_fail,
+            "bayesian": s.bayesian },
     });
     std::fs::write(path, problem.to_string()).unwrap();
 }
@@ -390,4 +391,29 @@ pub fn trainlm_numpy(
         .as_f64()
         .ok_or("no seconds_per_epoch in the peer's output")?;
     Ok((secs, mse))
+}
+
+/// The γ per epoch of the numpy peer in trainbr mode (the problem's settings say
+/// `bayesian`): training MSE and γ after each epoch.
+pub fn trainbr_numpy(problem: &Path, probe: &str) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
+    let out = std::process::Command::new("python3")
+        .arg(&script)
+        .arg(problem)
+        .arg("1")
+        .env("TRAINLM_PROBE", probe)
+        .env("OPENBLAS_NUM_THREADS", "1")
+        .env("OMP_NUM_THREADS", "1")
+        .output()
+        .map_err(|e| format!("no python3 ({e})"))?;
+    if !out.status.success() {
+        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
+    }
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
+    let list = |k: &str| -> Vec<f64> {
+        v[k].as_array()
+            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
+            .unwrap_or_default()
+    };
+    Ok((list("train_mse"), list("gamma")))
 }
