@@ -264,7 +264,7 @@ fn an_ensemble_is_the_mean_of_its_members_with_their_spread_in_the_file() {
 fn bayesian_regularisation_through_the_pipeline_reports_gamma_per_epoch() {
     let tables = soap_120();
     let text = railgrip::config::DEFAULT_PIPELINE_TOML
-        .replace("hidden = 10", "hidden = 10\nregularisation = \"bayesian\"")
+        .replace("regularisation = \"none\"", "regularisation = \"bayesian\"")
         .replace("epochs = 1000", "epochs = 60");
     let p = Pipeline::from_toml(&text, "bayes.toml").unwrap();
     assert!(p.train.bayesian);
@@ -291,7 +291,7 @@ fn railgrip(args: &[&str], cwd: &Path) -> std::process::Output {
 fn train_exits_3_and_marks_the_file_when_the_audit_fails() {
     let dir = tempfile::tempdir().unwrap();
     let text = railgrip::config::DEFAULT_PIPELINE_TOML
-        .replace("hidden = 10", "hidden = 10\naudit_mu_max = 0.02")
+        .replace("audit_mu_max = 0.6", "audit_mu_max = 0.02")
         .replace("epochs = 1000", "epochs = 30");
     std::fs::write(dir.path().join("strict.toml"), text).unwrap();
     let log = root().join("fixtures/archive/soap_120kmh_p20.csv");

@@ -279,18 +279,18 @@ mod tests {
                 "train.hidden = 2.5: must be a whole number",
             ),
             (
-                "hidden = 10",
-                "hidden = 10\nstarts = 0",
+                "starts = 1 ",
+                "starts = 0 ",
                 "train.starts = 0: must be",
             ),
             (
-                "hidden = 10",
-                "hidden = 10\nstarts = 4\nensemble = 5",
-                "train.ensemble = 5: must be at most train.starts (4)",
+                "ensemble = 1 ",
+                "ensemble = 5 ",
+                "train.ensemble = 5: must be at most train.starts (1)",
             ),
             (
-                "hidden = 10",
-                "hidden = 10\nregularisation = \"ridge\"",
+                "regularisation = \"none\"",
+                "regularisation = \"ridge\"",
                 "train.regularisation = \"ridge\": must be one of",
             ),
             (
