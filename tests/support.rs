@@ -135,6 +135,12 @@ fn the_blend_is_continuous_and_the_network_alone_at_supported_centres() {
         }
     }
     assert!(checked > 100, "{checked}");
+    // Beyond the domain (inputs the network only sees clamped) the file is its fallback.
+    let hi = m.file.inputs[0].domain_max;
+    for ddv in [-2.0, 0.5, 2.0] {
+        assert_eq!(m.support_weight(2.0 * hi, ddv, f64::NAN), Some(0.0));
+        assert_eq!(m.mu(2.0 * hi, ddv), m.mu(3.0 * hi, ddv));
+    }
     // μ(0) = 0 and odd, whatever the support.
     for ddv in [-3.0, 0.0, 3.0] {
         assert_eq!(m.mu(0.0, ddv), 0.0);

@@ -278,11 +278,7 @@ mod tests {
                 "hidden = 2.5",
                 "train.hidden = 2.5: must be a whole number",
             ),
-            (
-                "starts = 1 ",
-                "starts = 0 ",
-                "train.starts = 0: must be",
-            ),
+            ("starts = 1 ", "starts = 0 ", "train.starts = 0: must be"),
             (
                 "ensemble = 1 ",
                 "ensemble = 5 ",

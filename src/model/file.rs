@@ -119,7 +119,7 @@ pub const MAX_CELLS_PER_INPUT: usize = 1024;
 /// evaluation rule), `cells[c]` cells along input c. A cell is supported when at least
 /// `min_samples` training and validation samples fall in it. The evaluators return the network
 /// where every neighbouring cell centre is supported and blend to `fallback_mu` towards
-/// unsupported ones (see [`crate::model`], step 4).
+/// unsupported ones and beyond the grid (see [`crate::model`], step 3).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SupportSpec {

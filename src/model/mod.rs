@@ -13,7 +13,11 @@
 //!    with tanh computed by [`tanh_fast`] (a few ulp from the C library's); the products
 //!    g x + o and W1_hi x_n,i + … are fused multiply-adds, the output sum runs over the neurons
 //!    in order.
-//! 3. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
+//! 3. Data support (version-2 files with a support grid, [`SupportSpec`]): N becomes
+//!    w N + (1 − w) F, w the support indicator and F the fallback |μ| of the grid's cells,
+//!    interpolated multilinearly between cell centres at the normalised, unclamped inputs,
+//!    w fading to 0 over one cell beyond the outermost centres (module `support`).
+//! 4. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
 //!    is replaced by the linear law", eq. 6–8): below the blend slip Δv_b the model blends, with
 //!    the weight w = t²(3 − 2t), t = Δv/Δv_b, from the Kalker linear law saturated by
 //!    Shen–Hedrick–Elkins, μ_lin = μ_s·S(k Δv/μ_s) with S(x) = x − x²/3 + x³/27 for x < 3 and 1

@@ -282,18 +282,28 @@ impl Net {
         let n = self.net::<V>(isa, x);
         match &self.support {
             None => n,
-            Some(sup) => sup.apply(&self.inputs(x), n),
+            Some(sup) => sup.apply(&self.raw_inputs(x), n),
         }
     }
 
-    /// The mirrored inputs of step 1, normalised and clamped (for the support grid).
+    /// The inputs normalised but not clamped (the support grid fades beyond the domain).
+    #[inline(always)]
+    fn raw_inputs(&self, x: [f64; 3]) -> [f64; 3] {
+        let mut xn = [0.0; 3];
+        for c in 0..self.k {
+            xn[c] = self.gx[c].mul_add(x[c], self.ox[c]);
+        }
+        xn
+    }
+
+    /// The mirrored inputs of step 1, normalised but not clamped (for the support grid).
     fn mirrored_inputs(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> [f64; 3] {
         let (dv, ddv) = if dv_mps < 0.0 {
             (-dv_mps, -ddv_mps2)
         } else {
             (dv_mps, ddv_mps2)
         };
-        self.inputs([dv, ddv, if v_mps.is_finite() { v_mps } else { self.v_ref }])
+        self.raw_inputs([dv, ddv, if v_mps.is_finite() { v_mps } else { self.v_ref }])
     }
 
     /// The interpolated support w ∈ [0, 1] (1 inside the data; `None` without a grid).
@@ -441,7 +451,10 @@ impl Net {
             } else if x[0][l] >= self.blend {
                 match &self.support {
                     None => sgn[l] * net[l],
-                    Some(sup) => sgn[l] * sup.apply(&[xn[0][l], xn[1][l], xn[2][l]], net[l]),
+                    Some(sup) => {
+                        let raw = self.raw_inputs([x[0][l], x[1][l], x[2][l]]);
+                        sgn[l] * sup.apply(&raw, net[l])
+                    }
                 }
             } else {
                 self.mu_v(dv_in[l], ddv_in[l], v_in[l])

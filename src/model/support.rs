@@ -1,4 +1,4 @@
-//! The data-support blend of networks with a support grid (format version 2; step 4 of the
+//! The data-support blend of networks with a support grid (format version 2; step 3 of the
 //! evaluation rule in [`super`]): a multilinear interpolation, over the grid's cell centres,
 //! of the support indicator and of the fallback |μ|. The C header does the same operations in
 //! the same order (no fused multiply-adds), so the results agree to the bit.
@@ -45,30 +45,37 @@ impl SupportEval {
         }
     }
 
-    /// The lower corner's flat index and the fractions along each input for normalised
-    /// inputs `xn` (already clamped to [−1, 1] by the domain clamp): u_c = (x_n,c + 1) · n_c/2 − 1/2
-    /// clamped to [0, n_c − 1]; i_c = min(⌊u_c⌋, n_c − 2); f_c = u_c − i_c.
+    /// The lower corner's flat index, the fractions along each input, and the fade beyond the
+    /// grid for normalised, unclamped inputs `xn`: u_c = (x_n,c + 1) · n_c/2 − 1/2 (cell centres
+    /// at integers), clamped to [0, n_c − 1] for the interpolation; i_c = min(⌊u_c⌋, n_c − 2);
+    /// f_c = u_c − i_c. Beyond the outermost centres the support fades to 0 over one cell, as if
+    /// a row of unsupported cells lay outside the grid: fade = Π_c (1 − min(1, d_c)) with
+    /// d_c = max(0, −u_c, u_c − (n_c − 1)) of the unclamped u_c.
     #[inline(always)]
-    fn corner(&self, xn: &[f64; 3]) -> (usize, [f64; 3]) {
+    fn corner(&self, xn: &[f64; 3]) -> (usize, [f64; 3], f64) {
         let mut base = 0;
         let mut f = [0.0; 3];
+        let mut fade = 1.0;
         for c in 0..self.k {
             let top = (self.n[c] - 1) as f64;
-            let u = ((xn[c] + 1.0) * self.half[c] - 0.5).clamp(0.0, top);
+            let raw = (xn[c] + 1.0) * self.half[c] - 0.5;
+            let beyond = (-raw).max(raw - top).max(0.0).min(1.0);
+            fade *= 1.0 - beyond;
+            let u = raw.clamp(0.0, top);
             let i = u.floor().min(top - 1.0);
             f[c] = u - i;
             base += i as usize * self.stride[c];
         }
-        (base, f)
+        (base, f, fade)
     }
 
-    /// Multilinear interpolation of `values` at `xn`: Σ over the 2ᵏ corners, in the order of
-    /// their bit patterns (input 0 the highest bit), of Π_c (f_c or 1 − f_c) · value, the
-    /// product built from 1.0 input by input.
+    /// Multilinear interpolation of `a` and `b` at `xn`: Σ over the 2ᵏ corners, in the order
+    /// of their bit patterns (input 0 the highest bit), of Π_c (f_c or 1 − f_c) · value, the
+    /// product built from 1.0 input by input; and the fade beyond the grid.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
-    fn interpolate2(&self, xn: &[f64; 3], a: &[f64], b: &[f64]) -> (f64, f64) {
-        let (base, f) = self.corner(xn);
+    fn interpolate2(&self, xn: &[f64; 3], a: &[f64], b: &[f64]) -> (f64, f64, f64) {
+        let (base, f, fade) = self.corner(xn);
         let (mut sa, mut sb) = (0.0, 0.0);
         for corner in 0..(1usize << self.k) {
             let mut w = 1.0;
@@ -84,14 +91,16 @@ impl SupportEval {
             sa += w * a[j];
             sb += w * b[j];
         }
-        (sa, sb)
+        (sa, sb, fade)
     }
 
-    /// Step 4 of the evaluation rule: with w the interpolated support and F the interpolated
-    /// fallback at `xn`, |μ| = m where w = 1, F where w = 0, else w m + (1 − w) F.
+    /// Step 3 of the evaluation rule: with w the interpolated support (times the fade beyond
+    /// the grid) and F the interpolated fallback at the normalised, unclamped inputs `xn`,
+    /// m where w = 1, F where w = 0, else w m + (1 − w) F.
     #[inline(always)]
     pub(super) fn apply(&self, xn: &[f64; 3], m: f64) -> f64 {
-        let (w, fb) = self.interpolate2(xn, &self.s, &self.f);
+        let (w, fb, fade) = self.interpolate2(xn, &self.s, &self.f);
+        let w = w * fade;
         if w == 1.0 {
             m
         } else if w == 0.0 {
@@ -101,9 +110,10 @@ impl SupportEval {
         }
     }
 
-    /// The interpolated support w ∈ [0, 1] at `xn`.
+    /// The interpolated support w ∈ [0, 1] at `xn` (with the fade beyond the grid).
     pub(super) fn weight(&self, xn: &[f64; 3]) -> f64 {
-        self.interpolate2(xn, &self.s, &self.s).0
+        let (w, _, fade) = self.interpolate2(xn, &self.s, &self.s);
+        w * fade
     }
 
     /// The interpolated ensemble spread at `xn` (`None` without).

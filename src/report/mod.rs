@@ -496,19 +496,28 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
             dots: false,
         },
     ];
-    let outside: Vec<(f64, f64)> = up
-        .iter()
-        .chain(&down)
-        .filter(|p| p.2 < 1.0)
-        .map(|p| (p.0, p.1))
-        .collect();
-    if !outside.is_empty() {
-        series.push(Series {
-            name: "outside the data support".into(),
-            color: RGBColor(150, 150, 150),
-            pts: outside,
-            dots: true,
-        });
+    // Each branch drawn over in grey where it leaves the data support (contiguous pieces).
+    let mut labelled = false;
+    for branch in [&up, &down] {
+        let mut piece: Vec<(f64, f64)> = Vec::new();
+        for (k, p) in branch.iter().enumerate() {
+            if p.2 < 1.0 {
+                piece.push((p.0, p.1));
+            }
+            if (p.2 >= 1.0 || k + 1 == branch.len()) && !piece.is_empty() {
+                series.push(Series {
+                    name: if labelled {
+                        String::new()
+                    } else {
+                        "outside the data support".into()
+                    },
+                    color: RGBColor(150, 150, 150),
+                    pts: std::mem::take(&mut piece),
+                    dots: false,
+                });
+                labelled = true;
+            }
+        }
     }
     if up.iter().any(|p| p.3.is_finite()) {
         let light = |c: RGBColor| {

@@ -159,10 +159,10 @@ static inline double mlp_net(const double x[3]) {
     return (y - mlp_oy) / mlp_gy;
 }
 
-/* Step 4 of the evaluation rule (format version 2, "Data support"): the support grid's
+/* Step 3 of the evaluation rule (format version 2, "Data support"): the support grid's
  * indicator and fallback |mu| interpolated multilinearly between cell centres at the
- * normalised inputs xn; |mu| = m where the support is 1, the fallback where it is 0, the
- * weighted mean between. */
+ * normalised, unclamped inputs xn, the support fading to 0 over one cell beyond the outermost
+ * centres; m where the support is 1, the fallback where it is 0, the weighted mean between. */
 #define MLP_HAS_SUPPORT 1
 static const int mlp_sup_n[3] = {24, 24, 1};
 static const long mlp_sup_stride[3] = {24, 1, 1};
@@ -1330,13 +1330,17 @@ static const double mlp_sup_f[576] = {
 static inline double mlp_support(const double xn[3], double m) {
 #if MLP_HAS_SUPPORT
     long base = 0, j;
-    double f[3] = {0.0, 0.0, 0.0}, w, ws = 0.0, fs = 0.0;
+    double f[3] = {0.0, 0.0, 0.0}, w, ws = 0.0, fs = 0.0, fade = 1.0;
     int c;
     unsigned corner;
     for (c = 0; c < MLP_N_INPUTS; ++c) {
-        double top = (double)(mlp_sup_n[c] - 1), u, i;
-        u = (xn[c] + 1.0) * mlp_sup_half[c] - 0.5;
-        u = u < 0.0 ? 0.0 : (u > top ? top : u);
+        double top = (double)(mlp_sup_n[c] - 1), u, i, raw, beyond;
+        raw = (xn[c] + 1.0) * mlp_sup_half[c] - 0.5;
+        beyond = -raw > raw - top ? -raw : raw - top;
+        beyond = beyond > 0.0 ? beyond : 0.0;
+        beyond = beyond < 1.0 ? beyond : 1.0;
+        fade *= 1.0 - beyond;
+        u = raw < 0.0 ? 0.0 : (raw > top ? top : raw);
         i = floor(u);
         i = i < top - 1.0 ? i : top - 1.0;
         f[c] = u - i;
@@ -1356,6 +1360,7 @@ static inline double mlp_support(const double xn[3], double m) {
         ws += w * mlp_sup_s[j];
         fs += w * mlp_sup_f[j];
     }
+    ws *= fade;
     if (ws == 1.0) {
         return m;
     }
@@ -1369,12 +1374,12 @@ static inline double mlp_support(const double xn[3], double m) {
 #endif
 }
 
-/* The normalised, clamped inputs of the network (as mlp_net computes them). */
+/* The normalised inputs, not clamped (the support fades beyond the domain). */
 static inline void mlp_normalise(const double x[3], double xn[3]) {
     int c;
     xn[0] = xn[1] = xn[2] = 0.0;
     for (c = 0; c < MLP_N_INPUTS; ++c) {
-        xn[c] = MLP_FMA(mlp_gx[c], mlp_clamp(x[c], mlp_lo[c], mlp_hi[c]), mlp_ox[c]);
+        xn[c] = MLP_FMA(mlp_gx[c], x[c], mlp_ox[c]);
     }
 }
 
@@ -1461,11 +1466,10 @@ static inline void mlp_mu_batch(const double *dv, const double *ddv, const doubl
             if (!(isfinite(d) && isfinite(dd))) {
                 out[b + l] = NAN;
             } else if (x[0][l] >= mlp_blend) {
-                double xl[3] = {0.0, 0.0, 0.0};
-                for (c = 0; c < MLP_N_INPUTS; ++c) {
-                    xl[c] = xn[c][l];
-                }
-                out[b + l] = sgn[l] * mlp_support(xl, (y[l] - mlp_oy) / mlp_gy);
+                double xl[3], xr[3];
+                xl[0] = x[0][l]; xl[1] = x[1][l]; xl[2] = x[2][l];
+                mlp_normalise(xl, xr);
+                out[b + l] = sgn[l] * mlp_support(xr, (y[l] - mlp_oy) / mlp_gy);
             } else {
                 out[b + l] = mlp_mu_v(d, dd, v ? v[b + l] : NAN);
             }
