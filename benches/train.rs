@@ -194,6 +194,32 @@ fn bench(c: &mut Criterion) {
             out[7]
         })
     });
+    // The same network without its data-support grid (as a version-1 file evaluates): what
+    // the support blend costs.
+    let mut bare = file.clone();
+    bare.support = None;
+    bare.audit = None;
+    let bare = Model::new(bare).unwrap();
+    let outside = inputs
+        .iter()
+        .filter(|(a, d)| model.support_weight(*a, *d, f64::NAN) != Some(1.0))
+        .count();
+    eprintln!("model: {outside} of 1024 benchmark inputs outside the full data support");
+    g.bench_function("mu_1k_without_support", |b| {
+        b.iter(|| {
+            let mut s = 0.0;
+            for (a, d) in &inputs {
+                s += bare.mu(black_box(*a), black_box(*d));
+            }
+            s
+        })
+    });
+    g.bench_function("mu_batch_1k_without_support", |b| {
+        b.iter(|| {
+            bare.mu_batch(black_box(&dv), &ddv, &[], &mut out);
+            out[7]
+        })
+    });
     g.finish();
 
     // The C header, timed by a small C program.

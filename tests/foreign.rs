@@ -144,6 +144,54 @@ fn multi_start_on_a_foreign_law() {
     }
 }
 
+/// Issue 15's targets on truth railgrip did not fit, for every one of 8 seeds: the default
+/// network (one start) trained on one run of each foreign law stays positive on every
+/// supported cell, gets the loss/recovery order of the loss_recovery law right, passes its
+/// plausibility audit, and scores within 0.010 RMSE (the issue's one-band target).
+#[test]
+fn every_seed_holds_on_both_foreign_laws() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = Pipeline::default_uic_z1();
+    for law in ["lr", "table"] {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("pipelines/scenes/foreign/{law}_120kmh_p10.toml"));
+        let sc = Scene::load(&path).unwrap();
+        let (tables, truth) = campaign(std::slice::from_ref(&sc), dir.path());
+        let mut worst = 0.0f64;
+        for seed in 1..=8 {
+            let mut cfg = p.train.clone();
+            cfg.seed = seed;
+            let mut net = train_mlp(&tables, &cfg, None).unwrap();
+            net.reference_speed_mps = median_speed(&tables);
+            let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
+            let file = mlp_file(&net, creep, provenance(seed), None).unwrap();
+            let audit = file.audit.clone().unwrap();
+            assert!(audit.passed, "{law} seed {seed}: {:?}", audit.failures);
+            let model = Model::new(file).unwrap();
+            let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
+            assert_eq!(s.negative_cells, 0, "{law} seed {seed}");
+            assert!(s.rmse <= 0.010, "{law} seed {seed}: RMSE {}", s.rmse);
+            let (t, pr) = s.hysteresis.unwrap();
+            if law == "lr" {
+                assert!(t > 0.0 && pr > 0.5 * t, "{law} seed {seed}: {t} {pr}");
+            }
+            worst = worst.max(s.rmse);
+        }
+        eprintln!("{law}: worst supported-cell RMSE over 8 seeds {worst:.4}");
+    }
+}
+
+fn provenance(seed: u64) -> Provenance {
+    Provenance {
+        inputs: vec![],
+        pipeline: "uic_z1".into(),
+        pipeline_sha256: String::new(),
+        seed,
+        crate_version: String::new(),
+        created: String::new(),
+    }
+}
+
 /// One training method of the measurement (issue 15, point 7).
 struct Method {
     name: &'static str,
@@ -232,6 +280,8 @@ fn measure_networks_on_foreign_laws() {
                     let mut cfg = p.train.clone();
                     cfg.seed = seed;
                     cfg.with_speed = with_speed;
+                    cfg.support_cells =
+                        railgrip::config::default_support_cells(if with_speed { 3 } else { 2 });
                     cfg.starts = m.starts;
                     cfg.ensemble = m.ensemble;
                     cfg.bayesian = m.bayesian;

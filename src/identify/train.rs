@@ -387,6 +387,19 @@ pub fn train_mlp(
     } else {
         InputSet::DvDdv
     };
+    if cfg.support_cells.len() != inputs.count() {
+        return Err(IdentifyError::Data {
+            what: format!(
+                "train.support_cells gives {} counts for {} inputs",
+                cfg.support_cells.len(),
+                inputs.count()
+            ),
+            hint: format!(
+                "give one count per input, e.g. {:?}",
+                default_support_cells(inputs.count())
+            ),
+        });
+    }
     let data = Dataset::build(tables, inputs, &cfg.split, cfg.decimate)?;
     let mut trained = if cfg.starts <= 1 {
         train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress)?

@@ -52,11 +52,11 @@ impl SupportEval {
     /// a row of unsupported cells lay outside the grid: fade = Π_c (1 − min(1, d_c)) with
     /// d_c = max(0, −u_c, u_c − (n_c − 1)) of the unclamped u_c.
     #[inline(always)]
-    fn corner(&self, xn: &[f64; 3]) -> (usize, [f64; 3], f64) {
+    fn corner<const K: usize>(&self, xn: &[f64; 3]) -> (usize, [f64; 3], f64) {
         let mut base = 0;
         let mut f = [0.0; 3];
         let mut fade = 1.0;
-        for c in 0..self.k {
+        for c in 0..K {
             let top = (self.n[c] - 1) as f64;
             let raw = (xn[c] + 1.0) * self.half[c] - 0.5;
             let beyond = (-raw).max(raw - top).max(0.0).min(1.0);
@@ -71,17 +71,32 @@ impl SupportEval {
 
     /// Multilinear interpolation of `a` and `b` at `xn`: Σ over the 2ᵏ corners, in the order
     /// of their bit patterns (input 0 the highest bit), of Π_c (f_c or 1 − f_c) · value, the
-    /// product built from 1.0 input by input; and the fade beyond the grid.
+    /// product built from 1.0 input by input; and the fade beyond the grid. Compiled for two
+    /// and three inputs (loops unrolled).
+    #[inline(always)]
+    fn interpolate2(&self, xn: &[f64; 3], a: &[f64], b: &[f64]) -> (f64, f64, f64) {
+        if self.k == 2 {
+            self.interpolate_k::<2>(xn, a, b)
+        } else {
+            self.interpolate_k::<3>(xn, a, b)
+        }
+    }
+
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
-    fn interpolate2(&self, xn: &[f64; 3], a: &[f64], b: &[f64]) -> (f64, f64, f64) {
-        let (base, f, fade) = self.corner(xn);
+    fn interpolate_k<const K: usize>(
+        &self,
+        xn: &[f64; 3],
+        a: &[f64],
+        b: &[f64],
+    ) -> (f64, f64, f64) {
+        let (base, f, fade) = self.corner::<K>(xn);
         let (mut sa, mut sb) = (0.0, 0.0);
-        for corner in 0..(1usize << self.k) {
+        for corner in 0..(1usize << K) {
             let mut w = 1.0;
             let mut j = base;
-            for c in 0..self.k {
-                if corner >> (self.k - 1 - c) & 1 == 1 {
+            for c in 0..K {
+                if corner >> (K - 1 - c) & 1 == 1 {
                     w *= f[c];
                     j += self.stride[c];
                 } else {
