@@ -59,7 +59,7 @@ impl SupportEval {
         for c in 0..K {
             let top = (self.n[c] - 1) as f64;
             let raw = (xn[c] + 1.0) * self.half[c] - 0.5;
-            let beyond = (-raw).max(raw - top).max(0.0).min(1.0);
+            let beyond = (-raw).max(raw - top).clamp(0.0, 1.0);
             fade *= 1.0 - beyond;
             let u = raw.clamp(0.0, top);
             let i = u.floor().min(top - 1.0);
