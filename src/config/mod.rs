@@ -25,7 +25,10 @@ pub use filters::{DespikeConfig, FilterConfig, FilterMode};
 pub use ingest::{CsvColumn, IngestConfig, McapField, Plausibility, PlausibilityAction};
 pub(crate) use rule::Checker;
 pub use rule::Key;
-pub use train::{default_support_cells, SplitConfig, TrainConfig, TRAINBR_MU};
+pub use train::{
+    default_support_cells, SplitConfig, TrainConfig, DEFAULT_AUDIT_MU_MAX,
+    DEFAULT_SUPPORT_MIN_SAMPLES, TRAINBR_MU,
+};
 pub use vehicle::Vehicle;
 
 /// The embedded default pipeline (`pipelines/uic_z1.toml`).

@@ -98,6 +98,10 @@ pub struct TrainConfig {
 
 /// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
 pub const TRAINBR_MU: f64 = 0.005;
+/// `train.support_min_samples` when the file leaves it out.
+pub const DEFAULT_SUPPORT_MIN_SAMPLES: u64 = 10;
+/// `train.audit_mu_max` when the file leaves it out.
+pub const DEFAULT_AUDIT_MU_MAX: f64 = 0.6;
 
 /// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three (issue 15).
 pub fn default_support_cells(inputs: usize) -> Vec<usize> {
@@ -283,14 +287,14 @@ const SUPPORT_MIN: Key = Key::num(
     "train.support_min_samples",
     "",
     int(1.0, 1e9),
-    10.0,
+    DEFAULT_SUPPORT_MIN_SAMPLES as f64,
     "training and validation samples a support cell needs",
 );
 const AUDIT_MU_MAX: Key = Key::num(
     "train.audit_mu_max",
     "",
     open_lo(0.0, 2.0),
-    0.6,
+    DEFAULT_AUDIT_MU_MAX,
     "plausibility audit: 0 ≤ μ ≤ this on every supported cell",
 );
 const LEAVE_ONE_OUT: Key = text(

@@ -22,13 +22,10 @@ use super::mlp::{self, Scratch, Shape, BLOCK};
 use super::support::{occupancy, Occupancy};
 use super::IdentifyError;
 use super::InputSet;
-use crate::config::{default_support_cells, TrainConfig};
+use crate::config::{
+    default_support_cells, TrainConfig, DEFAULT_AUDIT_MU_MAX, DEFAULT_SUPPORT_MIN_SAMPLES,
+};
 use crate::score::Sample;
-
-/// `train.support_min_samples` and `train.audit_mu_max` by default (for [`train_on`], which
-/// takes no pipeline).
-const DEFAULT_SUPPORT_MIN: u64 = 10;
-const DEFAULT_AUDIT_MU_MAX: f64 = 0.6;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Avx2, Avx512, F64x4, F64x8};
 use crate::simd::{Isa, Portable};
@@ -605,7 +602,12 @@ impl Prepared {
             audit_mu_max: DEFAULT_AUDIT_MU_MAX,
         };
         let k = data.inputs.count();
-        t.occupancy = occupancy_of(data, &t, &default_support_cells(k), DEFAULT_SUPPORT_MIN);
+        t.occupancy = occupancy_of(
+            data,
+            &t,
+            &default_support_cells(k),
+            DEFAULT_SUPPORT_MIN_SAMPLES,
+        );
         Ok(t)
     }
 }
