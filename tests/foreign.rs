@@ -118,15 +118,7 @@ fn multi_start_on_a_foreign_law() {
             .fold(f64::INFINITY, f64::min);
         assert_eq!(net.val_mse, best, "seed {seed}");
         let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-        let provenance = Provenance {
-            inputs: vec![],
-            pipeline: "uic_z1".into(),
-            pipeline_sha256: String::new(),
-            seed,
-            crate_version: String::new(),
-            created: String::new(),
-        };
-        let model = Model::new(mlp_file(&net, creep, provenance, None).unwrap()).unwrap();
+        let model = Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
         let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
         let (t, pr) = s.hysteresis.unwrap();
         eprintln!(
@@ -293,16 +285,8 @@ fn measure_networks_on_foreign_laws() {
                     let secs = t0.elapsed().as_secs_f64();
                     net.reference_speed_mps = median_speed(&tables);
                     let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-                    let provenance = Provenance {
-                        inputs: vec![],
-                        pipeline: "uic_z1".into(),
-                        pipeline_sha256: String::new(),
-                        seed,
-                        crate_version: String::new(),
-                        created: String::new(),
-                    };
                     let model =
-                        Model::new(mlp_file(&net, creep, provenance, None).unwrap()).unwrap();
+                        Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
                     let s =
                         score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
                     let (t, pr) = s.hysteresis.unwrap_or((f64::NAN, f64::NAN));

@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use crate::model::{AuditSpec, Model, ModelFile, SupportSpec};
+use crate::model::{gain_offset, AuditSpec, Model, ModelFile, SupportSpec};
 use crate::score::{score, Grid, Sample};
 
 /// Most failing cells an audit lists by name.
@@ -18,18 +18,6 @@ pub struct Occupancy {
     pub cells: Vec<usize>,
     pub min_samples: u64,
     pub counts: Vec<u64>,
-}
-
-/// mapminmax of one input: (gain, offset) for [min, max], constant ranges passed through (the
-/// evaluators' rule).
-fn gain_offset(min: f64, max: f64) -> (f64, f64) {
-    let range = max - min;
-    if range > 0.0 {
-        let g = 2.0 / range;
-        (g, -1.0 - g * min)
-    } else {
-        (1.0, 0.0)
-    }
 }
 
 /// Counts the samples `x` (row-major, `k` physical inputs per sample) per cell: each sample

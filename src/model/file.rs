@@ -597,9 +597,10 @@ impl ModelFile {
     }
 }
 
-/// mapminmax gain and offset for a (min, max) range: constant ranges pass through.
+/// mapminmax gain and offset for a (min, max) range, x_n = g x + o: constant ranges pass
+/// through (the evaluators' rule; the support grid's occupancy uses it too).
 #[inline]
-fn gain_offset(min: f64, max: f64) -> (f64, f64) {
+pub fn gain_offset(min: f64, max: f64) -> (f64, f64) {
     let range = max - min;
     if range > 0.0 {
         let g = 2.0 / range;

@@ -35,9 +35,9 @@ use std::path::Path;
 
 pub(crate) use file::Scaling;
 pub use file::{
-    AuditSpec, CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer, Metrics, ModelFile,
-    ModelKind, OutputSpec, Provenance, SupportSpec, FORMAT_ID, FORMAT_VERSION, MAX_CELLS_PER_INPUT,
-    MAX_HIDDEN, MAX_SUPPORT_CELLS, READ_VERSIONS,
+    gain_offset, AuditSpec, CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer,
+    Metrics, ModelFile, ModelKind, OutputSpec, Provenance, SupportSpec, FORMAT_ID, FORMAT_VERSION,
+    MAX_CELLS_PER_INPUT, MAX_HIDDEN, MAX_SUPPORT_CELLS, READ_VERSIONS,
 };
 use net::Net;
 pub use net::{tanh_fast, LANES};

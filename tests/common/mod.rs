@@ -349,15 +349,14 @@ pub fn write_trainlm_problem(
     std::fs::write(path, problem.to_string()).unwrap();
 }
 
-/// Runs the numpy trainlm peer on a problem file: the seconds per epoch of the fastest of
-/// `repeats` trainings and the training MSE after each epoch. `threads`: BLAS threads (None:
-/// all); `probe`: the script's rounding probe ("" for none).
-pub fn trainlm_numpy(
+/// Runs `benches/peers/trainlm_numpy.py` on a problem file and returns its JSON line.
+/// `threads`: BLAS threads (None: all); `probe`: the script's rounding probe ("" for none).
+fn run_numpy_peer(
     problem: &Path,
     repeats: usize,
     threads: Option<usize>,
     probe: &str,
-) -> Result<(f64, Vec<f64>), String> {
+) -> Result<serde_json::Value, String> {
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
     let mut cmd = std::process::Command::new("python3");
     cmd.arg(&script)
@@ -380,40 +379,38 @@ pub fn trainlm_numpy(
                 .unwrap_or("")
         ));
     }
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
-    let mse = v["train_mse"]
+    serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())
+}
+
+/// A list of numbers from the peer's output.
+fn numbers(v: &serde_json::Value, key: &str) -> Result<Vec<f64>, String> {
+    Ok(v[key]
         .as_array()
-        .ok_or("no train_mse in the peer's output")?
+        .ok_or(format!("no {key} in the peer's output"))?
         .iter()
         .filter_map(|x| x.as_f64())
-        .collect();
+        .collect())
+}
+
+/// Runs the numpy trainlm peer on a problem file: the seconds per epoch of the fastest of
+/// `repeats` trainings and the training MSE after each epoch. `threads`: BLAS threads (None:
+/// all); `probe`: the script's rounding probe ("" for none).
+pub fn trainlm_numpy(
+    problem: &Path,
+    repeats: usize,
+    threads: Option<usize>,
+    probe: &str,
+) -> Result<(f64, Vec<f64>), String> {
+    let v = run_numpy_peer(problem, repeats, threads, probe)?;
     let secs = v["seconds_per_epoch"]
         .as_f64()
         .ok_or("no seconds_per_epoch in the peer's output")?;
-    Ok((secs, mse))
+    Ok((secs, numbers(&v, "train_mse")?))
 }
 
-/// The γ per epoch of the numpy peer in trainbr mode (the problem's settings say
-/// `bayesian`): training MSE and γ after each epoch.
+/// The numpy peer in trainbr mode (the problem's settings say `bayesian`), one BLAS thread:
+/// training MSE and γ after each epoch.
 pub fn trainbr_numpy(problem: &Path, probe: &str) -> Result<(Vec<f64>, Vec<f64>), String> {
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/trainlm_numpy.py");
-    let out = std::process::Command::new("python3")
-        .arg(&script)
-        .arg(problem)
-        .arg("1")
-        .env("TRAINLM_PROBE", probe)
-        .env("OPENBLAS_NUM_THREADS", "1")
-        .env("OMP_NUM_THREADS", "1")
-        .output()
-        .map_err(|e| format!("no python3 ({e})"))?;
-    if !out.status.success() {
-        return Err(String::from_utf8_lossy(&out.stderr).into_owned());
-    }
-    let v: serde_json::Value = serde_json::from_slice(&out.stdout).map_err(|e| e.to_string())?;
-    let list = |k: &str| -> Vec<f64> {
-        v[k].as_array()
-            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect())
-            .unwrap_or_default()
-    };
-    Ok((list("train_mse"), list("gamma")))
+    let v = run_numpy_peer(problem, 1, Some(1), probe)?;
+    Ok((numbers(&v, "train_mse")?, numbers(&v, "gamma")?))
 }
