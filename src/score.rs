@@ -20,14 +20,16 @@
 
 use std::collections::BTreeMap;
 
-/// One true sample: slip Δv (m/s), slip rate dΔv/dt (m/s²), speed v (m/s), adhesion μ and
-/// the axle (1-based).
+/// One true sample: slip Δv (m/s), slip rate dΔv/dt (m/s²), speed v (m/s), the run's
+/// ambient temperature (°C), adhesion μ and the axle (1-based).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Sample {
     pub axle: u8,
     pub dv_mps: f64,
     pub ddv_mps2: f64,
     pub v_mps: f64,
+    /// The run's ambient temperature, °C (NaN when unknown: models take their reference).
+    pub t_c: f64,
     pub mu: f64,
 }
 
@@ -120,11 +122,11 @@ struct Acc {
 /// Cell key: axle, speed index, signed slip-rate index (±(i + 1)), slip index.
 type Key = (u8, i64, i64, i64);
 
-/// Scores `predict(Δv, dΔv/dt, v)` (μ) against `samples` on `grid`'s supported cells.
+/// Scores `predict(Δv, dΔv/dt, v, T)` (μ) against `samples` on `grid`'s supported cells.
 pub fn score(
     samples: &[Sample],
     grid: &Grid,
-    predict: impl Fn(f64, f64, f64) -> f64,
+    predict: impl Fn(f64, f64, f64, f64) -> f64,
 ) -> Result<Score, ScoreError> {
     let mut acc: BTreeMap<Key, Acc> = BTreeMap::new();
     for (index, s) in samples.iter().enumerate() {
@@ -142,7 +144,7 @@ pub fn score(
         if keys.is_empty() {
             continue;
         }
-        let p = predict(s.dv_mps, s.ddv_mps2, s.v_mps);
+        let p = predict(s.dv_mps, s.ddv_mps2, s.v_mps, s.t_c);
         if !p.is_finite() {
             return Err(ScoreError::Model {
                 dv: s.dv_mps,
@@ -245,7 +247,7 @@ mod tests {
     use super::*;
 
     /// A law with branches: loss (q > 0) above recovery.
-    fn law(dv: f64, q: f64, v: f64) -> f64 {
+    fn law(dv: f64, q: f64, v: f64, _t: f64) -> f64 {
         let base = 0.1 * (1.0 - (-2.0 * dv).exp()) * (1.0 - 0.002 * v);
         base * if q > 0.0 { 1.0 } else { 0.8 }
     }
@@ -264,7 +266,8 @@ mod tests {
                     dv_mps: dv,
                     ddv_mps2: q,
                     v_mps: v,
-                    mu: law(dv, q, v),
+                    t_c: f64::NAN,
+                    mu: law(dv, q, v, f64::NAN),
                 }
             })
             .collect()
@@ -279,10 +282,10 @@ mod tests {
         assert!(exact.cells.len() > 100, "{}", exact.cells.len());
         let (t, p) = exact.hysteresis.unwrap();
         assert!(t > 0.0 && (t - p).abs() < 1e-15, "{t} {p}");
-        let off = score(&s, &g, |a, b, c| law(a, b, c) - 0.01).unwrap();
+        let off = score(&s, &g, |a, b, c, t| law(a, b, c, t) - 0.01).unwrap();
         assert!((off.rmse - 0.01).abs() < 1e-12 && (off.max_error - 0.01).abs() < 1e-12);
         // One branch for both: no hysteresis predicted; negative somewhere near zero slip.
-        let flat = score(&s, &g, |a, _, c| law(a, 1.0, c) - 0.02).unwrap();
+        let flat = score(&s, &g, |a, _, c, t| law(a, 1.0, c, t) - 0.02).unwrap();
         let (t, p) = flat.hysteresis.unwrap();
         assert!(p.abs() < 0.1 * t, "{t} {p}");
         assert!(flat.negative_cells > 0);
@@ -315,7 +318,7 @@ mod tests {
         let e = score(
             &s,
             &Grid::default(),
-            |dv, _, _| if dv > 2.0 { f64::NAN } else { 0.1 },
+            |dv, _, _, _| if dv > 2.0 { f64::NAN } else { 0.1 },
         )
         .unwrap_err();
         assert!(matches!(e, ScoreError::Model { dv, .. } if dv > 2.0), "{e}");

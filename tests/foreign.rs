@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use railgrip::identify::dataset::RunTable;
 use railgrip::identify::export::mlp_file;
 use railgrip::identify::train::{creep_spec, median_speed, train_mlp};
-use railgrip::model::{Model, Provenance};
+use railgrip::model::{InputSet, Model, Provenance};
 use railgrip::score::{score, Grid, Sample};
 use railgrip::sim::{self, AdhesionLaw, OutputFormat, Scene};
 use railgrip::Pipeline;
@@ -29,12 +29,12 @@ fn scenes() -> Vec<PathBuf> {
 
 /// The scene's true law at the sample's inputs (the slip rate unlagged: the simulator lags it
 /// by 20 ms, which is part of what a learned curve cannot see).
-fn true_law(sc: &Scene) -> impl Fn(f64, f64, f64) -> f64 + '_ {
+fn true_law(sc: &Scene) -> impl Fn(f64, f64, f64, f64) -> f64 + '_ {
     let lr = match &sc.adhesion.law {
         AdhesionLaw::LossRecovery(l) => Some(l.prepare(Some(sc.run.ambient_temperature_c))),
         _ => None,
     };
-    move |dv, q, v| match (&sc.adhesion.law, &lr) {
+    move |dv, q, v, _t| match (&sc.adhesion.law, &lr) {
         (AdhesionLaw::LossRecovery(_), Some(p)) => p.mu(dv, q, v),
         (AdhesionLaw::Table(t), _) => t.mu(dv, v),
         other => panic!("not a foreign law: {other:?}"),
@@ -48,7 +48,7 @@ fn foreign_scenes_cover_the_plane_and_their_truth_follows_their_law() {
     for path in all {
         let sc = Scene::load(&path).unwrap();
         let out = sim::simulate(&sc, None).unwrap();
-        let samples = out.truth.samples();
+        let samples = out.truth.samples(sc.run.ambient_temperature_c);
         let s = score(&samples, &Grid::default(), true_law(&sc)).unwrap();
         let name = &sc.name;
         eprintln!(
@@ -78,14 +78,24 @@ fn foreign_scenes_cover_the_plane_and_their_truth_follows_their_law() {
 }
 
 /// The estimates of `scenes` (written as CSV, ingested and estimated as `run` does) and their
-/// truth samples.
+/// truth samples, the axles of each run numbered apart (as `railgrip score` pools scenes: a
+/// cell's support counts one run's axle).
 fn campaign(scenes: &[Scene], dir: &Path) -> (Vec<RunTable>, Vec<Sample>) {
     let p = Pipeline::default_uic_z1();
     let (mut tables, mut truth) = (Vec::new(), Vec::new());
-    for sc in scenes {
+    for (r, sc) in scenes.iter().enumerate() {
         let out = sim::simulate(sc, None).unwrap();
         out.write(dir, &sc.name, OutputFormat::Csv).unwrap();
-        truth.extend(out.truth.samples());
+        let offset = 4 * r as u8;
+        truth.extend(
+            out.truth
+                .samples(sc.run.ambient_temperature_c)
+                .into_iter()
+                .map(|x| Sample {
+                    axle: x.axle + offset,
+                    ..x
+                }),
+        );
         let path = dir.join(format!("{}.csv", sc.name));
         let log = railgrip::ingest_file(&path, &p).unwrap();
         let e = railgrip::estimate::estimate(&log, &p).unwrap();
@@ -119,7 +129,10 @@ fn multi_start_on_a_foreign_law() {
         assert_eq!(net.val_mse, best, "seed {seed}");
         let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
         let model = Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
-        let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
+        let s = score(&truth, &Grid::default(), |dv, q, v, t| {
+            model.mu_vt(dv, q, v, t)
+        })
+        .unwrap();
         let (t, pr) = s.hysteresis.unwrap();
         eprintln!(
             "seed {seed}: RMSE {:.4} max {:.3} hysteresis {t:+.4} / {pr:+.4}",
@@ -160,7 +173,10 @@ fn every_seed_holds_on_both_foreign_laws() {
             let audit = file.audit.clone().unwrap();
             assert!(audit.passed, "{law} seed {seed}: {:?}", audit.failures);
             let model = Model::new(file).unwrap();
-            let s = score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
+            let s = score(&truth, &Grid::default(), |dv, q, v, t| {
+                model.mu_vt(dv, q, v, t)
+            })
+            .unwrap();
             assert_eq!(s.negative_cells, 0, "{law} seed {seed}");
             assert!(s.rmse <= 0.010, "{law} seed {seed}: RMSE {}", s.rmse);
             let (t, pr) = s.hysteresis.unwrap();
@@ -258,12 +274,12 @@ fn measure_networks_on_foreign_laws() {
     println!("| data | inputs | method | RMSE median (worst) | worst max error | seeds with μ < 0 | hysteresis sign right | predicted / true (median) | train s (median) |");
     println!("|---|---|---|---|---|---|---|---|---|");
     for law in ["bundled", "lr", "table"] {
-        for with_speed in [false, true] {
-            let band = (!with_speed).then_some("_120kmh");
+        for inputs in InputSet::ALL {
+            let band = (!inputs.has_speed()).then_some("_120kmh");
             let set = measurement_scenes(law, band);
             let (tables, truth) = campaign(&set, dir.path());
             for m in METHODS {
-                let label = format!("{law} {}", if with_speed { 3 } else { 2 });
+                let label = format!("{law} {}", inputs.count());
                 if !only.is_empty() && !label.contains(&only) && !m.name.contains(&only) {
                     continue;
                 }
@@ -271,9 +287,8 @@ fn measure_networks_on_foreign_laws() {
                 for seed in 1..=seeds {
                     let mut cfg = p.train.clone();
                     cfg.seed = seed;
-                    cfg.with_speed = with_speed;
-                    cfg.support_cells =
-                        railgrip::config::default_support_cells(if with_speed { 3 } else { 2 });
+                    cfg.inputs = inputs;
+                    cfg.support_cells = railgrip::config::default_support_cells(inputs.count());
                     cfg.starts = m.starts;
                     cfg.ensemble = m.ensemble;
                     cfg.bayesian = m.bayesian;
@@ -287,8 +302,10 @@ fn measure_networks_on_foreign_laws() {
                     let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
                     let model =
                         Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
-                    let s =
-                        score(&truth, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)).unwrap();
+                    let s = score(&truth, &Grid::default(), |dv, q, v, t| {
+                        model.mu_vt(dv, q, v, t)
+                    })
+                    .unwrap();
                     let (t, pr) = s.hysteresis.unwrap_or((f64::NAN, f64::NAN));
                     eprintln!(
                         "{label} {} seed {seed}: RMSE {:.4} max {:.3} negative {} hysteresis {t:+.4}/{pr:+.4} {secs:.1} s {} epochs{}",
@@ -319,7 +336,7 @@ fn measure_networks_on_foreign_laws() {
                 println!(
                     "| {law}{} | {} | {} | {:.4} ({worst:.4}) | {maxe:.3} | {neg} of {seeds} | {sign} of {seeds} | {ratio:.2} | {secs:.1} |",
                     band.unwrap_or(" all speeds"),
-                    if with_speed { 3 } else { 2 },
+                    inputs.count(),
                     m.name,
                     median(rmse.clone()),
                 );

@@ -500,8 +500,8 @@ fn c_lit(x: f64) -> String {
 }
 
 /// Compiles `model`'s C header with the system cc (`-std=c99 -O2` and `flags`), evaluates
-/// `rg_mu_vt` at every point (Δv, dΔv/dt, v, T) and `rg_mu_batch` over the same points
-/// (without T), and returns the largest difference to the Rust evaluator and the number of
+/// `rg_mu_vt` at every point (Δv, dΔv/dt, v, T), `rg_mu_batch` over the same points (without
+/// T) and `rg_mu_batch_t` (with T), and returns the largest difference to the Rust evaluator and the number of
 /// values that differ in any bit (NaN = NaN); None when there is no C compiler.
 fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<(f64, usize)> {
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
@@ -539,10 +539,11 @@ fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<
             .join(", ")
     };
     c.push_str(&format!(
-        "  {{ static const double dv[] = {{{}}}; static const double ddv[] = {{{}}}; static const double v[] = {{{}}}; static double out[{n}]; int i;\n    rg_mu_batch(dv, ddv, v, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]); }}\n",
+        "  {{ static const double dv[] = {{{}}}; static const double ddv[] = {{{}}}; static const double v[] = {{{}}}; static const double t[] = {{{}}}; static double out[{n}]; int i;\n    rg_mu_batch(dv, ddv, v, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]);\n    rg_mu_batch_t(dv, ddv, v, t, out, {n});\n    for (i = 0; i < {n}; ++i) printf(\"%.17g\\n\", out[i]); }}\n",
         list(0),
         list(1),
         list(2),
+        list(3),
         n = points.len()
     ));
     c.push_str("  return 0;\n}\n");
@@ -565,12 +566,13 @@ fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<
     let run = std::process::Command::new(&exe).output().unwrap();
     let text = String::from_utf8(run.stdout).unwrap();
     let values: Vec<f64> = text.lines().map(|l| l.parse().unwrap()).collect();
-    assert_eq!(values.len(), 2 * points.len());
+    assert_eq!(values.len(), 3 * points.len());
     let mut rust: Vec<f64> = points
         .iter()
         .map(|p| model.mu_vt(p[0], p[1], p[2], p[3]))
         .collect();
     rust.extend(points.iter().map(|p| model.mu_v(p[0], p[1], p[2])));
+    rust.extend(points.iter().map(|p| model.mu_vt(p[0], p[1], p[2], p[3])));
     let mut worst: f64 = 0.0;
     let mut differ = 0;
     for (r, c) in rust.iter().zip(&values) {
@@ -604,7 +606,7 @@ fn c_header_agrees_with_the_rust_evaluator() {
         if let Some((worst, differ)) = c_header_error(&model, &grid, flags) {
             eprintln!(
                 "C header {flags:?} vs Rust: max |Δμ| = {worst:.1e}, {differ} of {} values differ in a bit",
-                2 * grid.len()
+                3 * grid.len()
             );
             assert!(worst <= 1e-12, "{worst}");
             if !flags.is_empty() {
@@ -612,6 +614,173 @@ fn c_header_agrees_with_the_rust_evaluator() {
             }
         }
     }
+}
+
+// ------------------------------------------------------------------ four inputs: ambient temperature
+
+/// The synthetic law at four ambient temperatures (the level × (1 + 0.006 (20 − T))), one
+/// run each with that temperature in its metadata.
+fn tables_at_temperatures() -> Vec<RunTable> {
+    [-10.0, 0.0, 10.0, 20.0]
+        .iter()
+        .enumerate()
+        .map(|(k, &t_c)| {
+            let mut t = synthetic_table(600);
+            t.name = format!("synthetic_{k}");
+            t.metadata.ambient_temperature_c = Some(t_c);
+            for m in &mut t.mu {
+                *m *= 1.0 + 0.006 * (20.0 - t_c);
+            }
+            t
+        })
+        .collect()
+}
+
+/// A four-input network (Δv, dΔv/dt, v, T) with a support grid, trained by `train_mlp`.
+fn four_input_model() -> ModelFile {
+    let p = Pipeline::default_uic_z1();
+    let mut cfg = p.train.clone();
+    cfg.inputs = InputSet::DvDdvVT;
+    // Four temperature cells: one run each (a temperature between two runs interpolates the
+    // support of both).
+    cfg.support_cells = vec![4, 4, 2, 4];
+    cfg.support_min_samples = 2;
+    cfg.epochs = 200;
+    let tables = tables_at_temperatures();
+    let mut t = railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap();
+    t.reference_speed_mps = 25.0;
+    let creep = creep_spec(&p, t.reference_speed_mps).unwrap();
+    let provenance = Provenance {
+        inputs: vec![],
+        pipeline: p.source.clone(),
+        pipeline_sha256: railgrip::hash::sha256_bytes(p.text.as_bytes()),
+        seed: 1,
+        crate_version: "test".into(),
+        created: "2026-01-01T00:00:00Z".into(),
+    };
+    railgrip::identify::export::mlp_file(&t, creep, provenance, None).unwrap()
+}
+
+#[test]
+fn a_four_input_network_takes_the_ambient_temperature() {
+    let file = four_input_model();
+    schema_check(&file.to_json(), "four-input model");
+    // Also the golden file the evaluator's every-instruction-set test reads (src/model/net.rs).
+    let mut golden = file.clone();
+    for e in &mut golden.history {
+        e.elapsed_s = 0.0;
+    }
+    golden_check("synthetic_mlp_4inputs.json", &golden.to_json());
+    assert_eq!(file.input_set(), InputSet::DvDdvVT);
+    let creep = file.creep.clone().unwrap();
+    // The median training temperature (the runs' samples are equally many: the upper one).
+    assert_eq!(creep.reference_temperature_c, Some(10.0));
+    let t = &file.inputs[3];
+    assert_eq!(
+        (t.name.as_str(), t.domain_min, t.domain_max),
+        ("ambient_temperature_c", -10.0, 20.0)
+    );
+    let model = Model::new(file.clone()).unwrap();
+    // It learned the level's trend: colder is higher, by about the law's factor.
+    let (cold, warm) = (
+        model.mu_vt(1.5, 0.5, 25.0, -10.0),
+        model.mu_vt(1.5, 0.5, 25.0, 20.0),
+    );
+    let truth = 1.0 + 0.006 * 30.0;
+    assert!(
+        (cold / warm - truth).abs() < 0.03,
+        "{cold} / {warm} vs {truth}"
+    );
+    // No temperature: the reference; supported at every run's
+    // temperature (the edges included) and between.
+    assert_eq!(
+        model.mu_v(1.5, 0.5, 25.0),
+        model.mu_vt(1.5, 0.5, 25.0, 10.0)
+    );
+    // Far beyond the coldest run: the fallback (the nearest supported cell's network value).
+    let (far, edge) = (
+        model.mu_vt(1.5, 0.5, 25.0, -40.0),
+        model.mu_vt(1.5, 0.5, 25.0, -10.0),
+    );
+    assert_eq!(model.support_weight_t(1.5, 0.5, 25.0, -40.0), Some(0.0));
+    assert!((far - edge).abs() < 0.05 * edge, "{far} {edge}");
+    assert!(!model.in_domain_t(1.5, 0.5, 25.0, -40.0) && model.in_domain_t(1.5, 0.5, 25.0, 0.0));
+    for t_c in [-10.0, -5.0, 0.0, 10.0, 15.0, 20.0] {
+        let w = model.support_weight_t(1.5, 0.5, 25.0, t_c).unwrap();
+        assert!(w > 1.0 - 1e-12, "{t_c}: {w}");
+    }
+    // Far outside the temperatures seen the support has faded: the fallback alone.
+    assert_eq!(model.support_weight_t(1.5, 0.5, 25.0, 60.0), Some(0.0));
+    // Batch with temperatures = single calls, bit for bit (vectorised blocks and the tail).
+    let mut rng = railgrip::rng::Rng::new(4);
+    let n = 203;
+    let cols: Vec<Vec<f64>> = [(8.0, -2.0), (12.0, -6.0), (30.0, 5.0), (70.0, -35.0)]
+        .iter()
+        .map(|&(w, o)| (0..n).map(|_| w * rng.uniform() + o).collect())
+        .collect();
+    let mut t_col = cols[3].clone();
+    t_col[5] = f64::NAN;
+    let mut out = vec![0.0; n];
+    model.mu_batch_t(&cols[0], &cols[1], &cols[2], &t_col, &mut out);
+    for i in 0..n {
+        let single = model.mu_vt(cols[0][i], cols[1][i], cols[2][i], t_col[i]);
+        assert_eq!(out[i].to_bits(), single.to_bits(), "{i}");
+    }
+    // The C header, bit for bit with exact fma, across temperatures inside, between, at and
+    // beyond the runs', and without one.
+    let mut pts = Vec::new();
+    for i in 0..=40 {
+        for ddv in [-3.0, -0.5, 0.5, 2.5] {
+            for t_c in [f64::NAN, -40.0, -10.0, -2.5, 5.0, 12.0, 20.0, 45.0] {
+                pts.push([-1.0 + 0.125 * i as f64, ddv, 25.0, t_c]);
+            }
+        }
+    }
+    for flags in [&[][..], &["-DRG_EXACT_FMA", "-ffp-contract=off"][..]] {
+        if let Some((worst, differ)) = c_header_error(&model, &pts, flags) {
+            assert!(worst <= 1e-12, "{worst}");
+            if !flags.is_empty() {
+                assert_eq!(differ, 0, "bit-identical with exact fma");
+            }
+        }
+    }
+}
+
+#[test]
+fn four_input_files_and_data_are_checked() {
+    // A run without an ambient temperature: the error names it and says what to do.
+    let mut tables = tables_at_temperatures();
+    tables[1].source = "runs/cold_run.csv".into();
+    tables[1].metadata.ambient_temperature_c = None;
+    let e = Dataset::build(&tables, InputSet::DvDdvVT, &axles_2_3(), 1)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("runs/cold_run.csv") && e.contains("ambient_temperature_c"),
+        "{e}"
+    );
+    // A file without its reference temperature, or with one it does not use, or a version-1
+    // file with four inputs.
+    let good = four_input_model();
+    let mut bad = good.clone();
+    bad.creep.as_mut().unwrap().reference_temperature_c = None;
+    let e = Model::new(bad).unwrap_err().to_string();
+    assert!(e.contains("reference_temperature_c"), "{e}");
+    let mut two = synthetic_model();
+    two.creep.as_mut().unwrap().reference_temperature_c = Some(5.0);
+    let e = Model::new(two).unwrap_err().to_string();
+    assert!(e.contains("reference_temperature_c"), "{e}");
+    let mut v1 = good.clone();
+    v1.version = 1;
+    v1.support = None;
+    v1.audit = None;
+    let e = Model::new(v1).unwrap_err().to_string();
+    assert!(e.contains("version 1"), "{e}");
+    // Inputs in another order are not a known set.
+    let mut swapped = good;
+    swapped.inputs.swap(2, 3);
+    let e = Model::new(swapped).unwrap_err().to_string();
+    assert!(e.contains("ambient_temperature_c"), "{e}");
 }
 
 // ------------------------------------------------------------------ Polach model files

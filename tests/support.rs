@@ -161,6 +161,7 @@ fn hysteretic_samples() -> Vec<Sample> {
                 dv_mps: dv,
                 ddv_mps2: q,
                 v_mps: 30.0,
+                t_c: f64::NAN,
                 mu,
             }
         })

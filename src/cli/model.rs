@@ -290,7 +290,7 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
     };
     let p = &args.prefix;
     println!(
-        "wrote      {} ({p}_mu, {p}_mu_v, {p}_mu_vt, {p}_mu_batch; {what})",
+        "wrote      {} ({p}_mu, {p}_mu_v, {p}_mu_vt, {p}_mu_batch, {p}_mu_batch_t; {what})",
         args.c_header.display(),
     );
     Ok(EXIT_OK)
@@ -333,10 +333,16 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<u8> {
         bail!("{file}: line 1: this network takes dv_mps and ddv_mps2: add a column ddv_mps2 (found {header:?})");
     }
     let cv = col("v_mps");
-    if model.n_inputs() == 3 && !polach && cv.is_none() {
+    if model.n_inputs() >= 3 && !polach && cv.is_none() {
         bail!("{file}: line 1: this model takes speed as a third input: add a column v_mps");
     }
     let ct = col(railgrip::model::polach::TEMPERATURE_INPUT);
+    if model.n_inputs() == 4 && !polach && ct.is_none() {
+        bail!(
+            "{file}: line 1: this network takes the ambient temperature as a fourth input: add a column {} (°C)",
+            railgrip::model::polach::TEMPERATURE_INPUT
+        );
+    }
     // Echo the input columns used, then mu.
     let used: Vec<(usize, &str)> = [
         (Some(cdv), "dv_mps"),

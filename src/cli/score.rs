@@ -62,7 +62,6 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     };
     let mut lines = Vec::new();
     let mut pooled: Vec<Sample> = Vec::new();
-    let mut temps: Vec<f64> = Vec::new();
     let mut runs = 0usize;
     for path in &args.scenes {
         let scene = Scene::load(path)?;
@@ -74,9 +73,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         for seed in seeds {
             let out = sim::simulate(&scene, Some(seed))?;
             let t_c = scene.run.ambient_temperature_c;
-            let samples = out.truth.samples();
+            let samples = out.truth.samples(t_c);
             let name = format!("{} (seed {seed})", scene.name);
-            let s = score(&samples, &grid, |dv, q, v| model.mu_vt(dv, q, v, t_c))
+            let s = score(&samples, &grid, |dv, q, v, t| model.mu_vt(dv, q, v, t))
                 .with_context(|| format!("{}: scoring {}", path.display(), args.model.display()))?;
             lines.push(Line::new(&name, &s));
             // Pooled: the axles of each simulated run numbered apart (while they fit a u8),
@@ -86,14 +85,11 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 axle: x.axle + offset,
                 ..x
             }));
-            temps.push(t_c);
             runs += 1;
         }
     }
-    // All scenes together; a Polach model with k(T) at the scenes' median ambient temperature
-    // (per scene, above, at each scene's own).
-    let t_all = median(&temps);
-    let all = score(&pooled, &grid, |dv, q, v| model.mu_vt(dv, q, v, t_all))?;
+    // All scenes together, each sample at its own scene's ambient temperature.
+    let all = score(&pooled, &grid, |dv, q, v, t| model.mu_vt(dv, q, v, t))?;
     lines.push(Line::new("all", &all));
     let negative = lines.iter().any(|l| l.negative_cells > 0);
     if args.json {
@@ -123,10 +119,4 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         }
     }
     Ok(if negative { EXIT_LOSSY } else { EXIT_OK })
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
 }

@@ -185,6 +185,20 @@ mod tests {
     }
 
     #[test]
+    fn every_input_set_parses_with_its_default_support_grid() {
+        for set in crate::model::InputSet::ALL {
+            let names: Vec<String> = set.names().iter().map(|n| format!("\"{}\"", n.0)).collect();
+            let text = DEFAULT_PIPELINE_TOML.replace(
+                "inputs = [\"dv_mps\", \"ddv_mps2\"]",
+                &format!("inputs = [{}]", names.join(", ")),
+            );
+            let p = Pipeline::from_toml(&text, "p.toml").unwrap();
+            assert_eq!(p.train.inputs, set);
+            assert_eq!(p.train.support_cells, default_support_cells(set.count()));
+        }
+    }
+
+    #[test]
     fn embedded_default_passes_its_checks_with_contract_names() {
         let p = Pipeline::default_uic_z1();
         assert_eq!(p.vehicle.wheel_radius_m, 0.445);
@@ -306,6 +320,16 @@ mod tests {
                 "hidden = 10",
                 "hidden = 10\nsupport_cells = [1000, 2000]",
                 "each 2..=1024",
+            ),
+            (
+                "inputs = [\"dv_mps\", \"ddv_mps2\"]",
+                "inputs = [\"dv_mps\", \"ddv_mps2\", \"ambient_temperature_c\"]",
+                "or [\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]",
+            ),
+            (
+                "inputs = [\"dv_mps\", \"ddv_mps2\"]",
+                "inputs = [\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]\nsupport_cells = [16, 16, 8]",
+                "must give 4 whole counts (one per input)",
             ),
             (
                 "mu_dec = 0.1",

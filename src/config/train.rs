@@ -4,6 +4,7 @@
 use super::rule::{closed, int, open_lo, Checker, Default, Key, Range};
 use super::ConfigError;
 use crate::format::AXLES;
+use crate::model::InputSet;
 
 pub mod raw {
     use serde::Deserialize;
@@ -56,8 +57,8 @@ pub enum SplitConfig {
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainConfig {
     pub hidden: usize,
-    /// Speed v as a third input.
-    pub with_speed: bool,
+    /// The network's inputs (speed third, ambient temperature fourth).
+    pub inputs: InputSet,
     pub split: SplitConfig,
     /// Keep every n-th valid sample of a run and axle.
     pub decimate: usize,
@@ -103,12 +104,14 @@ pub const DEFAULT_SUPPORT_MIN_SAMPLES: u64 = 10;
 /// `train.audit_mu_max` when the file leaves it out.
 pub const DEFAULT_AUDIT_MU_MAX: f64 = 0.6;
 
-/// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three (issue 15).
+/// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three (issue 15),
+/// 16 × 16 × 8 × 4 for four (runs at few ambient temperatures: each of four temperature
+/// cells holds whole runs).
 pub fn default_support_cells(inputs: usize) -> Vec<usize> {
-    if inputs == 3 {
-        vec![16, 16, 8]
-    } else {
-        vec![24, 24]
+    match inputs {
+        4 => vec![16, 16, 8, 4],
+        3 => vec![16, 16, 8],
+        _ => vec![24, 24],
     }
 }
 
@@ -136,9 +139,9 @@ const HIDDEN: Key = Key::num(
 );
 const INPUTS: Key = text(
     "train.inputs",
-    "`[\"dv_mps\", \"ddv_mps2\"]`, or with `\"v_mps\"`",
+    "`[\"dv_mps\", \"ddv_mps2\"]`, with `\"v_mps\"`, or with `\"v_mps\", \"ambient_temperature_c\"`",
     "`[\"dv_mps\", \"ddv_mps2\"]`",
-    "network inputs (seed 002; speed as a third) [pub]",
+    "network inputs (seed 002; speed as a third; the runs' ambient temperature, from their metadata, as a fourth) [pub]",
 );
 const SPLIT: Key = Key {
     name: "train.split",
@@ -343,17 +346,15 @@ pub const KEYS: &[&Key] = &[
 
 impl Checker<'_> {
     pub(crate) fn train(&self, t: raw::Train) -> Result<TrainConfig, ConfigError> {
-        let with_speed = match t.inputs.as_deref() {
-            None => false,
-            Some([a, b]) if a == "dv_mps" && b == "ddv_mps2" => false,
-            Some([a, b, c]) if a == "dv_mps" && b == "ddv_mps2" && c == "v_mps" => true,
-            Some(other) => {
-                return Err(self.invalid(
+        let inputs = match t.inputs.as_deref() {
+            None => InputSet::DvDdv,
+            Some(names) => InputSet::from_names(names).ok_or_else(|| {
+                self.invalid(
                     INPUTS.name,
-                    format!("{other:?}"),
-                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002) or [\"dv_mps\", \"ddv_mps2\", \"v_mps\"]",
-                ))
-            }
+                    format!("{names:?}"),
+                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002), [\"dv_mps\", \"ddv_mps2\", \"v_mps\"] or [\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]",
+                )
+            })?,
         };
         let condition = match t.condition.clone() {
             Some(c) if c.trim().is_empty() => {
@@ -380,7 +381,7 @@ impl Checker<'_> {
                 format!("must be at most train.starts ({starts}): raise starts or lower ensemble"),
             ));
         }
-        let n_inputs = if with_speed { 3 } else { 2 };
+        let n_inputs = inputs.count();
         let support_cells = match &t.support_cells {
             None => default_support_cells(n_inputs),
             Some(v) => {
@@ -407,7 +408,7 @@ impl Checker<'_> {
         };
         Ok(TrainConfig {
             hidden: self.value(&HIDDEN, t.hidden)? as usize,
-            with_speed,
+            inputs,
             split: self.split(&t)?,
             decimate: self.value(&DECIMATE, t.decimate)? as usize,
             seed: t.seed.unwrap_or(1),

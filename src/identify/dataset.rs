@@ -156,11 +156,29 @@ impl RunTable {
         self.mu.is_empty()
     }
 
-    fn input(&self, inputs: InputSet, i: usize, out: &mut Vec<f64>) {
+    /// Appends sample `i`'s inputs; `t_c` is the run's ambient temperature (used by
+    /// [`InputSet::DvDdvVT`]).
+    fn input(&self, inputs: InputSet, i: usize, t_c: f64, out: &mut Vec<f64>) {
         out.push(self.dv_mps[i]);
         out.push(self.ddv_mps2[i]);
-        if inputs == InputSet::DvDdvV {
+        if inputs.has_speed() {
             out.push(self.v_mps[i]);
+        }
+        if inputs.has_temperature() {
+            out.push(t_c);
+        }
+    }
+
+    /// The run's ambient temperature (metadata `ambient_temperature_c`), °C: an error naming
+    /// the run when it is missing or not finite.
+    pub fn ambient_temperature_c(&self) -> Result<f64, IdentifyError> {
+        match self.metadata.ambient_temperature_c {
+            Some(t) if t.is_finite() => Ok(t),
+            _ => Err(IdentifyError::Input {
+                file: self.source.clone(),
+                message: "the network's inputs include ambient_temperature_c, but this run's metadata has no ambient temperature".into(),
+                hint: "give the log the metadata key ambient_temperature_c (°C; README \"Input logs\"), or leave ambient_temperature_c out of [train] inputs".into(),
+            }),
         }
     }
 }
@@ -243,6 +261,11 @@ impl Dataset {
             val_y: Vec::new(),
         };
         for (r, t) in tables.iter().enumerate() {
+            let t_c = if inputs.has_temperature() {
+                t.ambient_temperature_c()?
+            } else {
+                f64::NAN
+            };
             let mut kept = [0usize; 256];
             let t0 = t.time_s.first().copied().unwrap_or(0.0);
             for i in 0..t.len() {
@@ -270,11 +293,11 @@ impl Dataset {
                 };
                 match to_val {
                     Some(true) => {
-                        t.input(inputs, i, &mut d.val_x);
+                        t.input(inputs, i, t_c, &mut d.val_x);
                         d.val_y.push(t.mu[i]);
                     }
                     Some(false) => {
-                        t.input(inputs, i, &mut d.train_x);
+                        t.input(inputs, i, t_c, &mut d.train_x);
                         d.train_y.push(t.mu[i]);
                     }
                     None => {}

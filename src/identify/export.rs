@@ -65,7 +65,10 @@ pub fn mlp_file(
         },
         outside_domain: "clamp".into(),
         layers: layers(k, t.shape.hidden, &t.theta),
-        creep: Some(creep),
+        creep: Some(CreepSpec {
+            reference_temperature_c: t.reference_temperature_c,
+            ..creep
+        }),
         polach: None,
         provenance,
         metrics: Metrics {

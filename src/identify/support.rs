@@ -4,7 +4,7 @@
 
 use std::collections::VecDeque;
 
-use crate::model::{gain_offset, AuditSpec, Model, ModelFile, SupportSpec};
+use crate::model::{gain_offset, AuditSpec, Model, ModelFile, SupportSpec, MAX_INPUTS};
 use crate::score::{score, Grid, Sample};
 
 /// Most failing cells an audit lists by name.
@@ -37,7 +37,8 @@ pub fn occupancy(
     let mut counts = vec![0u64; total];
     let go: Vec<(f64, f64)> = norm.iter().map(|&(lo, hi)| gain_offset(lo, hi)).collect();
     for row in x.chunks_exact(k) {
-        let mut r = [row[0], row[1], if k == 3 { row[2] } else { 0.0 }];
+        let mut r = [0.0; MAX_INPUTS];
+        r[..k].copy_from_slice(row);
         if r[0] < 0.0 {
             r[0] = -r[0];
             r[1] = -r[1];
@@ -61,9 +62,9 @@ pub fn occupancy(
     }
 }
 
-/// The physical inputs (Δv, dΔv/dt, v) at the centre of every cell, in flat order; v is NaN
-/// (the reference speed) for two-input models.
-pub fn cell_centres(file: &ModelFile, cells: &[usize]) -> Vec<[f64; 3]> {
+/// The physical inputs (Δv, dΔv/dt, v, T) at the centre of every cell, in flat order; v and T
+/// are NaN (the reference values) where the model does not take them.
+pub fn cell_centres(file: &ModelFile, cells: &[usize]) -> Vec<[f64; MAX_INPUTS]> {
     let k = cells.len();
     let total: usize = cells.iter().product();
     let go: Vec<(f64, f64)> = file
@@ -73,7 +74,7 @@ pub fn cell_centres(file: &ModelFile, cells: &[usize]) -> Vec<[f64; 3]> {
         .collect();
     (0..total)
         .map(|flat| {
-            let mut x = [0.0, 0.0, f64::NAN];
+            let mut x = [0.0, 0.0, f64::NAN, f64::NAN];
             let mut rest = flat;
             for c in (0..k).rev() {
                 let n = cells[c];
@@ -128,7 +129,8 @@ fn nearest_supported(occ: &Occupancy, own: &[f64]) -> Vec<f64> {
 
 /// The support grid of `file` (a network without one yet): counts from `occ`, the fallback
 /// from `polach` (|μ| of that model at each cell centre, at the network's reference speed for
-/// two-input networks) or else the nearest supported cell's network value, and the spread of
+/// two-input networks, at the centre's temperature for four-input networks — the base
+/// k_A, k_S without) or else the nearest supported cell's network value, and the spread of
 /// `members` (the ensemble's networks as model files; fewer than two: none).
 pub fn support_spec(
     file: &ModelFile,
@@ -144,7 +146,7 @@ pub fn support_spec(
         .map_or(f64::NAN, |c| c.reference_speed_mps);
     let own: Vec<f64> = centres
         .iter()
-        .map(|x| net.mu_v(x[0], x[1], x[2]).abs())
+        .map(|x| net.mu_vt(x[0], x[1], x[2], x[3]).abs())
         .collect();
     let (fallback, fallback_mu) = match polach {
         Some(p) => (
@@ -153,7 +155,7 @@ pub fn support_spec(
                 .iter()
                 .map(|x| {
                     let v = if x[2].is_finite() { x[2] } else { v_ref };
-                    p.mu_v(x[0], x[1], v).abs()
+                    p.mu_vt(x[0], x[1], v, x[3]).abs()
                 })
                 .collect(),
         ),
@@ -169,7 +171,10 @@ pub fn support_spec(
         centres
             .iter()
             .map(|x| {
-                let mu: Vec<f64> = models.iter().map(|m| m.mu_v(x[0], x[1], x[2])).collect();
+                let mu: Vec<f64> = models
+                    .iter()
+                    .map(|m| m.mu_vt(x[0], x[1], x[2], x[3]))
+                    .collect();
                 let mean = mu.iter().sum::<f64>() / mu.len() as f64;
                 (mu.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / mu.len() as f64).sqrt()
             })
@@ -201,15 +206,18 @@ pub fn audit(model: &Model, data: &[Sample], mu_max: f64) -> AuditSpec {
             if !sup.supported(j) {
                 continue;
             }
-            let mu = model.mu_v(x[0], x[1], x[2]);
+            let mu = model.mu_vt(x[0], x[1], x[2], x[3]);
             if !(mu.is_finite() && (0.0..=mu_max).contains(&mu)) {
                 failing += 1;
                 if failures.len() < LISTED_FAILURES {
-                    let v = if x[2].is_finite() {
+                    let mut v = if x[2].is_finite() {
                         format!(", v {:.1} km/h", x[2] * 3.6)
                     } else {
                         String::new()
                     };
+                    if x[3].is_finite() {
+                        v += &format!(", {:.1} °C", x[3]);
+                    }
                     failures.push(format!(
                         "cell Δv {:.3} m/s, dΔv/dt {:.3} m/s²{v} ({} samples): μ = {mu:.4} outside [0, {mu_max}]",
                         x[0], x[1], sup.counts[j]
@@ -218,7 +226,9 @@ pub fn audit(model: &Model, data: &[Sample], mu_max: f64) -> AuditSpec {
             }
         }
     }
-    let (h_data, h_model) = match score(data, &Grid::default(), |dv, q, v| model.mu_v(dv, q, v)) {
+    let (h_data, h_model) = match score(data, &Grid::default(), |dv, q, v, t| {
+        model.mu_vt(dv, q, v, t)
+    }) {
         Ok(s) => match s.hysteresis {
             Some((d, m)) => (Some(d), Some(m)),
             None => (None, None),

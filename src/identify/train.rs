@@ -324,6 +324,8 @@ pub struct TrainedMlp {
     pub domain: Vec<(f64, f64)>,
     /// Median vehicle speed of the training samples, m/s.
     pub reference_speed_mps: f64,
+    /// Median ambient temperature of the training samples, °C (networks with that input).
+    pub reference_temperature_c: Option<f64>,
     /// The seed of the kept start.
     pub seed: u64,
     /// Validation MSE (μ²) of every start, seeds in order (one entry for a single start).
@@ -379,11 +381,7 @@ pub fn train_mlp(
     cfg: &TrainConfig,
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
-    let inputs = if cfg.with_speed {
-        InputSet::DvDdvV
-    } else {
-        InputSet::DvDdv
-    };
+    let inputs = cfg.inputs;
     if cfg.support_cells.len() != inputs.count() {
         return Err(IdentifyError::Data {
             what: format!(
@@ -404,18 +402,30 @@ pub fn train_mlp(
         train_starts(&data, cfg, progress)?
     };
     trained.occupancy = occupancy_of(&data, &trained, &cfg.support_cells, cfg.support_min_samples);
-    // The audit's samples: the same split with the speed of every sample.
-    let with_v = Dataset::build(tables, InputSet::DvDdvV, &cfg.split, cfg.decimate)?;
+    if inputs.has_temperature() {
+        let mut t: Vec<f64> = data.train_x.iter().skip(3).step_by(4).copied().collect();
+        t.sort_by(f64::total_cmp);
+        trained.reference_temperature_c = Some(t[t.len() / 2]);
+    }
+    // The audit's samples: the same split with the speed (and temperature) of every sample.
+    let full = if inputs.has_temperature() {
+        InputSet::DvDdvVT
+    } else {
+        InputSet::DvDdvV
+    };
+    let k = full.count();
+    let with_v = Dataset::build(tables, full, &cfg.split, cfg.decimate)?;
     trained.data = with_v
         .train_x
-        .chunks_exact(3)
+        .chunks_exact(k)
         .zip(&with_v.train_y)
-        .chain(with_v.val_x.chunks_exact(3).zip(&with_v.val_y))
+        .chain(with_v.val_x.chunks_exact(k).zip(&with_v.val_y))
         .map(|(x, mu)| Sample {
             axle: 1,
             dv_mps: x[0],
             ddv_mps2: x[1],
             v_mps: x[2],
+            t_c: x.get(3).copied().unwrap_or(f64::NAN),
             mu: *mu,
         })
         .collect();
@@ -589,6 +599,7 @@ impl Prepared {
             val_mse,
             domain: self.domain.clone(),
             reference_speed_mps: f64::NAN,
+            reference_temperature_c: None,
             seed,
             start_val_mse: vec![val_mse],
             members: Vec::new(),
@@ -667,10 +678,12 @@ pub fn leave_one_run_out(
                     }
                 })?;
             let held = &tables[i];
+            let t_c = held.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
             let step = cfg.decimate.max(1);
             let (mut sq, mut n) = (0.0, 0usize);
             for k in (0..held.len()).step_by(step) {
-                let e = model.mu_v(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k]) - held.mu[k];
+                let e =
+                    model.mu_vt(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k], t_c) - held.mu[k];
                 sq += e * e;
                 n += 1;
             }
@@ -708,6 +721,7 @@ pub fn creep_spec(
         creep_stiffness_n: patch.g_pa * patch.a_m * patch.b_m * patch.c11,
         wheel_load_n: q,
         reference_speed_mps,
+        reference_temperature_c: None,
     })
 }
 

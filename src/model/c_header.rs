@@ -6,7 +6,7 @@
 //! model's numbers and the symbol prefix.
 
 use super::polach::{stiffness, PolachSpec, MIN_SPEED_MPS};
-use super::{CreepSpec, ModelFile};
+use super::{CreepSpec, ModelFile, MAX_INPUTS};
 
 /// Shortest decimal form that reads back to the same double (C's strtod rounds correctly).
 fn lit(x: f64) -> String {
@@ -109,18 +109,25 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         None => String::new(),
         Some(sup) => {
             let k = sup.cells.len();
-            let mut n = [1usize; 3];
+            let mut n = [1usize; MAX_INPUTS];
             n[..k].copy_from_slice(&sup.cells);
-            let mut stride = [1usize; 3];
+            let mut stride = [1usize; MAX_INPUTS];
             for c in (0..k.saturating_sub(1)).rev() {
                 stride[c] = stride[c + 1] * n[c + 1];
             }
             let s: Vec<f64> = (0..sup.len())
                 .map(|j| if sup.supported(j) { 1.0 } else { 0.0 })
                 .collect();
+            let join = |v: &[usize]| {
+                v.iter()
+                    .map(|x| x.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
             format!(
-                "static const int {prefix}_sup_n[3] = {{{}, {}, {}}};\nstatic const long {prefix}_sup_stride[3] = {{{}, {}, {}}};\n",
-                n[0], n[1], n[2], stride[0], stride[1], stride[2]
+                "static const int {prefix}_sup_n[{MAX_INPUTS}] = {{{}}};\nstatic const long {prefix}_sup_stride[{MAX_INPUTS}] = {{{}}};\n",
+                join(&n),
+                join(&stride)
             ) + &array(&format!("{prefix}_sup_half"), &n.map(|v| v as f64 / 2.0))
                 + &array(&format!("{prefix}_sup_s"), &s)
                 + &array(&format!("{prefix}_sup_f"), &sup.fallback_mu)
@@ -135,7 +142,15 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
                 "guard",
                 format!("{}_ADHESION_MODEL_H", prefix.to_uppercase()),
             ),
-            ("v", if k == 3 { ", v" } else { "" }.to_string()),
+            (
+                "v",
+                match k {
+                    4 => ", v, T",
+                    3 => ", v",
+                    _ => "",
+                }
+                .to_string(),
+            ),
             ("ver", env!("CARGO_PKG_VERSION").to_string()),
             ("source", source.to_string()),
             ("fmt", m.format.clone()),
@@ -156,6 +171,7 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("blend", lit(creep.blend_mps)),
             ("cpc", lit(creep.creep_stiffness_n / creep.wheel_load_n)),
             ("vref", lit(creep.reference_speed_mps)),
+            ("tref", lit(creep.reference_temperature_c.unwrap_or(0.0))),
             ("has_sup", u8::from(m.support.is_some()).to_string()),
             ("sup_arrays", sup_arrays),
         ],

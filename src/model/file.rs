@@ -12,6 +12,9 @@ use crate::contact::ContactError;
 /// Largest hidden layer the evaluators take.
 pub const MAX_HIDDEN: usize = 256;
 
+/// Most inputs a network takes (Δv, dΔv/dt, v, ambient temperature).
+pub const MAX_INPUTS: usize = 4;
+
 /// Which inputs a network takes, in order.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum InputSet {
@@ -19,19 +22,52 @@ pub enum InputSet {
     DvDdv,
     /// (Δv, dΔv/dt, v) — speed as a third input.
     DvDdvV,
+    /// (Δv, dΔv/dt, v, T) — and the run's ambient temperature (°C, metadata
+    /// `ambient_temperature_c`) as a fourth: for campaigns whose runs span temperatures
+    /// (seed 004 Fig. 2: the adhesion level moves with temperature).
+    DvDdvVT,
 }
 
 impl InputSet {
-    /// Input names (estimates-table column names) and units.
+    /// Every set, fewest inputs first.
+    pub const ALL: [InputSet; 3] = [InputSet::DvDdv, InputSet::DvDdvV, InputSet::DvDdvVT];
+
+    /// Input names (estimates-table column names; the temperature is the runs' metadata key)
+    /// and units.
     pub fn names(self) -> &'static [(&'static str, &'static str)] {
+        const ALL: [(&str, &str); 4] = [
+            ("dv_mps", "m/s"),
+            ("ddv_mps2", "m/s²"),
+            ("v_mps", "m/s"),
+            ("ambient_temperature_c", "°C"),
+        ];
+        &ALL[..self.count()]
+    }
+    /// Number of inputs (2, 3 or 4).
+    pub fn count(self) -> usize {
         match self {
-            InputSet::DvDdv => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²")],
-            InputSet::DvDdvV => &[("dv_mps", "m/s"), ("ddv_mps2", "m/s²"), ("v_mps", "m/s")],
+            InputSet::DvDdv => 2,
+            InputSet::DvDdvV => 3,
+            InputSet::DvDdvVT => 4,
         }
     }
-    /// Number of inputs (2 or 3).
-    pub fn count(self) -> usize {
-        self.names().len()
+    /// The set whose names are `names`, if any.
+    pub fn from_names<S: AsRef<str>>(names: &[S]) -> Option<InputSet> {
+        InputSet::ALL.into_iter().find(|s| {
+            s.count() == names.len()
+                && s.names()
+                    .iter()
+                    .zip(names)
+                    .all(|((n, _), m)| *n == m.as_ref())
+        })
+    }
+    /// Whether speed is an input.
+    pub fn has_speed(self) -> bool {
+        self.count() >= 3
+    }
+    /// Whether ambient temperature is an input.
+    pub fn has_temperature(self) -> bool {
+        self.count() >= 4
     }
 }
 
@@ -229,8 +265,13 @@ pub struct CreepSpec {
     pub creep_stiffness_n: f64,
     /// Q, the static wheel load the patch was computed for, N.
     pub wheel_load_n: f64,
-    /// Speed used for the creepage when the model has no speed input, m/s.
+    /// Speed used for the creepage when the model has no speed input, and for calls that
+    /// give no speed, m/s.
     pub reference_speed_mps: f64,
+    /// Ambient temperature for calls that give none, °C (networks with a temperature input
+    /// only: the median over the training samples).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference_temperature_c: Option<f64>,
 }
 
 /// Where the model came from.
@@ -401,11 +442,31 @@ impl ModelFile {
         };
         let k = self.inputs.len();
         let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
-        if names != ["dv_mps", "ddv_mps2"] && names != ["dv_mps", "ddv_mps2", "v_mps"] {
+        let Some(set) = InputSet::from_names(&names) else {
             return Err(Defect::Inputs {
                 found: names.iter().map(|n| n.to_string()).collect(),
-                expected: "[dv_mps, ddv_mps2] or [dv_mps, ddv_mps2, v_mps]".into(),
+                expected: "[dv_mps, ddv_mps2], [dv_mps, ddv_mps2, v_mps] or [dv_mps, ddv_mps2, v_mps, ambient_temperature_c]".into(),
             });
+        };
+        if set.has_temperature() && self.version < 2 {
+            return Err(Defect::Value(format!(
+                "version {} has no temperature input (version 2 does)",
+                self.version
+            )));
+        }
+        match (set.has_temperature(), c.reference_temperature_c) {
+            (true, None) => {
+                return Err(Defect::Value(
+                    "a network with the input ambient_temperature_c needs creep.reference_temperature_c".into(),
+                ))
+            }
+            (false, Some(_)) => {
+                return Err(Defect::Value(
+                    "creep.reference_temperature_c belongs to networks with the input ambient_temperature_c only".into(),
+                ))
+            }
+            (true, Some(t)) if !t.is_finite() => return Err(Defect::NotFinite),
+            _ => {}
         }
         if self.outside_domain != "clamp" {
             return Err(Defect::OutsideDomain {
@@ -488,12 +549,10 @@ impl ModelFile {
         self.audit.as_ref().is_some_and(|a| !a.passed)
     }
 
+    /// The network's inputs (checked when the file was read).
     pub fn input_set(&self) -> InputSet {
-        if self.inputs.len() == 3 {
-            InputSet::DvDdvV
-        } else {
-            InputSet::DvDdv
-        }
+        let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
+        InputSet::from_names(&names).unwrap_or(InputSet::DvDdv)
     }
 }
 
@@ -561,11 +620,11 @@ fn check_support(s: &SupportSpec, inputs: usize) -> Result<(), Defect> {
 /// evaluator and the C header so both start from the same doubles).
 pub(crate) struct Scaling {
     /// Input domain per input (unused inputs 0).
-    pub lo: [f64; 3],
-    pub hi: [f64; 3],
+    pub lo: [f64; MAX_INPUTS],
+    pub hi: [f64; MAX_INPUTS],
     /// mapminmax gain and offset per input, x_n = g x + o.
-    pub gx: [f64; 3],
-    pub ox: [f64; 3],
+    pub gx: [f64; MAX_INPUTS],
+    pub ox: [f64; MAX_INPUTS],
     /// Output mapminmax gain and offset.
     pub gy: f64,
     pub oy: f64,
@@ -577,10 +636,10 @@ impl ModelFile {
     pub(crate) fn scaling(&self) -> Scaling {
         let k = self.inputs.len();
         let mut s = Scaling {
-            lo: [0.0; 3],
-            hi: [0.0; 3],
-            gx: [1.0; 3],
-            ox: [0.0; 3],
+            lo: [0.0; MAX_INPUTS],
+            hi: [0.0; MAX_INPUTS],
+            gx: [1.0; MAX_INPUTS],
+            ox: [0.0; MAX_INPUTS],
             gy: 1.0,
             oy: 0.0,
             w1c: (0..k)

@@ -16,7 +16,7 @@
 //! 3. Data support (version-2 files with a support grid, [`SupportSpec`]): N becomes
 //!    w N + (1 − w) F, w the support indicator and F the fallback |μ| of the grid's cells,
 //!    interpolated multilinearly between cell centres at the normalised, unclamped inputs,
-//!    w fading to 0 over one cell beyond the outermost centres (module `support`).
+//!    w fading to 0 over one cell beyond the grid's edge (module `support`).
 //! 4. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
 //!    is replaced by the linear law", eq. 6–8): below the blend slip Δv_b the model blends, with
 //!    the weight w = t²(3 − 2t), t = Δv/Δv_b, from the Kalker linear law saturated by
@@ -37,7 +37,7 @@ pub(crate) use file::Scaling;
 pub use file::{
     gain_offset, AuditSpec, CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer,
     Metrics, ModelFile, ModelKind, OutputSpec, Provenance, SupportSpec, FORMAT_ID, FORMAT_VERSION,
-    MAX_CELLS_PER_INPUT, MAX_HIDDEN, MAX_SUPPORT_CELLS, READ_VERSIONS,
+    MAX_CELLS_PER_INPUT, MAX_HIDDEN, MAX_INPUTS, MAX_SUPPORT_CELLS, READ_VERSIONS,
 };
 use net::Net;
 pub use net::{tanh_fast, LANES};
@@ -157,18 +157,19 @@ impl Model {
     #[inline]
     pub fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
         match &self.law {
-            Law::Mlp(n) => n.mu_v(dv_mps, ddv_mps2, v_mps),
+            Law::Mlp(n) => n.mu_vt(dv_mps, ddv_mps2, v_mps, f64::NAN),
             Law::Polach(p) => p.mu_vt(dv_mps, ddv_mps2, v_mps, f64::NAN),
         }
     }
 
     /// [`Model::mu_v`] at ambient temperature `t_c` (°C): Polach models with a temperature law
-    /// use k_A(T), k_S(T) with T clamped to the fitted range (NaN → the base k_A, k_S); other
-    /// models ignore it.
+    /// use k_A(T), k_S(T) with T clamped to the fitted range (NaN → the base k_A, k_S);
+    /// networks with a temperature input take it as their fourth input (clamped to the domain
+    /// like the others; NaN → the reference temperature); other models ignore it.
     #[inline]
     pub fn mu_vt(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> f64 {
         match &self.law {
-            Law::Mlp(n) => n.mu_v(dv_mps, ddv_mps2, v_mps),
+            Law::Mlp(n) => n.mu_vt(dv_mps, ddv_mps2, v_mps, t_c),
             Law::Polach(p) => p.mu_vt(dv_mps, ddv_mps2, v_mps, t_c),
         }
     }
@@ -185,14 +186,29 @@ impl Model {
     /// time); every lane performs the same IEEE operations as [`Model::mu_v`], so the results
     /// are identical (tested), whatever the path.
     pub fn mu_batch(&self, dv_mps: &[f64], ddv_mps2: &[f64], v_mps: &[f64], out: &mut [f64]) {
+        self.mu_batch_t(dv_mps, ddv_mps2, v_mps, &[], out)
+    }
+
+    /// [`Model::mu_batch`] with ambient temperatures `t_c` (°C; empty: the reference or base
+    /// values, as [`Model::mu_vt`] with NaN).
+    pub fn mu_batch_t(
+        &self,
+        dv_mps: &[f64],
+        ddv_mps2: &[f64],
+        v_mps: &[f64],
+        t_c: &[f64],
+        out: &mut [f64],
+    ) {
         assert!(dv_mps.len() == ddv_mps2.len() && out.len() == dv_mps.len());
         assert!(v_mps.is_empty() || v_mps.len() == dv_mps.len());
+        assert!(t_c.is_empty() || t_c.len() == dv_mps.len());
         match &self.law {
-            Law::Mlp(n) => n.mu_batch(dv_mps, ddv_mps2, v_mps, out),
+            Law::Mlp(n) => n.mu_batch(dv_mps, ddv_mps2, v_mps, t_c, out),
             Law::Polach(p) => {
                 for (i, o) in out.iter_mut().enumerate() {
                     let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
-                    *o = p.mu_vt(dv_mps[i], ddv_mps2[i], v, f64::NAN);
+                    let t = t_c.get(i).copied().unwrap_or(f64::NAN);
+                    *o = p.mu_vt(dv_mps[i], ddv_mps2[i], v, t);
                 }
             }
         }
@@ -201,8 +217,14 @@ impl Model {
     /// True when every input lies in the domain seen in training (for Polach models: Δv and
     /// v in the fitted ranges).
     pub fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+        self.in_domain_t(dv_mps, ddv_mps2, v_mps, f64::NAN)
+    }
+
+    /// [`Model::in_domain`] with the ambient temperature (°C; checked by networks with a
+    /// temperature input, NaN → the reference temperature).
+    pub fn in_domain_t(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> bool {
         match &self.law {
-            Law::Mlp(n) => n.in_domain(dv_mps, ddv_mps2, v_mps),
+            Law::Mlp(n) => n.in_domain(dv_mps, ddv_mps2, v_mps, t_c),
             Law::Polach(p) => p.in_domain(dv_mps, v_mps),
         }
     }
@@ -210,8 +232,19 @@ impl Model {
     /// The interpolated data support w ∈ [0, 1] at these inputs (1: the network alone, 0: the
     /// fallback alone); `None` for models without a support grid.
     pub fn support_weight(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+        self.support_weight_t(dv_mps, ddv_mps2, v_mps, f64::NAN)
+    }
+
+    /// [`Model::support_weight`] at ambient temperature `t_c` (°C; NaN → the reference).
+    pub fn support_weight_t(
+        &self,
+        dv_mps: f64,
+        ddv_mps2: f64,
+        v_mps: f64,
+        t_c: f64,
+    ) -> Option<f64> {
         match &self.law {
-            Law::Mlp(n) => n.support_weight(dv_mps, ddv_mps2, v_mps),
+            Law::Mlp(n) => n.support_weight(dv_mps, ddv_mps2, v_mps, t_c),
             Law::Polach(_) => None,
         }
     }
@@ -220,7 +253,7 @@ impl Model {
     /// inputs; `None` for single networks and other models.
     pub fn spread(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
         match &self.law {
-            Law::Mlp(n) => n.spread(dv_mps, ddv_mps2, v_mps),
+            Law::Mlp(n) => n.spread(dv_mps, ddv_mps2, v_mps, f64::NAN),
             Law::Polach(_) => None,
         }
     }

@@ -3,7 +3,7 @@
 //! samples (AVX-512F, AVX2 or plain f64), every path performing the same IEEE operations lane
 //! by lane — bit-identical results whatever the CPU (tested below).
 
-use super::file::{ModelFile, Scaling};
+use super::file::{ModelFile, Scaling, MAX_INPUTS};
 use super::support::SupportEval;
 use crate::contact::saturation::she_ratio;
 use crate::simd::{self, Isa, Lanes, Portable};
@@ -20,10 +20,10 @@ const CHUNK: usize = 4;
 #[derive(Debug, Clone)]
 pub(super) struct Net {
     k: usize,
-    lo: [f64; 3],
-    hi: [f64; 3],
-    gx: [f64; 3],
-    ox: [f64; 3],
+    lo: [f64; MAX_INPUTS],
+    hi: [f64; MAX_INPUTS],
+    gx: [f64; MAX_INPUTS],
+    ox: [f64; MAX_INPUTS],
     /// Hidden neurons, and that number rounded up to a multiple of [`CHUNK`].
     nh: usize,
     pad: usize,
@@ -46,15 +46,26 @@ pub(super) struct Net {
     /// C / Q: μ per unit creepage.
     creep_per_creepage: f64,
     v_ref: f64,
+    /// Ambient temperature for calls without one, °C (4-input networks; else unused).
+    t_ref: f64,
     /// The data-support blend (version-2 files with a support grid).
     support: Option<Box<SupportEval>>,
+}
+
+/// One block of [`LANES`] samples of a batch: slip, slip rate, speed and temperature (NaN:
+/// the reference values).
+struct BlockIn {
+    dv: [f64; LANES],
+    ddv: [f64; LANES],
+    v: [f64; LANES],
+    t: [f64; LANES],
 }
 
 /// [`CHUNK`] hidden neurons' weights, contiguous (padding neurons all zero).
 #[derive(Debug, Clone, Default)]
 struct Block {
     b1: [f64; CHUNK],
-    w1: [[f64; CHUNK]; 3],
+    w1: [[f64; CHUNK]; MAX_INPUTS],
     w2: [f64; CHUNK],
 }
 
@@ -138,6 +149,7 @@ impl Net {
             blend: creep.blend_mps,
             creep_per_creepage: creep.creep_stiffness_n / creep.wheel_load_n,
             v_ref: creep.reference_speed_mps,
+            t_ref: creep.reference_temperature_c.unwrap_or(f64::NAN),
             support: file.support.as_ref().map(|s| Box::new(SupportEval::new(s))),
         }
     }
@@ -148,7 +160,7 @@ impl Net {
     /// runs over the real neurons in order — the same operations as the batch path and the C
     /// header, same results.
     #[inline(always)]
-    fn net<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+    fn net<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
         // The usual sizes with the chunk count known at compile time (fully unrolled).
         match self.pad / CHUNK {
             1 => self.net_chunks::<V, 1>(isa, x),
@@ -162,7 +174,7 @@ impl Net {
     /// One block of the hidden layer, w2_h tanh(b1_h + Σ_c W1_hc x_n,c) for its neurons
     /// (weights doubled: the sum is 2z), on lanes `V`.
     #[inline(always)]
-    fn chunk<V: Lanes>(&self, isa: V::Isa, b: &Block, xn: &[f64; 3]) -> [f64; CHUNK] {
+    fn chunk<V: Lanes>(&self, isa: V::Isa, b: &Block, xn: &[f64; MAX_INPUTS]) -> [f64; CHUNK] {
         let mut o = [0.0; CHUNK];
         for i in (0..CHUNK).step_by(V::N) {
             let mut z2 = V::load(isa, &b.b1[i..]);
@@ -177,8 +189,8 @@ impl Net {
     }
 
     #[inline(always)]
-    fn inputs(&self, x: [f64; 3]) -> [f64; 3] {
-        let mut xn = [0.0; 3];
+    fn inputs(&self, x: [f64; MAX_INPUTS]) -> [f64; MAX_INPUTS] {
+        let mut xn = [0.0; MAX_INPUTS];
         for c in 0..self.k {
             xn[c] = self.gx[c].mul_add(x[c].clamp(self.lo[c], self.hi[c]), self.ox[c]);
         }
@@ -191,7 +203,7 @@ impl Net {
     /// and a rounded sum is −0.0 only when both terms are) — so the result is that of summing
     /// the real neurons only, as the batch path and the C header do.
     #[inline(always)]
-    fn net_chunks<V: Lanes, const C: usize>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+    fn net_chunks<V: Lanes, const C: usize>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
         let xn = self.inputs(x);
         let blocks: &[Block; C] = self.blocks[..C].try_into().expect("C blocks");
         let mut y = self.b2;
@@ -204,7 +216,7 @@ impl Net {
     }
 
     #[inline(always)]
-    fn net_any<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+    fn net_any<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
         let xn = self.inputs(x);
         let mut y = self.b2;
         for b in &self.blocks {
@@ -215,70 +227,93 @@ impl Net {
         (y - self.oy) / self.gy
     }
 
-    /// [`Model::mu_v`] of the network: four neurons per AVX2 register when the CPU has AVX2
+    /// [`Model::mu_vt`] of the network: four neurons per AVX2 register when the CPU has AVX2
     /// and FMA (compiled with AVX-512VL's 32 registers when it has those), else the portable
     /// path (plain f64; `mul_add` is a libm call on CPUs without FMA). Same bits on every path.
     #[inline]
-    pub(super) fn mu_v(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
+    pub(super) fn mu_vt(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> f64 {
         match self.isa {
             // SAFETY: the token proves AVX-512F/VL, AVX2 and FMA on this CPU.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(t) => unsafe { self.mu_v_avx512vl(t, dv_mps, ddv_mps2, v_mps) },
+            Isa::Avx512(t) => unsafe { self.mu_vt_avx512vl(t, dv_mps, ddv_mps2, v_mps, t_c) },
             // SAFETY: the token proves AVX2 and FMA on this CPU.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(t) => unsafe { self.mu_v_avx2(t, dv_mps, ddv_mps2, v_mps) },
-            _ => self.mu_v_impl::<f64>(Portable, dv_mps, ddv_mps2, v_mps),
+            Isa::Avx2(t) => unsafe { self.mu_vt_avx2(t, dv_mps, ddv_mps2, v_mps, t_c) },
+            _ => self.mu_vt_impl::<f64>(Portable, dv_mps, ddv_mps2, v_mps, t_c),
         }
     }
 
-    /// [`Net::mu_v`] on AVX2 registers, compiled with AVX-512VL (its 32 vector registers keep
+    /// [`Net::mu_vt`] on AVX2 registers, compiled with AVX-512VL (its 32 vector registers keep
     /// tanh's constants in registers; about 5 % faster in development measurements). Rust never
     /// contracts a multiply and an add on its own, so only the written `fma`s are fused.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
-    fn mu_v_avx512vl(&self, isa: Avx512, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
-        self.mu_v_impl::<F64x4>(isa.avx2(), dv_mps, ddv_mps2, v_mps)
+    fn mu_vt_avx512vl(&self, isa: Avx512, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> f64 {
+        self.mu_vt_impl::<F64x4>(isa.avx2(), dv_mps, ddv_mps2, v_mps, t_c)
     }
 
-    /// [`Net::mu_v`] on AVX2 registers.
+    /// [`Net::mu_vt`] on AVX2 registers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn mu_v_avx2(&self, isa: Avx2, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
-        self.mu_v_impl::<F64x4>(isa, dv_mps, ddv_mps2, v_mps)
+    fn mu_vt_avx2(&self, isa: Avx2, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> f64 {
+        self.mu_vt_impl::<F64x4>(isa, dv_mps, ddv_mps2, v_mps, t_c)
     }
 
+    /// The physical inputs of step 1 for one call: mirrored slip and slip rate, the speed
+    /// (NaN → the reference speed) and the temperature (NaN → the reference temperature).
     #[inline(always)]
-    fn mu_v_impl<V: Lanes>(&self, isa: V::Isa, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> f64 {
-        if !(dv_mps.is_finite() && ddv_mps2.is_finite()) {
-            return f64::NAN;
-        }
+    fn mirrored(
+        &self,
+        dv_mps: f64,
+        ddv_mps2: f64,
+        v_mps: f64,
+        t_c: f64,
+    ) -> (f64, [f64; MAX_INPUTS]) {
         let (s, dv, ddv) = if dv_mps < 0.0 {
             (-1.0, -dv_mps, -ddv_mps2)
         } else {
             (1.0, dv_mps, ddv_mps2)
         };
         let v = if v_mps.is_finite() { v_mps } else { self.v_ref };
-        let net = self.net_supported::<V>(isa, [dv, ddv, v]);
+        let t = if t_c.is_finite() { t_c } else { self.t_ref };
+        (s, [dv, ddv, v, t])
+    }
+
+    #[inline(always)]
+    fn mu_vt_impl<V: Lanes>(
+        &self,
+        isa: V::Isa,
+        dv_mps: f64,
+        ddv_mps2: f64,
+        v_mps: f64,
+        t_c: f64,
+    ) -> f64 {
+        if !(dv_mps.is_finite() && ddv_mps2.is_finite()) {
+            return f64::NAN;
+        }
+        let (s, x) = self.mirrored(dv_mps, ddv_mps2, v_mps, t_c);
+        let [dv, ddv, v, t] = x;
+        let net = self.net_supported::<V>(isa, x);
         if dv >= self.blend {
             return s * net;
         }
-        let sat = self.net_supported::<V>(isa, [self.blend, ddv, v]).abs();
-        let v_creep = if self.k == 3 { v.max(1.0) } else { self.v_ref };
+        let sat = self.net_supported::<V>(isa, [self.blend, ddv, v, t]).abs();
+        let v_creep = if self.k >= 3 { v.max(1.0) } else { self.v_ref };
         let slope = self.creep_per_creepage / v_creep;
         let lin = if sat > 0.0 {
             sat * she_ratio(slope * dv / sat)
         } else {
             0.0
         };
-        let t = dv / self.blend;
-        let w = t * t * (3.0 - 2.0 * t);
+        let w = dv / self.blend;
+        let w = w * w * (3.0 - 2.0 * w);
         s * (w * net + (1.0 - w) * lin)
     }
 
     /// Steps 2 and 3 of the evaluation rule: the network, blended towards the fallback
     /// outside the data support (version-2 files with a grid).
     #[inline(always)]
-    fn net_supported<V: Lanes>(&self, isa: V::Isa, x: [f64; 3]) -> f64 {
+    fn net_supported<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
         let n = self.net::<V>(isa, x);
         match &self.support {
             None => n,
@@ -288,8 +323,8 @@ impl Net {
 
     /// The inputs normalised but not clamped (the support grid fades beyond the domain).
     #[inline(always)]
-    fn raw_inputs(&self, x: [f64; 3]) -> [f64; 3] {
-        let mut xn = [0.0; 3];
+    fn raw_inputs(&self, x: [f64; MAX_INPUTS]) -> [f64; MAX_INPUTS] {
+        let mut xn = [0.0; MAX_INPUTS];
         for c in 0..self.k {
             xn[c] = self.gx[c].mul_add(x[c], self.ox[c]);
         }
@@ -297,129 +332,111 @@ impl Net {
     }
 
     /// The mirrored inputs of step 1, normalised but not clamped (for the support grid).
-    fn mirrored_inputs(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> [f64; 3] {
-        let (dv, ddv) = if dv_mps < 0.0 {
-            (-dv_mps, -ddv_mps2)
-        } else {
-            (dv_mps, ddv_mps2)
-        };
-        self.raw_inputs([dv, ddv, if v_mps.is_finite() { v_mps } else { self.v_ref }])
+    fn mirrored_inputs(
+        &self,
+        dv_mps: f64,
+        ddv_mps2: f64,
+        v_mps: f64,
+        t_c: f64,
+    ) -> [f64; MAX_INPUTS] {
+        self.raw_inputs(self.mirrored(dv_mps, ddv_mps2, v_mps, t_c).1)
     }
 
     /// The interpolated support w ∈ [0, 1] (1 inside the data; `None` without a grid).
-    pub(super) fn support_weight(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+    pub(super) fn support_weight(
+        &self,
+        dv_mps: f64,
+        ddv_mps2: f64,
+        v_mps: f64,
+        t_c: f64,
+    ) -> Option<f64> {
         let sup = self.support.as_ref()?;
-        Some(sup.weight(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps)))
+        Some(sup.weight(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps, t_c)))
     }
 
     /// The interpolated ensemble spread of μ (`None` without).
-    pub(super) fn spread(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> Option<f64> {
+    pub(super) fn spread(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> Option<f64> {
         let sup = self.support.as_ref()?;
-        sup.spread(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps))
+        sup.spread(&self.mirrored_inputs(dv_mps, ddv_mps2, v_mps, t_c))
     }
 
-    /// [`Model::mu_batch`] of the network.
+    /// [`Model::mu_batch_t`] of the network (`v_mps`, `t_c` empty: the reference values).
     pub(super) fn mu_batch(
         &self,
         dv_mps: &[f64],
         ddv_mps2: &[f64],
         v_mps: &[f64],
+        t_c: &[f64],
         out: &mut [f64],
     ) {
         let n = out.len();
         let full = n - n % LANES;
         let isa = self.isa;
-        for b in (0..full).step_by(LANES) {
-            let dv: &[f64; LANES] = dv_mps[b..b + LANES].try_into().expect("block");
-            let ddv: &[f64; LANES] = ddv_mps2[b..b + LANES].try_into().expect("block");
-            let v: [f64; LANES] = if v_mps.is_empty() {
+        let lanes = |x: &[f64], b: usize| -> [f64; LANES] {
+            if x.is_empty() {
                 [f64::NAN; LANES]
             } else {
-                v_mps[b..b + LANES].try_into().expect("block")
+                x[b..b + LANES].try_into().expect("block")
+            }
+        };
+        for b in (0..full).step_by(LANES) {
+            let block = BlockIn {
+                dv: lanes(dv_mps, b),
+                ddv: lanes(ddv_mps2, b),
+                v: lanes(v_mps, b),
+                t: lanes(t_c, b),
             };
             let o: &mut [f64; LANES] = (&mut out[b..b + LANES]).try_into().expect("block");
-            self.block_dispatch(isa, dv, ddv, &v, o);
+            self.block_dispatch(isa, &block, o);
         }
+        let at = |x: &[f64], i: usize| x.get(i).copied().unwrap_or(f64::NAN);
         for i in full..n {
-            let v = v_mps.get(i).copied().unwrap_or(f64::NAN);
-            out[i] = self.mu_v(dv_mps[i], ddv_mps2[i], v);
+            out[i] = self.mu_vt(dv_mps[i], ddv_mps2[i], at(v_mps, i), at(t_c, i));
         }
     }
 
-    fn block_dispatch(
-        &self,
-        isa: Isa,
-        dv: &[f64; LANES],
-        ddv: &[f64; LANES],
-        v: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
+    fn block_dispatch(&self, isa: Isa, input: &BlockIn, out: &mut [f64; LANES]) {
         match isa {
             // SAFETY: the token proves AVX-512F on this CPU.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512(t) => unsafe { self.block_avx512(t, dv, ddv, v, out) },
+            Isa::Avx512(t) => unsafe { self.block_avx512(t, input, out) },
             // SAFETY: the token proves AVX2 and FMA on this CPU.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2(t) => unsafe { self.block_avx2(t, dv, ddv, v, out) },
-            _ => self.block::<f64>(Portable, dv, ddv, v, out),
+            Isa::Avx2(t) => unsafe { self.block_avx2(t, input, out) },
+            _ => self.block::<f64>(Portable, input, out),
         }
     }
 
     /// [`Net::block`] on AVX-512 registers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    fn block_avx512(
-        &self,
-        isa: Avx512,
-        dv: &[f64; LANES],
-        ddv: &[f64; LANES],
-        v: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
-        self.block::<F64x8>(isa, dv, ddv, v, out)
+    fn block_avx512(&self, isa: Avx512, input: &BlockIn, out: &mut [f64; LANES]) {
+        self.block::<F64x8>(isa, input, out)
     }
 
     /// [`Net::block`] on AVX2 registers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn block_avx2(
-        &self,
-        isa: Avx2,
-        dv: &[f64; LANES],
-        ddv: &[f64; LANES],
-        v: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
-        self.block::<F64x4>(isa, dv, ddv, v, out)
+    fn block_avx2(&self, isa: Avx2, input: &BlockIn, out: &mut [f64; LANES]) {
+        self.block::<F64x4>(isa, input, out)
     }
 
-    /// [`Model::mu_v`] for a block of samples on lanes `V`, lane by lane the same operations
+    /// [`Model::mu_vt`] for a block of samples on lanes `V`, lane by lane the same operations
     /// as the single call: inputs, then per neuron in order 2z = fma(2W1, x_n, ·) from 2b1,
     /// y += w2 · tanh, then (y − o_y)/g_y; the creep region (rare in a batch) by the scalar rule.
     #[inline(always)]
     #[allow(clippy::needless_range_loop)]
-    fn block<V: Lanes>(
-        &self,
-        isa: V::Isa,
-        dv_in: &[f64; LANES],
-        ddv_in: &[f64; LANES],
-        v_in: &[f64; LANES],
-        out: &mut [f64; LANES],
-    ) {
+    fn block<V: Lanes>(&self, isa: V::Isa, input: &BlockIn, out: &mut [f64; LANES]) {
         let mut sgn = [1.0; LANES];
-        let mut x = [[0.0; LANES]; 3];
+        let mut x = [[0.0; LANES]; MAX_INPUTS];
         for l in 0..LANES {
-            let neg = dv_in[l] < 0.0;
-            sgn[l] = if neg { -1.0 } else { 1.0 };
-            x[0][l] = if neg { -dv_in[l] } else { dv_in[l] };
-            x[1][l] = if neg { -ddv_in[l] } else { ddv_in[l] };
-            x[2][l] = if v_in[l].is_finite() {
-                v_in[l]
-            } else {
-                self.v_ref
-            };
+            let (s, xl) = self.mirrored(input.dv[l], input.ddv[l], input.v[l], input.t[l]);
+            sgn[l] = s;
+            for c in 0..MAX_INPUTS {
+                x[c][l] = xl[c];
+            }
         }
-        let mut xn = [[0.0; LANES]; 3];
+        let mut xn = [[0.0; LANES]; MAX_INPUTS];
         for c in 0..self.k {
             let (lo, hi, g, o) = (self.lo[c], self.hi[c], self.gx[c], self.ox[c]);
             for l in 0..LANES {
@@ -446,27 +463,29 @@ impl Net {
             y[j].sub(oy).div(gy).store(&mut net[j * V::N..]);
         }
         for l in 0..LANES {
-            out[l] = if !(dv_in[l].is_finite() && ddv_in[l].is_finite()) {
+            let (dv, ddv) = (input.dv[l], input.ddv[l]);
+            out[l] = if !(dv.is_finite() && ddv.is_finite()) {
                 f64::NAN
             } else if x[0][l] >= self.blend {
                 match &self.support {
                     None => sgn[l] * net[l],
                     Some(sup) => {
-                        let raw = self.raw_inputs([x[0][l], x[1][l], x[2][l]]);
+                        let raw = self.raw_inputs([x[0][l], x[1][l], x[2][l], x[3][l]]);
                         sgn[l] * sup.apply(&raw, net[l])
                     }
                 }
             } else {
-                self.mu_v(dv_in[l], ddv_in[l], v_in[l])
+                self.mu_vt(dv, ddv, input.v[l], input.t[l])
             };
         }
     }
 
-    pub(super) fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64) -> bool {
+    pub(super) fn in_domain(&self, dv_mps: f64, ddv_mps2: f64, v_mps: f64, t_c: f64) -> bool {
         let x = [
             dv_mps.abs(),
             if dv_mps < 0.0 { -ddv_mps2 } else { ddv_mps2 },
             v_mps,
+            t_c,
         ];
         (0..self.k).all(|c| x[c] >= self.lo[c] && x[c] <= self.hi[c])
     }
@@ -479,23 +498,48 @@ mod tests {
 
     #[test]
     fn every_compiled_path_gives_the_portable_bits() {
-        let text = include_str!("../../models/golden/synthetic_mlp.json");
-        let m = Model::new(ModelFile::from_json(text, "golden").unwrap()).unwrap();
-        let Law::Mlp(net) = &m.law else {
-            panic!("the golden model is a network")
-        };
-        let mut points = Vec::new();
-        for i in 0..400 {
-            let dv = -4.5 + 0.0225 * i as f64;
-            for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
-                points.push((dv, ddv));
+        // The two-input golden network over (Δv, dΔv/dt), and the four-input one over speeds
+        // and temperatures too (inside, between, beyond its runs' and NaN: the references).
+        let two = include_str!("../../models/golden/synthetic_mlp.json");
+        let four = include_str!("../../models/golden/synthetic_mlp_4inputs.json");
+        for (text, vs, ts) in [
+            (two, &[f64::NAN][..], &[f64::NAN][..]),
+            (
+                four,
+                &[f64::NAN, 10.0, 25.0, 40.0][..],
+                &[f64::NAN, -30.0, -10.0, 3.0, 20.0, 35.0][..],
+            ),
+        ] {
+            let m = Model::new(ModelFile::from_json(text, "golden").unwrap()).unwrap();
+            let Law::Mlp(net) = &m.law else {
+                panic!("the golden model is a network")
+            };
+            let mut points = Vec::new();
+            for i in 0..400 {
+                let dv = -4.5 + 0.0225 * i as f64;
+                for ddv in [-3.5, -1.0, -0.01, 0.0, 0.3, 2.9, 7.0] {
+                    for &v in vs {
+                        for &t in ts {
+                            points.push([dv, ddv, v, t]);
+                        }
+                    }
+                }
             }
+            points.push([f64::NAN, 0.0, f64::NAN, f64::NAN]);
+            points.push([0.5, f64::INFINITY, f64::NAN, f64::NAN]);
+            same_on_every_path(&m, net, &points);
         }
-        points.push((f64::NAN, 0.0));
-        points.push((0.5, f64::INFINITY));
+    }
+
+    /// Single calls and batch blocks on every instruction set this CPU has give the portable
+    /// path's bits at `points` (Δv, dΔv/dt, v, T).
+    fn same_on_every_path(m: &Model, net: &Net, points: &[[f64; 4]]) {
         let portable: Vec<u64> = points
             .iter()
-            .map(|&(dv, ddv)| net.mu_v_impl::<f64>(Portable, dv, ddv, f64::NAN).to_bits())
+            .map(|p| {
+                net.mu_vt_impl::<f64>(Portable, p[0], p[1], p[2], p[3])
+                    .to_bits()
+            })
             .collect();
         let same = |name: &str, got: &[f64]| {
             for (k, (g, p)) in got.iter().zip(&portable).enumerate() {
@@ -507,39 +551,42 @@ mod tests {
                 );
             }
         };
-        let single: Vec<f64> = points.iter().map(|&(dv, ddv)| m.mu(dv, ddv)).collect();
+        let single: Vec<f64> = points
+            .iter()
+            .map(|p| m.mu_vt(p[0], p[1], p[2], p[3]))
+            .collect();
         same("dispatched single call", &single);
-        let (dv, ddv): (Vec<f64>, Vec<f64>) = points.iter().copied().unzip();
         let n = points.len() - points.len() % LANES;
-        let v = [f64::NAN; LANES];
         // Every instruction set this CPU has, the widest last.
         let sets = Isa::all_available();
         for s in &sets {
             let got: Vec<f64> = points
                 .iter()
-                .map(|&(a, b)| match *s {
+                .map(|p| match *s {
                     // SAFETY: the token proves the instructions.
                     #[cfg(target_arch = "x86_64")]
-                    Isa::Avx2(t) => unsafe { net.mu_v_avx2(t, a, b, f64::NAN) },
+                    Isa::Avx2(t) => unsafe { net.mu_vt_avx2(t, p[0], p[1], p[2], p[3]) },
                     // SAFETY: the token proves the instructions.
                     #[cfg(target_arch = "x86_64")]
-                    Isa::Avx512(t) => unsafe { net.mu_v_avx512vl(t, a, b, f64::NAN) },
-                    _ => net.mu_v_impl::<f64>(Portable, a, b, f64::NAN),
+                    Isa::Avx512(t) => unsafe { net.mu_vt_avx512vl(t, p[0], p[1], p[2], p[3]) },
+                    _ => net.mu_vt_impl::<f64>(Portable, p[0], p[1], p[2], p[3]),
                 })
                 .collect();
             same(&format!("{s:?} single call"), &got);
         }
+        let col =
+            |c: usize, b: usize| -> [f64; LANES] { std::array::from_fn(|l| points[b + l][c]) };
         for s in sets {
             let mut out = vec![0.0; n];
             for b in (0..n).step_by(LANES) {
                 let o: &mut [f64; LANES] = (&mut out[b..b + LANES]).try_into().unwrap();
-                net.block_dispatch(
-                    s,
-                    dv[b..b + LANES].try_into().unwrap(),
-                    ddv[b..b + LANES].try_into().unwrap(),
-                    &v,
-                    o,
-                );
+                let block = BlockIn {
+                    dv: col(0, b),
+                    ddv: col(1, b),
+                    v: col(2, b),
+                    t: col(3, b),
+                };
+                net.block_dispatch(s, &block, o);
             }
             same(&format!("{s:?} batch block"), &out);
         }

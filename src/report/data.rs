@@ -5,14 +5,17 @@ use std::path::Path;
 use super::ReportError;
 use crate::format::AXLES;
 
+/// A valid sample: (Δv m/s, dΔv/dt m/s², μ, t s, v m/s).
+pub(super) type ValidPoint = (f64, f64, f64, f64, f64);
+
 /// The columns of an estimates table the report draws, per axle.
 pub(super) struct RunData {
     pub time_s: Vec<f64>,
     pub v_mps: Vec<f64>,
-    /// Per axle: (t, rω), (t, p), and the valid (Δv, dΔv/dt, μ).
+    /// Per axle: (t, rω), (t, p), and the valid (Δv, dΔv/dt, μ, t, v).
     pub wheel: [Vec<(f64, f64)>; AXLES],
     pub pressure: [Vec<(f64, f64)>; AXLES],
-    pub valid: [Vec<(f64, f64, f64, f64)>; AXLES],
+    pub valid: [Vec<ValidPoint>; AXLES],
 }
 
 pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
@@ -71,7 +74,7 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         }
         d.pressure[a].push((t[k], p[k]));
         if valid[k] {
-            d.valid[a].push((dv[k], ddv[k], mu[k], t[k]));
+            d.valid[a].push((dv[k], ddv[k], mu[k], t[k], v[k]));
         }
     }
     Ok(d)

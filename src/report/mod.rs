@@ -445,7 +445,13 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
     if let Some((r, d)) = data.iter().find(|(r, _)| i.in_condition(r)) {
         let pts = &d.valid[(va.clamp(1, AXLES)) - 1];
         let est: Vec<(f64, f64)> = pts.iter().map(|p| (p.3, p.2)).collect();
-        let net: Vec<(f64, f64)> = pts.iter().map(|p| (p.3, m.mu(p.0, p.1))).collect();
+        // The network at each sample's own speed and the run's ambient temperature (models
+        // without those inputs ignore them).
+        let t_c = r.ambient_temperature_c.unwrap_or(f64::NAN);
+        let net: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|p| (p.3, m.mu_vt(p.0, p.1, p.4, t_c)))
+            .collect();
         h.push_str(&chart(
             &format!("Network against estimate, {} axle {va} (Fig. 10)", r.run),
             "time (s)",

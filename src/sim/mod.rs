@@ -124,8 +124,9 @@ pub struct Truth {
 }
 
 impl Truth {
-    /// Samples of every axle, for [`crate::score::score`].
-    pub fn samples(&self) -> Vec<crate::score::Sample> {
+    /// Samples of every axle, for [`crate::score::score`], with the run's ambient temperature
+    /// `t_c` (°C; the scene's `run.ambient_temperature_c`).
+    pub fn samples(&self, t_c: f64) -> Vec<crate::score::Sample> {
         let mut out = Vec::with_capacity(AXLES * self.time_s.len());
         for a in 0..AXLES {
             for i in 0..self.time_s.len() {
@@ -134,6 +135,7 @@ impl Truth {
                     dv_mps: self.dv_mps[a][i],
                     ddv_mps2: self.ddv_mps2[a][i],
                     v_mps: self.v_mps[i],
+                    t_c,
                     mu: self.mu[a][i],
                 });
             }

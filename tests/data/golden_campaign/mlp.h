@@ -2,7 +2,8 @@
  * Format railgrip-adhesion-model v2; trained on 34916 samples, validation MSE 7.48511560453417e-5.
  * Inputs (clamped to the domain seen in training): dv_mps [m/s] in [-0.024778465938281924, 4.8090248500470025], ddv_mps2 [m/s²] in [-8.628435126047014, 5.942988338146724].
  * Header-only C99: #include it and call mlp_mu(dv, ddv), mlp_mu_v(dv, ddv, v),
- * mlp_mu_vt(dv, ddv, v, t_c) (t_c ignored by this kind) or mlp_mu_batch(dv, ddv, v_or_NULL, out, n).
+ * mlp_mu_vt(dv, ddv, v, t_c) (t_c: the fourth input of 4-input networks, else ignored),
+ * mlp_mu_batch(dv, ddv, v_or_NULL, out, n) or mlp_mu_batch_t(dv, ddv, v_or_NULL, t_or_NULL, out, n).
  * Same arithmetic as railgrip's Rust evaluator (railgrip::model::Model::mu_v), fused
  * multiply-adds included (MLP_FMA): bit-identical results when those use C99 fma() (targets
  * with fast FMA, e.g. -march=native on x86-64 since 2013 and every AArch64, or define
@@ -25,24 +26,28 @@
 #define MLP_N_INPUTS 2
 #define MLP_N_HIDDEN 10
 
-static const double mlp_lo[3] = {
+static const double mlp_lo[4] = {
     -0.024778465938281924,
     -8.628435126047014,
+    0.0,
     0.0
 };
-static const double mlp_hi[3] = {
+static const double mlp_hi[4] = {
     4.8090248500470025,
     5.942988338146724,
+    0.0,
     0.0
 };
-static const double mlp_gx[3] = {
+static const double mlp_gx[4] = {
     0.4204439724217725,
     0.1387311036553904,
+    1.0,
     1.0
 };
-static const double mlp_ox[3] = {
+static const double mlp_ox[4] = {
     -0.9895820433503911,
     0.17552266883779066,
+    0.0,
     0.0
 };
 static const double mlp_w1c[20] = {
@@ -97,6 +102,7 @@ static const double mlp_oy = -1.0735312916903286;
 static const double mlp_blend = 0.2;
 static const double mlp_creep_per_creepage = 199.36674346407014;
 static const double mlp_v_ref = 20.556800584267528;
+static const double mlp_t_ref = 0.0;
 
 static inline double mlp_clamp(double x, double lo, double hi) {
     return x < lo ? lo : (x > hi ? hi : x);
@@ -134,8 +140,8 @@ static inline double mlp_tanh(double z) {
     return em1 / (em1 + 2.0);
 }
 
-static inline double mlp_net(const double x[3]) {
-    double xn[3] = {0.0, 0.0, 0.0};
+static inline double mlp_net(const double x[4]) {
+    double xn[4] = {0.0, 0.0, 0.0, 0.0};
     double z[MLP_N_HIDDEN];
     double y = mlp_b2;
     int c, h;
@@ -161,14 +167,15 @@ static inline double mlp_net(const double x[3]) {
 
 /* Step 3 of the evaluation rule (format version 2, "Data support"): the support grid's
  * indicator and fallback |mu| interpolated multilinearly between cell centres at the
- * normalised, unclamped inputs xn, the support fading to 0 over one cell beyond the outermost
- * centres; m where the support is 1, the fallback where it is 0, the weighted mean between. */
+ * normalised, unclamped inputs xn, the support fading to 0 over one cell beyond the grid's
+ * edge (xn = +-1); m where the support is 1, the fallback where it is 0, the weighted mean between. */
 #define MLP_HAS_SUPPORT 1
-static const int mlp_sup_n[3] = {24, 24, 1};
-static const long mlp_sup_stride[3] = {24, 1, 1};
-static const double mlp_sup_half[3] = {
+static const int mlp_sup_n[4] = {24, 24, 1, 1};
+static const long mlp_sup_stride[4] = {24, 1, 1, 1};
+static const double mlp_sup_half[4] = {
     12.0,
     12.0,
+    0.5,
     0.5
 };
 static const double mlp_sup_s[576] = {
@@ -1327,16 +1334,16 @@ static const double mlp_sup_f[576] = {
     0.0427518108090461,
     0.0427518108090461
 };
-static inline double mlp_support(const double xn[3], double m) {
+static inline double mlp_support(const double xn[4], double m) {
 #if MLP_HAS_SUPPORT
     long base = 0, j;
-    double f[3] = {0.0, 0.0, 0.0}, w, ws = 0.0, fs = 0.0, fade = 1.0;
+    double f[4] = {0.0, 0.0, 0.0, 0.0}, w, ws = 0.0, fs = 0.0, fade = 1.0;
     int c;
     unsigned corner;
     for (c = 0; c < MLP_N_INPUTS; ++c) {
         double top = (double)(mlp_sup_n[c] - 1), u, i, raw, beyond;
         raw = (xn[c] + 1.0) * mlp_sup_half[c] - 0.5;
-        beyond = -raw > raw - top ? -raw : raw - top;
+        beyond = -0.5 - raw > raw - top - 0.5 ? -0.5 - raw : raw - top - 0.5;
         beyond = beyond > 0.0 ? beyond : 0.0;
         beyond = beyond < 1.0 ? beyond : 1.0;
         fade *= 1.0 - beyond;
@@ -1375,17 +1382,17 @@ static inline double mlp_support(const double xn[3], double m) {
 }
 
 /* The normalised inputs, not clamped (the support fades beyond the domain). */
-static inline void mlp_normalise(const double x[3], double xn[3]) {
+static inline void mlp_normalise(const double x[4], double xn[4]) {
     int c;
-    xn[0] = xn[1] = xn[2] = 0.0;
+    xn[0] = xn[1] = xn[2] = xn[3] = 0.0;
     for (c = 0; c < MLP_N_INPUTS; ++c) {
         xn[c] = MLP_FMA(mlp_gx[c], x[c], mlp_ox[c]);
     }
 }
 
 /* The network blended towards the fallback outside the data support. */
-static inline double mlp_net_supported(const double x[3]) {
-    double xn[3];
+static inline double mlp_net_supported(const double x[4]) {
+    double xn[4];
     mlp_normalise(x, xn);
     return mlp_support(xn, mlp_net(x));
 }
@@ -1394,11 +1401,12 @@ static inline double mlp_she(double x) {
     return x < 3.0 ? x - x * x / 3.0 + x * x * x / 27.0 : 1.0;
 }
 
-/* μ at slip dv [m/s], slip rate ddv [m/s²] and speed v [m/s] (v: third input of 3-input
- * models and the creep slope; NAN → the reference speed). */
-static inline double mlp_mu_v(double dv_mps, double ddv_mps2, double v_mps) {
-    double s = 1.0, dv = dv_mps, ddv = ddv_mps2, v, net, sat, v_creep, slope, lin, t, w;
-    double x[3], xb[3];
+/* μ at slip dv [m/s], slip rate ddv [m/s²], speed v [m/s] and ambient temperature t_c [°C]
+ * (v: third input of 3- and 4-input models and the creep slope; NAN → the reference speed;
+ * t_c: fourth input of 4-input models, NAN → the reference temperature, else ignored). */
+static inline double mlp_mu_vt(double dv_mps, double ddv_mps2, double v_mps, double t_c) {
+    double s = 1.0, dv = dv_mps, ddv = ddv_mps2, v, tc, net, sat, v_creep, slope, lin, w;
+    double x[4], xb[4];
     if (!(isfinite(dv_mps) && isfinite(ddv_mps2))) {
         return NAN;
     }
@@ -1408,37 +1416,45 @@ static inline double mlp_mu_v(double dv_mps, double ddv_mps2, double v_mps) {
         ddv = -ddv_mps2;
     }
     v = isfinite(v_mps) ? v_mps : mlp_v_ref;
-    x[0] = dv; x[1] = ddv; x[2] = v;
+    tc = isfinite(t_c) ? t_c : mlp_t_ref;
+    x[0] = dv; x[1] = ddv; x[2] = v; x[3] = tc;
     net = mlp_net_supported(x);
     if (dv >= mlp_blend) {
         return s * net;
     }
-    xb[0] = mlp_blend; xb[1] = ddv; xb[2] = v;
+    xb[0] = mlp_blend; xb[1] = ddv; xb[2] = v; xb[3] = tc;
     sat = fabs(mlp_net_supported(xb));
-    v_creep = MLP_N_INPUTS == 3 ? (v > 1.0 ? v : 1.0) : mlp_v_ref;
+    v_creep = MLP_N_INPUTS >= 3 ? (v > 1.0 ? v : 1.0) : mlp_v_ref;
     slope = mlp_creep_per_creepage / v_creep;
     lin = sat > 0.0 ? sat * mlp_she(slope * dv / sat) : 0.0;
-    t = dv / mlp_blend;
-    w = t * t * (3.0 - 2.0 * t);
+    w = dv / mlp_blend;
+    w = w * w * (3.0 - 2.0 * w);
     return s * (w * net + (1.0 - w) * lin);
 }
 
-/* μ for n samples: dv[i], ddv[i], v[i] (v may be NULL: the reference speed) into out[i].
- * Blocks of MLP_LANES samples laid out so compilers vectorise across samples (e.g. -O3, or
- * -O2 -ftree-vectorize); every lane does the operations of mlp_mu_v, so results are equal. */
+/* μ at the reference temperature (4-input models). */
+static inline double mlp_mu_v(double dv_mps, double ddv_mps2, double v_mps) {
+    return mlp_mu_vt(dv_mps, ddv_mps2, v_mps, NAN);
+}
+
+/* μ for n samples: dv[i], ddv[i], v[i], t[i] (v, t may be NULL: the reference speed and
+ * temperature) into out[i]. Blocks of MLP_LANES samples laid out so compilers vectorise
+ * across samples (e.g. -O3, or -O2 -ftree-vectorize); every lane does the operations of
+ * mlp_mu_vt, so results are equal. */
 #define MLP_LANES 16
-static inline void mlp_mu_batch(const double *dv, const double *ddv, const double *v, double *out, long n) {
+static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const double *v, const double *t, double *out, long n) {
     long b, i;
     int l, c, h;
     for (b = 0; b + MLP_LANES <= n; b += MLP_LANES) {
-        double sgn[MLP_LANES], x[3][MLP_LANES], xn[3][MLP_LANES], y[MLP_LANES], z[MLP_LANES];
+        double sgn[MLP_LANES], x[4][MLP_LANES], xn[4][MLP_LANES], y[MLP_LANES], z[MLP_LANES];
         for (l = 0; l < MLP_LANES; ++l) {
-            double d = dv[b + l], dd = ddv[b + l], vv = v ? v[b + l] : NAN;
+            double d = dv[b + l], dd = ddv[b + l], vv = v ? v[b + l] : NAN, tt = t ? t[b + l] : NAN;
             int neg = d < 0.0;
             sgn[l] = neg ? -1.0 : 1.0;
             x[0][l] = neg ? -d : d;
             x[1][l] = neg ? -dd : dd;
             x[2][l] = isfinite(vv) ? vv : mlp_v_ref;
+            x[3][l] = isfinite(tt) ? tt : mlp_t_ref;
         }
         for (c = 0; c < MLP_N_INPUTS; ++c) {
             for (l = 0; l < MLP_LANES; ++l) {
@@ -1466,29 +1482,28 @@ static inline void mlp_mu_batch(const double *dv, const double *ddv, const doubl
             if (!(isfinite(d) && isfinite(dd))) {
                 out[b + l] = NAN;
             } else if (x[0][l] >= mlp_blend) {
-                double xl[3], xr[3];
-                xl[0] = x[0][l]; xl[1] = x[1][l]; xl[2] = x[2][l];
+                double xl[4], xr[4];
+                xl[0] = x[0][l]; xl[1] = x[1][l]; xl[2] = x[2][l]; xl[3] = x[3][l];
                 mlp_normalise(xl, xr);
                 out[b + l] = sgn[l] * mlp_support(xr, (y[l] - mlp_oy) / mlp_gy);
             } else {
-                out[b + l] = mlp_mu_v(d, dd, v ? v[b + l] : NAN);
+                out[b + l] = mlp_mu_vt(d, dd, v ? v[b + l] : NAN, t ? t[b + l] : NAN);
             }
         }
     }
     for (i = b; i < n; ++i) {
-        out[i] = mlp_mu_v(dv[i], ddv[i], v ? v[i] : NAN);
+        out[i] = mlp_mu_vt(dv[i], ddv[i], v ? v[i] : NAN, t ? t[i] : NAN);
     }
 }
 
-/* μ(Δv, dΔv/dt) (3-input models use their reference speed). */
-static inline double mlp_mu(double dv_mps, double ddv_mps2) {
-    return mlp_mu_v(dv_mps, ddv_mps2, NAN);
+/* mlp_mu_batch_t at the reference temperature. */
+static inline void mlp_mu_batch(const double *dv, const double *ddv, const double *v, double *out, long n) {
+    mlp_mu_batch_t(dv, ddv, v, NULL, out, n);
 }
 
-/* The call every kind offers; a network has no temperature input. */
-static inline double mlp_mu_vt(double dv_mps, double ddv_mps2, double v_mps, double t_c) {
-    (void)t_c;
-    return mlp_mu_v(dv_mps, ddv_mps2, v_mps);
+/* μ(Δv, dΔv/dt) (3- and 4-input models use their reference speed and temperature). */
+static inline double mlp_mu(double dv_mps, double ddv_mps2) {
+    return mlp_mu_vt(dv_mps, ddv_mps2, NAN, NAN);
 }
 
 #endif /* MLP_ADHESION_MODEL_H */

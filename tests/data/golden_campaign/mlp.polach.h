@@ -3,7 +3,8 @@
  * Format railgrip-adhesion-model v2, kind polach; fitted on 139566 samples, RMS error of μ 0.00993931696319048.
  * Inputs (the fitted domain; outside it Δv and v follow the law, T is clamped): dv_mps [m/s] in [1.1402694319428974e-5, 4.8090248500470025], v_mps [m/s] in [1.4162958325634278, 44.10962075047988], ambient_temperature_c [°C] in [-20.0, 20.0].
  * Header-only C99: #include it and call mlp_polach_mu(dv, ddv), mlp_polach_mu_v(dv, ddv, v),
- * mlp_polach_mu_vt(dv, ddv, v, t_c) or mlp_polach_mu_batch(dv, ddv, v_or_NULL, out, n); ddv is ignored by
+ * mlp_polach_mu_vt(dv, ddv, v, t_c), mlp_polach_mu_batch(dv, ddv, v_or_NULL, out, n) or
+ * mlp_polach_mu_batch_t(dv, ddv, v_or_NULL, t_or_NULL, out, n); ddv is ignored by
  * this law, v = NAN means the reference speed, t_c = NAN the base k_A, k_S.
  * Same arithmetic as railgrip's Rust evaluator (railgrip::model::Model::mu_vt); compile without
  * FMA contraction for bit-identical results. Link with -lm. See railgrip's README, "Model files".
@@ -81,12 +82,18 @@ static inline double mlp_polach_mu(double dv_mps, double ddv_mps2) {
     return mlp_polach_mu_vt(dv_mps, ddv_mps2, NAN, NAN);
 }
 
-/* μ for n samples: dv[i], ddv[i], v[i] (v may be NULL: the reference speed) into out[i]. */
-static inline void mlp_polach_mu_batch(const double *dv, const double *ddv, const double *v, double *out, long n) {
+/* μ for n samples: dv[i], ddv[i], v[i], t[i] (v, t may be NULL: the reference speed and the
+ * base k_A, k_S) into out[i]. */
+static inline void mlp_polach_mu_batch_t(const double *dv, const double *ddv, const double *v, const double *t, double *out, long n) {
     long i;
     for (i = 0; i < n; ++i) {
-        out[i] = mlp_polach_mu_vt(dv[i], ddv[i], v ? v[i] : NAN, NAN);
+        out[i] = mlp_polach_mu_vt(dv[i], ddv[i], v ? v[i] : NAN, t ? t[i] : NAN);
     }
+}
+
+/* mlp_polach_mu_batch_t without temperatures. */
+static inline void mlp_polach_mu_batch(const double *dv, const double *ddv, const double *v, double *out, long n) {
+    mlp_polach_mu_batch_t(dv, ddv, v, NULL, out, n);
 }
 
 #endif /* MLP_POLACH_ADHESION_MODEL_H */
