@@ -676,3 +676,52 @@ fn interrupting_run_leaves_no_complete_looking_partial_file() {
         }
     }
 }
+
+/// `eval` and `export` of a four-input network (the golden file): the temperature column is
+/// required, used, and the header offers the batch call with temperatures.
+#[test]
+fn eval_of_a_four_input_network_needs_and_uses_the_temperature() {
+    let dir = tempfile::tempdir().unwrap();
+    let model =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp_4inputs.json");
+    let model = model.to_str().unwrap();
+    std::fs::write(
+        dir.path().join("g.csv"),
+        "dv_mps,ddv_mps2,v_mps\n1.5,0.5,25\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &["eval", model, "--input", "g.csv", "--output", "p.csv"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("g.csv: line 1") && e.contains("ambient_temperature_c"),
+        "{e}"
+    );
+    assert!(!dir.path().join("p.csv").exists());
+    std::fs::write(
+        dir.path().join("g.csv"),
+        "dv_mps,ddv_mps2,v_mps,ambient_temperature_c\n1.5,0.5,25,-10\n1.5,0.5,25,20\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &["eval", model, "--input", "g.csv", "--output", "p.csv"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let pred = std::fs::read_to_string(dir.path().join("p.csv")).unwrap();
+    let mu: Vec<f64> = pred
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').nth(4).unwrap().parse().unwrap())
+        .collect();
+    // The synthetic law's level is 18 % higher at −10 °C than at +20 °C.
+    assert!(mu[0] > 1.1 * mu[1], "{mu:?}");
+    let o = railgrip(&["export", model, "--c-header", "m.h"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("network: 4 inputs"));
+    let h = std::fs::read_to_string(dir.path().join("m.h")).unwrap();
+    assert!(h.contains("railgrip_mu_batch_t(") && h.contains("#define RAILGRIP_N_INPUTS 4"));
+}

@@ -403,7 +403,7 @@ fn measure_networks_trained_on_the_truth() {
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
     let hidden: usize = std::env::var("MEASURE_HIDDEN").map_or(10, |v| v.parse().unwrap());
-    for law in ["table", "lr"] {
+    for law in ["table", "lr", "bundled"] {
         let set = measurement_scenes(law, None);
         let (_, truth) = campaign(&set, dir.path());
         let mut tables = Vec::new();
@@ -446,5 +446,77 @@ fn measure_networks_trained_on_the_truth() {
             "{law}: {hidden} neurons trained on the truth: RMSE {:.4} max {:.3} ({secs:.1} s, {} epochs, {:?})",
             s.rmse, s.max_error, net.history.len(), net.stop
         );
+    }
+}
+
+/// Polach fits on data from laws outside the Polach family (issue 16): every fit of the
+/// campaign — pooled, per run, per temperature — ends converged (not at μ's maximum), with
+/// every parameter classified and a reason for each one held, and k(T) is fitted or its
+/// absence explained.
+#[test]
+fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
+    use railgrip::identify::polach_fit::{fit_campaign, ParamStatus};
+    let dir = tempfile::tempdir().unwrap();
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    for law in ["lr", "table"] {
+        let set = measurement_scenes(law, Some("_120kmh"));
+        let (tables, _) = campaign(&set, dir.path());
+        let (report, notes) = fit_campaign(&tables, patch, q, p.train.decimate, 2);
+        assert!(notes.is_empty(), "{law}: {notes:?}");
+        let fits: Vec<_> = report
+            .pooled
+            .iter()
+            .chain(&report.per_run)
+            .chain(&report.per_temperature)
+            .collect();
+        assert_eq!(fits.len(), 1 + 4 + 4, "{law}");
+        for f in fits {
+            eprintln!(
+                "{law} {}: μ0 {:.4} A {:.3} B {:.3} k_A {:.4} k_S {:.4} {:?} {} it, {}; {:?}",
+                f.group,
+                f.mu0,
+                f.a_ratio,
+                f.b_s_per_m,
+                f.k_a,
+                f.k_s,
+                f.status,
+                f.iterations,
+                f.stop_reason,
+                f.notes
+            );
+            assert!(
+                f.stop_reason.starts_with("converged")
+                    || f.stop_reason.starts_with("minimum gradient"),
+                "{law} {}: {}",
+                f.group,
+                f.stop_reason
+            );
+            let held = f
+                .status
+                .iter()
+                .filter(|s| **s != ParamStatus::Estimated)
+                .count();
+            // k_S follows ρ = k_S/k_A: one note per held solver parameter.
+            assert!(
+                f.notes.len() >= held.saturating_sub(1),
+                "{law} {}: {:?}",
+                f.group,
+                f.notes
+            );
+            for (k, s) in f.status.iter().enumerate() {
+                assert_eq!(
+                    *s == ParamStatus::Estimated,
+                    f.se[k].is_finite(),
+                    "{law} {} param {k}",
+                    f.group
+                );
+            }
+        }
+        match (&report.temperature, &report.temperature_note) {
+            (Some(t), _) => eprintln!("{law}: k(T) over {:?}", t.fitted_range_c),
+            (None, Some(n)) => eprintln!("{law}: no k(T): {n}"),
+            (None, None) => panic!("{law}: k(T) missing without a reason"),
+        }
     }
 }

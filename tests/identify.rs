@@ -798,6 +798,8 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         k_a: 0.15,
         k_s: 0.05,
         se: [0.001, 0.01, f64::INFINITY, 0.003, 0.001],
+        status: [railgrip::identify::polach_fit::ParamStatus::Estimated; 5],
+        notes: vec![],
         samples: 4000,
         effective_samples: 400.0,
         rmse: 0.002,
@@ -1107,10 +1109,11 @@ fn seed002_figures_on_simulated_runs() {
 
 // ------------------------------------------------------------------ Polach and k(T)
 
-#[test]
-fn polach_fit_recovers_known_parameters() {
+/// Polach samples with known parameters, slips from `dv_min` m/s and speeds from `v_min`
+/// m/s, noise of standard deviation `sigma` as an AR(1) process with coefficient `phi` (0:
+/// white).
+fn polach_table(dv_min: f64, v_min: f64, sigma: f64, phi: f64) -> (RunTable, [f64; 5]) {
     use railgrip::contact::polach::{polach, PolachParams};
-    use railgrip::identify::polach_fit::fit_polach;
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
     let truth = PolachParams {
@@ -1122,46 +1125,108 @@ fn polach_fit_recovers_known_parameters() {
     };
     let mut rng = railgrip::rng::Rng::new(5);
     let mut t = RunTable::default();
-    for i in 0..4000 {
-        let v = 5.0 + 30.0 * rng.uniform();
+    let mut i = 0;
+    let mut noise = 0.0;
+    while t.len() < 4000 {
+        let v = v_min + (35.0 - v_min) * rng.uniform();
         let dv = 0.01 + 4.0 * rng.uniform() * rng.uniform();
-        let mu = polach(&patch, &truth, q, v, dv, 0.0).unwrap().fx_n / q + 0.002 * rng.normal();
+        noise = phi * noise + (1.0 - phi * phi).sqrt() * sigma * rng.normal();
+        if dv < dv_min {
+            continue;
+        }
+        let mu = polach(&patch, &truth, q, v, dv, 0.0).unwrap().fx_n / q + noise;
         t.axle.push(2);
         t.time_s.push(i as f64 * 0.01);
         t.v_mps.push(v);
         t.dv_mps.push(dv);
         t.ddv_mps2.push(0.0);
         t.mu.push(mu);
+        i += 1;
     }
-    let f = fit_polach(
-        "synthetic",
-        &[&t],
-        patch,
-        q,
-        1,
-        PolachParams {
-            mu0: 0.1,
-            a_ratio: 0.4,
-            b_s_per_m: 0.3,
-            k_a: 0.3,
-            k_s: 0.1,
-        },
-    )
-    .unwrap();
+    (t, [0.12, 0.35, 0.5, 0.15, 0.05])
+}
+
+fn fit_of(t: &RunTable) -> railgrip::identify::polach_fit::PolachFit {
+    use railgrip::contact::polach::PolachParams;
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let start = PolachParams {
+        mu0: 0.1,
+        a_ratio: 0.4,
+        b_s_per_m: 0.3,
+        k_a: 0.3,
+        k_s: 0.1,
+    };
+    railgrip::identify::polach_fit::fit_polach("synthetic", &[t], patch, q, 1, start).unwrap()
+}
+
+#[test]
+fn polach_fit_recovers_known_parameters() {
+    use railgrip::identify::polach_fit::ParamStatus;
+    let (t, want) = polach_table(0.0, 5.0, 0.002, 0.0);
+    let f = fit_of(&t);
     eprintln!("{f:?}");
     let got = [f.mu0, f.a_ratio, f.b_s_per_m, f.k_a, f.k_s];
-    let want = [0.12, 0.35, 0.5, 0.15, 0.05];
     for k in 0..5 {
+        assert_eq!(f.status[k], ParamStatus::Estimated, "param {k}");
+        assert!(f.se[k] > 0.0 && f.se[k].is_finite());
         assert!(
-            (got[k] - want[k]).abs() < 4.0 * f.se[k] + 0.02 * want[k],
+            (got[k] - want[k]).abs() < 2.0 * f.se[k],
             "param {k}: {} ± {} vs {}",
             got[k],
             f.se[k],
             want[k]
         );
-        assert!(f.se[k] > 0.0 && f.se[k].is_finite());
     }
     assert!((f.rmse - 0.002).abs() < 3e-4, "{}", f.rmse);
+    // MINPACK's test ends it, in a few iterations (the analytic Jacobian).
+    assert!(f.stop_reason.starts_with("converged"), "{}", f.stop_reason);
+    assert!(f.iterations < 30, "{}", f.iterations);
+}
+
+/// With the scatter of real estimates (RMSE of μ 0.01 and residuals correlated so that
+/// n_eff/n ≈ 1/30, as the fits on the bundled archive measure) and braking speeds (20–35 m/s),
+/// every parameter is identified — and without the small slips (Δv > 0.2 m/s, where soap-rail
+/// braking data mostly lie) the creep slope k_A is not: the fit says so, holds it and still
+/// recovers the falling friction μ0, A, B within 2 se.
+#[test]
+fn polach_fit_says_what_data_without_small_slip_cannot_identify() {
+    use railgrip::identify::polach_fit::ParamStatus;
+    let phi = 29.0 / 31.0;
+    let (t, _) = polach_table(0.0, 20.0, 0.01, phi);
+    let f = fit_of(&t);
+    eprintln!("{f:?}");
+    assert!(
+        f.effective_samples < 0.05 * f.samples as f64,
+        "{}",
+        f.effective_samples
+    );
+    assert!(
+        f.status.iter().all(|s| *s == ParamStatus::Estimated),
+        "{f:?}"
+    );
+    let (t, want) = polach_table(0.2, 20.0, 0.01, phi);
+    let f = fit_of(&t);
+    eprintln!("{f:?}");
+    assert_eq!(f.status[3], ParamStatus::NotIdentifiable, "{f:?}");
+    assert!(f.se[3].is_nan());
+    assert!(
+        f.notes.iter().any(|n| n.contains("k_A not identifiable")),
+        "{:?}",
+        f.notes
+    );
+    let got = [f.mu0, f.a_ratio, f.b_s_per_m];
+    for k in 0..3 {
+        assert_eq!(f.status[k], ParamStatus::Estimated, "param {k}");
+        assert!(
+            (got[k] - want[k]).abs() < 2.0 * f.se[k],
+            "param {k}: {} ± {} vs {}",
+            got[k],
+            f.se[k],
+            want[k]
+        );
+    }
+    assert!(f.stop_reason.starts_with("converged"), "{}", f.stop_reason);
 }
 
 #[test]
@@ -1175,6 +1240,8 @@ fn temperature_law_recovers_a_quadratic_and_archive_adhesion_rises_in_the_cold()
         k_a: 0.1 * (1.0 + 0.015 * (20.0 - t) - 1.875e-4 * (20.0 - t).powi(2)),
         k_s: 0.05 * (1.0 + 0.015 * (20.0 - t) - 1.875e-4 * (20.0 - t).powi(2)),
         se: [0.0; 5],
+        status: [railgrip::identify::polach_fit::ParamStatus::Estimated; 5],
+        notes: vec![],
         samples: 100,
         effective_samples: 10.0,
         rmse: 0.0,

@@ -174,28 +174,37 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             s.fallback
         );
     }
-    println!("\nPolach     μ0 ± se      A ± se      B s/m ± se   k_A ± se     k_S ± se     RMSE    group");
+    println!("\nPolach     μ0 ± se       A ± se        B s/m ± se    k_A ± se      k_S ± se      RMSE    group");
+    let mut held = Vec::new();
     for f in report
         .pooled
         .iter()
         .chain(&report.per_run)
         .chain(&report.per_temperature)
     {
+        // "x±se", or "x (bound)" / "x (prior)" for a parameter the fit held.
+        let cell = |k: usize, x: f64| {
+            use railgrip::identify::polach_fit::ParamStatus;
+            match f.status[k] {
+                ParamStatus::Estimated => format!("{x:.4}±{:.4}", f.se[k]),
+                ParamStatus::AtBound => format!("{x:.4} (bound)"),
+                ParamStatus::NotIdentifiable => format!("{x:.4} (prior)"),
+            }
+        };
         println!(
-            "           {:.4}±{:.4} {:.3}±{:.3} {:.3}±{:.3} {:.4}±{:.4} {:.4}±{:.4} {:.4}  {}",
-            f.mu0,
-            f.se[0],
-            f.a_ratio,
-            f.se[1],
-            f.b_s_per_m,
-            f.se[2],
-            f.k_a,
-            f.se[3],
-            f.k_s,
-            f.se[4],
+            "           {:<13} {:<13} {:<13} {:<13} {:<13} {:.4}  {}",
+            cell(0, f.mu0),
+            cell(1, f.a_ratio),
+            cell(2, f.b_s_per_m),
+            cell(3, f.k_a),
+            cell(4, f.k_s),
             f.rmse,
             f.group
         );
+        held.extend(f.notes.iter().map(|n| format!("{}: {n}", f.group)));
+    }
+    for n in held {
+        println!("held       {n}");
     }
     match &report.temperature {
         Some(t) => println!(

@@ -283,7 +283,7 @@ const DEGREE: Key = Key::num(
 const SUPPORT_CELLS: Key = text(
     "train.support_cells",
     "one count per input, each 2..1024, at most 2²⁰ cells",
-    "`[24, 24]`, or `[16, 16, 8]` with speed",
+    "`[24, 24]`; `[16, 16, 8]` with speed; `[16, 16, 8, 4]` with temperature",
     "the model file's data-support grid over the normalised inputs (README \"Data support\")",
 );
 const SUPPORT_MIN: Key = Key::num(

@@ -102,6 +102,11 @@ pub struct LmSettings {
     pub max_fail: u32,
     /// Bayesian regularisation (MATLAB trainbr) instead of plain trainlm.
     pub bayesian: bool,
+    /// MINPACK's convergence tests (`lmder`'s ftol and xtol; 0 turns them off, as trainlm has
+    /// neither): stop when an accepted step reduced the objective by a relative amount of at
+    /// most `ftol`, or moved the parameters by at most `xtol` (‖Δθ‖ ≤ xtol (‖θ‖ + xtol)).
+    pub ftol: f64,
+    pub xtol: f64,
 }
 
 impl Default for LmSettings {
@@ -116,6 +121,8 @@ impl Default for LmSettings {
             mu_max: 1e10,
             max_fail: 6,
             bayesian: false,
+            ftol: 0.0,
+            xtol: 0.0,
         }
     }
 }
@@ -188,6 +195,10 @@ pub enum StopReason {
     MinGrad,
     MuMax,
     ValidationStop,
+    /// MINPACK's ftol test.
+    CostConverged,
+    /// MINPACK's xtol test.
+    StepConverged,
 }
 
 impl StopReason {
@@ -198,6 +209,8 @@ impl StopReason {
             StopReason::MinGrad => "minimum gradient reached",
             StopReason::MuMax => "mu reached its maximum",
             StopReason::ValidationStop => "validation stop (max_fail)",
+            StopReason::CostConverged => "converged: relative cost reduction at most ftol",
+            StopReason::StepConverged => "converged: relative step at most xtol",
         }
     }
 }
@@ -371,6 +384,18 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                     _ => false,
                 };
                 if accepted {
+                    let f1 = objective(next_sse, &next);
+                    let step = next
+                        .iter()
+                        .zip(&theta)
+                        .map(|(a, b)| (a - b) * (a - b))
+                        .sum::<f64>()
+                        .sqrt();
+                    if s.ftol > 0.0 && f0 - f1 <= s.ftol * f0 {
+                        self.stop = Some(StopReason::CostConverged);
+                    } else if s.xtol > 0.0 && step <= s.xtol * (sum_sq(&theta).sqrt() + s.xtol) {
+                        self.stop = Some(StopReason::StepConverged);
+                    }
                     self.mu *= s.mu_dec;
                     if self.bayes.is_some() {
                         // trainbr's floor.

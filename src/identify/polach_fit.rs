@@ -25,7 +25,7 @@ use serde::{Deserialize, Serialize};
 use super::dataset::RunTable;
 use super::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
 use super::IdentifyError;
-use crate::contact::polach::{horner, polach, ContactPatch, PolachParams, TemperatureLaw};
+use crate::contact::polach::{horner, ContactPatch, PolachParams, TemperatureLaw};
 use crate::linalg::{cho_solve, cholesky, effective_samples, inverse_diagonal};
 
 /// One sample for the fit.
@@ -41,96 +41,204 @@ fn sigmoid(x: f64) -> f64 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// Natural parameters from unconstrained ones.
-fn natural(p: &[f64]) -> PolachParams {
-    let k_a = sigmoid(p[3]);
-    PolachParams {
-        mu0: 1.5 * sigmoid(p[0]),
-        a_ratio: sigmoid(p[1]),
-        b_s_per_m: p[2].exp(),
-        k_a,
-        k_s: k_a * sigmoid(p[4]),
+/// The fitted parameters in the solver's order: μ0, A, B (s/m), k_A and ρ = k_S/k_A (so that
+/// every parameter has its own bounds and k_S ≤ k_A holds by construction).
+pub const PARAMETERS: [&str; 5] = ["mu0", "a_ratio", "b_s_per_m", "k_a", "k_s"];
+/// Lower and upper bounds of μ0, A, B (s/m), k_A and ρ. B's are railgrip's: below 1e-3 s/m
+/// friction does not fall within the slips braking reaches, above 100 s/m it falls within
+/// 1 cm/s; the others are the law's own (seed 004 eq. 1–2: 0 < A < 1, 0 < k_S ≤ k_A ≤ 1).
+const LOWER: [f64; 5] = [0.0, 0.0, 1e-3, 0.0, 0.0];
+const UPPER: [f64; 5] = [1.5, 1.0, 100.0, 1.0, 1.0];
+/// A parameter whose logistic coordinate is within this of 0 or 1 sits at its bound.
+const AT_BOUND: f64 = 1e-4;
+/// A parameter is identified when its 95 % Wald interval (±1.96 se, se corrected for the
+/// residuals' autocorrelation) excludes zero: se ≤ x / 1.96.
+const IDENTIFIED_Z: f64 = 1.96;
+
+/// What a fit could say about one parameter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ParamStatus {
+    /// Estimated from the data (with its standard error).
+    Estimated,
+    /// The fit ran into a bound; held there and the rest refitted.
+    AtBound,
+    /// The data do not determine it (Wald interval includes zero, or the Fisher matrix is
+    /// singular in it); held at its least-squares value and the rest refitted.
+    NotIdentifiable,
+}
+
+impl ParamStatus {
+    pub fn text(self) -> &'static str {
+        match self {
+            ParamStatus::Estimated => "estimated",
+            ParamStatus::AtBound => "at bound",
+            ParamStatus::NotIdentifiable => "not identifiable",
+        }
     }
 }
 
-/// Unconstrained parameters of natural ones (inside their open bounds).
-fn unconstrained(q: &PolachParams) -> [f64; 5] {
-    let logit = |x: f64| (x / (1.0 - x)).ln();
-    [
-        logit(q.mu0 / 1.5),
-        logit(q.a_ratio),
-        q.b_s_per_m.ln(),
-        logit(q.k_a),
-        logit(q.k_s / q.k_a),
-    ]
+/// Natural parameter i from its unconstrained coordinate: x = lo + (hi − lo) σ(p), B on a log
+/// scale (ln B = ln lo + (ln hi − ln lo) σ(p)); and dx/dp.
+fn to_natural(i: usize, p: f64) -> (f64, f64) {
+    let s = sigmoid(p);
+    let ds = s * (1.0 - s);
+    if i == 2 {
+        let (l, h) = (LOWER[2].ln(), UPPER[2].ln());
+        // Clamped: exp(ln 100) rounds to 100.00000000000004.
+        let x = (l + (h - l) * s).exp().clamp(LOWER[2], UPPER[2]);
+        (x, x * (h - l) * ds)
+    } else {
+        let (l, h) = (LOWER[i], UPPER[i]);
+        (l + (h - l) * s, (h - l) * ds)
+    }
 }
 
+/// The unconstrained coordinate of natural parameter i (inside its open bounds).
+fn to_unconstrained(i: usize, x: f64) -> f64 {
+    let u = if i == 2 {
+        let (l, h) = (LOWER[2].ln(), UPPER[2].ln());
+        (x.ln() - l) / (h - l)
+    } else {
+        (x - LOWER[i]) / (UPPER[i] - LOWER[i])
+    };
+    let u = u.clamp(1e-9, 1.0 - 1e-9);
+    (u / (1.0 - u)).ln()
+}
+
+/// (μ0, A, B, k_A, ρ) from the law's parameters.
+fn solver_order(q: &PolachParams) -> [f64; 5] {
+    [q.mu0, q.a_ratio, q.b_s_per_m, q.k_a, q.k_s / q.k_a]
+}
+
+fn law_params(x: &[f64; 5]) -> PolachParams {
+    PolachParams {
+        mu0: x[0],
+        a_ratio: x[1],
+        b_s_per_m: x[2],
+        k_a: x[3],
+        k_s: x[3] * x[4],
+    }
+}
+
+/// Polach's μ = F/Q of one sample and its derivatives in (μ0, A, B, k_A, ρ) — seed 004
+/// 004_7d175079b70fb95b.txt eq. 1–2, Polach 2005 — for slip w = Δv > 0 (m/s), speed v > 0
+/// (m/s): with the falling friction μ_w = μ0 g, g = (1 − A)e^(−Bw) + A, the gradient
+/// ε = c/μ_w, c = π G a b c11 (w/v)/(4Q), x = k_A ε, y = k_S ε:
+///   f = (2μ_w/π) [x/(1 + x²) + atan y],
+///   ∂f/∂μ_w = (2/π) [x/(1 + x²) + atan y − x(1 − x²)/(1 + x²)² − y/(1 + y²)]
+///   (ε falls as μ_w rises), ∂μ_w/∂μ0 = g, ∂μ_w/∂A = μ0 (1 − e^(−Bw)),
+///   ∂μ_w/∂B = −μ0 (1 − A) w e^(−Bw);
+///   ∂f/∂k_A = (2μ_w/π) ε [(1 − x²)/(1 + x²)² + ρ/(1 + y²)], ∂f/∂ρ = (2μ_w/π) ε k_A/(1 + y²).
+/// The value is the contact library's `polach(…).fx_n / Q` (tested to 1e-14).
+#[inline]
+fn mu_and_gradient(c_per_s: f64, x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
+    let [mu0, a, b, k_a, rho] = *x;
+    let k_s = k_a * rho;
+    let e = (-b * s.dv).exp();
+    let g = (1.0 - a) * e + a;
+    let mu_w = mu0 * g;
+    let eps = c_per_s * (s.dv / s.v) / (s.q_n * mu_w);
+    let (xa, ys) = (k_a * eps, k_s * eps);
+    let (dxa, dys) = (1.0 + xa * xa, 1.0 + ys * ys);
+    let bracket = xa / dxa + ys.atan();
+    let two_pi = 2.0 / std::f64::consts::PI;
+    let f = two_pi * mu_w * bracket;
+    let h1 = (1.0 - xa * xa) / (dxa * dxa);
+    let df_dmuw = two_pi * (bracket - xa * h1 - ys / dys);
+    let scale = two_pi * mu_w * eps;
+    (
+        f,
+        [
+            df_dmuw * g,
+            df_dmuw * mu0 * (1.0 - e),
+            -df_dmuw * mu0 * (1.0 - a) * s.dv * e,
+            scale * (h1 + rho / dys),
+            scale * k_a / dys,
+        ],
+    )
+}
+
+/// The least-squares problem of one fit: the free parameters' unconstrained coordinates, the
+/// others held at `fixed`.
 struct PolachProblem<'a> {
-    patch: ContactPatch,
+    /// π G a b c11 / 4 of the patch (the creepage and Q divide it per sample).
+    c_per_s: f64,
     samples: &'a [Sample],
+    fixed: [Option<f64>; 5],
+    free: Vec<usize>,
 }
 
 impl PolachProblem<'_> {
-    fn predict(&self, p: &PolachParams, s: &Sample) -> f64 {
-        match polach(&self.patch, p, s.q_n, s.v, s.dv, 0.0) {
-            Ok(f) => f.fx_n / s.q_n,
-            Err(_) => f64::NAN,
+    fn natural(&self, theta: &[f64]) -> ([f64; 5], [f64; 5]) {
+        let mut x = self.fixed.map(|v| v.unwrap_or(0.0));
+        let mut dx = [0.0; 5];
+        for (k, &i) in self.free.iter().enumerate() {
+            (x[i], dx[i]) = to_natural(i, theta[k]);
         }
+        (x, dx)
     }
-    fn residuals(&self, theta: &[f64]) -> Vec<f64> {
-        let p = natural(theta);
+    fn sse_natural(&self, x: &[f64; 5]) -> f64 {
         self.samples
             .iter()
-            .map(|s| self.predict(&p, s) - s.mu)
-            .collect()
+            .map(|s| {
+                let r = mu_and_gradient(self.c_per_s, x, s).0 - s.mu;
+                r * r
+            })
+            .sum()
     }
-    /// Central-difference Jacobian rows (n × 5, row-major) and residuals.
-    fn jacobian(&self, theta: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let r = self.residuals(theta);
-        let n = r.len();
-        let mut j = vec![0.0; n * 5];
-        for k in 0..5 {
-            let h = 1e-6 * (1.0 + theta[k].abs());
-            let mut tp = theta.to_vec();
-            tp[k] += h;
-            let mut tm = theta.to_vec();
-            tm[k] -= h;
-            let (rp, rm) = (self.residuals(&tp), self.residuals(&tm));
-            for i in 0..n {
-                j[i * 5 + k] = (rp[i] - rm[i]) / (2.0 * h);
-            }
+    /// Residuals and the Jacobian in the natural parameters (n × 5, row-major).
+    fn residuals_and_jacobian(&self, x: &[f64; 5]) -> (Vec<f64>, Vec<f64>) {
+        let mut r = Vec::with_capacity(self.samples.len());
+        let mut j = Vec::with_capacity(5 * self.samples.len());
+        for s in self.samples {
+            let (f, g) = mu_and_gradient(self.c_per_s, x, s);
+            r.push(f - s.mu);
+            j.extend_from_slice(&g);
         }
-        (j, r)
+        (r, j)
     }
 }
 
 impl LeastSquares for PolachProblem<'_> {
     fn n_params(&self) -> usize {
-        5
+        self.free.len()
     }
     fn n_train(&self) -> usize {
         self.samples.len()
     }
     fn sse(&self, theta: &[f64]) -> f64 {
-        self.residuals(theta).iter().map(|r| r * r).sum()
+        self.sse_natural(&self.natural(theta).0)
     }
+    /// One pass over the samples: JᵀJ and Jᵀr in the unconstrained coordinates (the natural
+    /// Jacobian times dx/dp, column by column).
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
-        let (j, r) = self.jacobian(theta);
-        let mut jtj = vec![0.0; 25];
-        let mut jtr = vec![0.0; 5];
-        for (row, ri) in j.chunks_exact(5).zip(&r) {
-            for a in 0..5 {
-                jtr[a] += row[a] * ri;
-                for b in 0..5 {
-                    jtj[a * 5 + b] += row[a] * row[b];
+        let (x, dx) = self.natural(theta);
+        let k = self.free.len();
+        let mut jtj = vec![0.0; k * k];
+        let mut jtr = vec![0.0; k];
+        let mut sse = 0.0;
+        let mut row = vec![0.0; k];
+        for s in self.samples {
+            let (f, g) = mu_and_gradient(self.c_per_s, &x, s);
+            let r = f - s.mu;
+            sse += r * r;
+            for (c, &i) in self.free.iter().enumerate() {
+                row[c] = g[i] * dx[i];
+            }
+            for a in 0..k {
+                jtr[a] += row[a] * r;
+                for b in 0..=a {
+                    jtj[a * k + b] += row[a] * row[b];
                 }
             }
         }
-        NormalEquations {
-            jtj,
-            jtr,
-            sse: r.iter().map(|x| x * x).sum(),
+        for a in 0..k {
+            for b in 0..a {
+                jtj[b * k + a] = jtj[a * k + b];
+            }
         }
+        NormalEquations { jtj, jtr, sse }
     }
     fn validation_mse(&self, _: &[f64]) -> Option<f64> {
         None
@@ -147,8 +255,15 @@ pub struct PolachFit {
     pub b_s_per_m: f64,
     pub k_a: f64,
     pub k_s: f64,
-    /// Standard errors in the same order (μ0, A, B, k_A, k_S).
+    /// Standard errors in the same order (μ0, A, B, k_A, k_S); NaN (`null`) for a parameter
+    /// held at a bound or prior.
     pub se: [f64; 5],
+    /// What the data said about each parameter (same order).
+    #[serde(default = "all_estimated")]
+    pub status: [ParamStatus; 5],
+    /// Why parameters were held (one line each), in the order it happened.
+    #[serde(default)]
+    pub notes: Vec<String>,
     pub samples: usize,
     pub effective_samples: f64,
     /// RMS residual of μ.
@@ -158,6 +273,10 @@ pub struct PolachFit {
     /// Levenberg–Marquardt iterations and why it stopped.
     pub iterations: usize,
     pub stop_reason: String,
+}
+
+fn all_estimated() -> [ParamStatus; 5] {
+    [ParamStatus::Estimated; 5]
 }
 
 impl PolachFit {
@@ -191,8 +310,72 @@ fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sample> {
     out
 }
 
+/// LM settings of the Polach fits: MINPACK's convergence tests (ftol = xtol = 1e-10), so that
+/// a fit whose cost stopped falling ends as converged rather than running μ to its maximum.
+fn fit_settings() -> LmSettings {
+    LmSettings {
+        epochs: 300,
+        min_grad: 1e-12,
+        ftol: 1e-10,
+        xtol: 1e-10,
+        ..LmSettings::default()
+    }
+}
+
+/// One solve with the parameters of `fixed` held: the free parameters from `start`.
+fn solve(
+    group: &str,
+    c_per_s: f64,
+    s: &[Sample],
+    fixed: [Option<f64>; 5],
+    start: &[f64; 5],
+) -> Result<([f64; 5], [f64; 5], usize, lm::StopReason), IdentifyError> {
+    let free: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
+    let problem = PolachProblem {
+        c_per_s,
+        samples: s,
+        fixed,
+        free: free.clone(),
+    };
+    let theta0: Vec<f64> = free
+        .iter()
+        .map(|&i| to_unconstrained(i, start[i]))
+        .collect();
+    if free.is_empty() {
+        let (x, dx) = problem.natural(&[]);
+        return Ok((x, dx, 0, lm::StopReason::MinGrad));
+    }
+    let (solver, problem) = lm::run(problem, LevenbergMarquardt::new(fit_settings()), theta0)
+        .map_err(|e| IdentifyError::Solver {
+            fit: format!("Polach fit {group}"),
+            source: e.into(),
+        })?;
+    let theta = solver.best().expect("solver ran").to_vec();
+    let (x, dx) = problem.natural(&theta);
+    Ok((
+        x,
+        dx,
+        solver.history().len(),
+        solver.stop_reason().unwrap_or(lm::StopReason::Epochs),
+    ))
+}
+
 /// Fits Polach's parameters to the valid estimates of `tables` (pooled) with a fixed patch
-/// and static wheel load `q_n`.
+/// and static wheel load `q_n`, saying what the data identify (issue 16):
+/// 1. LM on all five parameters (unconstrained logistic coordinates, analytic Jacobian,
+///    MINPACK's ftol/xtol convergence);
+/// 2. a parameter within [`AT_BOUND`] of a bound (in its logistic coordinate) is held at the
+///    bound (`at bound`) and the rest refitted;
+/// 3. standard errors σ² (JᵀJ)⁻¹ in the natural parameters, inflated by n/n_eff for the
+///    residuals' autocorrelation ([`effective_samples`]); the free parameter with the largest
+///    se/x above 1/1.96 (Wald interval including zero; a singular JᵀJ counts as infinite) is held
+///    at its least-squares value (`not identifiable`) and the rest refitted; repeated until every
+///    free parameter is identified. Held at its own best value rather than at a published
+///    prior: any value in its wide interval fits about as well, and a prior far from the data
+///    (the published wet-rail k_A is twice a soap rail's) would drag the identified parameters
+///    with it (tested).
+///
+/// The fit ends with every parameter classified; it fails only without data.
 pub fn fit_polach(
     group: &str,
     tables: &[&RunTable],
@@ -211,58 +394,147 @@ pub fn fit_polach(
             hint: "fit Polach on braking runs with wheel slip".into(),
         });
     }
-    let problem = PolachProblem { patch, samples: &s };
-    let settings = LmSettings {
-        epochs: 300,
-        min_grad: 1e-12,
-        ..LmSettings::default()
-    };
-    let theta0 = unconstrained(&start).to_vec();
-    let (solver, problem) =
-        lm::run(problem, LevenbergMarquardt::new(settings), theta0).map_err(|e| {
-            IdentifyError::Solver {
-                fit: format!("Polach fit {group}"),
-                source: e.into(),
-            }
-        })?;
-    let theta = solver.best().expect("solver ran").to_vec();
-    let iterations = solver.history().len();
-    let stop_reason = solver
-        .stop_reason()
-        .map(|r| r.text().to_string())
-        .unwrap_or_else(|| "iteration limit".into());
-    let (j, r) = problem.jacobian(&theta);
-    let n = r.len();
-    let sse: f64 = r.iter().map(|x| x * x).sum();
-    let n_eff = effective_samples(&r);
-    let mut jtj = vec![0.0; 25];
-    for row in j.chunks_exact(5) {
-        for a in 0..5 {
-            for b in 0..5 {
-                jtj[a * 5 + b] += row[a] * row[b];
+    let c_per_s = std::f64::consts::PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
+    let mut fixed: [Option<f64>; 5] = [None; 5];
+    let mut status = all_estimated();
+    let mut notes = Vec::new();
+    let mut current = solver_order(&start);
+    let mut iterations = 0;
+    let (x, var, n_eff, stop) = loop {
+        let (x, _dx, its, stop) = solve(group, c_per_s, &s, fixed, &current)?;
+        iterations += its;
+        current = x;
+        // 2. Bounds.
+        let mut held = false;
+        let free_now: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
+        for i in free_now {
+            let u = to_unconstrained(i, x[i]);
+            let sg = sigmoid(u);
+            if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
+                let bound = if sg < AT_BOUND { LOWER[i] } else { UPPER[i] };
+                fixed[i] = Some(bound);
+                current[i] = bound;
+                status[i] = ParamStatus::AtBound;
+                notes.push(format!(
+                    "{} ran into its bound {bound}; held there and the rest refitted",
+                    label(i)
+                ));
+                held = true;
             }
         }
-    }
-    let sigma2 = sse / (n as f64 - 5.0).max(1.0);
-    let inflate = n as f64 / n_eff;
-    let var_p: Vec<f64> = match cholesky(&jtj, 5) {
-        Some(l) => inverse_diagonal(&l, 5)
+        if held {
+            continue;
+        }
+        // 3. Identifiability of the free parameters.
+        let problem = PolachProblem {
+            c_per_s,
+            samples: &s,
+            fixed,
+            free: vec![],
+        };
+        let (r, j) = problem.residuals_and_jacobian(&x);
+        let n = r.len();
+        let n_eff = effective_samples(&r);
+        let free: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
+        let k = free.len();
+        let mut jtj = vec![0.0; k * k];
+        for row in j.chunks_exact(5) {
+            for (a, &ia) in free.iter().enumerate() {
+                for (b, &ib) in free.iter().enumerate() {
+                    jtj[a * k + b] += row[ia] * row[ib];
+                }
+            }
+        }
+        let sse: f64 = r.iter().map(|v| v * v).sum();
+        let sigma2 = sse / (n as f64 - k as f64).max(1.0);
+        let inflate = n as f64 / n_eff.max(1.0);
+        let mut var = [f64::NAN; 5];
+        match cholesky(&jtj, k) {
+            Some(l) => {
+                for (c, d) in inverse_diagonal(&l, k).into_iter().enumerate() {
+                    var[free[c]] = d * sigma2 * inflate;
+                }
+            }
+            None => {
+                for &i in &free {
+                    var[i] = f64::INFINITY;
+                }
+            }
+        }
+        // The worst-determined free parameter, if any fails the Wald test.
+        let worst = free
             .iter()
-            .map(|d| d * sigma2 * inflate)
-            .collect(),
-        None => vec![f64::INFINITY; 5],
+            .map(|&i| (i, var[i].sqrt() / x[i].abs()))
+            // NaN (a zero estimate) and ∞ (singular) fail too.
+            .filter(|(_, rel)| rel.is_nan() || *rel > 1.0 / IDENTIFIED_Z)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((i, rel)) = worst {
+            fixed[i] = Some(x[i]);
+            status[i] = ParamStatus::NotIdentifiable;
+            notes.push(format!(
+                "{} not identifiable from these data ({:.4}, se/value = {}: its 95 % interval includes 0); held at that value and the rest refitted",
+                label(i),
+                x[i],
+                if rel.is_finite() { format!("{rel:.2}") } else { "∞ (singular)".into() },
+            ));
+            continue;
+        }
+        // k_S = k_A ρ: its variance by the delta method needs cov(k_A, ρ).
+        let mut cov_ka_rho = 0.0;
+        if let (Some(a), Some(b)) = (
+            free.iter().position(|&i| i == 3),
+            free.iter().position(|&i| i == 4),
+        ) {
+            if let Some(l) = cholesky(&jtj, k) {
+                let mut e = vec![0.0; k];
+                e[b] = 1.0;
+                cov_ka_rho = cho_solve(&l, k, &e)[a] * sigma2 * inflate;
+            }
+        }
+        let v4 = |v: f64| if v.is_finite() { v } else { 0.0 };
+        let var_ks = match (fixed[3].is_none(), fixed[4].is_none()) {
+            (false, false) => f64::NAN,
+            _ => {
+                x[4] * x[4] * v4(var[3]) + x[3] * x[3] * v4(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho
+            }
+        };
+        var[4] = var_ks;
+        break (x, var, n_eff, stop);
     };
-    let p = natural(&theta);
-    // Delta method: derivatives of the natural parameters with respect to p (diagonal except
-    // k_S, which depends on p3 and p4).
-    let sg = |x: f64| sigmoid(x) * (1.0 - sigmoid(x));
-    let d_mu0 = 1.5 * sg(theta[0]);
-    let d_a = sg(theta[1]);
-    let d_b = theta[2].exp();
-    let d_ka = sg(theta[3]);
-    let se_ks = ((sigmoid(theta[4]) * d_ka).powi(2) * var_p[3]
-        + (p.k_a * sg(theta[4])).powi(2) * var_p[4])
-        .sqrt();
+    // The status of k_S: that of ρ unless k_A moves it.
+    if status[4] != ParamStatus::Estimated && status[3] == ParamStatus::Estimated {
+        status[4] = ParamStatus::Estimated;
+    }
+    let p = law_params(&x);
+    let sse = problem_sse(c_per_s, &s, &x);
+    let se = var.map(|v| if v.is_nan() { f64::NAN } else { v.sqrt() });
+    let se = [
+        if status[0] == ParamStatus::Estimated {
+            se[0]
+        } else {
+            f64::NAN
+        },
+        if status[1] == ParamStatus::Estimated {
+            se[1]
+        } else {
+            f64::NAN
+        },
+        if status[2] == ParamStatus::Estimated {
+            se[2]
+        } else {
+            f64::NAN
+        },
+        if status[3] == ParamStatus::Estimated {
+            se[3]
+        } else {
+            f64::NAN
+        },
+        if status[4] == ParamStatus::Estimated {
+            se[4]
+        } else {
+            f64::NAN
+        },
+    ];
     Ok(PolachFit {
         group: group.to_string(),
         mu0: p.mu0,
@@ -270,20 +542,32 @@ pub fn fit_polach(
         b_s_per_m: p.b_s_per_m,
         k_a: p.k_a,
         k_s: p.k_s,
-        se: [
-            d_mu0 * var_p[0].sqrt(),
-            d_a * var_p[1].sqrt(),
-            d_b * var_p[2].sqrt(),
-            d_ka * var_p[3].sqrt(),
-            se_ks,
-        ],
-        samples: n,
+        se,
+        status,
+        notes,
+        samples: s.len(),
         effective_samples: n_eff,
-        rmse: (sse / n as f64).sqrt(),
+        rmse: (sse / s.len() as f64).sqrt(),
         ambient_temperature_c: None,
         iterations,
-        stop_reason,
+        stop_reason: stop.text().to_string(),
     })
+}
+
+/// The SSE of the natural parameters `x`.
+fn problem_sse(c_per_s: f64, s: &[Sample], x: &[f64; 5]) -> f64 {
+    PolachProblem {
+        c_per_s,
+        samples: s,
+        fixed: [None; 5],
+        free: vec![],
+    }
+    .sse_natural(x)
+}
+
+/// A parameter's name for notes (k_S stands for ρ = k_S/k_A).
+fn label(i: usize) -> &'static str {
+    ["μ0", "A", "B", "k_A", "k_S/k_A"][i]
 }
 
 /// The temperature law and the fits behind it.
@@ -366,17 +650,61 @@ mod tests {
 
     #[test]
     fn reparametrisation_round_trips_and_respects_bounds() {
-        let p = PolachParams {
-            mu0: 0.3,
-            a_ratio: 0.4,
-            b_s_per_m: 0.2,
-            k_a: 0.3,
-            k_s: 0.1,
-        };
-        let q = natural(&unconstrained(&p));
-        assert!((q.mu0 - 0.3).abs() < 1e-12 && (q.k_s - 0.1).abs() < 1e-12);
-        let extreme = natural(&[50.0, -50.0, 10.0, 50.0, 50.0]);
-        assert!(extreme.mu0 <= 1.5 && extreme.a_ratio >= 0.0 && extreme.k_s <= extreme.k_a);
+        for (i, x) in [(0, 0.3), (1, 0.4), (2, 0.2), (3, 0.3), (4, 0.5), (2, 40.0)] {
+            let (back, dx) = to_natural(i, to_unconstrained(i, x));
+            assert!((back - x).abs() < 1e-12 * x.max(1.0), "{i}: {back} vs {x}");
+            // dx/dp against a central difference.
+            let p = to_unconstrained(i, x);
+            let h = 1e-6;
+            let fd = (to_natural(i, p + h).0 - to_natural(i, p - h).0) / (2.0 * h);
+            assert!(
+                (dx - fd).abs() < 1e-6 * fd.abs().max(1e-12),
+                "{i}: {dx} vs {fd}"
+            );
+        }
+        for (i, p) in [(0, 60.0), (1, -60.0), (2, 60.0), (3, 60.0), (4, 60.0)] {
+            let x = to_natural(i, p).0;
+            assert!(x >= LOWER[i] && x <= UPPER[i], "{i}: {x}");
+        }
+    }
+
+    fn patch() -> ContactPatch {
+        ContactPatch {
+            a_m: 0.0061,
+            b_m: 0.0045,
+            g_pa: 8.0e10,
+            c11: 4.1,
+            c22: 3.6,
+        }
+    }
+
+    proptest::proptest! {
+        /// The analytic μ is the contact library's, and its gradient matches central
+        /// differences, over the law's whole domain (issue 16).
+        #[test]
+        fn analytic_gradient_matches_the_law_and_finite_differences(
+            mu0 in 0.02f64..1.0, a in 0.01f64..0.99, b in 0.01f64..5.0,
+            k_a in 0.01f64..1.0, rho in 0.01f64..1.0,
+            dv in 0.001f64..8.0, v in 1.0f64..90.0,
+        ) {
+            let p = patch();
+            let q = 80_000.0;
+            let c = std::f64::consts::PI * p.g_pa * p.a_m * p.b_m * p.c11 / 4.0;
+            let x = [mu0, a, b, k_a, rho];
+            let s = Sample { q_n: q, v, dv, mu: 0.0 };
+            let (f, g) = mu_and_gradient(c, &x, &s);
+            let law = crate::contact::polach::polach(&p, &law_params(&x), q, v, dv, 0.0).unwrap();
+            proptest::prop_assert!((f - law.fx_n / q).abs() <= 1e-14 * f.abs().max(1e-3), "{} vs {}", f, law.fx_n / q);
+            for i in 0..5 {
+                let h = 1e-6 * x[i];
+                let (mut up, mut dn) = (x, x);
+                up[i] += h;
+                dn[i] -= h;
+                let fd = (mu_and_gradient(c, &up, &s).0 - mu_and_gradient(c, &dn, &s).0) / (2.0 * h);
+                let tol = 1e-6 * (g[i].abs() + fd.abs()) + 1e-10;
+                proptest::prop_assert!((g[i] - fd).abs() <= tol, "param {}: {} vs {}", i, g[i], fd);
+            }
+        }
     }
 
     #[test]
@@ -508,7 +836,7 @@ pub fn fit_campaign(
     (
         PolachReport {
             format: "railgrip-polach-fit".into(),
-            version: 1,
+            version: 2,
             patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
             wheel_load_n: q_n,
             pooled,

@@ -371,6 +371,9 @@ pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
         mu_max: cfg.mu_max,
         max_fail: cfg.max_fail,
         bayesian: cfg.bayesian,
+        // trainlm and trainbr have no such tests.
+        ftol: 0.0,
+        xtol: 0.0,
     }
 }
 

@@ -569,28 +569,40 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
 fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), ReportError> {
     let (data, polach_model) = (&i.data, &i.polach);
     h.push_str("<h2>Polach fits (seed 004 eq. 1–3)</h2>\n<table><tr><th class=\"l\">group</th><th>μ0</th><th>A</th><th>B s/m</th><th>k_A</th><th>k_S</th><th>RMSE μ</th><th>samples</th></tr>\n");
-    let se = |x: f64, s: f64| {
-        if s.is_finite() {
-            format!("{x:.4} ± {s:.4}")
-        } else {
-            format!("{x:.4} (not identifiable)")
-        }
+    use crate::identify::polach_fit::ParamStatus;
+    // Each parameter as estimated ± se, or held: at its bound, or at the prior where the data
+    // do not identify it.
+    let cell = |x: f64, s: f64, st: ParamStatus| match st {
+        ParamStatus::Estimated if s.is_finite() => format!("{x:.4} ± {s:.4}"),
+        ParamStatus::Estimated => format!("{x:.4}"),
+        ParamStatus::AtBound => format!("{x:.4} <em>(at bound)</em>"),
+        ParamStatus::NotIdentifiable => format!("{x:.4} <em>(not identifiable: prior)</em>"),
     };
+    let mut notes = Vec::new();
     for p in f.pooled.iter().chain(&f.per_temperature).chain(&f.per_run) {
         let _ = writeln!(
             *h,
             "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4}</td><td>{}</td></tr>",
             esc(&p.group),
-            se(p.mu0, p.se[0]),
-            se(p.a_ratio, p.se[1]),
-            se(p.b_s_per_m, p.se[2]),
-            se(p.k_a, p.se[3]),
-            se(p.k_s, p.se[4]),
+            cell(p.mu0, p.se[0], p.status[0]),
+            cell(p.a_ratio, p.se[1], p.status[1]),
+            cell(p.b_s_per_m, p.se[2], p.status[2]),
+            cell(p.k_a, p.se[3], p.status[3]),
+            cell(p.k_s, p.se[4], p.status[4]),
             p.rmse,
             p.samples
         );
+        notes.extend(p.notes.iter().map(|n| format!("{}: {n}", p.group)));
     }
-    h.push_str("</table>\n<div class=\"figs\">\n");
+    h.push_str("</table>\n");
+    if !notes.is_empty() {
+        h.push_str("<p>What the data could not identify (held, the rest refitted; seed 004, issue 16):</p>\n<ul>\n");
+        for n in &notes {
+            let _ = writeln!(*h, "<li>{}</li>", esc(n));
+        }
+        h.push_str("</ul>\n");
+    }
+    h.push_str("<div class=\"figs\">\n");
     let patch = ContactPatch {
         a_m: f.patch[0],
         b_m: f.patch[1],

@@ -1,0 +1,113 @@
+//! The Polach fit (issue 16) on 150 000 samples of the bundled soap runs, against scipy.
+//!
+//!     cargo bench --bench polach
+//!
+//! Data: the valid estimates of the bundled soap runs (estimated here) with slip, pooled in
+//! run order, the first 150 000; the pipeline's patch and static wheel load. Criterion times
+//! the whole identifiability-aware fit (`polach/pooled_fit_150k`: LM with the analytic
+//! Jacobian, bounds and identifiability checks; one core — the fit is sequential) and one
+//! Jacobian pass (`polach/normal_equations_150k` is inside it; not timed apart). Then, once,
+//! side by side on the same samples and start: scipy `least_squares(method='trf')` with the same
+//! bounds, tolerances and analytic Jacobian (`benches/peers/polach_scipy.py`; skipped with a
+//! message without python3, numpy and scipy, or with `RAILGRIP_BENCH_QUICK=1`), its best of 3
+//! wall times and its parameters against railgrip's.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::{Duration, Instant};
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use railgrip::contact::polach::PolachParams;
+use railgrip::identify::polach_fit::fit_polach;
+use railgrip::identify::RunTable;
+use railgrip::Pipeline;
+
+const N: usize = 150_000;
+
+fn bench(c: &mut Criterion) {
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let tables = common::bundled_tables(|n| n.starts_with("soap_"));
+    let mut t = RunTable::default();
+    'all: for r in &tables {
+        for i in 0..r.len() {
+            if r.dv_mps[i] > 0.0 && r.v_mps[i] > 0.0 {
+                t.axle.push(r.axle[i]);
+                t.time_s.push(r.time_s[i]);
+                t.v_mps.push(r.v_mps[i]);
+                t.dv_mps.push(r.dv_mps[i]);
+                t.ddv_mps2.push(r.ddv_mps2[i]);
+                t.mu.push(r.mu[i]);
+                if t.len() == N {
+                    break 'all;
+                }
+            }
+        }
+    }
+    assert_eq!(t.len(), N);
+    let start = PolachParams {
+        mu0: 0.1,
+        a_ratio: 0.4,
+        b_s_per_m: 0.3,
+        k_a: 0.3,
+        k_s: 0.1,
+    };
+    let fit = || fit_polach("pooled", &[&t], patch, q, 1, start).unwrap();
+    let mut g = c.benchmark_group("polach");
+    g.sample_size(10).measurement_time(Duration::from_secs(10));
+    g.bench_function("pooled_fit_150k", |b| b.iter(fit));
+    g.finish();
+
+    let t0 = Instant::now();
+    let f = fit();
+    let secs = t0.elapsed().as_secs_f64();
+    eprintln!(
+        "railgrip fit_polach: {secs:.3} s, {} LM iterations ({}), μ0 {:.5} A {:.4} B {:.4} k_A {:.5} k_S {:.5}, RMSE {:.6}, status {:?}",
+        f.iterations, f.stop_reason, f.mu0, f.a_ratio, f.b_s_per_m, f.k_a, f.k_s, f.rmse, f.status
+    );
+
+    if std::env::var("RAILGRIP_BENCH_QUICK").as_deref() == Ok("1") {
+        eprintln!("SKIPPED scipy peer: RAILGRIP_BENCH_QUICK=1");
+        return;
+    }
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
+    std::fs::create_dir_all(&dir).unwrap();
+    let problem = dir.join("polach_problem_150k.json");
+    let json = serde_json::json!({
+        "v": t.v_mps, "dv": t.dv_mps, "mu": t.mu, "q_n": q,
+        "c_per_s": std::f64::consts::PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0,
+        "start": [start.mu0, start.a_ratio, start.b_s_per_m, start.k_a, start.k_s / start.k_a],
+    });
+    std::fs::write(&problem, json.to_string()).unwrap();
+    let peer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/polach_scipy.py");
+    match Command::new("python3").arg(&peer).arg(&problem).output() {
+        Ok(o) if o.status.success() => {
+            let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+            let s = v["seconds"].as_f64().unwrap();
+            let x: Vec<f64> = v["params"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|a| a.as_f64().unwrap())
+                .collect();
+            eprintln!(
+                "scipy least_squares(method='trf'): {s:.3} s (best of 3), {} evaluations, μ0 {:.5} A {:.4} B {:.4} k_A {:.5} k_S {:.5}, RMSE {:.6} ({}); railgrip {:.1}× faster",
+                v["nfev"], x[0], x[1], x[2], x[3], x[4], v["rmse"].as_f64().unwrap(), v["message"], s / secs
+            );
+        }
+        Ok(o) => eprintln!(
+            "SKIPPED scipy peer: {}",
+            String::from_utf8_lossy(&o.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        ),
+        Err(e) => eprintln!("SKIPPED scipy peer: no python3 ({e})"),
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
