@@ -199,6 +199,9 @@ pub enum StopReason {
     CostConverged,
     /// MINPACK's xtol test.
     StepConverged,
+    /// With MINPACK's tests on: no step reduces the cost at any damping up to `mu_max` — the
+    /// minimum at the arithmetic's precision (MINPACK's info 6/7), not a failure.
+    NoFurtherReduction,
 }
 
 impl StopReason {
@@ -211,6 +214,9 @@ impl StopReason {
             StopReason::ValidationStop => "validation stop (max_fail)",
             StopReason::CostConverged => "converged: relative cost reduction at most ftol",
             StopReason::StepConverged => "converged: relative step at most xtol",
+            StopReason::NoFurtherReduction => {
+                "converged: no step reduces the cost any further (MINPACK info 6)"
+            }
         }
     }
 }
@@ -405,7 +411,11 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
                 }
                 self.mu *= s.mu_inc;
                 if self.mu > s.mu_max {
-                    self.stop = Some(StopReason::MuMax);
+                    self.stop = Some(if s.ftol > 0.0 {
+                        StopReason::NoFurtherReduction
+                    } else {
+                        StopReason::MuMax
+                    });
                     break;
                 }
             }
@@ -542,6 +552,60 @@ mod tests {
         fn validation_mse(&self, _: &[f64]) -> Option<f64> {
             None
         }
+    }
+
+    /// MINPACK's tests end a fit whose cost stopped falling as converged, with noisy data (a
+    /// nonzero minimum), in fewer epochs than trainlm's rules; without them (trainlm) the same
+    /// fit runs until μ's maximum or the gradient floor.
+    #[test]
+    fn minpack_tests_end_a_converged_fit() {
+        let x: Vec<f64> = (0..50).map(|i| i as f64 * 0.05).collect();
+        let y: Vec<f64> = x
+            .iter()
+            .enumerate()
+            .map(|(i, x)| 2.5 * (-1.3 * x).exp() + 0.01 * ((i * 7919 % 13) as f64 - 6.0))
+            .collect();
+        let fit = |s: LmSettings| {
+            run(
+                Exp {
+                    x: x.clone(),
+                    y: y.clone(),
+                },
+                LevenbergMarquardt::new(s),
+                vec![1.0, 0.0],
+            )
+            .unwrap()
+            .0
+        };
+        let plain = fit(LmSettings::default());
+        let minpack = fit(LmSettings {
+            ftol: 1e-10,
+            xtol: 1e-10,
+            ..LmSettings::default()
+        });
+        assert!(matches!(
+            minpack.stop_reason(),
+            Some(
+                StopReason::CostConverged
+                    | StopReason::StepConverged
+                    | StopReason::NoFurtherReduction
+            )
+        ));
+        assert!(minpack
+            .stop_reason()
+            .unwrap()
+            .text()
+            .starts_with("converged"));
+        assert!(matches!(
+            plain.stop_reason(),
+            Some(StopReason::MinGrad | StopReason::MuMax)
+        ));
+        assert!(minpack.history().len() <= plain.history().len());
+        let (a, b) = (plain.best().unwrap(), minpack.best().unwrap());
+        assert!(
+            (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
+            "{a:?} {b:?}"
+        );
     }
 
     #[test]

@@ -35,6 +35,18 @@ struct Sample {
     v: f64,
     dv: f64,
     mu: f64,
+    /// c (w/v)/Q with c = π G a b c11/4 of the patch: the gradient ε times μ_w (set by
+    /// [`with_patch`]).
+    cs: f64,
+}
+
+/// The samples with their patch term `cs` set.
+fn with_patch(mut s: Vec<Sample>, patch: &ContactPatch) -> Vec<Sample> {
+    let c = std::f64::consts::PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
+    for x in &mut s {
+        x.cs = c * (x.dv / x.v) / x.q_n;
+    }
+    s
 }
 
 fn sigmoid(x: f64) -> f64 {
@@ -132,13 +144,13 @@ fn law_params(x: &[f64; 5]) -> PolachParams {
 ///   ∂f/∂k_A = (2μ_w/π) ε [(1 − x²)/(1 + x²)² + ρ/(1 + y²)], ∂f/∂ρ = (2μ_w/π) ε k_A/(1 + y²).
 /// The value is the contact library's `polach(…).fx_n / Q` (tested to 1e-14).
 #[inline]
-fn mu_and_gradient(c_per_s: f64, x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
+fn mu_and_gradient(x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
     let [mu0, a, b, k_a, rho] = *x;
     let k_s = k_a * rho;
     let e = (-b * s.dv).exp();
     let g = (1.0 - a) * e + a;
     let mu_w = mu0 * g;
-    let eps = c_per_s * (s.dv / s.v) / (s.q_n * mu_w);
+    let eps = s.cs / mu_w;
     let (xa, ys) = (k_a * eps, k_s * eps);
     let (dxa, dys) = (1.0 + xa * xa, 1.0 + ys * ys);
     let bracket = xa / dxa + ys.atan();
@@ -159,11 +171,20 @@ fn mu_and_gradient(c_per_s: f64, x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
     )
 }
 
+/// The value of [`mu_and_gradient`] alone (the same operations; for trial steps).
+#[inline]
+fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
+    let [mu0, a, b, k_a, rho] = *x;
+    let e = (-b * s.dv).exp();
+    let mu_w = mu0 * ((1.0 - a) * e + a);
+    let eps = s.cs / mu_w;
+    let (xa, ys) = (k_a * eps, k_a * rho * eps);
+    2.0 / std::f64::consts::PI * mu_w * (xa / (1.0 + xa * xa) + ys.atan())
+}
+
 /// The least-squares problem of one fit: the free parameters' unconstrained coordinates, the
 /// others held at `fixed`.
 struct PolachProblem<'a> {
-    /// π G a b c11 / 4 of the patch (the creepage and Q divide it per sample).
-    c_per_s: f64,
     samples: &'a [Sample],
     fixed: [Option<f64>; 5],
     free: Vec<usize>,
@@ -182,7 +203,7 @@ impl PolachProblem<'_> {
         self.samples
             .iter()
             .map(|s| {
-                let r = mu_and_gradient(self.c_per_s, x, s).0 - s.mu;
+                let r = mu_only(x, s) - s.mu;
                 r * r
             })
             .sum()
@@ -192,7 +213,7 @@ impl PolachProblem<'_> {
         let mut r = Vec::with_capacity(self.samples.len());
         let mut j = Vec::with_capacity(5 * self.samples.len());
         for s in self.samples {
-            let (f, g) = mu_and_gradient(self.c_per_s, x, s);
+            let (f, g) = mu_and_gradient(x, s);
             r.push(f - s.mu);
             j.extend_from_slice(&g);
         }
@@ -220,7 +241,7 @@ impl LeastSquares for PolachProblem<'_> {
         let mut sse = 0.0;
         let mut row = vec![0.0; k];
         for s in self.samples {
-            let (f, g) = mu_and_gradient(self.c_per_s, &x, s);
+            let (f, g) = mu_and_gradient(&x, s);
             let r = f - s.mu;
             sse += r * r;
             for (c, &i) in self.free.iter().enumerate() {
@@ -258,7 +279,8 @@ pub struct PolachFit {
     /// Standard errors in the same order (μ0, A, B, k_A, k_S); NaN (`null`) for a parameter
     /// held at a bound or prior.
     pub se: [f64; 5],
-    /// What the data said about each parameter (same order).
+    /// What the data said about each parameter (same order; k_S's is that of k_S/k_A, the
+    /// parameter the fit solves for).
     #[serde(default = "all_estimated")]
     pub status: [ParamStatus; 5],
     /// Why parameters were held (one line each), in the order it happened.
@@ -303,6 +325,7 @@ fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sample> {
                     v: t.v_mps[i],
                     dv: t.dv_mps[i],
                     mu: t.mu[i],
+                    cs: f64::NAN,
                 });
             }
         }
@@ -325,14 +348,12 @@ fn fit_settings() -> LmSettings {
 /// One solve with the parameters of `fixed` held: the free parameters from `start`.
 fn solve(
     group: &str,
-    c_per_s: f64,
     s: &[Sample],
     fixed: [Option<f64>; 5],
     start: &[f64; 5],
 ) -> Result<([f64; 5], [f64; 5], usize, lm::StopReason), IdentifyError> {
     let free: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
     let problem = PolachProblem {
-        c_per_s,
         samples: s,
         fixed,
         free: free.clone(),
@@ -394,14 +415,14 @@ pub fn fit_polach(
             hint: "fit Polach on braking runs with wheel slip".into(),
         });
     }
-    let c_per_s = std::f64::consts::PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
+    let s = with_patch(s, &patch);
     let mut fixed: [Option<f64>; 5] = [None; 5];
     let mut status = all_estimated();
     let mut notes = Vec::new();
     let mut current = solver_order(&start);
     let mut iterations = 0;
     let (x, var, n_eff, stop) = loop {
-        let (x, _dx, its, stop) = solve(group, c_per_s, &s, fixed, &current)?;
+        let (x, _dx, its, stop) = solve(group, &s, fixed, &current)?;
         iterations += its;
         current = x;
         // 2. Bounds.
@@ -427,7 +448,6 @@ pub fn fit_polach(
         }
         // 3. Identifiability of the free parameters.
         let problem = PolachProblem {
-            c_per_s,
             samples: &s,
             fixed,
             free: vec![],
@@ -501,12 +521,10 @@ pub fn fit_polach(
         var[4] = var_ks;
         break (x, var, n_eff, stop);
     };
-    // The status of k_S: that of ρ unless k_A moves it.
-    if status[4] != ParamStatus::Estimated && status[3] == ParamStatus::Estimated {
-        status[4] = ParamStatus::Estimated;
-    }
+    // k_S = k_A ρ carries the status of ρ: held at a bound, k_S/k_A is fixed (k_S = k_A, or
+    // 0), and k_S has no standard error of its own.
     let p = law_params(&x);
-    let sse = problem_sse(c_per_s, &s, &x);
+    let sse = problem_sse(&s, &x);
     let se = var.map(|v| if v.is_nan() { f64::NAN } else { v.sqrt() });
     let se = [
         if status[0] == ParamStatus::Estimated {
@@ -555,9 +573,8 @@ pub fn fit_polach(
 }
 
 /// The SSE of the natural parameters `x`.
-fn problem_sse(c_per_s: f64, s: &[Sample], x: &[f64; 5]) -> f64 {
+fn problem_sse(s: &[Sample], x: &[f64; 5]) -> f64 {
     PolachProblem {
-        c_per_s,
         samples: s,
         fixed: [None; 5],
         free: vec![],
@@ -689,10 +706,10 @@ mod tests {
         ) {
             let p = patch();
             let q = 80_000.0;
-            let c = std::f64::consts::PI * p.g_pa * p.a_m * p.b_m * p.c11 / 4.0;
             let x = [mu0, a, b, k_a, rho];
-            let s = Sample { q_n: q, v, dv, mu: 0.0 };
-            let (f, g) = mu_and_gradient(c, &x, &s);
+            let s = with_patch(vec![Sample { q_n: q, v, dv, mu: 0.0, cs: f64::NAN }], &p)[0];
+            let (f, g) = mu_and_gradient(&x, &s);
+            proptest::prop_assert_eq!(f.to_bits(), mu_only(&x, &s).to_bits());
             let law = crate::contact::polach::polach(&p, &law_params(&x), q, v, dv, 0.0).unwrap();
             proptest::prop_assert!((f - law.fx_n / q).abs() <= 1e-14 * f.abs().max(1e-3), "{} vs {}", f, law.fx_n / q);
             for i in 0..5 {
@@ -700,7 +717,7 @@ mod tests {
                 let (mut up, mut dn) = (x, x);
                 up[i] += h;
                 dn[i] -= h;
-                let fd = (mu_and_gradient(c, &up, &s).0 - mu_and_gradient(c, &dn, &s).0) / (2.0 * h);
+                let fd = (mu_only(&up, &s) - mu_only(&dn, &s)) / (2.0 * h);
                 let tol = 1e-6 * (g[i].abs() + fd.abs()) + 1e-10;
                 proptest::prop_assert!((g[i] - fd).abs() <= tol, "param {}: {} vs {}", i, g[i], fd);
             }
