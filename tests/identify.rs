@@ -813,6 +813,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         fitted_range_c: (-20.0, 20.0),
         degree: 2,
         residuals: vec![],
+        excluded: vec![],
     };
     railgrip::identify::export::polach_file(
         &fit,
@@ -1312,6 +1313,27 @@ fn temperature_law_recovers_a_quadratic_and_archive_adhesion_rises_in_the_cold()
         .unwrap_err()
         .to_string()
         .contains("two or more"));
+    // A temperature whose fit could not identify k_A is left out, named with the reason
+    // (issue 16); the law comes from the others.
+    use railgrip::identify::polach_fit::ParamStatus;
+    let mut held = fits.clone();
+    held[1].status[3] = ParamStatus::NotIdentifiable;
+    let law = fit_temperature(&held, 2).unwrap();
+    assert_eq!(
+        law.excluded,
+        vec!["T = -20 °C (k_A not identifiable)".to_string()]
+    );
+    assert_eq!(law.residuals.len(), 3);
+    // Too few left: an error that names each one and why.
+    held[0].status[4] = ParamStatus::NotIdentifiable;
+    held[2].status[3] = ParamStatus::AtBound;
+    let e = fit_temperature(&held, 2).unwrap_err().to_string();
+    assert!(
+        e.contains("1 of them identify both")
+            && e.contains("T = -40 °C (k_S not identifiable)")
+            && e.contains("T = 0 °C (k_A at bound)"),
+        "{e}"
+    );
 
     // The bundled archive (soap at +20, 0, −20 °C): k_A is higher in the cold (seed 004).
     let p = Pipeline::default_uic_z1();

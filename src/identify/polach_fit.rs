@@ -597,6 +597,9 @@ pub struct TemperatureFit {
     pub degree: usize,
     /// (T, k_A residual, k_S residual) per temperature group.
     pub residuals: Vec<(f64, f64, f64)>,
+    /// Temperatures left out because their fit held k_A or k_S, with why.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub excluded: Vec<String>,
 }
 
 impl TemperatureFit {
@@ -626,14 +629,46 @@ fn polyfit(x: &[f64], y: &[f64], degree: usize) -> Option<Vec<f64>> {
 
 /// Fits k_A(T), k_S(T) through per-temperature Polach fits.
 pub fn fit_temperature(fits: &[PolachFit], degree: usize) -> Result<TemperatureFit, IdentifyError> {
-    let pts: Vec<(f64, f64, f64)> = fits
+    let with_t: Vec<&PolachFit> = fits
         .iter()
-        .filter_map(|f| f.ambient_temperature_c.map(|t| (t, f.k_a, f.k_s)))
+        .filter(|f| f.ambient_temperature_c.is_some())
         .collect();
+    if with_t.len() < 2 {
+        return Err(IdentifyError::Data {
+            what: format!("k(T) needs runs at two or more ambient temperatures; found {}", with_t.len()),
+            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
+        });
+    }
+    // Only temperatures whose fit identified k_A and k_S (issue 16): a value held because the
+    // data did not determine it says nothing about how k changes with temperature. (k_S/k_A
+    // at its bound leaves k_S = k_A or 0: as determined as k_A.)
+    let mut excluded = Vec::new();
+    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
+    for f in with_t {
+        let t = f.ambient_temperature_c.expect("filtered");
+        let held: Vec<String> = [(3, "k_A"), (4, "k_S")]
+            .iter()
+            .filter(|(k, _)| match f.status[*k] {
+                ParamStatus::Estimated => false,
+                ParamStatus::AtBound => *k == 3,
+                ParamStatus::NotIdentifiable => true,
+            })
+            .map(|(k, name)| format!("{name} {}", f.status[*k].text()))
+            .collect();
+        if held.is_empty() {
+            pts.push((t, f.k_a, f.k_s));
+        } else {
+            excluded.push(format!("T = {t} °C ({})", held.join(", ")));
+        }
+    }
     if pts.len() < 2 {
         return Err(IdentifyError::Data {
-            what: format!("k(T) needs runs at two or more ambient temperatures; found {}", pts.len()),
-            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
+            what: format!(
+                "k(T) needs k_A and k_S identified at two or more ambient temperatures; {} of them identify both, left out: {}",
+                pts.len(),
+                excluded.join("; ")
+            ),
+            hint: "add runs with small slips (Δv below 0.2 m/s) at those temperatures, or use the pooled fit without k(T)".into(),
         });
     }
     let degree = degree.min(pts.len() - 1);
@@ -658,6 +693,7 @@ pub fn fit_temperature(fits: &[PolachFit], degree: usize) -> Result<TemperatureF
         fitted_range_c: (lo, hi),
         degree,
         residuals,
+        excluded,
     })
 }
 
@@ -847,7 +883,12 @@ pub fn fit_campaign(
     };
     let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
     let (temperature, temperature_note) = match fit_temperature(&per_temperature, degree) {
-        Ok(t) => (Some(t), None),
+        Ok(t) => {
+            for e in &t.excluded {
+                notes.push(format!("k(T) fitted without {e}"));
+            }
+            (Some(t), None)
+        }
         Err(e) => (None, Some(e.to_string())),
     };
     (
