@@ -462,6 +462,57 @@ fn a_polach_model_file_with_its_temperature_law_drives_the_wheels() {
     assert!(e.contains("no temperature law"), "{e}");
 }
 
+/// A four-input network (Δv, dΔv/dt, v, T) drives the wheels at the scene's ambient
+/// temperature with the temperature effect, at its reference temperature without.
+#[test]
+fn a_four_input_network_brakes_at_the_scenes_temperature() {
+    let file =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp_4inputs.json");
+    let model = railgrip::model::Model::load(&file).unwrap();
+    let run = |effects: &str, ambient: f64| {
+        let text = format!(
+            "name = \"t\"\nseed = 3\neffects = [{effects}]\n[run]\ninitial_speed_kmh = 60.0\nmax_duration_s = 4.0\nambient_temperature_c = {ambient}\n[adhesion]\nlaw = \"model\"\nmodel = \"{}\"\nhysteresis_time_constant_s = 0.001\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]",
+            file.display()
+        );
+        let sc = Scene::from_toml(&text, "t.toml", None).unwrap();
+        sim::simulate(&sc, None).unwrap()
+    };
+    // Mean |μ − model(T)| over the samples with slip (the model's slip-rate input is lagged
+    // by 1 ms, the truth's is not: the error is not zero, but far smaller at the right T).
+    let err = |out: &sim::SimOutput, t_c: f64| {
+        let tr = &out.truth;
+        let (mut sum, mut n) = (0.0, 0);
+        for a in 0..4 {
+            for i in 0..tr.time_s.len() {
+                if tr.dv_mps[a][i].abs() > 0.3 {
+                    let want = model.mu_vt(tr.dv_mps[a][i], tr.ddv_mps2[a][i], tr.v_mps[i], t_c);
+                    sum += (tr.mu[a][i] - want).abs();
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 100, "{n} samples with slip");
+        sum / n as f64
+    };
+    let (cold, warm) = (run("\"temperature\"", -10.0), run("\"temperature\"", 20.0));
+    let (right, wrong) = (err(&cold, -10.0), err(&cold, 20.0));
+    eprintln!("−10 °C: mean |Δμ| {right:.5} at −10 °C, {wrong:.5} at +20 °C");
+    assert!(right < 0.25 * wrong, "{right} {wrong}");
+    let (right, wrong) = (err(&warm, 20.0), err(&warm, -10.0));
+    assert!(right < 0.25 * wrong, "{right} {wrong}");
+    // Without the effect: the file's reference temperature, whatever the scene says.
+    let t_ref = model
+        .file
+        .creep
+        .as_ref()
+        .unwrap()
+        .reference_temperature_c
+        .unwrap();
+    let plain = run("", -10.0);
+    let (right, wrong) = (err(&plain, t_ref), err(&plain, -10.0));
+    assert!(right < 0.25 * wrong, "{right} {wrong}");
+}
+
 #[test]
 fn bundled_scenes_load() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes");

@@ -212,7 +212,9 @@ impl SlipTable {
 /// SIMD lanes): μ at slip `w` (m/s), lagged slip rate `q` (m/s²) and speed `v` (m/s).
 #[derive(Debug, Clone)]
 pub(super) enum ScalarLaw {
-    Model(Box<crate::model::Model>),
+    /// A model file, and the ambient temperature (°C) its network takes as a fourth input
+    /// (NaN: the file's reference; only networks with a temperature input use it).
+    Model(Box<crate::model::Model>, f64),
     LossRecovery(PreparedLossRecovery),
     Table(SlipTable),
 }
@@ -221,7 +223,7 @@ impl ScalarLaw {
     #[inline]
     pub(super) fn mu(&self, w: f64, q: f64, v: f64) -> f64 {
         match self {
-            ScalarLaw::Model(m) => m.mu_v(w, q, v),
+            ScalarLaw::Model(m, t_c) => m.mu_vt(w, q, v, *t_c),
             ScalarLaw::LossRecovery(l) => l.mu(w, q, v),
             ScalarLaw::Table(t) => t.mu(w, v),
         }

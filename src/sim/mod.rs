@@ -228,14 +228,21 @@ fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
         )
     })?;
     if !with_t {
-        return Ok(Some(ScalarLaw::Model(Box::new(m))));
+        return Ok(Some(ScalarLaw::Model(Box::new(m), f64::NAN)));
+    }
+    // A network with the ambient temperature as an input takes the scene's.
+    if m.file.input_set().has_temperature() && m.file.kind == crate::model::ModelKind::Mlp {
+        return Ok(Some(ScalarLaw::Model(
+            Box::new(m),
+            sc.run.ambient_temperature_c,
+        )));
     }
     m.at_temperature(sc.run.ambient_temperature_c)
-        .map(|m| Some(ScalarLaw::Model(Box::new(m))))
+        .map(|m| Some(ScalarLaw::Model(Box::new(m), f64::NAN)))
         .map_err(|e| {
             err(
                 format!("effect temperature with adhesion.model: {e}"),
-                "remove temperature from effects, or use a Polach model fitted at several ambient temperatures that cover run.ambient_temperature_c",
+                "remove temperature from effects, or use a Polach model fitted at several ambient temperatures that cover run.ambient_temperature_c, or a network with the input ambient_temperature_c",
             )
         })
 }
