@@ -20,8 +20,7 @@ use std::time::{Duration, Instant};
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use railgrip::contact::polach::PolachParams;
-use railgrip::identify::polach_fit::fit_polach;
+use railgrip::identify::polach_fit::{fit_polach, DEFAULT_START};
 use railgrip::identify::RunTable;
 use railgrip::Pipeline;
 
@@ -35,12 +34,7 @@ fn bench(c: &mut Criterion) {
     'all: for r in &tables {
         for i in 0..r.len() {
             if r.dv_mps[i] > 0.0 && r.v_mps[i] > 0.0 {
-                t.axle.push(r.axle[i]);
-                t.time_s.push(r.time_s[i]);
-                t.v_mps.push(r.v_mps[i]);
-                t.dv_mps.push(r.dv_mps[i]);
-                t.ddv_mps2.push(r.ddv_mps2[i]);
-                t.mu.push(r.mu[i]);
+                t.push_row(r, i);
                 if t.len() == N {
                     break 'all;
                 }
@@ -48,13 +42,7 @@ fn bench(c: &mut Criterion) {
         }
     }
     assert_eq!(t.len(), N);
-    let start = PolachParams {
-        mu0: 0.1,
-        a_ratio: 0.4,
-        b_s_per_m: 0.3,
-        k_a: 0.3,
-        k_s: 0.1,
-    };
+    let start = DEFAULT_START;
     let fit = || fit_polach("pooled", &[&t], patch, q, 1, start).unwrap();
     let mut g = c.benchmark_group("polach");
     g.sample_size(10).measurement_time(Duration::from_secs(10));

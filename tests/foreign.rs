@@ -8,11 +8,13 @@
 
 use std::path::{Path, PathBuf};
 
+use railgrip::config::TrainConfig;
 use railgrip::identify::dataset::RunTable;
 use railgrip::identify::export::mlp_file;
 use railgrip::identify::train::{creep_spec, median_speed, train_mlp};
-use railgrip::model::{InputSet, Model, Provenance};
-use railgrip::score::{score, Grid, Sample};
+use railgrip::identify::TrainedMlp;
+use railgrip::model::{InputSet, Model, ModelFile, Provenance};
+use railgrip::score::{score, Grid, Sample, Score};
 use railgrip::sim::{self, AdhesionLaw, OutputFormat, Scene};
 use railgrip::Pipeline;
 
@@ -119,20 +121,13 @@ fn multi_start_on_a_foreign_law() {
         let mut cfg = p.train.clone();
         cfg.seed = seed;
         cfg.starts = 3;
-        let mut net = train_mlp(&tables, &cfg, None).unwrap();
-        net.reference_speed_mps = median_speed(&tables);
+        let Scored { net, score: s, .. } = train_and_score(&tables, &truth, &cfg);
         let best = net
             .start_val_mse
             .iter()
             .copied()
             .fold(f64::INFINITY, f64::min);
         assert_eq!(net.val_mse, best, "seed {seed}");
-        let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-        let model = Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
-        let s = score(&truth, &Grid::default(), |dv, q, v, t| {
-            model.mu_vt(dv, q, v, t)
-        })
-        .unwrap();
         let (t, pr) = s.hysteresis.unwrap();
         eprintln!(
             "seed {seed}: RMSE {:.4} max {:.3} hysteresis {t:+.4} / {pr:+.4}",
@@ -166,17 +161,9 @@ fn every_seed_holds_on_both_foreign_laws() {
         for seed in 1..=8 {
             let mut cfg = p.train.clone();
             cfg.seed = seed;
-            let mut net = train_mlp(&tables, &cfg, None).unwrap();
-            net.reference_speed_mps = median_speed(&tables);
-            let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-            let file = mlp_file(&net, creep, provenance(seed), None).unwrap();
+            let Scored { file, score: s, .. } = train_and_score(&tables, &truth, &cfg);
             let audit = file.audit.clone().unwrap();
             assert!(audit.passed, "{law} seed {seed}: {:?}", audit.failures);
-            let model = Model::new(file).unwrap();
-            let s = score(&truth, &Grid::default(), |dv, q, v, t| {
-                model.mu_vt(dv, q, v, t)
-            })
-            .unwrap();
             assert_eq!(s.negative_cells, 0, "{law} seed {seed}");
             assert!(s.rmse <= 0.010, "{law} seed {seed}: RMSE {}", s.rmse);
             let (t, pr) = s.hysteresis.unwrap();
@@ -210,17 +197,9 @@ fn four_input_networks_hold_over_all_speeds_and_temperatures() {
             cfg.seed = seed;
             cfg.inputs = InputSet::DvDdvVT;
             cfg.support_cells = railgrip::config::default_support_cells(4);
-            let mut net = train_mlp(&tables, &cfg, None).unwrap();
-            net.reference_speed_mps = median_speed(&tables);
-            let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-            let file = mlp_file(&net, creep, provenance(seed), None).unwrap();
+            let Scored { file, score: s, .. } = train_and_score(&tables, &truth, &cfg);
             let audit = file.audit.clone().unwrap();
             assert!(audit.passed, "{law} seed {seed}: {:?}", audit.failures);
-            let model = Model::new(file).unwrap();
-            let s = score(&truth, &Grid::default(), |dv, q, v, t| {
-                model.mu_vt(dv, q, v, t)
-            })
-            .unwrap();
             eprintln!(
                 "{law} 4 inputs seed {seed}: RMSE {:.4} max {:.3} over {} cells",
                 s.rmse,
@@ -234,6 +213,37 @@ fn four_input_networks_hold_over_all_speeds_and_temperatures() {
                 assert!(t > 0.0 && pr > 0.5 * t, "{law} seed {seed}: {t} {pr}");
             }
         }
+    }
+}
+
+/// A network trained by `train_mlp` with `cfg`, exported as `railgrip train` exports it (the
+/// default pipeline's creep region, no Polach fallback), and scored on `truth`.
+struct Scored {
+    net: TrainedMlp,
+    file: ModelFile,
+    /// Wall time of `train_mlp`, s.
+    secs: f64,
+    score: Score,
+}
+
+fn train_and_score(tables: &[RunTable], truth: &[Sample], cfg: &TrainConfig) -> Scored {
+    let p = Pipeline::default_uic_z1();
+    let t0 = std::time::Instant::now();
+    let mut net = train_mlp(tables, cfg, None).unwrap();
+    let secs = t0.elapsed().as_secs_f64();
+    net.reference_speed_mps = median_speed(tables);
+    let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
+    let file = mlp_file(&net, creep, provenance(cfg.seed), None).unwrap();
+    let model = Model::new(file.clone()).unwrap();
+    let score = score(truth, &Grid::default(), |dv, q, v, t| {
+        model.mu_vt(dv, q, v, t)
+    })
+    .unwrap();
+    Scored {
+        net,
+        file,
+        secs,
+        score,
     }
 }
 
@@ -343,17 +353,12 @@ fn measure_networks_on_foreign_laws() {
                     if m.bayesian {
                         cfg.mu = railgrip::identify::lm::LmSettings::trainbr().mu;
                     }
-                    let t0 = std::time::Instant::now();
-                    let mut net = train_mlp(&tables, &cfg, None).unwrap();
-                    let secs = t0.elapsed().as_secs_f64();
-                    net.reference_speed_mps = median_speed(&tables);
-                    let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-                    let model =
-                        Model::new(mlp_file(&net, creep, provenance(seed), None).unwrap()).unwrap();
-                    let s = score(&truth, &Grid::default(), |dv, q, v, t| {
-                        model.mu_vt(dv, q, v, t)
-                    })
-                    .unwrap();
+                    let Scored {
+                        net,
+                        secs,
+                        score: s,
+                        ..
+                    } = train_and_score(&tables, &truth, &cfg);
                     let (t, pr) = s.hysteresis.unwrap_or((f64::NAN, f64::NAN));
                     eprintln!(
                         "{label} {} seed {seed}: RMSE {:.4} max {:.3} negative {} hysteresis {t:+.4}/{pr:+.4} {secs:.1} s {} epochs{}",
@@ -432,16 +437,12 @@ fn measure_networks_trained_on_the_truth() {
         cfg.inputs = InputSet::DvDdvVT;
         cfg.hidden = hidden;
         cfg.support_cells = railgrip::config::default_support_cells(4);
-        let t0 = std::time::Instant::now();
-        let mut net = train_mlp(&tables, &cfg, None).unwrap();
-        let secs = t0.elapsed().as_secs_f64();
-        net.reference_speed_mps = median_speed(&tables);
-        let creep = creep_spec(&p, net.reference_speed_mps).unwrap();
-        let model = Model::new(mlp_file(&net, creep, provenance(1), None).unwrap()).unwrap();
-        let s = score(&truth, &Grid::default(), |dv, q, v, t| {
-            model.mu_vt(dv, q, v, t)
-        })
-        .unwrap();
+        let Scored {
+            net,
+            secs,
+            score: s,
+            ..
+        } = train_and_score(&tables, &truth, &cfg);
         eprintln!(
             "{law}: {hidden} neurons trained on the truth: RMSE {:.4} max {:.3} ({secs:.1} s, {} epochs, {:?})",
             s.rmse, s.max_error, net.history.len(), net.stop

@@ -117,12 +117,7 @@ fn duplicated_samples() {
     for _ in 0..9 {
         let one = synthetic_table(1);
         for k in 0..one.len() {
-            tab.axle.push(one.axle[k]);
-            tab.time_s.push(one.time_s[k]);
-            tab.v_mps.push(one.v_mps[k]);
-            tab.dv_mps.push(one.dv_mps[k]);
-            tab.ddv_mps2.push(one.ddv_mps2[k]);
-            tab.mu.push(one.mu[k]);
+            tab.push_row(&one, k);
         }
     }
     let d = Dataset::build(&[tab], InputSet::DvDdv, &axles_2_3(), 1).unwrap();
@@ -1144,21 +1139,21 @@ fn polach_table(dv_min: f64, v_min: f64, sigma: f64, phi: f64) -> (RunTable, [f6
         t.mu.push(mu);
         i += 1;
     }
-    (t, [0.12, 0.35, 0.5, 0.15, 0.05])
+    let want = [
+        truth.mu0,
+        truth.a_ratio,
+        truth.b_s_per_m,
+        truth.k_a,
+        truth.k_s,
+    ];
+    (t, want)
 }
 
 fn fit_of(t: &RunTable) -> railgrip::identify::polach_fit::PolachFit {
-    use railgrip::contact::polach::PolachParams;
+    use railgrip::identify::polach_fit::{fit_polach, DEFAULT_START};
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
-    let start = PolachParams {
-        mu0: 0.1,
-        a_ratio: 0.4,
-        b_s_per_m: 0.3,
-        k_a: 0.3,
-        k_s: 0.1,
-    };
-    railgrip::identify::polach_fit::fit_polach("synthetic", &[t], patch, q, 1, start).unwrap()
+    fit_polach("synthetic", &[t], patch, q, 1, DEFAULT_START).unwrap()
 }
 
 #[test]
@@ -1237,17 +1232,7 @@ fn polach_fit_says_what_data_without_small_slip_cannot_identify() {
 fn polach_fits_of_thin_data_say_why() {
     use railgrip::identify::polach_fit::{fit_campaign, ParamStatus};
     let (mut t, _) = polach_table(0.0, 20.0, 0.002, 0.0);
-    let keep: Vec<usize> = (0..t.len()).filter(|&i| t.dv_mps[i] < 0.05).collect();
-    let pick = |v: &Vec<f64>| keep.iter().map(|&i| v[i]).collect::<Vec<f64>>();
-    t = RunTable {
-        axle: keep.iter().map(|&i| t.axle[i]).collect(),
-        time_s: pick(&t.time_s),
-        v_mps: pick(&t.v_mps),
-        dv_mps: pick(&t.dv_mps),
-        ddv_mps2: pick(&t.ddv_mps2),
-        mu: pick(&t.mu),
-        ..t
-    };
+    t = t.subset(|i| t.dv_mps[i] < 0.05);
     assert!(t.len() > 150, "{}", t.len());
     let f = fit_of(&t);
     eprintln!("{f:?}");

@@ -149,6 +149,31 @@ impl RunTable {
         Ok(t)
     }
 
+    /// Appends sample `i` of `other` (all columns).
+    pub fn push_row(&mut self, other: &RunTable, i: usize) {
+        self.axle.push(other.axle[i]);
+        self.time_s.push(other.time_s[i]);
+        self.v_mps.push(other.v_mps[i]);
+        self.dv_mps.push(other.dv_mps[i]);
+        self.ddv_mps2.push(other.ddv_mps2[i]);
+        self.mu.push(other.mu[i]);
+    }
+
+    /// The same run with only the samples `keep` accepts (by index).
+    pub fn subset(&self, mut keep: impl FnMut(usize) -> bool) -> RunTable {
+        let mut out = RunTable {
+            name: self.name.clone(),
+            source: self.source.clone(),
+            sha256: self.sha256.clone(),
+            metadata: self.metadata.clone(),
+            ..RunTable::default()
+        };
+        for i in (0..self.len()).filter(|&i| keep(i)) {
+            out.push_row(self, i);
+        }
+        out
+    }
+
     pub fn len(&self) -> usize {
         self.mu.len()
     }

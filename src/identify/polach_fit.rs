@@ -67,6 +67,15 @@ const AT_BOUND: f64 = 1e-4;
 /// residuals' autocorrelation) excludes zero: se ≤ x / 1.96.
 const IDENTIFIED_Z: f64 = 1.96;
 
+/// The start of every campaign fit (the benchmarks and tests start there too).
+pub const DEFAULT_START: PolachParams = PolachParams {
+    mu0: 0.1,
+    a_ratio: 0.4,
+    b_s_per_m: 0.3,
+    k_a: 0.3,
+    k_s: 0.1,
+};
+
 /// What a fit could say about one parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -804,13 +813,7 @@ pub fn fit_campaign(
     decimate: usize,
     degree: usize,
 ) -> (PolachReport, Vec<String>) {
-    let start = PolachParams {
-        mu0: 0.1,
-        a_ratio: 0.4,
-        b_s_per_m: 0.3,
-        k_a: 0.3,
-        k_s: 0.1,
-    };
+    let start = DEFAULT_START;
     // Every group is fitted independently: in parallel, results kept in group order.
     let all: Vec<&RunTable> = tables.iter().collect();
     let mut temps: Vec<f64> = tables
