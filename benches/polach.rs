@@ -43,7 +43,7 @@ fn bench(c: &mut Criterion) {
     }
     assert_eq!(t.len(), N);
     let start = DEFAULT_START;
-    let fit = || fit_polach("pooled", &[&t], patch, q, 1, start).unwrap();
+    let fit = || fit_polach("pooled", &[&t], patch, q, 1, start, false).unwrap();
     let mut g = c.benchmark_group("polach");
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     g.bench_function("pooled_fit_150k", |b| b.iter(fit));

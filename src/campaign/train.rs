@@ -92,7 +92,9 @@ pub fn train_models(
             match make(report.temperature.as_ref()) {
                 Ok(m) => Some(m),
                 Err(e) if report.temperature.is_some() => {
-                    notes.push(format!("Polach model written without k(T): {e}"));
+                    notes.push(format!(
+                        "Polach model written without its temperature law: {e}"
+                    ));
                     match make(None) {
                         Ok(m) => Some(m),
                         Err(e) => {

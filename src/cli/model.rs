@@ -188,7 +188,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             match f.status[k] {
                 ParamStatus::Estimated => format!("{x:.4}±{:.4}", f.se[k]),
                 ParamStatus::AtBound => format!("{x:.4} (bound)"),
-                ParamStatus::NotIdentifiable => format!("{x:.4} (prior)"),
+                ParamStatus::NotIdentifiable => format!("{x:.4} (held)"),
             }
         };
         println!(
@@ -206,12 +206,61 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     for n in held {
         println!("held       {n}");
     }
+    // Profile-likelihood 95 % intervals of the pooled fit.
+    if let Some(p) = report.pooled.as_ref().filter(|p| !p.profiles.is_empty()) {
+        let side = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
+        let cells: Vec<String> = p
+            .profiles
+            .iter()
+            .map(|q| format!("{} [{}, {}]", q.parameter, side(q.lower), side(q.upper)))
+            .collect();
+        println!(
+            "95 %       {} (profile likelihood, {})",
+            cells.join(", "),
+            p.group
+        );
+    }
     match &report.temperature {
-        Some(t) => println!(
-            "k(T)       k_A = {:?}, k_S = {:?} (ascending powers of T in °C, degree {}, fitted over {} … {} °C)",
-            t.k_a, t.k_s, t.degree, t.fitted_range_c.0, t.fitted_range_c.1
+        Some(t) => {
+            let best = t
+                .candidates
+                .iter()
+                .filter(|c| c.rejected.is_none())
+                .map(|c| c.bic);
+            let runner_up = best
+                .clone()
+                .filter(|b| {
+                    *b > t
+                        .candidates
+                        .iter()
+                        .find(|c| c.mu0_degree == t.mu0_degree && c.k_degree == t.k_degree)
+                        .map_or(f64::NAN, |c| c.bic)
+                })
+                .fold(f64::INFINITY, f64::min);
+            let chosen_bic = best.fold(f64::INFINITY, f64::min);
+            println!(
+                "T law      {} chosen by {} among {} forms (next best ΔBIC {:.1}); fitted over {} … {} °C",
+                t.form(),
+                t.criterion,
+                t.candidates.len(),
+                runner_up - chosen_bic,
+                t.fitted_range_c.0,
+                t.fitted_range_c.1
+            );
+            if t.has_law() {
+                println!(
+                    "           μ0 = {:?}, k_A = {:?}, k_S = {:?} (ascending powers of T in °C)",
+                    t.mu0, t.k_a, t.k_s
+                );
+            }
+            for n in &t.notes {
+                println!("           {n}");
+            }
+        }
+        None => println!(
+            "T law      none: {}",
+            report.temperature_note.clone().unwrap_or_default()
         ),
-        None => println!("k(T)       not fitted: {}", report.temperature_note.clone().unwrap_or_default()),
     }
     for n in notes {
         println!("warning    {n}");

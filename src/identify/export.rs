@@ -5,7 +5,7 @@ use super::polach_fit::{PolachFit, TemperatureFit};
 use super::support::{audit, support_spec};
 use super::{IdentifyError, TrainedMlp};
 use crate::contact::polach::ContactPatch;
-use crate::model::polach::{PatchSpec, PolachSpec, TemperatureSpec, TEMPERATURE_INPUT};
+use crate::model::polach::{PatchSpec, PolachSpec, TEMPERATURE_INPUT};
 use crate::model::{
     CreepSpec, InputSpec, Layer, Metrics, Model, ModelFile, ModelKind, OutputSpec, Provenance,
     FORMAT_ID, FORMAT_VERSION,
@@ -108,9 +108,11 @@ pub fn mlp_file(
     Ok(file)
 }
 
-/// A `polach` model file from a campaign fit: `fit` gives μ0, A, B, k_A, k_S; `temperature`
-/// (when present) k_A(T), k_S(T). `dv_range`, `v_range` are the slip and speed ranges of
-/// the fitted samples (m/s), `v_ref` the speed for callers that give none (m/s).
+/// A `polach` model file from a campaign fit: `fit` gives μ0, A, B, k_A, k_S; a
+/// `temperature` law whose chosen form depends on T replaces them: its A, B, and μ0, k_A, k_S
+/// at its reference temperature (for callers that give none), with its polynomials. `dv_range`,
+/// `v_range` are the slip and speed ranges of the fitted samples (m/s), `v_ref` the speed for
+/// callers that give none (m/s).
 #[allow(clippy::too_many_arguments)]
 pub fn polach_file(
     fit: &PolachFit,
@@ -134,11 +136,22 @@ pub fn polach_file(
         input("dv_mps", "m/s", dv_range),
         input("v_mps", "m/s", v_range),
     ];
-    let temperature = temperature.map(|t| TemperatureSpec {
-        k_a: t.k_a.clone(),
-        k_s: t.k_s.clone(),
-        fitted_range_c: [t.fitted_range_c.0, t.fitted_range_c.1],
-    });
+    let law = temperature.filter(|t| t.has_law());
+    let (mu0, a_ratio, b_s_per_m, k_a, k_s, se) = match law {
+        Some(t) => {
+            let (m, ka, ks) = t.at(t.reference_temperature_c);
+            (m, t.a_ratio, t.b_s_per_m, ka, ks, t.se)
+        }
+        None => (
+            fit.mu0,
+            fit.a_ratio,
+            fit.b_s_per_m,
+            fit.k_a,
+            fit.k_s,
+            fit.se,
+        ),
+    };
+    let temperature = law.map(|t| t.spec());
     if let Some(t) = &temperature {
         inputs.push(input(
             TEMPERATURE_INPUT,
@@ -161,12 +174,12 @@ pub fn polach_file(
         layers: vec![],
         creep: None,
         polach: Some(PolachSpec {
-            mu0: fit.mu0,
-            a_ratio: fit.a_ratio,
-            b_s_per_m: fit.b_s_per_m,
-            k_a: fit.k_a,
-            k_s: fit.k_s,
-            standard_errors: fit.se.map(|e| e.is_finite().then_some(e)),
+            mu0,
+            a_ratio,
+            b_s_per_m,
+            k_a,
+            k_s,
+            standard_errors: se.map(|e| e.is_finite().then_some(e)),
             patch: PatchSpec {
                 a_m: patch.a_m,
                 b_m: patch.b_m,

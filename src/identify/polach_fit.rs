@@ -7,17 +7,17 @@
 //! the static wheel load, pipeline `[contact]`) is held fixed.
 //!
 //! Parameters are fitted by the same Levenberg–Marquardt solver as the network, on
-//! unconstrained p with bounds by reparametrisation: μ0 = 1.5 σ(p0) ∈ (0, 1.5),
-//! A = σ(p1) ∈ (0, 1), B = e^(p2) > 0, k_A = σ(p3) ∈ (0, 1), k_S = k_A σ(p4) ∈ (0, k_A)
-//! (σ the logistic function). The Jacobian is by central differences in p (five parameters).
-//! Standard errors: σ² (JᵀJ)⁻¹ at the optimum, inflated for the residuals' autocorrelation
-//! (n_eff, [`crate::linalg::effective_samples`]) and carried to the natural parameters by the
-//! derivative of the transform (delta method).
+//! unconstrained coordinates with bounds by reparametrisation (logistic, see [`LOWER`],
+//! [`UPPER`]), with the analytic Jacobian ([`mu_and_gradient`]). What the data cannot identify
+//! is held and named ([`fit_polach`]); the estimated parameters get Wald standard errors
+//! corrected for the residuals' autocorrelation (n_eff, [`crate::linalg::effective_samples`])
+//! and profile-likelihood intervals ([`Profile`]).
 //!
-//! k(T): per ambient temperature (run metadata `ambient_temperature_c`), one Polach fit of the
-//! pooled runs; then k_A(T) and k_S(T) as least-squares polynomials of degree
-//! min(`train.temperature_degree`, temperatures − 1), in the contact library's
-//! [`TemperatureLaw`], with their residuals.
+//! Temperature: per ambient temperature (run metadata `ambient_temperature_c`), one Polach fit
+//! of the pooled runs; then the temperature law — μ0(T) (seed 004 Fig. 2: the adhesion level
+//! moves with temperature), k_A(T), k_S(T) (seed 004 eq. 3), or both, of degrees up to
+//! `train.temperature_degree` — fitted jointly over all samples and chosen by BIC
+//! ([`fit_temperature_forms`]).
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -25,8 +25,8 @@ use serde::{Deserialize, Serialize};
 use super::dataset::RunTable;
 use super::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
 use super::IdentifyError;
-use crate::contact::polach::{horner, ContactPatch, PolachParams, TemperatureLaw};
-use crate::linalg::{cho_solve, cholesky, effective_samples, inverse_diagonal};
+use crate::contact::polach::{horner, ContactPatch, PolachParams};
+use crate::linalg::{cho_solve, cholesky, effective_samples};
 
 /// One sample for the fit.
 #[derive(Debug, Clone, Copy)]
@@ -191,43 +191,227 @@ fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
     2.0 / std::f64::consts::PI * mu_w * (xa / (1.0 + xa * xa) + ys.atan())
 }
 
-/// The least-squares problem of one fit: the free parameters' unconstrained coordinates, the
-/// others held at `fixed`.
-struct PolachProblem<'a> {
-    samples: &'a [Sample],
-    fixed: [Option<f64>; 5],
-    free: Vec<usize>,
+/// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
+/// `train.temperature_degree`).
+const MAX_NODES: usize = 6;
+
+/// The samples at one ambient temperature (a contiguous range of the problem's samples) and,
+/// per parameter, its Lagrange basis at that temperature: x_i = Σ_j basis[i][j] · node_ij.
+/// A fit without temperature law is one group with basis [1, 0, …] for every parameter.
+#[derive(Debug, Clone)]
+struct Group {
+    range: std::ops::Range<usize>,
+    basis: [[f64; MAX_NODES]; 5],
 }
 
-impl PolachProblem<'_> {
-    fn natural(&self, theta: &[f64]) -> ([f64; 5], [f64; 5]) {
-        let mut x = self.fixed.map(|v| v.unwrap_or(0.0));
-        let mut dx = [0.0; 5];
-        for (k, &i) in self.free.iter().enumerate() {
-            (x[i], dx[i]) = to_natural(i, theta[k]);
+/// One free coordinate: parameter `param`'s value at temperature node `node` (degree 0: its
+/// constant value), solved for in its unconstrained logistic coordinate.
+#[derive(Debug, Clone, Copy)]
+struct Coord {
+    param: usize,
+    node: usize,
+}
+
+/// The least-squares problem of one fit: parameters held at `fixed`, the others' node values
+/// free; `ks_fixed` holds k_S itself (profile likelihood of k_S), ρ = k_S/k_A then follows k_A.
+struct PolachProblem<'a> {
+    samples: &'a [Sample],
+    groups: Vec<Group>,
+    fixed: [Option<f64>; 5],
+    ks_fixed: Option<f64>,
+    free: Vec<Coord>,
+}
+
+/// Node values of the five parameters.
+type Nodes = [[f64; MAX_NODES]; 5];
+
+impl<'a> PolachProblem<'a> {
+    /// Constant parameters over all samples, `fixed` held.
+    fn plain(samples: &'a [Sample], fixed: [Option<f64>; 5], ks_fixed: Option<f64>) -> Self {
+        let mut basis = [[0.0; MAX_NODES]; 5];
+        for b in &mut basis {
+            b[0] = 1.0;
         }
-        (x, dx)
+        let group = Group {
+            range: 0..samples.len(),
+            basis,
+        };
+        Self::new(samples, vec![group], [0; 5], fixed, ks_fixed)
     }
-    fn sse_natural(&self, x: &[f64; 5]) -> f64 {
-        self.samples
+
+    fn new(
+        samples: &'a [Sample],
+        groups: Vec<Group>,
+        degrees: [usize; 5],
+        fixed: [Option<f64>; 5],
+        ks_fixed: Option<f64>,
+    ) -> Self {
+        let free = (0..5)
+            .filter(|&i| fixed[i].is_none() && !(i == 4 && ks_fixed.is_some()))
+            .flat_map(|param| (0..=degrees[param]).map(move |node| Coord { param, node }))
+            .collect();
+        PolachProblem {
+            samples,
+            groups,
+            fixed,
+            ks_fixed,
+            free,
+        }
+    }
+
+    /// Node values from θ, and each free coordinate's d(node)/dθ.
+    fn nodes(&self, theta: &[f64]) -> (Nodes, Vec<f64>) {
+        let mut v = [[0.0; MAX_NODES]; 5];
+        let mut d = vec![0.0; self.free.len()];
+        for (k, c) in self.free.iter().enumerate() {
+            (v[c.param][c.node], d[k]) = to_natural(c.param, theta[k]);
+        }
+        (v, d)
+    }
+
+    /// θ of node values `v` (inside their bounds).
+    fn theta(&self, v: &Nodes) -> Vec<f64> {
+        self.free
             .iter()
-            .map(|s| {
-                let r = mu_only(x, s) - s.mu;
-                r * r
-            })
-            .sum()
+            .map(|c| to_unconstrained(c.param, v[c.param][c.node]))
+            .collect()
     }
-    /// Residuals and the Jacobian in the natural parameters (n × 5, row-major).
-    fn residuals_and_jacobian(&self, x: &[f64; 5]) -> (Vec<f64>, Vec<f64>) {
-        let mut r = Vec::with_capacity(self.samples.len());
-        let mut j = Vec::with_capacity(5 * self.samples.len());
-        for s in self.samples {
-            let (f, g) = mu_and_gradient(x, s);
-            r.push(f - s.mu);
-            j.extend_from_slice(&g);
+
+    /// The natural parameters (μ0, A, B, k_A, ρ) at a group, and which were clamped into their
+    /// bounds (a temperature law's interpolation may leave them between nodes; a clamped
+    /// parameter does not move with its nodes).
+    #[inline]
+    fn at_group(&self, g: &Group, v: &Nodes) -> ([f64; 5], [bool; 5]) {
+        let mut x = [0.0; 5];
+        let mut clamped = [false; 5];
+        for i in 0..5 {
+            x[i] = match self.fixed[i] {
+                Some(f) => f,
+                None => {
+                    let raw: f64 = (0..MAX_NODES).map(|j| g.basis[i][j] * v[i][j]).sum();
+                    let c = raw.clamp(LOWER[i], UPPER[i]);
+                    clamped[i] = c != raw;
+                    c
+                }
+            };
         }
-        (r, j)
+        if let Some(ks) = self.ks_fixed {
+            x[4] = ks / x[3];
+        }
+        (x, clamped)
     }
+
+    fn sse_nodes(&self, v: &Nodes) -> f64 {
+        let mut sse = 0.0;
+        for g in &self.groups {
+            let (x, _) = self.at_group(g, v);
+            for s in &self.samples[g.range.clone()] {
+                let r = mu_only(&x, s) - s.mu;
+                sse += r * r;
+            }
+        }
+        sse
+    }
+
+    /// JᵀJ, Jᵀr and the SSE in θ (`natural = false`, for the solver) or in the node values
+    /// themselves (`natural = true`, for standard errors), one pass over the samples; the
+    /// residuals into `residuals` when given.
+    fn accumulate(
+        &self,
+        theta: &[f64],
+        natural: bool,
+        mut residuals: Option<&mut Vec<f64>>,
+    ) -> NormalEquations {
+        let (v, d) = self.nodes(theta);
+        let k = self.free.len();
+        let mut jtj = vec![0.0; k * k];
+        let mut jtr = vec![0.0; k];
+        let mut sse = 0.0;
+        let mut row = vec![0.0; k];
+        // Per coordinate: its parameter, d(parameter)/d(coordinate), and with k_S held the
+        // extra term of k_A through ρ = k_S/k_A (dρ/dk_A = −k_S/k_A²).
+        let mut m = vec![0.0; k];
+        let mut e = vec![0.0; k];
+        for g in &self.groups {
+            let (x, clamped) = self.at_group(g, &v);
+            for (c, co) in self.free.iter().enumerate() {
+                let dd = if natural { 1.0 } else { d[c] };
+                m[c] = if clamped[co.param] {
+                    0.0
+                } else {
+                    g.basis[co.param][co.node] * dd
+                };
+                e[c] = match self.ks_fixed {
+                    Some(ks) if co.param == 3 => -m[c] * ks / (x[3] * x[3]),
+                    _ => 0.0,
+                };
+            }
+            for s in &self.samples[g.range.clone()] {
+                let (f, grad) = mu_and_gradient(&x, s);
+                let r = f - s.mu;
+                sse += r * r;
+                if let Some(out) = residuals.as_deref_mut() {
+                    out.push(r);
+                }
+                for (c, co) in self.free.iter().enumerate() {
+                    row[c] = grad[co.param] * m[c] + grad[4] * e[c];
+                }
+                for a in 0..k {
+                    jtr[a] += row[a] * r;
+                    for b in 0..=a {
+                        jtj[a * k + b] += row[a] * row[b];
+                    }
+                }
+            }
+        }
+        for a in 0..k {
+            for b in 0..a {
+                jtj[b * k + a] = jtj[a * k + b];
+            }
+        }
+        NormalEquations { jtj, jtr, sse }
+    }
+
+    /// The covariance of the free node values at θ: σ² (JᵀJ)⁻¹ inflated by n/n_eff for the
+    /// residuals' autocorrelation ([`effective_samples`]); `None` where JᵀJ is singular.
+    fn covariance(&self, theta: &[f64]) -> Covariance {
+        let n = self.samples.len();
+        let mut r = Vec::with_capacity(n);
+        let ne = self.accumulate(theta, true, Some(&mut r));
+        let n_eff = effective_samples(&r);
+        let k = self.free.len();
+        let sigma2 = ne.sse / (n as f64 - k as f64).max(1.0);
+        let scale = sigma2 * n as f64 / n_eff.max(1.0);
+        let cov = cholesky(&ne.jtj, k).map(|l| {
+            let mut out = vec![0.0; k * k];
+            for col in 0..k {
+                let mut unit = vec![0.0; k];
+                unit[col] = 1.0;
+                for (row, x) in cho_solve(&l, k, &unit).into_iter().enumerate() {
+                    out[row * k + col] = x * scale;
+                }
+            }
+            out
+        });
+        Covariance {
+            cov,
+            sse: ne.sse,
+            n_eff,
+            scale,
+            residuals: r,
+        }
+    }
+}
+
+/// [`PolachProblem::covariance`]'s result.
+struct Covariance {
+    /// k × k over the free coordinates (row-major), natural units.
+    cov: Option<Vec<f64>>,
+    sse: f64,
+    n_eff: f64,
+    /// σ² n/n_eff: the variance of one residual, inflated for autocorrelation.
+    scale: f64,
+    residuals: Vec<f64>,
 }
 
 impl LeastSquares for PolachProblem<'_> {
@@ -238,37 +422,13 @@ impl LeastSquares for PolachProblem<'_> {
         self.samples.len()
     }
     fn sse(&self, theta: &[f64]) -> f64 {
-        self.sse_natural(&self.natural(theta).0)
+        self.sse_nodes(&self.nodes(theta).0)
     }
-    /// One pass over the samples: JᵀJ and Jᵀr in the unconstrained coordinates (the natural
-    /// Jacobian times dx/dp, column by column).
+    /// One pass over the samples: JᵀJ and Jᵀr in the unconstrained coordinates (the
+    /// analytic Jacobian in the natural parameters times the chain of node → parameter and
+    /// θ → node, column by column).
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
-        let (x, dx) = self.natural(theta);
-        let k = self.free.len();
-        let mut jtj = vec![0.0; k * k];
-        let mut jtr = vec![0.0; k];
-        let mut sse = 0.0;
-        let mut row = vec![0.0; k];
-        for s in self.samples {
-            let (f, g) = mu_and_gradient(&x, s);
-            let r = f - s.mu;
-            sse += r * r;
-            for (c, &i) in self.free.iter().enumerate() {
-                row[c] = g[i] * dx[i];
-            }
-            for a in 0..k {
-                jtr[a] += row[a] * r;
-                for b in 0..=a {
-                    jtj[a * k + b] += row[a] * row[b];
-                }
-            }
-        }
-        for a in 0..k {
-            for b in 0..a {
-                jtj[b * k + a] = jtj[a * k + b];
-            }
-        }
-        NormalEquations { jtj, jtr, sse }
+        self.accumulate(theta, false, None)
     }
     fn validation_mse(&self, _: &[f64]) -> Option<f64> {
         None
@@ -285,8 +445,9 @@ pub struct PolachFit {
     pub b_s_per_m: f64,
     pub k_a: f64,
     pub k_s: f64,
-    /// Standard errors in the same order (μ0, A, B, k_A, k_S); NaN (`null`) for a parameter
-    /// held at a bound or prior.
+    /// Standard errors in the same order (μ0, A, B, k_A, k_S), corrected for the residuals'
+    /// autocorrelation; NaN (`null`) for a parameter held at a bound or where the data did
+    /// not identify it.
     pub se: [f64; 5],
     /// What the data said about each parameter (same order; k_S's is that of k_S/k_A, the
     /// parameter the fit solves for).
@@ -295,6 +456,10 @@ pub struct PolachFit {
     /// Why parameters were held (one line each), in the order it happened.
     #[serde(default)]
     pub notes: Vec<String>,
+    /// Profile likelihood of each estimated parameter, with its 95 % interval (the pooled and
+    /// per-temperature fits; empty for per-run fits).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub profiles: Vec<Profile>,
     pub samples: usize,
     pub effective_samples: f64,
     /// RMS residual of μ.
@@ -305,6 +470,32 @@ pub struct PolachFit {
     pub iterations: usize,
     pub stop_reason: String,
 }
+
+/// The profile likelihood of one parameter: at each value the others refitted, the statistic
+/// Δ(x) = (SSE(x) − SSE_min) / (σ² n/n_eff) (the likelihood-ratio statistic of Gaussian
+/// residuals, with σ² = SSE_min/(n − k) and the autocorrelation correction n/n_eff of the
+/// standard errors); the 95 % interval is where Δ ≤ χ²₁(0.95) = 3.841 (Venzon & Moolgavkar,
+/// Appl. Statist. 37 (1988) 87–94). Unlike the Wald interval (±1.96 se) it follows the
+/// law's curvature, so it may be asymmetric.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Profile {
+    /// `mu0`, `a_ratio`, `b_s_per_m`, `k_a` or `k_s`.
+    pub parameter: String,
+    pub estimate: f64,
+    /// The interval's limits, interpolated linearly in √Δ between the profile points around
+    /// 3.841; null where the profile stays below it up to the parameter's bound (or 32
+    /// standard errors): not bounded by these data on that side.
+    pub lower: Option<f64>,
+    pub upper: Option<f64>,
+    /// (value, Δ), ascending in value, the estimate (Δ = 0) included.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// χ²₁(0.95): the profile statistic at a 95 % interval's limits.
+pub const PROFILE_LIMIT: f64 = 3.841_458_820_694_124;
+/// Profile points, in Wald standard errors from the estimate, tried outward on each side until
+/// the statistic passes [`PROFILE_LIMIT`].
+const PROFILE_STEPS: [f64; 11] = [1.0, 1.5, 2.0, 2.5, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0, 32.0];
 
 fn all_estimated() -> [ParamStatus; 5] {
     [ParamStatus::Estimated; 5]
@@ -354,40 +545,48 @@ fn fit_settings() -> LmSettings {
     }
 }
 
-/// One solve with the parameters of `fixed` held: the free parameters from `start`.
-fn solve(
-    group: &str,
-    s: &[Sample],
-    fixed: [Option<f64>; 5],
-    start: &[f64; 5],
-) -> Result<([f64; 5], [f64; 5], usize, lm::StopReason), IdentifyError> {
-    let free: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
-    let problem = PolachProblem {
-        samples: s,
-        fixed,
-        free: free.clone(),
-    };
-    let theta0: Vec<f64> = free
-        .iter()
-        .map(|&i| to_unconstrained(i, start[i]))
-        .collect();
-    if free.is_empty() {
-        let (x, dx) = problem.natural(&[]);
-        return Ok((x, dx, 0, lm::StopReason::MinGrad));
+/// The refits of a profile, warm-started next to their optimum: ftol = xtol = 1e-8 (an SSE
+/// within 1e-8 of its minimum moves the profile statistic by about 1e-8 n_eff, 5e-5 for the
+/// bundled archive's pooled fit).
+fn profile_settings() -> LmSettings {
+    LmSettings {
+        ftol: 1e-7,
+        xtol: 1e-7,
+        ..fit_settings()
     }
-    let (solver, problem) = lm::run(problem, LevenbergMarquardt::new(fit_settings()), theta0)
-        .map_err(|e| IdentifyError::Solver {
-            fit: format!("Polach fit {group}"),
-            source: e.into(),
+}
+
+/// Solves `problem` from node values `start`: the problem back, its optimal θ, iterations and
+/// why it stopped.
+fn solve<'a>(
+    group: &str,
+    problem: PolachProblem<'a>,
+    start: &Nodes,
+    settings: LmSettings,
+) -> Result<(PolachProblem<'a>, Vec<f64>, usize, lm::StopReason), IdentifyError> {
+    let theta0 = problem.theta(start);
+    if theta0.is_empty() {
+        return Ok((problem, theta0, 0, lm::StopReason::MinGrad));
+    }
+    let (solver, problem) =
+        lm::run(problem, LevenbergMarquardt::new(settings), theta0).map_err(|e| {
+            IdentifyError::Solver {
+                fit: format!("Polach fit {group}"),
+                source: e.into(),
+            }
         })?;
     let theta = solver.best().expect("solver ran").to_vec();
-    let (x, dx) = problem.natural(&theta);
-    Ok((
-        x,
-        dx,
-        solver.history().len(),
-        solver.stop_reason().unwrap_or(lm::StopReason::Epochs),
-    ))
+    let stop = solver.stop_reason().unwrap_or(lm::StopReason::Epochs);
+    Ok((problem, theta, solver.history().len(), stop))
+}
+
+/// Constant node values of natural parameters `x`.
+fn constant_nodes(x: &[f64; 5]) -> Nodes {
+    let mut v = [[0.0; MAX_NODES]; 5];
+    for i in 0..5 {
+        v[i] = [x[i]; MAX_NODES];
+    }
+    v
 }
 
 /// Fits Polach's parameters to the valid estimates of `tables` (pooled) with a fixed patch
@@ -403,7 +602,8 @@ fn solve(
 ///    free parameter is identified. Held at its own best value rather than at a published
 ///    prior: any value in its wide interval fits about as well, and a prior far from the data
 ///    (the published wet-rail k_A is twice a soap rail's) would drag the identified parameters
-///    with it (tested).
+///    with it (tested);
+/// 4. with `profile`, the profile likelihood of every estimated parameter ([`Profile`]).
 ///
 /// The fit ends with every parameter classified; it fails only without data.
 pub fn fit_polach(
@@ -413,6 +613,7 @@ pub fn fit_polach(
     q_n: f64,
     decimate: usize,
     start: PolachParams,
+    profile: bool,
 ) -> Result<PolachFit, IdentifyError> {
     let s = samples(tables, q_n, decimate);
     if s.len() < 20 {
@@ -430,16 +631,20 @@ pub fn fit_polach(
     let mut notes = Vec::new();
     let mut current = solver_order(&start);
     let mut iterations = 0;
-    let (x, var, n_eff, stop) = loop {
-        let (x, _dx, its, stop) = solve(group, &s, fixed, &current)?;
+    let (x, var, cov, stop) = loop {
+        let problem = PolachProblem::plain(&s, fixed, None);
+        let (problem, theta, its, stop) =
+            solve(group, problem, &constant_nodes(&current), fit_settings())?;
         iterations += its;
+        let x = problem
+            .at_group(&problem.groups[0], &problem.nodes(&theta).0)
+            .0;
         current = x;
         // 2. Bounds.
         let mut held = false;
         let free_now: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
         for i in free_now {
-            let u = to_unconstrained(i, x[i]);
-            let sg = sigmoid(u);
+            let sg = sigmoid(to_unconstrained(i, x[i]));
             if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
                 let bound = if sg < AT_BOUND { LOWER[i] } else { UPPER[i] };
                 fixed[i] = Some(bound);
@@ -456,44 +661,17 @@ pub fn fit_polach(
             continue;
         }
         // 3. Identifiability of the free parameters.
-        let problem = PolachProblem {
-            samples: &s,
-            fixed,
-            free: vec![],
-        };
-        let (r, j) = problem.residuals_and_jacobian(&x);
-        let n = r.len();
-        let n_eff = effective_samples(&r);
-        let free: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
-        let k = free.len();
-        let mut jtj = vec![0.0; k * k];
-        for row in j.chunks_exact(5) {
-            for (a, &ia) in free.iter().enumerate() {
-                for (b, &ib) in free.iter().enumerate() {
-                    jtj[a * k + b] += row[ia] * row[ib];
-                }
-            }
-        }
-        let sse: f64 = r.iter().map(|v| v * v).sum();
-        let sigma2 = sse / (n as f64 - k as f64).max(1.0);
-        let inflate = n as f64 / n_eff.max(1.0);
+        let cov = problem.covariance(&theta);
         let mut var = [f64::NAN; 5];
-        match cholesky(&jtj, k) {
-            Some(l) => {
-                for (c, d) in inverse_diagonal(&l, k).into_iter().enumerate() {
-                    var[free[c]] = d * sigma2 * inflate;
-                }
-            }
-            None => {
-                for &i in &free {
-                    var[i] = f64::INFINITY;
-                }
-            }
+        let k = problem.free.len();
+        for (c, co) in problem.free.iter().enumerate() {
+            var[co.param] = cov.cov.as_ref().map_or(f64::INFINITY, |m| m[c * k + c]);
         }
         // The worst-determined free parameter, if any fails the Wald test.
-        let worst = free
+        let worst = problem
+            .free
             .iter()
-            .map(|&i| (i, var[i].sqrt() / x[i].abs()))
+            .map(|co| (co.param, var[co.param].sqrt() / x[co.param].abs()))
             // NaN (a zero estimate) and ∞ (singular) fail too.
             .filter(|(_, rel)| rel.is_nan() || *rel > 1.0 / IDENTIFIED_Z)
             .max_by(|a, b| a.1.total_cmp(&b.1));
@@ -509,59 +687,32 @@ pub fn fit_polach(
             continue;
         }
         // k_S = k_A ρ: its variance by the delta method needs cov(k_A, ρ).
-        let mut cov_ka_rho = 0.0;
-        if let (Some(a), Some(b)) = (
-            free.iter().position(|&i| i == 3),
-            free.iter().position(|&i| i == 4),
-        ) {
-            if let Some(l) = cholesky(&jtj, k) {
-                let mut e = vec![0.0; k];
-                e[b] = 1.0;
-                cov_ka_rho = cho_solve(&l, k, &e)[a] * sigma2 * inflate;
-            }
-        }
-        let v4 = |v: f64| if v.is_finite() { v } else { 0.0 };
-        let var_ks = match (fixed[3].is_none(), fixed[4].is_none()) {
+        let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
+        let cov_ka_rho = match (pos(3), pos(4), &cov.cov) {
+            (Some(a), Some(b), Some(m)) => m[a * k + b],
+            _ => 0.0,
+        };
+        let v0 = |v: f64| if v.is_finite() { v } else { 0.0 };
+        var[4] = match (fixed[3].is_none(), fixed[4].is_none()) {
             (false, false) => f64::NAN,
             _ => {
-                x[4] * x[4] * v4(var[3]) + x[3] * x[3] * v4(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho
+                x[4] * x[4] * v0(var[3]) + x[3] * x[3] * v0(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho
             }
         };
-        var[4] = var_ks;
-        break (x, var, n_eff, stop);
+        break (x, var, cov, stop);
     };
     // k_S = k_A ρ carries the status of ρ: held at a bound, k_S/k_A is fixed (k_S = k_A, or
     // 0), and k_S has no standard error of its own.
     let p = law_params(&x);
-    let sse = problem_sse(&s, &x);
-    let se = var.map(|v| if v.is_nan() { f64::NAN } else { v.sqrt() });
-    let se = [
-        if status[0] == ParamStatus::Estimated {
-            se[0]
-        } else {
-            f64::NAN
-        },
-        if status[1] == ParamStatus::Estimated {
-            se[1]
-        } else {
-            f64::NAN
-        },
-        if status[2] == ParamStatus::Estimated {
-            se[2]
-        } else {
-            f64::NAN
-        },
-        if status[3] == ParamStatus::Estimated {
-            se[3]
-        } else {
-            f64::NAN
-        },
-        if status[4] == ParamStatus::Estimated {
-            se[4]
-        } else {
-            f64::NAN
-        },
-    ];
+    let se: [f64; 5] = std::array::from_fn(|i| match status[i] {
+        ParamStatus::Estimated => var[i].sqrt(),
+        _ => f64::NAN,
+    });
+    let profiles = if profile {
+        profiles(group, &s, fixed, &x, &se, &status, &cov)
+    } else {
+        Vec::new()
+    };
     Ok(PolachFit {
         group: group.to_string(),
         mu0: p.mu0,
@@ -572,23 +723,125 @@ pub fn fit_polach(
         se,
         status,
         notes,
+        profiles,
         samples: s.len(),
-        effective_samples: n_eff,
-        rmse: (sse / s.len() as f64).sqrt(),
+        effective_samples: cov.n_eff,
+        rmse: (cov.sse / s.len() as f64).sqrt(),
         ambient_temperature_c: None,
         iterations,
         stop_reason: stop.text().to_string(),
     })
 }
 
-/// The SSE of the natural parameters `x`.
-fn problem_sse(s: &[Sample], x: &[f64; 5]) -> f64 {
-    PolachProblem {
-        samples: s,
-        fixed: [None; 5],
-        free: vec![],
-    }
-    .sse_natural(x)
+/// The profile likelihood of every estimated parameter of a fit at `x` (natural, ρ for k_S)
+/// with `fixed` held: both sides of each in parallel, each side warm-started from its previous
+/// point. A side whose refit fails ends there, unbounded.
+fn profiles(
+    group: &str,
+    s: &[Sample],
+    fixed: [Option<f64>; 5],
+    x: &[f64; 5],
+    se: &[f64; 5],
+    status: &[ParamStatus; 5],
+    cov: &Covariance,
+) -> Vec<Profile> {
+    let est = law_params(x);
+    let value = [est.mu0, est.a_ratio, est.b_s_per_m, est.k_a, est.k_s];
+    let params: Vec<usize> = (0..5)
+        .filter(|&i| status[i] == ParamStatus::Estimated && se[i].is_finite() && se[i] > 0.0)
+        .collect();
+    let sides: Vec<(usize, f64)> = params.iter().flat_map(|&i| [(i, -1.0), (i, 1.0)]).collect();
+    // The free parameters of the fit (natural order) and, per profiled parameter, how the
+    // others move with it at the optimum to first order: cov(x_j, x_i)/var(x_i) — the warm
+    // start of each refit is the previous point's optimum moved along it.
+    let free: Vec<usize> = (0..5).filter(|&i| fixed[i].is_none()).collect();
+    let k = free.len();
+    let slope = |i: usize| -> [f64; 5] {
+        let mut out = [0.0; 5];
+        if let (Some(m), Some(ci)) = (&cov.cov, free.iter().position(|&f| f == i)) {
+            if i != 4 {
+                for (cj, &j) in free.iter().enumerate() {
+                    out[j] = m[cj * k + ci] / m[ci * k + ci];
+                }
+            }
+        }
+        out
+    };
+    let walked: Vec<(Vec<(f64, f64)>, Option<f64>)> = sides
+        .par_iter()
+        .map(|&(i, dir)| {
+            // k_S lies in (0, 1) (k_S ≤ k_A ≤ 1); the others in their fit bounds.
+            let (lo, hi) = if i == 4 {
+                (0.0, 1.0)
+            } else {
+                (LOWER[i], UPPER[i])
+            };
+            let mut warm = *x;
+            let along = slope(i);
+            let mut pts = Vec::new();
+            let mut prev: (f64, f64) = (value[i], 0.0);
+            for z in PROFILE_STEPS {
+                let at = value[i] + dir * z * se[i];
+                if !(at > lo && at < hi) {
+                    return (pts, None);
+                }
+                for j in 0..5 {
+                    if j != i && fixed[j].is_none() {
+                        let moved = warm[j] + along[j] * (at - prev.0);
+                        warm[j] = moved.clamp(
+                            LOWER[j] + 1e-6 * (UPPER[j] - LOWER[j]),
+                            UPPER[j] - 1e-6 * (UPPER[j] - LOWER[j]),
+                        );
+                    }
+                }
+                let mut f = fixed;
+                let ks = if i == 4 {
+                    Some(at)
+                } else {
+                    f[i] = Some(at);
+                    None
+                };
+                let problem = PolachProblem::plain(s, f, ks);
+                let Ok((problem, theta, _, _)) =
+                    solve(group, problem, &constant_nodes(&warm), profile_settings())
+                else {
+                    return (pts, None);
+                };
+                let nodes = problem.nodes(&theta).0;
+                warm = problem.at_group(&problem.groups[0], &nodes).0;
+                let stat = ((problem.sse_nodes(&nodes) - cov.sse) / cov.scale).max(0.0);
+                pts.push((at, stat));
+                if stat > PROFILE_LIMIT {
+                    // Linear in √Δ between the last two points (√Δ is linear in the value
+                    // where the law is).
+                    let (z0, z1) = (prev.1.sqrt(), stat.sqrt());
+                    let lim = PROFILE_LIMIT.sqrt();
+                    let t = ((lim - z0) / (z1 - z0)).clamp(0.0, 1.0);
+                    return (pts, Some(prev.0 + t * (at - prev.0)));
+                }
+                prev = (at, stat);
+            }
+            (pts, None)
+        })
+        .collect();
+    params
+        .iter()
+        .enumerate()
+        .map(|(k, &i)| {
+            let (lo_pts, lower) = &walked[2 * k];
+            let (hi_pts, upper) = &walked[2 * k + 1];
+            let mut points: Vec<(f64, f64)> = lo_pts.iter().rev().copied().collect();
+            points.push((value[i], 0.0));
+            points.extend(hi_pts.iter().copied());
+            Profile {
+                parameter: PARAMETERS[i].to_string(),
+                estimate: value[i],
+                lower: *lower,
+                upper: *upper,
+                points,
+            }
+        })
+        .collect()
 }
 
 /// A parameter's name for notes (k_S stands for ρ = k_S/k_A).
@@ -596,65 +849,121 @@ fn label(i: usize) -> &'static str {
     ["μ0", "A", "B", "k_A", "k_S/k_A"][i]
 }
 
-/// The temperature law and the fits behind it.
+/// One temperature form the campaign fit tried, and how it fitted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TemperatureCandidate {
+    /// Degrees of μ0(T) and of k_A(T), k_S(T)/k_A(T) (0: constant).
+    pub mu0_degree: usize,
+    pub k_degree: usize,
+    /// Free parameters (those the pooled fit held are not counted).
+    pub parameters: usize,
+    pub sse: f64,
+    pub rmse: f64,
+    /// AIC = n_eff ln(SSE/n) + 2p and BIC = n_eff ln(SSE/n) + p ln n_eff: the Gaussian
+    /// log-likelihood of n residuals carries the information of n_eff independent ones
+    /// (n_eff of the most flexible form's residuals, the same for every candidate).
+    pub aic: f64,
+    pub bic: f64,
+    pub iterations: usize,
+    pub stop_reason: String,
+    /// Why the form cannot be used (its law leaves the valid domain), if so.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rejected: Option<String>,
+}
+
+impl TemperatureCandidate {
+    /// "μ0(T) degree 1, k(T) constant" and the like.
+    pub fn form(&self) -> String {
+        form_name(self.mu0_degree, self.k_degree)
+    }
+}
+
+fn form_name(mu0_degree: usize, k_degree: usize) -> String {
+    let part = |name: &str, d: usize| match d {
+        0 => format!("{name} constant"),
+        d => format!("{name} degree {d}"),
+    };
+    format!("{}, {}", part("μ0(T)", mu0_degree), part("k(T)", k_degree))
+}
+
+/// The temperature law of a campaign: the form chosen by BIC among μ0(T) and k_A(T), k_S(T)
+/// of degrees 0 … `train.temperature_degree`, fitted jointly to every sample of the runs with
+/// an ambient temperature (A and B shared), and the candidates it was chosen from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TemperatureFit {
-    /// Polynomial coefficients in ascending powers of T (°C).
+    /// The chosen degrees (both 0: the data prefer no temperature dependence; no law is written).
+    pub mu0_degree: usize,
+    pub k_degree: usize,
+    /// The chosen form's polynomials, ascending powers of T (°C).
+    pub mu0: Vec<f64>,
     pub k_a: Vec<f64>,
     pub k_s: Vec<f64>,
+    pub a_ratio: f64,
+    pub b_s_per_m: f64,
+    /// Standard errors of the parameters that do not depend on T (μ0, A, B, k_A, k_S order;
+    /// null for those that do, or that the pooled fit held).
+    pub se: [f64; 5],
     pub fitted_range_c: (f64, f64),
-    pub degree: usize,
-    /// (T, k_A residual, k_S residual) per temperature group.
-    pub residuals: Vec<(f64, f64, f64)>,
-    /// Temperatures left out because their fit held k_A or k_S, with why.
+    /// Median temperature of the samples (°C): the model file's μ0, k_A, k_S are the law's
+    /// values there (used when a caller gives no temperature).
+    pub reference_temperature_c: f64,
+    pub samples: usize,
+    pub effective_samples: f64,
+    /// `BIC`.
+    pub criterion: String,
+    pub candidates: Vec<TemperatureCandidate>,
+    /// Per temperature: (T, μ0, k_A, k_S) of that temperature's own fit minus the law.
+    pub residuals: Vec<(f64, f64, f64, f64)>,
+    /// Temperatures whose own fit did not identify k_A and k_S (k(T) forms are offered only
+    /// when two or more do), with why.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub excluded: Vec<String>,
+    /// Forms not offered, and why.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 impl TemperatureFit {
-    /// As the contact library's type.
-    pub fn law(&self) -> Result<TemperatureLaw, crate::contact::ContactError> {
-        TemperatureLaw::new(self.k_a.clone(), self.k_s.clone(), self.fitted_range_c)
+    /// Whether anything depends on temperature.
+    pub fn has_law(&self) -> bool {
+        self.mu0_degree > 0 || self.k_degree > 0
     }
-}
-
-/// Least-squares polynomial of `degree` through (x, y); coefficients ascending.
-fn polyfit(x: &[f64], y: &[f64], degree: usize) -> Option<Vec<f64>> {
-    let k = degree + 1;
-    let mut a = vec![0.0; k * k];
-    let mut b = vec![0.0; k];
-    for (xi, yi) in x.iter().zip(y) {
-        let pw: Vec<f64> = (0..k).map(|j| xi.powi(j as i32)).collect();
-        for r in 0..k {
-            b[r] += pw[r] * yi;
-            for c in 0..k {
-                a[r * k + c] += pw[r] * pw[c];
-            }
+    pub fn form(&self) -> String {
+        form_name(self.mu0_degree, self.k_degree)
+    }
+    /// (μ0, k_A, k_S) at T (°C, not clamped).
+    pub fn at(&self, t_c: f64) -> (f64, f64, f64) {
+        (
+            horner(&self.mu0, t_c),
+            horner(&self.k_a, t_c),
+            horner(&self.k_s, t_c),
+        )
+    }
+    /// As a model file's temperature section (μ0 coefficients only when μ0 depends on T).
+    pub fn spec(&self) -> crate::model::polach::TemperatureSpec {
+        crate::model::polach::TemperatureSpec {
+            mu0: if self.mu0_degree > 0 {
+                self.mu0.clone()
+            } else {
+                Vec::new()
+            },
+            k_a: self.k_a.clone(),
+            k_s: self.k_s.clone(),
+            fitted_range_c: [self.fitted_range_c.0, self.fitted_range_c.1],
         }
     }
-    let l = cholesky(&a, k)?;
-    Some(cho_solve(&l, k, &b))
 }
 
-/// Fits k_A(T), k_S(T) through per-temperature Polach fits.
-pub fn fit_temperature(fits: &[PolachFit], degree: usize) -> Result<TemperatureFit, IdentifyError> {
-    let with_t: Vec<&PolachFit> = fits
-        .iter()
-        .filter(|f| f.ambient_temperature_c.is_some())
-        .collect();
-    if with_t.len() < 2 {
-        return Err(IdentifyError::Data {
-            what: format!("k(T) needs runs at two or more ambient temperatures; found {}", with_t.len()),
-            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
-        });
-    }
-    // Only temperatures whose fit identified k_A and k_S (issue 16): a value held because the
-    // data did not determine it says nothing about how k changes with temperature. (k_S/k_A
-    // at its bound leaves k_S = k_A or 0: as determined as k_A.)
+/// The temperatures whose own Polach fit identified k_A and k_S, and those left out with why
+/// (a value held because the data did not determine it says nothing about how k changes with
+/// temperature; k_S/k_A at its bound leaves k_S = k_A or 0, as determined as k_A).
+pub fn k_identified(fits: &[PolachFit]) -> (Vec<f64>, Vec<String>) {
+    let mut kept = Vec::new();
     let mut excluded = Vec::new();
-    let mut pts: Vec<(f64, f64, f64)> = Vec::new();
-    for f in with_t {
-        let t = f.ambient_temperature_c.expect("filtered");
+    for f in fits {
+        let Some(t) = f.ambient_temperature_c else {
+            continue;
+        };
         let held: Vec<String> = [(3, "k_A"), (4, "k_S")]
             .iter()
             .filter(|(k, _)| match f.status[*k] {
@@ -665,44 +974,333 @@ pub fn fit_temperature(fits: &[PolachFit], degree: usize) -> Result<TemperatureF
             .map(|(k, name)| format!("{name} {}", f.status[*k].text()))
             .collect();
         if held.is_empty() {
-            pts.push((t, f.k_a, f.k_s));
+            kept.push(t);
         } else {
             excluded.push(format!("T = {t} °C ({})", held.join(", ")));
         }
     }
-    if pts.len() < 2 {
+    (kept, excluded)
+}
+
+/// Evenly spaced temperature nodes of a degree-d law over [lo, hi].
+fn temperature_nodes(d: usize, lo: f64, hi: f64) -> Vec<f64> {
+    if d == 0 {
+        return vec![0.5 * (lo + hi)];
+    }
+    (0..=d)
+        .map(|j| lo + (hi - lo) * j as f64 / d as f64)
+        .collect()
+}
+
+/// The Lagrange basis of `nodes` at t.
+fn lagrange(nodes: &[f64], t: f64) -> [f64; MAX_NODES] {
+    let mut out = [0.0; MAX_NODES];
+    for (j, tj) in nodes.iter().enumerate() {
+        out[j] = nodes
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != j)
+            .map(|(_, tm)| (t - tm) / (tj - tm))
+            .product();
+    }
+    out
+}
+
+/// The polynomial (ascending powers) through (nodes[j], values[j]): Σ_j values[j] L_j(t),
+/// each L_j expanded as Π_{m≠j} (t − t_m)/(t_j − t_m).
+fn monomials(nodes: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; nodes.len()];
+    for (j, tj) in nodes.iter().enumerate() {
+        let mut poly = vec![values[j]];
+        for (m, tm) in nodes.iter().enumerate().filter(|(m, _)| *m != j) {
+            let _ = m;
+            let scale = 1.0 / (tj - tm);
+            let mut next = vec![0.0; poly.len() + 1];
+            for (p, c) in poly.iter().enumerate() {
+                next[p + 1] += c * scale;
+                next[p] -= c * tm * scale;
+            }
+            poly = next;
+        }
+        for (o, c) in out.iter_mut().zip(&poly) {
+            *o += c;
+        }
+    }
+    out
+}
+
+/// Product of two polynomials (ascending powers).
+fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; a.len() + b.len() - 1];
+    for (i, x) in a.iter().enumerate() {
+        for (j, y) in b.iter().enumerate() {
+            out[i + j] += x * y;
+        }
+    }
+    out
+}
+
+/// One candidate's fit: its record, the law's polynomials (μ0, k_A, k_S), A, B, and the
+/// standard errors of its constant parameters.
+struct FormFit {
+    record: TemperatureCandidate,
+    mu0: Vec<f64>,
+    k_a: Vec<f64>,
+    k_s: Vec<f64>,
+    a_ratio: f64,
+    b_s_per_m: f64,
+    se: [f64; 5],
+    residuals: Vec<f64>,
+}
+
+/// Fits the temperature law of a campaign (issue 16): the candidate forms μ0(T) of degree
+/// d_μ and k_A(T), ρ(T) = k_S/k_A of degree d_k (d ≤ min(`degree`, temperatures − 1); A and B
+/// constant), each jointly over all samples of the runs with `ambient_temperature_c`, each
+/// parameter's law as its values at evenly spaced nodes over the range (Lagrange basis;
+/// logistic bounds at the nodes, clamped between them), from the pooled fit's values, with the
+/// parameters the pooled fit held still held. The form with the least BIC (n_eff-corrected, see
+/// [`TemperatureCandidate`]) whose law stays in the valid domain over the range
+/// (0 < μ0 ≤ 1.5, 0 < k_S ≤ k_A ≤ 1) is chosen. k forms are offered only when two or more
+/// temperatures' own fits identified k_A and k_S ([`k_identified`]), μ0 forms only when the
+/// pooled fit identified μ0.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_temperature_forms(
+    tables: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    degree: usize,
+    pooled: &PolachFit,
+    per_temperature: &[PolachFit],
+) -> Result<TemperatureFit, IdentifyError> {
+    let mut temps: Vec<f64> = tables
+        .iter()
+        .filter_map(|t| t.metadata.ambient_temperature_c)
+        .collect();
+    temps.sort_by(f64::total_cmp);
+    temps.dedup();
+    if temps.len() < 2 {
         return Err(IdentifyError::Data {
             what: format!(
-                "k(T) needs k_A and k_S identified at two or more ambient temperatures; {} of them identify both, left out: {}",
-                pts.len(),
-                excluded.join("; ")
+                "a temperature law needs runs at two or more ambient temperatures; found {}",
+                temps.len()
             ),
-            hint: "add runs with small slips (Δv below 0.2 m/s) at those temperatures, or use the pooled fit without k(T)".into(),
+            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
         });
     }
-    let degree = degree.min(pts.len() - 1);
-    let t: Vec<f64> = pts.iter().map(|p| p.0).collect();
-    let ka: Vec<f64> = pts.iter().map(|p| p.1).collect();
-    let ks: Vec<f64> = pts.iter().map(|p| p.2).collect();
-    let fail = || IdentifyError::Data {
-        what: "the k(T) polynomial fit is singular".into(),
-        hint: "use distinct ambient temperatures or a lower train.temperature_degree".into(),
-    };
-    let ca = polyfit(&t, &ka, degree).ok_or_else(fail)?;
-    let cs = polyfit(&t, &ks, degree).ok_or_else(fail)?;
-    let residuals = pts
+    let (lo, hi) = (temps[0], temps[temps.len() - 1]);
+    // Samples grouped by temperature.
+    let mut s = Vec::new();
+    let mut ranges = Vec::new();
+    for t in &temps {
+        let at: Vec<&RunTable> = tables
+            .iter()
+            .copied()
+            .filter(|r| r.metadata.ambient_temperature_c == Some(*t))
+            .collect();
+        let from = s.len();
+        s.extend(samples(&at, q_n, decimate));
+        ranges.push((*t, from..s.len()));
+    }
+    if s.len() < 20 {
+        return Err(IdentifyError::Data {
+            what: format!("only {} samples with slip for the temperature law", s.len()),
+            hint: "fit on braking runs with wheel slip".into(),
+        });
+    }
+    let s = with_patch(s, &patch);
+    // The samples' median temperature (groups are in ascending temperature).
+    let mut seen = 0;
+    let reference = ranges
         .iter()
-        .map(|(ti, a, s)| (*ti, a - horner(&ca, *ti), s - horner(&cs, *ti)))
+        .find(|(_, r)| {
+            seen += r.len();
+            2 * seen > s.len()
+        })
+        .map_or(lo, |(t, _)| *t);
+
+    let mut notes = Vec::new();
+    let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
+    let top = degree.min(temps.len() - 1).min(MAX_NODES - 1);
+    let (k_temps, excluded) = k_identified(per_temperature);
+    let k_top = if held(3) || held(4) {
+        notes.push(format!(
+            "k(T) forms not offered: the pooled fit holds {}",
+            if held(3) { "k_A" } else { "k_S/k_A" }
+        ));
+        0
+    } else if k_temps.len() < 2 {
+        notes.push(format!(
+            "k(T) forms not offered: k_A and k_S are identified at {} of the temperatures (two or more needed); left out: {}",
+            k_temps.len(),
+            excluded.join("; ")
+        ));
+        0
+    } else {
+        top.min(k_temps.len() - 1)
+    };
+    let mu_top = if held(0) {
+        notes.push("μ0(T) forms not offered: the pooled fit holds μ0".into());
+        0
+    } else {
+        top
+    };
+    if top == 0 {
+        notes.push("train.temperature_degree = 0: only the constant form".into());
+    }
+    let x0 = solver_order(&pooled.params());
+    let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
+    let forms: Vec<(usize, usize)> = (0..=mu_top)
+        .flat_map(|dm| (0..=k_top).map(move |dk| (dm, dk)))
         .collect();
-    let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let fits: Vec<Result<FormFit, IdentifyError>> = forms
+        .par_iter()
+        .map(|&(dm, dk)| {
+            let degrees = [dm, 0, 0, dk, dk];
+            let nodes: Vec<Vec<f64>> = degrees
+                .iter()
+                .map(|&d| temperature_nodes(d, lo, hi))
+                .collect();
+            let groups = ranges
+                .iter()
+                .map(|(t, r)| Group {
+                    range: r.clone(),
+                    basis: std::array::from_fn(|i| {
+                        if degrees[i] == 0 {
+                            let mut b = [0.0; MAX_NODES];
+                            b[0] = 1.0;
+                            b
+                        } else {
+                            lagrange(&nodes[i], *t)
+                        }
+                    }),
+                })
+                .collect();
+            let degrees_free: [usize; 5] =
+                std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
+            let problem = PolachProblem::new(&s, groups, degrees_free, fixed, None);
+            let (problem, theta, its, stop) = solve(
+                &form_name(dm, dk),
+                problem,
+                &constant_nodes(&x0),
+                fit_settings(),
+            )?;
+            let (v, _) = problem.nodes(&theta);
+            let cov = problem.covariance(&theta);
+            let value = |i: usize| -> Vec<f64> {
+                match fixed[i] {
+                    Some(f) => vec![f],
+                    None => monomials(&nodes[i], &v[i][..=degrees[i]]),
+                }
+            };
+            let k = problem.free.len();
+            let mut se = [f64::NAN; 5];
+            for (c, co) in problem.free.iter().enumerate() {
+                if degrees[co.param] == 0 {
+                    se[co.param] = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
+                }
+            }
+            let (ka, rho) = (value(3), value(4));
+            if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
+                let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
+                if let (Some(a), Some(b), Some(m)) = (pos(3), pos(4), &cov.cov) {
+                    se[4] = (rho[0] * rho[0] * m[a * k + a]
+                        + ka[0] * ka[0] * m[b * k + b]
+                        + 2.0 * ka[0] * rho[0] * m[a * k + b])
+                        .sqrt();
+                }
+            } else {
+                se[4] = f64::NAN;
+            }
+            Ok(FormFit {
+                record: TemperatureCandidate {
+                    mu0_degree: dm,
+                    k_degree: dk,
+                    parameters: k,
+                    sse: cov.sse,
+                    rmse: (cov.sse / s.len() as f64).sqrt(),
+                    aic: f64::NAN,
+                    bic: f64::NAN,
+                    iterations: its,
+                    stop_reason: stop.text().into(),
+                    rejected: None,
+                },
+                mu0: value(0),
+                k_s: poly_mul(&ka, &rho),
+                k_a: ka,
+                a_ratio: value(1)[0],
+                b_s_per_m: value(2)[0],
+                se,
+                residuals: cov.residuals,
+            })
+        })
+        .collect();
+    let mut fits: Vec<FormFit> = fits.into_iter().collect::<Result<_, _>>()?;
+    // n_eff of the most flexible form's residuals (the last; closest to the noise alone — a
+    // form that misses a temperature trend leaves residuals correlated over whole runs, whose
+    // n_eff would hide the very trend), for every candidate.
+    let n = s.len() as f64;
+    let n_eff = effective_samples(&fits[fits.len() - 1].residuals).max(1.0);
+    for f in &mut fits {
+        let c = &mut f.record;
+        let fit_term = n_eff * (c.sse / n).ln();
+        c.aic = fit_term + 2.0 * c.parameters as f64;
+        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
+        let spec = crate::model::polach::TemperatureSpec {
+            mu0: f.mu0.clone(),
+            k_a: f.k_a.clone(),
+            k_s: f.k_s.clone(),
+            fitted_range_c: [lo, hi],
+        };
+        if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
+            c.rejected = Some(e.to_string());
+        }
+        f.residuals = Vec::new();
+    }
+    let best = fits
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.record.rejected.is_none())
+        .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
+        .map(|(i, _)| i)
+        .ok_or_else(|| IdentifyError::Data {
+            what: "every temperature form leaves the valid domain of Polach's law".into(),
+            hint: "lower train.temperature_degree".into(),
+        })?;
+    let chosen = &fits[best];
+    let law = |t: f64| {
+        (
+            horner(&chosen.mu0, t),
+            horner(&chosen.k_a, t),
+            horner(&chosen.k_s, t),
+        )
+    };
+    let residuals = per_temperature
+        .iter()
+        .filter_map(|f| {
+            let t = f.ambient_temperature_c?;
+            let (m, a, k) = law(t);
+            Some((t, f.mu0 - m, f.k_a - a, f.k_s - k))
+        })
+        .collect();
     Ok(TemperatureFit {
-        k_a: ca,
-        k_s: cs,
+        mu0_degree: chosen.record.mu0_degree,
+        k_degree: chosen.record.k_degree,
+        mu0: chosen.mu0.clone(),
+        k_a: chosen.k_a.clone(),
+        k_s: chosen.k_s.clone(),
+        a_ratio: chosen.a_ratio,
+        b_s_per_m: chosen.b_s_per_m,
+        se: chosen.se,
         fitted_range_c: (lo, hi),
-        degree,
+        reference_temperature_c: reference,
+        samples: s.len(),
+        effective_samples: n_eff,
+        criterion: "BIC".into(),
+        candidates: fits.into_iter().map(|f| f.record).collect(),
         residuals,
         excluded,
+        notes,
     })
 }
 
@@ -770,15 +1368,20 @@ mod tests {
     }
 
     #[test]
-    fn polyfit_recovers_a_quadratic() {
-        let x = [-20.0, 0.0, 20.0, 35.0];
-        let y: Vec<f64> = x.iter().map(|t| 0.1 + 0.002 * t - 1e-5 * t * t).collect();
-        let c = polyfit(&x, &y, 2).unwrap();
-        assert!(
-            (c[0] - 0.1).abs() < 1e-12
-                && (c[1] - 0.002).abs() < 1e-12
-                && (c[2] + 1e-5).abs() < 1e-12
-        );
+    fn lagrange_nodes_expand_to_the_polynomial_through_them() {
+        let f = |t: f64| 0.1 + 0.002 * t - 1e-5 * t * t;
+        for d in 1..=3 {
+            let nodes = temperature_nodes(d, -20.0, 35.0);
+            let values: Vec<f64> = nodes.iter().map(|t| f(*t)).collect();
+            let c = monomials(&nodes, &values);
+            for t in [-20.0, -3.0, 0.0, 12.5, 35.0] {
+                assert!((horner(&c, t) - f(t)).abs() < 1e-14, "degree {d} at {t}");
+                let b = lagrange(&nodes, t);
+                let v: f64 = values.iter().zip(b).map(|(v, b)| v * b).sum();
+                assert!((v - f(t)).abs() < 1e-14, "basis, degree {d} at {t}");
+            }
+        }
+        assert_eq!(poly_mul(&[1.0, 2.0], &[3.0, 0.5]), vec![3.0, 6.5, 1.0]);
     }
 }
 
@@ -798,9 +1401,10 @@ pub struct PolachReport {
     pub v_range_mps: (f64, f64),
     pub per_run: Vec<PolachFit>,
     pub per_temperature: Vec<PolachFit>,
-    /// k_A(T), k_S(T); absent with fewer than two temperatures.
+    /// The temperature law and the forms it was chosen from; absent with fewer than two
+    /// temperatures (`temperature_note` says why).
     pub temperature: Option<TemperatureFit>,
-    /// Why `temperature` is absent.
+    /// Why there is no temperature law: `temperature` absent, or its chosen form constant.
     pub temperature_note: Option<String>,
 }
 
@@ -834,10 +1438,10 @@ pub fn fit_campaign(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => fit_polach("all runs", &all, patch, q_n, decimate, start),
+                Group::Pooled => fit_polach("all runs", &all, patch, q_n, decimate, start, true),
                 Group::Run(i) => {
                     let t = &tables[*i];
-                    fit_polach(&t.name, &[t], patch, q_n, decimate, start).map(|mut f| {
+                    fit_polach(&t.name, &[t], patch, q_n, decimate, start, false).map(|mut f| {
                         f.ambient_temperature_c = t.metadata.ambient_temperature_c;
                         f
                     })
@@ -854,6 +1458,7 @@ pub fn fit_campaign(
                         q_n,
                         decimate,
                         start,
+                        true,
                     )
                     .map(|mut f| {
                         f.ambient_temperature_c = Some(*temp);
@@ -885,19 +1490,39 @@ pub fn fit_campaign(
             })
     };
     let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
-    let (temperature, temperature_note) = match fit_temperature(&per_temperature, degree) {
+    let law = match &pooled {
+        Some(p) => fit_temperature_forms(&all, patch, q_n, decimate, degree, p, &per_temperature),
+        None => Err(IdentifyError::Data {
+            what: "no pooled Polach fit".into(),
+            hint: "see the notes above".into(),
+        }),
+    };
+    let (temperature, temperature_note) = match law {
         Ok(t) => {
             for e in &t.excluded {
-                notes.push(format!("k(T) fitted without {e}"));
+                notes.push(format!("k(T) not identified at {e}"));
             }
-            (Some(t), None)
+            let note = (!t.has_law()).then(|| {
+                let best_other = t
+                    .candidates
+                    .iter()
+                    .filter(|c| c.mu0_degree + c.k_degree > 0)
+                    .map(|c| c.bic - t.candidates[0].bic)
+                    .fold(f64::INFINITY, f64::min);
+                format!(
+                    "the data prefer no temperature dependence (BIC of the best temperature form {} above the constant's){}",
+                    if best_other.is_finite() { format!("{best_other:.1}") } else { "—".into() },
+                    if t.notes.is_empty() { String::new() } else { format!("; {}", t.notes.join("; ")) }
+                )
+            });
+            (Some(t), note)
         }
         Err(e) => (None, Some(e.to_string())),
     };
     (
         PolachReport {
             format: "railgrip-polach-fit".into(),
-            version: 2,
+            version: 3,
             patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
             wheel_load_n: q_n,
             pooled,

@@ -186,15 +186,22 @@ pub fn valid_prefix(p: &str) -> bool {
 }
 
 fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> String {
-    let (has_t, ka_t, ks_t, t_lo, t_hi) = match &p.temperature {
+    let (has_t, mu0_t, ka_t, ks_t, t_lo, t_hi) = match &p.temperature {
         Some(t) => (
             true,
+            t.mu0.clone(),
             t.k_a.clone(),
             t.k_s.clone(),
             t.fitted_range_c[0],
             t.fitted_range_c[1],
         ),
-        None => (false, vec![0.0], vec![0.0], 0.0, 0.0),
+        None => (false, vec![], vec![0.0], vec![0.0], 0.0, 0.0),
+    };
+    // C has no zero-length arrays: an unused μ0(T) gets one 0 (N_MU0_T stays 0).
+    let mu0_arr = if mu0_t.is_empty() {
+        vec![0.0]
+    } else {
+        mu0_t.clone()
     };
     let up = prefix.to_uppercase();
     fill(
@@ -205,7 +212,12 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
             ("up", up),
             (
                 "tl",
-                if has_t { " and k_A(T), k_S(T)" } else { "" }.to_string(),
+                match (has_t, mu0_t.is_empty()) {
+                    (false, _) => "",
+                    (true, true) => " and k_A(T), k_S(T)",
+                    (true, false) => " and μ0(T), k_A(T), k_S(T)",
+                }
+                .to_string(),
             ),
             ("ver", env!("CARGO_PKG_VERSION").to_string()),
             ("source", source.to_string()),
@@ -215,6 +227,7 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
             ("rmse", lit(m.metrics.train_mse.sqrt())),
             ("inputs", inputs_line(m)),
             ("has_t", u8::from(has_t).to_string()),
+            ("nmu0", mu0_t.len().to_string()),
             ("nka", ka_t.len().to_string()),
             ("nks", ks_t.len().to_string()),
             ("mu0", lit(p.mu0)),
@@ -230,7 +243,9 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
             ("t_hi", lit(t_hi)),
             (
                 "arrays",
-                array(&format!("{prefix}_ka_T"), &ka_t) + &array(&format!("{prefix}_ks_T"), &ks_t),
+                array(&format!("{prefix}_mu0_T"), &mu0_arr)
+                    + &array(&format!("{prefix}_ka_T"), &ka_t)
+                    + &array(&format!("{prefix}_ks_T"), &ks_t),
             ),
         ],
     )

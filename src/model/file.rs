@@ -133,8 +133,13 @@ pub enum Defect {
     Support(String),
     #[error("polach: {0}")]
     Polach(#[source] ContactError),
-    #[error("polach.temperature: at {t_c:.2} °C k_A = {k_a:.4}, k_S = {k_s:.4} leave 0 < k_S <= k_A <= 1")]
-    TemperatureLaw { t_c: f64, k_a: f64, k_s: f64 },
+    #[error("polach.temperature: at {t_c:.2} °C μ0 = {mu0:.4}, k_A = {k_a:.4}, k_S = {k_s:.4} leave 0 < μ0 <= 1.5 and 0 < k_S <= k_A <= 1")]
+    TemperatureLaw {
+        t_c: f64,
+        mu0: f64,
+        k_a: f64,
+        k_s: f64,
+    },
 }
 
 /// Format id written into every model file.

@@ -259,7 +259,7 @@ impl Model {
     }
 
     /// The model at a fixed ambient temperature (°C): a Polach model with a temperature law
-    /// with k_A, k_S replaced by k_A(T), k_S(T). Errors for other models and for T outside
+    /// with μ0, k_A, k_S replaced by their values at T. Errors for other models and for T outside
     /// the fitted range.
     pub fn at_temperature(&self, t_c: f64) -> Result<Model, ModelError> {
         let err = |problem| ModelError::Temperature {
@@ -272,7 +272,7 @@ impl Model {
         let law = p.at_temperature(t_c).map_err(err)?;
         let mut file = self.file.clone();
         if let Some(s) = file.polach.as_mut() {
-            (s.k_a, s.k_s) = law.k();
+            (s.mu0, s.k_a, s.k_s) = law.base();
             s.temperature = None;
         }
         file.inputs.retain(|i| i.name != polach::TEMPERATURE_INPUT);

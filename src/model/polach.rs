@@ -1,14 +1,16 @@
 //! Model files of kind `polach`: Polach's creep-force law with falling friction (seed 004
 //! 004_7d175079b70fb95b.txt eq. 1–2; Polach, Wear 258 (2005) 992–1000) and, when fitted over
-//! several ambient temperatures, k_A(T) and k_S(T) (seed 004 eq. 3), as fitted by
-//! `identify::polach_fit` and written by `identify::export`.
+//! several ambient temperatures, a temperature law: k_A(T) and k_S(T) (seed 004 eq. 3) and/or
+//! μ0(T) (the adhesion level moving with temperature, seed 004 Fig. 2), in the form the fit
+//! chose by BIC (`identify::polach_fit::fit_temperature_forms`), written by `identify::export`.
 //!
 //! Evaluation ([`super::Model::mu_vt`], and the C header step for step), μ = F/Q of one wheel:
 //! 1. w = |Δv| (m/s); w = 0 gives μ = 0. Speed v (m/s): NaN → the reference speed (median of the
 //!    fitted samples), below [`MIN_SPEED_MPS`] → that floor (the creepage w/v grows without
 //!    bound as v → 0 and μ tends to the friction coefficient; the floor keeps it finite).
-//! 2. k_A, k_S: the file's values, or with a temperature law and a finite T,
-//!    k(T) = Σ c_i T^i (Horner, T clamped to the fitted range).
+//! 2. μ0, k_A, k_S: the file's values, or with a temperature law and a finite T,
+//!    k_A(T), k_S(T) = Σ c_i T^i (Horner, T clamped to the fitted range), and μ0(T) likewise
+//!    when the law has μ0 coefficients (else the file's μ0).
 //! 3. μ_w = μ0 [(1 − A) e^(−B w) + A]; ε = K (w / v) / μ_w with K = π G a b c11 / (4 Q)
 //!    (eq. 2 with C = (3/8)(G/a) c11, the creepage s = w/v and the wheel load Q of the fit);
 //!    μ = sign(Δv) · (2 μ_w / π) [k_A ε / (1 + (k_A ε)²) + arctan(k_S ε)] (eq. 1).
@@ -74,11 +76,14 @@ pub struct PatchSpec {
     pub c11: f64,
 }
 
-/// k_A(T), k_S(T) as polynomials in the ambient temperature T (°C).
+/// μ0(T), k_A(T), k_S(T) as polynomials in the ambient temperature T (°C).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TemperatureSpec {
-    /// Coefficients in ascending powers of T (°C).
+    /// μ0(T) coefficients in ascending powers of T (°C); empty: μ0 does not depend on T.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub mu0: Vec<f64>,
+    /// k_A(T), k_S(T) coefficients in ascending powers of T (°C) (one coefficient: constant).
     pub k_a: Vec<f64>,
     pub k_s: Vec<f64>,
     /// The temperatures the fit covers (°C); T outside is clamped to it.
@@ -86,7 +91,7 @@ pub struct TemperatureSpec {
 }
 
 /// Checks a `polach` model file: names, sections, parameter domain, and that a temperature
-/// law keeps 0 < k_S ≤ k_A ≤ 1 over its range.
+/// law keeps 0 < μ0 ≤ 1.5 and 0 < k_S ≤ k_A ≤ 1 over its range.
 pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
     let Some(p) = &m.polach else {
         return Err(Defect::MissingSection {
@@ -165,7 +170,11 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
         let [lo, hi] = t.fitted_range_c;
         if t.k_a.is_empty()
             || t.k_s.is_empty()
-            || t.k_a.iter().chain(&t.k_s).any(|c| !c.is_finite())
+            || t.k_a
+                .iter()
+                .chain(&t.k_s)
+                .chain(&t.mu0)
+                .any(|c| !c.is_finite())
             || !(lo.is_finite() && hi.is_finite() && lo <= hi)
         {
             return Err(Defect::Value(
@@ -179,16 +188,30 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
                 what: "domain differs from polach.temperature.fitted_range_c",
             });
         }
-        for i in 0..TEMPERATURE_CHECKS {
-            let temp = lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64;
-            let (ka, ks) = (horner(&t.k_a, temp), horner(&t.k_s, temp));
-            if !(ka > 0.0 && ka <= 1.0 && ks > 0.0 && ks <= ka) {
-                return Err(Defect::TemperatureLaw {
-                    t_c: temp,
-                    k_a: ka,
-                    k_s: ks,
-                });
-            }
+        check_law(t, p.mu0)?;
+    }
+    Ok(())
+}
+
+/// Whether a temperature law keeps 0 < μ0(T) ≤ 1.5 and 0 < k_S(T) ≤ k_A(T) ≤ 1 at
+/// [`TEMPERATURE_CHECKS`] points of its fitted range (`mu0` when the law has no μ0(T)).
+pub(crate) fn check_law(t: &TemperatureSpec, mu0: f64) -> Result<(), Defect> {
+    let [lo, hi] = t.fitted_range_c;
+    for i in 0..TEMPERATURE_CHECKS {
+        let temp = lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64;
+        let (ka, ks) = (horner(&t.k_a, temp), horner(&t.k_s, temp));
+        let m = if t.mu0.is_empty() {
+            mu0
+        } else {
+            horner(&t.mu0, temp)
+        };
+        if !(ka > 0.0 && ka <= 1.0 && ks > 0.0 && ks <= ka && m > 0.0 && m <= 1.5) {
+            return Err(Defect::TemperatureLaw {
+                t_c: temp,
+                mu0: m,
+                k_a: ka,
+                k_s: ks,
+            });
         }
     }
     Ok(())
@@ -199,7 +222,7 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
 pub enum TemperatureError {
     #[error("this model has no temperature law (only Polach models fitted at two or more ambient temperatures have one)")]
     NotPolach,
-    #[error("this Polach model has no temperature law (it was fitted at fewer than two ambient temperatures)")]
+    #[error("this Polach model has no temperature law (it was fitted at fewer than two ambient temperatures, or its data chose none)")]
     NoLaw,
     #[error("ambient temperature {t_c} °C is outside the range the temperature law was fitted over, {lo} … {hi} °C")]
     Outside { t_c: f64, lo: f64, hi: f64 },
@@ -219,7 +242,31 @@ pub(crate) struct PolachEval {
     /// Fitted Δv and v ranges (m/s), for [`super::Model::in_domain`].
     dv: (f64, f64),
     v: (f64, f64),
-    temperature: Option<(Vec<f64>, Vec<f64>, f64, f64)>,
+    temperature: Option<TemperatureEval>,
+}
+
+/// The temperature law of an evaluator: μ0(T) (empty: constant), k_A(T), k_S(T), range (°C).
+#[derive(Debug, Clone)]
+struct TemperatureEval {
+    mu0: Vec<f64>,
+    k_a: Vec<f64>,
+    k_s: Vec<f64>,
+    lo: f64,
+    hi: f64,
+}
+
+impl TemperatureEval {
+    /// (μ0, k_A, k_S) at T (°C), T clamped to the range; `mu0` when the law has no μ0(T).
+    #[inline]
+    fn at(&self, t_c: f64, mu0: f64) -> (f64, f64, f64) {
+        let t = t_c.clamp(self.lo, self.hi);
+        let m = if self.mu0.is_empty() {
+            mu0
+        } else {
+            horner(&self.mu0, t)
+        };
+        (m, horner(&self.k_a, t), horner(&self.k_s, t))
+    }
 }
 
 impl PolachEval {
@@ -239,13 +286,12 @@ impl PolachEval {
             v_ref: p.reference_speed_mps,
             dv: (m.inputs[0].domain_min, m.inputs[0].domain_max),
             v: (m.inputs[1].domain_min, m.inputs[1].domain_max),
-            temperature: p.temperature.as_ref().map(|t| {
-                (
-                    t.k_a.clone(),
-                    t.k_s.clone(),
-                    t.fitted_range_c[0],
-                    t.fitted_range_c[1],
-                )
+            temperature: p.temperature.as_ref().map(|t| TemperatureEval {
+                mu0: t.mu0.clone(),
+                k_a: t.k_a.clone(),
+                k_s: t.k_s.clone(),
+                lo: t.fitted_range_c[0],
+                hi: t.fitted_range_c[1],
             }),
         }
     }
@@ -257,12 +303,9 @@ impl PolachEval {
         if !(dv.is_finite() && ddv.is_finite()) {
             return f64::NAN;
         }
-        let (ka, ks) = match &self.temperature {
-            Some((ca, cs, lo, hi)) if t_c.is_finite() => {
-                let t = t_c.clamp(*lo, *hi);
-                (horner(ca, t), horner(cs, t))
-            }
-            _ => (self.k_a, self.k_s),
+        let (mu0, ka, ks) = match &self.temperature {
+            Some(law) if t_c.is_finite() => law.at(t_c, self.mu0),
+            _ => (self.mu0, self.k_a, self.k_s),
         };
         let v = if v.is_finite() {
             v.max(MIN_SPEED_MPS)
@@ -273,7 +316,7 @@ impl PolachEval {
         if w == 0.0 {
             return 0.0;
         }
-        let mu_w = self.mu0 * ((1.0 - self.a_ratio) * (-self.b * w).exp() + self.a_ratio);
+        let mu_w = mu0 * ((1.0 - self.a_ratio) * (-self.b * w).exp() + self.a_ratio);
         let eps = self.stiffness * (w / v) / mu_w;
         let x = ka * eps;
         let f = 2.0 * mu_w / PI * (x / (1.0 + x * x) + (ks * eps).atan());
@@ -285,29 +328,32 @@ impl PolachEval {
         w >= self.dv.0 && w <= self.dv.1 && v >= self.v.0 && v <= self.v.1
     }
 
-    /// This evaluator with k_A, k_S fixed at k(T); T must lie in the fitted range.
+    /// This evaluator with μ0, k_A, k_S fixed at their values at T; T must lie in the fitted
+    /// range.
     pub(crate) fn at_temperature(&self, t_c: f64) -> Result<PolachEval, TemperatureError> {
-        let Some((ca, cs, lo, hi)) = &self.temperature else {
+        let Some(law) = &self.temperature else {
             return Err(TemperatureError::NoLaw);
         };
-        if !(t_c >= *lo && t_c <= *hi) {
+        if !(t_c >= law.lo && t_c <= law.hi) {
             return Err(TemperatureError::Outside {
                 t_c,
-                lo: *lo,
-                hi: *hi,
+                lo: law.lo,
+                hi: law.hi,
             });
         }
+        let (mu0, k_a, k_s) = law.at(t_c, self.mu0);
         Ok(PolachEval {
-            k_a: horner(ca, t_c),
-            k_s: horner(cs, t_c),
+            mu0,
+            k_a,
+            k_s,
             temperature: None,
             ..self.clone()
         })
     }
 
-    /// (k_A, k_S) in use without a temperature.
-    pub(crate) fn k(&self) -> (f64, f64) {
-        (self.k_a, self.k_s)
+    /// (μ0, k_A, k_S) in use without a temperature.
+    pub(crate) fn base(&self) -> (f64, f64, f64) {
+        (self.mu0, self.k_a, self.k_s)
     }
 }
 

@@ -21,7 +21,7 @@ use plotters::style::RGBColor;
 
 use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
 use crate::format::AXLES;
-use crate::identify::polach_fit::PolachReport;
+use crate::identify::polach_fit::{PolachReport, PROFILE_LIMIT};
 use crate::model::{Model, ModelError, ModelFile};
 use crate::outdir::{CampaignRecord, OutDir, RecordError, RunRecord};
 use data::{read_run, RunData};
@@ -572,11 +572,25 @@ fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Repor
     use crate::identify::polach_fit::ParamStatus;
     // Each parameter as estimated ± se, or held: at its bound, or at the prior where the data
     // do not identify it.
-    let cell = |x: f64, s: f64, st: ParamStatus| match st {
-        ParamStatus::Estimated if s.is_finite() => format!("{x:.4} ± {s:.4}"),
-        ParamStatus::Estimated => format!("{x:.4}"),
-        ParamStatus::AtBound => format!("{x:.4} <em>(at bound)</em>"),
-        ParamStatus::NotIdentifiable => format!("{x:.4} <em>(not identifiable: prior)</em>"),
+    // Each parameter as estimated ± se with its profile-likelihood 95 % interval, or held: at
+    // its bound, or at its least-squares value where the data do not identify it.
+    let cell = |p: &crate::identify::polach_fit::PolachFit, k: usize, x: f64| {
+        let s = p.se[k];
+        let ci = p
+            .profiles
+            .iter()
+            .find(|q| q.parameter == crate::identify::polach_fit::PARAMETERS[k])
+            .map(|q| {
+                let side = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
+                format!("<br><small>[{}, {}]</small>", side(q.lower), side(q.upper))
+            })
+            .unwrap_or_default();
+        match p.status[k] {
+            ParamStatus::Estimated if s.is_finite() => format!("{x:.4} ± {s:.4}{ci}"),
+            ParamStatus::Estimated => format!("{x:.4}{ci}"),
+            ParamStatus::AtBound => format!("{x:.4} <em>(at bound)</em>"),
+            ParamStatus::NotIdentifiable => format!("{x:.4} <em>(not identifiable: held)</em>"),
+        }
     };
     let mut notes = Vec::new();
     for p in f.pooled.iter().chain(&f.per_temperature).chain(&f.per_run) {
@@ -584,17 +598,17 @@ fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Repor
             *h,
             "<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.4}</td><td>{}</td></tr>",
             esc(&p.group),
-            cell(p.mu0, p.se[0], p.status[0]),
-            cell(p.a_ratio, p.se[1], p.status[1]),
-            cell(p.b_s_per_m, p.se[2], p.status[2]),
-            cell(p.k_a, p.se[3], p.status[3]),
-            cell(p.k_s, p.se[4], p.status[4]),
+            cell(p, 0, p.mu0),
+            cell(p, 1, p.a_ratio),
+            cell(p, 2, p.b_s_per_m),
+            cell(p, 3, p.k_a),
+            cell(p, 4, p.k_s),
             p.rmse,
             p.samples
         );
         notes.extend(p.notes.iter().map(|n| format!("{}: {n}", p.group)));
     }
-    h.push_str("</table>\n");
+    h.push_str("</table>\n<p>± one standard error (Wald, corrected for the residuals' autocorrelation); in brackets the 95 % interval from the profile likelihood (pooled and per-temperature fits; – where the data do not bound it before the parameter's limit).</p>\n");
     if !notes.is_empty() {
         h.push_str("<p>What the data could not identify (held, the rest refitted; seed 004, issue 16):</p>\n<ul>\n");
         for n in &notes {
@@ -663,41 +677,97 @@ fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Repor
         &series,
         false,
     )?);
+    // Profile likelihood of the pooled fit: each parameter's statistic against its distance
+    // from the estimate in Wald standard errors, beside the Wald parabola z².
+    if let Some(p) = f.pooled.as_ref().filter(|p| !p.profiles.is_empty()) {
+        let mut series: Vec<Series> = p
+            .profiles
+            .iter()
+            .enumerate()
+            .filter_map(|(k, q)| {
+                let i = crate::identify::polach_fit::PARAMETERS
+                    .iter()
+                    .position(|n| *n == q.parameter)?;
+                let se = p.se[i];
+                Some(Series {
+                    name: q.parameter.clone(),
+                    color: PALETTE[k % PALETTE.len()],
+                    pts: q
+                        .points
+                        .iter()
+                        .map(|(x, d)| ((x - q.estimate) / se, d.min(12.0)))
+                        .collect(),
+                    dots: false,
+                })
+            })
+            .collect();
+        series.push(Series {
+            name: "Wald z²".into(),
+            color: RGBColor(150, 150, 150),
+            pts: (0..=60)
+                .map(|k| {
+                    let z = -3.0 + 0.1 * k as f64;
+                    (z, z * z)
+                })
+                .collect(),
+            dots: false,
+        });
+        series.push(Series {
+            name: "χ²₁(0.95) = 3.84".into(),
+            color: RGBColor(200, 0, 0),
+            pts: vec![(-3.0, PROFILE_LIMIT), (3.0, PROFILE_LIMIT)],
+            dots: false,
+        });
+        h.push_str(&chart(
+            "Profile likelihood of the pooled fit (95 % interval where Δ ≤ 3.84)",
+            "(value − estimate) / Wald se",
+            "Δ (profile statistic)",
+            &series,
+            false,
+        )?);
+    }
     if let Some(t) = &f.temperature {
         let (lo, hi) = t.fitted_range_c;
         let grid: Vec<f64> = (0..=100)
             .map(|k| lo + (hi - lo) * k as f64 / 100.0)
             .collect();
-        let pts = |k: usize| -> Vec<(f64, f64)> {
+        let dots = |k: usize| -> Vec<(f64, f64)> {
             f.per_temperature
                 .iter()
                 .filter_map(|p| {
                     p.ambient_temperature_c
-                        .map(|tc| (tc, if k == 0 { p.k_a } else { p.k_s }))
+                        .map(|tc| (tc, [p.mu0, p.k_a, p.k_s][k]))
                 })
                 .collect()
         };
+        let line = |c: &[f64]| grid.iter().map(|&x| (x, horner(c, x))).collect();
         h.push_str(&chart(
-            "k_A(T), k_S(T) (seed 004 eq. 3)",
+            &format!("Temperature law: {} (seed 004 eq. 3, Fig. 2)", t.form()),
             "ambient temperature (°C)",
-            "k (–)",
+            "μ0, k (–)",
             &[
                 Series {
-                    name: format!("k_A(T), degree {}", t.degree),
-                    color: PALETTE[0],
-                    pts: grid.iter().map(|&x| (x, horner(&t.k_a, x))).collect(),
+                    name: "μ0(T)".into(),
+                    color: PALETTE[2],
+                    pts: line(&t.mu0),
                     dots: false,
                 },
                 Series {
-                    name: format!("k_S(T), degree {}", t.degree),
+                    name: "k_A(T)".into(),
+                    color: PALETTE[0],
+                    pts: line(&t.k_a),
+                    dots: false,
+                },
+                Series {
+                    name: "k_S(T)".into(),
                     color: PALETTE[1],
-                    pts: grid.iter().map(|&x| (x, horner(&t.k_s, x))).collect(),
+                    pts: line(&t.k_s),
                     dots: false,
                 },
                 Series {
                     name: "per-temperature fits".into(),
                     color: RGBColor(60, 60, 60),
-                    pts: [pts(0), pts(1)].concat(),
+                    pts: [dots(0), dots(1), dots(2)].concat(),
                     dots: true,
                 },
             ],
@@ -705,8 +775,43 @@ fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Repor
         )?);
     }
     h.push_str("</div>\n");
+    if let Some(t) = &f.temperature {
+        let best = t
+            .candidates
+            .iter()
+            .filter(|c| c.rejected.is_none())
+            .map(|c| c.bic)
+            .fold(f64::INFINITY, f64::min);
+        let _ = writeln!(
+            *h,
+            "<p>Temperature forms, each fitted jointly to all {} samples (A, B shared; n_eff = {:.0}); the least BIC whose law stays valid is chosen:</p>\n<table><tr><th class=\"l\">form</th><th>parameters</th><th>RMSE μ</th><th>AIC</th><th>BIC</th><th>ΔBIC</th><th class=\"l\"></th></tr>",
+            t.samples, t.effective_samples
+        );
+        for c in &t.candidates {
+            let chosen = c.mu0_degree == t.mu0_degree && c.k_degree == t.k_degree;
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">{}</td><td>{}</td><td>{:.5}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td class=\"l\">{}</td></tr>",
+                esc(&c.form()),
+                c.parameters,
+                c.rmse,
+                c.aic,
+                c.bic,
+                c.bic - best,
+                if chosen {
+                    "<strong>chosen</strong>".to_string()
+                } else {
+                    c.rejected.as_deref().map(esc).unwrap_or_default()
+                }
+            );
+        }
+        h.push_str("</table>\n");
+        for n in t.notes.iter().chain(&t.excluded) {
+            let _ = writeln!(*h, "<p class=\"note\">{}</p>", esc(n));
+        }
+    }
     if let Some(n) = &f.temperature_note {
-        let _ = writeln!(*h, "<p class=\"note\">k(T): {}</p>", esc(n));
+        let _ = writeln!(*h, "<p class=\"note\">Temperature law: {}</p>", esc(n));
     }
     Ok(())
 }
