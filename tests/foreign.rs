@@ -514,10 +514,105 @@ fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
                 );
             }
         }
-        match (&report.temperature, &report.temperature_note) {
-            (Some(t), _) => eprintln!("{law}: k(T) over {:?}", t.fitted_range_c),
-            (None, Some(n)) => eprintln!("{law}: no k(T): {n}"),
-            (None, None) => panic!("{law}: k(T) missing without a reason"),
+        let t = report.temperature.as_ref().expect("four temperatures");
+        let forms: Vec<String> = t
+            .candidates
+            .iter()
+            .map(|c| format!("{} ΔBIC {:.1}", c.form(), c.bic - t.candidates[0].bic))
+            .collect();
+        eprintln!("{law}: {} over {:?}; {forms:?}", t.form(), t.fitted_range_c);
+        // Every pooled and per-temperature fit has a profile interval per estimated parameter.
+        for f in report.pooled.iter().chain(&report.per_temperature) {
+            let estimated = f
+                .status
+                .iter()
+                .filter(|s| **s == ParamStatus::Estimated)
+                .count();
+            assert_eq!(f.profiles.len(), estimated, "{law} {}", f.group);
+        }
+    }
+}
+
+/// The temperature law on truth railgrip does not fit, over three seeds (issue 16): the
+/// loss_recovery law's adhesion level moves 0.6 %/K (its peaks scale by 1 + τ(20 °C − T)),
+/// so the form chosen has μ0(T), μ0 falling from the coldest run to the warmest as the truth's
+/// peaks do, and closer to the truth than the constant law. The table law has no temperature
+/// dependence — but on these runs the slip the wheels reach falls as the temperature rises
+/// (median 1.35 → 0.53 m/s), and Polach's misfit over different slip ranges looks like a
+/// temperature trend that no criterion can tell apart: the fit must say so (the coverage
+/// note), and whatever form it chooses must be no farther from the truth on these runs than
+/// the constant law.
+#[test]
+fn temperature_laws_on_foreign_laws_follow_the_level() {
+    use railgrip::contact::polach::{polach, PolachParams};
+    use railgrip::identify::polach_fit::fit_campaign;
+    let dir = tempfile::tempdir().unwrap();
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    for law in ["lr", "table"] {
+        for seed in 1..=3 {
+            let mut set = measurement_scenes(law, Some("_120kmh"));
+            for sc in &mut set {
+                sc.seed += 100 * seed;
+            }
+            let (tables, truth) = campaign(&set, dir.path());
+            let (report, _) = fit_campaign(&tables, patch, q, p.train.decimate, 2);
+            let t = report.temperature.as_ref().expect("four temperatures");
+            let (lo, hi) = t.fitted_range_c;
+            let change = t.at(lo).0 / t.at(hi).0 - 1.0;
+            // RMSE against the truth over the slipping samples of every run: the chosen law
+            // (at each run's temperature) and the constant one (the pooled fit).
+            let pooled = report.pooled.as_ref().unwrap().params();
+            let rmse = |at: &dyn Fn(f64) -> PolachParams| {
+                let (mut sse, mut n) = (0.0, 0);
+                for x in truth.iter().filter(|x| x.dv_mps > 0.01) {
+                    let mu = polach(&patch, &at(x.t_c), q, x.v_mps, x.dv_mps, 0.0)
+                        .unwrap()
+                        .fx_n
+                        / q;
+                    sse += (mu - x.mu).powi(2);
+                    n += 1;
+                }
+                (sse / n as f64).sqrt()
+            };
+            let chosen = rmse(&|tc: f64| {
+                let (m, ka, ks) = t.at(tc.clamp(lo, hi));
+                PolachParams {
+                    mu0: m,
+                    a_ratio: t.a_ratio,
+                    b_s_per_m: t.b_s_per_m,
+                    k_a: ka,
+                    k_s: ks,
+                }
+            });
+            let constant = rmse(&|_| pooled);
+            eprintln!(
+                "{law} seed {seed}: {} (μ0 {:+.1} % from {lo} to {hi} °C); RMSE against the truth {chosen:.4} vs constant {constant:.4}; notes {:?}",
+                t.form(),
+                100.0 * change,
+                t.notes
+            );
+            assert!(
+                chosen <= constant * 1.02,
+                "{law} seed {seed}: {chosen} vs {constant}"
+            );
+            // Both sets brake harder in the cold: the coverage note names it.
+            // The table runs' median slip falls from 1.35 to 0.53 m/s as the temperature rises:
+            // named. The loss_recovery runs' stays near 0.9 m/s: its trend is the temperature's.
+            let coverage = t
+                .notes
+                .iter()
+                .any(|n| n.contains("slip coverage changes with temperature"));
+            assert_eq!(coverage, law == "table", "{law} seed {seed}: {:?}", t.notes);
+            if law == "lr" {
+                assert!(t.mu0_degree >= 1, "{law} seed {seed}: {}", t.form());
+                // The truth's peaks: (1 + 0.006·40)/(1 − 0.006·10) − 1 = +32 %.
+                assert!(change > 0.15, "{law} seed {seed}: {change}");
+                assert!(
+                    chosen < 0.9 * constant,
+                    "{law} seed {seed}: {chosen} vs {constant}"
+                );
+            }
         }
     }
 }

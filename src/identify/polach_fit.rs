@@ -1040,6 +1040,39 @@ fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
     out
 }
 
+/// A note when the samples' slip coverage changes monotonically with temperature: the median
+/// slip of each temperature group, ordered by temperature, strictly rising or falling over three
+/// or more temperatures by more than 20 %. A law family that does not fit the data exactly then
+/// fits different slip ranges with different parameters, and a temperature law can stand for
+/// the coverage (e.g. a campaign that brakes harder in the cold) — the data cannot tell them
+/// apart (measured on the foreign `table` law, README "Temperature law").
+fn coverage_note(s: &[Sample], ranges: &[(f64, std::ops::Range<usize>)]) -> Option<String> {
+    if ranges.len() < 3 {
+        return None;
+    }
+    let medians: Vec<f64> = ranges
+        .iter()
+        .map(|(_, r)| {
+            let mut dv: Vec<f64> = s[r.clone()].iter().map(|x| x.dv).collect();
+            dv.sort_by(f64::total_cmp);
+            dv.get(dv.len() / 2).copied().unwrap_or(f64::NAN)
+        })
+        .collect();
+    let rising = medians.windows(2).all(|w| w[1] > w[0]);
+    let falling = medians.windows(2).all(|w| w[1] < w[0]);
+    let (first, last) = (medians[0], medians[medians.len() - 1]);
+    if !(rising || falling) || (first.max(last) / first.min(last)) < 1.2 {
+        return None;
+    }
+    Some(format!(
+        "the runs' slip coverage changes with temperature (median Δv {:.2} m/s at {} °C to {:.2} m/s at {} °C): a temperature law here may stand for the slip range each temperature's runs cover rather than for the temperature; brake at equal demand across temperatures (or add runs) to tell them apart",
+        first,
+        ranges[0].0,
+        last,
+        ranges[ranges.len() - 1].0
+    ))
+}
+
 /// One candidate's fit: its record, the law's polynomials (μ0, k_A, k_S), A, B, and the
 /// standard errors of its constant parameters.
 struct FormFit {
@@ -1147,6 +1180,9 @@ pub fn fit_temperature_forms(
     };
     if top == 0 {
         notes.push("train.temperature_degree = 0: only the constant form".into());
+    }
+    if let Some(n) = coverage_note(&s, &ranges) {
+        notes.push(n);
     }
     let x0 = solver_order(&pooled.params());
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
