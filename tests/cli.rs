@@ -293,19 +293,24 @@ fn train_eval_export_work_end_to_end() {
         "trained",
         "validation",
         "Polach",
-        "k(T)",
+        "95 %       mu0 [",
+        "T law      μ0(T) constant, k(T) constant chosen by BIC among 4 forms",
     ] {
         assert!(s.contains(needle), "{needle}: {s}");
     }
     let model = dir.path().join("models/mlp.json");
     assert!(model.exists() && dir.path().join("models/mlp.history.csv").exists());
     assert!(dir.path().join("models/mlp.polach-fits.json").exists());
-    // The campaign's Polach model: a model file of kind polach with k(T) (two temperatures).
+    // The campaign's Polach model: a model file of kind polach; two runs at two temperatures
+    // do not support a temperature law (BIC), so it has none.
     let polach = std::fs::read_to_string(dir.path().join("models/mlp.polach.json")).unwrap();
     assert!(
-        polach.contains("\"kind\": \"polach\"") && polach.contains("\"temperature\""),
+        polach.contains("\"kind\": \"polach\"") && !polach.contains("\"temperature\""),
         "{polach}"
     );
+    // A Polach model with μ0(T) and k(T): the golden file.
+    let golden = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_polach.json");
+    let golden = golden.to_str().unwrap();
     std::fs::write(
         dir.path().join("pgrid.csv"),
         "dv_mps,v_mps,ambient_temperature_c\n1.0,30,0\n1.0,30,20\n-1.0,30,20\n",
@@ -314,7 +319,7 @@ fn train_eval_export_work_end_to_end() {
     let o = railgrip(
         &[
             "eval",
-            "models/mlp.polach.json",
+            golden,
             "--input",
             "pgrid.csv",
             "--output",
@@ -335,12 +340,9 @@ fn train_eval_export_work_end_to_end() {
         "{mu:?}"
     );
     assert_eq!(mu[2], -mu[1]);
-    let o = railgrip(
-        &["export", "models/mlp.polach.json", "--c-header", "polach.h"],
-        dir.path(),
-    );
+    let o = railgrip(&["export", golden, "--c-header", "polach.h"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    assert!(text(&o.stdout).contains("Polach with k(T)"));
+    assert!(text(&o.stdout).contains("Polach with μ0(T), k(T)"));
     let h = std::fs::read_to_string(dir.path().join("polach.h")).unwrap();
     assert!(h.contains("static inline double railgrip_mu_vt(") && h.contains("atan("));
 

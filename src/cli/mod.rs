@@ -87,7 +87,7 @@ condition (run metadata `condition`; train.condition, default the most common) a
 Polach fits (all runs pooled, per run, per ambient temperature) and k_A(T), k_S(T).\n\n\
 Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fly). Writes \
 <DIR>/<name>.json (network model file, see models/schema/), <DIR>/<name>.history.csv, \
-<DIR>/<name>.polach.json (Polach model file, with k(T) when fitted) and \
+<DIR>/<name>.polach.json (Polach model file, with its temperature law when the data choose one) and \
 <DIR>/<name>.polach-fits.json (every fit), printing one line per epoch."
     )]
     Train(model::TrainArgs),

@@ -339,10 +339,10 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
         ),
         railgrip::model::ModelKind::Polach => format!(
             "Polach{}",
-            if m.inputs.len() == 3 {
-                " with k(T)"
-            } else {
-                ""
+            match m.polach.as_ref().and_then(|p| p.temperature.as_ref()) {
+                Some(t) if t.mu0.is_empty() => " with k(T)",
+                Some(_) => " with μ0(T), k(T)",
+                None => "",
             }
         ),
     };
