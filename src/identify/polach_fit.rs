@@ -733,6 +733,9 @@ pub fn fit_polach(
     })
 }
 
+/// One side of a profile: its points (outward) and the interval's limit, if reached.
+type Side = (Vec<(f64, f64)>, Option<f64>);
+
 /// The profile likelihood of every estimated parameter of a fit at `x` (natural, ρ for k_S)
 /// with `fixed` held: both sides of each in parallel, each side warm-started from its previous
 /// point. A side whose refit fails ends there, unbounded.
@@ -767,7 +770,7 @@ fn profiles(
         }
         out
     };
-    let walked: Vec<(Vec<(f64, f64)>, Option<f64>)> = sides
+    let walked: Vec<Side> = sides
         .par_iter()
         .map(|&(i, dir)| {
             // k_S lies in (0, 1) (k_S ≤ k_A ≤ 1); the others in their fit bounds.
