@@ -5,8 +5,11 @@
 //! Data: the valid estimates of the bundled soap runs (estimated here) with slip, pooled in
 //! run order, the first 150 000; the pipeline's patch and static wheel load. Criterion times
 //! the whole identifiability-aware fit (`polach/pooled_fit_150k`: LM with the analytic
-//! Jacobian, bounds and identifiability checks; one core — the fit is sequential) and one
-//! Jacobian pass (`polach/normal_equations_150k` is inside it; not timed apart). Then, once,
+//! Jacobian, bounds and identifiability checks; one core — the fit is sequential), the same
+//! with the profile likelihood of every parameter (`polach/pooled_fit_150k_with_profiles`,
+//! both sides of each parameter in parallel), and everything `railgrip train` fits with
+//! Polach's law on the bundled soap runs (`polach/campaign_fits_bundled`: pooled, per-run and
+//! per-temperature fits, profiles, the temperature forms; all cores). Then, once,
 //! side by side on the same samples and start: scipy `least_squares(method='trf')` with the same
 //! bounds, tolerances and analytic Jacobian (`benches/peers/polach_scipy.py`; skipped with a
 //! message without python3, numpy and scipy, or with `RAILGRIP_BENCH_QUICK=1`), its best of 3
@@ -20,7 +23,7 @@ use std::time::{Duration, Instant};
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use railgrip::identify::polach_fit::{fit_polach, DEFAULT_START};
+use railgrip::identify::polach_fit::{fit_campaign, fit_polach, DEFAULT_START};
 use railgrip::identify::RunTable;
 use railgrip::Pipeline;
 
@@ -47,6 +50,19 @@ fn bench(c: &mut Criterion) {
     let mut g = c.benchmark_group("polach");
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     g.bench_function("pooled_fit_150k", |b| b.iter(fit));
+    // What the intervals cost: the same fit with the profile likelihood of every parameter
+    // (both sides in parallel: on all cores).
+    g.bench_function("pooled_fit_150k_with_profiles", |b| {
+        b.iter(|| fit_polach("pooled", &[&t], patch, q, 1, start, true).unwrap())
+    });
+    // The whole Polach part of `railgrip train` on the bundled soap runs at the pipeline's
+    // decimation: pooled, per-run and per-temperature fits, profiles and the temperature
+    // forms (all cores).
+    let decimate = p.train.decimate;
+    let degree = p.train.temperature_degree;
+    g.bench_function("campaign_fits_bundled", |b| {
+        b.iter(|| fit_campaign(&tables, patch, q, decimate, degree))
+    });
     g.finish();
 
     let t0 = Instant::now();

@@ -1319,6 +1319,11 @@ fn polach_fits_of_thin_data_say_why() {
     let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
     let (r, notes) = fit_campaign(&[t], patch, q, 1, 2);
     assert!(notes.is_empty(), "{notes:?}");
+    // The fits file reads back (held parameters' standard errors are null, read as NaN).
+    let json = serde_json::to_string(&r).unwrap();
+    assert!(json.contains("null"), "{json}");
+    let back: railgrip::identify::polach_fit::PolachReport = serde_json::from_str(&json).unwrap();
+    assert_eq!(serde_json::to_string(&back).unwrap(), json);
     assert!(r.pooled.is_some() && r.per_run.len() == 1 && r.per_temperature.len() == 1);
     assert!(r.temperature.is_none());
     let why = r.temperature_note.unwrap();
@@ -1545,6 +1550,9 @@ fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
         ka(-20.0)
     );
     assert!(ka(0.0) > 1.1 * ka(20.0) && ka(-20.0) > 1.1 * ka(20.0));
+    let json = serde_json::to_string(&report).unwrap();
+    let back: railgrip::identify::polach_fit::PolachReport = serde_json::from_str(&json).unwrap();
+    assert_eq!(serde_json::to_string(&back).unwrap(), json);
     let law = report.temperature.unwrap();
     eprintln!("archive: {}", law.form());
     assert!(law.k_degree >= 1, "{}", law.form());

@@ -28,6 +28,21 @@ use super::IdentifyError;
 use crate::contact::polach::{horner, ContactPatch, PolachParams};
 use crate::linalg::{cho_solve, cholesky, effective_samples};
 
+/// Standard errors in files: NaN (held, not identifiable or not applicable) written as `null`
+/// and read back as NaN (JSON has no NaN).
+mod nan_as_null {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(x: &[f64; 5], s: S) -> Result<S::Ok, S::Error> {
+        x.map(|v| v.is_finite().then_some(v)).serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 5], D::Error> {
+        let v = <[Option<f64>; 5]>::deserialize(d)?;
+        Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+    }
+}
+
 /// One sample for the fit.
 #[derive(Debug, Clone, Copy)]
 struct Sample {
@@ -162,11 +177,13 @@ fn mu_and_gradient(x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
     let eps = s.cs / mu_w;
     let (xa, ys) = (k_a * eps, k_s * eps);
     let (dxa, dys) = (1.0 + xa * xa, 1.0 + ys * ys);
-    let bracket = xa / dxa + ys.atan();
+    let inv_dxa = 1.0 / dxa;
+    let bracket = xa * inv_dxa + ys.atan();
     let two_pi = 2.0 / std::f64::consts::PI;
     let f = two_pi * mu_w * bracket;
-    let h1 = (1.0 - xa * xa) / (dxa * dxa);
-    let df_dmuw = two_pi * (bracket - xa * h1 - ys / dys);
+    let h1 = (1.0 - xa * xa) * (inv_dxa * inv_dxa);
+    let inv_dys = 1.0 / dys;
+    let df_dmuw = two_pi * (bracket - xa * h1 - ys * inv_dys);
     let scale = two_pi * mu_w * eps;
     (
         f,
@@ -174,8 +191,8 @@ fn mu_and_gradient(x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
             df_dmuw * g,
             df_dmuw * mu0 * (1.0 - e),
             -df_dmuw * mu0 * (1.0 - a) * s.dv * e,
-            scale * (h1 + rho / dys),
-            scale * k_a / dys,
+            scale * (h1 + rho * inv_dys),
+            scale * k_a * inv_dys,
         ],
     )
 }
@@ -188,12 +205,14 @@ fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
     let mu_w = mu0 * ((1.0 - a) * e + a);
     let eps = s.cs / mu_w;
     let (xa, ys) = (k_a * eps, k_a * rho * eps);
-    2.0 / std::f64::consts::PI * mu_w * (xa / (1.0 + xa * xa) + ys.atan())
+    2.0 / std::f64::consts::PI * mu_w * (xa * (1.0 / (1.0 + xa * xa)) + ys.atan())
 }
 
 /// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
 /// `train.temperature_degree`).
 const MAX_NODES: usize = 6;
+/// Most free coordinates of a problem (five parameters, each with up to [`MAX_NODES`]).
+const MAX_COORDS: usize = 5 * MAX_NODES;
 
 /// The samples at one ambient temperature (a contiguous range of the problem's samples) and,
 /// per parameter, its Lagrange basis at that temperature: x_i = Σ_j basis[i][j] · node_ij.
@@ -327,11 +346,13 @@ impl<'a> PolachProblem<'a> {
         let mut jtj = vec![0.0; k * k];
         let mut jtr = vec![0.0; k];
         let mut sse = 0.0;
-        let mut row = vec![0.0; k];
-        // Per coordinate: its parameter, d(parameter)/d(coordinate), and with k_S held the
-        // extra term of k_A through ρ = k_S/k_A (dρ/dk_A = −k_S/k_A²).
-        let mut m = vec![0.0; k];
-        let mut e = vec![0.0; k];
+        // Per coordinate: its parameter and d(parameter)/d(coordinate) at the group.
+        let mut row = [0.0; MAX_COORDS];
+        let mut m = [0.0; MAX_COORDS];
+        let mut ps = [0usize; MAX_COORDS];
+        for (c, co) in self.free.iter().enumerate() {
+            ps[c] = co.param;
+        }
         for g in &self.groups {
             let (x, clamped) = self.at_group(g, &v);
             for (c, co) in self.free.iter().enumerate() {
@@ -341,20 +362,21 @@ impl<'a> PolachProblem<'a> {
                 } else {
                     g.basis[co.param][co.node] * dd
                 };
-                e[c] = match self.ks_fixed {
-                    Some(ks) if co.param == 3 => -m[c] * ks / (x[3] * x[3]),
-                    _ => 0.0,
-                };
             }
+            // With k_S held, k_A also moves ρ = k_S/k_A: dρ/dk_A = −k_S/k_A².
+            let drho = self.ks_fixed.map(|ks| -ks / (x[3] * x[3]));
             for s in &self.samples[g.range.clone()] {
-                let (f, grad) = mu_and_gradient(&x, s);
+                let (f, mut grad) = mu_and_gradient(&x, s);
+                if let Some(dr) = drho {
+                    grad[3] += grad[4] * dr;
+                }
                 let r = f - s.mu;
                 sse += r * r;
                 if let Some(out) = residuals.as_deref_mut() {
                     out.push(r);
                 }
-                for (c, co) in self.free.iter().enumerate() {
-                    row[c] = grad[co.param] * m[c] + grad[4] * e[c];
+                for c in 0..k {
+                    row[c] = grad[ps[c]] * m[c];
                 }
                 for a in 0..k {
                     jtr[a] += row[a] * r;
@@ -448,6 +470,7 @@ pub struct PolachFit {
     /// Standard errors in the same order (μ0, A, B, k_A, k_S), corrected for the residuals'
     /// autocorrelation; NaN (`null`) for a parameter held at a bound or where the data did
     /// not identify it.
+    #[serde(with = "nan_as_null")]
     pub se: [f64; 5],
     /// What the data said about each parameter (same order; k_S's is that of k_S/k_A, the
     /// parameter the fit solves for).
@@ -905,6 +928,7 @@ pub struct TemperatureFit {
     pub b_s_per_m: f64,
     /// Standard errors of the parameters that do not depend on T (μ0, A, B, k_A, k_S order;
     /// null for those that do, or that the pooled fit held).
+    #[serde(with = "nan_as_null")]
     pub se: [f64; 5],
     pub fitted_range_c: (f64, f64),
     /// Median temperature of the samples (°C): the model file's μ0, k_A, k_S are the law's
