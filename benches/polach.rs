@@ -61,7 +61,7 @@ fn bench(c: &mut Criterion) {
     let decimate = p.train.decimate;
     let degree = p.train.temperature_degree;
     g.bench_function("campaign_fits_bundled", |b| {
-        b.iter(|| fit_campaign(&tables, patch, q, decimate, degree))
+        b.iter(|| fit_campaign(&tables, patch, q, decimate, degree, true))
     });
     g.finish();
 

@@ -463,7 +463,7 @@ fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
     for law in ["lr", "table"] {
         let set = measurement_scenes(law, Some("_120kmh"));
         let (tables, _) = campaign(&set, dir.path());
-        let (report, notes) = fit_campaign(&tables, patch, q, p.train.decimate, 2);
+        let (report, notes) = fit_campaign(&tables, patch, q, p.train.decimate, 2, true);
         assert!(notes.is_empty(), "{law}: {notes:?}");
         let fits: Vec<_> = report
             .pooled
@@ -556,7 +556,7 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
                 sc.seed += 100 * seed;
             }
             let (tables, truth) = campaign(&set, dir.path());
-            let (report, _) = fit_campaign(&tables, patch, q, p.train.decimate, 2);
+            let (report, _) = fit_campaign(&tables, patch, q, p.train.decimate, 2, true);
             let t = report.temperature.as_ref().expect("four temperatures");
             let (lo, hi) = t.fitted_range_c;
             let change = t.at(lo).0 / t.at(hi).0 - 1.0;

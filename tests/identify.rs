@@ -1317,7 +1317,7 @@ fn polach_fits_of_thin_data_say_why() {
     t.name = "only".into();
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
-    let (r, notes) = fit_campaign(&[t], patch, q, 1, 2);
+    let (r, notes) = fit_campaign(&[t], patch, q, 1, 2, true);
     assert!(notes.is_empty(), "{notes:?}");
     // The fits file reads back (held parameters' standard errors are null, read as NaN).
     let json = serde_json::to_string(&r).unwrap();
@@ -1391,7 +1391,13 @@ fn the_temperature_form_follows_what_varies() {
     for (what, at) in cases {
         for seed in 1..=3 {
             let tables = tables_over_temperature(at, seed);
-            let (r, notes) = fit_campaign(&tables, patch, q, 1, 2);
+            // Without intervals (`train.polach_intervals = false`): no profiles anywhere.
+            let (r, notes) = fit_campaign(&tables, patch, q, 1, 2, false);
+            assert!(r
+                .pooled
+                .iter()
+                .chain(&r.per_temperature)
+                .all(|f| f.profiles.is_empty()));
             let t = r.temperature.as_ref().expect("a temperature fit");
             let table: Vec<String> = t
                 .candidates
@@ -1533,7 +1539,7 @@ fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
     let p = Pipeline::default_uic_z1();
     let tables = archive_tables(&p);
     let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
-    let (report, notes) = fit_campaign(&tables, patch, q, 8, 2);
+    let (report, notes) = fit_campaign(&tables, patch, q, 8, 2, true);
     assert!(notes.is_empty(), "{notes:?}");
     let ka = |t: f64| {
         report

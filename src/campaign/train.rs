@@ -73,6 +73,7 @@ pub fn train_models(
         q,
         pipeline.train.decimate,
         pipeline.train.temperature_degree,
+        pipeline.train.polach_intervals,
     );
     let polach = match report.pooled.as_ref() {
         None => None,

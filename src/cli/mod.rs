@@ -84,7 +84,7 @@ pipeline) on the valid estimates of the inputs with Levenberg–Marquardt (MATLA
 mu schedule, epochs, min_grad, goal, validation early stopping with max_fail). Default split as in \
 seed 002: train on axle 2, validate on axle 3, pooled over the runs. Only runs of one rail \
 condition (run metadata `condition`; train.condition, default the most common) are used. Then \
-Polach fits (all runs pooled, per run, per ambient temperature) and k_A(T), k_S(T).\n\n\
+Polach fits (all runs pooled, per run, per ambient temperature; profile-likelihood intervals) and the temperature law μ0(T), k_A(T), k_S(T) chosen by BIC.\n\n\
 Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fly). Writes \
 <DIR>/<name>.json (network model file, see models/schema/), <DIR>/<name>.history.csv, \
 <DIR>/<name>.polach.json (Polach model file, with its temperature law when the data choose one) and \

@@ -39,6 +39,7 @@ pub mod raw {
         pub support_min_samples: Option<f64>,
         pub audit_mu_max: Option<f64>,
         pub leave_one_run_out: Option<bool>,
+        pub polach_intervals: Option<bool>,
     }
 }
 
@@ -95,6 +96,8 @@ pub struct TrainConfig {
     pub audit_mu_max: f64,
     /// Leave-one-run-out scores for the report (one more training per run).
     pub leave_one_run_out: bool,
+    /// Profile-likelihood intervals of the pooled and per-temperature Polach fits.
+    pub polach_intervals: bool,
 }
 
 /// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
@@ -278,7 +281,7 @@ const DEGREE: Key = Key::num(
     "",
     int(0.0, 5.0),
     2.0,
-    "degree of k_A(T), k_S(T) (capped at temperatures − 1)",
+    "highest degree of the temperature law μ0(T), k_A(T), k_S(T), chosen by BIC (capped at temperatures − 1)",
 );
 const SUPPORT_CELLS: Key = text(
     "train.support_cells",
@@ -305,6 +308,12 @@ const LEAVE_ONE_OUT: Key = text(
     "`true`, `false`",
     "`true`",
     "score networks trained without each run on that run (report; one single-start training per run)",
+);
+const POLACH_INTERVALS: Key = text(
+    "train.polach_intervals",
+    "`true`, `false`",
+    "`true`",
+    "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 40 refits each; README \"Intervals\")",
 );
 const CONDITION: Key = text(
     "train.condition",
@@ -342,6 +351,7 @@ pub const KEYS: &[&Key] = &[
     &SUPPORT_MIN,
     &AUDIT_MU_MAX,
     &LEAVE_ONE_OUT,
+    &POLACH_INTERVALS,
 ];
 
 impl Checker<'_> {
@@ -438,6 +448,7 @@ impl Checker<'_> {
             support_min_samples: self.value(&SUPPORT_MIN, t.support_min_samples)? as u64,
             audit_mu_max: self.value(&AUDIT_MU_MAX, t.audit_mu_max)?,
             leave_one_run_out: t.leave_one_run_out.unwrap_or(true),
+            polach_intervals: t.polach_intervals.unwrap_or(true),
         })
     }
 

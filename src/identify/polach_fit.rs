@@ -1432,6 +1432,88 @@ mod tests {
         }
     }
 
+    /// Samples over three temperature groups for the problem tests.
+    fn grouped_samples() -> (Vec<Sample>, Vec<(f64, std::ops::Range<usize>)>) {
+        let mut rng = crate::rng::Rng::new(3);
+        let mut s = Vec::new();
+        let mut ranges = Vec::new();
+        for (g, t) in [-20.0, 5.0, 30.0].iter().enumerate() {
+            let from = s.len();
+            for _ in 0..200 {
+                let dv = 0.01 + 3.0 * rng.uniform();
+                s.push(Sample {
+                    q_n: 80_000.0,
+                    v: 5.0 + 30.0 * rng.uniform(),
+                    dv,
+                    mu: 0.08 + 0.01 * g as f64 + 0.005 * rng.normal(),
+                    cs: f64::NAN,
+                });
+            }
+            ranges.push((*t, from..s.len()));
+        }
+        (with_patch(s, &patch()), ranges)
+    }
+
+    fn groups_for(degrees: [usize; 5], ranges: &[(f64, std::ops::Range<usize>)]) -> Vec<Group> {
+        ranges
+            .iter()
+            .map(|(t, r)| Group {
+                range: r.clone(),
+                basis: std::array::from_fn(|i| {
+                    if degrees[i] == 0 {
+                        let mut b = [0.0; MAX_NODES];
+                        b[0] = 1.0;
+                        b
+                    } else {
+                        lagrange(&temperature_nodes(degrees[i], -20.0, 30.0), *t)
+                    }
+                }),
+            })
+            .collect()
+    }
+
+    /// Jᵀr of the temperature-law problem (Lagrange nodes, the logistic chain, k_S held for
+    /// a profile) is the gradient of SSE/2 in θ, by central differences; and with every degree
+    /// 0 the grouped problem is the plain one.
+    #[test]
+    fn grouped_problems_have_the_gradient_of_their_cost() {
+        let (s, ranges) = grouped_samples();
+        let x = [0.1, 0.4, 0.5, 0.2, 0.4];
+        for (degrees, fixed, ks) in [
+            ([1, 0, 0, 2, 1], [None; 5], None),
+            ([2, 0, 0, 0, 0], [None, None, Some(0.5), None, None], None),
+            ([0; 5], [None; 5], Some(0.07)),
+        ] {
+            let problem = PolachProblem::new(&s, groups_for(degrees, &ranges), degrees, fixed, ks);
+            let mut nodes = constant_nodes(&x);
+            // Distinct node values, so that the law does vary with temperature.
+            nodes[0][1] = 0.12;
+            nodes[3][2] = 0.25;
+            let theta = problem.theta(&nodes);
+            let ne = problem.normal_equations(&theta);
+            assert!((ne.sse - problem.sse(&theta)).abs() < 1e-12 * ne.sse);
+            for k in 0..theta.len() {
+                let h = 1e-6;
+                let (mut up, mut dn) = (theta.clone(), theta.clone());
+                up[k] += h;
+                dn[k] -= h;
+                let fd = (problem.sse(&up) - problem.sse(&dn)) / (4.0 * h);
+                assert!(
+                    (ne.jtr[k] - fd).abs() <= 1e-6 * fd.abs().max(1e-6),
+                    "{degrees:?} coordinate {k}: {} vs {fd}",
+                    ne.jtr[k]
+                );
+            }
+        }
+        let plain = PolachProblem::plain(&s, [None; 5], None);
+        let grouped = PolachProblem::new(&s, groups_for([0; 5], &ranges), [0; 5], [None; 5], None);
+        let theta = plain.theta(&constant_nodes(&x));
+        assert_eq!(
+            plain.normal_equations(&theta).jtr,
+            grouped.normal_equations(&theta).jtr
+        );
+    }
+
     #[test]
     fn lagrange_nodes_expand_to_the_polynomial_through_them() {
         let c = [0.1, 0.002, -1e-5, 3e-8];
@@ -1475,14 +1557,16 @@ pub struct PolachReport {
     pub temperature_note: Option<String>,
 }
 
-/// Fits every run, every temperature group and k(T). Runs that cannot be fitted are skipped
-/// with their error in `notes`.
+/// Fits every run, every temperature group (with profile-likelihood intervals for the pooled
+/// and per-temperature fits when `intervals`) and the temperature law. Runs that cannot be
+/// fitted are skipped with their error in `notes`.
 pub fn fit_campaign(
     tables: &[RunTable],
     patch: ContactPatch,
     q_n: f64,
     decimate: usize,
     degree: usize,
+    intervals: bool,
 ) -> (PolachReport, Vec<String>) {
     let start = DEFAULT_START;
     // Every group is fitted independently: in parallel, results kept in group order.
@@ -1505,7 +1589,9 @@ pub fn fit_campaign(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => fit_polach("all runs", &all, patch, q_n, decimate, start, true),
+                Group::Pooled => {
+                    fit_polach("all runs", &all, patch, q_n, decimate, start, intervals)
+                }
                 Group::Run(i) => {
                     let t = &tables[*i];
                     fit_polach(&t.name, &[t], patch, q_n, decimate, start, false).map(|mut f| {
@@ -1525,7 +1611,7 @@ pub fn fit_campaign(
                         q_n,
                         decimate,
                         start,
-                        true,
+                        intervals,
                     )
                     .map(|mut f| {
                         f.ambient_temperature_c = Some(*temp);

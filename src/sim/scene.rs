@@ -562,7 +562,7 @@ const LAW: Key = Key {
     unit: "",
     range: Range::Choice(&["polach", "model", "loss_recovery", "table"]),
     default: Default::Text("\"polach\""),
-    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with k(T), a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
+    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with a temperature law, a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
 };
 const MODEL: Key = text(
     "adhesion.model",
