@@ -197,3 +197,59 @@ fn decompression_bombs_and_damaged_archives_fail_cleanly() {
     let e = read_archive(&p, Limits::default()).unwrap_err().to_string();
     assert!(e.contains("cut.tar.gz"), "{e}");
 }
+
+/// Issue 17, "run-name collision": `x.csv` and `x.mcap` in one campaign once shared
+/// `runs/x/`, the last writer winning and re-runs alternating between sources. Colliding names
+/// now carry their log's format, and names that sanitise alike a counter — the same on every
+/// run, for a folder and for the same campaign as an archive.
+#[test]
+fn logs_with_the_same_stem_get_their_own_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("camp");
+    std::fs::create_dir_all(&camp).unwrap();
+    for (from, to) in [
+        ("soap_120kmh_p20.csv", "x.csv"),
+        ("soap_160kmh_0c.mcap", "x.mcap"),
+        ("soap_120kmh_p20.csv", "a b.csv"),
+        ("soap_120kmh_p20.csv", "a_b.csv"),
+        ("soap_120kmh_m20.csv", "solo.csv"),
+    ] {
+        std::fs::copy(archive(from), camp.join(to)).unwrap();
+    }
+    let names = |root: &Path| -> Vec<(String, String)> {
+        railgrip::campaign::sources(root, None)
+            .unwrap()
+            .into_iter()
+            .map(|(n, s)| {
+                (
+                    n,
+                    s.name().file_name().unwrap().to_string_lossy().into_owned(),
+                )
+            })
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .collect()
+    };
+    let want: Vec<(String, String)> = [
+        ("a_b_csv", "a b.csv"),
+        ("a_b_csv_2", "a_b.csv"),
+        ("solo", "solo.csv"),
+        ("x_csv", "x.csv"),
+        ("x_mcap", "x.mcap"),
+    ]
+    .iter()
+    .map(|(a, b)| (a.to_string(), b.to_string()))
+    .collect();
+    assert_eq!(names(&camp), want);
+    assert_eq!(names(&camp), want, "the same names on a second look");
+    // The same campaign as an archive (members in another order: the names follow the paths).
+    let tar = tar_bytes(
+        &["x.mcap", "solo.csv", "a_b.csv", "x.csv", "a b.csv"]
+            .iter()
+            .map(|f| (f.to_string(), std::fs::read(camp.join(f)).unwrap()))
+            .collect::<Vec<_>>(),
+    );
+    let tar_path = dir.path().join("camp.tar");
+    std::fs::write(&tar_path, tar).unwrap();
+    assert_eq!(names(&tar_path), want);
+}

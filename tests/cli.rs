@@ -516,6 +516,11 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     // Two broken logs in the middle of the campaign.
     std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
     std::fs::write(camp.join("day 2/truncated.mcap"), b"\x89MCAP0\r\n\x01\x02").unwrap();
+    // Issue 17: a well-formed CSV whose last row lies 1e9 s after the others once made the
+    // resampler ask for terabytes and abort the whole campaign.
+    let mut far = common::Table::analytic(0.5, 417.0, 0.0, 2);
+    *far.time_s.last_mut().unwrap() = 1e9;
+    std::fs::write(camp.join("far.csv"), far.csv_bytes()).unwrap();
 
     let o = railgrip(
         &["run", "campaign", "--out", "out", "--jobs", "2"],
@@ -524,10 +529,16 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let (out, err) = (text(&o.stdout), text(&o.stderr));
     assert_eq!(o.status.code(), Some(3), "{out}{err}");
     assert!(
-        out.contains("failed     broken:") && out.contains("failed     day_2__truncated:"),
+        out.contains("failed     broken:")
+            && out.contains("failed     day_2__truncated:")
+            && out.contains("failed     far:"),
         "{out}"
     );
-    assert!(out.contains("2 of 5 run(s) failed"), "{out}");
+    assert!(out.contains("3 of 6 run(s) failed"), "{out}");
+    assert!(
+        out.contains("far.csv") && out.contains("ingest.max_duration_s"),
+        "{out}"
+    );
     // The errors name the file.
     assert!(
         out.contains("broken.csv") && out.contains("truncated.mcap"),
@@ -556,9 +567,9 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     }
     let summary = std::fs::read_to_string(o_dir.join("summary.csv")).unwrap();
     let rows: Vec<&str> = summary.lines().collect();
-    assert_eq!(rows.len(), 6, "{summary}");
+    assert_eq!(rows.len(), 7, "{summary}");
     assert!(rows[0].starts_with("run,status,error,reused,duration_s,initial_speed_kmh"));
-    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 2);
+    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 3);
     let html = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
     assert!(
         html.contains("<svg") && html.contains("Failed runs") && html.contains("truncated.mcap"),
@@ -571,7 +582,7 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(o.status.code(), Some(3));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["reused"], 3, "{j}");
-    assert_eq!(j["failed"], 2);
+    assert_eq!(j["failed"], 3);
     assert_eq!(j["exit_code"], 3);
     assert_eq!(j["condition"], "soap");
     // A changed sidecar invalidates its run only.

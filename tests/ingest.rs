@@ -1113,3 +1113,51 @@ fn corrupt_record_length_is_an_error_not_an_allocation_abort() {
         "{e}"
     );
 }
+
+/// Issue 17, "a 206-byte CSV takes down the whole campaign": two rows 1e9 s apart made the
+/// resampler ask for 3.3 TB and abort; t = 1e300 overflowed the grid to 0 samples and passed
+/// as a run; a time column in ms read as s used 1.4 GB. Each is now an error before the grid is
+/// allocated, naming the file, the span and the limit, with a hint at the time unit where the
+/// rows' spacing suggests one.
+#[test]
+fn time_spans_beyond_the_limit_are_errors_before_any_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, last_t) in [
+        ("far.csv", 1e9),
+        ("overflow.csv", 1e300),
+        ("hours.csv", 5.0 * 3600.0),
+    ] {
+        let mut table = Table::analytic(0.5, 417.0, 0.0, 2);
+        *table.time_s.last_mut().unwrap() = last_t;
+        let p = write(dir.path(), name, &table.csv_bytes());
+        let e = err(&p, &default());
+        assert!(
+            e.contains(name) && e.contains("ingest.max_duration_s = 14400 s") && e.contains("span"),
+            "{e}"
+        );
+        // One stray row: named as such, whatever its value.
+        assert!(e.contains("a time stamp far from the others"), "{e}");
+    }
+    // A 60 s run logged in ms under a pipeline that says s: 60 000 "s", rows 2.4 "s" apart.
+    let mut table = Table::analytic(60.0, 417.0, 0.0, 3);
+    table.time_s.iter_mut().for_each(|t| *t *= 1000.0);
+    let p = write(dir.path(), "in_ms.csv", &table.csv_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("in_ms.csv") && e.contains("milliseconds") && e.contains("unit = \"ms\""),
+        "{e}"
+    );
+    // The limit is the pipeline's: a 200 s log passes the default and fails a 100 s limit.
+    let mut table = Table::analytic(0.5, 417.0, 0.0, 2);
+    *table.time_s.last_mut().unwrap() = 200.0;
+    let path = write(dir.path(), "long.csv", &table.csv_bytes());
+    let log = ingest_file(&path, &default()).unwrap();
+    assert_eq!(log.time_s.len(), 200 * 417 + 1);
+    let mut short = default();
+    short.ingest.max_duration_s = 100.0;
+    let e = err(&path, &short);
+    assert!(
+        e.contains("long.csv") && e.contains("ingest.max_duration_s = 100 s"),
+        "{e}"
+    );
+}

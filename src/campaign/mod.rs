@@ -174,7 +174,41 @@ pub fn sources(
             hint: "give the folder that holds the campaign's logs".into(),
         });
     }
-    Ok(logs)
+    Ok(unique_names(logs))
+}
+
+/// Run names made unique (issue 17: `x.csv` and `x.mcap` once shared `runs/x/`, the last
+/// writer winning): where names collide, each gets its log's extension (`x_csv`, `x_mcap`);
+/// where they still collide (names that sanitise alike, `a b.csv` and `a_b.csv`), a counter in
+/// the order of the logs' paths (`a_b_csv`, `a_b_csv_2`): the same names on every run, for a
+/// folder and for an archive of it.
+fn unique_names(mut logs: Vec<(String, LogSource)>) -> Vec<(String, LogSource)> {
+    let count = |logs: &[(String, LogSource)], n: &str| logs.iter().filter(|(m, _)| m == n).count();
+    let collided: Vec<bool> = logs.iter().map(|(n, _)| count(&logs, n) > 1).collect();
+    for ((name, src), hit) in logs.iter_mut().zip(collided) {
+        if hit {
+            let ext = src
+                .name()
+                .extension()
+                .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                .unwrap_or_default();
+            name.push('_');
+            name.push_str(if ext.is_empty() { "log" } else { &ext });
+        }
+    }
+    // Counters in the order of the logs' paths (an archive lists its members in any order).
+    let mut order: Vec<usize> = (0..logs.len()).collect();
+    order.sort_by(|&a, &b| logs[a].1.name().cmp(logs[b].1.name()));
+    let mut seen: std::collections::HashMap<String, usize> = std::collections::HashMap::new();
+    for i in order {
+        let name = &mut logs[i].0;
+        let k = seen.entry(name.clone()).or_insert(0);
+        *k += 1;
+        if *k > 1 {
+            name.push_str(&format!("_{k}"));
+        }
+    }
+    logs
 }
 
 /// Runs the campaign at `root` (a folder or an archive file) into `out`: every run, the

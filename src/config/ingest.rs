@@ -14,6 +14,7 @@ pub mod raw {
     pub struct Ingest {
         pub sample_rate_hz: Option<f64>,
         pub max_gap_ms: Option<f64>,
+        pub max_duration_s: Option<f64>,
         #[serde(default)]
         pub plausibility: Plausibility,
         #[serde(default)]
@@ -107,6 +108,8 @@ pub struct IngestConfig {
     pub sample_rate_hz: f64,
     /// Longest hole in a channel that is bridged by linear interpolation, s.
     pub max_gap_s: f64,
+    /// Longest run the resampler accepts, s (bounds the uniform grid it allocates).
+    pub max_duration_s: f64,
     pub plausibility: Plausibility,
     pub csv_time: CsvColumn,
     /// CSV columns in [`Signal::ALL`] order.
@@ -138,6 +141,13 @@ const MAX_GAP: Key = Key {
     default: Default::Num(50.0),
     meaning: "longest hole in a channel interpolated across; longer ones are masked",
 };
+const MAX_DURATION: Key = Key::num(
+    "ingest.max_duration_s",
+    "s",
+    closed(1.0, 86_400.0),
+    14_400.0,
+    "longest run accepted: the common time span of the channels (bounds the uniform grid, also at most 2·10⁷ samples); a longer span is an error that names the file and hints at a wrong time unit",
+);
 const ACTION: Key = Key {
     name: "ingest.plausibility.action",
     unit: "",
@@ -203,6 +213,7 @@ const MCAP: Key = Key {
 pub const KEYS: &[&Key] = &[
     &RATE,
     &MAX_GAP,
+    &MAX_DURATION,
     &ACTION,
     &SPEED_MIN,
     &SPEED_MAX,
@@ -265,6 +276,7 @@ impl Checker<'_> {
         Ok(IngestConfig {
             sample_rate_hz: fs,
             max_gap_s: max_gap_ms * 1e-3,
+            max_duration_s: self.value(&MAX_DURATION, i.max_duration_s)?,
             plausibility,
             csv_time,
             csv: csv.try_into().expect("nine signals"),

@@ -167,6 +167,18 @@ pub enum IngestError {
     },
     #[error("{path}: the channels do not overlap long enough to resample: {what}. Hint: every signal must have data over a common time span of at least two samples")]
     NoOverlap { path: PathBuf, what: String },
+    /// The channels' common time span would make a uniform grid beyond the limits (issue 17:
+    /// two rows 1e9 s apart once asked for terabytes).
+    #[error("{path}: the channels span {span_s:.6e} s from t = {t_start} s, {samples:.3e} samples at {rate_hz} Hz; the limit is ingest.max_duration_s = {limit_s} s and 2e7 samples. Hint: {hint}")]
+    TooLong {
+        path: PathBuf,
+        span_s: f64,
+        t_start: f64,
+        samples: f64,
+        rate_hz: f64,
+        limit_s: f64,
+        hint: String,
+    },
     #[error("{path}: bad run metadata in {source_name}: {what}. Hint: {hint}")]
     Metadata {
         path: PathBuf,

@@ -184,6 +184,65 @@ fn median_step(t: &[f64]) -> f64 {
     *m
 }
 
+/// Most samples of a resampled run (2·10⁷: 1.6 GB of grid for its ten columns).
+pub const MAX_SAMPLES: f64 = 2e7;
+
+/// The channels' common span [t_start, t_end] (s) must be finite, at most
+/// `ingest.max_duration_s` and at most [`MAX_SAMPLES`] at the sample rate, checked before the
+/// grid is allocated. The hint reads the rows' median spacing: a span far beyond it means a
+/// stray time stamp; rows a thousand times further apart than a logger's usually are mean a
+/// time column in ms or µs declared as s.
+fn check_span(
+    path: &Path,
+    kept: &[(Cow<'_, [f64]>, Cow<'_, [f64]>)],
+    t_start: f64,
+    t_end: f64,
+    cfg: &IngestConfig,
+) -> Result<(), IngestError> {
+    let fs = cfg.sample_rate_hz;
+    let span = t_end - t_start;
+    let samples = span * fs;
+    if span.is_finite() && span <= cfg.max_duration_s && samples <= MAX_SAMPLES {
+        return Ok(());
+    }
+    // The densest channel's rows: their median spacing (s; robust to a stray row) and count.
+    let (step, rows) = kept
+        .iter()
+        .map(|(t, _)| t)
+        .max_by_key(|t| t.len())
+        .map(|t| {
+            let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+            d.sort_by(f64::total_cmp);
+            (d.get(d.len() / 2).copied().unwrap_or(f64::NAN), t.len())
+        })
+        .unwrap_or((f64::NAN, 0));
+    let hint = if !span.is_finite() || span > 10.0 * step * rows as f64 {
+        format!(
+            "a time stamp far from the others: the rows lie {step:.3e} s apart (median) yet span {span:.3e} s — a corrupt row or message? Check the first and last time stamps of each channel"
+        )
+    } else if (0.05..50.0).contains(&step) {
+        format!(
+            "the rows lie {step:.4} s apart (median) — about 1000 times a logger's usual spacing: is the time column in milliseconds? Declare its unit (ingest.csv.time = {{ unit = \"ms\" }})"
+        )
+    } else if (50.0..5e4).contains(&step) {
+        format!(
+            "the rows lie {step:.1} s apart (median): is the time column in microseconds? Declare its unit (unit = \"us\")"
+        )
+    } else {
+        "raise ingest.max_duration_s if the run really lasts this long, or split the log"
+            .to_string()
+    };
+    Err(IngestError::TooLong {
+        path: path.to_path_buf(),
+        span_s: span,
+        t_start,
+        samples,
+        rate_hz: fs,
+        limit_s: cfg.max_duration_s,
+        hint,
+    })
+}
+
 pub(super) fn resample(
     path: &Path,
     channels: &[RawChannel],
@@ -221,6 +280,7 @@ pub(super) fn resample(
             ),
         });
     }
+    check_span(path, &kept, t_start, t_end, cfg)?;
     let n = ((t_end - t_start) * fs + 1e-9).floor() as usize + 1;
     let time_s: Vec<f64> = (0..n)
         .map(|j| (t_start + j as f64 / fs).min(t_end))
