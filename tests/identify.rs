@@ -579,6 +579,58 @@ fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<
     Some((worst, differ))
 }
 
+/// Issue 17, "C-header injection": `railgrip export` copied the model's path into the header
+/// comment, so a path holding `*/ int injected_symbol = 1; /*` compiled into the header. Now
+/// the comment text is made safe: the header compiles and defines no such symbol.
+#[test]
+fn a_hostile_model_path_cannot_inject_code_into_the_c_header() {
+    let hostile = "models/x*/ int injected_symbol = 1; /*y\\\nz.json";
+    for (file, prefix) in [(synthetic_model(), "rg"), (polach_model(true), "rgp")] {
+        let header = c_header::c_header(&file, prefix, hostile);
+        assert!(!header.contains("*/ int injected_symbol"), "{header}");
+        assert!(
+            header.contains("int injected_symbol = 1;"),
+            "the path stays readable"
+        );
+        let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+        if std::process::Command::new(&cc)
+            .arg("--version")
+            .output()
+            .is_err()
+        {
+            assert!(
+                std::env::var("CI").as_deref() != Ok("true"),
+                "CI=true but no C compiler"
+            );
+            eprintln!("SKIPPED compiling: no C compiler ({cc})");
+            continue;
+        }
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("model.h"), &header).unwrap();
+        std::fs::write(
+            dir.path().join("use.c"),
+            format!("#include \"model.h\"\ndouble f(double x) {{ return {prefix}_mu(x, 0.0); }}\n"),
+        )
+        .unwrap();
+        let obj = dir.path().join("use.o");
+        let out = std::process::Command::new(&cc)
+            .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-c", "-o"])
+            .arg(&obj)
+            .arg(dir.path().join("use.c"))
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if let Ok(nm) = std::process::Command::new("nm").arg(&obj).output() {
+            let syms = String::from_utf8_lossy(&nm.stdout);
+            assert!(!syms.contains("injected_symbol"), "{syms}");
+        }
+    }
+}
+
 #[test]
 fn c_header_agrees_with_the_rust_evaluator() {
     let model = Model::new(synthetic_model()).unwrap();
@@ -967,6 +1019,13 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
         "temperature input goes with a temperature law",
     );
     bad(&|v| v["outside_domain"] = "clamp".into(), "\"law\"");
+    // Issue 17: free text in a unit once reached the C header unescaped; units are the
+    // inputs' own.
+    bad(
+        &|v| v["inputs"][0]["unit"] = "m/s */ int injected_symbol = 1; /*".into(),
+        "the unit of dv_mps is \"m/s\"",
+    );
+    bad(&|v| v["output"]["unit"] = "N".into(), "\"mu\" in \"1\"");
     bad(
         &|v| {
             v.as_object_mut().unwrap().remove("polach");

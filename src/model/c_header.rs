@@ -18,9 +18,24 @@ fn lit(x: f64) -> String {
     }
 }
 
+/// `s` made safe inside a C block comment (issue 17: a model path holding
+/// `*/ int injected_symbol = 1; /*` once compiled into the header): `*/` and `/*` broken
+/// apart, control characters and backslashes (a line continuation) replaced by `?`.
+fn comment_text(s: &str) -> String {
+    let mut out: String = s
+        .chars()
+        .map(|c| if c.is_control() || c == '\\' { '?' } else { c })
+        .collect();
+    while out.contains("*/") || out.contains("/*") {
+        out = out.replace("*/", "* /").replace("/*", "/ *");
+    }
+    out
+}
+
 /// `name [unit] in [min, max]` of every input, for the header comment.
 fn inputs_line(m: &ModelFile) -> String {
-    m.inputs
+    let line = m
+        .inputs
         .iter()
         .map(|i| {
             format!(
@@ -32,7 +47,8 @@ fn inputs_line(m: &ModelFile) -> String {
             )
         })
         .collect::<Vec<_>>()
-        .join(", ")
+        .join(", ");
+    comment_text(&line)
 }
 
 fn array(name: &str, v: &[f64]) -> String {
@@ -152,8 +168,8 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
                 .to_string(),
             ),
             ("ver", env!("CARGO_PKG_VERSION").to_string()),
-            ("source", source.to_string()),
-            ("fmt", m.format.clone()),
+            ("source", comment_text(source)),
+            ("fmt", comment_text(&m.format)),
             ("fv", m.version.to_string()),
             ("nt", m.metrics.train_samples.to_string()),
             (
@@ -220,8 +236,8 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
                 .to_string(),
             ),
             ("ver", env!("CARGO_PKG_VERSION").to_string()),
-            ("source", source.to_string()),
-            ("fmt", m.format.clone()),
+            ("source", comment_text(source)),
+            ("fmt", comment_text(&m.format)),
             ("fv", m.version.to_string()),
             ("nt", m.metrics.train_samples.to_string()),
             ("rmse", lit(m.metrics.train_mse.sqrt())),

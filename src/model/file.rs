@@ -401,6 +401,29 @@ impl ModelFile {
 
     /// Shapes, names and numbers are consistent and finite.
     pub fn check(&self) -> Result<(), Defect> {
+        // Units are the inputs' own (issue 17: a free-text unit once reached the C header's
+        // comment unescaped), and μ is dimensionless.
+        for i in &self.inputs {
+            let want = InputSet::ALL
+                .iter()
+                .flat_map(|s| s.names().iter())
+                .find(|(n, _)| *n == i.name)
+                .map(|(_, u)| *u);
+            if let Some(u) = want {
+                if i.unit != u {
+                    return Err(Defect::Value(format!(
+                        "inputs[{}].unit = {:?}; the unit of {} is {u:?}",
+                        i.name, i.unit, i.name
+                    )));
+                }
+            }
+        }
+        if self.output.unit != "1" || self.output.name != "mu" {
+            return Err(Defect::Value(format!(
+                "output is {:?} in {:?}; it must be \"mu\" in \"1\"",
+                self.output.name, self.output.unit
+            )));
+        }
         match self.kind {
             ModelKind::Mlp => self.check_mlp(),
             ModelKind::Polach if self.support.is_some() || self.audit.is_some() => {

@@ -14,6 +14,7 @@
 #define MLP_ADHESION_MODEL_H
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <string.h>
 

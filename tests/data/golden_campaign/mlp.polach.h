@@ -13,6 +13,7 @@
 #define MLP_POLACH_ADHESION_MODEL_H
 
 #include <math.h>
+#include <stddef.h>
 
 #define MLP_POLACH_KIND_POLACH 1
 #define MLP_POLACH_HAS_TEMPERATURE 1
