@@ -1026,12 +1026,72 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
         "the unit of dv_mps is \"m/s\"",
     );
     bad(&|v| v["output"]["unit"] = "N".into(), "\"mu\" in \"1\"");
+    // Issue 17, "model files that evaluate to NaN/±∞ load fine": a wheel load of 5e-324
+    // (finite, valid on its own) makes μ NaN; 10⁶ k(T) coefficients took seconds to check.
+    bad(
+        &|v| v["polach"]["wheel_load_n"] = 5e-324.into(),
+        "a model must be finite there",
+    );
+    bad(
+        &|v| v["polach"]["temperature"]["k_a"] = serde_json::json!(vec![0.0; 1_000_000]),
+        "at most 11",
+    );
     bad(
         &|v| {
             v.as_object_mut().unwrap().remove("polach");
         },
         "needs a \"polach\" section",
     );
+}
+
+/// Issue 17, "model files that evaluate to NaN/±∞ load fine": networks whose constants are
+/// finite but extreme (weights 1e308, an output range of ±1e308) or whose output range is
+/// reversed are refused at load, naming the file and what is wrong.
+#[test]
+fn network_files_that_would_evaluate_to_nan_are_refused() {
+    let good = synthetic_model().to_json();
+    let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
+        let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
+        edit(&mut v);
+        let e = ModelFile::from_json(&v.to_string(), "hostile.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("hostile.json") && e.contains(needle),
+            "{needle}: {e}"
+        );
+    };
+    bad(
+        &|v| {
+            v["output"]["norm_min"] = (-1e308).into();
+            v["output"]["norm_max"] = 1e308.into();
+        },
+        "a model must be finite there",
+    );
+    bad(
+        &|v| {
+            fn huge(x: &mut serde_json::Value) {
+                match x {
+                    serde_json::Value::Number(_) => *x = 1e308.into(),
+                    serde_json::Value::Array(a) => a.iter_mut().for_each(huge),
+                    _ => {}
+                }
+            }
+            for l in v["layers"].as_array_mut().unwrap() {
+                huge(&mut l["weights"]);
+            }
+        },
+        "a model must be finite there",
+    );
+    bad(
+        &|v| {
+            v["output"]["norm_min"] = 0.5.into();
+            v["output"]["norm_max"] = 0.1.into();
+        },
+        "must be below output.norm_max",
+    );
+    // The good file still loads.
+    assert!(ModelFile::from_json(&good, "good.json").is_ok());
 }
 
 #[test]

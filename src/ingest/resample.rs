@@ -184,6 +184,9 @@ fn median_step(t: &[f64]) -> f64 {
     *m
 }
 
+/// A channel's kept (time, value) samples.
+type Kept<'a> = (Cow<'a, [f64]>, Cow<'a, [f64]>);
+
 /// Most samples of a resampled run (2·10⁷: 1.6 GB of grid for its ten columns).
 pub const MAX_SAMPLES: f64 = 2e7;
 
@@ -194,7 +197,7 @@ pub const MAX_SAMPLES: f64 = 2e7;
 /// time column in ms or µs declared as s.
 fn check_span(
     path: &Path,
-    kept: &[(Cow<'_, [f64]>, Cow<'_, [f64]>)],
+    kept: &[Kept<'_>],
     t_start: f64,
     t_end: f64,
     cfg: &IngestConfig,

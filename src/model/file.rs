@@ -424,16 +424,25 @@ impl ModelFile {
                 self.output.name, self.output.unit
             )));
         }
+        // NaN fails too.
+        if self.output.norm_min.partial_cmp(&self.output.norm_max) != Some(std::cmp::Ordering::Less)
+        {
+            return Err(Defect::Value(format!(
+                "output.norm_min = {} must be below output.norm_max = {}",
+                self.output.norm_min, self.output.norm_max
+            )));
+        }
         match self.kind {
-            ModelKind::Mlp => self.check_mlp(),
+            ModelKind::Mlp => self.check_mlp()?,
             ModelKind::Polach if self.support.is_some() || self.audit.is_some() => {
-                Err(Defect::ForeignSection {
+                return Err(Defect::ForeignSection {
                     kind: "polach",
                     what: "\"support\" or \"audit\" section",
                 })
             }
-            ModelKind::Polach => polach::check(self),
+            ModelKind::Polach => polach::check(self)?,
         }
+        super::check_finite_on_domain(self)
     }
 
     fn check_mlp(&self) -> Result<(), Defect> {

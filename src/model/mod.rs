@@ -110,6 +110,61 @@ enum Law {
     Polach(polach::PolachEval),
 }
 
+/// Points per input of the load-time check grid (both ends of the domain and 5 between).
+const CHECK_POINTS: usize = 7;
+
+/// Issue 17, "model files that evaluate to NaN/±∞ load fine": μ must be finite at every point of
+/// a grid over the declared input domains ([`CHECK_POINTS`] per input, at most 7⁴ = 2 401
+/// evaluations), the evaluator itself doing the work, so that extreme but finite constants
+/// (weights 1e308, an output range of ±1e308, a wheel load of 5e-324) are caught where they
+/// matter. `file` must have passed the structural checks.
+pub(crate) fn check_finite_on_domain(file: &ModelFile) -> Result<(), Defect> {
+    let law = match file.kind {
+        ModelKind::Mlp => Law::Mlp(Net::new(file)),
+        ModelKind::Polach => Law::Polach(polach::PolachEval::new(file)),
+    };
+    let axes: Vec<(&str, Vec<f64>)> = file
+        .inputs
+        .iter()
+        .map(|i| {
+            let pts = (0..CHECK_POINTS)
+                .map(|k| {
+                    let f = k as f64 / (CHECK_POINTS - 1) as f64;
+                    i.domain_min + (i.domain_max - i.domain_min) * f
+                })
+                .collect();
+            (i.name.as_str(), pts)
+        })
+        .collect();
+    let total: usize = axes.iter().map(|a| a.1.len()).product();
+    for mut k in 0..total {
+        // (dv, ddv, v, t): absent inputs as the evaluators take them (ddv 0, v and t NaN).
+        let mut x = [0.0, 0.0, f64::NAN, f64::NAN];
+        for (name, pts) in &axes {
+            let v = pts[k % pts.len()];
+            k /= pts.len();
+            let slot = match *name {
+                "dv_mps" => 0,
+                "ddv_mps2" => 1,
+                "v_mps" => 2,
+                _ => 3,
+            };
+            x[slot] = v;
+        }
+        let mu = match &law {
+            Law::Mlp(n) => n.mu_vt(x[0], x[1], x[2], x[3]),
+            Law::Polach(p) => p.mu_vt(x[0], x[1], x[2], x[3]),
+        };
+        if !mu.is_finite() {
+            return Err(Defect::Value(format!(
+                "μ = {mu} at dv_mps = {}, ddv_mps2 = {}, v_mps = {}, ambient_temperature_c = {} inside the declared domain; a model must be finite there (check the weights, output range and constants for extreme values)",
+                x[0], x[1], x[2], x[3]
+            )));
+        }
+    }
+    Ok(())
+}
+
 impl Model {
     /// Checks `file` and prepares its evaluator; errors call it "model".
     pub fn new(file: ModelFile) -> Result<Model, ModelError> {

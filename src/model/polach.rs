@@ -29,6 +29,10 @@ use crate::contact::polach::{horner, PolachParams};
 /// Name of the optional third input of a Polach model with a temperature law.
 pub const TEMPERATURE_INPUT: &str = "ambient_temperature_c";
 
+/// Most coefficients of a temperature-law polynomial: k_S(T) = k_A(T) · (k_S/k_A)(T) of
+/// degrees up to 5 each (`train.temperature_degree` ≤ 5) has 11.
+pub const MAX_COEFFICIENTS: usize = 11;
+
 /// Speeds below this (m/s) are evaluated at this speed.
 pub const MIN_SPEED_MPS: f64 = 0.1;
 
@@ -180,6 +184,15 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
             return Err(Defect::Value(
                 "polach.temperature: coefficients or fitted range not finite".into(),
             ));
+        }
+        // Issue 17: a file with 10⁶ coefficients took 3.6 s to check and made an 18 MB header.
+        for (what, c) in [("mu0", &t.mu0), ("k_a", &t.k_a), ("k_s", &t.k_s)] {
+            if c.len() > MAX_COEFFICIENTS {
+                return Err(Defect::Value(format!(
+                    "polach.temperature.{what} has {} coefficients; at most {MAX_COEFFICIENTS} (k_S = k_A · k_S/k_A of degree 5 each has 11)",
+                    c.len()
+                )));
+            }
         }
         let dom = &m.inputs[2];
         if dom.domain_min != lo || dom.domain_max != hi {
