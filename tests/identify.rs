@@ -991,19 +991,22 @@ fn polach_model_files_evaluate_the_contact_librarys_law_and_round_trip() {
     assert!(e.contains("no temperature law"), "{e}");
 }
 
+/// `good` (a model file's JSON) edited by `edit` is refused at load by an error naming `file`
+/// and containing `needle`.
+fn assert_refused(good: &str, file: &str, edit: &dyn Fn(&mut serde_json::Value), needle: &str) {
+    let mut v: serde_json::Value = serde_json::from_str(good).unwrap();
+    edit(&mut v);
+    let e = ModelFile::from_json(&v.to_string(), file)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains(file) && e.contains(needle), "{needle}: {e}");
+}
+
 #[test]
 fn polach_model_files_reject_what_they_cannot_evaluate() {
     let good = polach_model(true).to_json();
     let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
-        let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
-        edit(&mut v);
-        let e = ModelFile::from_json(&v.to_string(), "bad.polach.json")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("bad.polach.json") && e.contains(needle),
-            "{needle}: {e}"
-        );
+        assert_refused(&good, "bad.polach.json", edit, needle)
     };
     // k_A(T) leaves (0, 1] inside the fitted range.
     bad(
@@ -1051,15 +1054,7 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
 fn network_files_that_would_evaluate_to_nan_are_refused() {
     let good = synthetic_model().to_json();
     let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
-        let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
-        edit(&mut v);
-        let e = ModelFile::from_json(&v.to_string(), "hostile.json")
-            .unwrap_err()
-            .to_string();
-        assert!(
-            e.contains("hostile.json") && e.contains(needle),
-            "{needle}: {e}"
-        );
+        assert_refused(&good, "hostile.json", edit, needle)
     };
     bad(
         &|v| {

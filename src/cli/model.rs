@@ -222,28 +222,21 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     }
     match &report.temperature {
         Some(t) => {
-            let best = t
+            // ΔBIC of the runner-up among the valid forms.
+            let mut bics: Vec<f64> = t
                 .candidates
                 .iter()
                 .filter(|c| c.rejected.is_none())
-                .map(|c| c.bic);
-            let runner_up = best
-                .clone()
-                .filter(|b| {
-                    *b > t
-                        .candidates
-                        .iter()
-                        .find(|c| c.mu0_degree == t.mu0_degree && c.k_degree == t.k_degree)
-                        .map_or(f64::NAN, |c| c.bic)
-                })
-                .fold(f64::INFINITY, f64::min);
-            let chosen_bic = best.fold(f64::INFINITY, f64::min);
+                .map(|c| c.bic)
+                .collect();
+            bics.sort_by(f64::total_cmp);
+            let next = bics.get(1).map_or(f64::NAN, |b| b - bics[0]);
             println!(
                 "T law      {} chosen by {} among {} forms (next best ΔBIC {:.1}); fitted over {} … {} °C",
                 t.form(),
                 t.criterion,
                 t.candidates.len(),
-                runner_up - chosen_bic,
+                next,
                 t.fitted_range_c.0,
                 t.fitted_range_c.1
             );

@@ -313,7 +313,7 @@ const POLACH_INTERVALS: Key = text(
     "train.polach_intervals",
     "`true`, `false`",
     "`true`",
-    "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 40 refits each; README \"Intervals\")",
+    "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 30 LM refits per fit; README \"Intervals\")",
 );
 const CONDITION: Key = text(
     "train.condition",

@@ -247,13 +247,9 @@ type Nodes = [[f64; MAX_NODES]; 5];
 impl<'a> PolachProblem<'a> {
     /// Constant parameters over all samples, `fixed` held.
     fn plain(samples: &'a [Sample], fixed: [Option<f64>; 5], ks_fixed: Option<f64>) -> Self {
-        let mut basis = [[0.0; MAX_NODES]; 5];
-        for b in &mut basis {
-            b[0] = 1.0;
-        }
         let group = Group {
             range: 0..samples.len(),
-            basis,
+            basis: basis_at([0; 5], 0.0, 0.0, 0.0),
         };
         Self::new(samples, vec![group], [0; 5], fixed, ks_fixed)
     }
@@ -1019,6 +1015,20 @@ fn temperature_nodes(d: usize, lo: f64, hi: f64) -> Vec<f64> {
         .collect()
 }
 
+/// Per parameter, the basis at temperature t (°C) of a law of `degrees` over [lo, hi]: the
+/// Lagrange basis of its nodes, or [1, 0, …] for a constant.
+fn basis_at(degrees: [usize; 5], lo: f64, hi: f64, t: f64) -> [[f64; MAX_NODES]; 5] {
+    std::array::from_fn(|i| {
+        if degrees[i] == 0 {
+            let mut b = [0.0; MAX_NODES];
+            b[0] = 1.0;
+            b
+        } else {
+            lagrange(&temperature_nodes(degrees[i], lo, hi), t)
+        }
+    })
+}
+
 /// The Lagrange basis of `nodes` at t.
 fn lagrange(nodes: &[f64], t: f64) -> [f64; MAX_NODES] {
     let mut out = [0.0; MAX_NODES];
@@ -1228,15 +1238,7 @@ pub fn fit_temperature_forms(
                 .iter()
                 .map(|(t, r)| Group {
                     range: r.clone(),
-                    basis: std::array::from_fn(|i| {
-                        if degrees[i] == 0 {
-                            let mut b = [0.0; MAX_NODES];
-                            b[0] = 1.0;
-                            b
-                        } else {
-                            lagrange(&nodes[i], *t)
-                        }
-                    }),
+                    basis: basis_at(degrees, lo, hi, *t),
                 })
                 .collect();
             let degrees_free: [usize; 5] =
@@ -1331,22 +1333,7 @@ pub fn fit_temperature_forms(
             hint: "lower train.temperature_degree".into(),
         })?;
     let chosen = &fits[best];
-    let law = |t: f64| {
-        (
-            horner(&chosen.mu0, t),
-            horner(&chosen.k_a, t),
-            horner(&chosen.k_s, t),
-        )
-    };
-    let residuals = per_temperature
-        .iter()
-        .filter_map(|f| {
-            let t = f.ambient_temperature_c?;
-            let (m, a, k) = law(t);
-            Some((t, f.mu0 - m, f.k_a - a, f.k_s - k))
-        })
-        .collect();
-    Ok(TemperatureFit {
+    let mut law = TemperatureFit {
         mu0_degree: chosen.record.mu0_degree,
         k_degree: chosen.record.k_degree,
         mu0: chosen.mu0.clone(),
@@ -1361,10 +1348,19 @@ pub fn fit_temperature_forms(
         effective_samples: n_eff,
         criterion: "BIC".into(),
         candidates: fits.into_iter().map(|f| f.record).collect(),
-        residuals,
+        residuals: Vec::new(),
         excluded,
         notes,
-    })
+    };
+    law.residuals = per_temperature
+        .iter()
+        .filter_map(|f| {
+            let t = f.ambient_temperature_c?;
+            let (m, a, k) = law.at(t);
+            Some((t, f.mu0 - m, f.k_a - a, f.k_s - k))
+        })
+        .collect();
+    Ok(law)
 }
 
 #[cfg(test)]
@@ -1459,15 +1455,7 @@ mod tests {
             .iter()
             .map(|(t, r)| Group {
                 range: r.clone(),
-                basis: std::array::from_fn(|i| {
-                    if degrees[i] == 0 {
-                        let mut b = [0.0; MAX_NODES];
-                        b[0] = 1.0;
-                        b
-                    } else {
-                        lagrange(&temperature_nodes(degrees[i], -20.0, 30.0), *t)
-                    }
-                }),
+                basis: basis_at(degrees, -20.0, 30.0, *t),
             })
             .collect()
     }
