@@ -151,6 +151,7 @@ fn bench(c: &mut Criterion) {
             seed: 1,
             crate_version: env!("CARGO_PKG_VERSION").into(),
             created: "2026-01-01T00:00:00Z".into(),
+            generation: None,
         },
         None,
     )

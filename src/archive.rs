@@ -63,7 +63,7 @@ pub enum Kind {
 /// The archive kind of `path` from its first bytes; None for anything else (a folder, a log).
 pub fn kind_of(path: &Path) -> Option<Kind> {
     let mut head = [0u8; 512];
-    let mut f = std::fs::File::open(path).ok()?;
+    let mut f = crate::input::open_regular(path).ok()?;
     let mut n = 0;
     while n < head.len() {
         match f.read(&mut head[n..]) {
@@ -86,12 +86,14 @@ pub fn kind_of(path: &Path) -> Option<Kind> {
 }
 
 /// What a member is to railgrip.
+fn hidden(name: &str) -> bool {
+    name.split('/')
+        .any(|c| c.starts_with('.') || c == "__MACOSX")
+}
+
 fn wanted(name: &str) -> bool {
     let lower = name.to_ascii_lowercase();
-    let hidden = name
-        .split('/')
-        .any(|c| c.starts_with('.') || c == "__MACOSX");
-    !hidden
+    !hidden(name)
         && (lower.ends_with(".csv")
             || lower.ends_with(".mcap")
             || lower.ends_with(&SIDECAR_SUFFIX.to_ascii_lowercase()))
@@ -121,6 +123,15 @@ impl<R: Read> Read for Counted<R> {
 /// The log sources of an archive (`.csv` with their sidecars, `.mcap`), in member-path order,
 /// each named `<archive>/<member path>`.
 pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, ArchiveError> {
+    Ok(read_archive_all(path, limits)?.0)
+}
+
+/// An archive's logs and its other members with why they are not logs.
+pub type Listing = (Vec<LogSource>, Vec<(String, String)>);
+
+/// [`read_archive`], and the members that are not logs with why (member path, reason);
+/// hidden members (`.name`, `__MACOSX`) and folders are left out silently.
+pub fn read_archive_all(path: &Path, limits: Limits) -> Result<Listing, ArchiveError> {
     let err = |member: &str, message: String, hint: &str| ArchiveError {
         archive: path.to_path_buf(),
         member: if member.is_empty() {
@@ -140,7 +151,8 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
             "give a campaign folder or one of these archives",
         )
     })?;
-    let file = std::fs::File::open(path).map_err(|e| err("", e.to_string(), "check the path"))?;
+    let file =
+        crate::input::open_regular(path).map_err(|e| err("", e.to_string(), "check the path"))?;
     let read_member = |name: &str, r: &mut dyn Read| -> Result<Vec<u8>, ArchiveError> {
         let mut buf = Vec::new();
         r.take(limits.max_member_bytes + 1)
@@ -159,6 +171,12 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
         Ok(buf)
     };
     let mut members: BTreeMap<String, Vec<u8>> = BTreeMap::new();
+    let mut skipped: Vec<(String, String)> = Vec::new();
+    let mut skip = |name: &str, regular: bool| {
+        if regular && !hidden(name) {
+            skipped.push((name.to_string(), "not a .csv or .mcap log".to_string()));
+        }
+    };
     let mut total: u64 = 0;
     match kind {
         Kind::Zip => {
@@ -179,6 +197,7 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
                     .map_err(|e| err("", format!("entry {i}: {e}"), damaged))?
                     .to_string();
                 if f.is_dir() || !wanted(&name) {
+                    skip(&name, !f.is_dir());
                     continue;
                 }
                 let bytes = read_member(&name, &mut f)?;
@@ -228,6 +247,7 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
                     .trim_start_matches("./")
                     .to_string();
                 if !e.header().entry_type().is_file() || !wanted(&name) {
+                    skip(&name, e.header().entry_type().is_file());
                     continue;
                 }
                 let bytes = read_member(&name, &mut e)?;
@@ -236,6 +256,7 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
         }
     }
     let mut sidecars: BTreeMap<String, Arc<[u8]>> = BTreeMap::new();
+    skipped.sort();
     let mut logs = Vec::new();
     for (name, bytes) in members {
         if name.to_ascii_lowercase().ends_with(SIDECAR_SUFFIX) {
@@ -245,7 +266,18 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
             logs.push((name, bytes));
         }
     }
-    Ok(logs
+    for stem in sidecars.keys() {
+        if !logs.iter().any(|(n, _)| {
+            n.to_ascii_lowercase().ends_with(".csv")
+                && Path::new(n).with_extension("") == Path::new(stem)
+        }) {
+            skipped.push((
+                format!("{stem}{SIDECAR_SUFFIX}"),
+                format!("a metadata sidecar without its log ({stem}.csv is not beside it)"),
+            ));
+        }
+    }
+    let logs = logs
         .into_iter()
         .map(|(name, bytes)| {
             let stem = Path::new(&name).with_extension("");
@@ -256,5 +288,6 @@ pub fn read_archive(path: &Path, limits: Limits) -> Result<Vec<LogSource>, Archi
                 sidecar,
             }
         })
-        .collect())
+        .collect();
+    Ok((logs, skipped))
 }

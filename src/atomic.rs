@@ -32,6 +32,43 @@ where
     result
 }
 
+/// Removes the temporary files ([`temp_path`]) below `root`, at most `depth` folders down,
+/// that processes no longer running left behind (a killed run; issue 17: they were never
+/// cleaned). Where the operating system has no `/proc`, every temporary file not of this
+/// process counts as left behind. Errors are ignored: a file that cannot be removed stays.
+pub fn remove_stale_temporaries(root: &Path, depth: usize) {
+    let Ok(entries) = fs::read_dir(root) else {
+        return;
+    };
+    let me = std::process::id();
+    let proc_fs = Path::new("/proc/self").exists();
+    for e in entries.flatten() {
+        let path = e.path();
+        let Ok(ft) = e.file_type() else { continue };
+        if ft.is_dir() {
+            if depth > 0 {
+                remove_stale_temporaries(&path, depth - 1);
+            }
+            continue;
+        }
+        let name = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = temp_pid(&name) else { continue };
+        let alive = pid == me || (proc_fs && Path::new(&format!("/proc/{pid}")).exists());
+        if !alive {
+            let _ = fs::remove_file(&path);
+        }
+    }
+}
+
+/// The process id in a temporary file's name `.<name>.tmp-<pid>`.
+fn temp_pid(name: &str) -> Option<u32> {
+    let (head, pid) = name.rsplit_once(".tmp-")?;
+    if !head.starts_with('.') || pid.is_empty() || !pid.bytes().all(|b| b.is_ascii_digit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
 /// `<dir>/.<name>.tmp-<pid>`: hidden, beside the target (same file system, so rename is atomic).
 fn temp_path(path: &Path) -> PathBuf {
     let name = path

@@ -37,7 +37,7 @@ pub fn sha256_stream(mut r: impl Read, into: &mut [&mut Sha256]) -> std::io::Res
 
 /// SHA-256 of a file, streamed; lowercase hex.
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
-    sha256_stream(std::fs::File::open(path)?, &mut [])
+    sha256_stream(crate::input::open_regular(path)?, &mut [])
 }
 
 #[cfg(test)]

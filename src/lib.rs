@@ -19,6 +19,7 @@ pub mod format;
 pub mod hash;
 pub mod identify;
 pub mod ingest;
+pub mod input;
 pub mod linalg;
 pub mod model;
 pub mod outdir;

@@ -88,6 +88,9 @@ impl OutDir {
     pub fn models(&self) -> ModelPaths {
         ModelPaths::new(self.root.join("models"), "mlp")
     }
+    pub fn timings(&self) -> PathBuf {
+        self.root.join("timings.json")
+    }
     pub fn report_dir(&self) -> PathBuf {
         self.root.join("report")
     }
@@ -176,9 +179,14 @@ pub struct RunRecord {
     pub status: RunStatus,
     /// Why it failed (file, place and what to do, as the stage reported it).
     pub error: Option<String>,
-    /// True when the outputs of an earlier run with the same inputs were kept.
+    /// True when the outputs of an earlier run with the same inputs were kept. Not written
+    /// (how this invocation got the run, like its time, is in `timings.json`).
+    #[serde(default, skip_serializing)]
     pub reused: bool,
-    /// Time to ingest, condition, estimate and write, s (of the run that computed it).
+    /// Time to ingest, condition, estimate and write, s (of the run that computed it). Not
+    /// written to `run.json`/`campaign.json` (issue 17: the same inputs give the same bytes);
+    /// `timings.json` has it.
+    #[serde(default, skip_serializing)]
     pub duration_s: f64,
     pub initial_speed_kmh: Option<f64>,
     pub ambient_temperature_c: Option<f64>,
@@ -213,6 +221,81 @@ pub struct CampaignRecord {
     /// Pipeline file name and its validation axles (seed 002 Fig. 10 uses the first).
     pub pipeline: String,
     pub validation_axles: Vec<u8>,
+    /// Files of the campaign that are not logs, with why (absent in files before issue 17).
+    #[serde(default)]
+    pub skipped: Vec<Skipped>,
+    /// This campaign generation: the first 16 hex digits of SHA-256 over the pipeline text
+    /// and every run's name, status and input hash ([`generation_id`]). The model files, the
+    /// fits and scores files carry it; the report reads only files of its generation.
+    #[serde(default)]
+    pub generation: Option<String>,
+}
+
+/// The generation id of a campaign with `pipeline_text` and these runs (see
+/// [`CampaignRecord::generation`]): the same inputs give the same id, so outputs stay
+/// byte-identical between identical runs.
+pub fn generation_id(pipeline_text: &str, runs: &[RunRecord]) -> String {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    h.update(pipeline_text.as_bytes());
+    for r in runs {
+        h.update(b"\0run\0");
+        h.update(r.run.as_bytes());
+        h.update(b"\0");
+        h.update(r.status.as_str().as_bytes());
+        h.update(b"\0");
+        h.update(r.input_sha256.as_bytes());
+    }
+    crate::hash::hex(&h.finalize())[..16].to_string()
+}
+
+/// `<out>/timings.json`: how this invocation of `railgrip run` went — when, how long each
+/// stage and run took, which runs were reused. Kept out of the result files so that the same
+/// inputs give the same bytes (issue 17).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Timings {
+    pub generation: String,
+    /// UTC, RFC 3339 (`SOURCE_DATE_EPOCH` overrides the clock).
+    pub finished: String,
+    pub jobs: usize,
+    /// Wall time per stage and in total, s.
+    pub stages: Vec<(String, f64)>,
+    pub runs: Vec<RunTiming>,
+    /// Network training: epochs and seconds.
+    pub train_epochs: usize,
+    pub train_s: Option<f64>,
+}
+
+/// One run's line in [`Timings`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunTiming {
+    pub run: String,
+    pub reused: bool,
+    /// Of the invocation that computed it (a reused run keeps none).
+    pub duration_s: Option<f64>,
+}
+
+impl Timings {
+    /// Writes `<out>/timings.json` atomically.
+    pub fn write(&self, out: &OutDir) -> Result<PathBuf, RecordError> {
+        let path = out.timings();
+        let text = serde_json::to_string_pretty(self).expect("timings serialise") + "\n";
+        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
+            |source| RecordError::Write {
+                path: path.clone(),
+                source,
+            },
+        )?;
+        Ok(path)
+    }
+}
+
+/// A file in a campaign that is not a run, and why.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Skipped {
+    /// Below the campaign folder (or the member path in an archive).
+    pub path: std::path::PathBuf,
+    pub reason: String,
 }
 
 impl CampaignRecord {

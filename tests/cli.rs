@@ -521,6 +521,29 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let mut far = common::Table::analytic(0.5, 417.0, 0.0, 2);
     *far.time_s.last_mut().unwrap() = 1e9;
     std::fs::write(camp.join("far.csv"), far.csv_bytes()).unwrap();
+    // Issue 17: a FIFO as a log or a sidecar blocked the campaign forever, and a sidecar
+    // pointing at /dev/zero was read to gigabytes. Both fail their own run.
+    let fifo = camp.join("fifo.csv");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    std::fs::copy(
+        camp.join("soap_120kmh_p20.csv"),
+        camp.join("zero_sidecar.csv"),
+    )
+    .unwrap();
+    std::os::unix::fs::symlink("/dev/zero", camp.join("zero_sidecar.meta.toml")).unwrap();
+    // Files that are not logs are listed as skipped, with why (issue 17: silently skipped).
+    std::fs::write(camp.join("random.bin"), [7u8; 64]).unwrap();
+    std::fs::write(
+        camp.join("orphan.meta.toml"),
+        "ambient_temperature_c = 5.0\n",
+    )
+    .unwrap();
+    // A temporary file of a killed earlier run is cleaned up (issue 17: never cleaned).
+    let o_dir = dir.path().join("out");
+    std::fs::create_dir_all(o_dir.join("models")).unwrap();
+    let stale_tmp = o_dir.join("models/.mlp.json.tmp-999999999");
+    std::fs::write(&stale_tmp, "partial").unwrap();
 
     let o = railgrip(
         &["run", "campaign", "--out", "out", "--jobs", "2"],
@@ -531,10 +554,22 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert!(
         out.contains("failed     broken:")
             && out.contains("failed     day_2__truncated:")
-            && out.contains("failed     far:"),
+            && out.contains("failed     far:")
+            && out.contains("failed     fifo:")
+            && out.contains("failed     zero_sidecar:"),
         "{out}"
     );
-    assert!(out.contains("3 of 6 run(s) failed"), "{out}");
+    assert!(out.contains("5 of 8 run(s) failed"), "{out}");
+    assert!(
+        out.contains("fifo.csv is a FIFO") && out.contains("zero_sidecar.meta.toml is a device"),
+        "{out}"
+    );
+    assert!(
+        out.contains("skipped    random.bin: not a .csv or .mcap log")
+            && out.contains("skipped    orphan.meta.toml: a metadata sidecar without its log"),
+        "{out}"
+    );
+    assert!(!stale_tmp.exists(), "stale temporary file left");
     assert!(
         out.contains("far.csv") && out.contains("ingest.max_duration_s"),
         "{out}"
@@ -544,8 +579,8 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
         out.contains("broken.csv") && out.contains("truncated.mcap"),
         "{out}"
     );
-    let o_dir = dir.path().join("out");
     for f in [
+        "timings.json",
         "runs/soap_120kmh_p20/estimates.parquet",
         "runs/day_2__soap_160kmh_0c/estimates.parquet",
         "summary.csv",
@@ -567,9 +602,9 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     }
     let summary = std::fs::read_to_string(o_dir.join("summary.csv")).unwrap();
     let rows: Vec<&str> = summary.lines().collect();
-    assert_eq!(rows.len(), 7, "{summary}");
-    assert!(rows[0].starts_with("run,status,error,reused,duration_s,initial_speed_kmh"));
-    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 3);
+    assert_eq!(rows.len(), 9, "{summary}");
+    assert!(rows[0].starts_with("run,status,error,initial_speed_kmh"));
+    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 5);
     let html = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
     assert!(
         html.contains("<svg") && html.contains("Failed runs") && html.contains("truncated.mcap"),
@@ -582,7 +617,19 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(o.status.code(), Some(3));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["reused"], 3, "{j}");
-    assert_eq!(j["failed"], 3);
+    assert_eq!(j["failed"], 5);
+    assert_eq!(j["skipped"].as_array().unwrap().len(), 2, "{j}");
+    // Issue 17: with runs reused, the model files' provenance hashed the estimates tables, not
+    // the logs they name.
+    let mlp: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(o_dir.join("models/mlp.json")).unwrap()).unwrap();
+    let inputs = mlp["provenance"]["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 3, "{inputs:?}");
+    for i in inputs {
+        let log = dir.path().join(i["path"].as_str().unwrap());
+        let want = railgrip::hash::sha256_file(&log).unwrap();
+        assert_eq!(i["sha256"], want.as_str(), "{}", log.display());
+    }
     assert_eq!(j["exit_code"], 3);
     assert_eq!(j["condition"], "soap");
     // A changed sidecar invalidates its run only.
@@ -604,6 +651,24 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let o = railgrip(&["report", "out"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     assert!(o_dir.join("report/index.html").exists());
+
+    // A model file of another generation (a killed re-run) is refused by name.
+    let path = o_dir.join("models/mlp.json");
+    let good = std::fs::read_to_string(&path).unwrap();
+    let camp_rec: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(o_dir.join("campaign.json")).unwrap()).unwrap();
+    let g = camp_rec["generation"].as_str().unwrap();
+    assert_eq!(g.len(), 16);
+    assert!(good.contains(g));
+    std::fs::write(&path, good.replace(g, "0123456789abcdef")).unwrap();
+    let o = railgrip(&["report", "out"], dir.path());
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("mlp.json") && err.contains("generation 0123456789abcdef"),
+        "{err}"
+    );
+    std::fs::write(&path, good).unwrap();
 
     // A corrupt model or fits file is an error naming it, not a report without that section.
     for (file, bad) in [
@@ -737,4 +802,134 @@ fn eval_of_a_four_input_network_needs_and_uses_the_temperature() {
     assert!(text(&o.stdout).contains("network: 4 inputs"));
     let h = std::fs::read_to_string(dir.path().join("m.h")).unwrap();
     assert!(h.contains("railgrip_mu_batch_t(") && h.contains("#define RAILGRIP_N_INPUTS 4"));
+}
+
+/// Every file below `dir` (relative path → bytes), leaving out `timings.json`.
+fn outputs(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
+    files_below(dir)
+        .into_iter()
+        .filter(|p| p.file_name().unwrap() != "timings.json")
+        .map(|p| {
+            (
+                p.strip_prefix(dir).unwrap().to_path_buf(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn run_outputs_are_the_same_bytes_for_any_jobs_and_on_a_rerun() {
+    // Issue 17: run.json, campaign.json, summary, model files and the report differed between
+    // identical runs only in timing and clock fields. Now those are in timings.json alone.
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+    let run = |out: &str, jobs: &str, force: bool| {
+        let mut args = vec!["run", "campaign", "--out", out, "--jobs", jobs];
+        if force {
+            args.push("--force");
+        }
+        let o = railgrip(&args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        outputs(&dir.path().join(out))
+    };
+    let a = run("a", "1", false);
+    let b = run("b", "2", false);
+    assert!(
+        a.contains_key(Path::new("report/index.html")) && a.len() >= 12,
+        "{:?}",
+        a.keys()
+    );
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (k, v) in &a {
+        assert!(
+            b[k] == *v,
+            "{} differs between --jobs 1 and --jobs 2",
+            k.display()
+        );
+    }
+    // Twice each: a re-run that reuses every run, and one that recomputes them.
+    let a2 = run("a", "2", false);
+    let b2 = run("b", "1", true);
+    for (again, name) in [(&a2, "reused re-run"), (&b2, "forced re-run")] {
+        assert_eq!(
+            again.keys().collect::<Vec<_>>(),
+            a.keys().collect::<Vec<_>>()
+        );
+        for (k, v) in &a {
+            assert!(again[k] == *v, "{} differs after a {name}", k.display());
+        }
+    }
+    let t: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("a/timings.json")).unwrap()).unwrap();
+    assert_eq!(t["runs"].as_array().unwrap().len(), 3, "{t}");
+    assert!(
+        t["runs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|r| r["reused"] == true),
+        "{t}"
+    );
+}
+
+#[test]
+fn a_campaign_where_every_run_fails_exits_1_for_no_models() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    std::fs::create_dir_all(&camp).unwrap();
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    let o = railgrip(&["run", "campaign", "--out", "out"], dir.path());
+    let out = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(1), "{out}");
+    assert!(
+        out.contains("No models were trained") && out.contains("Exit code 1"),
+        "{out}"
+    );
+}
+
+#[test]
+fn an_unwritable_output_folder_fails_before_any_run_is_estimated() {
+    // Issue 17: a read-only output folder was found only after training. (The tests may run
+    // as root, who may write anywhere: a file where the models folder belongs stands in.)
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    std::fs::create_dir_all(dir.path().join("out")).unwrap();
+    std::fs::write(dir.path().join("out/models"), "not a folder").unwrap();
+    let o = railgrip(&["run", "campaign", "--out", "out"], dir.path());
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("out/models: cannot write") && err.contains("exists"),
+        "{err}"
+    );
+    assert!(!dir.path().join("out/runs/soap_120kmh_p20").exists());
+}
+
+#[test]
+fn write_errors_name_the_file_and_the_operating_systems_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp.json");
+    let o = railgrip(
+        &[
+            "export",
+            model.to_str().unwrap(),
+            "--c-header",
+            "missing/dir/m.h",
+        ],
+        dir.path(),
+    );
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("missing/dir/m.h: cannot write") && err.contains("No such file or directory"),
+        "{err}"
+    );
 }

@@ -255,6 +255,7 @@ fn provenance(seed: u64) -> Provenance {
         seed,
         crate_version: String::new(),
         created: String::new(),
+        generation: None,
     }
 }
 

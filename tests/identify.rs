@@ -361,6 +361,7 @@ fn synthetic_model() -> ModelFile {
             seed: 1,
             crate_version: "golden".into(),
             created: "2026-01-01T00:00:00Z".into(),
+            generation: None,
         },
         None,
     )
@@ -704,6 +705,7 @@ fn four_input_model() -> ModelFile {
         seed: 1,
         crate_version: "test".into(),
         created: "2026-01-01T00:00:00Z".into(),
+        generation: None,
     };
     railgrip::identify::export::mlp_file(&t, creep, provenance, None).unwrap()
 }
@@ -891,6 +893,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
             seed: 0,
             crate_version: "0.1.0".into(),
             created: "2026-01-01T00:00:00Z".into(),
+            generation: None,
         },
     )
     .unwrap()
@@ -1188,6 +1191,7 @@ fn seed002_figures_on_simulated_runs() {
             seed: 1,
             crate_version: "test".into(),
             created: "2026-01-01T00:00:00Z".into(),
+            generation: None,
         },
         None,
     )
@@ -1572,6 +1576,7 @@ fn the_temperature_form_follows_what_varies() {
                     seed: 0,
                     crate_version: "0.1.0".into(),
                     created: "2026-01-01T00:00:00Z".into(),
+                    generation: None,
                 },
             )
             .unwrap();

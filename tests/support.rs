@@ -30,6 +30,7 @@ fn provenance() -> Provenance {
         seed: 1,
         crate_version: String::new(),
         created: String::new(),
+        generation: None,
     }
 }
 
@@ -283,7 +284,7 @@ fn bayesian_regularisation_through_the_pipeline_reports_gamma_per_epoch() {
     // Validation never stops trainbr: it runs its epochs or stops on μ or the gradient.
     assert_ne!(t.stop, railgrip::identify::lm::StopReason::ValidationStop);
     let csv = railgrip::campaign::train::history_csv(&t.history);
-    assert!(csv.starts_with("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s,gamma\n"));
+    assert!(csv.starts_with("epoch,train_mse,val_mse,mu,grad_norm,gamma\n"));
 }
 
 fn railgrip(args: &[&str], cwd: &Path) -> std::process::Output {

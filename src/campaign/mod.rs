@@ -15,8 +15,11 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-pub use crate::outdir::{CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus};
-pub use runs::{discover, input_hash, process_run, run_name};
+pub use crate::outdir::{
+    generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
+    RunTiming, Skipped, Timings,
+};
+pub use runs::{discover, discover_all, input_hash, process_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use train::{train_models, CampaignModels};
 
@@ -134,6 +137,8 @@ pub struct Outcome {
     pub report: Option<PathBuf>,
     /// Wall time per stage and in total, s.
     pub stages: Vec<(String, f64)>,
+    /// Files that are not logs, with why.
+    pub skipped: Vec<Skipped>,
 }
 
 impl Outcome {
@@ -156,16 +161,37 @@ pub fn sources(
     root: &Path,
     skip: Option<&Path>,
 ) -> Result<Vec<(String, LogSource)>, CampaignError> {
-    let logs: Vec<(String, LogSource)> = if root.is_file() {
-        crate::archive::read_archive(root, crate::archive::Limits::default())?
-            .into_iter()
-            .map(|s| (run_name(root, s.name()), s))
-            .collect()
+    Ok(sources_all(root, skip)?.0)
+}
+
+/// A campaign's logs with their run names, and the files that are not logs with why.
+pub type Sources = (Vec<(String, LogSource)>, Vec<Skipped>);
+
+/// [`sources`], and the files that are not logs with why.
+pub fn sources_all(root: &Path, skip: Option<&Path>) -> Result<Sources, CampaignError> {
+    let (logs, skipped): Sources = if root.is_file() {
+        let (logs, skipped) =
+            crate::archive::read_archive_all(root, crate::archive::Limits::default())?;
+        (
+            logs.into_iter()
+                .map(|s| (run_name(root, s.name()), s))
+                .collect(),
+            skipped
+                .into_iter()
+                .map(|(path, reason)| Skipped {
+                    path: path.into(),
+                    reason,
+                })
+                .collect(),
+        )
     } else {
-        discover(root, skip)?
-            .into_iter()
-            .map(|p| (run_name(root, &p), LogSource::File(p)))
-            .collect()
+        let (logs, skipped) = discover_all(root, skip)?;
+        (
+            logs.into_iter()
+                .map(|p| (run_name(root, &p), LogSource::File(p)))
+                .collect(),
+            skipped,
+        )
     };
     if logs.is_empty() {
         return Err(CampaignError::Input {
@@ -174,7 +200,7 @@ pub fn sources(
             hint: "give the folder that holds the campaign's logs".into(),
         });
     }
-    Ok(unique_names(logs))
+    Ok((unique_names(logs), skipped))
 }
 
 /// Run names made unique (issue 17: `x.csv` and `x.mcap` once shared `runs/x/`, the last
@@ -223,11 +249,8 @@ pub fn run(
     progress: Arc<dyn Progress>,
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
-    let logs = sources(root, Some(out.root()))?;
-    std::fs::create_dir_all(out.root()).map_err(|source| CampaignError::Write {
-        path: out.root().to_path_buf(),
-        source,
-    })?;
+    let (logs, skipped) = sources_all(root, Some(out.root()))?;
+    prepare_output(out)?;
     let mut stages = Vec::new();
 
     let t = Instant::now();
@@ -238,8 +261,9 @@ pub fn run(
     ));
     progress.event(Event::StageDone(Stage::Estimate));
 
+    let generation = generation_id(&pipeline.text, &records);
     let t = Instant::now();
-    let trained = train_stage(tables, out, pipeline, progress.clone())?;
+    let trained = train_stage(tables, out, pipeline, &generation, progress.clone())?;
     stages.push((Stage::Train.name().to_string(), t.elapsed().as_secs_f64()));
     progress.event(Event::StageDone(Stage::Train));
 
@@ -256,6 +280,8 @@ pub fn run(
             crate::config::SplitConfig::Axles { val, .. } => val.clone(),
             _ => vec![],
         },
+        skipped: skipped.clone(),
+        generation: Some(generation.clone()),
     }
     .write(out)?;
     let mut notes = trained.notes;
@@ -269,6 +295,25 @@ pub fn run(
     stages.push((Stage::Report.name().to_string(), t.elapsed().as_secs_f64()));
     progress.event(Event::StageDone(Stage::Report));
     stages.push(("total".to_string(), t_all.elapsed().as_secs_f64()));
+    Timings {
+        generation: generation.clone(),
+        finished: crate::identify::train::utc_now_rfc3339(),
+        jobs: options
+            .jobs
+            .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
+        stages: stages.clone(),
+        runs: records
+            .iter()
+            .map(|r| RunTiming {
+                run: r.run.clone(),
+                reused: r.reused,
+                duration_s: (!r.reused).then_some(r.duration_s),
+            })
+            .collect(),
+        train_epochs: trained.epochs,
+        train_s: trained.train_s,
+    }
+    .write(out)?;
     Ok(Outcome {
         archive: root.to_path_buf(),
         records,
@@ -279,6 +324,7 @@ pub fn run(
         notes,
         report,
         stages,
+        skipped,
     })
 }
 
@@ -313,6 +359,38 @@ pub fn estimate_runs(
     Ok((records, tables.into_iter().flatten().collect()))
 }
 
+/// Makes the output folder ready before any work (issue 17: a read-only folder was found only
+/// after training, and a killed re-run could leave new models beside an old report): creates
+/// its folders and writes a probe file in each (the error names the folder and the OS cause),
+/// removes the temporary files of earlier runs that no longer live, and removes the campaign
+/// record and the report, which the end of this run writes again — so a run that does not
+/// finish leaves no report that looks current.
+pub fn prepare_output(out: &OutDir) -> Result<(), CampaignError> {
+    let models = out.models();
+    for dir in [
+        out.root().to_path_buf(),
+        out.runs(),
+        models.dir.clone(),
+        out.report_dir(),
+    ] {
+        let probe = dir.join(format!(".railgrip-probe-{}", std::process::id()));
+        std::fs::create_dir_all(&dir)
+            .and_then(|_| std::fs::write(&probe, b"probe"))
+            .and_then(|_| std::fs::remove_file(&probe))
+            .map_err(|source| CampaignError::Write { path: dir, source })?;
+    }
+    crate::atomic::remove_stale_temporaries(out.root(), 3);
+    for f in [out.campaign_record(), out.report_html()] {
+        match std::fs::remove_file(&f) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(CampaignError::Write { path: f, source: e })
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// What the train stage left.
 struct Trained {
     condition: Option<String>,
@@ -320,6 +398,9 @@ struct Trained {
     model_error: Option<String>,
     audit: Option<crate::model::AuditSpec>,
     notes: Vec<String>,
+    /// Network training epochs and seconds (for `timings.json`).
+    epochs: usize,
+    train_s: Option<f64>,
 }
 
 /// Stage 2: the campaign's models from the pooled tables, written with their C headers.
@@ -329,6 +410,7 @@ fn train_stage(
     tables: Vec<RunTable>,
     out: &OutDir,
     pipeline: &Pipeline,
+    generation: &str,
     progress: Arc<dyn Progress>,
 ) -> Result<Trained, CampaignError> {
     let mut t = Trained {
@@ -337,6 +419,8 @@ fn train_stage(
         model_error: None,
         audit: None,
         notes: vec![],
+        epochs: 0,
+        train_s: None,
     };
     if tables.is_empty() {
         t.model_error = Some("no run could be estimated, so no model was trained".to_string());
@@ -345,7 +429,10 @@ fn train_stage(
     progress.event(Event::TrainStarts);
     let epochs: crate::identify::lm::Progress = Box::new(move |e| progress.event(Event::Epoch(e)));
     match train_models(tables, pipeline, Some(epochs)) {
-        Ok(m) => {
+        Ok(mut m) => {
+            m.set_generation(generation);
+            t.epochs = m.trained.history.len();
+            t.train_s = m.trained.history.last().map(|e| e.elapsed_s);
             t.condition = Some(m.condition.clone());
             t.notes.extend(m.notes.iter().cloned());
             for (run, c) in &m.skipped {

@@ -21,6 +21,16 @@ use crate::Pipeline;
 /// Log files (`.csv`, `.mcap`) below `root`, recursively, in path order; hidden entries and
 /// `skip` (the output folder, when it lies inside) are left out.
 pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, CampaignError> {
+    Ok(discover_all(root, skip)?.0)
+}
+
+/// [`discover`], and every other file below `root` with why it is not a log (issue 17: a
+/// `random.bin` in a campaign was skipped without a word). Hidden entries (`.name`) and the
+/// output folder are left out silently; a metadata sidecar beside its log is part of the log.
+pub fn discover_all(
+    root: &Path,
+    skip: Option<&Path>,
+) -> Result<(Vec<PathBuf>, Vec<super::Skipped>), CampaignError> {
     let bad = |path: &Path, source: std::io::Error| CampaignError::Read {
         path: path.to_path_buf(),
         source,
@@ -35,6 +45,7 @@ pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, Campai
     }
     let skip = skip.and_then(|s| s.canonicalize().ok());
     let mut found = Vec::new();
+    let mut others = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         if skip
@@ -57,11 +68,39 @@ pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, Campai
                 .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("mcap"))
             {
                 found.push(path);
+            } else {
+                others.push(path);
             }
         }
     }
     found.sort();
-    Ok(found)
+    others.sort();
+    let is_log = |p: &Path| found.binary_search(&p.to_path_buf()).is_ok();
+    let skipped = others
+        .into_iter()
+        .filter_map(|path| {
+            let name = path.file_name()?.to_string_lossy().into_owned();
+            let reason = match name
+                .to_ascii_lowercase()
+                .strip_suffix(crate::format::SIDECAR_SUFFIX)
+            {
+                Some(_) => {
+                    let stem = &name[..name.len() - crate::format::SIDECAR_SUFFIX.len()];
+                    let log = path.with_file_name(format!("{stem}.csv"));
+                    if is_log(&log) {
+                        return None;
+                    }
+                    format!("a metadata sidecar without its log ({stem}.csv is not beside it)")
+                }
+                None => "not a .csv or .mcap log".to_string(),
+            };
+            Some(super::Skipped {
+                path: path.strip_prefix(root).unwrap_or(&path).to_path_buf(),
+                reason,
+            })
+        })
+        .collect();
+    Ok((found, skipped))
 }
 
 /// The run name of `path` below `root`: the relative path without extension, `/` → `__`,
@@ -146,7 +185,7 @@ pub fn process_run(
     };
     rec.input_sha256 = hash;
     if !force {
-        if let Some(reused) = reuse(&rec, name, out) {
+        if let Some(reused) = reuse(&rec, name, out, &log_sha) {
             return reused;
         }
     }
@@ -178,8 +217,14 @@ pub fn process_run(
 }
 
 /// The earlier outputs of run `name` when its record says ok for the same input hash and its
-/// estimates table reads back.
-fn reuse(now: &RunRecord, name: &str, out: &OutDir) -> Option<(RunRecord, Option<RunTable>)> {
+/// estimates table reads back. The table's provenance is the log's SHA-256 `log_sha` (issue
+/// 17: it was the estimates table's own hash on every reuse).
+fn reuse(
+    now: &RunRecord,
+    name: &str,
+    out: &OutDir,
+    log_sha: &str,
+) -> Option<(RunRecord, Option<RunTable>)> {
     let text = std::fs::read_to_string(out.run_record(name)).ok()?;
     let mut old: RunRecord = serde_json::from_str(&text).ok()?;
     let table_path = out.run_estimates(name);
@@ -189,6 +234,7 @@ fn reuse(now: &RunRecord, name: &str, out: &OutDir) -> Option<(RunRecord, Option
     let mut table = RunTable::read_parquet(&table_path).ok()?;
     table.name = name.to_string();
     table.source = now.source.clone();
+    table.sha256 = log_sha.to_string();
     old.reused = true;
     old.source = now.source.clone();
     Some((old, Some(table)))

@@ -7,12 +7,12 @@ use super::{CampaignError, OutDir, RunRecord};
 use crate::format::AXLES;
 
 /// Columns of `summary.csv` / `summary.parquet`, in order.
-pub const SUMMARY_COLUMNS: [&str; 17] = [
+/// How a run was computed this time (reused, seconds) is in `timings.json` (issue 17: the same
+/// inputs give the same bytes).
+pub const SUMMARY_COLUMNS: [&str; 15] = [
     "run",
     "status",
     "error",
-    "reused",
-    "duration_s",
     "initial_speed_kmh",
     "ambient_temperature_c",
     "condition",
@@ -40,11 +40,6 @@ pub fn write_summary(out: &OutDir, records: &[RunRecord]) -> Result<Vec<PathBuf>
         Column::new("run".into(), s(&|r| Some(r.run.clone()))),
         Column::new("status".into(), s(&|r| Some(r.status.as_str().to_string()))),
         Column::new("error".into(), s(&|r| r.error.clone())),
-        Column::new(
-            "reused".into(),
-            records.iter().map(|r| r.reused).collect::<Vec<bool>>(),
-        ),
-        Column::new("duration_s".into(), n(&|r| Some(r.duration_s))),
         Column::new("initial_speed_kmh".into(), n(&|r| r.initial_speed_kmh)),
         Column::new(
             "ambient_temperature_c".into(),

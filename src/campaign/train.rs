@@ -11,7 +11,7 @@ use crate::identify::lm::Progress;
 use crate::identify::polach_fit::{fit_campaign, PolachReport};
 use crate::identify::train::{
     creep_spec, leave_one_run_out, median_speed, pipeline_patch, select_condition, train_mlp,
-    utc_now_rfc3339, HeldOut, TrainedMlp,
+    HeldOut, HeldOutFile, TrainedMlp,
 };
 use crate::identify::{export, IdentifyError};
 use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
@@ -64,7 +64,8 @@ pub fn train_models(
         pipeline_sha256: crate::hash::sha256_bytes(pipeline.text.as_bytes()),
         seed: pipeline.train.seed,
         crate_version: env!("CARGO_PKG_VERSION").into(),
-        created: utc_now_rfc3339(),
+        created: String::new(),
+        generation: None,
     };
     let (patch, q) = pipeline_patch(pipeline)?;
     let (report, mut notes) = fit_campaign(
@@ -171,8 +172,11 @@ impl CampaignModels {
         let fits = serde_json::to_string_pretty(&self.polach_fits).expect("fits serialise") + "\n";
         put(paths.polach_fits(), fits)?;
         if !self.held_out.is_empty() {
-            let text =
-                serde_json::to_string_pretty(&self.held_out).expect("scores serialise") + "\n";
+            let file = HeldOutFile {
+                generation: self.mlp.provenance.generation.clone(),
+                runs: self.held_out.clone(),
+            };
+            let text = serde_json::to_string_pretty(&file).expect("scores serialise") + "\n";
             put(paths.leave_one_run_out(), text)?;
         }
         if headers {
@@ -189,7 +193,38 @@ impl CampaignModels {
                 )?;
             }
         }
+        // Files an earlier generation wrote and this one does not (no Polach model, scores
+        // switched off) are removed: nothing stale beside the new models (issue 17).
+        let mut stale = vec![paths.leave_one_run_out()];
+        if self.polach.is_none() {
+            stale.push(paths.polach());
+        }
+        if !headers || self.polach.is_none() {
+            stale.push(paths.polach_header());
+        }
+        if !headers {
+            stale.push(paths.mlp_header());
+        }
+        for p in stale {
+            if !written.contains(&p) {
+                match std::fs::remove_file(&p) {
+                    Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                        return Err(CampaignError::Write { path: p, source: e })
+                    }
+                    _ => {}
+                }
+            }
+        }
         Ok(written)
+    }
+
+    /// Marks every file of these models as written by campaign generation `g`.
+    pub fn set_generation(&mut self, g: &str) {
+        self.mlp.provenance.generation = Some(g.to_string());
+        if let Some(p) = &mut self.polach {
+            p.provenance.generation = Some(g.to_string());
+        }
+        self.polach_fits.generation = Some(g.to_string());
     }
 }
 
@@ -203,12 +238,13 @@ fn file_name(p: &Path) -> String {
 /// gamma (the effective number of parameters) with Bayesian regularisation.
 pub fn history_csv(h: &[Epoch]) -> String {
     let bayes = h.iter().any(|e| e.gamma.is_some());
-    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm,elapsed_s");
+    // No elapsed time: the file is a result, the same for the same inputs (issue 17).
+    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm");
     text.push_str(if bayes { ",gamma\n" } else { "\n" });
     for e in h {
         text.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?},{:?}",
-            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
+            "{},{:?},{:?},{:?},{:?}",
+            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm
         ));
         if bayes {
             text.push_str(&format!(",{:?}", e.gamma.unwrap_or(f64::NAN)));

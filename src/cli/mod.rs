@@ -37,7 +37,7 @@ struct Cli {
 enum Command {
     /// The main job: estimate every run of a campaign folder, train the models, write the report.
     #[command(
-        long_about = "Run the whole pipeline over a test campaign: find the logs below ARCHIVE (recursively: .csv with their .meta.toml, .mcap), ingest, condition and estimate each run in parallel (a run that fails is reported and the rest goes on), train the seed 002 network and the Polach and k(T) models on the pooled estimates of one rail condition, export them (JSON + C headers) and write an HTML validation report.\n\nWithout ARCHIVE it runs on the bundled archive with the embedded default pipeline.\n\nWrites <OUT>/runs/<run>/estimates.parquet and run.json, <OUT>/summary.csv and .parquet (one row per run), <OUT>/models/ (mlp.json, mlp.h, mlp.polach.json, mlp.polach.h, mlp.history.csv, mlp.polach-fits.json), <OUT>/campaign.json and <OUT>/report/index.html. A re-run reuses runs whose log, sidecar and pipeline are unchanged (SHA-256) unless --force.\n\nExit codes: 0 ok, 1 error (no models), 2 usage, 3 completed but some runs failed."
+        long_about = "Run the whole pipeline over a test campaign: find the logs below ARCHIVE (recursively: .csv with their .meta.toml, .mcap), ingest, condition and estimate each run in parallel (a run that fails is reported and the rest goes on), train the seed 002 network and the Polach and k(T) models on the pooled estimates of one rail condition, export them (JSON + C headers) and write an HTML validation report.\n\nWithout ARCHIVE it runs on the bundled archive with the embedded default pipeline.\n\nWrites <OUT>/runs/<run>/estimates.parquet and run.json, <OUT>/summary.csv and .parquet (one row per run), <OUT>/models/ (mlp.json, mlp.h, mlp.polach.json, mlp.polach.h, mlp.history.csv, mlp.polach-fits.json), <OUT>/campaign.json, <OUT>/report/index.html and <OUT>/timings.json (wall times, reuse: the only file that differs between identical runs). A re-run reuses runs whose log, sidecar and pipeline are unchanged (SHA-256) unless --force. Files that are not logs are listed as skipped, with why.\n\nExit codes: 0 ok, 1 error (no models, also when every run failed), 2 usage, 3 models written but some runs failed."
     )]
     Run(run::Args),
     /// Rebuild the HTML report of an output folder of `railgrip run`.
@@ -139,8 +139,18 @@ pub fn main() -> ExitCode {
     match result {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            // Library errors carry the whole story (where, what, hint) in their message.
-            eprintln!("error: {e}");
+            // Library errors carry the whole story (where, what, hint) in their message; a
+            // context added here (`file: cannot write`) is followed by its causes, down to the
+            // operating system's (issue 17: 5 of 7 "cannot write" errors once omitted it).
+            let mut msg = e.to_string();
+            for cause in e.chain().skip(1) {
+                let c = cause.to_string();
+                if !msg.contains(&c) {
+                    msg.push_str(": ");
+                    msg.push_str(&c);
+                }
+            }
+            eprintln!("error: {msg}");
             ExitCode::from(EXIT_ERROR)
         }
     }

@@ -152,6 +152,8 @@ struct JsonSummary<'a> {
     model_error: &'a Option<String>,
     audit: &'a Option<railgrip::model::AuditSpec>,
     notes: &'a [String],
+    /// Files of the campaign that are not logs, with why.
+    skipped: &'a [campaign::Skipped],
     report: Option<String>,
     /// Wall time per stage, s.
     stages: &'a [(String, f64)],
@@ -181,7 +183,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let o = campaign::run(&root, &out, &pipeline, options, Arc::new(Bars::new()))?;
     let failed = o.failed();
     let audit_failed = o.audit.as_ref().is_some_and(|a| !a.passed);
-    let code = if o.model_error.is_some() && failed == 0 {
+    // No models is an error (exit 1) even when runs failed too: the help promises it, and a
+    // script must not read "completed" from a campaign that produced nothing (issue 17).
+    let code = if o.model_error.is_some() {
         EXIT_ERROR
     } else if failed > 0 || audit_failed {
         EXIT_LOSSY
@@ -200,6 +204,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             model_error: &o.model_error,
             audit: &o.audit,
             notes: &o.notes,
+            skipped: &o.skipped,
             report: o.report.as_ref().map(|p| p.display().to_string()),
             stages: &o.stages,
             exit_code: code,
@@ -239,6 +244,9 @@ fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     for r in o.records.iter().filter(|r| !r.ok()) {
         println!("failed     {}: {}", r.run, r.error.as_deref().unwrap_or(""));
     }
+    for s in &o.skipped {
+        println!("skipped    {}: {}", s.path.display(), s.reason);
+    }
     if let Some(c) = &o.condition {
         println!("\nmodels     trained on {c} rail");
     }
@@ -266,7 +274,9 @@ fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     if let Some(a) = &o.audit {
         super::model::print_audit(a);
     }
-    if failed > 0 {
+    if o.model_error.is_some() {
+        println!("\nNo models were trained (why: above). Exit code 1.");
+    } else if failed > 0 {
         println!(
             "\n{failed} of {} run(s) failed (listed above and in summary.csv); the rest completed. Exit code 3.",
             o.records.len()

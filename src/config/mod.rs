@@ -133,7 +133,12 @@ impl Pipeline {
             None => Ok(Self::default_uic_z1()),
             Some(p) => {
                 let file = p.display().to_string();
-                let text = std::fs::read_to_string(p).map_err(|source| ConfigError::Read {
+                let text = crate::input::read_text_limited(
+                    p,
+                    crate::input::MAX_CONFIG_BYTES,
+                    "pipeline file",
+                )
+                .map_err(|source| ConfigError::Read {
                     file: file.clone(),
                     source,
                 })?;

@@ -61,7 +61,7 @@ impl RunTable {
             hint: "give an estimates table written by `railgrip estimate` (or the run logs themselves)".into(),
         }
         };
-        let file = std::fs::File::open(path).map_err(|source| IdentifyError::Read {
+        let file = crate::input::open_regular(path).map_err(|source| IdentifyError::Read {
             file: path.display().to_string(),
             source,
         })?;

@@ -1543,6 +1543,9 @@ pub struct PolachReport {
     pub temperature: Option<TemperatureFit>,
     /// Why there is no temperature law: `temperature` absent, or its chosen form constant.
     pub temperature_note: Option<String>,
+    /// The campaign generation that wrote the file (`campaign.json`'s), when a campaign did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generation: Option<String>,
 }
 
 /// Fits every run, every temperature group (with profile-likelihood intervals for the pooled
@@ -1673,6 +1676,7 @@ pub fn fit_campaign(
             per_temperature,
             temperature,
             temperature_note,
+            generation: None,
         },
         notes,
     )

@@ -671,6 +671,7 @@ pub fn leave_one_run_out(
                 seed: cfg.seed,
                 crate_version: env!("CARGO_PKG_VERSION").into(),
                 created: String::new(),
+                generation: None,
             };
             let file = super::export::mlp_file(&t, creep, provenance, None)?;
             let model =
@@ -837,6 +838,15 @@ pub fn utc_now_rfc3339() -> String {
         rem / 60 % 60,
         rem % 60
     )
+}
+
+/// `<name>.leave-one-run-out.json`: the network's held-out scores and the generation that
+/// wrote them.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct HeldOutFile {
+    #[serde(default)]
+    pub generation: Option<String>,
+    pub runs: Vec<HeldOut>,
 }
 
 #[cfg(test)]

@@ -402,7 +402,7 @@ impl LogSource {
     /// A reader over the log's bytes from the start.
     pub(crate) fn open(&self) -> std::io::Result<Box<dyn std::io::Read + Send>> {
         Ok(match self {
-            LogSource::File(p) => Box::new(std::fs::File::open(p)?),
+            LogSource::File(p) => Box::new(crate::input::open_regular(p)?),
             LogSource::Memory { bytes, .. } => Box::new(std::io::Cursor::new(Arc::clone(bytes))),
         })
     }
@@ -410,7 +410,7 @@ impl LogSource {
     /// Size in bytes.
     pub(crate) fn len(&self) -> std::io::Result<u64> {
         Ok(match self {
-            LogSource::File(p) => std::fs::metadata(p)?.len(),
+            LogSource::File(p) => crate::input::check_regular(p)?.len(),
             LogSource::Memory { bytes, .. } => bytes.len() as u64,
         })
     }
@@ -425,12 +425,29 @@ impl LogSource {
             .unwrap_or_default();
         let side = name.with_file_name(format!("{stem}{}", crate::format::SIDECAR_SUFFIX));
         match self {
-            LogSource::File(_) => match std::fs::read(&side) {
+            LogSource::File(_) => match crate::input::read_limited(
+                &side,
+                crate::input::MAX_SIDECAR_BYTES,
+                "metadata sidecar",
+            ) {
                 Ok(b) => Ok((side, Some(b))),
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok((side, None)),
                 Err(e) => Err(e),
             },
-            LogSource::Memory { sidecar, .. } => Ok((side, sidecar.as_ref().map(|b| b.to_vec()))),
+            LogSource::Memory { sidecar, .. } => match sidecar {
+                Some(b) if b.len() as u64 > crate::input::MAX_SIDECAR_BYTES => {
+                    Err(std::io::Error::new(
+                        std::io::ErrorKind::InvalidData,
+                        format!(
+                            "{} is {} bytes, over the {}-byte limit for a metadata sidecar",
+                            side.display(),
+                            b.len(),
+                            crate::input::MAX_SIDECAR_BYTES
+                        ),
+                    ))
+                }
+                _ => Ok((side, sidecar.as_ref().map(|b| b.to_vec()))),
+            },
         }
     }
 }

@@ -84,7 +84,9 @@ pub struct Epoch {
     pub mu: f64,
     /// ‖2 Jᵀr‖ at the start of the epoch.
     pub grad_norm: f64,
-    /// Seconds since training started.
+    /// Seconds since training started. Not written to files (issue 17: a clock field made the
+    /// bytes differ between identical runs); read from older files.
+    #[serde(default, skip_serializing)]
     pub elapsed_s: f64,
     /// Effective number of parameters γ after the epoch (Bayesian regularisation only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -290,8 +292,13 @@ pub struct Provenance {
     pub pipeline_sha256: String,
     pub seed: u64,
     pub crate_version: String,
-    /// UTC, RFC 3339.
+    /// UTC, RFC 3339. Empty, and not written, since issue 17 (the time is in the output
+    /// folder's `timings.json`); files written before carry it.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
     pub created: String,
+    /// The campaign generation that wrote the file (see `CampaignRecord::generation`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generation: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -392,10 +399,12 @@ impl ModelFile {
     /// Reads a model file.
     pub fn read(path: &Path) -> Result<ModelFile, ModelError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Read {
-            file: file.clone(),
-            source,
-        })?;
+        let text =
+            crate::input::read_text_limited(path, crate::input::MAX_MODEL_BYTES, "model file")
+                .map_err(|source| ModelError::Read {
+                    file: file.clone(),
+                    source,
+                })?;
         Self::from_json(&text, &file)
     }
 

@@ -24,7 +24,7 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         file: path.display().to_string(),
         message,
     };
-    let file = std::fs::File::open(path).map_err(|source| ReportError::Read {
+    let file = crate::input::open_regular(path).map_err(|source| ReportError::Read {
         file: path.display().to_string(),
         source,
     })?;

@@ -52,6 +52,13 @@ pub enum ReportError {
     },
     #[error("{file}: {message}")]
     Data { file: String, message: String },
+    /// A file of another campaign generation than `campaign.json`'s.
+    #[error("{file}: written by campaign generation {found}, but campaign.json is generation {campaign} (an interrupted or concurrent `railgrip run`). Hint: rerun `railgrip run` into this folder")]
+    Stale {
+        file: String,
+        found: String,
+        campaign: String,
+    },
     #[error("plot \"{plot}\": {message}")]
     Plot { plot: String, message: String },
     #[error("{file}: cannot write: {source}")]
@@ -77,7 +84,7 @@ struct Inputs<'a> {
 impl<'a> Inputs<'a> {
     fn load(out: &OutDir, camp: &'a CampaignRecord) -> Result<Inputs<'a>, ReportError> {
         let models = out.models();
-        let fits = match std::fs::read_to_string(models.polach_fits()) {
+        let fits: Option<PolachReport> = match std::fs::read_to_string(models.polach_fits()) {
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
             Err(source) => {
                 return Err(ReportError::Read {
@@ -100,19 +107,34 @@ impl<'a> Inputs<'a> {
                     source,
                 })
             }
-            Ok(t) => serde_json::from_str(&t).map_err(|source| ReportError::Fits {
-                file: models.leave_one_run_out().display().to_string(),
-                source,
-            })?,
+            Ok(t) => {
+                let f: crate::identify::train::HeldOutFile =
+                    serde_json::from_str(&t).map_err(|source| ReportError::Fits {
+                        file: models.leave_one_run_out().display().to_string(),
+                        source,
+                    })?;
+                same_generation(camp, &models.leave_one_run_out(), f.generation.as_deref())?;
+                f.runs
+            }
         };
+        if let Some(f) = &fits {
+            same_generation(camp, &models.polach_fits(), f.generation.as_deref())?;
+        }
         let mut data = Vec::new();
         for r in camp.runs.iter().filter(|r| r.ok()) {
             data.push((r, read_run(&out.run_estimates(&r.run))?));
         }
+        let mlp = optional_model(&models.mlp())?;
+        let polach = optional_model(&models.polach())?;
+        for (path, m) in [(models.mlp(), &mlp), (models.polach(), &polach)] {
+            if let Some(m) = m {
+                same_generation(camp, &path, m.file.provenance.generation.as_deref())?;
+            }
+        }
         Ok(Inputs {
             camp,
-            mlp: optional_model(&models.mlp())?,
-            polach: optional_model(&models.polach())?,
+            mlp,
+            polach,
             fits,
             held_out,
             data,
@@ -122,6 +144,25 @@ impl<'a> Inputs<'a> {
     /// True for the runs of the condition the models were trained on.
     fn in_condition(&self, r: &RunRecord) -> bool {
         self.camp.condition.is_none() || r.condition == self.camp.condition
+    }
+}
+
+/// A file the report reads must come from the campaign generation of `campaign.json` (issue
+/// 17: a killed re-run could leave new models beside an old campaign record). Records written
+/// before generations existed are not checked.
+fn same_generation(
+    camp: &CampaignRecord,
+    path: &Path,
+    found: Option<&str>,
+) -> Result<(), ReportError> {
+    match (&camp.generation, found) {
+        (None, _) => Ok(()),
+        (Some(g), Some(f)) if g == f => Ok(()),
+        (Some(g), f) => Err(ReportError::Stale {
+            file: path.display().to_string(),
+            found: f.unwrap_or("none").to_string(),
+            campaign: g.clone(),
+        }),
     }
 }
 
@@ -250,23 +291,22 @@ fn audit_line(h: &mut String, m: &Model) {
 fn runs(h: &mut String, i: &Inputs) {
     let camp = i.camp;
     // Runs table.
-    h.push_str("<h2>Runs</h2>\n<table><tr><th class=\"l\">run</th><th>status</th><th>initial speed km/h</th><th>ambient °C</th><th class=\"l\">condition</th><th>peak μ axles 1–4</th><th>max Δv m/s axles 1–4</th><th>time s</th></tr>\n");
+    h.push_str("<h2>Runs</h2>\n<table><tr><th class=\"l\">run</th><th>status</th><th>initial speed km/h</th><th>ambient °C</th><th class=\"l\">condition</th><th>peak μ axles 1–4</th><th>max Δv m/s axles 1–4</th></tr>\n");
     for r in &camp.runs {
         let axles = |v: &[Option<f64>; AXLES], d| {
             v.iter().map(|x| opt(*x, d)).collect::<Vec<_>>().join(" / ")
         };
         let _ = writeln!(
             *h,
-            "<tr><td class=\"l\">{}</td><td class=\"{}\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{:.2}</td></tr>",
+            "<tr><td class=\"l\">{}</td><td class=\"{}\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td></tr>",
             esc(&r.run),
             if r.ok() { "" } else { "failed" },
-            if r.ok() { if r.reused { "ok (reused)" } else { "ok" } } else { "FAILED" },
+            if r.ok() { "ok" } else { "FAILED" },
             opt(r.initial_speed_kmh, 0),
             opt(r.ambient_temperature_c, 0),
             esc(r.condition.as_deref().unwrap_or("–")),
             axles(&r.peak_mu, 3),
             axles(&r.max_dv_mps, 2),
-            r.duration_s
         );
     }
     h.push_str("</table>\n");
@@ -895,12 +935,12 @@ fn provenance(h: &mut String, m: &Model) {
     h.push_str("<h2>Provenance</h2>\n<table>");
     let _ = writeln!(
         *h,
-        "<tr><th class=\"l\">pipeline</th><td class=\"l\">{} (SHA-256 {})</td></tr>\n<tr><th class=\"l\">seed</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">railgrip</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">created</th><td class=\"l\">{}</td></tr>",
+        "<tr><th class=\"l\">pipeline</th><td class=\"l\">{} (SHA-256 {})</td></tr>\n<tr><th class=\"l\">seed</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">railgrip</th><td class=\"l\">{}</td></tr>\n<tr><th class=\"l\">generation</th><td class=\"l\">{}</td></tr>",
         esc(&p.pipeline),
         esc(&p.pipeline_sha256),
         p.seed,
         esc(&p.crate_version),
-        esc(&p.created)
+        esc(p.generation.as_deref().unwrap_or("–"))
     );
     for i in &p.inputs {
         let _ = writeln!(

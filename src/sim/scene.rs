@@ -1177,10 +1177,12 @@ impl Scene {
     /// Reads and checks a scene file.
     pub fn load(path: &Path) -> Result<Scene, ConfigError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-            file: file.clone(),
-            source,
-        })?;
+        let text =
+            crate::input::read_text_limited(path, crate::input::MAX_CONFIG_BYTES, "scene file")
+                .map_err(|source| ConfigError::Read {
+                    file: file.clone(),
+                    source,
+                })?;
         Self::from_toml(&text, &file, path.parent())
     }
 
