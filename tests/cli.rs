@@ -515,6 +515,12 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     .unwrap();
     // Two broken logs in the middle of the campaign.
     std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    // A hostile name reaches the report (failed runs table) and campaign.json only escaped.
+    std::fs::write(
+        camp.join("<img src=x onerror=alert(1)>.csv"),
+        "t,v_radar\n0,abc\n",
+    )
+    .unwrap();
     std::fs::write(camp.join("day 2/truncated.mcap"), b"\x89MCAP0\r\n\x01\x02").unwrap();
     // Issue 17: a well-formed CSV whose last row lies 1e9 s after the others once made the
     // resampler ask for terabytes and abort the whole campaign.
@@ -559,7 +565,7 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
             && out.contains("failed     zero_sidecar:"),
         "{out}"
     );
-    assert!(out.contains("5 of 8 run(s) failed"), "{out}");
+    assert!(out.contains("6 of 9 run(s) failed"), "{out}");
     assert!(
         out.contains("fifo.csv is a FIFO") && out.contains("zero_sidecar.meta.toml is a device"),
         "{out}"
@@ -602,22 +608,35 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     }
     let summary = std::fs::read_to_string(o_dir.join("summary.csv")).unwrap();
     let rows: Vec<&str> = summary.lines().collect();
-    assert_eq!(rows.len(), 9, "{summary}");
+    assert_eq!(rows.len(), 10, "{summary}");
     assert!(rows[0].starts_with("run,status,error,initial_speed_kmh"));
-    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 5);
+    assert_eq!(rows.iter().filter(|r| r.contains(",failed,")).count(), 6);
     let html = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
     assert!(
         html.contains("<svg") && html.contains("Failed runs") && html.contains("truncated.mcap"),
         "report"
     );
     assert!(html.contains("Fig. 9") && html.contains("k_A(T)") && html.contains("Fig. 11"));
+    assert!(
+        !html.contains("<img src=x") && html.contains("&lt;img src=x onerror=alert(1)&gt;.csv"),
+        "the report must escape names"
+    );
+    let rec: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(o_dir.join("campaign.json")).unwrap()).unwrap();
+    assert!(
+        rec["runs"].as_array().unwrap().iter().any(|r| r["source"]
+            .as_str()
+            .unwrap()
+            .ends_with("<img src=x onerror=alert(1)>.csv")),
+        "campaign.json holds the name exactly"
+    );
 
     // Unchanged inputs: reused; --json on stdout.
     let o = railgrip(&["run", "campaign", "--out", "out", "--json"], dir.path());
     assert_eq!(o.status.code(), Some(3));
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["reused"], 3, "{j}");
-    assert_eq!(j["failed"], 5);
+    assert_eq!(j["failed"], 6);
     assert_eq!(j["skipped"].as_array().unwrap().len(), 2, "{j}");
     // Issue 17: with runs reused, the model files' provenance hashed the estimates tables, not
     // the logs they name.

@@ -1064,7 +1064,7 @@ fn network_files_that_would_evaluate_to_nan_are_refused() {
             v["output"]["norm_min"] = (-1e308).into();
             v["output"]["norm_max"] = 1e308.into();
         },
-        "a model must be finite there",
+        "output.norm_min = -1e308 is beyond ±1e3",
     );
     bad(
         &|v| {
@@ -1079,8 +1079,32 @@ fn network_files_that_would_evaluate_to_nan_are_refused() {
                 huge(&mut l["weights"]);
             }
         },
-        "a model must be finite there",
+        "layers[0].weights[0][0] = 1e308 is beyond ±1e8",
     );
+    bad(
+        &|v| v["creep"]["wheel_load_n"] = 5e-324.into(),
+        "creep.wheel_load_n = 5e-324 N: a wheel load below 1 N",
+    );
+    bad(
+        &|v| {
+            v["inputs"][0]["norm_min"] = 0.0.into();
+            v["inputs"][0]["norm_max"] = 1e-310.into();
+        },
+        "normalisation range is so narrow that its gain overflows",
+    );
+    // Within the limits, a weight of output magnitude that saturates every neuron still gives
+    // finite μ on the whole domain and loads; its header compiles and agrees with Rust.
+    let mut v: serde_json::Value = serde_json::from_str(&good).unwrap();
+    v["layers"][0]["weights"][0][0] = 9.9e7.into();
+    v["layers"][0]["biases"][1] = 5e-324.into();
+    let edge = ModelFile::from_json(&v.to_string(), "edge.json").unwrap();
+    let model = Model::new(edge).unwrap();
+    let pts: Vec<[f64; 4]> = (0..50)
+        .map(|i| [-3.0 + 0.12 * i as f64, 0.5, 0.0, 0.0])
+        .collect();
+    if let Some((worst, _)) = c_header_error(&model, &pts, &[]) {
+        assert!(worst <= 1e-12, "{worst}");
+    }
     bad(
         &|v| {
             v["output"]["norm_min"] = 0.5.into();

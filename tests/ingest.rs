@@ -1161,3 +1161,54 @@ fn time_spans_beyond_the_limit_are_errors_before_any_allocation() {
         "{e}"
     );
 }
+
+#[test]
+fn duplicate_column_names_and_overlong_headers_are_named() {
+    // Issue 17: a column named twice silently took the first; a header over 1 MiB was
+    // reported as "missing columns".
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv().replacen("p4", "omega2", 1);
+    let p = write(dir.path(), "dup.csv", text.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("dup.csv: line 1: column \"omega2\" (omega2) appears 2 times in the header, at positions 4, 10"),
+        "{e}"
+    );
+    let mut long = "t,v_radar,".to_string();
+    long.push_str(&"x".repeat(1 << 20));
+    long.push_str("\n0,1\n");
+    let p = write(dir.path(), "long_header.csv", long.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("long_header.csv: line 1: the header line is longer than 1048576 bytes"),
+        "{e}"
+    );
+}
+
+#[cfg(unix)]
+#[test]
+fn fifos_and_devices_are_refused_without_blocking() {
+    // Issue 17: a FIFO log or sidecar blocked ingest forever; a sidecar linked to /dev/zero
+    // was read to 4.2 GB.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.csv");
+    assert!(std::process::Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    let e = err(&fifo, &default());
+    assert!(e.contains("pipe.csv is a FIFO (named pipe)"), "{e}");
+    let p = write(dir.path(), "z.csv", small_csv().as_bytes());
+    std::os::unix::fs::symlink("/dev/zero", dir.path().join("z.meta.toml")).unwrap();
+    let e = err(&p, &default());
+    assert!(e.contains("z.meta.toml is a device"), "{e}");
+    let p = write(dir.path(), "big.csv", small_csv().as_bytes());
+    let big = format!("# {}\n", "x".repeat(1 << 20));
+    std::fs::write(dir.path().join("big.meta.toml"), big).unwrap();
+    let e = err(&p, &default());
+    assert!(
+        e.contains("over the 1048576-byte limit for a metadata sidecar"),
+        "{e}"
+    );
+}

@@ -29,6 +29,9 @@ fn fields(line: &str) -> Vec<&str> {
         .collect()
 }
 
+/// Longest header line read, bytes.
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+
 fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     let path = src.name();
     let f = src.open().map_err(|e| IngestError::Io {
@@ -36,12 +39,21 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
         source: e,
     })?;
     let mut line = String::new();
-    BufReader::new(f.take(1 << 20))
-        .read_line(&mut line)
-        .map_err(|e| IngestError::Io {
+    let mut r = BufReader::new(f.take(MAX_HEADER_BYTES));
+    r.read_line(&mut line).map_err(|e| IngestError::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    // Issue 17: a header over 1 MiB was cut there and then reported as "missing columns".
+    if !line.ends_with('\n') && line.len() as u64 == MAX_HEADER_BYTES {
+        return Err(IngestError::CsvBadLine {
             path: path.to_path_buf(),
-            source: e,
-        })?;
+            line: 1,
+            what: format!("the header line is longer than {MAX_HEADER_BYTES} bytes"),
+            hint: "a CSV log's first line names its columns; is this a CSV log, with line ends?"
+                .into(),
+        });
+    }
     let line = line
         .trim_start_matches('\u{feff}')
         .trim_end_matches(['\n', '\r']);
@@ -64,6 +76,31 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
         .iter()
         .filter(|(_, c)| !header.contains(&c.column))
         .collect();
+    // Issue 17: a column named twice silently took the first.
+    for (key, c) in &wanted {
+        let at: Vec<usize> = header
+            .iter()
+            .enumerate()
+            .filter(|(_, h)| **h == c.column)
+            .map(|(i, _)| i + 1)
+            .collect();
+        if at.len() > 1 {
+            return Err(IngestError::CsvBadLine {
+                path: path.to_path_buf(),
+                line: 1,
+                what: format!(
+                    "column {:?} ({key}) appears {} times in the header, at positions {}",
+                    c.column,
+                    at.len(),
+                    at.iter()
+                        .map(|i| i.to_string())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+                hint: "rename the columns so that each is named once, or map the signal to the one you mean under another name".into(),
+            });
+        }
+    }
     if !missing.is_empty() {
         let mut hints = Vec::new();
         for (key, c) in &missing {

@@ -8,10 +8,20 @@
 use super::polach::{stiffness, PolachSpec, MIN_SPEED_MPS};
 use super::{CreepSpec, ModelFile, MAX_INPUTS};
 
-/// Shortest decimal form that reads back to the same double (C's strtod rounds correctly).
+/// Shortest decimal form that reads back to the same double (C's strtod rounds correctly);
+/// every finite double, subnormals and ±1.7976931348623157e308 included, is a valid C
+/// literal this way. A checked model file has no non-finite constant, but should one reach
+/// here it is written as the C99 macro (`HUGE_VAL`, `NAN` from <math.h>), never as a bare
+/// `inf` that does not compile (issue 17).
 fn lit(x: f64) -> String {
+    if x.is_nan() {
+        return "NAN".into();
+    }
+    if x.is_infinite() {
+        return if x > 0.0 { "HUGE_VAL" } else { "(-HUGE_VAL)" }.into();
+    }
     let s = format!("{x:?}");
-    if s.contains('.') || s.contains('e') || s.contains("inf") || s.contains("NaN") {
+    if s.contains('.') || s.contains('e') {
         s
     } else {
         format!("{s}.0")
@@ -265,4 +275,32 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
             ),
         ],
     )
+}
+
+#[cfg(test)]
+mod literal_tests {
+    use super::lit;
+
+    #[test]
+    fn every_double_is_written_as_a_literal_that_reads_back() {
+        for x in [
+            0.0,
+            -0.0,
+            1.0,
+            -2.5,
+            5e-324,
+            f64::MIN_POSITIVE,
+            f64::MAX,
+            -f64::MAX,
+            1e22,
+            0.1 + 0.2,
+        ] {
+            let s = lit(x);
+            assert!(s.contains('.') || s.contains('e'), "{s}");
+            assert_eq!(s.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{s}");
+        }
+        assert_eq!(lit(f64::INFINITY), "HUGE_VAL");
+        assert_eq!(lit(f64::NEG_INFINITY), "(-HUGE_VAL)");
+        assert_eq!(lit(f64::NAN), "NAN");
+    }
 }

@@ -11,6 +11,12 @@ use crate::contact::ContactError;
 
 /// Largest hidden layer the evaluators take.
 pub const MAX_HIDDEN: usize = 256;
+/// Largest |weight| or |bias| a network file may hold (trained ones stay far below).
+pub const MAX_WEIGHT: f64 = 1e8;
+/// Largest |value| of an input's domain or normalisation bounds and of speeds (m/s, m/s², °C).
+pub const MAX_INPUT_VALUE: f64 = 1e6;
+/// Largest |value| of the output's normalisation bounds (μ is of order 1).
+pub const MAX_MU_RANGE: f64 = 1e3;
 
 /// Most inputs a network takes (Δv, dΔv/dt, v, ambient temperature).
 pub const MAX_INPUTS: usize = 4;
@@ -585,6 +591,69 @@ impl ModelFile {
         {
             return Err(Defect::Value(
                 "creep: blend_mps, creep_stiffness_n, wheel_load_n and reference_speed_mps must be > 0".into(),
+            ));
+        }
+        // Sane magnitudes (issue 17): finite but extreme constants (weights 1e308) passed, and
+        // the evaluators' derived numbers overflowed.
+        let mut fields: Vec<(String, f64, f64)> = Vec::new();
+        for (l, layer) in self.layers.iter().enumerate() {
+            for (r, row) in layer.weights.iter().enumerate() {
+                for (j, w) in row.iter().enumerate() {
+                    fields.push((format!("layers[{l}].weights[{r}][{j}]"), *w, MAX_WEIGHT));
+                }
+            }
+            for (r, b) in layer.biases.iter().enumerate() {
+                fields.push((format!("layers[{l}].biases[{r}]"), *b, MAX_WEIGHT));
+            }
+        }
+        for i in &self.inputs {
+            for (what, v) in [
+                ("domain_min", i.domain_min),
+                ("domain_max", i.domain_max),
+                ("norm_min", i.norm_min),
+                ("norm_max", i.norm_max),
+            ] {
+                fields.push((format!("inputs[{}].{what}", i.name), v, MAX_INPUT_VALUE));
+            }
+        }
+        for (what, v, limit) in [
+            ("output.norm_min", self.output.norm_min, MAX_MU_RANGE),
+            ("output.norm_max", self.output.norm_max, MAX_MU_RANGE),
+            ("creep.blend_mps", c.blend_mps, MAX_INPUT_VALUE),
+            ("creep.creep_stiffness_n", c.creep_stiffness_n, 1e12),
+            ("creep.wheel_load_n", c.wheel_load_n, 1e7),
+            (
+                "creep.reference_speed_mps",
+                c.reference_speed_mps,
+                MAX_INPUT_VALUE,
+            ),
+        ] {
+            fields.push((what.to_string(), v, limit));
+        }
+        if let Some((what, v, limit)) = fields.iter().find(|(_, v, l)| v.abs() > *l) {
+            return Err(Defect::Value(format!(
+                "{what} = {v:e} is beyond ±{limit:e}; railgrip never writes such a value (a damaged or hand-edited file)"
+            )));
+        }
+        if c.wheel_load_n < 1.0 {
+            return Err(Defect::Value(format!(
+                "creep.wheel_load_n = {:e} N: a wheel load below 1 N is not a railway wheel",
+                c.wheel_load_n
+            )));
+        }
+        // The evaluators' own numbers (mapminmax gains of very narrow ranges) must be finite
+        // too: a header constant `inf` does not compile.
+        let s = self.scaling();
+        if s.gx
+            .iter()
+            .chain(&s.ox)
+            .chain(&s.w1c)
+            .chain([&s.gy, &s.oy])
+            .any(|v| !v.is_finite())
+        {
+            return Err(Defect::Value(
+                "an input or output normalisation range is so narrow that its gain overflows"
+                    .into(),
             ));
         }
         Ok(())
