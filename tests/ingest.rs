@@ -336,11 +336,12 @@ fn mcap_topics_and_fields_are_configurable_and_may_share_a_topic() {
 }
 
 #[test]
-fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
+fn long_gap_is_masked_medium_gap_bridged_and_short_gap_interpolated() {
     let dir = tempfile::tempdir().unwrap();
     let mut run = MultiRate::analytic(10.0, 417.0, 417.0, 417.0, 0.0, 11);
-    // omega2: remove 4.00–4.20 s (200 ms, longer than the 50 ms limit);
-    // p3: remove 6.00–6.03 s (30 ms, bridged).
+    // omega2: remove 4.00–4.60 s (600 ms, longer than bridge_gap_ms = 500);
+    // omega3: remove 7.00–7.20 s (200 ms: bridged by cubic Hermite);
+    // p3: remove 6.00–6.03 s (30 ms, within max_gap_ms: interpolated linearly).
     let cut = |run: &mut MultiRate, s: Signal, a: f64, b: f64| {
         let i = s.index();
         let keep: Vec<bool> = run.times[i].iter().map(|t| !(*t > a && *t < b)).collect();
@@ -349,7 +350,8 @@ fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
         let mut k = keep.iter();
         run.values[i].retain(|_| *k.next().unwrap());
     };
-    cut(&mut run, Signal::Omega(2), 4.0, 4.2);
+    cut(&mut run, Signal::Omega(2), 4.0, 4.6);
+    cut(&mut run, Signal::Omega(3), 7.0, 7.2);
     cut(&mut run, Signal::Pressure(3), 6.0, 6.03);
     let path = write(
         dir.path(),
@@ -357,10 +359,26 @@ fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
         &run.mcap_bytes(&soap_metadata(), McapCompression::Zstd),
     );
     let log = ingest_file(&path, &default()).unwrap();
-    assert_eq!(log.gaps.len(), 1);
+    assert_eq!(log.gaps.len(), 2);
     let gap = &log.gaps[0];
     assert_eq!(gap.signal, Signal::Omega(2));
-    assert!(gap.from_s <= 4.0 && gap.to_s >= 4.2 && gap.to_s - gap.from_s < 0.21);
+    assert!(!gap.bridged);
+    assert!(gap.from_s <= 4.0 && gap.to_s >= 4.6 && gap.to_s - gap.from_s < 0.61);
+    // The bridged gap: valid samples, close to the signal — far closer than a straight line
+    // (whose error bound is M h²/8 = 0.11 rad/s here).
+    let bridged = &log.gaps[1];
+    assert!(bridged.bridged && bridged.signal == Signal::Omega(3));
+    let linear_bound =
+        railgrip::ingest::linear_interpolation_bound(max_second_derivative(Signal::Omega(3)), 0.2);
+    let mut worst: f64 = 0.0;
+    for (i, t) in log.time_s.iter().enumerate() {
+        if *t > bridged.from_s && *t < bridged.to_s {
+            assert!(log.valid[i]);
+            worst = worst.max((log.omega_radps[2][i] - analytic(Signal::Omega(3), *t)).abs());
+        }
+    }
+    eprintln!("bridged 0.2 s: worst error {worst:.2e} rad/s (linear bound {linear_bound:.2e})");
+    assert!(worst < linear_bound / 10.0, "{worst} vs {linear_bound}");
     for (i, t) in log.time_s.iter().enumerate() {
         let inside = *t > gap.from_s && *t < gap.to_s;
         assert_eq!(log.valid[i], !inside, "t = {t}");
@@ -370,7 +388,7 @@ fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
     }
     let invalid = log.invalid_samples();
     assert!(
-        (invalid as f64 - 0.2 * 417.0).abs() <= 3.0,
+        (invalid as f64 - 0.6 * 417.0).abs() <= 3.0,
         "{invalid} invalid samples"
     );
     assert_eq!(log.valid_segments().len(), 2);
@@ -380,12 +398,18 @@ fn long_gap_is_masked_not_bridged_and_short_gap_is_interpolated() {
         .iter()
         .filter(|w| w.kind == WarningKind::Gap)
         .collect();
-    assert_eq!(w.len(), 1);
+    assert_eq!(w.len(), 2);
     assert!(
         w[0].message
-            .starts_with("omega2: 1 gap(s) longer than 50 ms"),
+            .starts_with("omega2: 1 gap(s) longer than 500 ms not interpolated"),
         "{}",
         w[0].message
+    );
+    assert!(
+        w[1].message
+            .starts_with("omega3: 1 gap(s) longer than 50 ms bridged by cubic Hermite"),
+        "{}",
+        w[1].message
     );
 }
 

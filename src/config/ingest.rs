@@ -15,6 +15,7 @@ pub mod raw {
         pub sample_rate_hz: Option<f64>,
         pub max_gap_ms: Option<f64>,
         pub max_duration_s: Option<f64>,
+        pub bridge_gap_ms: Option<f64>,
         #[serde(default)]
         pub plausibility: Plausibility,
         #[serde(default)]
@@ -106,8 +107,12 @@ pub struct McapField {
 pub struct IngestConfig {
     /// Rate of the uniform time base, Hz.
     pub sample_rate_hz: f64,
-    /// Longest hole in a channel that is bridged by linear interpolation, s.
+    /// Longest hole in a channel that is interpolated across linearly like any sample step, s.
     pub max_gap_s: f64,
+    /// Longest hole bridged by cubic Hermite interpolation (holes longer than `max_gap_s`
+    /// and at most this), s; the bridged samples and the filters' support around them are
+    /// masked after conditioning. Not above `max_gap_s`: no bridging.
+    pub bridge_gap_s: f64,
     /// Longest run the resampler accepts, s (bounds the uniform grid it allocates).
     pub max_duration_s: f64,
     pub plausibility: Plausibility,
@@ -141,6 +146,13 @@ const MAX_GAP: Key = Key {
     default: Default::Num(50.0),
     meaning: "longest hole in a channel interpolated across; longer ones are masked",
 };
+const BRIDGE_GAP: Key = Key::num(
+    "ingest.bridge_gap_ms",
+    "ms",
+    closed(0.0, 10_000.0),
+    500.0,
+    "longest hole (above max_gap_ms) bridged by cubic Hermite interpolation so the filters run through it; only the bridged samples and the filters' support around them are masked. Longer holes split the filters; 0 never bridges",
+);
 const MAX_DURATION: Key = Key::num(
     "ingest.max_duration_s",
     "s",
@@ -213,6 +225,7 @@ const MCAP: Key = Key {
 pub const KEYS: &[&Key] = &[
     &RATE,
     &MAX_GAP,
+    &BRIDGE_GAP,
     &MAX_DURATION,
     &ACTION,
     &SPEED_MIN,
@@ -276,6 +289,7 @@ impl Checker<'_> {
         Ok(IngestConfig {
             sample_rate_hz: fs,
             max_gap_s: max_gap_ms * 1e-3,
+            bridge_gap_s: self.value(&BRIDGE_GAP, i.bridge_gap_ms)? * 1e-3,
             max_duration_s: self.value(&MAX_DURATION, i.max_duration_s)?,
             plausibility,
             csv_time,

@@ -87,6 +87,8 @@ pub struct MaskCounts {
     pub no_data: usize,
     pub short_segment: usize,
     pub settling: usize,
+    /// In a bridged logger gap or within the filters' support of one.
+    pub bridged_gap: usize,
     pub low_speed: usize,
     pub brake_released: usize,
     pub wheel_locked: usize,
@@ -98,6 +100,7 @@ impl MaskCounts {
         self.no_data
             + self.short_segment
             + self.settling
+            + self.bridged_gap
             + self.low_speed
             + self.brake_released
             + self.wheel_locked
@@ -105,11 +108,12 @@ impl MaskCounts {
     }
 
     /// (reason, count) pairs for messages.
-    pub fn pairs(&self) -> [(&'static str, usize); 7] {
+    pub fn pairs(&self) -> [(&'static str, usize); 8] {
         [
             ("no data (gap)", self.no_data),
             ("segment too short", self.short_segment),
             ("filter settling", self.settling),
+            ("bridged gap", self.bridged_gap),
             ("speed below minimum", self.low_speed),
             ("brake not applied", self.brake_released),
             ("wheel locked", self.wheel_locked),
@@ -200,6 +204,7 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
         has_data,
         usable,
         settled,
+        near_bridge,
         mode,
         group_delay_s,
         despiked,
@@ -255,6 +260,8 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
                     } else {
                         m.no_data += 1;
                     }
+                } else if near_bridge[i] {
+                    m.bridged_gap += 1;
                 } else if !settled[i] {
                     m.settling += 1;
                 } else if !(v_mps[i] >= cfg.min_speed_mps) {

@@ -234,6 +234,10 @@ pub struct Gap {
     pub from_s: f64,
     /// Time of the first sample after the hole, s.
     pub to_s: f64,
+    /// True when the hole was bridged (`ingest.bridge_gap_ms`): the samples inside carry
+    /// interpolated values and stay valid for the filters, and conditioning masks them with
+    /// the filters' support around them.
+    pub bridged: bool,
 }
 
 /// What was found in one input channel.

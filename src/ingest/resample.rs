@@ -3,11 +3,18 @@
 //! Grid: from the latest channel start to the earliest channel end, `t_j = t_start + j / fs`
 //! (computed from `j`, never accumulated, so a 1-hour run has no drift).
 //!
-//! Long-gap rule (ingest.max_gap_ms): a grid time that falls strictly inside a hole between two
-//! kept samples further apart than `max_gap_s` gets NaN in that channel and `valid = false`;
-//! the hole is listed as a [`Gap`]. We chose masking over splitting the run: the time base stays
-//! one uniform grid, later stages work on [`RunLog::valid_segments`](super::RunLog), and the
-//! samples on both sides of a gap keep their place in time.
+//! Gap rules. A hole between two kept samples up to `ingest.max_gap_ms` is interpolated
+//! linearly like any other step. A hole longer than that and at most `ingest.bridge_gap_ms`
+//! (default 0.5 s) is **bridged** ([`bridge`]): cubic Hermite interpolation between the samples
+//! on both sides, with end slopes from a least-squares line through each side's samples of
+//! the last/first [`SLOPE_WINDOW_S`]; the grid samples inside stay valid, so the filters run
+//! through, and the hole is listed as a bridged [`Gap`] — conditioning masks the bridged
+//! samples and the filters' support around them (`signal::condition`). Issue 17: splitting the
+//! filters at a 0.2 s logger gap and masking the settling at both new ends cost ~640 samples
+//! per axle. A longer hole gets NaN in that channel and `valid = false`; the filters split
+//! there. Masking over splitting the run: the time base stays one uniform grid, later stages
+//! work on [`RunLog::valid_segments`](super::RunLog), and the samples on both sides of a gap
+//! keep their place in time.
 
 use std::borrow::Cow;
 
@@ -83,14 +90,92 @@ fn min_max(v: &[f64]) -> (f64, f64) {
 /// Grid points per parallel work item.
 const CHUNK: usize = 1 << 16;
 
+/// Span of samples on each side of a bridged hole that sets the end slope, s.
+pub const SLOPE_WINDOW_S: f64 = 0.1;
+
+/// Slope at `t_end` of the least-squares parabola v ≈ a + b x + c x², x = t − t_end, through
+/// the samples `idx` (unit/s): b. A straight line's slope would estimate the derivative at
+/// the window's middle, half a window from the gap (a bias of |v''|·W/2). `None` with fewer
+/// than four samples or a singular fit.
+fn end_slope(
+    t: &[f64],
+    v: &[f64],
+    idx: std::ops::RangeInclusive<usize>,
+    t_end: f64,
+) -> Option<f64> {
+    if idx.clone().count() < 4 {
+        return None;
+    }
+    // Normal equations in x scaled by the window (for conditioning): u = x / w.
+    let w = idx
+        .clone()
+        .map(|i| (t[i] - t_end).abs())
+        .fold(0.0, f64::max);
+    if w <= 0.0 {
+        return None;
+    }
+    let mut s = [0.0f64; 5];
+    let mut r = [0.0f64; 3];
+    for i in idx {
+        let u = (t[i] - t_end) / w;
+        let mut p = 1.0;
+        for (k, sk) in s.iter_mut().enumerate() {
+            *sk += p;
+            if k < 3 {
+                r[k] += p * v[i];
+            }
+            p *= u;
+        }
+    }
+    // [s0 s1 s2; s1 s2 s3; s2 s3 s4] [a b c]ᵀ = r; b by Cramer's rule.
+    let det3 = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let m = [[s[0], s[1], s[2]], [s[1], s[2], s[3]], [s[2], s[3], s[4]]];
+    let d = det3(m);
+    if d.is_nan() || d.abs() <= 1e-12 * s[0].powi(3) {
+        return None;
+    }
+    let mb = [[s[0], r[0], s[2]], [s[1], r[1], s[3]], [s[2], r[2], s[4]]];
+    Some(det3(mb) / d / w)
+}
+
+/// The value at `g` inside the hole between samples `k` and `k + 1` of (`t`, `v`): cubic
+/// Hermite interpolation (e.g. de Boor, *A Practical Guide to Splines*, ch. IV)
+/// p(s) = h00 v0 + h10 H m0 + h01 v1 + h11 H m1, s = (g − t0)/H, H = t1 − t0, with
+/// h00 = 2s³ − 3s² + 1, h10 = s³ − 2s² + s, h01 = −2s³ + 3s², h11 = s³ − s², and end slopes
+/// m0, m1 the slopes at t0 and t1 of least-squares parabolas through the samples within
+/// [`SLOPE_WINDOW_S`] before t0 and after t1 (the secant (v1 − v0)/H where a side has fewer
+/// than four samples). Continuous in
+/// value and slope at both ends, so the derivative the estimator takes has no step; exact
+/// for cubic signals sampled densely. Units of `v`.
+pub fn bridge(t: &[f64], v: &[f64], k: usize, g: f64) -> f64 {
+    let (t0, t1, v0, v1) = (t[k], t[k + 1], v[k], v[k + 1]);
+    let h = t1 - t0;
+    let secant = (v1 - v0) / h;
+    let lo = t[..=k].partition_point(|&x| x < t0 - SLOPE_WINDOW_S);
+    let hi = k + 1 + t[k + 1..].partition_point(|&x| x <= t1 + SLOPE_WINDOW_S) - 1;
+    let m0 = end_slope(t, v, lo..=k, t0).unwrap_or(secant);
+    let m1 = end_slope(t, v, k + 1..=hi, t1).unwrap_or(secant);
+    let s = (g - t0) / h;
+    let (s2, s3) = (s * s, s * s * s);
+    (2.0 * s3 - 3.0 * s2 + 1.0) * v0
+        + (s3 - 2.0 * s2 + s) * h * m0
+        + (-2.0 * s3 + 3.0 * s2) * v1
+        + (s3 - s2) * h * m1
+}
+
 /// Interpolates every member series (sharing sample times `t`) onto `grid`; grid times strictly
-/// inside a hole longer than `max_gap` get NaN and clear `valid`. Returns the outputs and the
-/// number of grid samples inside such holes.
+/// inside a hole longer than `max_gap` and at most `bridge_gap` are bridged ([`bridge`]), inside
+/// a longer hole get NaN and clear `valid`. Returns the outputs and the number of grid samples
+/// inside unbridged holes.
 fn interpolate_group(
     t: &[f64],
     values: &[&[f64]],
     grid: &[f64],
-    max_gap: f64,
+    (max_gap, bridge_gap): (f64, f64),
     valid: &mut [bool],
 ) -> (Vec<Vec<f64>>, usize) {
     let n = grid.len();
@@ -131,6 +216,10 @@ fn interpolate_group(
                     let kk = if g <= t0 { k } else { k + 1 };
                     for (out, v) in slices.iter_mut().zip(values) {
                         out[j] = v[kk];
+                    }
+                } else if t1 - t0 > max_gap && t1 - t0 <= bridge_gap {
+                    for (out, v) in slices.iter_mut().zip(values) {
+                        out[j] = bridge(t, v, k, g);
                     }
                 } else if t1 - t0 > max_gap {
                     for out in slices.iter_mut() {
@@ -331,33 +420,57 @@ pub(super) fn resample(
     for (_, members) in &groups {
         let t = &kept[members[0]].0[..];
         let values: Vec<&[f64]> = members.iter().map(|&i| &kept[i].1[..]).collect();
-        let (outs, invalid) = interpolate_group(t, &values, &time_s, max_gap, &mut valid);
+        let (outs, invalid) =
+            interpolate_group(t, &values, &time_s, (max_gap, cfg.bridge_gap_s), &mut valid);
         let (group_gaps, median, max_step) = step_summary(t, max_gap, t_start, t_end);
+        type Holes = Vec<(f64, f64)>;
+        let (bridged, open): (Holes, Holes) = group_gaps
+            .iter()
+            .partition(|(a, b)| b - a <= cfg.bridge_gap_s);
+        let longest = |g: &[(f64, f64)]| {
+            *g.iter()
+                .max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))
+                .expect("non-empty")
+        };
         for (&i, out) in members.iter().zip(outs) {
             let ch = &channels[i];
-            if !group_gaps.is_empty() {
-                let longest = group_gaps
-                    .iter()
-                    .max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))
-                    .expect("non-empty");
+            if !open.is_empty() {
+                let l = longest(&open);
                 warnings.push(Warning {
                     kind: WarningKind::Gap,
                     message: format!(
                         "{}: {} gap(s) longer than {} ms not interpolated ({invalid} samples marked invalid); longest {:.3} s from t = {:.3} s to {:.3} s",
                         ch.signal,
-                        group_gaps.len(),
-                        max_gap * 1e3,
-                        longest.1 - longest.0,
-                        longest.0,
-                        longest.1
+                        open.len(),
+                        (max_gap.max(cfg.bridge_gap_s)) * 1e3,
+                        l.1 - l.0,
+                        l.0,
+                        l.1
                     ),
                 });
-                gaps.extend(group_gaps.iter().map(|&(from_s, to_s)| Gap {
-                    signal: ch.signal,
-                    from_s,
-                    to_s,
-                }));
             }
+            if !bridged.is_empty() {
+                let l = longest(&bridged);
+                warnings.push(Warning {
+                    kind: WarningKind::Gap,
+                    message: format!(
+                        "{}: {} gap(s) longer than {} ms bridged by cubic Hermite interpolation (ingest.bridge_gap_ms = {}; the bridged samples and the filters' support around them are masked); longest {:.3} s from t = {:.3} s to {:.3} s",
+                        ch.signal,
+                        bridged.len(),
+                        max_gap * 1e3,
+                        cfg.bridge_gap_s * 1e3,
+                        l.1 - l.0,
+                        l.0,
+                        l.1
+                    ),
+                });
+            }
+            gaps.extend(group_gaps.iter().map(|&(from_s, to_s)| Gap {
+                signal: ch.signal,
+                from_s,
+                to_s,
+                bridged: to_s - from_s <= cfg.bridge_gap_s,
+            }));
             let (min, max) = min_max(&kept[i].1);
             stats[i] = Some(ChannelStats {
                 rate_hz: 1.0 / median,
@@ -383,4 +496,51 @@ pub(super) fn resample(
         warnings,
         stats,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// Samples of `f` every `h` s over [0, 1] s with a hole (gap_from, gap_from + gap).
+    fn holed(f: &dyn Fn(f64) -> f64, h: f64, gap_from: f64, gap: f64) -> (Vec<f64>, Vec<f64>) {
+        let t: Vec<f64> = (0..=(1.0 / h) as usize)
+            .map(|i| i as f64 * h)
+            .filter(|&x| !(x > gap_from && x < gap_from + gap))
+            .collect();
+        let v = t.iter().map(|&x| f(x)).collect();
+        (t, v)
+    }
+
+    proptest! {
+        /// The bridge reproduces any quadratic exactly (the end parabolas are exact, and a
+        /// cubic Hermite with exact end slopes reproduces quadratics) and stays finite.
+        #[test]
+        fn bridges_reproduce_quadratics(
+            a in -100.0f64..100.0,
+            b in -50.0f64..50.0,
+            c in -20.0f64..20.0,
+            gap in 0.06f64..0.5,
+            from in 0.2f64..0.4,
+            rate in prop::sample::select(vec![100.0, 417.0, 1000.0]),
+        ) {
+            let f = |x: f64| a + b * x + c * x * x;
+            let (t, v) = holed(&f, 1.0 / rate, from, gap);
+            let k = t.iter().position(|&x| x > from).unwrap() - 1;
+            prop_assert!(t[k + 1] - t[k] >= gap);
+            for s in [0.1, 0.37, 0.5, 0.9] {
+                let g = t[k] + s * (t[k + 1] - t[k]);
+                let y = bridge(&t, &v, k, g);
+                prop_assert!((y - f(g)).abs() <= 1e-8 * (1.0 + a.abs() + b.abs() + c.abs()), "{y} vs {}", f(g));
+            }
+        }
+    }
+
+    #[test]
+    fn a_side_with_too_few_samples_falls_back_to_the_secant() {
+        // Two samples only: a straight line between them.
+        let (t, v) = (vec![0.0, 1.0], vec![1.0, 3.0]);
+        assert!((bridge(&t, &v, 0, 0.25) - 1.5).abs() < 1e-12);
+    }
 }

@@ -43,6 +43,11 @@ pub struct Conditioned {
     pub settled: Vec<bool>,
     /// Settling margin at segment ends: one period of the lowest cut-off, s.
     pub settle_s: f64,
+    /// True where a sample lies in a bridged gap (`ingest.bridge_gap_ms`) or within
+    /// [`Conditioned::bridge_support_s`] of one; such samples are not `settled`.
+    pub near_bridge: Vec<bool>,
+    /// Margin around a bridged gap, s.
+    pub bridge_support_s: f64,
     /// Radar samples replaced by the Hampel filter.
     pub despiked: usize,
     /// Group delay at DC of the radar, tachometer and pressure filters, s (0 in zero-phase
@@ -105,6 +110,21 @@ pub fn segments(log: &RunLog) -> Vec<(usize, usize)> {
     }
     out
 }
+
+/// The margin masked on each side of a bridged gap, s: the time in which the slowest pole
+/// pair of the lowest-cut-off 4th-order Butterworth decays to BRIDGE_DECAY of its start
+/// (poles at ω_c e^{±j 5π/8}: decay rate ω_c cos(3π/8) = 0.383 ω_c).
+pub fn bridge_support_s(cfg: &FilterConfig) -> f64 {
+    let lowest = cfg
+        .radar_cutoff_hz
+        .min(cfg.tacho_cutoff_hz)
+        .min(cfg.pressure_cutoff_hz);
+    let rate = std::f64::consts::TAU * lowest * (3.0 * std::f64::consts::PI / 8.0).cos();
+    BRIDGE_SUPPORT_TAUS / rate
+}
+
+/// Time constants of the slowest pole pair masked around a bridged gap.
+pub const BRIDGE_SUPPORT_TAUS: f64 = 1.0;
 
 /// Channels in the order they are filtered together: radar, ω1..ω4, p1..p4.
 const LANES: usize = 1 + 2 * AXLES;
@@ -208,6 +228,17 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
             settled[a + guard..b - guard].fill(true);
         }
     }
+    // Bridged gaps: the interpolated samples and the filters' support around them.
+    let bridge_support_s = bridge_support_s(cfg);
+    let mut near_bridge = vec![false; n];
+    if let (Some(&t0), true) = (log.time_s.first(), log.gaps.iter().any(|g| g.bridged)) {
+        for g in log.gaps.iter().filter(|g| g.bridged) {
+            let a = (((g.from_s - bridge_support_s - t0) * fs).floor().max(0.0) as usize).min(n);
+            let b = (((g.to_s + bridge_support_s - t0) * fs).ceil().max(0.0) as usize + 1).min(n);
+            near_bridge[a..b].fill(true);
+            settled[a..b].fill(false);
+        }
+    }
     let mut has_data = vec![false; n];
     for &(a, b) in &all_segs {
         has_data[a..b].fill(true);
@@ -228,6 +259,8 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
         usable,
         settled,
         settle_s,
+        near_bridge,
+        bridge_support_s,
         despiked,
         group_delay_s: GroupDelays {
             radar_s: delay(&f.radar),
