@@ -16,6 +16,7 @@ pub mod config;
 pub mod contact;
 pub mod estimate;
 pub mod format;
+pub mod fuzzing;
 pub mod hash;
 pub mod identify;
 pub mod ingest;

@@ -104,3 +104,75 @@ proptest! {
         feed(&apply(&mcap, &ms), "mutated.mcap");
     }
 }
+
+/// The committed seed corpus of a fuzz target (`fuzz/corpus/<target>/`, made by
+/// `fuzz/make_corpus.sh`).
+fn corpus(target: &str) -> Vec<Vec<u8>> {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("fuzz/corpus")
+        .join(target);
+    let mut files: Vec<_> = fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    let seeds: Vec<Vec<u8>> = files.iter().map(|p| fs::read(p).unwrap()).collect();
+    assert!(!seeds.is_empty(), "{}: empty corpus", dir.display());
+    seeds
+}
+
+// The bounded versions of the fuzz targets (fuzz/fuzz_targets/*.rs call the same
+// railgrip::fuzzing functions; README "Fuzzing" has the ≥ 10⁶-input runs).
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn mutated_sidecars_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
+        let seeds = corpus("sidecar");
+        railgrip::fuzzing::sidecar_bytes(&apply(&seeds[k % seeds.len()], &ms));
+    }
+
+    #[test]
+    fn mutated_pipelines_never_panic(ms in proptest::collection::vec(mutation(), 1..4)) {
+        railgrip::fuzzing::pipeline_bytes(&apply(&corpus("pipeline")[0], &ms));
+    }
+
+    #[test]
+    fn mutated_scenes_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
+        let seeds = corpus("scene");
+        railgrip::fuzzing::scene_bytes(&apply(&seeds[k % seeds.len()], &ms));
+    }
+
+    #[test]
+    fn mutated_model_files_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
+        let seeds = corpus("model");
+        railgrip::fuzzing::model_bytes(&apply(&seeds[k % seeds.len()], &ms));
+    }
+
+    #[test]
+    fn mutated_corpus_logs_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
+        let (csv, mcap) = (corpus("csv"), corpus("mcap"));
+        railgrip::fuzzing::log_bytes(&apply(&csv[k % csv.len()], &ms), "fuzz.csv", None);
+        railgrip::fuzzing::log_bytes(&apply(&mcap[k % mcap.len()], &ms), "fuzz.mcap", None);
+    }
+}
+
+#[test]
+fn the_fuzz_seeds_are_valid_inputs() {
+    // Seeds that already fail would fuzz the error paths only.
+    for s in corpus("pipeline") {
+        railgrip::Pipeline::from_toml(std::str::from_utf8(&s).unwrap(), "seed.toml").unwrap();
+    }
+    for s in corpus("model") {
+        railgrip::model::ModelFile::from_json(std::str::from_utf8(&s).unwrap(), "seed.json")
+            .unwrap();
+    }
+    for s in corpus("csv").iter().chain(&corpus("mcap")) {
+        let src = railgrip::ingest::LogSource::Memory {
+            name: "seed".into(),
+            bytes: s.as_slice().into(),
+            sidecar: None,
+        };
+        railgrip::ingest::ingest_source(&src, &railgrip::Pipeline::default_uic_z1()).unwrap();
+    }
+}
