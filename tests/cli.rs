@@ -952,3 +952,22 @@ fn write_errors_name_the_file_and_the_operating_systems_cause() {
         "{err}"
     );
 }
+
+#[test]
+fn a_csv_that_panics_the_csv_parser_exits_1_with_a_clean_error() {
+    // Found by fuzzing (issue 17): polars panics on this file; railgrip exited 101 with a
+    // backtrace. Now: exit 1, the file and line named, no panic text.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fuzz/polars_panic_builder_141.csv"),
+        dir.path().join("found.csv"),
+    )
+    .unwrap();
+    let o = railgrip(&["ingest", "found.csv"], dir.path());
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("found.csv: line 2") && !err.contains("panicked"),
+        "{err}"
+    );
+}

@@ -176,3 +176,22 @@ fn the_fuzz_seeds_are_valid_inputs() {
         railgrip::ingest::ingest_source(&src, &railgrip::Pipeline::default_uic_z1()).unwrap();
     }
 }
+
+#[test]
+fn a_csv_that_panicked_the_polars_reader_is_a_clean_error() {
+    // Found by the csv fuzz target (issue 17): polars 0.55 panics in csv/read/builder.rs:141
+    // on this file; `railgrip ingest` exited 101 and `railgrip run` lost the whole campaign.
+    let bytes = std::fs::read(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/fuzz/polars_panic_builder_141.csv"),
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("found.csv");
+    fs::write(&p, &bytes).unwrap();
+    let e = ingest_file(&p, &Pipeline::default_uic_z1())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("found.csv: line"), "{e}");
+    railgrip::fuzzing::log_bytes(&bytes, "fuzz.csv", None);
+}

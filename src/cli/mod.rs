@@ -117,6 +117,18 @@ impl PipelineArg {
 }
 
 pub fn main() -> ExitCode {
+    // The CSV reader's worker threads (`polars-N`) can panic on malformed rows; the library
+    // catches that and reports a clean error naming the file and line, so their panic
+    // message would only be noise before it. Every other panic is printed as usual.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let polars = std::thread::current()
+            .name()
+            .is_some_and(|n| n.starts_with("polars"));
+        if !polars {
+            default_hook(info);
+        }
+    }));
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {

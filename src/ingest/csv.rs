@@ -154,21 +154,36 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
         .with_has_header(true)
         .with_columns(Some(unique.clone().into()))
         .with_schema_overwrite(Some(Arc::new(schema)));
-    let df = match src {
+    // polars 0.55 panics on some malformed rows (found by fuzzing, issue 17: a 731-byte CSV
+    // with a row cut inside a number panicked in `csv/read/builder.rs` — "slice index starts
+    // at 1 but ends at 0" — and took down `railgrip run`). The panic is caught here and becomes
+    // an error like polars' own: the line-exact rescan, or the parser's message.
+    let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match src {
         LogSource::File(p) => options
             .try_into_reader_with_file_path(Some(p.clone()))
             .and_then(|r| r.finish()),
         LogSource::Memory { bytes, .. } => options
             .into_reader_with_file_handle(std::io::Cursor::new(Arc::clone(bytes)))
             .finish(),
-    };
-    let df = match df {
-        Ok(df) => df,
-        Err(e) => {
+    }));
+    let df = match read {
+        Ok(Ok(df)) => df,
+        Ok(Err(e)) => {
             return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
                 path: path.to_path_buf(),
                 message: e.to_string(),
             }))
+        }
+        Err(panic) => {
+            let what = panic
+                .downcast_ref::<String>()
+                .map(String::as_str)
+                .or_else(|| panic.downcast_ref::<&str>().copied())
+                .unwrap_or("no message");
+            return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                path: path.to_path_buf(),
+                message: format!("the CSV reader failed ({what})"),
+            }));
         }
     };
     if df.height() == 0 {
