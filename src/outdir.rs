@@ -278,16 +278,20 @@ pub struct RunTiming {
 impl Timings {
     /// Writes `<out>/timings.json` atomically.
     pub fn write(&self, out: &OutDir) -> Result<PathBuf, RecordError> {
-        let path = out.timings();
-        let text = serde_json::to_string_pretty(self).expect("timings serialise") + "\n";
-        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
-            |source| RecordError::Write {
-                path: path.clone(),
-                source,
-            },
-        )?;
-        Ok(path)
+        write_json(out.timings(), self)
     }
+}
+
+/// Writes `value` as pretty JSON to `path`, atomically.
+fn write_json(path: PathBuf, value: &impl Serialize) -> Result<PathBuf, RecordError> {
+    let text = serde_json::to_string_pretty(value).expect("records serialise") + "\n";
+    crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(|source| {
+        RecordError::Write {
+            path: path.clone(),
+            source,
+        }
+    })?;
+    Ok(path)
 }
 
 /// A file in a campaign that is not a run, and why.
@@ -301,15 +305,7 @@ pub struct Skipped {
 impl CampaignRecord {
     /// Writes `<out>/campaign.json` atomically.
     pub fn write(&self, out: &OutDir) -> Result<PathBuf, RecordError> {
-        let path = out.campaign_record();
-        let text = serde_json::to_string_pretty(self).expect("records serialise") + "\n";
-        crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(
-            |source| RecordError::Write {
-                path: path.clone(),
-                source,
-            },
-        )?;
-        Ok(path)
+        write_json(out.campaign_record(), self)
     }
 
     /// Reads `<out>/campaign.json`.
