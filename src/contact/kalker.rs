@@ -1,8 +1,11 @@
-//! Kalker's linear theory: creepage coefficients C11, C22, C23 and the linear creep forces
-//! (seed 002_8d8769283f5e9cb6.txt eq. 6, seed 001_20bb3776135e7607.txt eq. 9–11).
+//! Kalker's linear theory: creepage coefficients C11, C22, C23, C33 and the linear creep
+//! forces and spin moment (seed 002_8d8769283f5e9cb6.txt eq. 6, seed 001_20bb3776135e7607.txt
+//! eq. 9–11).
 //!
 //! Coefficients: Kalker 1990, Table E.3, as listed in ../shared/design/reference-values.md,
-//! interpolated linearly in g = min(a/b, b/a) and, across ν, linearly in 1/C.
+//! interpolated linearly in g = min(a/b, b/a) and, across ν, linearly in 1/C. C33 has tables
+//! for ν = 0, 0.25 and 0.5 on both branches (a ≤ b and a > b); ν = 0.25 is [pub], ν = 0 and 0.5
+//! are [derived] (reference-values.md says how).
 //!
 //! Sign convention (railgrip's, used by every contact law here): creepage s = Δv / v with
 //! Δv = v − r ω the slip velocity (positive in braking), and the tangential force T is the force
@@ -53,12 +56,49 @@ const NU0_C23: [f64; 10] = [
 const NU05_G: [f64; 3] = [0.1, 0.5, 1.0];
 const NU05: [[f64; 3]; 3] = [[4.85, 2.53, 0.731], [4.83, 3.14, 1.07], [5.20, 3.98, 1.63]];
 
+/// C33 on the rows g = 0.1 … 1.0: a ≤ b (g = a/b) and a > b (g = b/a), for ν = 0, 0.25, 0.5.
+const C33_A_LE_B: [[f64; 10]; 3] = [
+    [6.42, 3.46, 2.49, 2.02, 1.74, 1.56, 1.43, 1.34, 1.27, 1.21],
+    [8.28, 4.27, 2.96, 2.32, 1.93, 1.68, 1.50, 1.37, 1.27, 1.19],
+    [11.7, 5.66, 3.72, 2.77, 2.22, 1.86, 1.60, 1.42, 1.27, 1.16],
+];
+const C33_A_GT_B: [[f64; 10]; 3] = [
+    [
+        0.795, 0.828, 0.868, 0.912, 0.958, 1.01, 1.05, 1.10, 1.16, 1.21,
+    ],
+    [
+        0.526, 0.601, 0.674, 0.747, 0.819, 0.892, 0.965, 1.040, 1.110, 1.19,
+    ],
+    [
+        0.228, 0.341, 0.446, 0.549, 0.650, 0.751, 0.852, 0.954, 1.06, 1.16,
+    ],
+];
+
+/// C33 at g on one branch, ν-interpolated linearly in 1/C like the other coefficients.
+fn c33(branch: &[[f64; 10]; 3], g: f64, nu: f64) -> f64 {
+    let at = |k: usize| lerp_table(&G, &branch[k], g);
+    let (lo, hi, t) = if nu <= 0.25 {
+        (at(0), at(1), nu / 0.25)
+    } else {
+        (at(1), at(2), (nu - 0.25) / 0.25)
+    };
+    if t == 0.0 {
+        return lo;
+    }
+    if t == 1.0 {
+        return hi;
+    }
+    1.0 / ((1.0 - t) / lo + t / hi)
+}
+
 /// Kalker's coefficients at one (a/b, ν).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct KalkerCoefficients {
     pub c11: f64,
     pub c22: f64,
     pub c23: f64,
+    /// Spin coefficient C33 (spin moment M_z = G (ab)² C33 φ − …).
+    pub c33: f64,
     /// True when a > b and ν ≠ 0.25: the table has that branch for ν = 0.25 only, so the
     /// ν-dependence is carried over from the a = b row (an approximation, documented).
     pub nu_extrapolated: bool,
@@ -143,16 +183,19 @@ pub fn coefficients(a_m: f64, b_m: f64, nu: f64) -> Result<KalkerCoefficients, C
             c11,
             c22,
             c23,
+            c33: c33(&C33_A_LE_B, ratio, nu),
             nu_extrapolated: false,
         });
     }
     let g = 1.0 / ratio;
     let base = row(&NU025_A_GT_B, &G, g);
+    let c33 = c33(&C33_A_GT_B, g, nu);
     if (nu - 0.25).abs() < 1e-12 {
         return Ok(KalkerCoefficients {
             c11: base[0],
             c22: base[1],
             c23: base[2],
+            c33,
             nu_extrapolated: false,
         });
     }
@@ -164,17 +207,24 @@ pub fn coefficients(a_m: f64, b_m: f64, nu: f64) -> Result<KalkerCoefficients, C
         c11,
         c22,
         c23,
+        c33,
         nu_extrapolated: true,
     })
 }
 
-/// The linear creep forces of a contact, newtons (seed 002 eq. 6 without the spin moment).
+/// The linear creep forces and spin moment of a contact (seed 002 eq. 6; seed 001 eq. 10–11;
+/// Kalker 1990).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LinearCreep {
     /// Longitudinal force G a b C11 s_x, N.
     pub fx_n: f64,
     /// Lateral force G a b C22 s_y + G (ab)^(3/2) C23 φ, N.
     pub fy_n: f64,
+    /// Spin moment about the contact normal, N·m: M_z = G (ab)² C33 φ − G (ab)^(3/2) C23 s_y.
+    /// Kalker writes M_z = G (ab)^(3/2) C23 η − G (ab)² C33 φ for the moment on the body with
+    /// the creepage of the contact point; here, as for the forces, the moment of the traction
+    /// that opposes the sliding, so both terms change sign.
+    pub mz_nm: f64,
     /// Seed 001 eq. 9: |s| + |φ/1000| ≤ 0.002 (φ in 1/m), where the linear theory holds.
     pub within_linear_validity: bool,
 }
@@ -206,9 +256,11 @@ pub fn linear_creep(
         });
     }
     let ab = a_m * b_m;
+    let ab15 = ab * ab.sqrt();
     Ok(LinearCreep {
         fx_n: g_pa * ab * c.c11 * sx,
-        fy_n: g_pa * ab * c.c22 * sy + g_pa * ab * ab.sqrt() * c.c23 * spin_per_m,
+        fy_n: g_pa * ab * c.c22 * sy + g_pa * ab15 * c.c23 * spin_per_m,
+        mz_nm: g_pa * ab * ab * c.c33 * spin_per_m - g_pa * ab15 * c.c23 * sy,
         within_linear_validity: sx.hypot(sy) + (spin_per_m / 1000.0).abs() <= 0.002,
     })
 }
@@ -260,6 +312,43 @@ mod tests {
                 "ν {nu}"
             );
         }
+    }
+
+    #[test]
+    fn c33_reproduces_its_rows_on_both_branches_for_each_nu() {
+        for (k, nu) in [0.0, 0.25, 0.5].into_iter().enumerate() {
+            for (i, g) in G.iter().enumerate() {
+                let lo = coefficients(*g, 1.0, nu).unwrap().c33;
+                assert!((lo - C33_A_LE_B[k][i]).abs() < 1e-12, "ν {nu} a/b {g}");
+                let hi = coefficients(1.0, *g, nu).unwrap().c33;
+                assert!((hi - C33_A_GT_B[k][i]).abs() < 1e-9, "ν {nu} b/a {g}: {hi}");
+            }
+        }
+        // Between ν nodes: linear in 1/C.
+        let c = coefficients(0.5, 1.0, 0.125).unwrap().c33;
+        assert!((c - 1.0 / (0.5 / 1.74 + 0.5 / 1.93)).abs() < 1e-12);
+        // The branches meet at a = b.
+        let (lo, hi) = (
+            coefficients(1.0, 1.0, 0.3).unwrap().c33,
+            coefficients(1.0 + 1e-12, 1.0, 0.3).unwrap().c33,
+        );
+        assert!((lo - hi).abs() < 1e-9);
+    }
+
+    #[test]
+    fn spin_moment_follows_kalker_with_the_opposing_traction_sign() {
+        let c = coefficients(0.5, 1.0, 0.25).unwrap();
+        let (g, a, b) = (8.1e10, 0.003, 0.006);
+        let ab: f64 = a * b;
+        let f = linear_creep(g, a, b, &c, 0.0, 0.0, 0.5).unwrap();
+        assert!((f.mz_nm - g * ab * ab * 1.93 * 0.5).abs() < 1e-9 * f.mz_nm.abs());
+        let f = linear_creep(g, a, b, &c, 0.0, 1e-3, 0.0).unwrap();
+        let expect = -g * ab.powf(1.5) * 0.929 * 1e-3;
+        assert!((f.mz_nm - expect).abs() < 1e-9 * expect.abs());
+        // Odd in (s_y, φ) together.
+        let p = linear_creep(g, a, b, &c, 0.0, 1e-3, 0.2).unwrap();
+        let m = linear_creep(g, a, b, &c, 0.0, -1e-3, -0.2).unwrap();
+        assert_eq!(p.mz_nm, -m.mz_nm);
     }
 
     #[test]

@@ -7,12 +7,14 @@
 //! | [`kalker`] | linear theory: C11, C22, C23 by table interpolation; linear creep forces; validity (eq. 9) | seed 002 eq. 6, seed 001 eq. 9–11, Kalker 1990 Table E.3 |
 //! | [`saturation`] | Shen–Hedrick–Elkins saturation of the linear forces | seed 002 eq. 8 (corrected) |
 //! | [`polach`] | Polach creep force with falling friction, k_A(T), k_S(T) | seed 004 eq. 1–3, Polach 2005 |
-//!
-//! FASTSIM and flash temperature will sit beside these as further modules taking the same
-//! [`hertz::HertzContact`] / [`polach::ContactPatch`] inputs.
+//! | [`fastsim`] | Kalker's FASTSIM (parabolic or elliptic bound, spin, modified FASTSIM, falling friction): forces, moment, slip area, traction and slip-velocity field | seed 001; Kalker 1982; Spiryagin et al. 2013 |
+//! | [`flash`] | flash temperature by the strip (bar) model from the slip field or full sliding | seed 000 eq. 3–11 (eq. 10 corrected), seed 003 |
+//! | [`kalker`] (also) | spin coefficient C33 and the linear spin moment | Kalker 1990 Table E.3 |
 //!
 //! Every function checks its domain and returns [`ContactError`] outside it: never NaN.
 
+pub mod fastsim;
+pub mod flash;
 pub mod hertz;
 pub mod kalker;
 pub mod polach;
