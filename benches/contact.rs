@@ -4,11 +4,15 @@
 //!     cargo bench --bench contact
 //!
 //! Targets (this 2-core machine): linear + saturation ≤ 20 ns, Polach ≤ 100 ns, Hertz with
-//! elliptic integrals ≤ 1 µs per call.
+//! elliptic integrals ≤ 1 µs per call, FASTSIM 20 × 20 ≤ 5 µs per call
+//! (`contact_fastsim/<bound>/<n>x<n>`: one call at a creepage in the saturating range), and the
+//! V-Track flash temperature (FASTSIM 20 × 20 field + strip model) per evaluation.
 
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use railgrip::contact::fastsim::{Bound, Creepage, Fastsim, Friction, Patch};
+use railgrip::contact::flash::{flash_temperature, Heating, Material};
 use railgrip::contact::hertz::hertz_from_curvatures;
 use railgrip::contact::kalker;
 use railgrip::contact::linear_saturated_fx;
@@ -73,6 +77,72 @@ fn bench(c: &mut Criterion) {
             acc
         })
     });
+    g.finish();
+
+    let mut g = c.benchmark_group("contact_fastsim");
+    let h = hertz_from_curvatures(50_000.0, 2.1e11, 0.3, 0.5 / 0.46, 0.5 / 0.3).unwrap();
+    let k = kalker::coefficients(h.a_m, h.b_m, 0.3).unwrap();
+    let fp = Patch::new(
+        &h,
+        railgrip::contact::shear_modulus_pa(2.1e11, 0.3),
+        &k,
+        50_000.0,
+    );
+    let fr = Friction::constant(0.3);
+    let cr = Creepage {
+        sx: 1.5e-3,
+        sy: 2e-4,
+        spin_per_m: 0.1,
+        speed_mps: 20.0,
+    };
+    for bound in [Bound::Elliptic, Bound::Parabolic] {
+        for n in [10, 20, 50, 100, 200] {
+            let fs = Fastsim::new(n, n, bound).unwrap();
+            g.bench_function(format!("{}/{n}x{n}", bound.name()), |b| {
+                b.iter(|| fs.forces(black_box(&fp), &fr, black_box(&cr)).unwrap().fx_n)
+            });
+        }
+    }
+    // Seed 003's V-Track case at 10 % slip (tests/contact_fastsim.rs builds the same patch).
+    let vt = Patch {
+        a_m: 1.412e-3,
+        b_m: 1.339e-3,
+        g_pa: railgrip::contact::shear_modulus_pa(201e9, 0.307),
+        c11: 4.2,
+        c22: 3.8,
+        c23: 1.5,
+        normal_n: 4000.0,
+    };
+    let v = 16.0 / 3.6;
+    let cv = Creepage {
+        sx: 0.1,
+        sy: 0.0,
+        spin_per_m: 0.0,
+        speed_mps: v,
+    };
+    let material = Material {
+        conductivity_w_per_mk: 6.99,
+        specific_heat_j_per_kgk: 539.5,
+        density_kg_per_m3: 7850.0,
+    };
+    let heating = Heating {
+        partition: 0.5,
+        initial_temperature_c: 200.0,
+        after_s: 1.09e-3,
+    };
+    for n in [20, 40] {
+        let fs = Fastsim::new(n, n, Bound::Elliptic).unwrap();
+        let mut field = fs.field();
+        g.bench_function(format!("flash_v_track/{n}x{n}"), |b| {
+            b.iter(|| {
+                fs.solve(black_box(&vt), &Friction::constant(0.45), &cv, &mut field)
+                    .unwrap();
+                flash_temperature(&field, v, &material, &heating)
+                    .unwrap()
+                    .after_c
+            })
+        });
+    }
     g.finish();
 }
 

@@ -406,3 +406,50 @@ fn v_track_flash_temperatures_of_seed_003() {
     assert!(errs.iter().sum::<f64>() / 3.0 < 0.091, "{errs:?}");
     assert!(worst < 0.11);
 }
+
+#[test]
+fn the_power_from_the_forces_equals_the_fields_dissipation() {
+    let fs = Fastsim::new(100, 100, Bound::Elliptic).unwrap();
+    let mut field = fs.field();
+    for c in [
+        creep(1.5e-3, 3e-4, 0.2),
+        creep(0.05, 0.0, 0.0),
+        creep(4e-4, -1e-3, -0.5),
+    ] {
+        let f = fs
+            .solve(&patch(), &Friction::constant(0.3), &c, &mut field)
+            .unwrap();
+        let cells: f64 = (0..field.nx * field.ny)
+            .map(|k| field.power_density(k) * field.dx_m[k / field.nx] * field.dy_m)
+            .sum();
+        println!("power: forces {:.2} W, field {:.2} W", f.power_w, cells);
+        assert!(
+            (cells / f.power_w - 1.0).abs() < 0.05,
+            "{cells} vs {}",
+            f.power_w
+        );
+        // The field's forces are the same as the forces-only call.
+        let g = fs.forces(&patch(), &Friction::constant(0.3), &c).unwrap();
+        assert_eq!(f, g);
+    }
+}
+
+#[test]
+fn fastsim_accuracy_against_grid() {
+    // README "FASTSIM: accuracy vs grid": relative error of F_x against 400 × 400 at a
+    // creepage in the saturating range (ξ = 1.5e-3, η = 2e-4, φ = 0.1 1/m: 40 % slip area),
+    // elliptic bound.
+    let c = creep(1.5e-3, 2e-4, 0.1);
+    let reference = forces(400, Bound::Elliptic, c);
+    println!("slip fraction {:.2}", reference.slip_fraction);
+    let mut last = f64::INFINITY;
+    for n in [10, 20, 50, 100, 200] {
+        let f = forces(n, Bound::Elliptic, c);
+        let ex = (f.fx_n / reference.fx_n - 1.0).abs();
+        let ey = (f.fy_n / reference.fy_n - 1.0).abs();
+        println!("| {n} × {n} | {:.1e} | {:.1e} |", ex, ey);
+        assert!(ex < last);
+        last = ex;
+    }
+    assert!(last < 1e-3);
+}
