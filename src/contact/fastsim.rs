@@ -488,7 +488,7 @@ impl Fastsim {
         if self.ny % 2 == 1 {
             let j = self.ny / 2;
             let y = -b + (j as f64 + 0.5) * dy;
-            match field.as_deref_mut() {
+            match field {
                 Some(f) => self.strips::<1, true>(&cst, [y], [j], b, dy, &mut acc, Some(f)),
                 None => self.strips::<1, false>(&cst, [y], [j], b, dy, &mut acc, None),
             }
