@@ -39,6 +39,7 @@ fn help_explains_every_command() {
         "train",
         "export",
         "eval",
+        "contact",
     ] {
         assert!(s.contains(cmd), "{cmd}: {s}");
         let o = railgrip(&[cmd, "--help"], dir.path());
@@ -970,4 +971,78 @@ fn a_csv_that_panics_the_csv_parser_exits_1_with_a_clean_error() {
         err.contains("found.csv: line 2") && !err.contains("panicked"),
         "{err}"
     );
+}
+
+#[test]
+fn contact_writes_creep_curves_and_temperatures_and_refuses_bad_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("curves.csv");
+    let o = railgrip(
+        &[
+            "contact",
+            "--law",
+            "linear,polach,fastsim,fastsim-modified",
+            "--steps",
+            "21",
+            "--creepage-max",
+            "0.002",
+            "--temperature",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(text(&o.stderr).contains("C33"), "{}", text(&o.stderr));
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 21);
+    let (mu, t, lin) = (
+        col("mu_fastsim"),
+        col("peak_temperature_c"),
+        col("mu_linear"),
+    );
+    for w in rows.windows(2) {
+        // FASTSIM's curve rises towards μ0 = 0.3 and never past it; the contact warms with slip.
+        assert!(w[1][mu] >= w[0][mu] && w[1][mu] <= 0.3 + 1e-12);
+        assert!(w[1][t] >= w[0][t]);
+    }
+    assert!(rows[20][t] > rows[0][t] + 1.0);
+    // At the first step the linear theory and FASTSIM agree (small creepage) within 5 %.
+    assert!(
+        (rows[1][mu] / rows[1][lin] - 1.0).abs() < 0.05,
+        "{:?}",
+        rows[1]
+    );
+    assert_eq!(rows[0][t], 20.0, "no slip, no heat");
+    for (args, says) in [
+        (vec!["contact", "--grid", "0"], "1 ..= 1000"),
+        (vec!["contact", "--grid", "1001"], "1 ..= 1000"),
+        (vec!["contact", "--load-n", "nan"], "normal force"),
+        (
+            vec![
+                "contact",
+                "--temperature",
+                "--initial-temperature-c",
+                "-300",
+            ],
+            "absolute zero",
+        ),
+        (
+            vec!["contact", "--temperature", "--law", "polach"],
+            "needs a FASTSIM law",
+        ),
+        (vec!["contact", "--poisson", "0.7"], "Poisson"),
+    ] {
+        let o = railgrip(&args, dir.path());
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        let e = text(&o.stderr);
+        assert!(e.contains(says), "{args:?}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+    }
 }

@@ -1,5 +1,6 @@
 //! Command-line interface. The only place that prints or picks exit codes.
 
+mod contact;
 mod estimate;
 mod ingest;
 mod model;
@@ -98,6 +99,11 @@ Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fl
     Score(score::Args),
     /// Write a header-only C99 evaluator of a model file.
     Export(model::ExportArgs),
+    /// Creep curves of the contact laws (linear, saturated, Polach, FASTSIM) for one patch, and flash temperatures, as CSV.
+    #[command(
+        long_about = "Compute creep-force curves F_x(ξ) for ξ = 0 … --creepage-max on the Hertz patch of a wheel (--load-n, --wheel-radius-m, profile radii, E, ν) under the chosen laws side by side, so they can be compared: Kalker's linear theory, linear + Shen–Hedrick–Elkins saturation, Polach (seed 004) and FASTSIM (plain or modified after Spiryagin et al. 2013; grid --grid × --grid, elliptic or parabolic bound; also F_y, M_z and the slip-area fraction). With --temperature, the flash temperature of the first FASTSIM law's slip field by the strip model of seed 000 (peak in the contact and --after-ms behind it) and the frictional power.\n\nColumns: creepage, slip_velocity_mps, then per law fx_<law>_N, mu_<law> (F_x/N) and for FASTSIM fy_<law>_N, mz_<law>_Nm, slip_fraction_<law>; with --temperature peak_temperature_c, after_temperature_c, power_W. Writes --out atomically, else standard output; the patch is printed on standard error."
+    )]
+    Contact(contact::Args),
     /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps][, ambient_temperature_c]) and write mu.
     Eval(model::EvalArgs),
 }
@@ -147,6 +153,7 @@ pub fn main() -> ExitCode {
         Command::Export(args) => model::export(args),
         Command::Score(args) => score::run(args),
         Command::Eval(args) => model::eval(args),
+        Command::Contact(args) => contact::run(args),
     };
     match result {
         Ok(code) => ExitCode::from(code),
