@@ -13,7 +13,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use railgrip::sim::{self, Scene};
 
 const ALL: &str = r#"effects = ["load_transfer", "wsp", "hysteresis", "falling_friction", "temperature", "cleaning",
-  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise"]"#;
+  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise", "thermal"]"#;
 
 fn scene(effects: &str, step_ms: f64) -> Scene {
     let text = format!(

@@ -20,12 +20,7 @@ pub fn static_axle_load(v: &Vehicle) -> f64 {
 /// the shear modulus G. Shared by the simulator's truth law, the Polach fits and the models'
 /// creep region.
 pub fn wheel_patch(v: &Vehicle, co: &ContactConfig) -> Result<(ContactPatch, f64), ContactError> {
-    let q = static_axle_load(v) / 2.0;
-    let curv_long = 0.5 / v.wheel_radius_m;
-    let curv_lat = 0.5 * (1.0 / co.wheel_lateral_radius_m + 1.0 / co.rail_lateral_radius_m);
-    let hz =
-        hertz::hertz_from_curvatures(q, co.youngs_modulus_pa, co.poisson, curv_long, curv_lat)?;
-    let kc = kalker::coefficients(hz.a_m, hz.b_m, co.poisson)?;
+    let (hz, kc, q) = wheel_hertz(v, co)?;
     let patch = ContactPatch {
         a_m: hz.a_m,
         b_m: hz.b_m,
@@ -34,6 +29,21 @@ pub fn wheel_patch(v: &Vehicle, co: &ContactConfig) -> Result<(ContactPatch, f64
         c22: kc.c22,
     };
     Ok((patch, q))
+}
+
+/// The Hertz contact of one wheel at the static load, its Kalker coefficients and the wheel
+/// load Q (N).
+pub fn wheel_hertz(
+    v: &Vehicle,
+    co: &ContactConfig,
+) -> Result<(hertz::HertzContact, kalker::KalkerCoefficients, f64), ContactError> {
+    let q = static_axle_load(v) / 2.0;
+    let curv_long = 0.5 / v.wheel_radius_m;
+    let curv_lat = 0.5 * (1.0 / co.wheel_lateral_radius_m + 1.0 / co.rail_lateral_radius_m);
+    let hz =
+        hertz::hertz_from_curvatures(q, co.youngs_modulus_pa, co.poisson, curv_long, curv_lat)?;
+    let kc = kalker::coefficients(hz.a_m, hz.b_m, co.poisson)?;
+    Ok((hz, kc, q))
 }
 
 /// Translating mass of the vehicle: body and two bogies, kg.

@@ -9,7 +9,7 @@ use railgrip::sim::{self, axle_loads, Effect, OutputFormat, Scene, G_MPS2};
 use railgrip::Pipeline;
 
 const ALL_EFFECTS: &str = r#"effects = ["load_transfer", "wsp", "hysteresis", "falling_friction", "temperature", "cleaning",
-  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise"]"#;
+  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise", "thermal"]"#;
 
 fn scene(extra: &str) -> Scene {
     let text = format!(
@@ -616,4 +616,147 @@ fn brake_demand_can_differ_per_axle() {
     .unwrap_err()
     .to_string();
     assert!(e.contains("must list exactly 4 profiles"), "{e}");
+}
+
+#[test]
+fn the_thermal_effect_heats_the_contact_in_slides_and_lowers_friction() {
+    // Soap rail and a hard brake: the wheels slide (WSP cycles), the slip power heats them.
+    let base = r#"effects = ["wsp", "falling_friction"]"#;
+    let hot = r#"effects = ["wsp", "falling_friction", "thermal"]
+[adhesion]
+thermal_reference_c = 20.0
+thermal_scale_k = 100.0"#;
+    let cold = sim::simulate(&scene(base), None).unwrap();
+    let warm = sim::simulate(&scene(hot), None).unwrap();
+    assert_eq!(cold.counters.get(Effect::Thermal), 0);
+    assert_eq!(warm.counters.get(Effect::Thermal), 4 * warm.steps);
+    assert!(cold.truth.contact_temperature_c[0].is_empty());
+    let temps = &warm.truth.contact_temperature_c;
+    let n = warm.truth.time_s.len();
+    let mut peak: f64 = f64::MIN;
+    for a in 0..4 {
+        assert_eq!(temps[a].len(), n);
+        for (i, t) in temps[a].iter().enumerate() {
+            assert!(
+                t.is_finite() && *t >= 20.0 - 1e-9,
+                "axle {a} sample {i}: {t}"
+            );
+            peak = peak.max(*t);
+            // Hot where it slides: the flash term follows |Δv| μ.
+            if warm.truth.dv_mps[a][i].abs() < 1e-4 {
+                assert!(*t < 20.0 + 5.0, "no slip, no flash: {t}");
+            }
+        }
+    }
+    println!("peak contact temperature {peak:.1} °C");
+    assert!(
+        peak > 30.0,
+        "a slide on soap rail warms the contact: {peak}"
+    );
+    // Friction is lower when hot: the mean μ over sliding samples of axle 1 drops.
+    let mean_sliding_mu = |o: &railgrip::sim::SimOutput| {
+        let (mut s, mut k) = (0.0, 0);
+        for i in 0..o.truth.time_s.len() {
+            if o.truth.dv_mps[0][i] > 0.5 {
+                s += o.truth.mu[0][i];
+                k += 1;
+            }
+        }
+        s / k.max(1) as f64
+    };
+    assert!(
+        mean_sliding_mu(&warm) < mean_sliding_mu(&cold),
+        "{} vs {}",
+        mean_sliding_mu(&warm),
+        mean_sliding_mu(&cold)
+    );
+    // The truth table carries the column.
+    let dir = tempfile::tempdir().unwrap();
+    let written = warm.write(dir.path(), "hot", OutputFormat::Csv).unwrap();
+    let truth = written
+        .iter()
+        .find(|p| p.to_string_lossy().ends_with(".truth.parquet"));
+    let bytes = std::fs::read(truth.unwrap()).unwrap();
+    assert!(bytes.windows(21).any(|w| w == b"contact_temperature_c"));
+}
+
+#[test]
+fn a_fastsim_scene_runs_within_its_friction_and_refuses_clashing_keys() {
+    let sc = scene(
+        r#"effects = ["wsp"]
+[adhesion]
+law = "fastsim"
+fastsim_grid = 8"#,
+    );
+    assert!(matches!(sc.adhesion.law, AdhesionLaw::Fastsim(_)));
+    let out = sim::simulate(&sc, None).unwrap();
+    let mu0 = sc.adhesion.polach.mu0;
+    let mut peak: f64 = 0.0;
+    for a in 0..4 {
+        for m in &out.truth.mu[a] {
+            assert!(m.is_finite() && *m <= mu0 * 1.05, "{m} > μ0 {mu0}");
+            peak = peak.max(*m);
+        }
+    }
+    assert!(peak > 0.5 * mu0, "the brake uses the adhesion: {peak}");
+    // With thermal too, and with the modified FASTSIM.
+    let sc = scene(
+        r#"effects = ["wsp", "thermal"]
+[adhesion]
+law = "fastsim"
+fastsim_grid = 6
+fastsim_k0 = 0.6
+fastsim_alpha_inf = 0.3
+fastsim_beta = 0.5"#,
+    );
+    let out = sim::simulate(&sc, None).unwrap();
+    assert_eq!(out.counters.get(Effect::Thermal), 4 * out.steps);
+    for (extra, says) in [
+        (
+            "effects = [\"falling_friction\"]\n[adhesion]\nlaw = \"fastsim\"",
+            "falling_friction",
+        ),
+        (
+            "effects = [\"temperature\"]\n[adhesion]\nlaw = \"fastsim\"",
+            "temperature",
+        ),
+        (
+            "[adhesion]\nlaw = \"fastsim\"\nfastsim_grid = 0",
+            "fastsim_grid",
+        ),
+        (
+            "[adhesion]\nlaw = \"fastsim\"\nfastsim_grid = 1001",
+            "fastsim_grid",
+        ),
+        (
+            "[adhesion]\nlaw = \"fastsim\"\nfastsim_grid = 2.5",
+            "whole number",
+        ),
+        (
+            "[adhesion]\nlaw = \"fastsim\"\nfastsim_bound = \"round\"",
+            "parabolic",
+        ),
+        (
+            "[adhesion]\nlaw = \"fastsim\"\nfastsim_beta = 0.5",
+            "fastsim_k0",
+        ),
+        ("[adhesion]\nlaw = \"fastsim\"\nfastsim_k0 = 1.5", "k0"),
+        ("[adhesion]\nfastsim_grid = 10", "only with law"),
+        (
+            "effects = [\"thermal\"]\n[adhesion]\nthermal_partition = 0.0",
+            "thermal_partition",
+        ),
+    ] {
+        let text = format!(
+            "name = \"t\"\nseed = 3\n{extra}\n[run]\ninitial_speed_kmh = 60.0\nmax_duration_s = 1.0\n"
+        );
+        let e = match Scene::from_toml(&text, "t.toml", None) {
+            Err(e) => e.to_string(),
+            Ok(sc) => sim::simulate(&sc, None)
+                .err()
+                .map(|e| e.to_string())
+                .unwrap_or_default(),
+        };
+        assert!(e.contains(says), "{extra}: {e}");
+    }
 }

@@ -217,6 +217,38 @@ pub(super) enum ScalarLaw {
     Model(Box<crate::model::Model>, f64),
     LossRecovery(PreparedLossRecovery),
     Table(SlipTable),
+    Fastsim(Box<PreparedFastsim>),
+}
+
+/// Speed below which FASTSIM's creepage is taken at this speed, m/s: s = Δv / max(v, 0.5)
+/// (creepage is undefined at standstill; the Polach law of the simulator floors v too).
+pub(super) const FASTSIM_MIN_SPEED_MPS: f64 = 0.5;
+
+/// `law = "fastsim"` prepared for a run: the solver, the wheel's patch at its static load
+/// (FASTSIM is evaluated per wheel: μ = F_x / Q), the friction.
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct PreparedFastsim {
+    pub solver: crate::contact::fastsim::Fastsim,
+    pub patch: crate::contact::fastsim::Patch,
+    pub friction: crate::contact::fastsim::Friction,
+}
+
+impl PreparedFastsim {
+    /// μ at slip `w` (m/s) and speed `v` (m/s): F_x/Q of the creepage w / max(v, 0.5).
+    /// Inputs are finite in a running simulation; a domain error (none expected) gives 0.
+    #[inline]
+    pub(super) fn mu(&self, w: f64, v: f64) -> f64 {
+        let v = v.max(FASTSIM_MIN_SPEED_MPS);
+        let c = crate::contact::fastsim::Creepage {
+            sx: w / v,
+            sy: 0.0,
+            spin_per_m: 0.0,
+            speed_mps: v,
+        };
+        self.solver
+            .forces(&self.patch, &self.friction, &c)
+            .map_or(0.0, |f| f.fx_n / self.patch.normal_n)
+    }
 }
 
 impl ScalarLaw {
@@ -226,6 +258,7 @@ impl ScalarLaw {
             ScalarLaw::Model(m, t_c) => m.mu_vt(w, q, v, *t_c),
             ScalarLaw::LossRecovery(l) => l.mu(w, q, v),
             ScalarLaw::Table(t) => t.mu(w, v),
+            ScalarLaw::Fastsim(f) => f.mu(w, v),
         }
     }
 }

@@ -86,7 +86,7 @@ pub enum SimError {
 
 /// How many times each effect's stage ran.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct EffectCounters(pub [u64; 12]);
+pub struct EffectCounters(pub [u64; 13]);
 
 impl EffectCounters {
     #[inline]
@@ -121,6 +121,8 @@ pub struct Truth {
     pub mu: [Vec<f64>; AXLES],
     pub dv_mps: [Vec<f64>; AXLES],
     pub ddv_mps2: [Vec<f64>; AXLES],
+    /// Contact temperature θ_c (°C) with the `thermal` effect; empty without it.
+    pub contact_temperature_c: [Vec<f64>; AXLES],
 }
 
 impl Truth {
@@ -156,6 +158,31 @@ pub struct SimOutput {
     pub steps: u64,
     /// Simulated time, s.
     pub duration_s: f64,
+}
+
+/// `law = "fastsim"` on the wheel's static patch.
+fn fastsim_law(sc: &Scene, f: &scene::FastsimLaw) -> Result<ScalarLaw, SimError> {
+    use crate::contact::fastsim::{Fastsim, Friction, Patch};
+    let contact_err = |source| SimError::Contact {
+        scene: sc.name.clone(),
+        source,
+    };
+    let (hz, kc, q) = crate::vehicle::wheel_hertz(&sc.vehicle, &sc.contact).map_err(contact_err)?;
+    let g = crate::contact::shear_modulus_pa(sc.contact.youngs_modulus_pa, sc.contact.poisson);
+    let mut solver = Fastsim::new(f.grid, f.grid, f.bound).map_err(contact_err)?;
+    if let Some(r) = f.reduction {
+        solver = solver.modified(r).map_err(contact_err)?;
+    }
+    let p = &sc.adhesion.polach;
+    Ok(ScalarLaw::Fastsim(Box::new(foreign::PreparedFastsim {
+        solver,
+        patch: Patch::new(&hz, g, &kc, q),
+        friction: Friction {
+            mu0: p.mu0,
+            a_ratio: p.a_ratio,
+            b_s_per_m: p.b_s_per_m,
+        },
+    })))
 }
 
 /// The scalar law a scene's adhesion law names — a model file loaded, a foreign law prepared
@@ -219,6 +246,13 @@ fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
             ));
         }
         AdhesionLaw::Table(t) => return Ok(Some(ScalarLaw::Table(t.clone()))),
+        AdhesionLaw::Fastsim(_) if with_t => {
+            return Err(err(
+                "effect temperature with adhesion.law = \"fastsim\"".into(),
+                "FASTSIM has no k(T): remove temperature from effects (the thermal effect works with it)",
+            ));
+        }
+        AdhesionLaw::Fastsim(f) => return fastsim_law(sc, f).map(Some),
         AdhesionLaw::Model(path) => path,
     };
     let m = Model::load(path).map_err(|e| {
@@ -357,6 +391,7 @@ fn run<V: Select>(
         let speed_factor = setup.speed_factor_counted(st.v, &mut counters);
         setup.brakes(t, &mut st, &mut counters);
         let total_t = setup.contact_and_wheels::<V>(isa, model, &mut st);
+        setup.thermal(&mut st, &mut counters);
         setup.hysteresis::<V>(isa, &mut st, &mut counters);
         setup.prepare::<V>(isa, speed_factor, &mut st, &mut counters);
         setup.advance(&mut st, &omega, total_t, v_resisted);
@@ -375,7 +410,7 @@ mod tests {
         let text = r#"name = "paths"
 seed = 3
 effects = ["load_transfer", "wsp", "hysteresis", "falling_friction", "temperature", "cleaning",
-  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise"]
+  "running_resistance", "gradient", "radar_noise", "radar_spikes", "tacho_quantization", "pressure_noise", "thermal"]
 [run]
 initial_speed_kmh = 120.0
 max_duration_s = 4.0

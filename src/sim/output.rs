@@ -42,6 +42,9 @@ pub const TRUTH_COLUMNS: [&str; 10] = [
     "ddv_mps2",
 ];
 
+/// The truth table's extra column with the `thermal` effect: contact temperature, °C.
+pub const THERMAL_COLUMN: &str = "contact_temperature_c";
+
 impl SimOutput {
     /// Writes the run to `dir`: `<stem>.csv` + `<stem>.meta.toml` and/or `<stem>.mcap`, and
     /// `<stem>.truth.parquet`. Every file is written atomically. Returns the paths written.
@@ -130,7 +133,7 @@ impl SimOutput {
             Float32Chunked::from_vec(name.into(), long(f).into_iter().map(truth_f32).collect())
                 .into_column()
         };
-        let cols = vec![
+        let mut cols = vec![
             Float64Chunked::from_vec(TRUTH_COLUMNS[0].into(), long(&|i, _| tr.time_s[i]))
                 .into_column(),
             Int32Chunked::from_vec(
@@ -147,6 +150,12 @@ impl SimOutput {
             f32col(TRUTH_COLUMNS[8], &|i, a| tr.dv_mps[a][i]),
             f32col(TRUTH_COLUMNS[9], &|i, a| tr.ddv_mps2[a][i]),
         ];
+        // With the `thermal` effect only.
+        if tr.contact_temperature_c[0].len() == n {
+            cols.push(f32col(THERMAL_COLUMN, &|i, a| {
+                tr.contact_temperature_c[a][i]
+            }));
+        }
         let mut df = crate::table::frame(n * AXLES, cols, path)?;
         Ok(crate::table::write_parquet(&mut df, path, None)?)
     }

@@ -11,7 +11,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use crate::config::rule::{closed, Checker, Default, Key, Range};
+use crate::config::rule::{closed, open_lo, Checker, Default, Key, Range};
 use crate::config::{self, ConfigError, ContactConfig, Pipeline, Vehicle};
 use crate::contact::polach::{PolachParams, TemperatureLaw};
 
@@ -43,10 +43,13 @@ pub enum Effect {
     TachoQuantization,
     /// Gaussian noise on the cylinder pressures.
     PressureNoise,
+    /// Contact temperature per axle from the slip power (tread heating + flash temperature),
+    /// friction lowered with it by f(σ, θ) (seed 000 in spirit; [`ThermalParams`]).
+    Thermal,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 12] = [
+    pub const ALL: [Effect; 13] = [
         Effect::LoadTransfer,
         Effect::Wsp,
         Effect::Hysteresis,
@@ -59,6 +62,7 @@ impl Effect {
         Effect::RadarSpikes,
         Effect::TachoQuantization,
         Effect::PressureNoise,
+        Effect::Thermal,
     ];
 
     pub fn name(self) -> &'static str {
@@ -75,6 +79,7 @@ impl Effect {
             Effect::RadarSpikes => "radar_spikes",
             Effect::TachoQuantization => "tacho_quantization",
             Effect::PressureNoise => "pressure_noise",
+            Effect::Thermal => "thermal",
         }
     }
 
@@ -200,6 +205,18 @@ pub mod raw {
         pub table_speeds_kmh: Option<Vec<f64>>,
         pub table_slips_mps: Option<Vec<f64>>,
         pub table_mu: Option<Vec<Vec<f64>>>,
+        pub fastsim_grid: Option<f64>,
+        pub fastsim_bound: Option<String>,
+        pub fastsim_k0: Option<f64>,
+        pub fastsim_alpha_inf: Option<f64>,
+        pub fastsim_beta: Option<f64>,
+        pub thermal_partition: Option<f64>,
+        pub thermal_tread_capacity_j_per_k: Option<f64>,
+        pub thermal_cooling_w_per_k: Option<f64>,
+        pub thermal_reference_c: Option<f64>,
+        pub thermal_scale_k: Option<f64>,
+        pub thermal_residual: Option<f64>,
+        pub thermal_pressure_exponent: Option<f64>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -258,6 +275,39 @@ pub enum AdhesionLaw {
     /// μ(Δv) tabulated per speed ([`super::foreign::SlipTable`]): a sharp peak and a plateau.
     /// No effect of the Polach law may be listed, nor `temperature`.
     Table(super::foreign::SlipTable),
+    /// Kalker's FASTSIM ([`crate::contact::fastsim`]) on the wheel's Hertz patch at its static
+    /// load, with Polach's falling friction μ0[(1 − A)e^(−Bw) + A] (`mu0`, `a_ratio`,
+    /// `b_s_per_m`) and optionally the modified FASTSIM's stiffness reduction. Carries its own
+    /// friction law, so falling_friction, hysteresis, cleaning and temperature may not be listed.
+    Fastsim(FastsimLaw),
+}
+
+/// `law = "fastsim"`: the grid, the bound and the optional stiffness reduction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FastsimLaw {
+    /// Cells per side (nx = ny).
+    pub grid: usize,
+    pub bound: crate::contact::fastsim::Bound,
+    pub reduction: Option<crate::contact::fastsim::Reduction>,
+}
+
+/// The `thermal` effect's parameters (every one [assumed]; README "Simulator").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThermalParams {
+    /// Share δ of the slip power that heats the wheel (the rest goes into the rail).
+    pub partition: f64,
+    /// Heat capacity of an axle's heated tread layer (both wheels), J/K.
+    pub tread_capacity_j_per_k: f64,
+    /// Heat loss of the tread to the air and the wheel body, W/K.
+    pub cooling_w_per_k: f64,
+    /// Contact temperature below which friction does not change, °C.
+    pub reference_c: f64,
+    /// Temperature scale of the friction loss above it, K.
+    pub scale_k: f64,
+    /// Friction left at very high temperature, as a fraction.
+    pub residual: f64,
+    /// γ of the pressure factor (σ/σ0)^(−γ).
+    pub pressure_exponent: f64,
 }
 
 impl AdhesionLaw {
@@ -268,6 +318,7 @@ impl AdhesionLaw {
             AdhesionLaw::Model(_) => "model",
             AdhesionLaw::LossRecovery(_) => "loss_recovery",
             AdhesionLaw::Table(_) => "table",
+            AdhesionLaw::Fastsim(_) => "fastsim",
         }
     }
 }
@@ -555,14 +606,15 @@ pub struct AdhesionSection {
     pub hysteresis_time_constant_s: f64,
     pub cleaning_per_axle: f64,
     pub temperature_law: TemperatureLaw,
+    pub thermal: ThermalParams,
 }
 
 const LAW: Key = Key {
     name: "adhesion.law",
     unit: "",
-    range: Range::Choice(&["polach", "model", "loss_recovery", "table"]),
+    range: Range::Choice(&["polach", "model", "loss_recovery", "table", "fastsim"]),
     default: Default::Text("\"polach\""),
-    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with a temperature law, a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
+    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"); `\"fastsim\"`: Kalker's FASTSIM with Polach's falling friction (mu0, a_ratio, b_s_per_m). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with a temperature law, a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
 };
 const MODEL: Key = text(
     "adhesion.model",
@@ -748,6 +800,91 @@ const TABLE_MU: Key = text(
     "`table`: μ, linear between nodes [assumed]",
 );
 
+const FASTSIM_GRID: Key = Key::num(
+    "adhesion.fastsim_grid",
+    "cells",
+    closed(1.0, 1000.0),
+    10.0,
+    "`fastsim`: cells per side of the grid (cost grows with its square)",
+);
+const FASTSIM_BOUND: Key = Key {
+    name: "adhesion.fastsim_bound",
+    unit: "",
+    range: Range::Choice(&["elliptic", "parabolic"]),
+    default: Default::Text("\"elliptic\""),
+    meaning: "`fastsim`: the traction bound's pressure (Hertz or Kalker's parabolic)",
+};
+const FASTSIM_K0: Key = text(
+    "adhesion.fastsim_k0",
+    "",
+    "(0, 1]",
+    "– (plain FASTSIM)",
+    "`fastsim`: the modified FASTSIM's k0 (Spiryagin et al. 2013); with alpha_inf and beta",
+);
+const FASTSIM_ALPHA_INF: Key = text(
+    "adhesion.fastsim_alpha_inf",
+    "",
+    "(0, 1]",
+    "1",
+    "… α∞: the stiffness left at large creepage, as a fraction of k0",
+);
+const FASTSIM_BETA: Key = text(
+    "adhesion.fastsim_beta",
+    "",
+    "≥ 0",
+    "0",
+    "… β: how fast the stiffness falls with Polach's ε",
+);
+const THERMAL_PARTITION: Key = Key::num(
+    "adhesion.thermal_partition",
+    "",
+    open_lo(0.0, 1.0),
+    0.5,
+    "`thermal`: share of the slip power heating the wheel tread and the flash [assumed]",
+);
+const THERMAL_CAPACITY: Key = Key::num(
+    "adhesion.thermal_tread_capacity_j_per_k",
+    "J/K",
+    closed(100.0, 1e7),
+    2.3e4,
+    "`thermal`: heat capacity of an axle's heated tread layer (two 1 cm × 0.1 m rims of steel) [assumed]",
+);
+const THERMAL_COOLING: Key = Key::num(
+    "adhesion.thermal_cooling_w_per_k",
+    "W/K",
+    closed(0.0, 1e5),
+    50.0,
+    "`thermal`: the tread's heat loss to air and wheel body [assumed]",
+);
+const THERMAL_REFERENCE: Key = Key::num(
+    "adhesion.thermal_reference_c",
+    "°C",
+    closed(-50.0, 1000.0),
+    100.0,
+    "`thermal`: contact temperature up to which friction is unchanged [assumed]",
+);
+const THERMAL_SCALE: Key = Key::num(
+    "adhesion.thermal_scale_k",
+    "K",
+    closed(1.0, 5000.0),
+    300.0,
+    "`thermal`: friction × [r + (1 − r) e^(−(θ − θ_ref)/scale)] above θ_ref [assumed]",
+);
+const THERMAL_RESIDUAL: Key = Key::num(
+    "adhesion.thermal_residual",
+    "",
+    closed(0.05, 1.0),
+    0.5,
+    "`thermal`: r, the friction left at very high contact temperature [assumed]",
+);
+const THERMAL_PRESSURE: Key = Key::num(
+    "adhesion.thermal_pressure_exponent",
+    "",
+    closed(0.0, 1.0),
+    0.1,
+    "`thermal`: friction × (p_max/p_max,static)^(−γ) [assumed]",
+);
+
 /// The keys of `[adhesion]`, in README order.
 pub const ADHESION_KEYS: &[&Key] = &[
     &LAW,
@@ -777,6 +914,18 @@ pub const ADHESION_KEYS: &[&Key] = &[
     &TABLE_SPEEDS,
     &TABLE_SLIPS,
     &TABLE_MU,
+    &FASTSIM_GRID,
+    &FASTSIM_BOUND,
+    &FASTSIM_K0,
+    &FASTSIM_ALPHA_INF,
+    &FASTSIM_BETA,
+    &THERMAL_PARTITION,
+    &THERMAL_CAPACITY,
+    &THERMAL_COOLING,
+    &THERMAL_REFERENCE,
+    &THERMAL_SCALE,
+    &THERMAL_RESIDUAL,
+    &THERMAL_PRESSURE,
 ];
 
 impl AdhesionSection {
@@ -803,11 +952,12 @@ impl AdhesionSection {
             }
             (Some("loss_recovery"), None) => AdhesionLaw::LossRecovery(loss_recovery(c, a)?),
             (Some("table"), None) => AdhesionLaw::Table(slip_table(c, a)?),
+            (Some("fastsim"), None) => AdhesionLaw::Fastsim(fastsim_law(c, a)?),
             (Some(other), None) if other != "polach" => {
                 return Err(c.invalid(
                     LAW.name,
                     format!("{other:?}"),
-                    "must be one of \"polach\", \"model\", \"loss_recovery\", \"table\" (default \"polach\")",
+                    "must be one of \"polach\", \"model\", \"loss_recovery\", \"table\", \"fastsim\" (default \"polach\")",
                 ))
             }
             _ => return Err(c.invalid(MODEL.name, "given", "only with law = \"model\"")),
@@ -835,6 +985,14 @@ impl AdhesionSection {
             a.table_speeds_kmh.is_some() || a.table_slips_mps.is_some() || a.table_mu.is_some();
         if table_given && !matches!(law, AdhesionLaw::Table(_)) {
             return Err(c.invalid("adhesion.table_*", "given", "only with law = \"table\""));
+        }
+        let fastsim_given = a.fastsim_grid.is_some()
+            || a.fastsim_bound.is_some()
+            || a.fastsim_k0.is_some()
+            || a.fastsim_alpha_inf.is_some()
+            || a.fastsim_beta.is_some();
+        if fastsim_given && !matches!(law, AdhesionLaw::Fastsim(_)) {
+            return Err(c.invalid("adhesion.fastsim_*", "given", "only with law = \"fastsim\""));
         }
         // Soap-contaminated rail (seed 002 Fig. 7–8: μ 0.02–0.10, peak at ~1 m/s slip).
         let polach = PolachParams {
@@ -871,8 +1029,63 @@ impl AdhesionSection {
             hysteresis_time_constant_s: c.value(&HYSTERESIS_TAU, a.hysteresis_time_constant_s)?,
             cleaning_per_axle: c.value(&CLEANING, a.cleaning_per_axle)?,
             temperature_law,
+            thermal: ThermalParams {
+                partition: c.value(&THERMAL_PARTITION, a.thermal_partition)?,
+                tread_capacity_j_per_k: c
+                    .value(&THERMAL_CAPACITY, a.thermal_tread_capacity_j_per_k)?,
+                cooling_w_per_k: c.value(&THERMAL_COOLING, a.thermal_cooling_w_per_k)?,
+                reference_c: c.value(&THERMAL_REFERENCE, a.thermal_reference_c)?,
+                scale_k: c.value(&THERMAL_SCALE, a.thermal_scale_k)?,
+                residual: c.value(&THERMAL_RESIDUAL, a.thermal_residual)?,
+                pressure_exponent: c.value(&THERMAL_PRESSURE, a.thermal_pressure_exponent)?,
+            },
         })
     }
+}
+
+/// `law = "fastsim"`'s grid, bound and optional reduction.
+fn fastsim_law(c: &Checker, a: &raw::Adhesion) -> Result<FastsimLaw, ConfigError> {
+    use crate::contact::fastsim::{Bound, Reduction};
+    let grid = c.value(&FASTSIM_GRID, a.fastsim_grid)?;
+    if grid.fract() != 0.0 {
+        return Err(c.invalid(FASTSIM_GRID.name, grid, "a whole number of cells"));
+    }
+    let bound = match a.fastsim_bound.as_deref() {
+        None | Some("elliptic") => Bound::Elliptic,
+        Some("parabolic") => Bound::Parabolic,
+        Some(other) => {
+            return Err(c.invalid(
+                FASTSIM_BOUND.name,
+                format!("{other:?}"),
+                "must be \"elliptic\" or \"parabolic\"",
+            ))
+        }
+    };
+    let reduction = match (a.fastsim_k0, a.fastsim_alpha_inf, a.fastsim_beta) {
+        (None, None, None) => None,
+        (Some(k0), alpha, beta) => {
+            let r = Reduction {
+                k0,
+                alpha_inf: alpha.unwrap_or(1.0),
+                beta: beta.unwrap_or(0.0),
+            };
+            r.check()
+                .map_err(|e| c.invalid("adhesion.fastsim_k0/alpha_inf/beta", "", e.to_string()))?;
+            Some(r)
+        }
+        (None, _, _) => {
+            return Err(c.invalid(
+                FASTSIM_K0.name,
+                "missing",
+                "fastsim_alpha_inf and fastsim_beta need fastsim_k0 (the modified FASTSIM)",
+            ))
+        }
+    };
+    Ok(FastsimLaw {
+        grid: grid as usize,
+        bound,
+        reduction,
+    })
 }
 
 /// `law = "loss_recovery"`'s parameters (the blend's scale and the speed reference are the

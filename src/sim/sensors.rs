@@ -128,6 +128,11 @@ impl<'a> Logger<'a> {
                 mu: columns(),
                 dv_mps: columns(),
                 ddv_mps2: columns(),
+                contact_temperature_c: if sc.effects.has(Effect::Thermal) {
+                    columns()
+                } else {
+                    Default::default()
+                },
             },
         }
     }
@@ -241,6 +246,11 @@ impl<'a> Logger<'a> {
             tr.mu[a].push(st.ax.t_star[a] / st.normal[a]);
             tr.dv_mps[a].push(st.v - r * omega);
             tr.ddv_mps2[a].push(st.ddv[a]);
+        }
+        if self.sc.effects.has(super::scene::Effect::Thermal) {
+            for a in 0..AXLES {
+                tr.contact_temperature_c[a].push(st.contact_c[a]);
+            }
         }
     }
 }

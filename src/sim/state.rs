@@ -44,6 +44,80 @@ pub(super) struct Setup<'a> {
     k_cyl: f64,
     k_hyst: f64,
     inv_ddv0: f64,
+    /// The `thermal` effect's constants, if listed.
+    thermal: Option<Thermal>,
+}
+
+/// The `thermal` effect (README "Simulator"), per axle each step, from the step's slip Δv and
+/// contact force T (off the step's critical path, like the other slow coefficients):
+///
+/// - tread temperature θ_w (both wheels of the axle, one heated layer of capacity C):
+///   C dθ_w/dt = δ |T Δv| − h_c (θ_w − θ_amb)            (explicit Euler, step h)
+/// - flash temperature on top, full sliding over the centre strip of the wheel's Hertz patch
+///   (seed 000 eq. 9 at depth 0 and eq. 11; [`crate::contact::flash`]):
+///   ΔT_f = K δ μ p_max |Δv| √(2a / v) / √(πλρc), K = 1.53 the peak of Jaeger's integral for
+///   a semi-elliptic source (computed once by the strip model), μ = |T|/N, p_max and a of
+///   the patch at the axle's current load (∝ (Q/Q0)^(1/3)), v ≥ 0.5 m/s; rail steel
+///   [assumed: `flash::Material::RAIL_STEEL`];
+/// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor for the next step
+///   f(σ, θ) = (σ/σ0)^(−γ) · [r + (1 − r) e^(−max(0, θ_c − θ_ref)/θ_s)],
+///   σ = p_max, σ0 its static value: friction falling with temperature and pressure as seed
+///   000's f(σ, θ) does, in a form railgrip assumes (every parameter [assumed]).
+struct Thermal {
+    partition: f64,
+    h_per_capacity: f64,
+    cooling: f64,
+    ambient_c: f64,
+    reference_c: f64,
+    inv_scale: f64,
+    residual: f64,
+    gamma: f64,
+    /// K/√(πλρc), K m²·s^½/W·… : the flash rise per (q0 √tc).
+    flash_gain: f64,
+    /// Static patch: semi-axis a (m), p_max (Pa), wheel load Q0 (N).
+    a0: f64,
+    p0: f64,
+    q0: f64,
+}
+
+impl Thermal {
+    fn new(sc: &Scene) -> Result<Thermal, crate::contact::ContactError> {
+        use crate::contact::fastsim::Field;
+        use crate::contact::flash::{flash_temperature, full_sliding, Heating, Material};
+        let t = &sc.adhesion.thermal;
+        let (hz, _, q0) = crate::vehicle::wheel_hertz(&sc.vehicle, &sc.contact)?;
+        // K/√(πλρc) from the library's strip model: unit full-sliding source over the centre
+        // strip (a = b = 1 mm, N = 1, μ = 1, slip 1 m/s, v = 1 m/s).
+        let mut field = Field::new(200, 1);
+        full_sliding(1e-3, 1e-3, 1.0, 1.0, 1.0, &mut field)?;
+        let rise = flash_temperature(
+            &field,
+            1.0,
+            &Material::RAIL_STEEL,
+            &Heating {
+                partition: 1.0,
+                initial_temperature_c: 0.0,
+                after_s: 0.0,
+            },
+        )?
+        .peak_c;
+        let q_unit = 1.5 / (PI * 1e-6);
+        let flash_gain = rise / (q_unit * (2e-3f64).sqrt());
+        Ok(Thermal {
+            partition: t.partition,
+            h_per_capacity: sc.run.step_s / t.tread_capacity_j_per_k,
+            cooling: t.cooling_w_per_k,
+            ambient_c: sc.run.ambient_temperature_c,
+            reference_c: t.reference_c,
+            inv_scale: 1.0 / t.scale_k,
+            residual: t.residual,
+            gamma: t.pressure_exponent,
+            flash_gain,
+            a0: hz.a_m,
+            p0: hz.p_max_pa,
+            q0,
+        })
+    }
 }
 
 /// What a step changes.
@@ -73,6 +147,11 @@ pub(super) struct SimState {
     pub wsp: [Wsp; AXLES],
     /// Position in each axle's brake-demand profile.
     pub cursor: [usize; AXLES],
+    /// `thermal`: tread and contact temperature (°C) and the friction factor f(σ, θ) (1
+    /// without the effect).
+    pub tread_c: [f64; AXLES],
+    pub contact_c: [f64; AXLES],
+    pub thermal_factor: [f64; AXLES],
 }
 
 /// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
@@ -189,6 +268,11 @@ impl<'a> Setup<'a> {
             k_cyl: 1.0 - (-h / sc.brake.cylinder_time_constant_s).exp(),
             k_hyst: 1.0 - (-h / ad.hysteresis_time_constant_s).exp(),
             inv_ddv0: 1.0 / ad.hysteresis_ddv_mps2,
+            thermal: if fx.has(Effect::Thermal) {
+                Some(Thermal::new(sc).map_err(contact_err)?)
+            } else {
+                None
+            },
         })
     }
 
@@ -225,6 +309,9 @@ impl<'a> Setup<'a> {
             omega_dot: [0.0; AXLES],
             wsp: [Wsp::default(); AXLES],
             cursor: [0; AXLES],
+            tread_c: [self.sc.run.ambient_temperature_c; AXLES],
+            contact_c: [self.sc.run.ambient_temperature_c; AXLES],
+            thermal_factor: [1.0; AXLES],
         };
         let speed = self.speed_factor(v);
         self.prepare::<V>(isa, speed, &mut st, counters);
@@ -320,6 +407,11 @@ impl<'a> Setup<'a> {
             // it closes the same force → slip-rate → force loop.
             st.ddv_lag[a] += (st.ddv[a] - st.ddv_lag[a]) * self.k_hyst;
             let (mu, slope) = scalar_adhesion(m, st.slip[a], st.ddv_lag[a], st.v);
+            let (mu, slope) = if self.thermal.is_some() {
+                (mu * st.thermal_factor[a], slope * st.thermal_factor[a])
+            } else {
+                (mu, slope)
+            };
             let ax = &mut st.ax;
             (ax.omega[a], ax.locked[a], ax.t_star[a]) = wheel_update::<f64>(
                 &self.consts,
@@ -396,6 +488,9 @@ impl<'a> Setup<'a> {
                 );
                 mu = mu.mul(e.fma(V::splat(isa, 1.0 - a), V::splat(isa, a)));
             }
+            if self.thermal.is_some() {
+                mu = mu.mul(V::load(isa, &st.thermal_factor[i..]));
+            }
             n.store(&mut st.normal_next[i..]);
             n.mul(V::load(isa, &st.half_inv_k[i..]))
                 .mul(mu)
@@ -405,6 +500,31 @@ impl<'a> Setup<'a> {
                 .mul(n)
                 .store(&mut st.ax.pn[i..]);
             i += V::N;
+        }
+    }
+
+    /// The `thermal` effect's stage (see [`Thermal`]): temperatures from this step's slip and
+    /// force, and the friction factor the next step's contact coefficients use.
+    #[inline(always)]
+    pub(super) fn thermal(&self, st: &mut SimState, counters: &mut EffectCounters) {
+        let Some(th) = &self.thermal else {
+            return;
+        };
+        counters.add(Effect::Thermal, AXLES as u64);
+        let v = st.v.max(0.5);
+        for a in 0..AXLES {
+            let (w, t, n) = (st.slip[a].abs(), st.ax.t_star[a].abs(), st.normal[a]);
+            let heat = th.partition * t * w - th.cooling * (st.tread_c[a] - th.ambient_c);
+            st.tread_c[a] += heat * th.h_per_capacity;
+            let ratio = (0.5 * n / th.q0).max(1e-6).cbrt();
+            let (a_m, p_max) = (th.a0 * ratio, th.p0 * ratio);
+            let mu = if n > 0.0 { t / n } else { 0.0 };
+            let rise = th.flash_gain * th.partition * mu * p_max * w * (2.0 * a_m / v).sqrt();
+            let theta = st.tread_c[a] + rise;
+            st.contact_c[a] = theta;
+            let hot = (-(theta - th.reference_c).max(0.0) * th.inv_scale).exp();
+            st.thermal_factor[a] =
+                ratio.powf(-th.gamma) * (th.residual + (1.0 - th.residual) * hot);
         }
     }
 
