@@ -2,7 +2,9 @@
 //! (`sim/full/20s`) against the minimal scene with none (`sim/minimal/20s`); throughput is in
 //! integration steps. Afterwards it prints the real-time factor of each and the step-size
 //! trade-off of the full scene: real-time factor against the error of the truth (μ of axle 1,
-//! vehicle speed) relative to a 0.02 ms reference run.
+//! vehicle speed) relative to a 0.02 ms reference run; then what each effect costs alone (the
+//! minimal scene plus that one effect) and the FASTSIM law's cost by grid
+//! (`sim/thermal/20s`, `sim/fastsim_10x10/20s` in criterion as well).
 //!
 //!     cargo bench --bench sim
 
@@ -18,6 +20,14 @@ const ALL: &str = r#"effects = ["load_transfer", "wsp", "hysteresis", "falling_f
 fn scene(effects: &str, step_ms: f64) -> Scene {
     let text = format!(
         "name = \"bench\"\nseed = 1\n{effects}\n[run]\ninitial_speed_kmh = 120.0\nmax_duration_s = 20.0\nstep_ms = {step_ms}\n"
+    );
+    Scene::from_toml(&text, "bench.toml", None).unwrap()
+}
+
+/// The minimal scene driven by FASTSIM on an n × n grid.
+fn fastsim_scene(n: usize) -> Scene {
+    let text = format!(
+        "name = \"bench\"\nseed = 1\neffects = []\n[run]\ninitial_speed_kmh = 120.0\nmax_duration_s = 20.0\n[adhesion]\nlaw = \"fastsim\"\nfastsim_grid = {n}\n"
     );
     Scene::from_toml(&text, "bench.toml", None).unwrap()
 }
@@ -45,7 +55,34 @@ fn bench(c: &mut Criterion) {
     g.bench_function("minimal/20s", |b| {
         b.iter(|| sim::simulate(black_box(&minimal), None).unwrap().steps)
     });
+    let thermal = scene("effects = [\"thermal\"]", 0.1);
+    g.bench_function("thermal/20s", |b| {
+        b.iter(|| sim::simulate(black_box(&thermal), None).unwrap().steps)
+    });
+    let fastsim = fastsim_scene(10);
+    g.bench_function("fastsim_10x10/20s", |b| {
+        b.iter(|| sim::simulate(black_box(&fastsim), None).unwrap().steps)
+    });
     g.finish();
+
+    eprintln!("effect alone | real-time factor | cost vs minimal");
+    let base = real_time_factor(&minimal);
+    for e in sim::Effect::ALL {
+        let sc = scene(&format!("effects = [\"{}\"]", e.name()), 0.1);
+        let rtf = real_time_factor(&sc);
+        eprintln!(
+            "{:18} | {rtf:8.0} | {:+.0} %",
+            e.name(),
+            100.0 * (base / rtf - 1.0)
+        );
+    }
+    for n in [5, 10, 20] {
+        let rtf = real_time_factor(&fastsim_scene(n));
+        eprintln!(
+            "law fastsim {n}x{n}   | {rtf:8.1} | {:+.0} %",
+            100.0 * (base / rtf - 1.0)
+        );
+    }
 
     eprintln!(
         "real-time factor at 0.1 ms: full {:.0}x, minimal {:.0}x",

@@ -57,7 +57,8 @@ pub(super) struct Setup<'a> {
 ///   (seed 000 eq. 9 at depth 0 and eq. 11; [`crate::contact::flash`]):
 ///   ΔT_f = K δ μ p_max |Δv| √(2a / v) / √(πλρc), K = 1.53 the peak of Jaeger's integral for
 ///   a semi-elliptic source (computed once by the strip model), μ = |T|/N, p_max and a of
-///   the patch at the axle's current load (∝ (Q/Q0)^(1/3)), v ≥ 0.5 m/s; rail steel
+///   the patch at the axle's current load (∝ (Q/Q0)^(1/3), refreshed at the output rate like the
+///   patch stiffness under load transfer), v ≥ 0.5 m/s; rail steel
 ///   [assumed: `flash::Material::RAIL_STEEL`];
 /// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor for the next step
 ///   f(σ, θ) = (σ/σ0)^(−γ) · [r + (1 − r) e^(−max(0, θ_c − θ_ref)/θ_s)],
@@ -74,10 +75,9 @@ struct Thermal {
     gamma: f64,
     /// K/√(πλρc), K m²·s^½/W·… : the flash rise per (q0 √tc).
     flash_gain: f64,
-    /// Static patch: semi-axis a (m), p_max (Pa), wheel load Q0 (N).
+    /// Static patch: semi-axis a (m), p_max (Pa).
     a0: f64,
     p0: f64,
-    q0: f64,
 }
 
 impl Thermal {
@@ -85,7 +85,7 @@ impl Thermal {
         use crate::contact::fastsim::Field;
         use crate::contact::flash::{flash_temperature, full_sliding, Heating, Material};
         let t = &sc.adhesion.thermal;
-        let (hz, _, q0) = crate::vehicle::wheel_hertz(&sc.vehicle, &sc.contact)?;
+        let (hz, _, _) = crate::vehicle::wheel_hertz(&sc.vehicle, &sc.contact)?;
         // K/√(πλρc) from the library's strip model: unit full-sliding source over the centre
         // strip (a = b = 1 mm, N = 1, μ = 1, slip 1 m/s, v = 1 m/s).
         let mut field = Field::new(200, 1);
@@ -115,7 +115,6 @@ impl Thermal {
             flash_gain,
             a0: hz.a_m,
             p0: hz.p_max_pa,
-            q0,
         })
     }
 }
@@ -147,6 +146,9 @@ pub(super) struct SimState {
     pub wsp: [Wsp; AXLES],
     /// Position in each axle's brake-demand profile.
     pub cursor: [usize; AXLES],
+    /// `thermal`: the patch at the axle's load — √(2a) (m^½), p_max (Pa) and the pressure
+    /// factor (p_max/p_max,0)^(−γ) — refreshed with the patch stiffness under load transfer.
+    pub thermal_patch: [(f64, f64, f64); AXLES],
     /// `thermal`: tread and contact temperature (°C) and the friction factor f(σ, θ) (1
     /// without the effect).
     pub tread_c: [f64; AXLES],
@@ -309,6 +311,11 @@ impl<'a> Setup<'a> {
             omega_dot: [0.0; AXLES],
             wsp: [Wsp::default(); AXLES],
             cursor: [0; AXLES],
+            thermal_patch: [self
+                .thermal
+                .as_ref()
+                .map_or((0.0, 0.0, 1.0), |th| ((2.0 * th.a0).sqrt(), th.p0, 1.0));
+                AXLES],
             tread_c: [self.sc.run.ambient_temperature_c; AXLES],
             contact_c: [self.sc.run.ambient_temperature_c; AXLES],
             thermal_factor: [1.0; AXLES],
@@ -511,20 +518,22 @@ impl<'a> Setup<'a> {
             return;
         };
         counters.add(Effect::Thermal, AXLES as u64);
-        let v = st.v.max(0.5);
+        let gain = th.flash_gain * th.partition / st.v.max(0.5).sqrt();
         for a in 0..AXLES {
             let (w, t, n) = (st.slip[a].abs(), st.ax.t_star[a].abs(), st.normal[a]);
             let heat = th.partition * t * w - th.cooling * (st.tread_c[a] - th.ambient_c);
             st.tread_c[a] += heat * th.h_per_capacity;
-            let ratio = (0.5 * n / th.q0).max(1e-6).cbrt();
-            let (a_m, p_max) = (th.a0 * ratio, th.p0 * ratio);
+            let (sqrt_2a, p_max, pressure) = st.thermal_patch[a];
             let mu = if n > 0.0 { t / n } else { 0.0 };
-            let rise = th.flash_gain * th.partition * mu * p_max * w * (2.0 * a_m / v).sqrt();
-            let theta = st.tread_c[a] + rise;
+            let theta = st.tread_c[a] + gain * mu * p_max * w * sqrt_2a;
             st.contact_c[a] = theta;
-            let hot = (-(theta - th.reference_c).max(0.0) * th.inv_scale).exp();
-            st.thermal_factor[a] =
-                ratio.powf(-th.gamma) * (th.residual + (1.0 - th.residual) * hot);
+            // Below θ_ref the friction is unchanged (and no exp is needed).
+            let excess = theta - th.reference_c;
+            st.thermal_factor[a] = if excess > 0.0 {
+                pressure * (th.residual + (1.0 - th.residual) * (-excess * th.inv_scale).exp())
+            } else {
+                pressure
+            };
         }
     }
 
@@ -539,6 +548,15 @@ impl<'a> Setup<'a> {
             counters.hit(Effect::LoadTransfer);
             let ratio = (st.normal[a] * 0.5 / self.q0).cbrt();
             st.half_inv_k[a] = 0.5 / (self.k0 * ratio * ratio);
+            // The thermal effect's patch follows the load too (a, p_max ∝ Q^(1/3)).
+            if let Some(th) = &self.thermal {
+                let ratio = ratio.max(1e-2);
+                st.thermal_patch[a] = (
+                    (2.0 * th.a0 * ratio).sqrt(),
+                    th.p0 * ratio,
+                    ratio.powf(-th.gamma),
+                );
+            }
         }
     }
 
