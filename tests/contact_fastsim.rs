@@ -453,3 +453,46 @@ fn fastsim_accuracy_against_grid() {
     }
     assert!(last < 1e-3);
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    #[test]
+    fn flash_temperatures_are_finite_and_never_below_the_bulk(
+        sx in -0.3f64..0.3, spin in -20.0f64..20.0, n in 1usize..25,
+        speed in 0.1f64..100.0, partition in 0.01f64..=1.0, t0 in -60.0f64..600.0,
+        lambda in 1.0f64..100.0, c in 100.0f64..2000.0, rho in 1000.0f64..20000.0,
+        after in 0.0f64..0.01,
+    ) {
+        let fs = Fastsim::new(n, n, Bound::Elliptic).unwrap();
+        let mut field = fs.field();
+        let mut cr = creep(sx, 0.0, spin);
+        cr.speed_mps = speed;
+        fs.solve(&patch(), &Friction::constant(0.3), &cr, &mut field).unwrap();
+        let m = Material { conductivity_w_per_mk: lambda, specific_heat_j_per_kgk: c, density_kg_per_m3: rho };
+        let h = Heating { partition, initial_temperature_c: t0, after_s: after };
+        let t = flash_temperature(&field, speed, &m, &h).unwrap();
+        prop_assert!(t.peak_c.is_finite() && t.after_c.is_finite() && t.trailing_edge_c.is_finite());
+        prop_assert!(t.peak_c >= t0 && t.after_c >= t0 && t.trailing_edge_c >= t0);
+        prop_assert!(t.peak_c >= t.trailing_edge_c && t.peak_c >= t.after_c - 1e-9);
+    }
+
+    #[test]
+    fn flash_inputs_outside_their_domain_are_errors(
+        which in 0usize..6, bad in prop_oneof![Just(f64::NAN), Just(-1.0), Just(f64::INFINITY), Just(0.0)],
+    ) {
+        let fs = Fastsim::new(5, 5, Bound::Elliptic).unwrap();
+        let field = fs.field();
+        let mut m = Material::RAIL_STEEL;
+        let mut h = Heating { partition: 0.5, initial_temperature_c: 20.0, after_s: 0.0 };
+        let mut v = 10.0;
+        match which {
+            0 => m.conductivity_w_per_mk = bad,
+            1 => m.specific_heat_j_per_kgk = bad,
+            2 => m.density_kg_per_m3 = bad,
+            3 => h.partition = bad,
+            4 => v = bad,
+            _ => h.initial_temperature_c = if bad.is_finite() { -274.0 } else { bad },
+        }
+        prop_assert!(flash_temperature(&field, v, &m, &h).is_err());
+    }
+}

@@ -634,9 +634,9 @@ thermal_scale_k = 100.0"#;
     let temps = &warm.truth.contact_temperature_c;
     let n = warm.truth.time_s.len();
     let mut peak: f64 = f64::MIN;
-    for a in 0..4 {
-        assert_eq!(temps[a].len(), n);
-        for (i, t) in temps[a].iter().enumerate() {
+    for (a, axle) in temps.iter().enumerate() {
+        assert_eq!(axle.len(), n);
+        for (i, t) in axle.iter().enumerate() {
             assert!(
                 t.is_finite() && *t >= 20.0 - 1e-9,
                 "axle {a} sample {i}: {t}"

@@ -391,7 +391,7 @@ fn run<V: Select>(
         let speed_factor = setup.speed_factor_counted(st.v, &mut counters);
         setup.brakes(t, &mut st, &mut counters);
         let total_t = setup.contact_and_wheels::<V>(isa, model, &mut st);
-        setup.thermal(&mut st, &mut counters);
+        setup.thermal::<V>(isa, &mut st, &mut counters);
         setup.hysteresis::<V>(isa, &mut st, &mut counters);
         setup.prepare::<V>(isa, speed_factor, &mut st, &mut counters);
         setup.advance(&mut st, &omega, total_t, v_resisted);

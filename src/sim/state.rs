@@ -60,7 +60,9 @@ pub(super) struct Setup<'a> {
 ///   the patch at the axle's current load (∝ (Q/Q0)^(1/3), refreshed at the output rate like the
 ///   patch stiffness under load transfer), v ≥ 0.5 m/s; rail steel
 ///   [assumed: `flash::Material::RAIL_STEEL`];
-/// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor for the next step
+/// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor, computed after the
+///   step's contact and applied from the next step's contact coefficients on (a 0.1 ms lag,
+///   like the other slowly varying coefficients)
 ///   f(σ, θ) = (σ/σ0)^(−γ) · [r + (1 − r) e^(−max(0, θ_c − θ_ref)/θ_s)],
 ///   σ = p_max, σ0 its static value: friction falling with temperature and pressure as seed
 ///   000's f(σ, θ) does, in a form railgrip assumes (every parameter [assumed]).
@@ -148,7 +150,9 @@ pub(super) struct SimState {
     pub cursor: [usize; AXLES],
     /// `thermal`: the patch at the axle's load — √(2a) (m^½), p_max (Pa) and the pressure
     /// factor (p_max/p_max,0)^(−γ) — refreshed with the patch stiffness under load transfer.
-    pub thermal_patch: [(f64, f64, f64); AXLES],
+    pub thermal_sqrt_2a: [f64; AXLES],
+    pub thermal_p_max: [f64; AXLES],
+    pub thermal_pressure: [f64; AXLES],
     /// `thermal`: tread and contact temperature (°C) and the friction factor f(σ, θ) (1
     /// without the effect).
     pub tread_c: [f64; AXLES],
@@ -311,11 +315,9 @@ impl<'a> Setup<'a> {
             omega_dot: [0.0; AXLES],
             wsp: [Wsp::default(); AXLES],
             cursor: [0; AXLES],
-            thermal_patch: [self
-                .thermal
-                .as_ref()
-                .map_or((0.0, 0.0, 1.0), |th| ((2.0 * th.a0).sqrt(), th.p0, 1.0));
-                AXLES],
+            thermal_sqrt_2a: [self.thermal.as_ref().map_or(0.0, |th| (2.0 * th.a0).sqrt()); AXLES],
+            thermal_p_max: [self.thermal.as_ref().map_or(0.0, |th| th.p0); AXLES],
+            thermal_pressure: [1.0; AXLES],
             tread_c: [self.sc.run.ambient_temperature_c; AXLES],
             contact_c: [self.sc.run.ambient_temperature_c; AXLES],
             thermal_factor: [1.0; AXLES],
@@ -513,27 +515,47 @@ impl<'a> Setup<'a> {
     /// The `thermal` effect's stage (see [`Thermal`]): temperatures from this step's slip and
     /// force, and the friction factor the next step's contact coefficients use.
     #[inline(always)]
-    pub(super) fn thermal(&self, st: &mut SimState, counters: &mut EffectCounters) {
+    pub(super) fn thermal<V: Select>(
+        &self,
+        isa: V::Isa,
+        st: &mut SimState,
+        counters: &mut EffectCounters,
+    ) {
         let Some(th) = &self.thermal else {
             return;
         };
         counters.add(Effect::Thermal, AXLES as u64);
-        let gain = th.flash_gain * th.partition / st.v.max(0.5).sqrt();
-        for a in 0..AXLES {
-            let (w, t, n) = (st.slip[a].abs(), st.ax.t_star[a].abs(), st.normal[a]);
-            let heat = th.partition * t * w - th.cooling * (st.tread_c[a] - th.ambient_c);
-            st.tread_c[a] += heat * th.h_per_capacity;
-            let (sqrt_2a, p_max, pressure) = st.thermal_patch[a];
-            let mu = if n > 0.0 { t / n } else { 0.0 };
-            let theta = st.tread_c[a] + gain * mu * p_max * w * sqrt_2a;
-            st.contact_c[a] = theta;
-            // Below θ_ref the friction is unchanged (and no exp is needed).
-            let excess = theta - th.reference_c;
-            st.thermal_factor[a] = if excess > 0.0 {
-                pressure * (th.residual + (1.0 - th.residual) * (-excess * th.inv_scale).exp())
-            } else {
-                pressure
-            };
+        let splat = |x: f64| V::splat(isa, x);
+        let gain = splat(th.flash_gain * th.partition / st.v.max(0.5).sqrt());
+        let mut i = 0;
+        // The four axles side by side (the same operations on every path: bit-identical).
+        while i < AXLES {
+            let w = V::load_scalars(isa, &st.slip[i..]).abs();
+            let t = V::load(isa, &st.ax.t_star[i..]).abs();
+            let n = V::load(isa, &st.normal[i..]);
+            let tread = V::load(isa, &st.tread_c[i..]);
+            // C dθ_w/dt = δ |T Δv| − h_c (θ_w − θ_amb).
+            let heat = splat(th.partition)
+                .mul(t)
+                .mul(w)
+                .sub(splat(th.cooling).mul(tread.sub(splat(th.ambient_c))));
+            let tread = heat.fma(splat(th.h_per_capacity), tread);
+            tread.store(&mut st.tread_c[i..]);
+            // μ = |T|/N (the loads stay positive; floored at 1 N against a division by 0).
+            let mu = t.div(n.max(splat(1.0)));
+            let theta = gain
+                .mul(mu)
+                .mul(V::load(isa, &st.thermal_p_max[i..]))
+                .mul(w)
+                .fma(V::load(isa, &st.thermal_sqrt_2a[i..]), tread);
+            theta.store(&mut st.contact_c[i..]);
+            // Below θ_ref the friction is unchanged (e^0 = 1).
+            let excess = theta.sub(splat(th.reference_c)).max(splat(0.0));
+            let hot = exp_lanes(excess.mul(splat(-th.inv_scale)));
+            hot.fma(splat(1.0 - th.residual), splat(th.residual))
+                .mul(V::load(isa, &st.thermal_pressure[i..]))
+                .store(&mut st.thermal_factor[i..]);
+            i += V::N;
         }
     }
 
@@ -551,11 +573,9 @@ impl<'a> Setup<'a> {
             // The thermal effect's patch follows the load too (a, p_max ∝ Q^(1/3)).
             if let Some(th) = &self.thermal {
                 let ratio = ratio.max(1e-2);
-                st.thermal_patch[a] = (
-                    (2.0 * th.a0 * ratio).sqrt(),
-                    th.p0 * ratio,
-                    ratio.powf(-th.gamma),
-                );
+                st.thermal_sqrt_2a[a] = (2.0 * th.a0 * ratio).sqrt();
+                st.thermal_p_max[a] = th.p0 * ratio;
+                st.thermal_pressure[a] = ratio.powf(-th.gamma);
             }
         }
     }
