@@ -2,7 +2,7 @@
 //! section on the simplified theory; Kalker, "A fast algorithm for the simplified theory of
 //! rolling contact", Vehicle System Dynamics 11 (1982) 1–13), on a Hertz ellipse, with
 //! longitudinal and lateral creepage and spin, the modified FASTSIM of Spiryagin, Polach & Cole
-//! (Vehicle System Dynamics 51 (2013) 1765–1783) and Polach's falling friction.
+//! (Vehicle System Dynamics 51, 2013) and Polach's falling friction.
 //!
 //! **Model.** The surface is a bed of independent springs: the tangential displacement u_i
 //! (m) at a point is L_i times the traction p_i (Pa) there. With the flexibilities
@@ -278,7 +278,7 @@ pub struct Forces {
 }
 
 /// The traction and slip field of one solution, cell by cell: strip j, cell i at
-/// `j * nx + i`, x the cell's trailing boundary (where its traction is computed).
+/// `j * nx + i`, x and y the cell's centre (where its traction and bound are evaluated).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Field {
     pub nx: usize,
