@@ -257,6 +257,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             speed_mps: v,
         };
         let mut row = vec![sx, sx * v];
+        let mut thermal_row = None;
         for l in &args.law {
             match l {
                 Law::Linear => {
@@ -293,6 +294,13 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                         &modified
                     };
                     let f = fs.solve(&patch, &friction, &creep, &mut field)?;
+                    // The temperature of the first FASTSIM law, from the field just solved.
+                    if let Some((m, ht, first)) = &thermal {
+                        if first == l && thermal_row.is_none() {
+                            let t = flash_temperature(&field, v, m, ht)?;
+                            thermal_row = Some([t.peak_c, t.after_c, f.power_w]);
+                        }
+                    }
                     row.extend([
                         f.fx_n,
                         f.fx_n / args.load_n,
@@ -303,15 +311,8 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 }
             }
         }
-        if let Some((m, ht, first)) = &thermal {
-            let fs = if *first == Law::Fastsim {
-                &plain
-            } else {
-                &modified
-            };
-            let f = fs.solve(&patch, &friction, &creep, &mut field)?;
-            let t = flash_temperature(&field, v, m, ht)?;
-            row.extend([t.peak_c, t.after_c, f.power_w]);
+        if let Some(t) = thermal_row {
+            row.extend(t);
         }
         let cells: Vec<String> = row.iter().map(|x| format!("{x}")).collect();
         text += &cells.join(",");

@@ -54,7 +54,7 @@
 //! No allocation per call: [`Fastsim::forces`] keeps two running tractions; [`Fastsim::solve`]
 //! writes the field into a [`Field`] allocated once with the grid.
 
-use super::{check_finite, ContactError};
+use super::{check_finite, check_positive, ContactError};
 use std::f64::consts::PI;
 
 /// Largest number of cells per side of the grid.
@@ -165,14 +165,7 @@ impl Patch {
             ("c23", self.c23),
             ("normal force N", self.normal_n),
         ] {
-            check_finite(what, x)?;
-            if x <= 0.0 {
-                return Err(ContactError::Domain {
-                    what,
-                    value: x,
-                    valid: "> 0",
-                });
-            }
+            check_positive(what, x)?;
         }
         Ok(())
     }
@@ -316,6 +309,28 @@ impl Field {
         }
     }
 
+    /// Every per-cell vector holds nx × ny values and `dx_m` ny (the fields are public, so a
+    /// hand-made field is checked before it is indexed).
+    pub fn check_shape(&self) -> Result<(), ContactError> {
+        let cells = self.nx * self.ny;
+        let per_cell = [
+            &self.x_m,
+            &self.y_m,
+            &self.px_pa,
+            &self.py_pa,
+            &self.slip_velocity_mps,
+            &self.pressure_pa,
+        ];
+        if self.dx_m.len() != self.ny || per_cell.iter().any(|v| v.len() != cells) {
+            return Err(ContactError::Domain {
+                what: "field cells",
+                value: cells as f64,
+                valid: "nx × ny cells and ny strip lengths: make the field with Field::new or Fastsim::field",
+            });
+        }
+        Ok(())
+    }
+
     /// Frictional power density of cell k, W/m²: |p| · slip velocity.
     pub fn power_density(&self, k: usize) -> f64 {
         self.px_pa[k].hypot(self.py_pa[k]) * self.slip_velocity_mps[k]
@@ -421,7 +436,8 @@ impl Fastsim {
         creep: &Creepage,
         field: &mut Field,
     ) -> Result<Forces, ContactError> {
-        if field.nx != self.nx || field.ny != self.ny || field.x_m.len() != self.nx * self.ny {
+        field.check_shape()?;
+        if field.nx != self.nx || field.ny != self.ny {
             return Err(ContactError::Domain {
                 what: "field grid (cells)",
                 value: (field.nx * field.ny) as f64,

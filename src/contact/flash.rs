@@ -36,7 +36,7 @@
 //! temperature); there is no cooling to the air (seed 003 §2.1: negligible within ms).
 
 use super::fastsim::Field;
-use super::{check_finite, ContactError};
+use super::{check_finite, check_positive, ContactError};
 use std::f64::consts::PI;
 
 /// Absolute zero, °C.
@@ -180,8 +180,9 @@ pub fn flash_temperature(
             valid: "V > 0 (m/s): a standing contact has no flash temperature",
         });
     }
-    let gain = 2.0 * heating.partition / material.pi_effusivity();
     let (nx, ny) = (field.nx, field.ny);
+    field.check_shape()?;
+    let gain = 2.0 * heating.partition / material.pi_effusivity();
     let (mut peak, mut trailing, mut after) = (0.0f64, 0.0f64, 0.0f64);
     let mut widest = 0.0f64;
     for j in 0..ny {
@@ -243,16 +244,10 @@ pub fn full_sliding(
         ("normal force N", normal_n),
         ("friction coefficient", mu),
     ] {
-        check_finite(what, x)?;
-        if x <= 0.0 {
-            return Err(ContactError::Domain {
-                what,
-                value: x,
-                valid: "> 0",
-            });
-        }
+        check_positive(what, x)?;
     }
     check_finite("slip velocity", slip_mps)?;
+    field.check_shape()?;
     let (nx, ny) = (field.nx, field.ny);
     let p0 = 1.5 * normal_n / (PI * a_m * b_m);
     let dy = 2.0 * b_m / ny as f64;
@@ -331,6 +326,9 @@ mod tests {
         let mut bad = m;
         bad.conductivity_w_per_mk = f64::NAN;
         assert!(flash_temperature(&f, 1.0, &bad, &heating()).is_err());
+        let mut short = Field::new(4, 4);
+        short.px_pa.pop();
+        assert!(flash_temperature(&short, 1.0, &m, &heating()).is_err());
         let mut g = Field::new(4, 4);
         assert!(full_sliding(0.0, 1e-3, 1e3, 0.3, 1.0, &mut g).is_err());
         assert!(full_sliding(1e-3, 1e-3, 1e3, 0.3, f64::INFINITY, &mut g).is_err());

@@ -43,6 +43,20 @@ pub(crate) fn check_finite(what: &'static str, x: f64) -> Result<(), ContactErro
     }
 }
 
+/// A finite value > 0, or a domain error naming `what`.
+pub(crate) fn check_positive(what: &'static str, x: f64) -> Result<(), ContactError> {
+    check_finite(what, x)?;
+    if x > 0.0 {
+        Ok(())
+    } else {
+        Err(ContactError::Domain {
+            what,
+            value: x,
+            valid: "> 0",
+        })
+    }
+}
+
 /// Shear modulus G = E / (2(1 + ν)), Pa.
 pub fn shear_modulus_pa(youngs_modulus_pa: f64, poisson: f64) -> f64 {
     youngs_modulus_pa / (2.0 * (1.0 + poisson))

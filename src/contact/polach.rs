@@ -14,7 +14,7 @@
 //! Requires 0 < k_S ≤ k_A ≤ 1, which also guarantees |F| ≤ μQ.
 //! Forces carry the sign of the creepage (see `kalker` for the convention). Spin is ignored.
 
-use super::{check_finite, ContactError};
+use super::{check_finite, check_positive, ContactError};
 use std::f64::consts::PI;
 
 /// Polach parameters (reference-values.md gives the commonly quoted dry and wet sets).
@@ -108,14 +108,7 @@ impl ContactPatch {
             ("c11", self.c11),
             ("c22", self.c22),
         ] {
-            check_finite(what, x)?;
-            if x <= 0.0 {
-                return Err(ContactError::Domain {
-                    what,
-                    value: x,
-                    valid: "> 0",
-                });
-            }
+            check_positive(what, x)?;
         }
         Ok(())
     }
