@@ -49,6 +49,7 @@ pub mod raw {
         pub topic: Option<String>,
         pub field: Option<String>,
         pub unit: Option<String>,
+        pub time: Option<String>,
     }
 
     /// `[ingest.csv]`: signal key (`time`, `v_radar`, `omega1`..`omega4`, `p1`..`p4`) → column.
@@ -98,8 +99,13 @@ pub struct CsvColumn {
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct McapField {
     pub topic: String,
+    /// A field name (JSON: a top-level key) or a path into nested messages, `twist.linear.x`,
+    /// with `[k]` picking element k of an array or repeated field (protobuf, ROS 2).
     pub field: String,
     pub unit: Unit,
+    /// `time = "header"`: the message's own stamp (ROS 2 `header.stamp`, protobuf
+    /// `header.stamp` or `timestamp`) instead of the MCAP log time.
+    pub header_time: bool,
 }
 
 /// Ingest settings.
@@ -431,6 +437,17 @@ impl Checker<'_> {
                 s.mcap_field(),
             )?,
             unit: self.unit(key, r.and_then(|r| r.unit.as_deref()), s.quantity())?,
+            header_time: match r.and_then(|r| r.time.as_deref()) {
+                None | Some("log") => false,
+                Some("header") => true,
+                Some(other) => {
+                    return Err(self.invalid(
+                        &format!("{key}.time"),
+                        format!("{other:?}"),
+                        "use \"log\" (the MCAP log time, default) or \"header\" (the message's header stamp)".to_string(),
+                    ))
+                }
+            },
         })
     }
 }

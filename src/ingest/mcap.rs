@@ -1,6 +1,9 @@
-//! MCAP logs: JSON-encoded channels per data-contract.md, topic and field per signal from
-//! `[ingest.mcap]` (several signals may share a topic with different fields). Channels may run
-//! at different rates; unrelated topics are skipped without decoding. Chunk CRCs are checked.
+//! MCAP logs: topic and field per signal from `[ingest.mcap]` (several signals may share a
+//! topic with different fields). Channels may run at different rates; unrelated topics are
+//! skipped without decoding. Chunk CRCs are checked. Message encodings: `json` (data-contract.md,
+//! top-level number fields), `protobuf` (FileDescriptorSet schemas, [`super::protobuf`]) and
+//! `cdr` with `ros2msg` schemas (ROS 2, [`super::ros2`]); field paths reach into nested
+//! messages (`twist.linear.x`) and arrays (`velocity[2]`).
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt;
@@ -21,6 +24,144 @@ use crate::format::{RunMetadata, Signal, MCAP_MESSAGE_ENCODING, MCAP_METADATA_NA
 /// Largest decompressed chunk accepted when the file itself is smaller, bytes.
 const MAX_CHUNK_BYTES: usize = 256 << 20;
 
+/// The message encodings railgrip reads, for error messages.
+pub const SUPPORTED_ENCODINGS: &str =
+    "\"json\", \"protobuf\" (protobuf schema) and \"cdr\" (ros2msg schema)";
+
+/// Values read from one message: slots 0..10 for the mapped fields (nine signals at most), then the header stamp's
+/// seconds and nanoseconds ([`STAMP_SLOTS`]).
+pub(super) type Found = [Option<f64>; 12];
+pub(super) const STAMP_SLOTS: (usize, usize) = (10, 11);
+
+/// A field path of the mapping: names separated by `.`, each with an optional `[index]`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct FieldPath {
+    pub text: String,
+    pub segments: Vec<(String, Option<usize>)>,
+}
+
+impl FieldPath {
+    /// Parses `a.b[2].c`.
+    pub fn parse(text: &str) -> Result<FieldPath, String> {
+        let mut segments = Vec::new();
+        for part in text.split('.') {
+            let (name, index) = match part.find('[') {
+                None => (part, None),
+                Some(open) => {
+                    let inner = part[open + 1..].strip_suffix(']').ok_or_else(|| {
+                        format!("field path {text:?}: {part:?} has an unclosed '['")
+                    })?;
+                    let k: usize = inner.parse().map_err(|_| {
+                        format!("field path {text:?}: index [{inner}] is not a whole number")
+                    })?;
+                    (&part[..open], Some(k))
+                }
+            };
+            if name.is_empty() {
+                return Err(format!("field path {text:?} has an empty name"));
+            }
+            segments.push((name.to_string(), index));
+        }
+        Ok(FieldPath {
+            text: text.to_string(),
+            segments,
+        })
+    }
+}
+
+/// The decoder of one channel's payloads, outside an MCAP file: for tests, fuzzing and the
+/// benchmark's bare decode. `encoding` is the channel's message encoding, the schema as the
+/// file stores it; `fields` the mapped paths.
+pub struct MessageDecoder {
+    decoder: Decoder,
+    fields: usize,
+}
+
+impl MessageDecoder {
+    pub fn new(
+        encoding: &str,
+        schema_name: &str,
+        schema_data: &[u8],
+        fields: &[&str],
+        header_time: bool,
+    ) -> Result<MessageDecoder, String> {
+        let paths = fields
+            .iter()
+            .map(|f| FieldPath::parse(f))
+            .collect::<Result<Vec<_>, _>>()?;
+        if paths.len() > STAMP_SLOTS.0 {
+            return Err(format!("more than {} fields", STAMP_SLOTS.0));
+        }
+        let decoder = match encoding {
+            MCAP_MESSAGE_ENCODING => Decoder::Json,
+            "protobuf" => Decoder::Protobuf(super::protobuf::Decoder::new(
+                schema_name,
+                schema_data,
+                &paths,
+                header_time,
+            )?),
+            "cdr" => Decoder::Ros2(super::ros2::Decoder::new(
+                schema_name,
+                schema_data,
+                &paths,
+                header_time,
+            )?),
+            e => {
+                return Err(format!(
+                    "unknown encoding {e:?}; railgrip reads {SUPPORTED_ENCODINGS}"
+                ))
+            }
+        };
+        Ok(MessageDecoder {
+            decoder,
+            fields: fields.len(),
+        })
+    }
+
+    /// The mapped fields' values of one payload, then the stamp (seconds, nanoseconds).
+    pub fn extract(&self, payload: &[u8], json_names: &[&str]) -> Result<Vec<Option<f64>>, String> {
+        let mut found: Found = [None; 12];
+        match &self.decoder {
+            Decoder::Json => extract(payload, json_names, &mut found)?,
+            Decoder::Protobuf(p) => p.extract(payload, &mut found)?,
+            Decoder::Ros2(r) => r.extract(payload, &mut found)?,
+        }
+        let mut v = found[..self.fields].to_vec();
+        v.extend([found[STAMP_SLOTS.0], found[STAMP_SLOTS.1]]);
+        Ok(v)
+    }
+
+    /// The whole message decoded by the underlying decoder (prost-reflect's `DynamicMessage`,
+    /// every CDR field, serde_json's `Value`): the "bare decode" of the ingest benchmark.
+    /// Returns a count of what was decoded.
+    pub fn decode_whole(&self, payload: &[u8]) -> Result<usize, String> {
+        match &self.decoder {
+            Decoder::Json => serde_json::from_slice::<serde_json::Value>(payload)
+                .map(|v| v.as_object().map_or(0, |o| o.len()))
+                .map_err(|e| e.to_string()),
+            Decoder::Protobuf(p) => p.decode_dynamic(payload).map(|m| m.fields().count()),
+            Decoder::Ros2(r) => r.decode_all(payload),
+        }
+    }
+}
+
+/// How one channel's payloads are read.
+enum Decoder {
+    Json,
+    Protobuf(super::protobuf::Decoder),
+    Ros2(super::ros2::Decoder),
+}
+
+impl Decoder {
+    fn name(&self) -> &'static str {
+        match self {
+            Decoder::Json => "JSON",
+            Decoder::Protobuf(_) => "protobuf",
+            Decoder::Ros2(_) => "CDR",
+        }
+    }
+}
+
 pub(super) struct McapRead {
     pub channels: Vec<RawChannel>,
     pub metadata: RunMetadata,
@@ -34,7 +175,7 @@ pub(super) struct McapRead {
 enum Slot {
     Unseen,
     Ignored { channel: u16 },
-    Read { topic_index: usize },
+    Read { topic_index: usize, decoder: usize },
 }
 
 struct TopicPlan {
@@ -44,6 +185,8 @@ struct TopicPlan {
     /// Message count of this topic (also the index of the next message).
     messages: usize,
     seen_channel: bool,
+    /// Times from the messages' header stamps instead of the log time.
+    header_time: bool,
 }
 
 fn read_error(path: &Path, messages: usize, source: McapError) -> IngestError {
@@ -106,7 +249,11 @@ struct Reader<'a> {
     /// Message counts of unmapped topics (for the missing-topic message).
     present: BTreeMap<String, usize>,
     slots: Vec<Slot>,
-    channel_topics: HashMap<u16, (String, String)>,
+    /// Channel id → (topic, message encoding, schema id).
+    channel_topics: HashMap<u16, (String, String, u16)>,
+    /// Schema id → (name, encoding, data).
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
+    decoders: Vec<Decoder>,
     run_metadata: Option<BTreeMap<String, String>>,
     /// Messages seen so far (all topics).
     total: usize,
@@ -125,9 +272,11 @@ impl<'a> Reader<'a> {
                     fields: Vec::new(),
                     messages: 0,
                     seen_channel: false,
+                    header_time: m.header_time,
                 });
                 topics.len() - 1
             });
+            topics[t].header_time |= m.header_time;
             topics[t].fields.push((s.index(), m.field.clone()));
         }
         let field_names = topics
@@ -145,6 +294,8 @@ impl<'a> Reader<'a> {
             present: BTreeMap::new(),
             slots: Vec::new(),
             channel_topics: HashMap::new(),
+            schemas: HashMap::new(),
+            decoders: Vec::new(),
             run_metadata: None,
             total: 0,
         }
@@ -203,20 +354,26 @@ impl<'a> Reader<'a> {
         let record =
             ::mcap::parse_record(opcode, data).map_err(|e| read_error(self.path, self.total, e))?;
         match record {
+            Record::Schema { header, data } => {
+                if header.id != 0 {
+                    self.schemas
+                        .insert(header.id, (header.name, header.encoding, data.into_owned()));
+                }
+            }
             Record::Channel(c) => {
                 if let Some(&t) = self.topic_index.get(&c.topic) {
                     self.topics[t].seen_channel = true;
                 }
                 self.channel_topics
-                    .insert(c.id, (c.topic, c.message_encoding));
+                    .insert(c.id, (c.topic, c.message_encoding, c.schema_id));
             }
             Record::Metadata(m) if m.name == MCAP_METADATA_NAME && self.run_metadata.is_none() => {
                 self.run_metadata = Some(m.metadata);
             }
             Record::Message { header, data } => {
                 self.total += 1;
-                if let Some(t) = self.topic_of(&header)? {
-                    self.message(t, &header, &data)?;
+                if let Some((t, d)) = self.topic_of(&header)? {
+                    self.message(t, d, &header, &data)?;
                 }
             }
             _ => {}
@@ -226,13 +383,13 @@ impl<'a> Reader<'a> {
 
     /// The mapped topic a message belongs to (None for unrelated topics, which are only
     /// counted); its channel's encoding is checked the first time.
-    fn topic_of(&mut self, header: &MessageHeader) -> Result<Option<usize>, IngestError> {
+    fn topic_of(&mut self, header: &MessageHeader) -> Result<Option<(usize, usize)>, IngestError> {
         let id = header.channel_id as usize;
         if id >= self.slots.len() {
             self.slots.resize(id + 1, Slot::Unseen);
         }
         if let Slot::Unseen = self.slots[id] {
-            let (topic, encoding) =
+            let (topic, encoding, schema_id) =
                 self.channel_topics.get(&header.channel_id).ok_or_else(|| {
                     read_error(
                         self.path,
@@ -244,21 +401,24 @@ impl<'a> Reader<'a> {
                 None => Slot::Ignored {
                     channel: header.channel_id,
                 },
-                Some(_) if encoding != MCAP_MESSAGE_ENCODING => {
-                    return Err(IngestError::McapEncoding {
-                        path: self.path.to_path_buf(),
-                        topic: topic.clone(),
-                        encoding: encoding.clone(),
-                    })
+                Some(&t) => {
+                    let d = self.decoder(t, topic, encoding, *schema_id)?;
+                    self.decoders.push(d);
+                    Slot::Read {
+                        topic_index: t,
+                        decoder: self.decoders.len() - 1,
+                    }
                 }
-                Some(&t) => Slot::Read { topic_index: t },
             };
         }
         match self.slots[id] {
-            Slot::Read { topic_index } => Ok(Some(topic_index)),
+            Slot::Read {
+                topic_index,
+                decoder,
+            } => Ok(Some((topic_index, decoder))),
             Slot::Ignored { channel } => {
                 // Counting unrelated topics is cheap and helps the missing-topic message.
-                if let Some((topic, _)) = self.channel_topics.get(&channel) {
+                if let Some((topic, _, _)) = self.channel_topics.get(&channel) {
                     if self.present.len() < 200 || self.present.contains_key(topic) {
                         *self.present.entry(topic.clone()).or_default() += 1;
                     }
@@ -269,10 +429,86 @@ impl<'a> Reader<'a> {
         }
     }
 
-    /// Extracts the mapped fields of one message of topic `t`.
+    /// The decoder of a channel on mapped topic `t` with `encoding` and schema `schema_id`.
+    fn decoder(
+        &self,
+        t: usize,
+        topic: &str,
+        encoding: &str,
+        schema_id: u16,
+    ) -> Result<Decoder, IngestError> {
+        let plan = &self.topics[t];
+        let schema_error = |what: String, hint: &str| IngestError::McapSchema {
+            path: self.path.to_path_buf(),
+            topic: topic.to_string(),
+            what,
+            hint: hint.to_string(),
+        };
+        let map_hint = "set `field` of the signal in [ingest.mcap] of the pipeline to one of the fields listed (a path such as twist.linear.x, [k] for an array element)";
+        let schema = |want: &str| -> Result<&(String, String, Vec<u8>), IngestError> {
+            let s = self.schemas.get(&schema_id).ok_or_else(|| {
+                schema_error(
+                    format!("a {encoding} channel needs a schema, but its schema id {schema_id} names none in the file"),
+                    "the file is damaged or was written without schemas; re-record it",
+                )
+            })?;
+            if s.1 != want {
+                return Err(schema_error(
+                    format!(
+                        "message encoding {encoding:?} with schema encoding {:?} (schema {}); railgrip reads {encoding:?} messages with {want:?} schemas",
+                        s.1, s.0
+                    ),
+                    if s.1 == "ros2idl" {
+                        "record with .msg definitions (ros2msg), which rosbag2 writes by default"
+                    } else {
+                        "re-record the channel with a supported schema encoding"
+                    },
+                ));
+            }
+            Ok(s)
+        };
+        let paths = || -> Result<Vec<FieldPath>, IngestError> {
+            plan.fields
+                .iter()
+                .map(|(_, f)| FieldPath::parse(f).map_err(|e| schema_error(e, map_hint)))
+                .collect()
+        };
+        match encoding {
+            MCAP_MESSAGE_ENCODING => {
+                if plan.header_time {
+                    return Err(schema_error(
+                        "time = \"header\" is set, but the channel is JSON, whose messages carry no typed header stamp".into(),
+                        "remove time = \"header\" for this topic (the log time is used)",
+                    ));
+                }
+                Ok(Decoder::Json)
+            }
+            "protobuf" => {
+                let (name, _, data) = schema("protobuf")?;
+                super::protobuf::Decoder::new(name, data, &paths()?, plan.header_time)
+                    .map(Decoder::Protobuf)
+                    .map_err(|e| schema_error(format!("protobuf schema {name}: {e}"), map_hint))
+            }
+            "cdr" => {
+                let (name, _, data) = schema("ros2msg")?;
+                super::ros2::Decoder::new(name, data, &paths()?, plan.header_time)
+                    .map(Decoder::Ros2)
+                    .map_err(|e| schema_error(format!("ros2msg schema {name}: {e}"), map_hint))
+            }
+            _ => Err(IngestError::McapEncoding {
+                path: self.path.to_path_buf(),
+                topic: topic.to_string(),
+                encoding: encoding.to_string(),
+                supported: SUPPORTED_ENCODINGS,
+            }),
+        }
+    }
+
+    /// Extracts the mapped fields of one message of topic `t`, read by decoder `d`.
     fn message(
         &mut self,
         t: usize,
+        d: usize,
         header: &MessageHeader,
         payload: &[u8],
     ) -> Result<(), IngestError> {
@@ -291,9 +527,15 @@ impl<'a> Reader<'a> {
             what,
             hint,
         };
-        let mut found = [None::<f64>; 8];
-        extract(payload, names, &mut found).map_err(|what| {
-            bad(
+        let mut found: Found = [None; 12];
+        let decoder = &self.decoders[d];
+        let decoded = match decoder {
+            Decoder::Json => extract(payload, names, &mut found),
+            Decoder::Protobuf(p) => p.extract(payload, &mut found),
+            Decoder::Ros2(r) => r.extract(payload, &mut found),
+        };
+        decoded.map_err(|what| match decoder {
+            Decoder::Json => bad(
                 what,
                 format!(
                     "each message on {} must be a JSON object with the number field(s) {}",
@@ -304,7 +546,15 @@ impl<'a> Reader<'a> {
                         .collect::<Vec<_>>()
                         .join(", ")
                 ),
-            )
+            ),
+            other => bad(
+                format!(
+                    "sequence {}: the {} message does not decode against its schema: {what}",
+                    header.sequence,
+                    other.name()
+                ),
+                "the message or its schema is damaged; check the file with `mcap doctor` or re-record it".into(),
+            ),
         })?;
         for (k, (sig, field)) in plan.fields.iter().enumerate() {
             match found[k] {
@@ -326,8 +576,27 @@ impl<'a> Reader<'a> {
                 }
             }
         }
-        let t_ref = *self.t_ref.get_or_insert(header.log_time);
-        self.times[t].push((header.log_time as i128 - t_ref as i128) as f64 * 1e-9);
+        let time_ns = if plan.header_time {
+            match (found[STAMP_SLOTS.0], found[STAMP_SLOTS.1]) {
+                (Some(s), Some(n)) if s >= 0.0 && s < 1e10 && (0.0..1e9).contains(&n) => {
+                    s as u64 * 1_000_000_000 + n as u64
+                }
+                (s, n) => {
+                    return Err(bad(
+                        format!(
+                            "header stamp {} s {} ns is not a time (seconds ≥ 0, nanoseconds in [0, 1e9))",
+                            s.unwrap_or(f64::NAN),
+                            n.unwrap_or(f64::NAN)
+                        ),
+                        "the logger wrote no stamp into the header; use the log time (drop time = \"header\")".into(),
+                    ))
+                }
+            }
+        } else {
+            header.log_time
+        };
+        let t_ref = *self.t_ref.get_or_insert(time_ns);
+        self.times[t].push((time_ns as i128 - t_ref as i128) as f64 * 1e-9);
         for (k, (sig, _)) in self.topics[t].fields.iter().enumerate() {
             self.values[*sig].push(found[k].expect("checked above"));
         }
@@ -483,15 +752,11 @@ fn preview(data: &[u8]) -> String {
 
 /// Extracts the named number fields of a JSON object without allocating; other fields are
 /// skipped. `found[k]` receives field `names[k]` (at most 8 fields per topic).
-fn extract<S: AsRef<str>>(
-    data: &[u8],
-    names: &[S],
-    found: &mut [Option<f64>; 8],
-) -> Result<(), String> {
-    if names.len() > found.len() {
+fn extract<S: AsRef<str>>(data: &[u8], names: &[S], found: &mut Found) -> Result<(), String> {
+    if names.len() > STAMP_SLOTS.0 {
         return Err(format!(
             "more than {} fields mapped to one topic",
-            found.len()
+            STAMP_SLOTS.0
         ));
     }
     let mut de = serde_json::Deserializer::from_slice(data);
@@ -503,7 +768,7 @@ fn extract<S: AsRef<str>>(
 
 struct FieldsSeed<'a, 'b, S> {
     names: &'a [S],
-    found: &'b mut [Option<f64>; 8],
+    found: &'b mut Found,
 }
 
 impl<'de, S: AsRef<str>> DeserializeSeed<'de> for FieldsSeed<'_, '_, S> {
@@ -630,7 +895,7 @@ mod tests {
 
     #[test]
     fn extracts_named_numbers_and_skips_the_rest() {
-        let mut found = [None; 8];
+        let mut found = [None; 12];
         extract(
             br#"{"stamp":{"sec":1,"nsec":2},"v":12.5,"note":"x","omega":[1,2]}"#,
             &["v"],
@@ -638,14 +903,14 @@ mod tests {
         )
         .unwrap();
         assert_eq!(found[0], Some(12.5));
-        let mut found = [None; 8];
+        let mut found = [None; 12];
         extract(br#"{"a":1,"b":-2e3}"#, &["b", "a", "c"], &mut found).unwrap();
         assert_eq!(&found[..3], &[Some(-2000.0), Some(1.0), None]);
     }
 
     #[test]
     fn non_numbers_and_bad_json_are_errors() {
-        let mut found = [None; 8];
+        let mut found = [None; 12];
         let e = extract(br#"{"v":"12.5"}"#, &["v"], &mut found).unwrap_err();
         assert!(
             e.contains("field \"v\" is a string, expected a number"),

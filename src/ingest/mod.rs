@@ -12,7 +12,9 @@
 
 mod csv;
 mod mcap;
+mod protobuf;
 mod resample;
+mod ros2;
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -24,6 +26,7 @@ use crate::config::{IngestConfig, Pipeline, PlausibilityAction};
 use crate::format::{RunMetadata, Signal, AXLES};
 use rayon::prelude::*;
 
+pub use mcap::{FieldPath, MessageDecoder, SUPPORTED_ENCODINGS};
 pub use resample::linear_interpolation_bound;
 
 /// The input format a log was read from.
@@ -130,11 +133,19 @@ pub enum IngestError {
         #[source]
         source: ::mcap::McapError,
     },
-    #[error("{path}: topic {topic} has message encoding {encoding:?}; railgrip reads \"json\" only. Hint: re-record the channel with JSON messages (data-contract.md) or convert the file")]
+    #[error("{path}: topic {topic} has message encoding {encoding:?}; railgrip reads {supported}. Hint: re-record the channel in one of these encodings or convert the file")]
     McapEncoding {
         path: PathBuf,
         topic: String,
         encoding: String,
+        supported: &'static str,
+    },
+    #[error("{path}: topic {topic}: {what}. Hint: {hint}")]
+    McapSchema {
+        path: PathBuf,
+        topic: String,
+        what: String,
+        hint: String,
     },
     #[error("{path}: missing MCAP topic(s) {missing}; the file has {present}. Hint: map the signals to topics in [ingest.mcap] of the pipeline, e.g. v_radar = {{ topic = \"/radar/speed\", field = \"v\", unit = \"m/s\" }}")]
     McapMissingTopics {
