@@ -141,6 +141,57 @@ impl std::fmt::Display for Signal {
     }
 }
 
+/// `<run>.railgrip.mcap`, railgrip's results as MCAP for Foxglove: one JSON topic per
+/// quantity, `/railgrip/v_mps` for the vehicle and `/railgrip/axle<i>/<field>` per axle, each
+/// message `{"<field>": value}` (null where the value is not finite), at the log times of the
+/// input's samples. (field, JSON type, description with unit) per axle topic; `mu_model` only
+/// when a model was replayed.
+pub const REPLAY_AXLE_FIELDS: [(&str, &str, &str); 7] = [
+    ("dv_mps", "number", "slip velocity Δv = v − rω, m/s"),
+    ("ddv_mps2", "number", "slip rate dΔv/dt, m/s²"),
+    ("normal_N", "number", "normal load N (load transfer), N"),
+    (
+        "tangential_N",
+        "number",
+        "tangential force T (torque balance), N",
+    ),
+    (
+        "mu",
+        "number",
+        "adhesion coefficient μ = T/N from the torque balance",
+    ),
+    (
+        "valid",
+        "boolean",
+        "true where the sample is used for identification",
+    ),
+    (
+        "mu_model",
+        "number",
+        "the model's μ replayed on this run's Δv, dΔv/dt (and v, T)",
+    ),
+];
+/// The vehicle's topic in `<run>.railgrip.mcap` and its field.
+pub const REPLAY_SPEED_TOPIC: &str = "/railgrip/v_mps";
+pub const REPLAY_SPEED_FIELD: (&str, &str, &str) =
+    ("v_mps", "number", "vehicle speed v (radar, filtered), m/s");
+
+/// The topic of per-axle quantity `field` of axle `axle` (1-based) in `<run>.railgrip.mcap`.
+pub fn replay_topic(axle: usize, field: &str) -> String {
+    format!("/railgrip/axle{axle}/{field}")
+}
+
+/// The JSON schema of a replay topic with one field.
+pub fn replay_schema(field: &str, json_type: &str, description: &str) -> String {
+    serde_json::json!({
+        "title": format!("railgrip.{field}"),
+        "type": "object",
+        "properties": { field: { "type": [json_type, "null"], "description": description } },
+        "required": [field],
+    })
+    .to_string()
+}
+
 /// Typed run metadata (MCAP record "run" or the CSV sidecar). Unknown keys are kept in `other`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RunMetadata {

@@ -24,6 +24,7 @@ pub mod input;
 pub mod linalg;
 pub mod model;
 pub mod outdir;
+pub mod replay;
 pub mod report;
 pub mod rng;
 pub mod score;

@@ -75,6 +75,10 @@ impl OutDir {
             .join(format!("{}.parquet", Self::ESTIMATES_STEM))
     }
     pub const ESTIMATES_STEM: &'static str = "estimates";
+    /// The run's `<run>.railgrip.mcap` (estimates and model replay for Foxglove).
+    pub fn run_replay(&self, run: &str) -> PathBuf {
+        self.run_dir(run).join(format!("{run}.railgrip.mcap"))
+    }
     pub fn summary_csv(&self) -> PathBuf {
         self.root.join("summary.csv")
     }
@@ -198,6 +202,9 @@ pub struct RunRecord {
     pub warnings: Vec<String>,
     /// SHA-256 of the log, its sidecar and the pipeline text.
     pub input_sha256: String,
+    /// Log time of the run's t = 0, ns (MCAP logs), for the replay MCAP's time base.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_log_time_ns: Option<u64>,
 }
 
 impl RunRecord {

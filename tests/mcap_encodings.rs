@@ -544,3 +544,190 @@ fn committed_runs_hold_the_json_runs_messages_on_every_mapped_topic() {
         }
     }
 }
+
+/// Whether python3 with the official `mcap` package is there; without, the test is skipped
+/// with a message — except under CI=true, where it fails (`.ci/run` installs it).
+fn official_reader_available() -> bool {
+    let there = std::process::Command::new("python3")
+        .args(["-c", "import mcap.reader"])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !there {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "python3 with the mcap package is required under CI=true (pip install mcap)"
+        );
+        eprintln!("SKIPPED: python3 with mcap not found (pip install mcap)");
+    }
+    there
+}
+
+#[test]
+fn estimate_writes_a_replay_mcap_that_the_official_reader_reads_back() {
+    if !official_reader_available() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let log = common::fixture("soap_160kmh_0c.mcap");
+    let model_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp.json");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["estimate", log.to_str().unwrap(), "--out"])
+        .arg(dir.path())
+        .args(["--mcap", "--model", model_path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let replay = dir.path().join("soap_160kmh_0c.railgrip.mcap");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("soap_160kmh_0c.railgrip.mcap"));
+    let read = std::process::Command::new("python3")
+        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/mcap/read_replay.py"))
+        .arg(&replay)
+        .output()
+        .unwrap();
+    assert!(
+        read.status.success(),
+        "{}",
+        String::from_utf8_lossy(&read.stderr)
+    );
+    let got: serde_json::Value = serde_json::from_slice(&read.stdout).unwrap();
+
+    // The same run estimated here, and the input's log times.
+    let p = Pipeline::default_uic_z1();
+    let runlog = ingest_file(&log, &p).unwrap();
+    let e = estimate(&runlog, &p).unwrap();
+    let model = railgrip::model::Model::load(&model_path).unwrap();
+    let t0 = runlog.start_log_time_ns.unwrap();
+    let n = e.len();
+    let topics = got["topics"].as_object().unwrap();
+    assert_eq!(
+        topics.len(),
+        1 + 4 * 7,
+        "{:?}",
+        topics.keys().collect::<Vec<_>>()
+    );
+    assert_eq!(got["message_count"].as_u64().unwrap() as usize, 29 * n);
+    let input_times: Vec<u64> = messages(&log)
+        .iter()
+        .filter(|m| m.0 == "/radar/speed")
+        .map(|m| m.6)
+        .collect();
+    let speed = &topics["/railgrip/v_mps"];
+    assert_eq!(speed["schema_encoding"], "jsonschema");
+    assert_eq!(speed["message_encoding"], "json");
+    assert_eq!(speed["schema"]["required"][0], "v_mps");
+    let times: Vec<u64> = speed["log_times"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t.as_u64().unwrap())
+        .collect();
+    assert_eq!(times.len(), n);
+    assert_eq!(times[0], t0);
+    assert_eq!(times[0], input_times[0]);
+    // The uniform time base at 417 Hz: every sample on the input's clock within half a period.
+    assert!(times
+        .iter()
+        .zip(&e.time_s)
+        .all(|(&t, s)| t == t0 + (s * 1e9).round() as u64));
+    let as_f64 = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    let same = |a: f64, b: f64| (a.is_nan() && b.is_nan()) || a == b;
+    for a in 0..4 {
+        let ax = &e.axles[a];
+        let topic = |f: &str| &topics[&format!("/railgrip/axle{}/{f}", a + 1)]["values"];
+        for (f, want) in [
+            ("dv_mps", &ax.dv_mps),
+            ("ddv_mps2", &ax.ddv_mps2),
+            ("normal_N", &ax.normal_n),
+            ("tangential_N", &ax.tangential_n),
+            ("mu", &ax.mu),
+        ] {
+            let vals = topic(f).as_array().unwrap();
+            assert_eq!(vals.len(), n);
+            for (i, v) in vals.iter().enumerate() {
+                assert!(
+                    same(as_f64(v), want[i]) || (v.is_null() && !want[i].is_finite()),
+                    "{f} axle {} sample {i}",
+                    a + 1
+                );
+            }
+        }
+        let valid = topic("valid").as_array().unwrap();
+        assert!(valid
+            .iter()
+            .zip(&ax.valid)
+            .all(|(v, w)| v.as_bool() == Some(*w)));
+        let mm = topic("mu_model").as_array().unwrap();
+        let t_c = e.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
+        let mut checked = 0;
+        for (i, v) in mm.iter().enumerate() {
+            if ax.dv_mps[i].is_finite() && ax.ddv_mps2[i].is_finite() {
+                assert_eq!(
+                    as_f64(v),
+                    model.mu_vt(ax.dv_mps[i], ax.ddv_mps2[i], e.v_mps[i], t_c)
+                );
+                checked += 1;
+            } else {
+                assert!(v.is_null());
+            }
+        }
+        assert!(checked > n / 2);
+    }
+}
+
+#[test]
+fn run_writes_replays_per_run_and_removes_them_when_not_asked() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    common::two_run_campaign(&camp);
+    let out = dir.path().join("out");
+    let run = |extra: &[&str]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_railgrip"))
+            .args([
+                "run",
+                camp.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    run(&["--mcap"]);
+    let names = ["soap_120kmh_p20", "soap_120kmh_m20"];
+    for name in names {
+        let path = out
+            .join("runs")
+            .join(name)
+            .join(format!("{name}.railgrip.mcap"));
+        let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let topics: std::collections::BTreeSet<&str> = summary
+            .channels
+            .values()
+            .map(|c| c.topic.as_str())
+            .collect();
+        assert!(topics.contains("/railgrip/axle2/mu_model"), "{topics:?}");
+        assert!(topics.contains("/railgrip/axle4/valid"));
+        // CSV logs: the time base is the log's time column.
+        let first = mcap::MessageStream::new(&bytes)
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap();
+        assert!(first.log_time < 1_000_000_000, "{}", first.log_time);
+    }
+    run(&[]);
+    for name in names {
+        assert!(!out
+            .join("runs")
+            .join(name)
+            .join(format!("{name}.railgrip.mcap"))
+            .exists());
+    }
+}

@@ -66,6 +66,9 @@ pub struct Options {
     pub jobs: Option<usize>,
     /// Recompute every run even when its inputs and the pipeline are unchanged.
     pub force: bool,
+    /// Write `runs/<run>/<run>.railgrip.mcap` per run: estimates and the network's μ replayed
+    /// (issue 19). Without it such files of an earlier run are removed.
+    pub mcap: bool,
 }
 
 /// The stages of a campaign, in order.
@@ -268,6 +271,10 @@ pub fn run(
     progress.event(Event::StageDone(Stage::Train));
 
     let t = Instant::now();
+    let mut replay_notes = replay_stage(out, &records, &trained, options.mcap);
+    stages.push(("replay".to_string(), t.elapsed().as_secs_f64()));
+
+    let t = Instant::now();
     write_summary(out, &records)?;
     CampaignRecord {
         archive: root.display().to_string(),
@@ -285,6 +292,7 @@ pub fn run(
     }
     .write(out)?;
     let mut notes = trained.notes;
+    notes.append(&mut replay_notes);
     let report = match crate::report::write_report(out) {
         Ok(p) => Some(p),
         Err(e) => {
@@ -389,6 +397,51 @@ pub fn prepare_output(out: &OutDir) -> Result<(), CampaignError> {
         }
     }
     Ok(())
+}
+
+/// With `mcap`, writes each estimated run's `<run>.railgrip.mcap` (its estimates and the
+/// trained network's μ, or the estimates alone when no network was trained), in parallel;
+/// without, removes such files an earlier run left (they would show an older model).
+/// A run whose replay cannot be written gets a note; the others go on.
+fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bool) -> Vec<String> {
+    if !mcap {
+        for r in records {
+            let _ = std::fs::remove_file(out.run_replay(&r.run));
+        }
+        return vec![];
+    }
+    let mlp = out.models().mlp();
+    let model = trained
+        .models
+        .contains(&mlp)
+        .then(|| crate::model::Model::load(&mlp).ok())
+        .flatten();
+    let mut notes: Vec<String> = records
+        .par_iter()
+        .filter(|r| r.ok())
+        .filter_map(|r| {
+            let path = out.run_replay(&r.run);
+            crate::replay::ReplayRun::read_parquet(
+                &out.run_estimates(&r.run),
+                r.ambient_temperature_c,
+            )
+            .and_then(|run| {
+                crate::replay::write_replay(
+                    &path,
+                    &run,
+                    model.as_ref(),
+                    r.start_log_time_ns.unwrap_or(0),
+                )
+            })
+            .err()
+            .map(|e| format!("{}: replay not written: {e}", r.run))
+        })
+        .collect();
+    if model.is_none() {
+        notes
+            .push("replay MCAP files hold the estimates only: no network model was trained".into());
+    }
+    notes
 }
 
 /// What the train stage left.

@@ -175,6 +175,7 @@ pub fn process_run(
         max_dv_mps: [None; AXLES],
         warnings: vec![],
         input_sha256: String::new(),
+        start_log_time_ns: None,
     };
     let (hash, log_sha) = match input_hash(src, pipeline) {
         Ok(h) => h,
@@ -254,6 +255,7 @@ fn estimate_run(
     let e = crate::estimate::estimate(&log, pipeline)?;
     e.write_named(&out.run_dir(name), OutDir::ESTIMATES_STEM, false)?;
     rec.initial_speed_kmh = e.metadata.initial_speed_kmh;
+    rec.start_log_time_ns = log.start_log_time_ns;
     rec.ambient_temperature_c = e.metadata.ambient_temperature_c;
     rec.condition = e.metadata.condition.clone();
     for (a, s) in e.summary().iter().enumerate() {

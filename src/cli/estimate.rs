@@ -21,14 +21,36 @@ pub struct Args {
     /// Also write <stem>.estimates.csv.
     #[arg(long)]
     csv: bool,
+    /// Also write <stem>.railgrip.mcap: per axle Δv, dΔv/dt, N, T, μ, valid as JSON topics
+    /// /railgrip/axle<i>/… (and /railgrip/v_mps) at the input's log times, for Foxglove.
+    #[arg(long)]
+    mcap: bool,
+    /// A model file whose μ is replayed on the run into the MCAP (/railgrip/axle<i>/mu_model).
+    #[arg(long, value_name = "MODEL", requires = "mcap")]
+    model: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
+    // A model that does not load is found before the run is estimated.
+    let model = match &args.model {
+        Some(p) => Some(railgrip::model::Model::load(p)?),
+        None => None,
+    };
     let log = railgrip::ingest_file(&args.run, &pipeline)?;
     let est = estimate(&log, &pipeline)?;
     let stem = super::ingest::stem(&args.run);
-    let written = est.write(&args.out, &stem, args.csv)?;
+    let mut written = est.write(&args.out, &stem, args.csv)?;
+    if args.mcap {
+        let path = args.out.join(format!("{stem}.railgrip.mcap"));
+        railgrip::replay::write_replay(
+            &path,
+            &railgrip::replay::ReplayRun::from_estimates(&est),
+            model.as_ref(),
+            log.start_log_time_ns.unwrap_or(0),
+        )?;
+        written.push(path);
+    }
     print!("{}", summary(&est));
     for w in &log.warnings {
         println!("warning    {}", w.message);

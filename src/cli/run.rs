@@ -32,6 +32,11 @@ pub struct Args {
     /// Print a machine-readable summary (JSON) on stdout instead of the table.
     #[arg(long)]
     json: bool,
+    /// Also write runs/<run>/<run>.railgrip.mcap per run: slip, slip rate, N, T, μ, valid and
+    /// the trained network's μ on the run, as JSON topics /railgrip/axle<i>/… at the input's
+    /// log times, to open beside the original log in Foxglove.
+    #[arg(long)]
+    mcap: bool,
 }
 
 /// Progress on stderr: a bar per stage on a terminal, plain lines otherwise.
@@ -179,6 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let options = campaign::Options {
         jobs: args.jobs,
         force: args.force,
+        mcap: args.mcap,
     };
     let o = campaign::run(&root, &out, &pipeline, options, Arc::new(Bars::new()))?;
     let failed = o.failed();
