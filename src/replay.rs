@@ -103,7 +103,7 @@ impl ReplayRun {
             .collect();
         let axle: Vec<i32> = col(c[1])?.into_iter().map(|a| a as i32).collect();
         let n = axle.len() / AXLES;
-        if axle.len() % AXLES != 0
+        if !axle.len().is_multiple_of(AXLES)
             || axle
                 .iter()
                 .enumerate()

@@ -520,6 +520,32 @@ proptest! {
         }
         let _ = d.decode_whole(&p);
     }
+
+    /// Mutated schemas (descriptor sets, message definitions) give a decoder or an error.
+    #[test]
+    fn mutated_schemas_never_panic(
+        which in 0usize..2,
+        edits in proptest::collection::vec((any::<usize>(), any::<u8>()), 1..8),
+        cut in any::<usize>(),
+    ) {
+        let (file, paths): (&str, &[&str]) = if which == 0 {
+            ("small.protobuf.mcap", &["twist.angular.z", "samples[1].value"])
+        } else {
+            ("small.ros2.mcap", &["points[1].x", "value"])
+        };
+        let msgs = messages(&data(file));
+        let (_, enc, sname, _, sdata, _, _, payload) = &msgs[0];
+        let mut schema = sdata.clone();
+        for (at, b) in &edits {
+            let n = schema.len();
+            schema[at % n] = *b;
+        }
+        schema.truncate(cut % (schema.len() + 1));
+        if let Ok(d) = MessageDecoder::new(enc, sname, &schema, paths, true) {
+            let _ = d.extract(payload, &[]);
+            let _ = d.decode_whole(payload);
+        }
+    }
 }
 
 #[test]

@@ -222,9 +222,9 @@ const CSV: Key = Key {
 const MCAP: Key = Key {
     name: "ingest.mcap.<signal>",
     unit: "",
-    range: Range::Text("`{ topic, field, unit }`"),
-    default: Default::Text("canonical topic, field and unit"),
-    meaning: "`v_radar`, `omega1..4`, `p1..4`",
+    range: Range::Text("`{ topic, field, unit, time }`"),
+    default: Default::Text("canonical topic, field and unit; `time = \"log\"`"),
+    meaning: "`v_radar`, `omega1..4`, `p1..4`; `field` a path (`twist.linear.x`, `velocity[2]`) in protobuf/ROS 2 messages; `time = \"header\"` takes the message's header stamp",
 };
 
 /// The keys of `[ingest]`, in README order.

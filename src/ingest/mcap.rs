@@ -354,11 +354,9 @@ impl<'a> Reader<'a> {
         let record =
             ::mcap::parse_record(opcode, data).map_err(|e| read_error(self.path, self.total, e))?;
         match record {
-            Record::Schema { header, data } => {
-                if header.id != 0 {
-                    self.schemas
-                        .insert(header.id, (header.name, header.encoding, data.into_owned()));
-                }
+            Record::Schema { header, data } if header.id != 0 => {
+                self.schemas
+                    .insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
                 if let Some(&t) = self.topic_index.get(&c.topic) {
@@ -578,7 +576,7 @@ impl<'a> Reader<'a> {
         }
         let time_ns = if plan.header_time {
             match (found[STAMP_SLOTS.0], found[STAMP_SLOTS.1]) {
-                (Some(s), Some(n)) if s >= 0.0 && s < 1e10 && (0.0..1e9).contains(&n) => {
+                (Some(s), Some(n)) if (0.0..1e10).contains(&s) && (0.0..1e9).contains(&n) => {
                     s as u64 * 1_000_000_000 + n as u64
                 }
                 (s, n) => {

@@ -522,9 +522,8 @@ fn walk(
                 w.pos = save;
             }
         }
-        if !matched {
-            w.skip(wire)?;
-        } else if node.wants.iter().filter(|x| x.number == number).count() > 1 {
+        // Unwanted fields are skipped; a field several wants read was rewound after each.
+        if !matched || node.wants.iter().filter(|x| x.number == number).count() > 1 {
             w.skip(wire)?;
         }
     }

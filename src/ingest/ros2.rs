@@ -733,7 +733,7 @@ MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n";
         let mut b = vec![0u8, le as u8, 0, 0];
         let mut body: Vec<u8> = Vec::new();
         let put = |body: &mut Vec<u8>, bytes: &[u8], align: usize| {
-            while body.len() % align != 0 {
+            while !body.len().is_multiple_of(align) {
                 body.push(0);
             }
             body.extend_from_slice(bytes);
