@@ -927,11 +927,20 @@ fn mcap_encoding_other_than_json() {
     let topics: Vec<&str> = Signal::ALL.iter().map(|s| s.mcap_topic()).collect();
     let p = write(
         dir.path(),
+        "fb.mcap",
+        &mcap_with("flatbuffer", &topics, None, canonical_payload),
+    );
+    let e = err(&p, &default());
+    assert!(e.contains("fb.mcap: topic /radar/speed has message encoding \"flatbuffer\"; railgrip reads \"json\", \"protobuf\" (protobuf schema) and \"cdr\" (ros2msg schema)"), "{e}");
+    // CDR messages need a ros2msg schema (tests/mcap_encodings.rs reads real ones).
+    let p = write(
+        dir.path(),
         "cdr.mcap",
         &mcap_with("cdr", &topics, None, canonical_payload),
     );
     let e = err(&p, &default());
-    assert!(e.contains("cdr.mcap: topic /radar/speed has message encoding \"cdr\"; railgrip reads \"json\" only"), "{e}");
+    assert!(e.contains("cdr.mcap: topic /radar/speed: "), "{e}");
+    assert!(e.contains("ros2msg"), "{e}");
 }
 
 #[test]

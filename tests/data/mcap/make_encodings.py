@@ -15,7 +15,8 @@ Outputs (next to this script):
   protobuf.toml and ros2.toml map them.
 - small.protobuf.mcap, small.ros2.mcap: a few messages that exercise the decoders' corners
   (nested messages, unpacked and packed repeated fields, wrappers, zigzag and fixed integers,
-  enums, absent fields, header stamps; a big-endian CDR message, strings and sequences before
+  enums, absent fields, header stamps; a big-endian CDR message, strings, sequences, bounded
+  strings and bounded sequences before and after
   the wanted field) and small.expected.json: the values the official decoders read back from
   those files for each field path (the test compares railgrip's reading with these).
 """
@@ -233,6 +234,7 @@ def write_small_protobuf(types, path):
 CORNER_ROS2 = (
     "std_msgs/Header header\nstring note\nint16[3] small\nuint8[] blob\n"
     "geometry_msgs/Vector3[] points\nint64 big\nfloat32 gain\nbool on\nfloat64 value # the wanted one\n"
+    "string<=8 short\nint32[<=3] bounded\nstring[<=2] names\n"
     "int32 CONSTANT=5\n"
     + SEP + HEADER + SEP + TIME + SEP + VECTOR3
 )
@@ -270,6 +272,12 @@ def cdr_corner(k, little):
     put("f", 0.25 * (k + 1))
     put("B", k % 2)
     put("d", 1e3 / (k + 3))
+    string("ab"[: k % 3])
+    put("I", 2)
+    for x in (-9 - k, 11):
+        put("i", x)
+    put("I", 1)
+    string("n")
     return bytes([0, 1 if little else 0, 0, 0]) + bytes(body)
 
 
@@ -303,7 +311,7 @@ PB_PATHS = [
 ]
 ROS2_PATHS = [
     "header.stamp.sec", "header.stamp.nanosec", "small[2]", "blob[1]", "points[1].x",
-    "points[0].z", "big", "gain", "on", "value",
+    "points[0].z", "big", "gain", "on", "value", "bounded[1]", "bounded[0]",
 ]
 
 
