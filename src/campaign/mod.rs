@@ -411,11 +411,18 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
         return vec![];
     }
     let mlp = out.models().mlp();
-    let model = trained
-        .models
-        .contains(&mlp)
-        .then(|| crate::model::Model::load(&mlp).ok())
-        .flatten();
+    let mut load_note = None;
+    let model = if trained.models.contains(&mlp) {
+        crate::model::Model::load(&mlp)
+            .map_err(|e| {
+                load_note = Some(format!("replay MCAP files hold the estimates only: {e}"))
+            })
+            .ok()
+    } else {
+        load_note =
+            Some("replay MCAP files hold the estimates only: no network model was trained".into());
+        None
+    };
     let mut notes: Vec<String> = records
         .par_iter()
         .filter(|r| r.ok())
@@ -437,10 +444,7 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
             .map(|e| format!("{}: replay not written: {e}", r.run))
         })
         .collect();
-    if model.is_none() {
-        notes
-            .push("replay MCAP files hold the estimates only: no network model was trained".into());
-    }
+    notes.extend(load_note);
     notes
 }
 

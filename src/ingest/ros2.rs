@@ -280,26 +280,70 @@ fn parse_schema(root: &str, text: &str) -> Result<(Vec<MsgDef>, usize), String> 
         }
         defs[index[name]].fields = fields;
     }
-    // A message may not contain itself (CDR has no optional members to end the recursion).
-    fn cyclic(defs: &[MsgDef], m: usize, stack: &mut Vec<usize>) -> Option<String> {
-        if stack.contains(&m) {
-            return Some(defs[m].name.clone());
-        }
-        stack.push(m);
-        for f in &defs[m].fields {
-            if let Ty::Msg(i) = f.ty {
-                if let Some(c) = cyclic(defs, i, stack) {
-                    return Some(c);
-                }
-            }
-        }
-        stack.pop();
-        None
-    }
-    if let Some(c) = cyclic(&defs, 0, &mut Vec::new()) {
-        return Err(format!("message {c} contains itself"));
-    }
+    check_shape(&defs, 0)?;
     Ok((defs, 0))
+}
+
+/// Deepest nesting of messages accepted (the walks recurse once per level).
+const MAX_DEPTH: usize = 64;
+
+/// Refuses what would make the walks loop or recurse without bound: a message that contains
+/// itself (CDR has no optional members to end it), nesting deeper than [`MAX_DEPTH`], and a
+/// message that serialises to no bytes (a count of such elements would cost time but no input).
+/// Each message is examined once (memoised), so a schema of shared sub-messages stays linear.
+fn check_shape(defs: &[MsgDef], root: usize) -> Result<(), String> {
+    #[derive(Clone, Copy, PartialEq)]
+    enum State {
+        New,
+        Open,
+        Done(usize),
+    }
+    fn visit(
+        defs: &[MsgDef],
+        m: usize,
+        state: &mut [State],
+        depth: usize,
+    ) -> Result<usize, String> {
+        match state[m] {
+            State::Done(min) => return Ok(min),
+            State::Open => return Err(format!("message {} contains itself", defs[m].name)),
+            State::New => {}
+        }
+        if depth > MAX_DEPTH {
+            return Err(format!(
+                "messages are nested deeper than {MAX_DEPTH} levels (at {})",
+                defs[m].name
+            ));
+        }
+        state[m] = State::Open;
+        // Fewest bytes a message can take (alignment padding aside).
+        let mut min = 0usize;
+        for f in &defs[m].fields {
+            let one = match f.ty {
+                Ty::Prim(p) => p.size(),
+                Ty::String | Ty::WString => 4,
+                Ty::Msg(i) => visit(defs, i, state, depth + 1)?,
+            };
+            min = min.saturating_add(match f.arity {
+                Arity::One => one,
+                Arity::Fixed(n) => one.saturating_mul(n),
+                Arity::Sequence => 4,
+            });
+        }
+        if defs[m].fields.is_empty() {
+            min = 1; // the placeholder byte of an empty message
+        }
+        if min == 0 {
+            return Err(format!(
+                "message {} serialises to no bytes (only zero-length arrays)",
+                defs[m].name
+            ));
+        }
+        state[m] = State::Done(min);
+        Ok(min)
+    }
+    let mut state = vec![State::New; defs.len()];
+    visit(defs, root, &mut state, 0).map(|_| ())
 }
 
 impl Decoder {
@@ -490,11 +534,7 @@ impl Decoder {
                 w += 1;
             }
             let wants = &node.wants[start..w];
-            let count = match f.arity {
-                Arity::One => 1,
-                Arity::Fixed(n) => n,
-                Arity::Sequence => c.u32(&f.name)? as usize,
-            };
+            let count = c.count(f)?;
             if wants.is_empty() {
                 self.skip_elements(c, f, count)?;
                 continue;
@@ -560,15 +600,6 @@ impl Decoder {
                 )))
             }
             Ty::Msg(i) => {
-                if count > c.buf.len().saturating_sub(c.pos) + 1 {
-                    return Err(Stop::Bad(format!(
-                        "{} elements of {} cannot fit in the {} bytes left at byte {}",
-                        count,
-                        f.name,
-                        c.buf.len().saturating_sub(c.pos),
-                        c.pos + 4
-                    )));
-                }
                 for _ in 0..count {
                     let left = c.left;
                     c.left = usize::MAX;
@@ -607,11 +638,7 @@ impl Decoder {
             return c.skip(1, 1, "placeholder");
         }
         for f in &def.fields {
-            let count = match f.arity {
-                Arity::One => 1,
-                Arity::Fixed(k) => k,
-                Arity::Sequence => c.u32(&f.name)? as usize,
-            };
+            let count = c.count(f)?;
             match f.ty {
                 Ty::Prim(p) => {
                     for _ in 0..count {
@@ -653,6 +680,25 @@ struct Cdr<'a> {
 }
 
 impl Cdr<'_> {
+    /// Elements of field `f`: 1, its fixed size, or a sequence's count — which may not exceed
+    /// the bytes left, since every element takes at least one (checked by `check_shape`).
+    fn count(&mut self, f: &Field) -> Result<usize, Stop> {
+        let n = match f.arity {
+            Arity::One => return Ok(1),
+            Arity::Fixed(n) => n,
+            Arity::Sequence => self.u32(&f.name)? as usize,
+        };
+        let left = self.buf.len().saturating_sub(self.pos);
+        if n > left {
+            return Err(Stop::Bad(format!(
+                "field {} has {n} element(s), more than the {left} byte(s) left at byte {} can hold (a count is corrupt, or the message is cut short)",
+                f.name,
+                self.pos + 4
+            )));
+        }
+        Ok(n)
+    }
+
     /// Aligns to `align` and skips `n` bytes.
     fn skip(&mut self, align: usize, n: usize, what: &str) -> Result<(), Stop> {
         let at = (self.pos + align - 1) & !(align - 1);
@@ -808,6 +854,58 @@ MSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n";
         let e =
             Decoder::new("a/B", b"geometry_msgs/Point p\n", &paths(&["p.x"]), false).unwrap_err();
         assert!(e.contains("no definition of geometry_msgs/Point"), "{e}");
+    }
+
+    #[test]
+    fn schemas_that_would_loop_or_recurse_without_bound_are_refused() {
+        let sep = "=".repeat(80);
+        let e = Decoder::new(
+            "a/A",
+            format!("B b\n{sep}\nMSG: a/B\nA a\n").as_bytes(),
+            &[],
+            false,
+        )
+        .unwrap_err();
+        assert!(e.contains("contains itself"), "{e}");
+        let mut deep = String::from("M0 m\n");
+        for k in 0..100 {
+            deep.push_str(&format!("{sep}\nMSG: a/M{k}\nM{} m\n", k + 1));
+        }
+        deep.push_str(&format!("{sep}\nMSG: a/M100\nfloat64 x\n"));
+        let e = Decoder::new("a/Top", deep.as_bytes(), &[], false).unwrap_err();
+        assert!(e.contains("nested deeper than 64"), "{e}");
+        let e = Decoder::new("a/Z", b"int32[0] nothing\n", &[], false).unwrap_err();
+        assert!(e.contains("serialises to no bytes"), "{e}");
+        // A diamond-shaped schema 40 levels deep is checked in linear time.
+        let mut diamond = String::from("D0 l\nD0 r\n");
+        for k in 0..40 {
+            diamond.push_str(&format!("{sep}\nMSG: a/D{k}\nD{n} l\nD{n} r\n", n = k + 1));
+        }
+        diamond.push_str(&format!("{sep}\nMSG: a/D40\nuint8 x\n"));
+        assert!(Decoder::new("a/Top", diamond.as_bytes(), &[], false).is_ok());
+        // A corrupt sequence count is an error, not four billion iterations.
+        let d = Decoder::new(
+            "a/S",
+            b"geometry_msgs/Vector3[] v\nfloat64 after\n",
+            &[],
+            false,
+        );
+        assert!(d.is_err()); // no definition of Vector3
+        let d = Decoder::new(
+            "a/S",
+            format!("Inner[] v\nfloat64 after\n{sep}\nMSG: a/Inner\nuint8 x\n").as_bytes(),
+            &paths(&["after"]),
+            false,
+        )
+        .unwrap();
+        let mut p = vec![0u8, 1, 0, 0];
+        p.extend(u32::MAX.to_le_bytes());
+        p.extend([0u8; 16]);
+        let e = d.extract(&p, &mut [None; 12]).unwrap_err();
+        assert!(
+            e.contains("4294967295 element(s), more than the 16 byte(s) left"),
+            "{e}"
+        );
     }
 
     #[test]
