@@ -144,6 +144,91 @@ fn bench(c: &mut Criterion) {
         });
     }
     g.finish();
+    fastsim_peers(&fp, &fr, &cr);
+}
+
+/// FASTSIM against the peers a Python user would pick (`benches/peers/fastsim_numpy.py`:
+/// numpy with the strips vectorised, and the plain loop compiled by numba), on identical
+/// inputs in the same run: forces compared, time per call best of 5 on each side (railgrip's
+/// own loop here; the criterion rows above are the reported figures). Skipped with a message
+/// without python3 and numpy (numba optional).
+fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
+    use std::process::Command;
+    let grids = [10usize, 20, 50, 100, 200];
+    let [l1, l2, l3] = fp.flexibilities();
+    let problem = serde_json::json!({
+        "a": fp.a_m, "b": fp.b_m, "l1": l1, "l2": l2, "l3": l3, "normal_n": fp.normal_n,
+        "mu": fr.mu0, "sx": cr.sx, "sy": cr.sy, "spin": cr.spin_per_m, "elliptic": true,
+        "grids": grids,
+    });
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("fastsim_problem.json");
+    std::fs::write(&path, problem.to_string()).unwrap();
+    let peer =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/peers/fastsim_numpy.py");
+    let out = match Command::new("python3").arg(&peer).arg(&path).output() {
+        Ok(o) if o.status.success() => o.stdout,
+        Ok(o) => {
+            eprintln!(
+                "SKIPPED FASTSIM peers: {}",
+                String::from_utf8_lossy(&o.stderr)
+                    .lines()
+                    .last()
+                    .unwrap_or("")
+            );
+            return;
+        }
+        Err(e) => {
+            eprintln!("SKIPPED FASTSIM peers: no python3 ({e})");
+            return;
+        }
+    };
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    if v["numba"] != true {
+        eprintln!("(numba missing: pip install numba for the compiled peer)");
+    }
+    eprintln!("FASTSIM (elliptic bound) against Python peers, same inputs, same run, µs per call:");
+    eprintln!(
+        "  grid     railgrip   numpy (×)          numba (×)          largest |ΔF|/μN vs railgrip"
+    );
+    for n in grids {
+        let fs = Fastsim::new(n, n, Bound::Elliptic).unwrap();
+        let ours = fs.forces(fp, fr, cr).unwrap();
+        let calls = (400_000 / (n * n)).max(20);
+        let mut best = f64::INFINITY;
+        for _ in 0..5 {
+            let t = std::time::Instant::now();
+            for _ in 0..calls {
+                black_box(fs.forces(black_box(fp), fr, black_box(cr)).unwrap().fx_n);
+            }
+            best = best.min(t.elapsed().as_secs_f64() / calls as f64);
+        }
+        let us = best * 1e6;
+        let row = &v["grids"][n.to_string()];
+        let cell = |k: &str| -> (String, f64) {
+            match row.get(k) {
+                Some(r) => {
+                    let f: Vec<f64> = r["forces"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|x| x.as_f64().unwrap())
+                        .collect();
+                    let d = [(f[0] - ours.fx_n).abs(), (f[1] - ours.fy_n).abs()]
+                        .into_iter()
+                        .fold(0.0f64, f64::max)
+                        / (fr.mu0 * fp.normal_n);
+                    let t = r["us"].as_f64().unwrap();
+                    (format!("{t:>9.2} ({:>6.1}×)", t / us), d)
+                }
+                None => ("        –          ".into(), 0.0),
+            }
+        };
+        let (np, dn) = cell("numpy");
+        let (nb, db) = cell("numba");
+        eprintln!("  {n:>3}²  {us:>10.2}   {np}  {nb}  {:.1e}", dn.max(db));
+    }
 }
 
 criterion_group!(benches, bench);
