@@ -363,6 +363,25 @@ fn bad_encodings_schemas_messages_and_paths_are_clear_errors() {
         e.contains("time = \"header\" is set, but the channel is JSON"),
         "{e}"
     );
+    // Signals on one topic share its clock.
+    let e = Pipeline::from_toml(
+        &format!(
+            "{}{}",
+            &DEFAULT_PIPELINE_TOML[..DEFAULT_PIPELINE_TOML.find("[ingest.mcap]").unwrap()],
+            mapping("ros2.toml").replacen(
+                "field = \"velocity[0]\", unit",
+                "field = \"velocity[0]\", time = \"header\", unit",
+                1
+            )
+        ),
+        "t.toml",
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("ingest.mcap.omega2.time = \"log\": omega1 on the same topic /joint_states has time = \"header\""),
+        "{e}"
+    );
     // A bad `time` value is a pipeline error.
     let e = Pipeline::from_toml(
         &DEFAULT_PIPELINE_TOML

@@ -423,6 +423,10 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
             Some("replay MCAP files hold the estimates only: no network model was trained".into());
         None
     };
+    for r in records.iter().filter(|r| !r.ok()) {
+        // A failed run has no estimates; no replay of an earlier run stays beside it.
+        let _ = std::fs::remove_file(out.run_replay(&r.run));
+    }
     let mut notes: Vec<String> = records
         .par_iter()
         .filter(|r| r.ok())

@@ -286,11 +286,29 @@ impl Checker<'_> {
                 s.key(),
                 s.quantity(),
             )?);
-            mcap.push(self.mcap_field(
-                &format!("ingest.mcap.{}", s.key()),
-                i.mcap.get(s.key()),
-                s,
-            )?);
+            let m: McapField =
+                self.mcap_field(&format!("ingest.mcap.{}", s.key()), i.mcap.get(s.key()), s)?;
+            // One topic, one clock: its messages are timed once for all its signals.
+            if let Some((other, o)) =
+                Signal::ALL
+                    .iter()
+                    .zip(&mcap)
+                    .find(|(_, o): &(_, &McapField)| {
+                        o.topic == m.topic && o.header_time != m.header_time
+                    })
+            {
+                return Err(self.invalid(
+                    &format!("ingest.mcap.{}.time", s.key()),
+                    format!("{:?}", if m.header_time { "header" } else { "log" }),
+                    format!(
+                        "{} on the same topic {} has time = {:?}; signals sharing a topic share its time",
+                        other.key(),
+                        m.topic,
+                        if o.header_time { "header" } else { "log" }
+                    ),
+                ));
+            }
+            mcap.push(m);
         }
         Ok(IngestConfig {
             sample_rate_hz: fs,
