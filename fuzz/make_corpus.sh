@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 out=fuzz/corpus
 rm -rf "$out"
-mkdir -p "$out"/{csv,mcap,sidecar,pipeline,scene,model}
+mkdir -p "$out"/{csv,mcap,sidecar,pipeline,scene,model,mcap_message}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 for s in soap_120kmh_p20 soap_120kmh_multirate_0c; do
@@ -26,4 +26,15 @@ cp pipelines/scenes/soap_120kmh_p20.toml pipelines/scenes/soap_120kmh_multirate_
     "$out/scene/"
 cp models/golden/synthetic_mlp.json models/golden/synthetic_mlp_4inputs.json \
     models/golden/synthetic_polach.json "$out/model/"
+# mcap_message: [0 protobuf | 1 CDR][schema length, u16 LE][schema][payload] per message of the
+# corner-case files (needs python3 with `pip install mcap`).
+python3 - "$out/mcap_message" <<'PY'
+import struct, sys
+from mcap.reader import make_reader
+for pick, f in ((0, "small.protobuf.mcap"), (1, "small.ros2.mcap")):
+    with open(f"tests/data/mcap/{f}", "rb") as fh:
+        for k, (schema, _, msg) in enumerate(make_reader(fh).iter_messages()):
+            with open(f"{sys.argv[1]}/{f.split('.')[1]}_{k}", "wb") as out:
+                out.write(bytes([pick]) + struct.pack("<H", len(schema.data)) + schema.data + msg.data)
+PY
 du -sh "$out"/*

@@ -35,6 +35,53 @@ pub fn small_csv() -> &'static [u8] {
     })
 }
 
+/// The field paths the `mcap_message` target reads from the corner-case messages of
+/// tests/data/mcap (protobuf `railgrip.test.Corner`, ROS 2 `railgrip_test/msg/Corner`).
+pub const MCAP_MESSAGE_PATHS: [(&str, &str, &str, &[&str]); 2] = [
+    (
+        "protobuf",
+        "railgrip.test.Corner",
+        "protobuf",
+        &[
+            "samples[1].value",
+            "unpacked[2]",
+            "packed[0]",
+            "wrapped",
+            "zigzag",
+            "twist.angular.z",
+        ],
+    ),
+    (
+        "cdr",
+        "railgrip_test/msg/Corner",
+        "ros2msg",
+        &["small[2]", "points[1].x", "value", "bounded[1]", "blob[1]"],
+    ),
+];
+
+/// One protobuf or CDR message with its schema: byte 0 picks the encoding (even: protobuf,
+/// odd: CDR), bytes 1–2 the schema's length L (little endian), then L bytes of schema (a
+/// FileDescriptorSet or ros2msg text) and the payload. The decoder must build or refuse the
+/// schema, and read the payload or refuse it, without a panic; a read gives one value (or
+/// default) per path and the header stamp.
+pub fn mcap_message_bytes(data: &[u8]) {
+    let Some((&pick, rest)) = data.split_first() else {
+        return;
+    };
+    let (encoding, name, _, paths) = MCAP_MESSAGE_PATHS[(pick % 2) as usize];
+    let len = rest
+        .get(..2)
+        .map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
+    let rest = rest.get(2..).unwrap_or(&[]);
+    let (schema, payload) = rest.split_at(len.min(rest.len()));
+    if let Ok(d) = crate::ingest::MessageDecoder::new(encoding, name, schema, paths, true) {
+        if let Ok(v) = d.extract(payload, &[]) {
+            assert_eq!(v.len(), paths.len() + 2, "one value per path and the stamp");
+        }
+        let _ = d.decode_whole(payload);
+    }
+}
+
 /// A log's bytes named `name` (`.csv` or `.mcap`, with an optional sidecar) through ingest
 /// and, when it reads, the estimator.
 pub fn log_bytes(data: &[u8], name: &str, sidecar: Option<&[u8]>) {

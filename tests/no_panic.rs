@@ -127,6 +127,12 @@ proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
     #[test]
+    fn mutated_mcap_messages_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
+        let seeds = corpus("mcap_message");
+        railgrip::fuzzing::mcap_message_bytes(&apply(&seeds[k % seeds.len()], &ms));
+    }
+
+    #[test]
     fn mutated_sidecars_never_panic(ms in proptest::collection::vec(mutation(), 1..4), k in any::<usize>()) {
         let seeds = corpus("sidecar");
         railgrip::fuzzing::sidecar_bytes(&apply(&seeds[k % seeds.len()], &ms));
@@ -174,6 +180,14 @@ fn the_fuzz_seeds_are_valid_inputs() {
             sidecar: None,
         };
         railgrip::ingest::ingest_source(&src, &railgrip::Pipeline::default_uic_z1()).unwrap();
+    }
+    for s in corpus("mcap_message") {
+        let (encoding, name, _, paths) = railgrip::fuzzing::MCAP_MESSAGE_PATHS[(s[0] % 2) as usize];
+        let len = u16::from_le_bytes([s[1], s[2]]) as usize;
+        let (schema, payload) = s[3..].split_at(len);
+        let d = railgrip::ingest::MessageDecoder::new(encoding, name, schema, paths, true).unwrap();
+        let v = d.extract(payload, &[]).unwrap();
+        assert!(v.iter().all(|x| x.is_some_and(f64::is_finite)), "{v:?}");
     }
 }
 
