@@ -23,7 +23,6 @@
 mod common;
 
 use std::path::Path;
-use std::process::Command;
 
 use railgrip::config::SplitConfig;
 use railgrip::identify::dataset::Dataset;
@@ -71,22 +70,8 @@ fn numpy(problem: &Path, probe: &str) -> Vec<f64> {
         .1
 }
 
-/// Whether python3 with numpy is there; without, a test is skipped with a message — except
-/// under CI=true, where it fails (`.ci/run` installs numpy).
 fn numpy_available() -> bool {
-    let there = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !there {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "python3 with numpy is required under CI=true (pip install numpy)"
-        );
-        eprintln!("SKIPPED: python3 with numpy not found (pip install numpy)");
-    }
-    there
+    common::python_has("numpy", "numpy")
 }
 
 #[test]

@@ -590,22 +590,9 @@ fn committed_runs_hold_the_json_runs_messages_on_every_mapped_topic() {
     }
 }
 
-/// Whether python3 with the official `mcap` package is there; without, the test is skipped
-/// with a message — except under CI=true, where it fails (`.ci/run` installs it).
+/// The official MCAP reader (CI installs it; skipped with a message elsewhere).
 fn official_reader_available() -> bool {
-    let there = std::process::Command::new("python3")
-        .args(["-c", "import mcap.reader"])
-        .output()
-        .map(|o| o.status.success())
-        .unwrap_or(false);
-    if !there {
-        assert!(
-            std::env::var("CI").as_deref() != Ok("true"),
-            "python3 with the mcap package is required under CI=true (pip install mcap)"
-        );
-        eprintln!("SKIPPED: python3 with mcap not found (pip install mcap)");
-    }
-    there
+    common::python_has("mcap.reader", "mcap")
 }
 
 #[test]

@@ -226,6 +226,24 @@ pub fn parquet_columns(path: &Path, names: &[&str]) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// Whether python3 can `import module`; without it a test is skipped with a message — except
+/// under CI=true, where it fails (`.ci/run` installs numpy and mcap). `pip` names the package.
+pub fn python_has(module: &str, pip: &str) -> bool {
+    let there = std::process::Command::new("python3")
+        .args(["-c", &format!("import {module}")])
+        .output()
+        .map(|o| o.status.success())
+        .unwrap_or(false);
+    if !there {
+        assert!(
+            std::env::var("CI").as_deref() != Ok("true"),
+            "python3 with {module} is required under CI=true (pip install {pip})"
+        );
+        eprintln!("SKIPPED: python3 with {module} not found (pip install {pip})");
+    }
+    there
+}
+
 /// A bundled archive file.
 pub fn fixture(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
