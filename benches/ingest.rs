@@ -162,15 +162,8 @@ fn schemas(file: &str) -> Vec<(String, String, String, Vec<u8>)> {
 
 /// The default pipeline with the `[ingest.mcap]` mapping of tests/data/mcap/`mapping`.
 fn pipeline_with(mapping: &str) -> Pipeline {
-    let text = railgrip::config::DEFAULT_PIPELINE_TOML;
-    let cut = text.find("[ingest.mcap]").unwrap();
-    let map = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("tests/data/mcap")
-            .join(mapping),
-    )
-    .unwrap();
-    Pipeline::from_toml(&format!("{}{map}", &text[..cut]), mapping).unwrap()
+    let text = common::pipeline_text_with_mcap(&common::mcap_mapping(mapping));
+    Pipeline::from_toml(&text, mapping).unwrap()
 }
 
 /// CDR (little endian) with 4-byte header; alignment relative to the body.

@@ -24,15 +24,11 @@ fn data(name: &str) -> PathBuf {
 
 /// The default pipeline with its `[ingest.mcap]` section replaced by `mapping`.
 fn pipeline_with(mapping: &str) -> Pipeline {
-    let cut = DEFAULT_PIPELINE_TOML
-        .find("[ingest.mcap]")
-        .expect("the default pipeline maps MCAP topics");
-    let text = format!("{}{}", &DEFAULT_PIPELINE_TOML[..cut], mapping);
-    Pipeline::from_toml(&text, "test pipeline").unwrap()
+    Pipeline::from_toml(&common::pipeline_text_with_mcap(mapping), "test pipeline").unwrap()
 }
 
 fn mapping(name: &str) -> String {
-    std::fs::read_to_string(data(name)).unwrap()
+    common::mcap_mapping(name)
 }
 
 /// (topic, encoding, schema name, schema encoding, schema data, sequence, log time, payload).
@@ -365,15 +361,11 @@ fn bad_encodings_schemas_messages_and_paths_are_clear_errors() {
     );
     // Signals on one topic share its clock.
     let e = Pipeline::from_toml(
-        &format!(
-            "{}{}",
-            &DEFAULT_PIPELINE_TOML[..DEFAULT_PIPELINE_TOML.find("[ingest.mcap]").unwrap()],
-            mapping("ros2.toml").replacen(
-                "field = \"velocity[0]\", unit",
-                "field = \"velocity[0]\", time = \"header\", unit",
-                1
-            )
-        ),
+        &common::pipeline_text_with_mcap(&mapping("ros2.toml").replacen(
+            "field = \"velocity[0]\", unit",
+            "field = \"velocity[0]\", time = \"header\", unit",
+            1,
+        )),
         "t.toml",
     )
     .unwrap_err()
@@ -709,6 +701,36 @@ fn estimate_writes_a_replay_mcap_that_the_official_reader_reads_back() {
         }
         assert!(checked > n / 2);
     }
+}
+
+#[test]
+fn estimate_refuses_a_bad_replay_model_before_estimating_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = common::fixture("soap_160kmh_0c.mcap");
+    let bad = dir.path().join("model.json");
+    std::fs::write(&bad, "{\"format\": \"not a model\"}").unwrap();
+    let out_dir = dir.path().join("out");
+    let go = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_railgrip"))
+            .args([
+                "estimate",
+                log.to_str().unwrap(),
+                "--out",
+                out_dir.to_str().unwrap(),
+            ])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = go(&["--mcap", "--model", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(1));
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("model.json"), "{e}");
+    assert!(!out_dir.exists(), "nothing written");
+    // --model without --mcap is a usage error.
+    let o = go(&["--model", bad.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--mcap"));
 }
 
 #[test]

@@ -244,6 +244,26 @@ pub fn python_has(module: &str, pip: &str) -> bool {
     there
 }
 
+/// The text of the default pipeline with its `[ingest.mcap]` section replaced by `mapping`
+/// (the mappings of tests/data/mcap are such sections).
+pub fn pipeline_text_with_mcap(mapping: &str) -> String {
+    let text = railgrip::config::DEFAULT_PIPELINE_TOML;
+    let cut = text
+        .find("[ingest.mcap]")
+        .expect("the default pipeline maps MCAP topics");
+    format!("{}{mapping}", &text[..cut])
+}
+
+/// A mapping section of tests/data/mcap (`protobuf.toml`, `ros2.toml`).
+pub fn mcap_mapping(name: &str) -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/data/mcap")
+            .join(name),
+    )
+    .unwrap()
+}
+
 /// A bundled archive file.
 pub fn fixture(name: &str) -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
