@@ -414,16 +414,23 @@ fn model_files_follow_the_schema() {
     schema_check(&golden, "golden file");
     // And the schema rejects what the reader rejects.
     let mut v: serde_json::Value = serde_json::from_str(&golden).unwrap();
-    v["version"] = 3.into();
+    v["version"] = 4.into();
     let schema: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(root().join("models/schema/adhesion-model.schema.json")).unwrap(),
     )
     .unwrap();
     assert!(!jsonschema::is_valid(&schema, &v));
-    let e = ModelFile::from_json(&v.to_string(), "v3.json")
+    let e = ModelFile::from_json(&v.to_string(), "v4.json")
         .unwrap_err()
         .to_string();
-    assert!(e.contains("v3.json") && e.contains("version 3"), "{e}");
+    assert!(e.contains("v4.json") && e.contains("version 4"), "{e}");
+    // A deeper network is version 3: valid as such, refused by both as version 2.
+    let deep = deep_model(&synthetic_model(), &[6, 5], 1.0, 1);
+    let mut v: serde_json::Value = serde_json::from_str(&deep.to_json()).unwrap();
+    assert!(jsonschema::is_valid(&schema, &v));
+    v["version"] = 2.into();
+    assert!(!jsonschema::is_valid(&schema, &v));
+    assert!(ModelFile::from_json(&v.to_string(), "v2.json").is_err());
 }
 
 #[test]
@@ -1758,4 +1765,120 @@ fn one_rail_condition_trains_a_campaign() {
         e.contains("train.condition = \"wet\"") && e.contains("soap"),
         "{e}"
     );
+}
+
+// ------------------------------------------------------------------ deeper networks (format v3)
+
+/// `base` with its network replaced by random hidden layers of `widths` (weights ~ U(−w, w)),
+/// as a version-3 file.
+fn deep_model(base: &ModelFile, widths: &[usize], w: f64, seed: u64) -> ModelFile {
+    let mut rng = railgrip::rng::Rng::new(seed);
+    let mut m = base.clone();
+    let mut layers = Vec::new();
+    let mut n_in = m.inputs.len();
+    for (l, &n) in widths.iter().chain([&1]).enumerate() {
+        let last = l == widths.len();
+        layers.push(railgrip::model::Layer {
+            shape: [n, n_in],
+            weights: (0..n)
+                .map(|_| (0..n_in).map(|_| w * (2.0 * rng.uniform() - 1.0)).collect())
+                .collect(),
+            biases: (0..n).map(|_| 0.5 * (2.0 * rng.uniform() - 1.0)).collect(),
+            activation: if last { "linear" } else { "tanh" }.into(),
+        });
+        n_in = n;
+    }
+    m.layers = layers;
+    m.version = railgrip::model::DEEP_VERSION;
+    m
+}
+
+/// Issue 20: the model file holds networks of any depth (version 3), and the Rust single call,
+/// the Rust batch and the C header evaluate them with the same bits — widths that fill whole
+/// SIMD chunks and ragged ones, mirrored, creep-region, clamped and NaN inputs, with the
+/// support grid of the base file.
+#[test]
+fn deep_networks_evaluate_bit_identically_in_rust_single_batch_and_c() {
+    let base = synthetic_model();
+    for (widths, seed) in [
+        (&[32usize, 32][..], 1u64),
+        (&[7, 13, 5][..], 2),
+        (&[1, 3][..], 3),
+        (&[20, 9, 16, 6, 3][..], 4),
+    ] {
+        let file = deep_model(&base, widths, 1.5, seed);
+        file.check().unwrap();
+        let text = file.to_json();
+        schema_check(&text, "deep network");
+        let back = ModelFile::from_json(&text, "deep").unwrap();
+        assert_eq!(back, file, "{widths:?}: JSON round trip");
+        let model = Model::new(back).unwrap();
+        let mut rng = railgrip::rng::Rng::new(seed + 10);
+        let n = 307;
+        let dv: Vec<f64> = (0..n)
+            .map(|i| {
+                if i == 5 {
+                    f64::NAN
+                } else {
+                    12.0 * rng.uniform() - 3.0
+                }
+            })
+            .collect();
+        let ddv: Vec<f64> = (0..n).map(|_| 16.0 * rng.uniform() - 8.0).collect();
+        let mut out = vec![0.0; n];
+        model.mu_batch(&dv, &ddv, &[], &mut out);
+        let mut distinct = std::collections::BTreeSet::new();
+        for i in 0..n {
+            let single = model.mu(dv[i], ddv[i]);
+            assert!(
+                out[i].to_bits() == single.to_bits() || (out[i].is_nan() && single.is_nan()),
+                "{widths:?} {i}: {} vs {single}",
+                out[i]
+            );
+            assert!(single.is_finite() || i == 5);
+            distinct.insert(single.to_bits());
+        }
+        // A network that really depends on its inputs (not a constant through saturation).
+        assert!(
+            distinct.len() > n / 2,
+            "{widths:?}: {} distinct",
+            distinct.len()
+        );
+        let pts: Vec<[f64; 4]> = dv
+            .iter()
+            .zip(&ddv)
+            .map(|(a, b)| [*a, *b, f64::NAN, f64::NAN])
+            .collect();
+        if let Some((worst, differ)) =
+            c_header_error(&model, &pts, &["-DRG_EXACT_FMA", "-ffp-contract=off"])
+        {
+            assert_eq!(differ, 0, "{widths:?}: C differs, worst {worst:e}");
+        }
+    }
+}
+
+/// Deeper networks need version 3, and every layer's shape must follow from the one before.
+#[test]
+fn deep_network_files_with_bad_shapes_or_versions_are_refused() {
+    let base = synthetic_model();
+    let good = deep_model(&base, &[8, 6], 1.0, 1);
+    let mut old = good.clone();
+    old.version = 2;
+    let e = old.check().unwrap_err().to_string();
+    assert!(e.contains("version 3"), "{e}");
+    let mut bad = good.clone();
+    bad.layers[1].shape = [6, 7];
+    let e = bad.check().unwrap_err().to_string();
+    assert!(
+        e.contains("layers[1]") && e.contains("8 inputs to the layer"),
+        "{e}"
+    );
+    let mut bad = good.clone();
+    bad.layers[1].activation = "relu".into();
+    assert!(bad.check().unwrap_err().to_string().contains("tanh"));
+    let too_deep = deep_model(&base, &[2; 9], 1.0, 1);
+    let e = too_deep.check().unwrap_err().to_string();
+    assert!(e.contains("1 to 8 hidden"), "{e}");
+    let too_wide = deep_model(&base, &[4, 257], 1.0, 1);
+    assert!(too_wide.check().is_err());
 }

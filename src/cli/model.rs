@@ -326,9 +326,10 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
         .with_context(|| format!("{}: cannot write", args.c_header.display()))?;
     let what = match m.kind {
         railgrip::model::ModelKind::Mlp => format!(
-            "network: {} inputs, {} hidden",
+            "network {} ({} inputs, {} weights)",
+            m.architecture(),
             m.inputs.len(),
-            m.layers[0].shape[0]
+            m.n_weights()
         ),
         railgrip::model::ModelKind::Polach => format!(
             "Polach{}",

@@ -62,7 +62,12 @@ fn inputs_line(m: &ModelFile) -> String {
 }
 
 fn array(name: &str, v: &[f64]) -> String {
-    let items: Vec<String> = v.iter().map(|x| lit(*x)).collect();
+    // C99 has no empty initialiser: an empty array is written as one unused 0.0.
+    let items: Vec<String> = if v.is_empty() {
+        vec!["0.0".into()]
+    } else {
+        v.iter().map(|x| lit(*x)).collect()
+    };
     format!(
         "static const double {name}[{}] = {{\n    {}\n}};\n",
         v.len().max(1),
@@ -111,7 +116,8 @@ const POLACH_TEMPLATE: &str = include_str!("c/polach.h.in");
 fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> String {
     let k = m.inputs.len();
     let h = &m.layers[0];
-    let o = &m.layers[1];
+    let o = m.layers.last().expect("checked: an output layer");
+    let deep = &m.layers[1..m.layers.len() - 1];
     let super::Scaling {
         lo,
         hi,
@@ -128,9 +134,44 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         array(&format!("{prefix}_ox"), &ox),
         array(&format!("{prefix}_w1c"), &w1c),
         array(&format!("{prefix}_b1"), &h.biases),
-        array(&format!("{prefix}_w2"), &o.weights[0]),
+        array(
+            &format!("{prefix}_w2"),
+            if deep.is_empty() { &o.weights[0] } else { &[] },
+        ),
+        array(&format!("{prefix}_wo"), &o.weights[0]),
+        array(
+            &format!("{prefix}_wd"),
+            &deep
+                .iter()
+                .flat_map(|l| l.weights.iter().flatten().copied())
+                .collect::<Vec<f64>>(),
+        ),
+        array(
+            &format!("{prefix}_bd"),
+            &deep
+                .iter()
+                .flat_map(|l| l.biases.iter().copied())
+                .collect::<Vec<f64>>(),
+        ),
+        format!(
+            "static const int {prefix}_deep_n[{}] = {{{}}};\n",
+            deep.len().max(1),
+            if deep.is_empty() {
+                "0".to_string()
+            } else {
+                deep.iter()
+                    .map(|l| l.biases.len().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        ),
     ]
     .concat();
+    let max_width = m.layers[..m.layers.len() - 1]
+        .iter()
+        .map(|l| l.biases.len())
+        .max()
+        .unwrap_or(1);
     let sup_arrays = match &m.support {
         None => String::new(),
         Some(sup) => {
@@ -189,6 +230,8 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("inputs", inputs_line(m)),
             ("k", k.to_string()),
             ("nh", h.shape[0].to_string()),
+            ("ndeep", deep.len().to_string()),
+            ("maxw", max_width.to_string()),
             ("arrays", arrays),
             ("b2", lit(o.biases[0] + 0.0)),
             ("expm1_p", crate::simd::EXPM1_P.map(lit).join(", ")),

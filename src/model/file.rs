@@ -11,6 +11,8 @@ use crate::contact::ContactError;
 
 /// Largest hidden layer the evaluators take.
 pub const MAX_HIDDEN: usize = 256;
+/// Hidden layers a network file may hold (railgrip's LM trains one or two, burn any of these).
+pub const MAX_HIDDEN_LAYERS: usize = 8;
 /// Largest |weight| or |bias| a network file may hold (trained ones stay far below).
 pub const MAX_WEIGHT: f64 = 1e8;
 /// Largest |value| of an input's domain or normalisation bounds and of speeds (m/s, m/s², °C).
@@ -157,7 +159,11 @@ pub const FORMAT_ID: &str = "railgrip-adhesion-model";
 /// everywhere, as before).
 pub const FORMAT_VERSION: u32 = 2;
 /// Versions this railgrip reads.
-pub const READ_VERSIONS: [u32; 2] = [1, 2];
+pub const READ_VERSIONS: [u32; 3] = [1, 2, DEEP_VERSION];
+/// The version of files whose network has more than one hidden layer (written only for those:
+/// a one-hidden-layer file stays version 2, so readers of version 2 keep reading it, and an
+/// older railgrip refuses a deeper network by its version instead of misreading it).
+pub const DEEP_VERSION: u32 = 3;
 /// Most cells a support grid may have (2²⁰: about 24 MB of JSON at the limit).
 pub const MAX_SUPPORT_CELLS: usize = 1 << 20;
 /// Most cells per input of a support grid.
@@ -527,44 +533,53 @@ impl ModelFile {
                 note: "",
             });
         }
-        let [h, o] = match self.layers.as_slice() {
-            [h, o] => [h, o],
-            _ => {
+        let n_layers = self.layers.len();
+        if !(2..=MAX_HIDDEN_LAYERS + 1).contains(&n_layers) {
+            return Err(Defect::Layers(format!(
+                "{n_layers} layers; an MLP model has 1 to {MAX_HIDDEN_LAYERS} hidden (tanh) layers and one linear output layer"
+            )));
+        }
+        if n_layers > 2 && self.version < DEEP_VERSION {
+            return Err(Defect::Value(format!(
+                "version {} holds one hidden layer; a network with {} is version {DEEP_VERSION}",
+                self.version,
+                n_layers - 1
+            )));
+        }
+        let (hidden, out) = self.layers.split_at(n_layers - 1);
+        if hidden.iter().any(|l| l.activation != "tanh") || out[0].activation != "linear" {
+            return Err(Defect::Layers(
+                "activations must be tanh (hidden layers) and linear (output)".into(),
+            ));
+        }
+        // Layer l maps the previous layer's width (the inputs for the first) to its own.
+        let mut width_in = k;
+        for (l, layer) in self.layers.iter().enumerate() {
+            let n = layer.shape[0];
+            let last = l + 1 == n_layers;
+            if layer.shape != [n, width_in]
+                || layer.weights.len() != n
+                || layer.weights.iter().any(|r| r.len() != width_in)
+                || layer.biases.len() != n
+                || n == 0
+                || (last && n != 1)
+                || (!last && n > MAX_HIDDEN)
+            {
                 return Err(Defect::Layers(format!(
-                    "{} layers; an MLP model has 2",
-                    self.layers.len()
-                )))
+                    "layers[{l}]: shape {:?} with {} weight rows and {} biases does not follow from {width_in} inputs to the layer (hidden layers 1 to {MAX_HIDDEN} neurons, output 1)",
+                    layer.shape,
+                    layer.weights.len(),
+                    layer.biases.len()
+                )));
             }
-        };
-        let nh = h.shape[0];
-        if h.activation != "tanh" || o.activation != "linear" {
-            return Err(Defect::Layers(
-                "activations must be tanh (hidden) and linear (output)".into(),
-            ));
+            width_in = n;
         }
-        if h.shape != [nh, k]
-            || h.weights.len() != nh
-            || h.weights.iter().any(|r| r.len() != k)
-            || h.biases.len() != nh
-            || o.shape != [1, nh]
-            || o.weights.len() != 1
-            || o.weights[0].len() != nh
-            || o.biases.len() != 1
-            || nh == 0
-            || nh > MAX_HIDDEN
-        {
-            return Err(Defect::Layers(
-                "layer shapes do not match the inputs and each other".into(),
-            ));
-        }
-        let mut nums: Vec<f64> = h
-            .weights
+        let mut nums: Vec<f64> = self
+            .layers
             .iter()
-            .flatten()
-            .chain(&h.biases)
+            .flat_map(|l| l.weights.iter().flatten().chain(&l.biases))
             .copied()
             .collect();
-        nums.extend(o.weights[0].iter().chain(&o.biases));
         for i in &self.inputs {
             nums.extend([i.norm_min, i.norm_max, i.domain_min, i.domain_max]);
             if i.domain_min > i.domain_max || i.norm_min > i.norm_max {
@@ -657,6 +672,32 @@ impl ModelFile {
             ));
         }
         Ok(())
+    }
+
+    /// Neurons per hidden layer of a network file, in order (empty for kind polach).
+    pub fn hidden_widths(&self) -> Vec<usize> {
+        let n = self.layers.len().saturating_sub(1);
+        self.layers[..n].iter().map(|l| l.shape[0]).collect()
+    }
+
+    /// Weights and biases of a network file.
+    pub fn n_weights(&self) -> usize {
+        self.layers
+            .iter()
+            .map(|l| l.shape[0] * (l.shape[1] + 1))
+            .sum()
+    }
+
+    /// The network's widths from inputs to output, `3-32-32-1` (empty for kind polach).
+    pub fn architecture(&self) -> String {
+        if self.layers.is_empty() {
+            return String::new();
+        }
+        std::iter::once(self.inputs.len())
+            .chain(self.layers.iter().map(|l| l.shape[0]))
+            .map(|n| n.to_string())
+            .collect::<Vec<_>>()
+            .join("-")
     }
 
     /// Whether the audit marked this model as failing.

@@ -36,8 +36,9 @@ use std::path::Path;
 pub(crate) use file::Scaling;
 pub use file::{
     gain_offset, AuditSpec, CreepSpec, Defect, Epoch, InputFile, InputSet, InputSpec, Layer,
-    Metrics, ModelFile, ModelKind, OutputSpec, Provenance, SupportSpec, FORMAT_ID, FORMAT_VERSION,
-    MAX_CELLS_PER_INPUT, MAX_HIDDEN, MAX_INPUTS, MAX_SUPPORT_CELLS, READ_VERSIONS,
+    Metrics, ModelFile, ModelKind, OutputSpec, Provenance, SupportSpec, DEEP_VERSION, FORMAT_ID,
+    FORMAT_VERSION, MAX_CELLS_PER_INPUT, MAX_HIDDEN, MAX_HIDDEN_LAYERS, MAX_INPUTS,
+    MAX_SUPPORT_CELLS, READ_VERSIONS,
 };
 use net::Net;
 pub use net::{tanh_fast, LANES};
@@ -63,7 +64,7 @@ pub enum ModelError {
     },
     #[error("{file}: format \"{found}\" is not \"{FORMAT_ID}\". Hint: {HINT}")]
     Format { file: String, found: String },
-    #[error("{file}: format version {found} is not supported (this railgrip reads versions 1 and {FORMAT_VERSION}). Hint: {HINT}")]
+    #[error("{file}: format version {found} is not supported (this railgrip reads versions 1 to {DEEP_VERSION}). Hint: {HINT}")]
     Version { file: String, found: u32 },
     #[error("{file}: {defect}. Hint: {HINT}")]
     Invalid {

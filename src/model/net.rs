@@ -3,7 +3,7 @@
 //! samples (AVX-512F, AVX2 or plain f64), every path performing the same IEEE operations lane
 //! by lane — bit-identical results whatever the CPU (tested below).
 
-use super::file::{ModelFile, Scaling, MAX_INPUTS};
+use super::file::{ModelFile, Scaling, MAX_HIDDEN, MAX_INPUTS};
 use super::support::SupportEval;
 use crate::contact::saturation::she_ratio;
 use crate::simd::{self, Isa, Lanes, Portable};
@@ -50,6 +50,21 @@ pub(super) struct Net {
     t_ref: f64,
     /// The data-support blend (version-2 files with a support grid).
     support: Option<Box<SupportEval>>,
+    /// Hidden layers after the first (version-3 files; empty for one hidden layer), and then
+    /// the output weights of the last hidden layer (`w2` serves one-hidden-layer networks).
+    deep: Vec<DeepLayer>,
+    wo: Vec<f64>,
+}
+
+/// A hidden layer after the first: `n` neurons fed by the previous layer's activations.
+/// Weights column-major with stride `pad` (`n` rounded up to [`CHUNK`]) and doubled like the
+/// first layer's: wc[h · pad + g] = 2 W[g][h]; the padding neurons have zero weights and bias.
+#[derive(Debug, Clone)]
+struct DeepLayer {
+    n: usize,
+    pad: usize,
+    wc: Vec<f64>,
+    b: Vec<f64>,
 }
 
 /// One block of [`LANES`] samples of a batch: slip, slip rate, speed and temperature (NaN:
@@ -100,7 +115,7 @@ impl Net {
             w1c,
         } = file.scaling();
         let h = &file.layers[0];
-        let o = &file.layers[1];
+        let o = file.layers.last().expect("checked: an output layer");
         let nh = h.biases.len();
         let pad = nh.div_ceil(CHUNK) * CHUNK;
         let padded = |v: &[f64]| {
@@ -111,7 +126,34 @@ impl Net {
         // Doubled (exact): the evaluators compute 2z, the argument tanh needs as e^(2z).
         let w1c: Vec<f64> = w1c.chunks(nh).flat_map(padded).map(|w| 2.0 * w).collect();
         let b1: Vec<f64> = padded(&h.biases).iter().map(|b| 2.0 * b).collect();
-        let w2 = padded(&o.weights[0]);
+        let w2 = if file.layers.len() == 2 {
+            padded(&o.weights[0])
+        } else {
+            vec![0.0; pad]
+        };
+        let hidden = &file.layers[..file.layers.len() - 1];
+        let deep = hidden
+            .windows(2)
+            .map(|pair| {
+                let (prev, l) = (&pair[0], &pair[1]);
+                let n = l.biases.len();
+                let lpad = n.div_ceil(CHUNK) * CHUNK;
+                let mut wc = vec![0.0; prev.biases.len() * lpad];
+                for (g, row) in l.weights.iter().enumerate() {
+                    for (h, w) in row.iter().enumerate() {
+                        wc[h * lpad + g] = 2.0 * w;
+                    }
+                }
+                let mut b: Vec<f64> = l.biases.iter().map(|b| 2.0 * b).collect();
+                b.resize(lpad, 0.0);
+                DeepLayer {
+                    n,
+                    pad: lpad,
+                    wc,
+                    b,
+                }
+            })
+            .collect();
         let blocks = (0..pad / CHUNK)
             .map(|j| {
                 let at = |v: &[f64], c: usize| -> [f64; CHUNK] {
@@ -151,6 +193,8 @@ impl Net {
             v_ref: creep.reference_speed_mps,
             t_ref: creep.reference_temperature_c.unwrap_or(f64::NAN),
             support: file.support.as_ref().map(|s| Box::new(SupportEval::new(s))),
+            deep,
+            wo: o.weights[0].clone(),
         }
     }
 
@@ -161,6 +205,9 @@ impl Net {
     /// header, same results.
     #[inline(always)]
     fn net<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
+        if !self.deep.is_empty() {
+            return self.net_deep::<V>(isa, x);
+        }
         // The usual sizes with the chunk count known at compile time (fully unrolled).
         match self.pad / CHUNK {
             1 => self.net_chunks::<V, 1>(isa, x),
@@ -211,6 +258,45 @@ impl Net {
             for t in self.chunk::<V>(isa, b, &xn) {
                 y += t;
             }
+        }
+        (y - self.oy) / self.gy
+    }
+
+    /// A network of two or more hidden layers: the first layer as in [`Net::chunk`] but keeping
+    /// the activations t1 (no output product), each further layer
+    /// 2z_g = fma(2W_gh, t_h, ·) over h in order from 2b_g, t_g = tanh, and the output
+    /// y = b_o + Σ_g w_o,g t_g over the last layer's neurons in order (product, then sum: the
+    /// rule of one hidden layer) — the operations of the C header's loop, lane by lane.
+    #[inline(always)]
+    fn net_deep<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
+        let xn = self.inputs(x);
+        let mut a = [0.0; MAX_HIDDEN];
+        let mut b = [0.0; MAX_HIDDEN];
+        for (j, blk) in self.blocks.iter().enumerate() {
+            for i in (0..CHUNK).step_by(V::N) {
+                let mut z2 = V::load(isa, &blk.b1[i..]);
+                for (c, &xc) in xn.iter().enumerate().take(self.k) {
+                    z2 = V::load(isa, &blk.w1[c][i..]).fma(V::splat(isa, xc), z2);
+                }
+                simd::tanh_of_doubled(z2).store(&mut a[j * CHUNK + i..]);
+            }
+        }
+        let (mut cur, mut next) = (&mut a, &mut b);
+        let mut n_prev = self.nh;
+        for layer in &self.deep {
+            for i in (0..layer.pad).step_by(V::N) {
+                let mut z2 = V::load(isa, &layer.b[i..]);
+                for (h, &t) in cur.iter().enumerate().take(n_prev) {
+                    z2 = V::load(isa, &layer.wc[h * layer.pad + i..]).fma(V::splat(isa, t), z2);
+                }
+                simd::tanh_of_doubled(z2).store(&mut next[i..]);
+            }
+            std::mem::swap(&mut cur, &mut next);
+            n_prev = layer.n;
+        }
+        let mut y = self.b2;
+        for (w, t) in self.wo.iter().zip(cur.iter()) {
+            y += w * t;
         }
         (y - self.oy) / self.gy
     }
@@ -379,6 +465,8 @@ impl Net {
                 x[b..b + LANES].try_into().expect("block")
             }
         };
+        // Deeper networks: sample by sample on the single-call path (same bits by construction).
+        let full = if self.deep.is_empty() { full } else { 0 };
         for b in (0..full).step_by(LANES) {
             let block = BlockIn {
                 dv: lanes(dv_mps, b),

@@ -411,9 +411,9 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
     let mt = &m.file.metrics;
     let _ = writeln!(
         *h,
-        "<table><tr><th class=\"l\">inputs</th><th>hidden</th><th>training samples</th><th>validation samples</th><th>training RMSE μ</th><th>validation RMSE μ</th><th>epochs</th><th class=\"l\">stop</th></tr>\n<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.5}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr></table>",
+        "<table><tr><th class=\"l\">inputs</th><th>network</th><th>training samples</th><th>validation samples</th><th>training RMSE μ</th><th>validation RMSE μ</th><th>epochs</th><th class=\"l\">stop</th></tr>\n<tr><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.5}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td></tr></table>",
         esc(&m.file.inputs.iter().map(|i| i.name.as_str()).collect::<Vec<_>>().join(", ")),
-        m.file.layers[0].shape[0],
+        m.file.architecture(),
         mt.train_samples,
         mt.val_samples,
         mt.train_mse.sqrt(),
@@ -464,7 +464,7 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
         h.push_str(&chart(
             &format!(
                 "Effective parameters γ per epoch (trainbr; {} weights)",
-                m.file.layers[0].shape[0] * (m.file.inputs.len() + 2) + 1
+                m.file.n_weights()
             ),
             "epoch",
             "γ",
