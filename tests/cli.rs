@@ -290,7 +290,7 @@ fn train_eval_export_work_end_to_end() {
     let s = text(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
     for needle in [
-        "10 hidden tanh neurons",
+        "network 2-10-1 (2 inputs",
         "trained",
         "validation",
         "Polach",
@@ -1045,4 +1045,76 @@ fn contact_writes_creep_curves_and_temperatures_and_refuses_bad_values() {
         assert!(e.contains(says), "{args:?}: {e}");
         assert!(!e.contains("panicked"), "{e}");
     }
+}
+
+/// Issue 20: `railgrip train` with `train.layers` and `optimizer = "adam"` trains a deeper
+/// network through burn and writes a version-3 model file that `eval` and `export --c-header`
+/// take like any other.
+#[test]
+fn train_a_deeper_network_through_burn_end_to_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"),
+    )
+    .unwrap()
+    .replace(
+        "hidden = 10",
+        "layers = [6, 5]\noptimizer = \"adamw\"\nlearning_rate = 0.005\nbatch = 128",
+    )
+    .replace("epochs = 1000", "epochs = 8")
+    .replace("polach_intervals = true", "polach_intervals = false")
+    .replace("leave_one_run_out = true", "leave_one_run_out = false");
+    std::fs::write(dir.path().join("deep.toml"), pipeline).unwrap();
+    let a = archive("soap_120kmh_p20.csv");
+    let o = railgrip(
+        &[
+            "train",
+            &a,
+            "--pipeline",
+            "deep.toml",
+            "--out",
+            "m",
+            "--quiet",
+        ],
+        dir.path(),
+    );
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    assert!(s.contains("network 2-6-5-1 (2 inputs"), "{s}");
+    let file = std::fs::read_to_string(dir.path().join("m/mlp.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&file).unwrap();
+    assert_eq!(v["version"], 3);
+    assert_eq!(v["layers"].as_array().unwrap().len(), 3);
+    assert!(v["history"].as_array().unwrap().len() <= 8);
+    std::fs::write(
+        dir.path().join("grid.csv"),
+        "dv_mps,ddv_mps2\n0.5,1.0\n-0.5,-1.0\n",
+    )
+    .unwrap();
+    let o = railgrip(
+        &[
+            "eval",
+            "m/mlp.json",
+            "--input",
+            "grid.csv",
+            "--output",
+            "pred.csv",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let pred = std::fs::read_to_string(dir.path().join("pred.csv")).unwrap();
+    let mu: Vec<f64> = pred
+        .lines()
+        .skip(1)
+        .map(|r| r.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert!(mu[0] > 0.0 && mu[0] < 0.3 && mu[1] == -mu[0], "{mu:?}");
+    let o = railgrip(
+        &["export", "m/mlp.json", "--c-header", "deep.h"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let h = std::fs::read_to_string(dir.path().join("deep.h")).unwrap();
+    assert!(h.contains("#define RAILGRIP_N_DEEP 1"), "{h}");
 }

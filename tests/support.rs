@@ -228,14 +228,14 @@ fn an_ensemble_is_the_mean_of_its_members_with_their_spread_in_the_file() {
     let mut t = train_mlp(&tables, &cfg, None).unwrap();
     t.reference_speed_mps = median_speed(&tables);
     assert_eq!(t.members.len(), 2);
-    assert_eq!(t.shape.hidden, 2 * cfg.hidden);
+    assert_eq!(t.arch.hidden, [2 * cfg.hidden]);
     let creep = creep_spec(&p, t.reference_speed_mps).unwrap();
     let file = mlp_file(&t, creep.clone(), provenance(), None).unwrap();
     let ens = Model::new(file.clone()).unwrap();
     // Each member as its own network (the same file with its layers).
     let member = |i: usize| {
         let mut one = t.clone();
-        one.shape.hidden = cfg.hidden;
+        one.arch.hidden = vec![cfg.hidden];
         one.theta = t.members[i].clone();
         one.members.clear();
         let mut f = mlp_file(&one, creep.clone(), provenance(), None).unwrap();

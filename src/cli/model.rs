@@ -119,10 +119,10 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let report = &models.polach_fits;
     let notes = &models.notes;
     println!(
-        "model      {} inputs, {} hidden tanh neurons, {} parameters",
-        trained.shape.inputs,
-        trained.shape.hidden,
-        trained.shape.n_params()
+        "model      network {} ({} inputs, tanh hidden layers, {} parameters)",
+        trained.arch,
+        trained.arch.inputs,
+        trained.arch.n_params()
     );
     println!(
         "data       {} training, {} validation samples",
@@ -151,7 +151,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         println!(
             "ensemble   the best {} starts averaged into one network of {} neurons",
             trained.members.len(),
-            trained.shape.hidden
+            trained.arch.hidden[0]
         );
     }
     if let Some(g) = trained.history.last().and_then(|e| e.gamma) {

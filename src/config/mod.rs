@@ -26,7 +26,7 @@ pub use ingest::{CsvColumn, IngestConfig, McapField, Plausibility, PlausibilityA
 pub(crate) use rule::Checker;
 pub use rule::Key;
 pub use train::{
-    default_support_cells, SplitConfig, TrainConfig, DEFAULT_AUDIT_MU_MAX,
+    default_support_cells, Optimizer, SplitConfig, TrainConfig, Trainer, DEFAULT_AUDIT_MU_MAX,
     DEFAULT_SUPPORT_MIN_SAMPLES, TRAINBR_MU,
 };
 pub use vehicle::Vehicle;
@@ -301,6 +301,51 @@ mod tests {
                 "train.hidden = 2.5: must be a whole number",
             ),
             ("starts = 1 ", "starts = 0 ", "train.starts = 0: must be"),
+            (
+                "hidden = 10",
+                "layers = [32, 32, 32]",
+                "train.layers = [32, 32, 32]: Levenberg–Marquardt trains one or two hidden layers: set train.optimizer = \"adam\"",
+            ),
+            (
+                "hidden = 10",
+                "layers = [32, 0]\noptimizer = \"adam\"",
+                "train.layers = [32.0, 0.0]: must list 1 to 8 hidden-layer widths",
+            ),
+            (
+                "hidden = 10",
+                "layers = [2, 2, 2, 2, 2, 2, 2, 2, 2]\noptimizer = \"adam\"",
+                "must list 1 to 8 hidden-layer widths",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 10\nlayers = [8]",
+                "train.hidden = 10: give either train.hidden or train.layers",
+            ),
+            (
+                "hidden = 10",
+                "optimizer = \"sgd\"",
+                "train.optimizer = \"sgd\": must be one of \"lm\", \"adam\", \"adamw\"",
+            ),
+            (
+                "hidden = 10",
+                "learning_rate = 0.01",
+                "train.learning_rate = (given): is a setting of train.optimizer = \"adam\" or \"adamw\"",
+            ),
+            (
+                "hidden = 10",
+                "optimizer = \"adam\"\nlearning_rate = 0.0",
+                "train.learning_rate = 0",
+            ),
+            (
+                "regularisation = \"none\"",
+                "regularisation = \"bayesian\"\noptimizer = \"adamw\"",
+                "train.regularisation = \"bayesian\": Bayesian regularisation is MATLAB trainbr",
+            ),
+            (
+                "ensemble = 1 ",
+                "ensemble = 2\noptimizer = \"adam\"\n#",
+                "train.ensemble = 2: an ensemble averages Levenberg–Marquardt networks",
+            ),
             (
                 "ensemble = 1 ",
                 "ensemble = 5 ",

@@ -13,6 +13,11 @@ pub mod raw {
     #[serde(deny_unknown_fields)]
     pub struct Train {
         pub hidden: Option<f64>,
+        pub layers: Option<Vec<f64>>,
+        pub optimizer: Option<String>,
+        pub learning_rate: Option<f64>,
+        pub weight_decay: Option<f64>,
+        pub batch: Option<f64>,
         pub inputs: Option<Vec<String>>,
         pub split: Option<String>,
         pub train_axles: Option<Vec<u8>>,
@@ -54,10 +59,45 @@ pub enum SplitConfig {
     Blocks { block_s: f64, every: usize },
 }
 
+/// Which first-order optimiser trains through burn (`identify::adam`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Optimizer {
+    /// Adam with an L2 penalty folded into the gradient when `weight_decay` > 0.
+    Adam,
+    /// AdamW: the weight decay decoupled from the gradient.
+    AdamW,
+}
+
+impl Optimizer {
+    pub fn name(self) -> &'static str {
+        match self {
+            Optimizer::Adam => "adam",
+            Optimizer::AdamW => "adamw",
+        }
+    }
+}
+
+/// Which trainer fits the network.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Trainer {
+    /// Levenberg–Marquardt (MATLAB trainlm/trainbr): one or two hidden layers.
+    Lm,
+    /// Mini-batch Adam or AdamW through burn: any depth.
+    Burn(Optimizer),
+}
+
 /// Training settings.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TrainConfig {
+    /// Neurons of the first hidden layer (`layers[0]`).
     pub hidden: usize,
+    /// Neurons per hidden layer, in order (`[hidden]` unless `train.layers` is given).
+    pub layers: Vec<usize>,
+    pub trainer: Trainer,
+    /// Adam/AdamW: step size, decay (AdamW decoupled, Adam L2) and mini-batch size.
+    pub learning_rate: f64,
+    pub weight_decay: f64,
+    pub batch: usize,
     /// The network's inputs (speed third, ambient temperature fourth).
     pub inputs: InputSet,
     pub split: SplitConfig,
@@ -139,6 +179,40 @@ const HIDDEN: Key = Key::num(
     int(1.0, 200.0),
     10.0,
     "hidden tanh neurons [pub]",
+);
+const LAYERS: Key = text(
+    "train.layers",
+    "1 to 8 widths, each 1..256; more than 2 need an Adam optimiser",
+    "`[hidden]`",
+    "neurons per hidden tanh layer, e.g. `[32, 32]` (replaces `hidden`; model files of more than one layer are format version 3)",
+);
+const OPTIMIZER: Key = Key {
+    name: "train.optimizer",
+    unit: "",
+    range: Range::Choice(&["lm", "adam", "adamw"]),
+    default: Default::Text("\"lm\""),
+    meaning: "`lm`: Levenberg–Marquardt (trainlm/trainbr, one or two hidden layers); `adam`/`adamw`: mini-batch Adam/AdamW through burn, any depth (`epochs` and `max_fail` are its epochs and patience; README \"Training deeper networks\")",
+};
+const LEARNING_RATE: Key = Key::num(
+    "train.learning_rate",
+    "",
+    open_lo(0.0, 0.5),
+    1e-3,
+    "Adam/AdamW: step size α on the normalised data",
+);
+const WEIGHT_DECAY: Key = Key::num(
+    "train.weight_decay",
+    "",
+    closed(0.0, 0.5),
+    0.0,
+    "Adam: L2 penalty; AdamW: decoupled decay λ",
+);
+const BATCH: Key = Key::num(
+    "train.batch",
+    "",
+    int(1.0, 1e6),
+    256.0,
+    "Adam/AdamW: samples per mini-batch",
 );
 const INPUTS: Key = text(
     "train.inputs",
@@ -325,6 +399,11 @@ const CONDITION: Key = text(
 /// The keys of `[train]`, in README order.
 pub const KEYS: &[&Key] = &[
     &HIDDEN,
+    &LAYERS,
+    &OPTIMIZER,
+    &LEARNING_RATE,
+    &WEIGHT_DECAY,
+    &BATCH,
     &INPUTS,
     &SPLIT,
     &TRAIN_AXLES,
@@ -382,14 +461,96 @@ impl Checker<'_> {
             &[("none", false), ("bayesian", true)],
             false,
         )?;
+        let trainer = self.choice(
+            &OPTIMIZER,
+            t.optimizer.clone(),
+            &[
+                ("lm", Trainer::Lm),
+                ("adam", Trainer::Burn(Optimizer::Adam)),
+                ("adamw", Trainer::Burn(Optimizer::AdamW)),
+            ],
+            Trainer::Lm,
+        )?;
+        let hidden = self.value(&HIDDEN, t.hidden)? as usize;
+        let layers = match &t.layers {
+            None => vec![hidden],
+            Some(v) => {
+                let ok = (1..=crate::model::MAX_HIDDEN_LAYERS).contains(&v.len())
+                    && v.iter().all(|n| {
+                        n.fract() == 0.0 && (1.0..=crate::model::MAX_HIDDEN as f64).contains(n)
+                    });
+                if !ok {
+                    return Err(self.invalid(
+                        LAYERS.name,
+                        format!("{v:?}"),
+                        format!(
+                            "must list 1 to {} hidden-layer widths, each a whole number 1..={}, e.g. [32, 32]",
+                            crate::model::MAX_HIDDEN_LAYERS,
+                            crate::model::MAX_HIDDEN
+                        ),
+                    ));
+                }
+                if t.hidden.is_some() {
+                    return Err(self.invalid(
+                        HIDDEN.name,
+                        hidden.to_string(),
+                        "give either train.hidden or train.layers (whose first entry is the first layer's width), not both",
+                    ));
+                }
+                v.iter().map(|n| *n as usize).collect()
+            }
+        };
+        if trainer == Trainer::Lm && layers.len() > 2 {
+            return Err(self.invalid(
+                LAYERS.name,
+                format!("{layers:?}"),
+                "Levenberg–Marquardt trains one or two hidden layers: set train.optimizer = \"adam\" or \"adamw\" for deeper networks",
+            ));
+        }
+        if trainer != Trainer::Lm && bayesian {
+            return Err(self.invalid(
+                REGULARISATION.name,
+                "\"bayesian\"",
+                "Bayesian regularisation is MATLAB trainbr, a Levenberg–Marquardt variant: use train.optimizer = \"lm\", or weight_decay with adam/adamw",
+            ));
+        }
         let starts = self.value(&STARTS, t.starts)? as usize;
         let ensemble = self.value(&ENSEMBLE, t.ensemble)? as usize;
+        if ensemble > 1 && trainer != Trainer::Lm {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                "an ensemble averages Levenberg–Marquardt networks: use train.optimizer = \"lm\", or ensemble = 1",
+            ));
+        }
         if ensemble > starts {
             return Err(self.invalid(
                 ENSEMBLE.name,
                 ensemble.to_string(),
                 format!("must be at most train.starts ({starts}): raise starts or lower ensemble"),
             ));
+        }
+        if ensemble > 1 && layers.len() > 1 {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                "an ensemble averages networks of one hidden layer: use train.hidden, or ensemble = 1",
+            ));
+        }
+        if trainer == Trainer::Lm {
+            for (key, given) in [
+                (&LEARNING_RATE, t.learning_rate.is_some()),
+                (&WEIGHT_DECAY, t.weight_decay.is_some()),
+                (&BATCH, t.batch.is_some()),
+            ] {
+                if given {
+                    return Err(self.invalid(
+                        key.name,
+                        "(given)",
+                        "is a setting of train.optimizer = \"adam\" or \"adamw\"; Levenberg–Marquardt has none",
+                    ));
+                }
+            }
         }
         let n_inputs = inputs.count();
         let support_cells = match &t.support_cells {
@@ -417,7 +578,12 @@ impl Checker<'_> {
             }
         };
         Ok(TrainConfig {
-            hidden: self.value(&HIDDEN, t.hidden)? as usize,
+            hidden: layers[0],
+            layers,
+            trainer,
+            learning_rate: self.value(&LEARNING_RATE, t.learning_rate)?,
+            weight_decay: self.value(&WEIGHT_DECAY, t.weight_decay)?,
+            batch: self.value(&BATCH, t.batch)? as usize,
             inputs,
             split: self.split(&t)?,
             decimate: self.value(&DECIMATE, t.decimate)? as usize,

@@ -1,6 +1,7 @@
 //! Model files from identification results: the network ([`mlp_file`]) and the campaign's
 //! Polach fit with k(T) ([`polach_file`]), in the format `model` reads and evaluates.
 
+use super::mlp::Arch;
 use super::polach_fit::{PolachFit, TemperatureFit};
 use super::support::{audit, support_spec};
 use super::{IdentifyError, TrainedMlp};
@@ -8,24 +9,36 @@ use crate::contact::polach::ContactPatch;
 use crate::model::polach::{PatchSpec, PolachSpec, TEMPERATURE_INPUT};
 use crate::model::{
     CreepSpec, InputSpec, Layer, Metrics, Model, ModelFile, ModelKind, OutputSpec, Provenance,
-    FORMAT_ID, FORMAT_VERSION,
+    DEEP_VERSION, FORMAT_ID, FORMAT_VERSION,
 };
 
-/// The hidden (tanh) and output (linear) layers of a one-hidden-layer network θ.
-fn layers(k: usize, nh: usize, th: &[f64]) -> Vec<Layer> {
-    let hidden = Layer {
-        shape: [nh, k],
-        weights: (0..nh).map(|h| th[h * k..(h + 1) * k].to_vec()).collect(),
-        biases: th[nh * k..nh * k + nh].to_vec(),
-        activation: "tanh".into(),
-    };
-    let out = Layer {
-        shape: [1, nh],
-        weights: vec![th[nh * k + nh..nh * k + 2 * nh].to_vec()],
-        biases: vec![th[nh * k + 2 * nh]],
-        activation: "linear".into(),
-    };
-    vec![hidden, out]
+/// The hidden (tanh) layers and the output (linear) layer of a network θ of any depth
+/// ([`Arch`]'s order: per layer W row-major, then b).
+pub fn layers(arch: &Arch, th: &[f64]) -> Vec<Layer> {
+    let sizes = arch.sizes();
+    let mut at = 0;
+    sizes
+        .windows(2)
+        .enumerate()
+        .map(|(l, p)| {
+            let (n_in, n) = (p[0], p[1]);
+            let layer = Layer {
+                shape: [n, n_in],
+                weights: (0..n)
+                    .map(|g| th[at + g * n_in..at + (g + 1) * n_in].to_vec())
+                    .collect(),
+                biases: th[at + n * n_in..at + n * (n_in + 1)].to_vec(),
+                activation: if l + 2 == sizes.len() {
+                    "linear"
+                } else {
+                    "tanh"
+                }
+                .into(),
+            };
+            at += n * (n_in + 1);
+            layer
+        })
+        .collect()
 }
 
 /// Builds the file of a trained network (format version 2): the network, its data-support
@@ -37,7 +50,6 @@ pub fn mlp_file(
     provenance: Provenance,
     polach: Option<&Model>,
 ) -> Result<ModelFile, IdentifyError> {
-    let k = t.shape.inputs;
     let inputs = t
         .inputs
         .names()
@@ -54,7 +66,12 @@ pub fn mlp_file(
         .collect();
     let mut file = ModelFile {
         format: FORMAT_ID.into(),
-        version: FORMAT_VERSION,
+        // Deeper networks are version 3 (older readers refuse them by version).
+        version: if t.arch.hidden.len() > 1 {
+            DEEP_VERSION
+        } else {
+            FORMAT_VERSION
+        },
         kind: ModelKind::Mlp,
         inputs,
         output: OutputSpec {
@@ -64,7 +81,7 @@ pub fn mlp_file(
             norm_max: t.y_norm.max[0],
         },
         outside_domain: "clamp".into(),
-        layers: layers(k, t.shape.hidden, &t.theta),
+        layers: layers(&t.arch, &t.theta),
         creep: Some(CreepSpec {
             reference_temperature_c: t.reference_temperature_c,
             ..creep
@@ -92,7 +109,13 @@ pub fn mlp_file(
         .members
         .iter()
         .map(|m| ModelFile {
-            layers: layers(k, t.shape.hidden / t.members.len(), m),
+            layers: layers(
+                &Arch {
+                    inputs: t.arch.inputs,
+                    hidden: t.arch.hidden.iter().map(|h| h / t.members.len()).collect(),
+                },
+                m,
+            ),
             history: vec![],
             ..file.clone()
         })

@@ -71,6 +71,108 @@ impl Shape {
     }
 }
 
+/// A network of any depth: inputs, then the neurons of each hidden layer in order (the
+/// output is one linear neuron). θ runs layer by layer — W (row-major, out × in), then b —
+/// and ends with the output weights and bias: for one or two hidden layers exactly [`Shape`]'s
+/// order, so LM and burn networks share [`forward_layers`], [`nguyen_widrow_layers`] and the
+/// model file's layers.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Arch {
+    pub inputs: usize,
+    pub hidden: Vec<usize>,
+}
+
+impl Arch {
+    /// Widths from the inputs to the output, `[inputs, h1, …, hL, 1]`.
+    pub fn sizes(&self) -> Vec<usize> {
+        std::iter::once(self.inputs)
+            .chain(self.hidden.iter().copied())
+            .chain([1])
+            .collect()
+    }
+    /// Length of θ.
+    pub fn n_params(&self) -> usize {
+        self.sizes().windows(2).map(|p| p[1] * (p[0] + 1)).sum()
+    }
+    /// The LM trainer's [`Shape`] (one or two hidden layers), else `None`.
+    pub fn lm_shape(&self) -> Option<Shape> {
+        match self.hidden[..] {
+            [h] => Some(Shape::one(self.inputs, h)),
+            [h, h2] => Some(Shape {
+                inputs: self.inputs,
+                hidden: h,
+                hidden2: h2,
+            }),
+            _ => None,
+        }
+    }
+}
+
+impl From<Shape> for Arch {
+    fn from(s: Shape) -> Arch {
+        Arch {
+            inputs: s.inputs,
+            hidden: if s.hidden2 > 0 {
+                vec![s.hidden, s.hidden2]
+            } else {
+                vec![s.hidden]
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for Arch {
+    /// `3-32-32-1`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let s: Vec<String> = self.sizes().iter().map(|n| n.to_string()).collect();
+        f.write_str(&s.join("-"))
+    }
+}
+
+/// Output of a network of any depth for normalised inputs `x` (θ in [`Arch`]'s order): the
+/// same operations as [`forward`] (fused multiply-adds in order), for one or two hidden
+/// layers the same bits.
+pub fn forward_layers(arch: &Arch, theta: &[f64], x: &[f64]) -> f64 {
+    let mut at = 0;
+    let mut t: Vec<f64> = x[..arch.inputs].to_vec();
+    for &n in &arch.hidden {
+        let n_in = t.len();
+        let next: Vec<f64> = (0..n)
+            .map(|g| {
+                let row = &theta[at + g * n_in..at + (g + 1) * n_in];
+                let z = row
+                    .iter()
+                    .zip(&t)
+                    .fold(theta[at + n * n_in + g], |z, (w, v)| w.mul_add(*v, z));
+                tanh(z)
+            })
+            .collect();
+        at += n * (n_in + 1);
+        t = next;
+    }
+    t.iter().enumerate().fold(theta[at + t.len()], |y, (g, v)| {
+        theta[at + g].mul_add(*v, y)
+    })
+}
+
+/// [`nguyen_widrow`] for any depth: each hidden layer by [`nw_layer`] on its inputs, the output
+/// layer uniform in [−1, 1]. For one or two hidden layers the same θ as [`nguyen_widrow`].
+pub fn nguyen_widrow_layers(arch: &Arch, seed: u64) -> Vec<f64> {
+    let mut rng = Rng::new(seed);
+    let mut theta = vec![0.0; arch.n_params()];
+    let mut at = 0;
+    let mut n_in = arch.inputs;
+    for &n in &arch.hidden {
+        nw_layer(&mut rng, n_in, n, &mut theta, at, at + n * n_in);
+        at += n * (n_in + 1);
+        n_in = n;
+    }
+    for w in &mut theta[at..] {
+        *w = 2.0 * rng.uniform() - 1.0;
+    }
+    theta
+}
+
 fn tanh(z: f64) -> f64 {
     tanh_of_doubled(2.0 * z)
 }
@@ -344,6 +446,40 @@ mod tests {
     use super::*;
     use crate::rng::Rng;
     use proptest::prelude::{prop_assert_eq, proptest, ProptestConfig};
+
+    /// The any-depth helpers are the one- and two-layer functions, bit for bit.
+    #[test]
+    fn any_depth_helpers_match_the_lm_shapes() {
+        let mut rng = Rng::new(3);
+        for shape in [
+            Shape::one(3, 10),
+            Shape {
+                inputs: 2,
+                hidden: 6,
+                hidden2: 4,
+            },
+        ] {
+            let arch = Arch::from(shape);
+            assert_eq!(arch.n_params(), shape.n_params());
+            assert_eq!(arch.lm_shape(), Some(shape));
+            let theta = nguyen_widrow(shape, 7);
+            assert_eq!(nguyen_widrow_layers(&arch, 7), theta);
+            for _ in 0..50 {
+                let x: Vec<f64> = (0..3).map(|_| 2.0 * rng.uniform() - 1.0).collect();
+                assert_eq!(
+                    forward_layers(&arch, &theta, &x).to_bits(),
+                    forward(shape, &theta, &x).to_bits()
+                );
+            }
+        }
+        let deep = Arch {
+            inputs: 3,
+            hidden: vec![5, 4, 3],
+        };
+        assert_eq!(deep.to_string(), "3-5-4-3-1");
+        assert_eq!(deep.n_params(), 5 * 4 + 4 * 6 + 3 * 5 + 4);
+        assert_eq!(deep.lm_shape(), None);
+    }
 
     fn check_gradient(shape: Shape, seed: u64, x: &[f64]) {
         let theta = nguyen_widrow(shape, seed);

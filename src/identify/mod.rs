@@ -3,8 +3,9 @@
 //!
 //! [`dataset`] turns estimates into training/validation sets, [`mlp`] is the network and its
 //! analytic Jacobian, [`lm`] the trainlm-style solver (an argmin `Solver`), and [`train`] ties
-//! them together.
+//! them together. [`adam`] trains networks of any depth by mini-batch Adam/AdamW through burn.
 
+pub mod adam;
 pub mod dataset;
 pub mod export;
 pub mod lm;

@@ -14,6 +14,7 @@ use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
+use super::adam::{self, AdamData, AdamSettings};
 use super::dataset::{Dataset, MapMinMax, RunTable};
 use super::lm::{
     self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations, StopReason,
@@ -23,7 +24,7 @@ use super::support::{occupancy, Occupancy};
 use super::IdentifyError;
 use super::InputSet;
 use crate::config::{
-    default_support_cells, TrainConfig, DEFAULT_AUDIT_MU_MAX, DEFAULT_SUPPORT_MIN_SAMPLES,
+    default_support_cells, TrainConfig, Trainer, DEFAULT_AUDIT_MU_MAX, DEFAULT_SUPPORT_MIN_SAMPLES,
 };
 use crate::score::Sample;
 #[cfg(target_arch = "x86_64")]
@@ -309,7 +310,8 @@ impl LeastSquares for MlpProblem {
 #[derive(Debug, Clone)]
 pub struct TrainedMlp {
     pub inputs: InputSet,
-    pub shape: Shape,
+    /// The network's widths (θ in [`mlp::Arch`]'s order).
+    pub arch: mlp::Arch,
     pub theta: Vec<f64>,
     pub x_norm: MapMinMax,
     pub y_norm: MapMinMax,
@@ -355,7 +357,7 @@ impl TrainedMlp {
             })
             .collect();
         self.y_norm
-            .reverse(0, mlp::forward(self.shape, &self.theta, &xn))
+            .reverse(0, mlp::forward_layers(&self.arch, &self.theta, &xn))
     }
 }
 
@@ -400,7 +402,7 @@ pub fn train_mlp(
     }
     let data = Dataset::build(tables, inputs, &cfg.split, cfg.decimate)?;
     let mut trained = if cfg.starts <= 1 {
-        train_on(&data, cfg.hidden, cfg.seed, lm_settings(cfg), progress)?
+        fit_one(&data, cfg, cfg.seed, progress)?
     } else {
         train_starts(&data, cfg, progress)?
     };
@@ -455,8 +457,11 @@ fn train_starts(
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
     let settings = lm_settings(cfg);
-    // One problem (data scaled and laid out by column) for every start.
-    let prepared = Prepared::new(data, cfg.hidden)?;
+    // LM: one problem (data scaled and laid out by column) for every start.
+    let prepared = match cfg.trainer {
+        Trainer::Lm => Some(Prepared::new(data, lm_shape(cfg))?),
+        Trainer::Burn(_) => None,
+    };
     let progress = std::sync::Mutex::new(progress);
     let runs: Vec<Result<TrainedMlp, IdentifyError>> = (0..cfg.starts as u64)
         .into_par_iter()
@@ -466,7 +471,11 @@ fn train_starts(
             } else {
                 None
             };
-            prepared.fit(data, cfg.seed.wrapping_add(k), settings, p)
+            let seed = cfg.seed.wrapping_add(k);
+            match &prepared {
+                Some(prepared) => prepared.fit(data, seed, settings, p),
+                None => fit_one(data, cfg, seed, p),
+            }
         })
         .collect();
     let runs: Vec<TrainedMlp> = runs.into_iter().collect::<Result<_, _>>()?;
@@ -495,11 +504,18 @@ fn train_starts(
             )
             .collect();
         let refs: Vec<&[f64]> = members.iter().map(Vec::as_slice).collect();
-        let (wide, theta) = mlp::average(best.shape, &refs);
+        let shape = best
+            .arch
+            .lm_shape()
+            .expect("LM trains one hidden layer here");
+        let (wide, theta) = mlp::average(shape, &refs);
+        let prepared = prepared
+            .as_ref()
+            .expect("checked: an ensemble is trained by LM");
         let problem = prepared.problem.with_shape(wide);
         best.train_mse = problem.sse(&theta) / problem.n_train() as f64 * problem.mse_scale();
         best.val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
-        best.shape = wide;
+        best.arch = wide.into();
         best.theta = theta;
         best.members = members;
     }
@@ -514,7 +530,31 @@ pub fn train_on(
     settings: LmSettings,
     progress: Option<lm::Progress>,
 ) -> Result<TrainedMlp, IdentifyError> {
-    Prepared::new(data, hidden)?.fit(data, seed, settings, progress)
+    Prepared::new(data, Shape::one(data.inputs.count(), hidden))?
+        .fit(data, seed, settings, progress)
+}
+
+/// The LM shape of `cfg.layers` (one or two hidden layers; the config refuses more for LM).
+fn lm_shape(cfg: &TrainConfig) -> Shape {
+    mlp::Arch {
+        inputs: cfg.inputs.count(),
+        hidden: cfg.layers.clone(),
+    }
+    .lm_shape()
+    .expect("checked: LM trains one or two hidden layers")
+}
+
+/// The Adam/AdamW settings of a pipeline's `[train]` section (`epochs` and `max_fail` are
+/// the epochs and the patience).
+pub fn adam_settings(cfg: &TrainConfig, optimizer: crate::config::Optimizer) -> AdamSettings {
+    AdamSettings {
+        optimizer,
+        learning_rate: cfg.learning_rate,
+        weight_decay: cfg.weight_decay,
+        batch: cfg.batch,
+        max_epochs: cfg.epochs as usize,
+        patience: cfg.max_fail.max(1) as usize,
+    }
 }
 
 /// A dataset checked, scaled and laid out as the least-squares problem of one network shape:
@@ -528,36 +568,12 @@ struct Prepared {
 }
 
 impl Prepared {
-    fn new(data: &Dataset, hidden: usize) -> Result<Prepared, IdentifyError> {
-        let k = data.inputs.count();
-        if let Some(bad) = data
-            .train_x
-            .iter()
-            .chain(&data.train_y)
-            .chain(&data.val_x)
-            .chain(&data.val_y)
-            .find(|v| !v.is_finite())
-        {
-            return Err(IdentifyError::Data {
-                what: format!("a training value is not finite ({bad})"),
-                hint: "train on valid estimates only".into(),
-            });
-        }
+    fn new(data: &Dataset, shape: Shape) -> Result<Prepared, IdentifyError> {
+        check_finite(data)?;
         let n = data.normalised();
-        let domain = (0..k)
-            .map(|c| {
-                data.train_x
-                    .iter()
-                    .skip(c)
-                    .step_by(k)
-                    .chain(data.val_x.iter().skip(c).step_by(k))
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
-                        (lo.min(*v), hi.max(*v))
-                    })
-            })
-            .collect();
+        let domain = domain_of(data);
         Ok(Prepared {
-            problem: MlpProblem::new(Shape::one(k, hidden), n.x, n.y, n.vx, n.vy, n.scale),
+            problem: MlpProblem::new(shape, n.x, n.y, n.vx, n.vy, n.scale),
             x_norm: n.x_norm,
             y_norm: n.y_norm,
             domain,
@@ -588,42 +604,179 @@ impl Prepared {
         let theta = solver.best().expect("set from the first epoch").to_vec();
         let train_mse = problem.sse(&theta) / problem.n_train() as f64 * problem.mse_scale();
         let val_mse = problem.validation_mse(&theta).unwrap_or(f64::NAN);
-        let mut t = TrainedMlp {
-            inputs: data.inputs,
-            shape,
-            theta,
-            x_norm: self.x_norm.clone(),
-            y_norm: self.y_norm.clone(),
-            history: solver.history().to_vec(),
-            stop: solver.stop_reason().unwrap_or(StopReason::Epochs),
-            n_train: data.n_train(),
-            n_val: data.n_val(),
+        Ok(assemble(
+            data,
+            Fitted {
+                arch: shape.into(),
+                theta,
+                x_norm: self.x_norm.clone(),
+                y_norm: self.y_norm.clone(),
+                history: solver.history().to_vec(),
+                stop: solver.stop_reason().unwrap_or(StopReason::Epochs),
+                train_mse,
+                val_mse,
+                domain: self.domain.clone(),
+                seed,
+                settings,
+            },
+        ))
+    }
+}
+
+/// Every training and validation value is finite (else an error naming the value).
+fn check_finite(data: &Dataset) -> Result<(), IdentifyError> {
+    if let Some(bad) = data
+        .train_x
+        .iter()
+        .chain(&data.train_y)
+        .chain(&data.val_x)
+        .chain(&data.val_y)
+        .find(|v| !v.is_finite())
+    {
+        return Err(IdentifyError::Data {
+            what: format!("a training value is not finite ({bad})"),
+            hint: "train on valid estimates only".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Input ranges seen in training and validation data: (min, max) per input.
+fn domain_of(data: &Dataset) -> Vec<(f64, f64)> {
+    let k = data.inputs.count();
+    (0..k)
+        .map(|c| {
+            data.train_x
+                .iter()
+                .skip(c)
+                .step_by(k)
+                .chain(data.val_x.iter().skip(c).step_by(k))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+                    (lo.min(*v), hi.max(*v))
+                })
+        })
+        .collect()
+}
+
+/// One training of `cfg`'s network from the start of `seed`, by its trainer.
+fn fit_one(
+    data: &Dataset,
+    cfg: &TrainConfig,
+    seed: u64,
+    progress: Option<lm::Progress>,
+) -> Result<TrainedMlp, IdentifyError> {
+    match cfg.trainer {
+        Trainer::Lm => {
+            Prepared::new(data, lm_shape(cfg))?.fit(data, seed, lm_settings(cfg), progress)
+        }
+        Trainer::Burn(o) => fit_burn(data, cfg, o, seed, progress),
+    }
+}
+
+/// One Adam/AdamW training through burn ([`adam::train`]) of `cfg.layers` from the
+/// Nguyen–Widrow start of `seed`, on the data normalised as for LM.
+fn fit_burn(
+    data: &Dataset,
+    cfg: &TrainConfig,
+    optimizer: crate::config::Optimizer,
+    seed: u64,
+    mut progress: Option<lm::Progress>,
+) -> Result<TrainedMlp, IdentifyError> {
+    check_finite(data)?;
+    let n = data.normalised();
+    let arch = mlp::Arch {
+        inputs: data.inputs.count(),
+        hidden: cfg.layers.clone(),
+    };
+    let fit = adam::train(
+        &arch,
+        &AdamData {
+            x: &n.x,
+            y: &n.y,
+            vx: &n.vx,
+            vy: &n.vy,
+            scale: n.scale,
+        },
+        mlp::nguyen_widrow_layers(&arch, seed),
+        &adam_settings(cfg, optimizer),
+        seed,
+        progress
+            .as_mut()
+            .map(|p| p.as_mut() as &mut dyn FnMut(&Epoch)),
+    )?;
+    let kept = &fit.history[fit.best_epoch - 1];
+    let (train_mse, val_mse) = (kept.train_mse, kept.val_mse);
+    Ok(assemble(
+        data,
+        Fitted {
+            arch,
+            theta: fit.theta,
+            x_norm: n.x_norm,
+            y_norm: n.y_norm,
+            history: fit.history,
+            stop: fit.stop,
             train_mse,
             val_mse,
-            domain: self.domain.clone(),
-            reference_speed_mps: f64::NAN,
-            reference_temperature_c: None,
+            domain: domain_of(data),
             seed,
-            start_val_mse: vec![val_mse],
-            members: Vec::new(),
-            settings,
-            occupancy: Occupancy {
-                cells: vec![],
-                min_samples: 1,
-                counts: vec![],
-            },
-            data: Vec::new(),
-            audit_mu_max: DEFAULT_AUDIT_MU_MAX,
-        };
-        let k = data.inputs.count();
-        t.occupancy = occupancy_of(
-            data,
-            &t,
-            &default_support_cells(k),
-            DEFAULT_SUPPORT_MIN_SAMPLES,
-        );
-        Ok(t)
-    }
+            settings: lm_settings(cfg),
+        },
+    ))
+}
+
+/// What one training produced, before the support occupancy is counted.
+struct Fitted {
+    arch: mlp::Arch,
+    theta: Vec<f64>,
+    x_norm: MapMinMax,
+    y_norm: MapMinMax,
+    history: Vec<Epoch>,
+    stop: StopReason,
+    train_mse: f64,
+    val_mse: f64,
+    domain: Vec<(f64, f64)>,
+    seed: u64,
+    settings: LmSettings,
+}
+
+/// The [`TrainedMlp`] of a training (default support grid; [`train_mlp`] recounts it with the
+/// pipeline's).
+fn assemble(data: &Dataset, f: Fitted) -> TrainedMlp {
+    let mut t = TrainedMlp {
+        inputs: data.inputs,
+        arch: f.arch,
+        theta: f.theta,
+        x_norm: f.x_norm,
+        y_norm: f.y_norm,
+        history: f.history,
+        stop: f.stop,
+        n_train: data.n_train(),
+        n_val: data.n_val(),
+        train_mse: f.train_mse,
+        val_mse: f.val_mse,
+        domain: f.domain,
+        reference_speed_mps: f64::NAN,
+        reference_temperature_c: None,
+        seed: f.seed,
+        start_val_mse: vec![f.val_mse],
+        members: Vec::new(),
+        settings: f.settings,
+        occupancy: Occupancy {
+            cells: vec![],
+            min_samples: 1,
+            counts: vec![],
+        },
+        data: Vec::new(),
+        audit_mu_max: DEFAULT_AUDIT_MU_MAX,
+    };
+    let k = data.inputs.count();
+    t.occupancy = occupancy_of(
+        data,
+        &t,
+        &default_support_cells(k),
+        DEFAULT_SUPPORT_MIN_SAMPLES,
+    );
+    t
 }
 
 /// The network of one leave-one-run-out fold scored on its held-out run.
