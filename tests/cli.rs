@@ -149,6 +149,23 @@ fn pipeline_errors_exit_1_and_name_the_key() {
     assert_eq!(text(&o.stderr).trim(), "error: p.toml: ingest.sample_rate_hz = 0: must be >= 1 Hz and <= 100000 Hz (default 417 Hz)");
 }
 
+/// `railgrip eval MODEL` on the (Δv, dΔv/dt) rows `rows` (CSV lines) in `dir`: the μ column
+/// (the command exits 0 and writes the header `dv_mps,ddv_mps2,mu`).
+fn eval_grid(dir: &Path, model: &str, rows: &str) -> Vec<f64> {
+    std::fs::write(dir.join("grid.csv"), format!("dv_mps,ddv_mps2\n{rows}")).unwrap();
+    let o = railgrip(
+        &["eval", model, "--input", "grid.csv", "--output", "pred.csv"],
+        dir,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let pred = std::fs::read_to_string(dir.join("pred.csv")).unwrap();
+    let mut lines = pred.lines();
+    assert_eq!(lines.next(), Some("dv_mps,ddv_mps2,mu"));
+    lines
+        .map(|r| r.split(',').nth(2).unwrap().parse().unwrap())
+        .collect()
+}
+
 fn archive(name: &str) -> String {
     format!("{}/fixtures/archive/{name}", env!("CARGO_MANIFEST_DIR"))
 }
@@ -347,29 +364,9 @@ fn train_eval_export_work_end_to_end() {
     let h = std::fs::read_to_string(dir.path().join("polach.h")).unwrap();
     assert!(h.contains("static inline double railgrip_mu_vt(") && h.contains("atan("));
 
-    std::fs::write(
-        dir.path().join("grid.csv"),
-        "dv_mps,ddv_mps2\n0.5,1.0\n2.0,-1.0\n-0.5,0\n",
-    )
-    .unwrap();
-    let o = railgrip(
-        &[
-            "eval",
-            "models/mlp.json",
-            "--input",
-            "grid.csv",
-            "--output",
-            "pred.csv",
-        ],
-        dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    let pred = std::fs::read_to_string(dir.path().join("pred.csv")).unwrap();
-    let rows: Vec<&str> = pred.lines().collect();
-    assert_eq!(rows[0], "dv_mps,ddv_mps2,mu");
-    assert_eq!(rows.len(), 4);
-    let mu: f64 = rows[1].split(',').nth(2).unwrap().parse().unwrap();
-    assert!(mu > 0.01 && mu < 0.2, "{mu}");
+    let mu = eval_grid(dir.path(), "models/mlp.json", "0.5,1.0\n2.0,-1.0\n-0.5,0\n");
+    assert_eq!(mu.len(), 3);
+    assert!(mu[0] > 0.01 && mu[0] < 0.2, "{mu:?}");
 
     std::fs::write(
         dir.path().join("bad.csv"),
@@ -819,7 +816,7 @@ fn eval_of_a_four_input_network_needs_and_uses_the_temperature() {
     assert!(mu[0] > 1.1 * mu[1], "{mu:?}");
     let o = railgrip(&["export", model, "--c-header", "m.h"], dir.path());
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    assert!(text(&o.stdout).contains("network: 4 inputs"));
+    assert!(text(&o.stdout).contains("(4 inputs, "));
     let h = std::fs::read_to_string(dir.path().join("m.h")).unwrap();
     assert!(h.contains("railgrip_mu_batch_t(") && h.contains("#define RAILGRIP_N_INPUTS 4"));
 }
@@ -1086,29 +1083,7 @@ fn train_a_deeper_network_through_burn_end_to_end() {
     assert_eq!(v["version"], 3);
     assert_eq!(v["layers"].as_array().unwrap().len(), 3);
     assert!(v["history"].as_array().unwrap().len() <= 8);
-    std::fs::write(
-        dir.path().join("grid.csv"),
-        "dv_mps,ddv_mps2\n0.5,1.0\n-0.5,-1.0\n",
-    )
-    .unwrap();
-    let o = railgrip(
-        &[
-            "eval",
-            "m/mlp.json",
-            "--input",
-            "grid.csv",
-            "--output",
-            "pred.csv",
-        ],
-        dir.path(),
-    );
-    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    let pred = std::fs::read_to_string(dir.path().join("pred.csv")).unwrap();
-    let mu: Vec<f64> = pred
-        .lines()
-        .skip(1)
-        .map(|r| r.split(',').nth(2).unwrap().parse().unwrap())
-        .collect();
+    let mu = eval_grid(dir.path(), "m/mlp.json", "0.5,1.0\n-0.5,-1.0\n");
     assert!(mu[0] > 0.0 && mu[0] < 0.3 && mu[1] == -mu[0], "{mu:?}");
     let o = railgrip(
         &["export", "m/mlp.json", "--c-header", "deep.h"],
