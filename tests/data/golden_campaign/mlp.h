@@ -26,6 +26,8 @@
 
 #define MLP_N_INPUTS 2
 #define MLP_N_HIDDEN 10
+#define MLP_N_DEEP 0
+#define MLP_MAX_WIDTH 10
 
 static const double mlp_lo[4] = {
     -0.024778465938281924,
@@ -97,6 +99,25 @@ static const double mlp_w2[10] = {
     -0.12261748023680302,
     -0.2407963940105848
 };
+static const double mlp_wo[10] = {
+    -1.655349530736994,
+    -0.9699326984831825,
+    0.6163682745400766,
+    -0.26412201817880826,
+    -1.144636137784237,
+    -2.126312917269547,
+    2.1655573484922477,
+    -1.68895299238583,
+    -0.12261748023680302,
+    -0.2407963940105848
+};
+static const double mlp_wd[1] = {
+    0.0
+};
+static const double mlp_bd[1] = {
+    0.0
+};
+static const int mlp_deep_n[1] = {0};
 static const double mlp_b2 = -0.1654379709468134;
 static const double mlp_gy = 20.215527931543352;
 static const double mlp_oy = -1.0735312916903286;
@@ -141,27 +162,48 @@ static inline double mlp_tanh(double z) {
     return em1 / (em1 + 2.0);
 }
 
+/* The network: the first hidden layer from the normalised inputs, then each further hidden
+ * layer (MLP_N_DEEP of them: z_g = b_g + sum_h W_gh t_h, fused in order of h, t_g = tanh z_g),
+ * then y = b_o + sum_h w_o,h t_h over the last layer in order (product, then sum). */
 static inline double mlp_net(const double x[4]) {
     double xn[4] = {0.0, 0.0, 0.0, 0.0};
-    double z[MLP_N_HIDDEN];
+    double a[MLP_MAX_WIDTH], b[MLP_MAX_WIDTH];
+    double *cur = a, *next = b, *swap;
     double y = mlp_b2;
-    int c, h;
+    int c, h, g, l, n_prev = MLP_N_HIDDEN;
+    long w_at = 0, b_at = 0;
     for (c = 0; c < MLP_N_INPUTS; ++c) {
         xn[c] = MLP_FMA(mlp_gx[c], mlp_clamp(x[c], mlp_lo[c], mlp_hi[c]), mlp_ox[c]);
     }
     for (h = 0; h < MLP_N_HIDDEN; ++h) {
-        z[h] = mlp_b1[h];
+        cur[h] = mlp_b1[h];
     }
     for (c = 0; c < MLP_N_INPUTS; ++c) {
         for (h = 0; h < MLP_N_HIDDEN; ++h) {
-            z[h] = MLP_FMA(mlp_w1c[c * MLP_N_HIDDEN + h], xn[c], z[h]);
+            cur[h] = MLP_FMA(mlp_w1c[c * MLP_N_HIDDEN + h], xn[c], cur[h]);
         }
     }
     for (h = 0; h < MLP_N_HIDDEN; ++h) {
-        z[h] = mlp_w2[h] * mlp_tanh(z[h]);
+        cur[h] = mlp_tanh(cur[h]);
     }
-    for (h = 0; h < MLP_N_HIDDEN; ++h) {
-        y += z[h];
+    for (l = 0; l < MLP_N_DEEP; ++l) {
+        int n = mlp_deep_n[l];
+        for (g = 0; g < n; ++g) {
+            double z = mlp_bd[b_at + g];
+            for (h = 0; h < n_prev; ++h) {
+                z = MLP_FMA(mlp_wd[w_at + (long)g * n_prev + h], cur[h], z);
+            }
+            next[g] = mlp_tanh(z);
+        }
+        w_at += (long)n * n_prev;
+        b_at += n;
+        n_prev = n;
+        swap = cur;
+        cur = next;
+        next = swap;
+    }
+    for (h = 0; h < n_prev; ++h) {
+        y += mlp_wo[h] * cur[h];
     }
     return (y - mlp_oy) / mlp_gy;
 }
@@ -1444,7 +1486,8 @@ static inline double mlp_mu_v(double dv_mps, double ddv_mps2, double v_mps) {
  * mlp_mu_vt, so results are equal. */
 #define MLP_LANES 16
 static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const double *v, const double *t, double *out, long n) {
-    long b, i, full = n - n % MLP_LANES;
+    /* Networks of more than one hidden layer go sample by sample through mlp_mu_vt. */
+    long b, i, full = MLP_N_DEEP > 0 ? 0 : n - n % MLP_LANES;
     int l, c, h;
     for (b = 0; b < full; b += MLP_LANES) {
         double sgn[MLP_LANES], x[4][MLP_LANES], xn[4][MLP_LANES], y[MLP_LANES], z[MLP_LANES];
