@@ -134,16 +134,6 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         array(&format!("{prefix}_ox"), &ox),
         array(&format!("{prefix}_w1c"), &w1c),
         array(&format!("{prefix}_b1"), &h.biases),
-        array(
-            &format!("{prefix}_w2"),
-            // Deeper networks never take the one-layer batch loop that reads w2 (their batch
-            // goes sample by sample); zeros of its length keep that loop in bounds.
-            &if deep.is_empty() {
-                o.weights[0].clone()
-            } else {
-                vec![0.0; h.shape[0]]
-            },
-        ),
         array(&format!("{prefix}_wo"), &o.weights[0]),
         array(
             &format!("{prefix}_wd"),

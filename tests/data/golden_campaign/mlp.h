@@ -87,18 +87,6 @@ static const double mlp_b1[10] = {
     3.1043593290206792,
     1.297146979804128
 };
-static const double mlp_w2[10] = {
-    -1.655349530736994,
-    -0.9699326984831825,
-    0.6163682745400766,
-    -0.26412201817880826,
-    -1.144636137784237,
-    -2.126312917269547,
-    2.1655573484922477,
-    -1.68895299238583,
-    -0.12261748023680302,
-    -0.2407963940105848
-};
 static const double mlp_wo[10] = {
     -1.655349530736994,
     -0.9699326984831825,
@@ -1486,9 +1474,13 @@ static inline double mlp_mu_v(double dv_mps, double ddv_mps2, double v_mps) {
  * mlp_mu_vt, so results are equal. */
 #define MLP_LANES 16
 static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const double *v, const double *t, double *out, long n) {
-    /* Networks of more than one hidden layer go sample by sample through mlp_mu_vt. */
-    long b, i, full = MLP_N_DEEP > 0 ? 0 : n - n % MLP_LANES;
+    long i, full = 0;
+#if MLP_N_DEEP == 0
+    /* One hidden layer: blocks across samples. Deeper networks go sample by sample through
+     * mlp_mu_vt (the loop below only). */
+    long b;
     int l, c, h;
+    full = n - n % MLP_LANES;
     for (b = 0; b < full; b += MLP_LANES) {
         double sgn[MLP_LANES], x[4][MLP_LANES], xn[4][MLP_LANES], y[MLP_LANES], z[MLP_LANES];
         for (l = 0; l < MLP_LANES; ++l) {
@@ -1518,7 +1510,7 @@ static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const dou
                 }
             }
             for (l = 0; l < MLP_LANES; ++l) {
-                y[l] += mlp_w2[h] * mlp_tanh(z[l]);
+                y[l] += mlp_wo[h] * mlp_tanh(z[l]);
             }
         }
         for (l = 0; l < MLP_LANES; ++l) {
@@ -1535,6 +1527,7 @@ static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const dou
             }
         }
     }
+#endif
     for (i = full; i < n; ++i) {
         out[i] = mlp_mu_vt(dv[i], ddv[i], v ? v[i] : NAN, t ? t[i] : NAN);
     }
