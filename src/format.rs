@@ -24,6 +24,9 @@ pub const MCAP_MESSAGE_ENCODING: &str = "json";
 pub const MCAP_SCHEMA_ENCODING: &str = "jsonschema";
 /// Suffix of the metadata sidecar of a CSV run: `<stem>.meta.toml`.
 pub const SIDECAR_SUFFIX: &str = ".meta.toml";
+/// A simulated run's truth table beside its log: `<stem>.truth.parquet` (`railgrip simulate`;
+/// read by `railgrip study`).
+pub const TRUTH_SUFFIX: &str = ".truth.parquet";
 
 /// Column names of the resampled `*.runlog.parquet` table.
 pub const RUNLOG_TIME_COLUMN: &str = "time_s";

@@ -31,6 +31,7 @@ pub mod score;
 pub mod signal;
 pub mod sim;
 pub(crate) mod simd;
+pub mod study;
 pub mod table;
 pub mod units;
 pub mod vehicle;

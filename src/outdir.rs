@@ -326,6 +326,37 @@ impl CampaignRecord {
     }
 }
 
+/// Paths of a study's outputs below its folder (`railgrip study --out`): `study.json`,
+/// `study.csv`, `study.html`, `cells/<key>.json` and `.model.json`, and the estimates of each
+/// conditioning as a campaign output folder `conditioning/<hash>/`.
+pub struct StudyPaths {
+    pub root: PathBuf,
+}
+
+impl StudyPaths {
+    pub fn cells(&self) -> PathBuf {
+        self.root.join("cells")
+    }
+    pub fn cell(&self, key: &str) -> PathBuf {
+        self.cells().join(format!("{key}.json"))
+    }
+    pub fn cell_model(&self, key: &str) -> PathBuf {
+        self.cells().join(format!("{key}.model.json"))
+    }
+    pub fn conditioning(&self, key: &str) -> PathBuf {
+        self.root.join("conditioning").join(key)
+    }
+    pub fn json(&self) -> PathBuf {
+        self.root.join("study.json")
+    }
+    pub fn csv(&self) -> PathBuf {
+        self.root.join("study.csv")
+    }
+    pub fn html(&self) -> PathBuf {
+        self.root.join("study.html")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

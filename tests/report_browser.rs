@@ -21,36 +21,25 @@ fn chromium() -> Option<String> {
     None
 }
 
-#[test]
-fn report_renders_in_headless_chromium_without_console_errors() {
-    let Some(browser) = chromium() else {
+/// The browser, or None where it is absent (a failure under CI=true, which installs it).
+fn browser_or_skip() -> Option<String> {
+    let b = chromium();
+    if b.is_none() {
         // CI installs Chromium (.ci/run): there a missing browser is a failure, not a skip.
         assert!(
             std::env::var("CI").as_deref() != Ok("true"),
             "CI=true but no Chromium: .ci/run should have installed it"
         );
         eprintln!("SKIPPED: no Chromium found (apt-get install chromium); the report was not opened in a browser");
-        return;
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let camp = dir.path().join("campaign");
-    common::two_run_campaign(&camp);
-    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
-    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
-        .args(["run", "campaign", "--out", "out"])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(3),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let html = dir.path().join("out/report/index.html");
-    let shot = dir.path().join("shot.png");
-    let profile = dir.path().join("profile");
-    let o = Command::new(&browser)
+    }
+    b
+}
+
+/// Opens `html` in headless `browser`: no console message, a non-blank screenshot.
+fn assert_renders(browser: &str, html: &Path, dir: &Path) {
+    let shot = dir.join("shot.png");
+    let profile = dir.join("profile");
+    let o = Command::new(browser)
         .args([
             "--headless",
             "--no-sandbox",
@@ -70,6 +59,59 @@ fn report_renders_in_headless_chromium_without_console_errors() {
     let console: Vec<&str> = log.lines().filter(|l| l.contains("CONSOLE")).collect();
     assert!(console.is_empty(), "console messages: {console:#?}");
     assert_non_blank(&shot);
+}
+
+#[test]
+fn report_renders_in_headless_chromium_without_console_errors() {
+    let Some(browser) = browser_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    common::two_run_campaign(&camp);
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["run", "campaign", "--out", "out"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_renders(
+        &browser,
+        &dir.path().join("out/report/index.html"),
+        dir.path(),
+    );
+}
+
+#[test]
+fn study_report_renders_in_headless_chromium_without_console_errors() {
+    let Some(browser) = browser_or_skip() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    common::two_run_campaign(&dir.path().join("campaign"));
+    std::fs::write(
+        dir.path().join("plan.toml"),
+        "[[grid]]\nlabel = \"Polach\"\nfamily = \"polach\"\n[[grid]]\nlabel = \"LM\"\ntrain.layers = [[3], [6]]\n",
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["study", "campaign", "--plan", "plan.toml", "--out", "st"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let html = dir.path().join("st/study.html");
+    let page = std::fs::read_to_string(&html).unwrap();
+    for want in ["Recommendation", "Pareto fronts", "<svg", "All cells", "★"] {
+        assert!(page.contains(want), "{want} missing");
+    }
+    assert_renders(&browser, &html, dir.path());
 }
 
 /// The screenshot has ink: many pixels differ from the background, in several colours.

@@ -92,7 +92,22 @@ pub fn discover_all(
                     }
                     format!("a metadata sidecar without its log ({stem}.csv is not beside it)")
                 }
-                None => "not a .csv or .mcap log".to_string(),
+                None => {
+                    // A simulated run's truth table beside its log belongs to the run.
+                    let lower = name.to_ascii_lowercase();
+                    if let Some(stem) = lower
+                        .strip_suffix(crate::format::TRUTH_SUFFIX)
+                        .map(|_| &name[..name.len() - crate::format::TRUTH_SUFFIX.len()])
+                    {
+                        if ["csv", "mcap"]
+                            .iter()
+                            .any(|e| is_log(&path.with_file_name(format!("{stem}.{e}"))))
+                        {
+                            return None;
+                        }
+                    }
+                    "not a .csv or .mcap log".to_string()
+                }
             };
             Some(super::Skipped {
                 path: path.strip_prefix(root).unwrap_or(&path).to_path_buf(),

@@ -7,6 +7,7 @@ mod model;
 mod run;
 mod score;
 mod simulate;
+mod study;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -104,6 +105,11 @@ Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fl
         long_about = "Compute creep-force curves F_x(ξ) for ξ = 0 … --creepage-max on the Hertz patch of a wheel (--load-n, --wheel-radius-m, profile radii, E, ν) under the chosen laws side by side, so they can be compared: Kalker's linear theory, linear + Shen–Hedrick–Elkins saturation, Polach (seed 004) and FASTSIM (plain or modified after Spiryagin et al. 2013; grid --grid × --grid, elliptic or parabolic bound; also F_y, M_z and the slip-area fraction). With --temperature, the flash temperature of the first FASTSIM law's slip field by the strip model of seed 000 (peak in the contact and --after-ms behind it) and the frictional power.\n\nColumns: creepage, slip_velocity_mps, then per law fx_<law>_N, mu_<law> (F_x/N) and for FASTSIM fy_<law>_N, mz_<law>_Nm, slip_fraction_<law>; with --temperature peak_temperature_c, after_temperature_c, power_W. Writes --out atomically, else standard output; the patch is printed on standard error."
     )]
     Contact(contact::Args),
+    /// What accuracy costs in time: a plan of model families, sizes, training and conditioning settings, each trained and measured on a campaign.
+    #[command(
+        long_about = "Train and measure every cell of a study plan on a campaign (default: the bundled plan pipelines/study.toml on the bundled archive): each cell is a complete pipeline (the base pipeline with the grid's keys set), estimated with its conditioning, trained on the runs of one rail condition except the held-out ones, and measured: training time, evaluation ns per μ (Rust single call and batch; a plain loop with the fast and with the C library's tanh), model-file size, RMSE on the held-out runs, and the supported-cell error against the true law where the held-out runs carry truth (<stem>.truth.parquet beside the log, as railgrip simulate writes it).\n\nWrites <OUT>/study.html (Pareto fronts, the recommendation for --budget-ns/--budget-train-s, every cell), <OUT>/study.csv, <OUT>/study.json, and <OUT>/cells/<key>.json + .model.json per cell: a second study reuses finished cells and estimates (SHA-256 keys), so an interrupted study resumes. A plan over study.max_cells or study.max_minutes (estimated) is refused unless --force.\n\nExit codes: 0 ok (cells that failed are listed), 1 error, 2 usage."
+    )]
+    Study(study::Args),
     /// Evaluate a model file on a CSV grid (dv_mps, ddv_mps2[, v_mps][, ambient_temperature_c]) and write mu.
     Eval(model::EvalArgs),
 }
@@ -154,6 +160,7 @@ pub fn main() -> ExitCode {
         Command::Score(args) => score::run(args),
         Command::Eval(args) => model::eval(args),
         Command::Contact(args) => contact::run(args),
+        Command::Study(args) => study::run(args),
     };
     match result {
         Ok(code) => ExitCode::from(code),

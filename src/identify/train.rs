@@ -834,23 +834,27 @@ pub fn leave_one_run_out(
                         hint: "report this as a bug".into(),
                     }
                 })?;
-            let held = &tables[i];
-            let t_c = held.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
-            let step = cfg.decimate.max(1);
-            let (mut sq, mut n) = (0.0, 0usize);
-            for k in (0..held.len()).step_by(step) {
-                let e =
-                    model.mu_vt(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k], t_c) - held.mu[k];
-                sq += e * e;
-                n += 1;
-            }
-            Ok(HeldOut {
-                run: held.name.clone(),
-                samples: n,
-                rmse_mu: (sq / n.max(1) as f64).sqrt(),
-            })
+            Ok(held_out_score(&model, &tables[i], cfg.decimate))
         })
         .collect()
+}
+
+/// A model scored on a run it was not trained on: RMSE of the model (creep region, clamping and
+/// support included) against the run's own estimates, every `decimate`-th valid sample of all
+/// axles, at the run's ambient temperature.
+pub fn held_out_score(model: &crate::model::Model, held: &RunTable, decimate: usize) -> HeldOut {
+    let t_c = held.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
+    let (mut sq, mut n) = (0.0, 0usize);
+    for k in (0..held.len()).step_by(decimate.max(1)) {
+        let e = model.mu_vt(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k], t_c) - held.mu[k];
+        sq += e * e;
+        n += 1;
+    }
+    HeldOut {
+        run: held.name.clone(),
+        samples: n,
+        rmse_mu: (sq / n.max(1) as f64).sqrt(),
+    }
 }
 
 /// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001

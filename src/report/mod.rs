@@ -11,7 +11,7 @@
 //! μ over the (Δv, dΔv/dt) plane; then the Polach fits and k_A(T), k_S(T) (seed 004 eq. 3).
 
 mod data;
-mod plot;
+pub(crate) mod plot;
 
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -211,7 +211,7 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
     Ok(path)
 }
 
-fn esc(s: &str) -> String {
+pub(crate) fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
@@ -232,15 +232,7 @@ fn head(h: &mut String, i: &Inputs) {
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>railgrip report — {title}</title>
 <style>
-body {{ font-family: "DejaVu Sans", Verdana, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; padding: 0 1em; }}
-h1 {{ font-size: 1.5em; }} h2 {{ font-size: 1.25em; border-bottom: 1px solid #ccc; margin-top: 2em; }}
-h3 {{ font-size: 1.05em; margin-bottom: 0.3em; }}
-table {{ border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.85em; }}
-th, td {{ border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: right; }}
-th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
-.failed {{ color: #b00; }} .figs {{ display: flex; flex-wrap: wrap; gap: 6px; }}
-.figs svg {{ border: 1px solid #eee; }} p.note {{ font-size: 0.9em; color: #555; }}
-</style></head><body>
+{style}</style></head><body>
 <h1>railgrip validation report</h1>
 <p>Campaign <code>{archive}</code>: {n} run(s), {nok} estimated, {nf} failed. Models trained on
 <b>{cond}</b> rail. Pipeline <code>{pipe}</code>. railgrip {ver}.</p>
@@ -253,8 +245,20 @@ th {{ background: #f2f2f2; }} td.l, th.l {{ text-align: left; }}
         cond = esc(camp.condition.as_deref().unwrap_or("–")),
         pipe = esc(&camp.pipeline),
         ver = env!("CARGO_PKG_VERSION"),
+        style = STYLE,
     );
 }
+
+/// The reports' style sheet (validation report, study report).
+pub(crate) const STYLE: &str = r#"body { font-family: "DejaVu Sans", Verdana, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; padding: 0 1em; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.25em; border-bottom: 1px solid #ccc; margin-top: 2em; }
+h3 { font-size: 1.05em; margin-bottom: 0.3em; }
+table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.85em; }
+th, td { border: 1px solid #ccc; padding: 0.2em 0.5em; text-align: right; }
+th { background: #f2f2f2; } td.l, th.l { text-align: left; }
+.failed { color: #b00; } .figs { display: flex; flex-wrap: wrap; gap: 6px; }
+.figs svg { border: 1px solid #eee; } p.note { font-size: 0.9em; color: #555; }
+"#;
 
 /// The plausibility audit at the top: a red line with the failures when the network failed
 /// it, one quiet line when it passed (README "Plausibility audit").

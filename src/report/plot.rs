@@ -14,7 +14,7 @@ pub(super) const SIZE: (u32, u32) = (620, 340);
 const MAX_LINE: usize = 500;
 const MAX_SCATTER: usize = 400;
 
-pub(super) const PALETTE: [RGBColor; 8] = [
+pub(crate) const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -34,7 +34,7 @@ fn register_font() {
 }
 
 /// One series of a plot.
-pub(super) struct Series {
+pub(crate) struct Series {
     pub name: String,
     pub color: RGBColor,
     pub pts: Vec<(f64, f64)>,
@@ -76,8 +76,47 @@ pub(super) fn chart(
     series: &[Series],
     log_y: bool,
 ) -> Result<String, ReportError> {
+    chart_axes(title, x_desc, y_desc, series, false, log_y)
+}
+
+/// [`chart`] with a choice of logarithmic axes for x and y (positive data spanning decades).
+pub(crate) fn chart_axes(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    log_x: bool,
+    log_y: bool,
+) -> Result<String, ReportError> {
     register_font();
     let err = plot_err(title);
+    // log10 of the data on a linear axis, labelled with 10^tick (as for y below).
+    let logged: Vec<Series>;
+    let series = if log_x {
+        logged = series
+            .iter()
+            .map(|s| Series {
+                name: s.name.clone(),
+                color: s.color,
+                pts: s
+                    .pts
+                    .iter()
+                    .map(|&(x, y)| (x.max(1e-300).log10(), y))
+                    .collect(),
+                dots: s.dots,
+            })
+            .collect();
+        &logged[..]
+    } else {
+        series
+    };
+    let xfmt = |x: &f64| {
+        if log_x {
+            tick(10f64.powf(*x))
+        } else {
+            tick(*x)
+        }
+    };
     let xr = range_of(series.iter().flat_map(|s| s.pts.iter().map(|p| p.0)));
     let yr = range_of(series.iter().flat_map(|s| {
         s.pts
@@ -99,7 +138,7 @@ pub(super) fn chart(
                 c.configure_mesh()
                     .x_desc(x_desc)
                     .y_desc(y_desc)
-                    .x_label_formatter(&|x: &f64| tick(*x))
+                    .x_label_formatter(&xfmt)
                     .y_label_formatter(&$ylabel)
                     .label_style(("sans-serif", 11))
                     .axis_desc_style(("sans-serif", 12))

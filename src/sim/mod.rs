@@ -52,7 +52,7 @@ use crate::model::Model;
 use crate::simd::{Avx2, Avx512, F64x4};
 use crate::simd::{Isa, Portable, Select};
 use foreign::ScalarLaw;
-pub use output::{truth_f32, OutputFormat, TRUTH_COLUMNS};
+pub use output::{read_truth_samples, truth_f32, OutputFormat, TRUTH_COLUMNS};
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 use sensors::Logger;
 use state::Setup;

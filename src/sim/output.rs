@@ -113,7 +113,7 @@ impl SimOutput {
             .map_err(werr(&path))?;
             written.push(path);
         }
-        let path = dir.join(format!("{stem}.truth.parquet"));
+        let path = dir.join(format!("{stem}{}", format::TRUTH_SUFFIX));
         self.write_truth(&path)?;
         written.push(path);
         Ok(written)
@@ -159,4 +159,52 @@ impl SimOutput {
         let mut df = crate::table::frame(n * AXLES, cols, path)?;
         Ok(crate::table::write_parquet(&mut df, path, None)?)
     }
+}
+
+/// Reads a truth table (`<stem>.truth.parquet`, [`TRUTH_COLUMNS`]) as scoring samples at the
+/// run's ambient temperature `t_c` (°C; NaN when unknown). Errors name the file and column.
+pub fn read_truth_samples(path: &Path, t_c: f64) -> Result<Vec<crate::score::Sample>, SimError> {
+    use polars::prelude::*;
+    let bad = |what: String| SimError::Scene {
+        scene: path.display().to_string(),
+        what,
+        hint: "give the truth table `railgrip simulate` wrote beside the log, or remove it".into(),
+    };
+    let file = crate::input::open_regular(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let df = ParquetReader::new(file)
+        .finish()
+        .map_err(|e| bad(format!("not a Parquet table: {e}")))?;
+    let col = |name: &str| -> Result<Vec<f64>, SimError> {
+        let c = df
+            .column(name)
+            .map_err(|_| bad(format!("no column \"{name}\"")))?
+            .cast(&DataType::Float64)
+            .map_err(|e| bad(format!("column \"{name}\": {e}")))?;
+        let ca = c.f64().map_err(|e| bad(e.to_string()))?;
+        if ca.null_count() > 0 {
+            return Err(bad(format!("column \"{name}\" has empty cells")));
+        }
+        Ok(ca.into_no_null_iter().collect())
+    };
+    let axle = col(TRUTH_COLUMNS[1])?;
+    let v = col(TRUTH_COLUMNS[2])?;
+    let mu = col(TRUTH_COLUMNS[7])?;
+    let dv = col(TRUTH_COLUMNS[8])?;
+    let ddv = col(TRUTH_COLUMNS[9])?;
+    axle.iter()
+        .enumerate()
+        .map(|(i, &a)| {
+            if !(1.0..=AXLES as f64).contains(&a) || a.fract() != 0.0 {
+                return Err(bad(format!("row {i}: axle {a} is not 1..{AXLES}")));
+            }
+            Ok(crate::score::Sample {
+                axle: a as u8,
+                dv_mps: dv[i],
+                ddv_mps2: ddv[i],
+                v_mps: v[i],
+                t_c,
+                mu: mu[i],
+            })
+        })
+        .collect()
 }
