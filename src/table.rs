@@ -61,3 +61,18 @@ pub fn frame(height: usize, columns: Vec<Column>, path: &Path) -> Result<DataFra
         source: std::io::Error::other(e),
     })
 }
+
+/// A column of `df` as f64 values (any numeric type cast), or why not — no such column, not
+/// numeric, empty cells — as text the reader puts beside the file's name.
+pub fn f64_column(df: &DataFrame, name: &str) -> Result<Vec<f64>, String> {
+    let c = df
+        .column(name)
+        .map_err(|_| format!("no column \"{name}\""))?
+        .cast(&DataType::Float64)
+        .map_err(|e| format!("column \"{name}\": {e}"))?;
+    let ca = c.f64().map_err(|e| e.to_string())?;
+    if ca.null_count() > 0 {
+        return Err(format!("column \"{name}\" has empty cells"));
+    }
+    Ok(ca.into_no_null_iter().collect())
+}

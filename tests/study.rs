@@ -81,6 +81,10 @@ fn the_default_plan_covers_the_issue_s_grid() {
         .map(|c| c.conditioning.text.as_str())
         .collect();
     assert_eq!(conditionings.len(), 8, "4 cut-offs × 2 modes");
+    // The other bundled plan parses too.
+    let lm_adam = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/study_lm_vs_adam.toml");
+    let q = Plan::load(Some(&lm_adam), None).unwrap();
+    assert_eq!(q.cells.len(), 23);
     // Duplicates are dropped: every cell's pipeline differs.
     let mut seen = std::collections::HashSet::new();
     assert!(p
@@ -200,6 +204,17 @@ label = "LM"
 train.inputs = [["dv_mps", "ddv_mps2"], ["dv_mps", "ddv_mps2", "v_mps"]]
 train.layers = [[3], [10]]
 "#;
+
+/// Writes `plan` and runs a study that must be refused (exit 1): its output.
+fn refused(dir: &Path, plan: &str) -> String {
+    std::fs::write(dir.join("plan.toml"), plan).unwrap();
+    let o = railgrip(
+        dir,
+        &["study", "campaign", "--plan", "plan.toml", "--out", "st"],
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
+    text(&o)
+}
 
 fn study_json(dir: &Path, out: &str, extra: &[&str]) -> (serde_json::Value, String) {
     let mut args = vec![
@@ -334,33 +349,16 @@ fn too_large_plans_are_refused_with_their_estimate_unless_forced() {
     let dir = tempfile::tempdir().unwrap();
     common::two_run_campaign(&dir.path().join("campaign"));
     // Cell count.
-    std::fs::write(
-        dir.path().join("plan.toml"),
-        "[study]\nmax_cells = 1\n[[grid]]\ntrain.layers = [[2], [3]]\n",
-    )
-    .unwrap();
-    let o = railgrip(
+    let t = refused(
         dir.path(),
-        &["study", "campaign", "--plan", "plan.toml", "--out", "st"],
+        "[study]\nmax_cells = 1\n[[grid]]\ntrain.layers = [[2], [3]]\n",
     );
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
     assert!(
-        text(&o).contains("2 cells, more than study.max_cells = 1") && text(&o).contains("--force"),
-        "{}",
-        text(&o)
+        t.contains("2 cells, more than study.max_cells = 1") && t.contains("--force"),
+        "{t}"
     );
     // Estimated time: refused with the estimate; nothing trained.
-    std::fs::write(
-        dir.path().join("plan.toml"),
-        "[study]\nmax_minutes = 0.0001\nheld_out = [\"soap_120kmh_p20\"]\n[[grid]]\ntrain.layers = [[20]]\ntrain.epochs = 20\n",
-    )
-    .unwrap();
-    let o = railgrip(
-        dir.path(),
-        &["study", "campaign", "--plan", "plan.toml", "--out", "st"],
-    );
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let t = text(&o);
+    let t = refused(dir.path(), "[study]\nmax_minutes = 0.0001\nheld_out = [\"soap_120kmh_p20\"]\n[[grid]]\ntrain.layers = [[20]]\ntrain.epochs = 20\n");
     assert!(
         t.contains("estimated at") && t.contains("min") && t.contains("max_minutes = 0.0001"),
         "{t}"
@@ -402,32 +400,15 @@ fn inputs_the_campaign_lacks_and_unknown_runs_are_named() {
         .collect();
     assert_ne!(stripped, text_meta, "the fixture names its temperature");
     std::fs::write(&meta, stripped).unwrap();
-    std::fs::write(
-        dir.path().join("plan.toml"),
-        "[[grid]]\ntrain.inputs = [[\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]]\n",
-    )
-    .unwrap();
-    let o = railgrip(
-        dir.path(),
-        &["study", "campaign", "--plan", "plan.toml", "--out", "st"],
-    );
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let t = text(&o);
+    let t = refused(dir.path(), "[[grid]]\ntrain.inputs = [[\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]]\n");
     assert!(
         t.contains("ambient temperature") && t.contains("soap_120kmh_m20"),
         "{t}"
     );
-    std::fs::write(
-        dir.path().join("plan.toml"),
-        "[study]\nheld_out = [\"nope\"]\n[[grid]]\nfamily = \"polach\"\n",
-    )
-    .unwrap();
-    let o = railgrip(
+    let t = refused(
         dir.path(),
-        &["study", "campaign", "--plan", "plan.toml", "--out", "st"],
+        "[study]\nheld_out = [\"nope\"]\n[[grid]]\nfamily = \"polach\"\n",
     );
-    assert_eq!(o.status.code(), Some(1), "{}", text(&o));
-    let t = text(&o);
     assert!(
         t.contains("held_out names nope") && t.contains("soap_120kmh_p20"),
         "{t}"
@@ -512,4 +493,36 @@ reference_grid = 200
         scene.display()
     ));
     assert!(e.contains("simulator[0]") && e.contains("step_ms"), "{e}");
+}
+
+#[test]
+fn a_cell_trained_but_not_timed_is_timed_on_resume_not_retrained() {
+    let dir = tempfile::tempdir().unwrap();
+    common::two_run_campaign(&dir.path().join("campaign"));
+    std::fs::write(
+        dir.path().join("plan.toml"),
+        "[[grid]]\ntrain.layers = [[4]]\ntrain.epochs = 20\n",
+    )
+    .unwrap();
+    let (o, _) = study_json(dir.path(), "st", &[]);
+    let key = o["cells"][0]["key"].as_str().unwrap().to_string();
+    // As if killed between training and timing: the result without its timings.
+    let cell = dir.path().join(format!("st/cells/{key}.json"));
+    let mut r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cell).unwrap()).unwrap();
+    r["eval"] = serde_json::Value::Null;
+    r["train_s"] = serde_json::json!(123.0);
+    std::fs::write(&cell, r.to_string()).unwrap();
+    let (again, log) = study_json(dir.path(), "st", &[]);
+    assert!(log.contains("1 cell(s), 1 reused"), "{log}");
+    assert!(!log.contains("trained"), "{log}");
+    let c = &again["cells"][0];
+    assert_eq!(c["train_s"], 123.0, "kept, not retrained");
+    assert!(c["eval"]["single_ns"].as_f64().unwrap() > 0.0);
+    // Cells on different rail conditions cannot share held-out runs.
+    let t = refused(
+        dir.path(),
+        "[[grid]]\ntrain.condition = [\"soap\", \"dry\"]\n",
+    );
+    assert!(t.contains("one rail condition"), "{t}");
 }

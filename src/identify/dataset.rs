@@ -82,19 +82,7 @@ impl RunTable {
             })
             .unwrap_or_default();
         let df = reader.finish().map_err(|e| bad(e.to_string()))?;
-        let f64col = |name: &str| -> Result<Vec<f64>, IdentifyError> {
-            let c = df
-                .column(name)
-                .map_err(|_| bad(format!("no column \"{name}\"")))?;
-            let c = c
-                .cast(&DataType::Float64)
-                .map_err(|e| bad(format!("column \"{name}\": {e}")))?;
-            let ca = c.f64().map_err(|e| bad(e.to_string()))?;
-            if ca.null_count() > 0 {
-                return Err(bad(format!("column \"{name}\" has empty cells")));
-            }
-            Ok(ca.into_no_null_iter().collect())
-        };
+        let f64col = |name: &str| crate::table::f64_column(&df, name).map_err(bad);
         let valid_ca = df
             .column("valid")
             .map_err(|_| bad("no column \"valid\"".into()))?

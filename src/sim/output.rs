@@ -174,18 +174,7 @@ pub fn read_truth_samples(path: &Path, t_c: f64) -> Result<Vec<crate::score::Sam
     let df = ParquetReader::new(file)
         .finish()
         .map_err(|e| bad(format!("not a Parquet table: {e}")))?;
-    let col = |name: &str| -> Result<Vec<f64>, SimError> {
-        let c = df
-            .column(name)
-            .map_err(|_| bad(format!("no column \"{name}\"")))?
-            .cast(&DataType::Float64)
-            .map_err(|e| bad(format!("column \"{name}\": {e}")))?;
-        let ca = c.f64().map_err(|e| bad(e.to_string()))?;
-        if ca.null_count() > 0 {
-            return Err(bad(format!("column \"{name}\" has empty cells")));
-        }
-        Ok(ca.into_no_null_iter().collect())
-    };
+    let col = |name: &str| crate::table::f64_column(&df, name).map_err(bad);
     let axle = col(TRUTH_COLUMNS[1])?;
     let v = col(TRUTH_COLUMNS[2])?;
     let mu = col(TRUTH_COLUMNS[7])?;

@@ -266,6 +266,26 @@ pub fn study(
             hint: "narrow the grids, raise study.max_cells, or pass --force".into(),
         });
     }
+    // One rail condition for every cell: the held-out runs are the same for all.
+    let wanted = &plan.cells[0].pipeline.train.condition;
+    if let Some(c) = plan
+        .cells
+        .iter()
+        .find(|c| &c.pipeline.train.condition != wanted)
+    {
+        return Err(StudyError::Plan {
+            file: plan.source.clone(),
+            what: format!(
+                "cell \"{}\" trains on condition {:?}, cell \"{}\" on {:?}: a study compares cells on one rail condition",
+                plan.cells[0].name(),
+                wanted,
+                c.name(),
+                c.pipeline.train.condition
+            ),
+            hint: "vary train.condition in separate studies (one --out each)".into(),
+        });
+    }
+
     let paths = StudyPaths {
         root: out.to_path_buf(),
     };
@@ -482,7 +502,7 @@ pub fn study(
         .collect();
     let mut results: Vec<Option<CellResult>> = specs
         .iter()
-        .map(|(_, _, key)| read_result(&paths.cell(key)))
+        .map(|(_, _, key)| read_result(&paths, key))
         .collect();
     let samples_of = |i: usize| -> usize {
         estimated[cond_of[i]]
@@ -631,11 +651,11 @@ fn to_json(r: &CellResult) -> String {
     serde_json::to_string_pretty(r).expect("cell serialises") + "\n"
 }
 
-/// A saved result, when it is complete (trained and timed, or failed).
-fn read_result(path: &Path) -> Option<CellResult> {
-    let text = std::fs::read_to_string(path).ok()?;
+/// A saved result: failed, or trained with its model file beside it (timed or not yet).
+fn read_result(paths: &StudyPaths, key: &str) -> Option<CellResult> {
+    let text = std::fs::read_to_string(paths.cell(key)).ok()?;
     let r: CellResult = serde_json::from_str(&text).ok()?;
-    (r.eval.is_some() || !r.ok()).then_some(r)
+    (r.key == key && (!r.ok() || paths.cell_model(key).is_file())).then_some(r)
 }
 
 /// `<dir>/<stem>.truth.parquet` beside a log.
@@ -953,8 +973,24 @@ impl PlainNet {
         Some(n)
     }
 
+    /// μ at `x`, with buffers as wide as the widest layer needs (a hand-written evaluator
+    /// sizes its arrays to its network).
     fn mu(&self, x: [f64; 4], tanh: fn(f64) -> f64) -> f64 {
-        const W: usize = crate::model::MAX_HIDDEN;
+        match self
+            .layers
+            .iter()
+            .map(|l| l.1)
+            .max()
+            .unwrap_or(1)
+            .max(self.k)
+        {
+            0..=16 => self.mu_in::<16>(x, tanh),
+            17..=64 => self.mu_in::<64>(x, tanh),
+            _ => self.mu_in::<{ crate::model::MAX_HIDDEN }>(x, tanh),
+        }
+    }
+
+    fn mu_in<const W: usize>(&self, x: [f64; 4], tanh: fn(f64) -> f64) -> f64 {
         let (mut a, mut b) = ([0.0f64; W], [0.0f64; W]);
         for c in 0..self.k {
             a[c] = self.gx[c] * x[c].clamp(self.lo[c], self.hi[c]) + self.ox[c];
