@@ -80,7 +80,14 @@ fn the_default_plan_covers_the_issue_s_grid() {
         .iter()
         .map(|c| c.conditioning.text.as_str())
         .collect();
-    assert_eq!(conditionings.len(), 8, "4 cut-offs × 2 modes");
+    assert_eq!(
+        conditionings.len(),
+        10,
+        "4 tachometer cut-offs × 2 modes, 2 pressure cut-offs"
+    );
+    for hz in [3.0, 8.0] {
+        assert!(has(&|c| c.conditioning.filters.pressure_cutoff_hz == hz));
+    }
     // The other bundled plan parses too.
     let lm_adam = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/study_lm_vs_adam.toml");
     let q = Plan::load(Some(&lm_adam), None).unwrap();

@@ -476,6 +476,16 @@ pub fn study(
         ));
     }
 
+    let points = timing_points(&estimated[0], &held_out, plan.eval_points);
+    if points.dv.is_empty() {
+        return Err(StudyError::Data {
+            what: format!(
+                "the held-out runs {} have no valid samples to time the evaluators on",
+                held_out.join(", ")
+            ),
+            hint: "hold out runs with valid estimates (study.held_out)".into(),
+        });
+    }
     // 3. Keys, reuse, estimate.
     let run_hashes = |e: &Estimated| -> String {
         e.records
@@ -575,7 +585,6 @@ pub fn study(
     }
 
     // 5. Time the evaluators one cell at a time (nothing else running).
-    let points = timing_points(&estimated[0], &held_out, plan.eval_points);
     let mut cells: Vec<CellResult> = Vec::new();
     for ((_, _, key), r) in specs.iter().zip(results) {
         let mut r = r.expect("every cell trained or reused");
@@ -751,8 +760,15 @@ fn train_cell(
         sq += h.rmse_mu * h.rmse_mu * h.samples as f64;
         n += h.samples;
     }
+    if n == 0 {
+        r.error = Some(
+            "no held-out samples: the held-out runs have no valid estimates with this cell's conditioning"
+                .into(),
+        );
+        return r;
+    }
     r.held_out_samples = n;
-    r.held_out_rmse = Some((sq / n.max(1) as f64).sqrt());
+    r.held_out_rmse = Some((sq / n as f64).sqrt());
     if !truth.is_empty() && by_truth {
         match score(truth, &Grid::default(), |dv, q, v, t| {
             model.mu_vt(dv, q, v, t)
