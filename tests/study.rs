@@ -533,3 +533,27 @@ fn a_cell_trained_but_not_timed_is_timed_on_resume_not_retrained() {
     );
     assert!(t.contains("one rail condition"), "{t}");
 }
+
+#[test]
+fn a_broken_truth_table_or_base_pipeline_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    common::two_run_campaign(&camp);
+    std::fs::write(camp.join("soap_120kmh_p20.truth.parquet"), b"not parquet").unwrap();
+    let t = refused(
+        dir.path(),
+        "[study]\nheld_out = [\"soap_120kmh_p20\"]\n[[grid]]\nfamily = \"polach\"\n",
+    );
+    assert!(
+        t.contains("soap_120kmh_p20.truth.parquet") && t.contains("railgrip simulate"),
+        "{t}"
+    );
+    std::fs::write(dir.path().join("bad.toml"), "[train]\nlayerz = [3]\n").unwrap();
+    let e = Plan::load(None, Some(&dir.path().join("bad.toml")))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("base pipeline") && e.contains("bad.toml") && e.contains("layerz"),
+        "{e}"
+    );
+}

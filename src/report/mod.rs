@@ -227,17 +227,11 @@ fn head(h: &mut String, i: &Inputs) {
     let (camp, data) = (i.camp, &i.data);
     let _ = write!(
         *h,
-        r#"<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>railgrip report — {title}</title>
-<style>
-{style}</style></head><body>
-<h1>railgrip validation report</h1>
+        r#"{head}<h1>railgrip validation report</h1>
 <p>Campaign <code>{archive}</code>: {n} run(s), {nok} estimated, {nf} failed. Models trained on
 <b>{cond}</b> rail. Pipeline <code>{pipe}</code>. railgrip {ver}.</p>
 "#,
-        title = esc(&camp.archive),
+        head = page_head(&format!("railgrip report — {}", camp.archive)),
         archive = esc(&camp.archive),
         n = camp.runs.len(),
         nok = data.len(),
@@ -245,12 +239,20 @@ fn head(h: &mut String, i: &Inputs) {
         cond = esc(camp.condition.as_deref().unwrap_or("–")),
         pipe = esc(&camp.pipeline),
         ver = env!("CARGO_PKG_VERSION"),
-        style = STYLE,
     );
 }
 
+/// A report page's document head up to and including `<body>`: `title` (escaped here) and the
+/// shared style sheet.
+pub(crate) fn page_head(title: &str) -> String {
+    format!(
+        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n<title>{}</title>\n<style>\n{STYLE}</style></head><body>\n",
+        esc(title)
+    )
+}
+
 /// The reports' style sheet (validation report, study report).
-pub(crate) const STYLE: &str = r#"body { font-family: "DejaVu Sans", Verdana, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; padding: 0 1em; }
+const STYLE: &str = r#"body { font-family: "DejaVu Sans", Verdana, sans-serif; margin: 1.5em auto; max-width: 1300px; color: #222; padding: 0 1em; }
 h1 { font-size: 1.5em; } h2 { font-size: 1.25em; border-bottom: 1px solid #ccc; margin-top: 2em; }
 h3 { font-size: 1.05em; margin-bottom: 0.3em; }
 table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.85em; }

@@ -8,7 +8,7 @@ use plotters::style::RGBColor;
 
 use super::{CellResult, Outcome};
 use crate::report::plot::{chart_axes, Series, PALETTE};
-use crate::report::{esc, STYLE};
+use crate::report::{esc, page_head};
 
 fn num(v: Option<f64>, d: usize) -> String {
     v.filter(|x| x.is_finite())
@@ -25,18 +25,12 @@ pub fn render(o: &Outcome) -> String {
     };
     let _ = write!(
         h,
-        r#"<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>railgrip study — {title}</title>
-<style>
-{STYLE}</style></head><body>
-<h1>railgrip study</h1>
+        r#"{head}<h1>railgrip study</h1>
 <p>Campaign <code>{archive}</code>, plan <code>{plan}</code>, base pipeline <code>{pipe}</code>.
 Trained on {nt} run(s) of <b>{cond}</b> rail ({train}); held out: {held}. Accuracy: {measure}, μ.
 {n} cells, {jobs} thread(s), {wall:.1} s. railgrip {ver}.</p>
 "#,
-        title = esc(&o.archive),
+        head = page_head(&format!("railgrip study — {}", o.archive)),
         archive = esc(&o.archive),
         plan = esc(&o.plan),
         pipe = esc(&o.pipeline),

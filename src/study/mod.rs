@@ -246,6 +246,13 @@ struct Estimated {
     tables: Vec<RunTable>,
 }
 
+/// [`Estimated`] split into the runs the cells train on and the held-out runs.
+struct Split {
+    records: Vec<RunRecord>,
+    train: Vec<RunTable>,
+    held: Vec<RunTable>,
+}
+
 /// Runs the study of `plan` over the campaign at `archive` into `out`.
 pub fn study(
     archive: &Path,
@@ -476,7 +483,27 @@ pub fn study(
         ));
     }
 
-    let points = timing_points(&estimated[0], &held_out, plan.eval_points);
+    // Each conditioning's tables split once into training and held-out runs (the others,
+    // of other rail conditions, dropped).
+    let splits: Vec<Split> = estimated
+        .into_iter()
+        .map(|e| {
+            let (mut train, mut held) = (Vec::new(), Vec::new());
+            for t in e.tables {
+                if train_runs.contains(&t.name) {
+                    train.push(t);
+                } else if held_out.contains(&t.name) {
+                    held.push(t);
+                }
+            }
+            Split {
+                records: e.records,
+                train,
+                held,
+            }
+        })
+        .collect();
+    let points = timing_points(&splits[0].held, plan.eval_points);
     if points.dv.is_empty() {
         return Err(StudyError::Data {
             what: format!(
@@ -487,7 +514,7 @@ pub fn study(
         });
     }
     // 3. Keys, reuse, estimate.
-    let run_hashes = |e: &Estimated| -> String {
+    let run_hashes = |e: &Split| -> String {
         e.records
             .iter()
             .map(|r| format!("{} {}\n", r.run, r.input_sha256))
@@ -503,7 +530,7 @@ pub fn study(
                 env!("CARGO_PKG_VERSION"),
                 c.family.name(),
                 c.pipeline.text,
-                run_hashes(&estimated[cond_of[i]]),
+                run_hashes(&splits[cond_of[i]]),
                 held_out,
                 plan.eval_points
             );
@@ -514,14 +541,7 @@ pub fn study(
         .iter()
         .map(|(_, _, key)| read_result(&paths, key))
         .collect();
-    let samples_of = |i: usize| -> usize {
-        estimated[cond_of[i]]
-            .tables
-            .iter()
-            .filter(|t| train_runs.contains(&t.name))
-            .map(|t| t.len())
-            .sum()
-    };
+    let samples_of = |i: usize| -> usize { splits[cond_of[i]].train.iter().map(|t| t.len()).sum() };
     let estimates: Vec<f64> = specs
         .iter()
         .map(|(i, c, _)| estimate_train_s(c, samples_of(*i)))
@@ -559,19 +579,8 @@ pub fn study(
             .par_iter()
             .filter(|(i, _, _)| results[*i].is_none())
             .map(|(i, c, key)| {
-                let e = &estimated[cond_of[*i]];
-                let train: Vec<RunTable> = e
-                    .tables
-                    .iter()
-                    .filter(|t| train_runs.contains(&t.name))
-                    .cloned()
-                    .collect();
-                let held: Vec<&RunTable> = e
-                    .tables
-                    .iter()
-                    .filter(|t| held_out.contains(&t.name))
-                    .collect();
-                let mut r = train_cell(c, key, &train, &held, &paths, &truth, by_truth);
+                let e = &splits[cond_of[*i]];
+                let mut r = train_cell(c, key, &e.train, &e.held, &paths, &truth, by_truth);
                 r.estimated_train_s = estimates[*i];
                 // Saved without timings: a study killed before them retimes only.
                 let _ = write_text(&paths.cell(key), &to_json(&r));
@@ -705,7 +714,7 @@ fn train_cell(
     spec: &CellSpec,
     key: &str,
     train: &[RunTable],
-    held: &[&RunTable],
+    held: &[RunTable],
     paths: &StudyPaths,
     truth: &[Sample],
     by_truth: bool,
@@ -856,12 +865,7 @@ struct Points {
     t: Vec<f64>,
 }
 
-fn timing_points(e: &Estimated, held_out: &[String], n: usize) -> Points {
-    let tables: Vec<&RunTable> = e
-        .tables
-        .iter()
-        .filter(|t| held_out.contains(&t.name))
-        .collect();
+fn timing_points(tables: &[RunTable], n: usize) -> Points {
     let total: usize = tables.iter().map(|t| t.len()).sum();
     let step = (total / n.max(1)).max(1);
     let mut p = Points {

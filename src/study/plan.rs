@@ -11,7 +11,7 @@ use std::path::Path;
 
 use super::ladder::{ContactSpec, SimSpec, CONTACT_LAWS};
 use super::StudyError;
-use crate::config::{Pipeline, DEFAULT_PIPELINE_NAME, DEFAULT_PIPELINE_TOML};
+use crate::config::Pipeline;
 use crate::sim::Scene;
 
 /// The bundled default plan (`pipelines/study.toml`).
@@ -183,22 +183,17 @@ impl Plan {
                 ));
             }
         }
-        // The base pipeline: --pipeline, the plan's key, or the embedded default.
-        let (base_text, base_name) = match (base, study.get("pipeline")) {
-            (Some(p), _) => read_pipeline(p, file)?,
-            (None, None) => (
-                DEFAULT_PIPELINE_TOML.to_string(),
-                DEFAULT_PIPELINE_NAME.to_string(),
-            ),
-            (None, Some(toml::Value::String(s))) => {
-                let p = match dir {
-                    Some(d) => d.join(s),
-                    None => Path::new(env!("CARGO_MANIFEST_DIR"))
-                        .join("pipelines")
-                        .join(s),
-                };
-                read_pipeline(&p, file)?
-            }
+        // The base pipeline: --pipeline, the plan's key, or the embedded default; read and
+        // checked by the pipeline's own loader (its text is what the cells patch).
+        let path = match (base, study.get("pipeline")) {
+            (Some(p), _) => Some(p.to_path_buf()),
+            (None, None) => None,
+            (None, Some(toml::Value::String(s))) => Some(match dir {
+                Some(d) => d.join(s),
+                None => Path::new(env!("CARGO_MANIFEST_DIR"))
+                    .join("pipelines")
+                    .join(s),
+            }),
             (None, Some(v)) => {
                 return Err(err(
                     file,
@@ -207,15 +202,16 @@ impl Plan {
                 ))
             }
         };
-        let base_doc: toml::Table = base_text.parse().map_err(|e: toml::de::Error| {
-            err(&base_name, e.to_string(), "fix the pipeline's TOML syntax")
-        })?;
-        let base_pipeline = Pipeline::from_toml(&base_text, &base_name).map_err(|e| {
+        let base_pipeline = Pipeline::load(path.as_deref()).map_err(|e| {
             err(
                 file,
                 format!("base pipeline: {e}"),
-                "fix the pipeline the plan names",
+                "fix the pipeline the plan names (study.pipeline is relative to the plan; --pipeline overrides it)",
             )
+        })?;
+        let base_name = base_pipeline.source.clone();
+        let base_doc: toml::Table = base_pipeline.text.parse().map_err(|e: toml::de::Error| {
+            err(&base_name, e.to_string(), "fix the pipeline's TOML syntax")
         })?;
         let held_out = match study.get("held_out") {
             None => None,
@@ -323,18 +319,6 @@ impl Plan {
             cells,
         })
     }
-}
-
-fn read_pipeline(p: &Path, plan: &str) -> Result<(String, String), StudyError> {
-    let text = crate::input::read_text_limited(p, crate::input::MAX_CONFIG_BYTES, "pipeline file")
-        .map_err(|e| {
-            err(
-                plan,
-                format!("cannot read the base pipeline {}: {e}", p.display()),
-                "give an existing pipeline file (study.pipeline is relative to the plan)",
-            )
-        })?;
-    Ok((text, p.display().to_string()))
 }
 
 /// The cells of one grid: the product of its axes.
