@@ -699,6 +699,26 @@ fastsim_grid = 8"#,
         }
     }
     assert!(peak > 0.5 * mu0, "the brake uses the adhesion: {peak}");
+    // Under load transfer the patch follows each wheel's load (unit test in sim::foreign):
+    // the run stays within μ0 and differs from the static-patch run.
+    let moving = sim::simulate(
+        &scene(
+            r#"effects = ["wsp", "load_transfer"]
+[adhesion]
+law = "fastsim"
+fastsim_grid = 8"#,
+        ),
+        None,
+    )
+    .unwrap();
+    assert!(moving.counters.get(Effect::LoadTransfer) > 0);
+    assert!(moving
+        .truth
+        .mu
+        .iter()
+        .flatten()
+        .all(|m| m.is_finite() && *m <= mu0 * 1.05));
+    assert_ne!(moving.truth.mu[0], out.truth.mu[0]);
     // With thermal too, and with the modified FASTSIM.
     let sc = scene(
         r#"effects = ["wsp", "thermal"]

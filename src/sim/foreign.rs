@@ -224,8 +224,10 @@ pub(super) enum ScalarLaw {
 /// (creepage is undefined at standstill; the Polach law of the simulator floors v too).
 pub(super) const FASTSIM_MIN_SPEED_MPS: f64 = 0.5;
 
-/// `law = "fastsim"` prepared for a run: the solver, the wheel's patch at its static load
-/// (FASTSIM is evaluated per wheel: μ = F_x / Q), the friction.
+/// `law = "fastsim"` prepared for a run: the solver, the wheel's patch at its static load Q0
+/// (FASTSIM is evaluated per wheel: μ = F_x / Q), the friction. Under load transfer the patch
+/// follows the wheel's load Q: Hertz's semi-axes grow as (Q/Q0)^(1/3) at a fixed aspect ratio
+/// (seed 001 eq. 1–5), so Kalker's coefficients stay and only a, b and N are rescaled.
 #[derive(Debug, Clone, PartialEq)]
 pub(super) struct PreparedFastsim {
     pub solver: crate::contact::fastsim::Fastsim,
@@ -234,10 +236,11 @@ pub(super) struct PreparedFastsim {
 }
 
 impl PreparedFastsim {
-    /// μ at slip `w` (m/s) and speed `v` (m/s): F_x/Q of the creepage w / max(v, 0.5).
-    /// Inputs are finite in a running simulation; a domain error (none expected) gives 0.
+    /// μ at slip `w` (m/s), speed `v` (m/s) and patch size `ratio` = (Q/Q0)^(1/3): F_x/Q of
+    /// the creepage w / max(v, 0.5). Inputs are finite in a running simulation; a domain error
+    /// (none expected) gives 0.
     #[inline]
-    pub(super) fn mu(&self, w: f64, v: f64) -> f64 {
+    pub(super) fn mu(&self, w: f64, v: f64, ratio: f64) -> f64 {
         let v = v.max(FASTSIM_MIN_SPEED_MPS);
         let c = crate::contact::fastsim::Creepage {
             sx: w / v,
@@ -245,20 +248,29 @@ impl PreparedFastsim {
             spin_per_m: 0.0,
             speed_mps: v,
         };
+        let mut patch = self.patch;
+        if ratio != 1.0 {
+            patch.a_m *= ratio;
+            patch.b_m *= ratio;
+            patch.normal_n *= ratio * ratio * ratio;
+        }
         self.solver
-            .forces(&self.patch, &self.friction, &c)
-            .map_or(0.0, |f| f.fx_n / self.patch.normal_n)
+            .forces(&patch, &self.friction, &c)
+            .map_or(0.0, |f| f.fx_n / patch.normal_n)
     }
 }
 
 impl ScalarLaw {
+    /// μ at slip `w` (m/s), lagged slip rate `q` (m/s²), speed `v` (m/s); `patch`, the Hertz
+    /// semi-axes relative to the static load's (1 without load transfer), is read by the
+    /// `fastsim` law only (the others are laws of μ, not of a contact patch).
     #[inline]
-    pub(super) fn mu(&self, w: f64, q: f64, v: f64) -> f64 {
+    pub(super) fn mu(&self, w: f64, q: f64, v: f64, patch: f64) -> f64 {
         match self {
             ScalarLaw::Model(m, t_c) => m.mu_vt(w, q, v, *t_c),
             ScalarLaw::LossRecovery(l) => l.mu(w, q, v),
             ScalarLaw::Table(t) => t.mu(w, v),
-            ScalarLaw::Fastsim(f) => f.mu(w, v),
+            ScalarLaw::Fastsim(f) => f.mu(w, v, patch),
         }
     }
 }
@@ -347,5 +359,37 @@ mod tests {
         let mut bad = t.clone();
         bad.mu[1].pop();
         assert!(bad.check().unwrap_err().contains("row 2"));
+    }
+
+    #[test]
+    fn the_fastsim_patch_follows_the_wheel_load() {
+        use crate::contact::fastsim::{Bound, Fastsim, Friction, Patch};
+        let law = PreparedFastsim {
+            solver: Fastsim::new(12, 12, Bound::Elliptic).unwrap(),
+            patch: Patch {
+                a_m: 6e-3,
+                b_m: 4e-3,
+                g_pa: 8e10,
+                c11: 4.1,
+                c22: 3.6,
+                c23: 1.6,
+                normal_n: 60e3,
+            },
+            friction: Friction::constant(0.3),
+        };
+        let v = 20.0;
+        for ratio in [0.9_f64, 1.1, 1.25] {
+            // Creep region: F_x = G a b C11 ξ grows as ratio², Q as ratio³ → μ ∝ 1/ratio
+            // (the grid is relative to the patch, so the discrete solution scales exactly).
+            let w = 1e-6 * v;
+            let (m1, mr) = (law.mu(w, v, 1.0), law.mu(w, v, ratio));
+            assert!((mr * ratio / m1 - 1.0).abs() < 1e-9, "{ratio}: {m1} {mr}");
+            // Full sliding: μ whatever the load.
+            let (m1, mr) = (law.mu(0.5 * v, v, 1.0), law.mu(0.5 * v, v, ratio));
+            assert!(
+                (mr - m1).abs() < 1e-12 && (m1 - 0.3).abs() < 1e-9,
+                "{m1} {mr}"
+            );
+        }
     }
 }

@@ -160,7 +160,8 @@ pub struct SimOutput {
     pub duration_s: f64,
 }
 
-/// `law = "fastsim"` on the wheel's static patch.
+/// `law = "fastsim"` on the wheel's patch at the static load (resized per step under
+/// `load_transfer`, see [`foreign::PreparedFastsim`]).
 fn fastsim_law(sc: &Scene, f: &scene::FastsimLaw) -> Result<ScalarLaw, SimError> {
     use crate::contact::fastsim::{Fastsim, Friction, Patch};
     let contact_err = |source| SimError::Contact {

@@ -135,6 +135,9 @@ pub(super) struct SimState {
     pub normal_next: [f64; AXLES],
     /// 1/(2K) per axle at the current load, 1/N.
     pub half_inv_k: [f64; AXLES],
+    /// Hertz semi-axes per axle relative to the static load's, (Q/Q0)^(1/3) (1 without load
+    /// transfer; the `fastsim` law resizes its patch by it).
+    pub patch_ratio: [f64; AXLES],
     /// Wheel angle θ, rad (the tachometers count its pulses).
     pub theta: [f64; AXLES],
     /// Cylinder pressure, bar.
@@ -177,13 +180,13 @@ fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
 }
 
 /// μ and dμ/dΔv from a scalar law (a learned model, a foreign law) at slip `w` (m/s), slip
-/// rate `ddv` (m/s²), speed `v` (m/s); the slope by a central difference over ±0.1 mm/s (the
-/// laws are continuous; the implicit wheel step only needs the stiffness's size), never
-/// negative.
-fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64) -> (f64, f64) {
+/// rate `ddv` (m/s²), speed `v` (m/s), patch size `patch` relative to the static load's; the
+/// slope by a central difference over ±0.1 mm/s (the laws are continuous; the implicit wheel
+/// step only needs the stiffness's size), never negative.
+fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64, patch: f64) -> (f64, f64) {
     const H: f64 = 1e-4;
-    let mu = m.mu(w, ddv, v);
-    let slope = (m.mu(w + H, ddv, v) - m.mu(w - H, ddv, v)) / (2.0 * H);
+    let mu = m.mu(w, ddv, v, patch);
+    let slope = (m.mu(w + H, ddv, v, patch) - m.mu(w - H, ddv, v, patch)) / (2.0 * H);
     (
         mu,
         if slope.is_finite() {
@@ -307,6 +310,7 @@ impl<'a> Setup<'a> {
             normal: [0.0; AXLES],
             normal_next: [0.0; AXLES],
             half_inv_k: [0.5 / self.k0; AXLES],
+            patch_ratio: [1.0; AXLES],
             theta: [0.0; AXLES],
             p: [0.0; AXLES],
             slip: [0.0; AXLES],
@@ -415,7 +419,8 @@ impl<'a> Setup<'a> {
             // The law's slip-rate input is lagged like the hysteresis branch: fed instantly
             // it closes the same force → slip-rate → force loop.
             st.ddv_lag[a] += (st.ddv[a] - st.ddv_lag[a]) * self.k_hyst;
-            let (mu, slope) = scalar_adhesion(m, st.slip[a], st.ddv_lag[a], st.v);
+            let (mu, slope) =
+                scalar_adhesion(m, st.slip[a], st.ddv_lag[a], st.v, st.patch_ratio[a]);
             let (mu, slope) = if self.thermal.is_some() {
                 (mu * st.thermal_factor[a], slope * st.thermal_factor[a])
             } else {
@@ -570,6 +575,7 @@ impl<'a> Setup<'a> {
             counters.hit(Effect::LoadTransfer);
             let ratio = (st.normal[a] * 0.5 / self.q0).cbrt();
             st.half_inv_k[a] = 0.5 / (self.k0 * ratio * ratio);
+            st.patch_ratio[a] = ratio.max(1e-2);
             // The thermal effect's patch follows the load too (a, p_max ∝ Q^(1/3)).
             if let Some(th) = &self.thermal {
                 let ratio = ratio.max(1e-2);
