@@ -18,6 +18,8 @@ range is varied. Deterministic (fixed seed). Writes vtrack_censoring.csv beside 
 
 usage: python3 vtrack_censoring.py 270 340 410   (railgrip's 5/10/15 % values,
        printed by `cargo test --release --test contact_fastsim -- --nocapture v_track`)
+       python3 vtrack_censoring.py 278 310 347 --print-only   (the paper's FE, Tables 1-2;
+       prints, leaves the CSV the Rust test reads alone)
 """
 import csv
 import os
@@ -58,6 +60,11 @@ def main():
                          kept=round(kept, 3), slope_c_per_pct=round(slope, 2),
                          intercept_c=round(icpt, 1), t5_c=round(at[0], 1),
                          t10_c=round(at[1], 1), t15_c=round(at[2], 1)))
+    if "--print-only" in sys.argv[4:]:
+        print(f"model line: {icpt_model:.1f} + {slope_model:.2f} S")
+        for r in rows:
+            print(r)
+        return
     out = os.path.join(os.path.dirname(os.path.abspath(__file__)), "vtrack_censoring.csv")
     with open(out, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
