@@ -4,7 +4,8 @@
 //! trade-off of the full scene: real-time factor against the error of the truth (μ of axle 1,
 //! vehicle speed) relative to a 0.02 ms reference run; then what each effect costs alone (the
 //! minimal scene plus that one effect) and the FASTSIM law's cost by grid
-//! (`sim/thermal/20s`, `sim/fastsim_10x10/20s` in criterion as well).
+//! (`sim/thermal/20s`, `sim/fastsim_10x10/20s` in criterion as well), and the `thermal`
+//! effect's update interval against its error.
 //!
 //!     cargo bench --bench sim
 
@@ -107,6 +108,43 @@ fn bench(c: &mut Criterion) {
             (se / n as f64).sqrt(),
             dv
         );
+    }
+    thermal_update_tradeoff(base);
+}
+
+/// The `thermal` effect's update interval: real-time factor and the RMS μ error of all axles
+/// against a run at 0.02 ms steps updated every step, in a sliding scene (thermal alone: the
+/// wheels lock and slide) and a WSP scene (thermal, wsp, load_transfer).
+fn thermal_update_tradeoff(minimal_rtf: f64) {
+    let with = |effects: &str, step: f64, update: f64| {
+        let text = format!(
+            "name = \"bench\"\nseed = 1\neffects = [{effects}]\n[run]\ninitial_speed_kmh = 120.0\nmax_duration_s = 20.0\nstep_ms = {step}\n[adhesion]\nthermal_update_ms = {update}\n"
+        );
+        Scene::from_toml(&text, "bench.toml", None).unwrap()
+    };
+    eprintln!("thermal update ms | scene | real-time factor | cost vs minimal | RMS μ error (vs 0.02 ms steps, every step)");
+    for (name, effects) in [
+        ("slide", "\"thermal\""),
+        ("wsp", "\"thermal\", \"wsp\", \"load_transfer\""),
+    ] {
+        let reference = sim::simulate(&with(effects, 0.02, 0.02), None).unwrap();
+        for update in [0.1, 0.2, 0.5, 1.0, 2.0] {
+            let sc = with(effects, 0.1, update);
+            let out = sim::simulate(&sc, None).unwrap();
+            let n = out.truth.time_s.len().min(reference.truth.time_s.len());
+            let mut se = 0.0;
+            for a in 0..4 {
+                for i in 0..n {
+                    se += (out.truth.mu[a][i] - reference.truth.mu[a][i]).powi(2);
+                }
+            }
+            let rtf = real_time_factor(&sc);
+            eprintln!(
+                "{update:17} | {name:5} | {rtf:16.0} | {:+14.0} % | {:.2e}",
+                100.0 * (minimal_rtf / rtf - 1.0),
+                (se / (4 * n) as f64).sqrt()
+            );
+        }
     }
 }
 

@@ -670,6 +670,37 @@ thermal_scale_k = 100.0"#;
         mean_sliding_mu(&warm),
         mean_sliding_mu(&cold)
     );
+    // Updated every step instead of every 0.5 ms (the default): the slip power summed over
+    // the interval carries the same heat, so the temperatures agree within a few kelvin.
+    let every = sim::simulate(
+        &scene(&format!(
+            "{hot}\nthermal_update_ms = {}",
+            1e3 * warm.scene.run.step_s
+        )),
+        None,
+    )
+    .unwrap();
+    assert_eq!(every.counters.get(Effect::Thermal), 4 * every.steps);
+    let tread_end = |o: &railgrip::sim::SimOutput| {
+        let t = &o.truth.contact_temperature_c[0];
+        t[t.len() - 1]
+    };
+    assert!(
+        (tread_end(&every) - tread_end(&warm)).abs() < 5.0,
+        "{} vs {}",
+        tread_end(&every),
+        tread_end(&warm)
+    );
+    for bad in ["0.0", "11.0", "nan"] {
+        let e = Scene::from_toml(
+            &format!("effects = [\"thermal\"]\n[adhesion]\nthermal_update_ms = {bad}"),
+            "s.toml",
+            None,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("thermal_update_ms"), "{e}");
+    }
     // The truth table carries the column.
     let dir = tempfile::tempdir().unwrap();
     let written = warm.write(dir.path(), "hot", OutputFormat::Csv).unwrap();

@@ -217,6 +217,7 @@ pub mod raw {
         pub thermal_scale_k: Option<f64>,
         pub thermal_residual: Option<f64>,
         pub thermal_pressure_exponent: Option<f64>,
+        pub thermal_update_ms: Option<f64>,
     }
 
     #[derive(Debug, Default, Deserialize)]
@@ -308,6 +309,9 @@ pub struct ThermalParams {
     pub residual: f64,
     /// γ of the pressure factor (σ/σ0)^(−γ).
     pub pressure_exponent: f64,
+    /// Interval at which temperatures and the friction factor are brought up to date from the
+    /// slip power summed since the last update, ms (a whole number of steps, at least one).
+    pub update_ms: f64,
 }
 
 impl AdhesionLaw {
@@ -884,6 +888,13 @@ const THERMAL_PRESSURE: Key = Key::num(
     0.1,
     "`thermal`: friction × (p_max/p_max,static)^(−γ) [assumed]",
 );
+const THERMAL_UPDATE: Key = Key::num(
+    "adhesion.thermal_update_ms",
+    "ms",
+    closed(0.001, 10.0),
+    0.5,
+    "`thermal`: temperatures and friction factor brought up to date at this interval (rounded to whole steps, at least one) from the slip power summed every step; README \"Figures\" gives its cost and error",
+);
 
 /// The keys of `[adhesion]`, in README order.
 pub const ADHESION_KEYS: &[&Key] = &[
@@ -926,6 +937,7 @@ pub const ADHESION_KEYS: &[&Key] = &[
     &THERMAL_SCALE,
     &THERMAL_RESIDUAL,
     &THERMAL_PRESSURE,
+    &THERMAL_UPDATE,
 ];
 
 impl AdhesionSection {
@@ -1038,6 +1050,7 @@ impl AdhesionSection {
                 scale_k: c.value(&THERMAL_SCALE, a.thermal_scale_k)?,
                 residual: c.value(&THERMAL_RESIDUAL, a.thermal_residual)?,
                 pressure_exponent: c.value(&THERMAL_PRESSURE, a.thermal_pressure_exponent)?,
+                update_ms: c.value(&THERMAL_UPDATE, a.thermal_update_ms)?,
             },
         })
     }

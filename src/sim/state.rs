@@ -48,26 +48,31 @@ pub(super) struct Setup<'a> {
     thermal: Option<Thermal>,
 }
 
-/// The `thermal` effect (README "Simulator"), per axle each step, from the step's slip Δv and
-/// contact force T (off the step's critical path, like the other slow coefficients):
+/// The `thermal` effect (README "Simulator"), per axle, from the slip Δv and contact force T
+/// (off the step's critical path, like the other slow coefficients). Every step adds the slip
+/// power |T Δv| to a sum; every k steps (k h = `adhesion.thermal_update_ms`, default 0.5 ms —
+/// about the contact's transit time 2a/v at 120 km/h; its cost and error are in README
+/// "Figures") the mean power P̄ over those steps updates:
 ///
 /// - tread temperature θ_w (both wheels of the axle, one heated layer of capacity C):
-///   C dθ_w/dt = δ |T Δv| − h_c (θ_w − θ_amb)            (explicit Euler, step h)
+///   C dθ_w/dt = δ P̄ − h_c (θ_w − θ_amb)            (explicit Euler, step k h)
 /// - flash temperature on top, full sliding over the centre strip of the wheel's Hertz patch
 ///   (seed 000 eq. 9 at depth 0 and eq. 11; [`crate::contact::flash`]):
 ///   ΔT_f = K δ μ p_max |Δv| √(2a / v) / √(πλρc), K = 1.53 the peak of Jaeger's integral for
-///   a semi-elliptic source (computed once by the strip model), μ = |T|/N, p_max and a of
+///   a semi-elliptic source (computed once by the strip model), μ|Δv| = P̄/N, p_max and a of
 ///   the patch at the axle's current load (∝ (Q/Q0)^(1/3), refreshed at the output rate like the
 ///   patch stiffness under load transfer), v ≥ 0.5 m/s; rail steel
 ///   [assumed: `flash::Material::RAIL_STEEL`];
-/// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor, computed after the
-///   step's contact and applied from the next step's contact coefficients on (a 0.1 ms lag,
-///   like the other slowly varying coefficients)
+/// - contact temperature θ_c = θ_w + ΔT_f, and the friction factor, applied from the next
+///   step's contact coefficients on
 ///   f(σ, θ) = (σ/σ0)^(−γ) · [r + (1 − r) e^(−max(0, θ_c − θ_ref)/θ_s)],
 ///   σ = p_max, σ0 its static value: friction falling with temperature and pressure as seed
 ///   000's f(σ, θ) does, in a form railgrip assumes (every parameter [assumed]).
 struct Thermal {
     partition: f64,
+    /// Steps per update k, 1/k, and k h / C (K/J).
+    window: u32,
+    inv_window: f64,
     h_per_capacity: f64,
     cooling: f64,
     ambient_c: f64,
@@ -105,9 +110,12 @@ impl Thermal {
         .peak_c;
         let q_unit = 1.5 / (PI * 1e-6);
         let flash_gain = rise / (q_unit * (2e-3f64).sqrt());
+        let window = (t.update_ms * 1e-3 / sc.run.step_s).round().clamp(1.0, 1e6) as u32;
         Ok(Thermal {
             partition: t.partition,
-            h_per_capacity: sc.run.step_s / t.tread_capacity_j_per_k,
+            window,
+            inv_window: 1.0 / window as f64,
+            h_per_capacity: window as f64 * sc.run.step_s / t.tread_capacity_j_per_k,
             cooling: t.cooling_w_per_k,
             ambient_c: sc.run.ambient_temperature_c,
             reference_c: t.reference_c,
@@ -161,6 +169,9 @@ pub(super) struct SimState {
     pub tread_c: [f64; AXLES],
     pub contact_c: [f64; AXLES],
     pub thermal_factor: [f64; AXLES],
+    /// `thermal`: Σ |T Δv| over the steps since the last update (W), and their count.
+    pub thermal_power: [f64; AXLES],
+    pub thermal_steps: u32,
 }
 
 /// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
@@ -325,6 +336,8 @@ impl<'a> Setup<'a> {
             tread_c: [self.sc.run.ambient_temperature_c; AXLES],
             contact_c: [self.sc.run.ambient_temperature_c; AXLES],
             thermal_factor: [1.0; AXLES],
+            thermal_power: [0.0; AXLES],
+            thermal_steps: 0,
         };
         let speed = self.speed_factor(v);
         self.prepare::<V>(isa, speed, &mut st, counters);
@@ -517,8 +530,10 @@ impl<'a> Setup<'a> {
         }
     }
 
-    /// The `thermal` effect's stage (see [`Thermal`]): temperatures from this step's slip and
-    /// force, and the friction factor the next step's contact coefficients use.
+    /// The `thermal` effect's stage (see [`Thermal`]): every step the slip power |T Δv| is
+    /// summed; every k-th step (`adhesion.thermal_update_ms`) the temperatures are brought up
+    /// to date from the mean power and the friction factor the next step's contact
+    /// coefficients use is renewed.
     #[inline(always)]
     pub(super) fn thermal<V: Select>(
         &self,
@@ -530,33 +545,54 @@ impl<'a> Setup<'a> {
             return;
         };
         counters.add(Effect::Thermal, AXLES as u64);
-        let splat = |x: f64| V::splat(isa, x);
-        let gain = splat(th.flash_gain * th.partition / st.v.max(0.5).sqrt());
         let mut i = 0;
         // The four axles side by side (the same operations on every path: bit-identical).
         while i < AXLES {
             let w = V::load_scalars(isa, &st.slip[i..]).abs();
             let t = V::load(isa, &st.ax.t_star[i..]).abs();
+            t.fma(w, V::load(isa, &st.thermal_power[i..]))
+                .store(&mut st.thermal_power[i..]);
+            i += V::N;
+        }
+        st.thermal_steps += 1;
+        if st.thermal_steps < th.window {
+            return;
+        }
+        st.thermal_steps = 0;
+        let splat = |x: f64| V::splat(isa, x);
+        let gain = splat(th.flash_gain * th.partition / st.v.max(0.5).sqrt());
+        let mut i = 0;
+        while i < AXLES {
+            // Mean slip power over the window, P̄ = Σ|T Δv| / k (W).
+            let power = V::load(isa, &st.thermal_power[i..]).mul(splat(th.inv_window));
+            splat(0.0).store(&mut st.thermal_power[i..]);
             let n = V::load(isa, &st.normal[i..]);
             let tread = V::load(isa, &st.tread_c[i..]);
-            // C dθ_w/dt = δ |T Δv| − h_c (θ_w − θ_amb).
+            // C dθ_w/dt = δ P̄ − h_c (θ_w − θ_amb), one Euler step of k h.
             let heat = splat(th.partition)
-                .mul(t)
-                .mul(w)
+                .mul(power)
                 .sub(splat(th.cooling).mul(tread.sub(splat(th.ambient_c))));
             let tread = heat.fma(splat(th.h_per_capacity), tread);
             tread.store(&mut st.tread_c[i..]);
-            // μ = |T|/N (the loads stay positive; floored at 1 N against a division by 0).
-            let mu = t.div(n.max(splat(1.0)));
+            // μ |Δv| = P̄ / N (the loads stay positive; floored at 1 N against a division by 0).
+            let mu_w = power.div(n.max(splat(1.0)));
             let theta = gain
-                .mul(mu)
+                .mul(mu_w)
                 .mul(V::load(isa, &st.thermal_p_max[i..]))
-                .mul(w)
                 .fma(V::load(isa, &st.thermal_sqrt_2a[i..]), tread);
             theta.store(&mut st.contact_c[i..]);
-            // Below θ_ref the friction is unchanged (e^0 = 1).
-            let excess = theta.sub(splat(th.reference_c)).max(splat(0.0));
-            let hot = exp_lanes(excess.mul(splat(-th.inv_scale)));
+            // Below θ_ref the friction is unchanged (e^0 = 1, exactly: `exp_lanes(±0) = 1`).
+            // While no lane is above it — braking without a slide — the exponential is
+            // skipped with the same bits (the lanes read back from the store).
+            let hot = if st.contact_c[i..i + V::N]
+                .iter()
+                .any(|t| *t > th.reference_c)
+            {
+                let excess = theta.sub(splat(th.reference_c)).max(splat(0.0));
+                exp_lanes(excess.mul(splat(-th.inv_scale)))
+            } else {
+                splat(1.0)
+            };
             hot.fma(splat(1.0 - th.residual), splat(th.residual))
                 .mul(V::load(isa, &st.thermal_pressure[i..]))
                 .store(&mut st.thermal_factor[i..]);
