@@ -192,12 +192,14 @@ fn hysteresis_target<V: Select>(depth: f64, ddv: V, inv_ddv0: f64) -> V {
 
 /// μ and dμ/dΔv from a scalar law (a learned model, a foreign law) at slip `w` (m/s), slip
 /// rate `ddv` (m/s²), speed `v` (m/s), patch size `patch` relative to the static load's; the
-/// slope by a central difference over ±0.1 mm/s (the laws are continuous; the implicit wheel
-/// step only needs the stiffness's size), never negative.
+/// slope by a forward difference over 0.1 mm/s away from zero slip (two calls, not a central
+/// difference's three: the laws are continuous and the implicit wheel step only needs the
+/// stiffness's size), never negative.
 fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64, patch: f64) -> (f64, f64) {
     const H: f64 = 1e-4;
     let mu = m.mu(w, ddv, v, patch);
-    let slope = (m.mu(w + H, ddv, v, patch) - m.mu(w - H, ddv, v, patch)) / (2.0 * H);
+    let h = if w < 0.0 { -H } else { H };
+    let slope = (m.mu(w + h, ddv, v, patch) - mu) / h;
     (
         mu,
         if slope.is_finite() {
