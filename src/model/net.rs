@@ -284,12 +284,21 @@ impl Net {
         let (mut cur, mut next) = (&mut a, &mut b);
         let mut n_prev = self.nh;
         for layer in &self.deep {
-            for i in (0..layer.pad).step_by(V::N) {
-                let mut z2 = V::load(isa, &layer.b[i..]);
-                for (h, &t) in cur.iter().enumerate().take(n_prev) {
-                    z2 = V::load(isa, &layer.wc[h * layer.pad + i..]).fma(V::splat(isa, t), z2);
-                }
-                simd::tanh_of_doubled(z2).store(&mut next[i..]);
+            // Eight, then two, then one register of neurons at a time: each neuron's sum is
+            // one chain of fma in h order whatever the blocking (same bits), but R chains side
+            // by side keep the FMA units busy instead of waiting out each one's latency.
+            let mut i = 0;
+            while i + 8 * V::N <= layer.pad {
+                Self::deep_block::<V, 8>(isa, layer, &cur[..n_prev], i, next);
+                i += 8 * V::N;
+            }
+            while i + 2 * V::N <= layer.pad {
+                Self::deep_block::<V, 2>(isa, layer, &cur[..n_prev], i, next);
+                i += 2 * V::N;
+            }
+            while i < layer.pad {
+                Self::deep_block::<V, 1>(isa, layer, &cur[..n_prev], i, next);
+                i += V::N;
             }
             std::mem::swap(&mut cur, &mut next);
             n_prev = layer.n;
@@ -299,6 +308,29 @@ impl Net {
             y += w * t;
         }
         (y - self.oy) / self.gy
+    }
+
+    /// Neurons `i..i + R·N` of a further hidden layer: 2z_g = fma(2W_gh, t_h, ·) over the
+    /// previous layer's activations `t` in order from 2b_g, then tanh, into `out`.
+    #[inline(always)]
+    fn deep_block<V: Lanes, const R: usize>(
+        isa: V::Isa,
+        layer: &DeepLayer,
+        t: &[f64],
+        i: usize,
+        out: &mut [f64; MAX_HIDDEN],
+    ) {
+        let mut z2: [V; R] = std::array::from_fn(|r| V::load(isa, &layer.b[i + r * V::N..]));
+        for (h, &th) in t.iter().enumerate() {
+            let th = V::splat(isa, th);
+            let row = &layer.wc[h * layer.pad + i..];
+            for (r, z) in z2.iter_mut().enumerate() {
+                *z = V::load(isa, &row[r * V::N..]).fma(th, *z);
+            }
+        }
+        for (r, z) in z2.into_iter().enumerate() {
+            simd::tanh_of_doubled(z).store(&mut out[i + r * V::N..]);
+        }
     }
 
     #[inline(always)]
