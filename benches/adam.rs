@@ -10,7 +10,8 @@
 //!
 //! Criterion times one Adam epoch of 3-32-32-1 (`adam/epoch_3-32-32-1`) and the evaluation of
 //! networks of one and two hidden layers (`model_deep/…`: 1 024 single calls, one batch of
-//! 1 024). Then, once, side by side on the same samples, initial weights and hyperparameters
+//! 1 024), and prints the same networks' exported C header timed at `cc -O2` and
+//! `cc -O3 -march=native` (skipped without cc). Then, once, side by side on the same samples, initial weights and hyperparameters
 //! (burn's betas and epsilon), for H = 8, 32, 64: railgrip's `adam::train` for 10 epochs
 //! without early stopping, and `benches/peers/adam_torch.py` (PyTorch, float64, 1 thread and
 //! all threads) — seconds per epoch and the validation MSE after the last epoch. The PyTorch
@@ -30,7 +31,7 @@ use railgrip::identify::adam::{self, AdamData, AdamSettings};
 use railgrip::identify::dataset::{Dataset, Normalised};
 use railgrip::identify::mlp::{self, Arch};
 use railgrip::identify::InputSet;
-use railgrip::model::Model;
+use railgrip::model::{c_header, Model};
 use railgrip::Pipeline;
 
 fn data() -> Dataset {
@@ -153,6 +154,26 @@ fn bench(c: &mut Criterion) {
         });
     }
     g.finish();
+
+    // The exported C header of the same networks (3 inputs: rg_mu_v and the batch with speeds).
+    eprintln!("C header of the same networks, ns per μ: single call / batch sample");
+    for layers in ["[10]", "[32]", "[8, 8]", "[32, 32]", "[64, 64]"] {
+        let m = model(layers);
+        let header = c_header::c_header(&m.file, "rg", "bench");
+        for r in common::time_c_header(
+            &header,
+            "rg_mu_v(dv[i], ddv[i], v[i])",
+            "rg_mu_batch(dv, ddv, v, out, 1024)",
+        ) {
+            match r {
+                Ok((opt, ns, nb)) => eprintln!(
+                    "  {:<12} cc {opt:<17} {ns:8.1} / {nb:8.1}",
+                    m.file.architecture()
+                ),
+                Err(e) => eprintln!("  SKIPPED C header timing: {e}"),
+            }
+        }
+    }
 
     // Side by side with PyTorch on the same samples, start and hyperparameters.
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("target/bench-data");

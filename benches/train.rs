@@ -225,64 +225,16 @@ fn bench(c: &mut Criterion) {
 
     // The C header, timed by a small C program.
     let header = c_header::c_header(&file, "rg", "bench");
-    let cdir = tempfile::tempdir().unwrap();
-    std::fs::write(cdir.path().join("model.h"), header).unwrap();
-    let prog = r#"#define _POSIX_C_SOURCE 199309L
-#include <stdio.h>
-#include <time.h>
-#include "model.h"
-int main(void) {
-    double dv[1024], ddv[1024], s = 0.0, best = 1e30;
-    int i, r, k;
-    for (i = 0; i < 1024; ++i) { dv[i] = 0.004 * i; ddv[i] = ((i * 7919) % 1000) / 100.0 - 5.0; }
-    for (r = 0; r < 20; ++r) {
-        struct timespec a, b;
-        clock_gettime(CLOCK_MONOTONIC, &a);
-        for (k = 0; k < 200; ++k) for (i = 0; i < 1024; ++i) s += rg_mu(dv[i], ddv[i]);
-        clock_gettime(CLOCK_MONOTONIC, &b);
-        double ns = ((b.tv_sec - a.tv_sec) * 1e9 + (b.tv_nsec - a.tv_nsec)) / (200.0 * 1024.0);
-        if (ns < best) best = ns;
-    }
-    double out[1024], best_b = 1e30;
-    for (r = 0; r < 20; ++r) {
-        struct timespec a, b;
-        clock_gettime(CLOCK_MONOTONIC, &a);
-        for (k = 0; k < 200; ++k) { rg_mu_batch(dv, ddv, 0, out, 1024); s += out[k]; }
-        clock_gettime(CLOCK_MONOTONIC, &b);
-        double ns = ((b.tv_sec - a.tv_sec) * 1e9 + (b.tv_nsec - a.tv_nsec)) / (200.0 * 1024.0);
-        if (ns < best_b) best_b = ns;
-    }
-    printf("%.2f %.2f %g\n", best, best_b, s);
-    return 0;
-}
-"#;
-    std::fs::write(cdir.path().join("bench.c"), prog).unwrap();
-    let exe = cdir.path().join("bench");
-    for opt in ["-O2", "-O3 -march=native"] {
-        match Command::new("cc")
-            .arg("-std=c99")
-            .args(opt.split(' '))
-            .arg("-o")
-            .arg(&exe)
-            .arg(cdir.path().join("bench.c"))
-            .arg("-lm")
-            .output()
-        {
-            Ok(o) if o.status.success() => {
-                let run = Command::new(&exe).output().unwrap();
-                let text = String::from_utf8_lossy(&run.stdout);
-                let mut it = text.split_whitespace();
-                let ns: f64 = it.next().unwrap().parse().unwrap();
-                let nb: f64 = it.next().unwrap().parse().unwrap();
-                eprintln!(
-                    "C header (cc {opt}): {ns:.1} ns per rg_mu call, {nb:.1} ns per sample in rg_mu_batch (best of 20 × 204 800)"
-                );
-            }
-            Ok(o) => eprintln!(
-                "SKIPPED C header timing: cc failed: {}",
-                String::from_utf8_lossy(&o.stderr)
+    for r in common::time_c_header(
+        &header,
+        "rg_mu(dv[i], ddv[i])",
+        "rg_mu_batch(dv, ddv, 0, out, 1024)",
+    ) {
+        match r {
+            Ok((opt, ns, nb)) => eprintln!(
+                "C header (cc {opt}): {ns:.1} ns per rg_mu call, {nb:.1} ns per sample in rg_mu_batch (best of 20 × 204 800)"
             ),
-            Err(e) => eprintln!("SKIPPED C header timing: no cc ({e})"),
+            Err(e) => eprintln!("SKIPPED C header timing: {e}"),
         }
     }
 }

@@ -135,11 +135,16 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         array(&format!("{prefix}_w1c"), &w1c),
         array(&format!("{prefix}_b1"), &h.biases),
         array(&format!("{prefix}_wo"), &o.weights[0]),
+        // Stored by input neuron h, then output neuron g (W_gh at h·n + g): the C loop adds
+        // one input's terms to every output at a time (see `_net` in c/mlp.h.in).
         array(
             &format!("{prefix}_wd"),
             &deep
                 .iter()
-                .flat_map(|l| l.weights.iter().flatten().copied())
+                .flat_map(|l| {
+                    let n_prev = l.weights.first().map_or(0, Vec::len);
+                    (0..n_prev).flat_map(move |h| l.weights.iter().map(move |row| row[h]))
+                })
                 .collect::<Vec<f64>>(),
         ),
         array(

@@ -454,3 +454,85 @@ pub fn trainbr_numpy(problem: &Path, probe: &str) -> Result<(Vec<f64>, Vec<f64>)
     let v = run_numpy_peer(problem, 1, Some(1), probe)?;
     Ok((numbers(&v, "train_mse")?, numbers(&v, "gamma")?))
 }
+
+/// Times an exported C header (`c_header::c_header(…, "rg", …)`) by a small C program compiled
+/// with the system `cc` at `-O2` and at `-O3 -march=native`: ns per single call and ns per
+/// sample of the batch function over 1 024 inputs (slip 0…4 m/s, slip rates ±5 m/s², speeds
+/// 10…39 m/s), best of 20 × 200 rounds. `single` is the C call on input `i` (e.g.
+/// `rg_mu(dv[i], ddv[i])`), `batch` the batch call into `out` (e.g.
+/// `rg_mu_batch(dv, ddv, 0, out, 1024)`). One line per level: (flags, ns single, ns batch),
+/// or why it could not run (no cc, a compile error).
+pub fn time_c_header(
+    header: &str,
+    single: &str,
+    batch: &str,
+) -> Vec<Result<(String, f64, f64), String>> {
+    let dir = match tempfile::tempdir() {
+        Ok(d) => d,
+        Err(e) => return vec![Err(format!("no temporary folder: {e}"))],
+    };
+    let prog = format!(
+        r#"#define _POSIX_C_SOURCE 199309L
+#include <stdio.h>
+#include <time.h>
+#include "model.h"
+int main(void) {{
+    double dv[1024], ddv[1024], v[1024], out[1024], s = 0.0, best = 1e30, best_b = 1e30;
+    int i, r, k;
+    for (i = 0; i < 1024; ++i) {{
+        dv[i] = 0.004 * i; ddv[i] = ((i * 7919) % 1000) / 100.0 - 5.0; v[i] = 10.0 + (i % 30);
+    }}
+    for (r = 0; r < 20; ++r) {{
+        struct timespec a, b;
+        clock_gettime(CLOCK_MONOTONIC, &a);
+        for (k = 0; k < 200; ++k) for (i = 0; i < 1024; ++i) s += {single};
+        clock_gettime(CLOCK_MONOTONIC, &b);
+        double ns = ((b.tv_sec - a.tv_sec) * 1e9 + (b.tv_nsec - a.tv_nsec)) / (200.0 * 1024.0);
+        if (ns < best) best = ns;
+    }}
+    for (r = 0; r < 20; ++r) {{
+        struct timespec a, b;
+        clock_gettime(CLOCK_MONOTONIC, &a);
+        for (k = 0; k < 200; ++k) {{ {batch}; s += out[k]; }}
+        clock_gettime(CLOCK_MONOTONIC, &b);
+        double ns = ((b.tv_sec - a.tv_sec) * 1e9 + (b.tv_nsec - a.tv_nsec)) / (200.0 * 1024.0);
+        if (ns < best_b) best_b = ns;
+    }}
+    printf("%.2f %.2f %g\n", best, best_b, s);
+    return 0;
+}}
+"#
+    );
+    let written = std::fs::write(dir.path().join("model.h"), header)
+        .and_then(|_| std::fs::write(dir.path().join("bench.c"), prog));
+    if let Err(e) = written {
+        return vec![Err(format!("cannot write the C program: {e}"))];
+    }
+    let exe = dir.path().join("bench");
+    ["-O2", "-O3 -march=native"]
+        .into_iter()
+        .map(|opt| {
+            let o = std::process::Command::new("cc")
+                .arg("-std=c99")
+                .args(opt.split(' '))
+                .arg("-o")
+                .arg(&exe)
+                .arg(dir.path().join("bench.c"))
+                .arg("-lm")
+                .output()
+                .map_err(|e| format!("no cc ({e})"))?;
+            if !o.status.success() {
+                return Err(format!("cc failed: {}", String::from_utf8_lossy(&o.stderr)));
+            }
+            let run = std::process::Command::new(&exe)
+                .output()
+                .map_err(|e| format!("cannot run the C program: {e}"))?;
+            let text = String::from_utf8_lossy(&run.stdout);
+            let mut it = text.split_whitespace().map(str::parse::<f64>);
+            match (it.next(), it.next()) {
+                (Some(Ok(ns)), Some(Ok(nb))) => Ok((opt.to_string(), ns, nb)),
+                _ => Err(format!("unexpected output {text:?}")),
+            }
+        })
+        .collect()
+}
