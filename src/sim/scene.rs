@@ -277,8 +277,8 @@ pub enum AdhesionLaw {
     /// No effect of the Polach law may be listed, nor `temperature`.
     Table(super::foreign::SlipTable),
     /// Kalker's FASTSIM ([`crate::contact::fastsim`]) on the wheel's Hertz patch (at the static
-    /// load; with `load_transfer` listed it follows the wheel's load), with Polach's falling friction μ0[(1 − A)e^(−Bw) + A] (`mu0`, `a_ratio`,
-    /// `b_s_per_m`) and optionally the modified FASTSIM's stiffness reduction. Carries its own
+    /// load; with `load_transfer` listed it follows the wheel's load), with Polach's falling
+    /// friction μ0[(1 − A)e^(−Bw) + A] (`mu0`, `a_ratio`, `b_s_per_m`) and optionally the modified FASTSIM's stiffness reduction. Carries its own
     /// friction law, so falling_friction, hysteresis, cleaning and temperature may not be listed.
     Fastsim(FastsimLaw),
 }
