@@ -151,8 +151,10 @@ static inline double mlp_tanh(double z) {
 }
 
 /* The network: the first hidden layer from the normalised inputs, then each further hidden
- * layer (MLP_N_DEEP of them: z_g = b_g + sum_h W_gh t_h, fused in order of h, t_g = tanh z_g),
- * then y = b_o + sum_h w_o,h t_h over the last layer in order (product, then sum). */
+ * layer (MLP_N_DEEP of them: z_g = b_g + sum_h W_gh t_h, fused in order of h, t_g = tanh z_g;
+ * one input neuron h at a time is added to every z_g, so the sums are independent chains the
+ * compiler can run side by side, each still in order of h), then y = b_o + sum_h w_o,h t_h
+ * over the last layer in order (product, then sum). */
 static inline double mlp_net(const double x[4]) {
     double xn[4] = {0.0, 0.0, 0.0, 0.0};
     double a[MLP_MAX_WIDTH], b[MLP_MAX_WIDTH];
@@ -177,11 +179,17 @@ static inline double mlp_net(const double x[4]) {
     for (l = 0; l < MLP_N_DEEP; ++l) {
         int n = mlp_deep_n[l];
         for (g = 0; g < n; ++g) {
-            double z = mlp_bd[b_at + g];
-            for (h = 0; h < n_prev; ++h) {
-                z = MLP_FMA(mlp_wd[w_at + (long)g * n_prev + h], cur[h], z);
+            next[g] = mlp_bd[b_at + g];
+        }
+        for (h = 0; h < n_prev; ++h) {
+            const double t = cur[h];
+            const double *w = mlp_wd + w_at + (long)h * n;
+            for (g = 0; g < n; ++g) {
+                next[g] = MLP_FMA(w[g], t, next[g]);
             }
-            next[g] = mlp_tanh(z);
+        }
+        for (g = 0; g < n; ++g) {
+            next[g] = mlp_tanh(next[g]);
         }
         w_at += (long)n * n_prev;
         b_at += n;
