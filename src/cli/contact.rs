@@ -330,7 +330,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     );
     match &args.out {
         Some(path) => {
-            railgrip::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
+            railgrip_io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
                 .with_context(|| format!("{}: cannot write", path.display()))?;
             eprintln!("wrote {} ({} points)", path.display(), args.steps);
         }

@@ -322,7 +322,7 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
     }
     let m = ModelFile::read(&args.model)?;
     let text = c_header::c_header(&m, &args.prefix, &args.model.display().to_string());
-    railgrip::atomic::write_atomically(&args.c_header, |w| w.write_all(text.as_bytes()))
+    railgrip_io::atomic::write_atomically(&args.c_header, |w| w.write_all(text.as_bytes()))
         .with_context(|| format!("{}: cannot write", args.c_header.display()))?;
     let what = match m.kind {
         railgrip::model::ModelKind::Mlp => format!(
@@ -450,7 +450,7 @@ pub fn eval(args: EvalArgs) -> anyhow::Result<u8> {
             .collect();
         out.push_str(&format!("{},{mu:?}\n", row.join(",")));
     }
-    railgrip::atomic::write_atomically(&args.output, |w| w.write_all(out.as_bytes()))
+    railgrip_io::atomic::write_atomically(&args.output, |w| w.write_all(out.as_bytes()))
         .with_context(|| format!("{}: cannot write", args.output.display()))?;
     println!("wrote      {}", args.output.display());
     Ok(EXIT_OK)

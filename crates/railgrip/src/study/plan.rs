@@ -15,7 +15,7 @@ use crate::config::Pipeline;
 use crate::sim::Scene;
 
 /// The bundled default plan (`pipelines/study.toml`).
-pub const DEFAULT_PLAN_TOML: &str = include_str!("../../pipelines/study.toml");
+pub const DEFAULT_PLAN_TOML: &str = include_str!("../../../../pipelines/study.toml");
 /// How the default plan is named in messages and outputs.
 pub const DEFAULT_PLAN_NAME: &str = "<embedded pipelines/study.toml>";
 
@@ -190,9 +190,7 @@ impl Plan {
             (None, None) => None,
             (None, Some(toml::Value::String(s))) => Some(match dir {
                 Some(d) => d.join(s),
-                None => Path::new(env!("CARGO_MANIFEST_DIR"))
-                    .join("pipelines")
-                    .join(s),
+                None => crate::source_tree().join("pipelines").join(s),
             }),
             (None, Some(v)) => {
                 return Err(err(
@@ -302,7 +300,7 @@ impl Plan {
         }
         let rows_dir = dir
             .map(Path::to_path_buf)
-            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines"));
+            .unwrap_or_else(|| crate::source_tree().join("pipelines"));
         let simulator = simulator_specs(&doc, file, &rows_dir)?;
         let contact = contact_specs(&doc, file)?;
         Ok(Plan {

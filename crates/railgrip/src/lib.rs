@@ -10,19 +10,15 @@
 //! The library never prints, exits or reads the terminal; the `railgrip` binary does.
 
 pub mod archive;
-pub mod atomic;
 pub mod campaign;
 pub mod config;
-pub mod contact;
 pub mod estimate;
 pub mod format;
 pub mod fuzzing;
 pub mod hash;
 pub mod identify;
 pub mod ingest;
-pub mod input;
 pub mod linalg;
-pub mod model;
 pub mod outdir;
 pub mod replay;
 pub mod report;
@@ -30,11 +26,22 @@ pub mod rng;
 pub mod score;
 pub mod signal;
 pub mod sim;
-pub(crate) mod simd;
 pub mod study;
 pub mod table;
 pub mod units;
 pub mod vehicle;
 
+pub use railgrip_contact as contact;
+pub(crate) use railgrip_io::{atomic, input};
+pub use railgrip_model as model;
+pub(crate) use railgrip_simd as simd;
+
 pub use config::Pipeline;
 pub use ingest::{ingest_file, RunLog};
+
+/// The root of the source tree this library was built from, where `fixtures/` and
+/// `pipelines/` live (the bundled archive and the study's scenes).
+pub(crate) fn source_tree() -> &'static std::path::Path {
+    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.ancestors().nth(2).unwrap_or(manifest)
+}

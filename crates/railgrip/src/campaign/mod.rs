@@ -155,7 +155,7 @@ impl Outcome {
 
 /// The bundled archive of this source tree (`fixtures/archive`).
 pub fn bundled_archive() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/archive")
+    crate::source_tree().join("fixtures/archive")
 }
 
 /// The logs of a campaign with their run names: a folder, searched on disk (leaving out

@@ -32,7 +32,7 @@ pub use train::{
 pub use vehicle::Vehicle;
 
 /// The embedded default pipeline (`pipelines/uic_z1.toml`).
-pub const DEFAULT_PIPELINE_TOML: &str = include_str!("../../pipelines/uic_z1.toml");
+pub const DEFAULT_PIPELINE_TOML: &str = include_str!("../../../../pipelines/uic_z1.toml");
 /// How the embedded default is named in messages and provenance.
 pub const DEFAULT_PIPELINE_NAME: &str = "<embedded pipelines/uic_z1.toml>";
 

@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::{polach, ModelError};
-use crate::contact::ContactError;
+use railgrip_contact::ContactError;
 
 /// Largest hidden layer the evaluators take.
 pub const MAX_HIDDEN: usize = 256;
@@ -174,7 +174,7 @@ pub const MAX_CELLS_PER_INPUT: usize = 1024;
 /// evaluation rule), `cells[c]` cells along input c. A cell is supported when at least
 /// `min_samples` training and validation samples fall in it. The evaluators return the network
 /// where every neighbouring cell centre is supported and blend to `fallback_mu` towards
-/// unsupported ones and beyond the grid (see [`crate::model`], step 3).
+/// unsupported ones and beyond the grid (see [`crate`], step 3).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SupportSpec {
@@ -376,7 +376,7 @@ impl ModelFile {
     /// Writes the file atomically.
     pub fn write(&self, path: &Path) -> Result<(), ModelError> {
         let text = self.to_json();
-        crate::atomic::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
+        railgrip_io::atomic::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
             .map_err(|source| ModelError::Write {
                 file: path.display().to_string(),
                 source,
@@ -412,7 +412,7 @@ impl ModelFile {
     pub fn read(path: &Path) -> Result<ModelFile, ModelError> {
         let file = path.display().to_string();
         let text =
-            crate::input::read_text_limited(path, crate::input::MAX_MODEL_BYTES, "model file")
+            railgrip_io::input::read_text_limited(path, railgrip_io::input::MAX_MODEL_BYTES, "model file")
                 .map_err(|source| ModelError::Read {
                     file: file.clone(),
                     source,

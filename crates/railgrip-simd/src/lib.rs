@@ -23,7 +23,7 @@
 
 /// The instruction sets railgrip's vector code uses, detected on this CPU.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Isa {
+pub enum Isa {
     /// AVX-512F and VL, with AVX2 and FMA.
     #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     Avx512(Avx512),
@@ -36,7 +36,7 @@ pub(crate) enum Isa {
 
 impl Isa {
     /// The widest set this CPU has (the one place railgrip asks the CPU).
-    pub(crate) fn detect() -> Isa {
+    pub fn detect() -> Isa {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::is_x86_feature_detected as has;
@@ -50,9 +50,9 @@ impl Isa {
         Isa::Portable
     }
 
-    /// This set and every narrower one, the widest last (for tests that compare the paths).
-    #[cfg(test)]
-    pub(crate) fn all_available() -> Vec<Isa> {
+    /// This set and every narrower one, the widest last (for tests and benchmarks that compare
+    /// the paths).
+    pub fn all_available() -> Vec<Isa> {
         match Isa::detect() {
             Isa::Avx512(t) => vec![Isa::Portable, Isa::Avx2(t.avx2()), Isa::Avx512(t)],
             Isa::Avx2(t) => vec![Isa::Portable, Isa::Avx2(t)],
@@ -63,26 +63,26 @@ impl Isa {
 
 /// Proof that the CPU has AVX2 and FMA; made only by [`Isa::detect`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Avx2(());
+pub struct Avx2(());
 
 /// Proof that the CPU has AVX-512F, AVX-512VL, AVX2 and FMA; made only by [`Isa::detect`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(crate) struct Avx512(());
+pub struct Avx512(());
 
 impl Avx512 {
     /// A CPU with AVX-512 as detected here also has AVX2 and FMA.
-    pub(crate) fn avx2(self) -> Avx2 {
+    pub fn avx2(self) -> Avx2 {
         Avx2(())
     }
 }
 
 /// The portable path's token: plain f64 needs no CPU feature.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub(crate) struct Portable;
+pub struct Portable;
 
 /// f64 lanes with the operations the evaluators use. A vector exists only where its
 /// instructions do (see the module documentation), so every operation is safe.
-pub(crate) trait Lanes: Copy {
+pub trait Lanes: Copy {
     /// Lanes per vector.
     const N: usize;
     /// The token that proves this CPU runs these lanes.
@@ -182,7 +182,7 @@ impl Lanes for f64 {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(crate) use x86::{F64x4, F64x8};
+pub use x86::{F64x4, F64x8};
 
 /// The x86 vectors. Every intrinsic call below is sound because a value of the vector type
 /// (or its token) exists only after [`Isa::detect`] found the instructions on this CPU.
@@ -194,17 +194,17 @@ mod x86 {
     /// Four f64 in an AVX2 register; exists only on a CPU with AVX2 and FMA.
     #[derive(Clone, Copy)]
     #[repr(transparent)]
-    pub(crate) struct F64x4(__m256d);
+    pub struct F64x4(__m256d);
 
     /// Eight f64 in an AVX-512 register; exists only on a CPU with AVX-512F.
     #[derive(Clone, Copy)]
     #[repr(transparent)]
-    pub(crate) struct F64x8(__m512d);
+    pub struct F64x8(__m512d);
 
     /// Per-lane truth values of [`F64x4`] (all ones or all zeros per lane).
     #[derive(Clone, Copy)]
     #[repr(transparent)]
-    pub(crate) struct Mask4(__m256d);
+    pub struct Mask4(__m256d);
 
     /// [`Lanes`] for an x86 vector type from its intrinsics (AVX2 + FMA for `F64x4`,
     /// AVX-512F for `F64x8`; the two sets name them alike).
@@ -387,7 +387,7 @@ mod x86 {
 }
 
 /// Lanes with comparisons and blends, for branch-free code (the simulator's axle step).
-pub(crate) trait Select: Lanes {
+pub trait Select: Lanes {
     /// Per-lane truth values.
     type Mask: Copy;
     /// self ≤ b (false where either is NaN).
@@ -477,7 +477,7 @@ impl Select for f64 {
 /// squares in 60-digit arithmetic and rounded to doubles by
 /// `tests/data/tanh/make_coefficients.py` (max relative error 2.4e-17 ≈ 0.2 ulp; the degree-13
 /// Taylor series it replaced was as accurate with two more terms).
-pub(crate) const EXPM1_P: [f64; 11] = [
+pub const EXPM1_P: [f64; 11] = [
     1.0,
     0.5000000000000006,
     0.1666666666666667,
@@ -527,18 +527,18 @@ fn exp_parts<V: Lanes>(x: V) -> (V, V) {
 /// e^x on every lane, x clamped to [−700, 700] (e^−700 ≈ 1e−304 is still a normal double):
 /// [`exp_parts`], within 1 ulp of the C library (tested).
 #[inline(always)]
-pub(crate) fn exp_lanes<V: Lanes>(x: V) -> V {
+pub fn exp_lanes<V: Lanes>(x: V) -> V {
     let isa = x.isa();
     let x = x.min(V::splat(isa, 700.0)).max(V::splat(isa, -700.0));
     let (scale, p) = exp_parts(x);
     scale.fma(p, scale)
 }
 
-/// tanh(z) on every lane given z2 = 2z — see [`crate::model::tanh_fast`] for the method and
+/// tanh(z) on every lane given z2 = 2z — see `railgrip_model::tanh_fast` for the method and
 /// accuracy. With x = z2 clamped to [−40, 40]: e^x − 1 = 2ⁿ P r + (2ⁿ − 1) in one fused step
 /// ([`exp_parts`]), tanh = (e^x − 1)/(e^x − 1 + 2).
 #[inline(always)]
-pub(crate) fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
+pub fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
     let isa = z2.isa();
     let x = z2.min(V::splat(isa, 40.0)).max(V::splat(isa, -40.0));
     let (scale, p) = exp_parts(x);
@@ -549,7 +549,7 @@ pub(crate) fn tanh_of_doubled<V: Lanes>(z2: V) -> V {
 /// Coefficients of the [6/6] Padé approximant atan(t)/t ≈ P(t²)/Q(t²), from
 /// `tests/data/atan/make_coefficients.py` (mpmath; max relative error of the rounded
 /// coefficients 1.2e-17 for |t| ≤ tan(π/8)).
-pub(crate) const ATAN_P: [f64; 7] = [
+pub const ATAN_P: [f64; 7] = [
     1.0,
     2.7866666666666666,
     2.8904347826086956,
@@ -558,7 +558,7 @@ pub(crate) const ATAN_P: [f64; 7] = [
     0.02213105421074192,
     0.0002685815488923002,
 ];
-pub(crate) const ATAN_Q: [f64; 7] = [
+pub const ATAN_Q: [f64; 7] = [
     1.0,
     3.12,
     3.7304347826086954,
@@ -579,7 +579,7 @@ pub(crate) const ATAN_Q: [f64; 7] = [
 /// six multiply levels; num = n Σ p_k…, den = m Σ q_k…. den has the magnitude of
 /// max(|b|, d)¹³ — the caller keeps b and d within about 10^±20.
 #[inline(always)]
-pub(crate) fn atan_parts<V: Select>(b: V, d: V) -> (V, V, V) {
+pub fn atan_parts<V: Select>(b: V, d: V) -> (V, V, V) {
     use std::f64::consts::{FRAC_PI_2, FRAC_PI_4};
     let isa = b.isa();
     let ab = b.abs();

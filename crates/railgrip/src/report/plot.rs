@@ -8,7 +8,7 @@ use plotters::prelude::*;
 use super::ReportError;
 use crate::model::Model;
 
-const FONT: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+const FONT: &[u8] = include_bytes!("../../../../assets/fonts/DejaVuSans.ttf");
 pub(super) const SIZE: (u32, u32) = (620, 340);
 /// Most points drawn per line and per scatter series (evenly strided).
 const MAX_LINE: usize = 500;

@@ -5,10 +5,10 @@
 
 use super::file::{ModelFile, Scaling, MAX_HIDDEN, MAX_INPUTS};
 use super::support::SupportEval;
-use crate::contact::saturation::she_ratio;
-use crate::simd::{self, Isa, Lanes, Portable};
+use railgrip_contact::saturation::she_ratio;
+use railgrip_simd::{self as simd, Isa, Lanes, Portable};
 #[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx2, Avx512, F64x4, F64x8};
+use railgrip_simd::{Avx2, Avx512, F64x4, F64x8};
 
 /// Samples per block of [`super::Model::mu_batch`].
 pub const LANES: usize = 16;
@@ -632,8 +632,8 @@ mod tests {
     fn every_compiled_path_gives_the_portable_bits() {
         // The two-input golden network over (Δv, dΔv/dt), and the four-input one over speeds
         // and temperatures too (inside, between, beyond its runs' and NaN: the references).
-        let two = include_str!("../../models/golden/synthetic_mlp.json");
-        let four = include_str!("../../models/golden/synthetic_mlp_4inputs.json");
+        let two = include_str!("../../../models/golden/synthetic_mlp.json");
+        let four = include_str!("../../../models/golden/synthetic_mlp_4inputs.json");
         for (text, vs, ts) in [
             (two, &[f64::NAN][..], &[f64::NAN][..]),
             (

@@ -24,7 +24,7 @@ use std::f64::consts::PI;
 use serde::{Deserialize, Serialize};
 
 use super::{Defect, ModelFile};
-use crate::contact::polach::{horner, PolachParams};
+use railgrip_contact::polach::{horner, PolachParams};
 
 /// Name of the optional third input of a Polach model with a temperature law.
 pub const TEMPERATURE_INPUT: &str = "ambient_temperature_c";
@@ -208,7 +208,7 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
 
 /// Whether a temperature law keeps 0 < μ0(T) ≤ 1.5 and 0 < k_S(T) ≤ k_A(T) ≤ 1 at
 /// [`TEMPERATURE_CHECKS`] points of its fitted range (`mu0` when the law has no μ0(T)).
-pub(crate) fn check_law(t: &TemperatureSpec, mu0: f64) -> Result<(), Defect> {
+pub fn check_law(t: &TemperatureSpec, mu0: f64) -> Result<(), Defect> {
     let [lo, hi] = t.fitted_range_c;
     for i in 0..TEMPERATURE_CHECKS {
         let temp = lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64;

@@ -235,7 +235,7 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("maxw", max_width.to_string()),
             ("arrays", arrays),
             ("b2", lit(o.biases[0] + 0.0)),
-            ("expm1_p", crate::simd::EXPM1_P.map(lit).join(", ")),
+            ("expm1_p", railgrip_simd::EXPM1_P.map(lit).join(", ")),
             ("gy", lit(gy)),
             ("oy", lit(oy)),
             ("blend", lit(creep.blend_mps)),
