@@ -37,10 +37,8 @@ fn table(marker: &str) -> BTreeMap<String, Vec<BTreeSet<String>>> {
     let mut rows = BTreeMap::new();
     for line in text[a..b].lines().filter(|l| l.starts_with("| `")) {
         let cells: Vec<&str> = line.split('|').map(str::trim).collect();
-        let rest: Vec<BTreeSet<String>> = cells[2..cells.len() - 1]
-            .iter()
-            .map(|c| names(c))
-            .collect();
+        let rest: Vec<BTreeSet<String>> =
+            cells[2..cells.len() - 1].iter().map(|c| names(c)).collect();
         for m in names(cells[1]) {
             rows.insert(m, rest.clone());
         }
@@ -127,7 +125,9 @@ fn every_crate_depends_only_on_what_the_crate_table_allows() {
 fn the_model_crate_builds_nothing_heavy() {
     // Whatever the table says: the front door for evaluation stays lean.
     let (_, deps) = manifest(&Path::new(ROOT).join("crates/railgrip-model/Cargo.toml"));
-    for heavy in ["polars", "burn", "argmin", "plotters", "mcap", "faer", "ndarray", "rayon"] {
+    for heavy in [
+        "polars", "burn", "argmin", "plotters", "mcap", "faer", "ndarray", "rayon",
+    ] {
         assert!(
             !deps.contains(heavy),
             "railgrip-model depends on {heavy}: keep it in the pipeline crate"

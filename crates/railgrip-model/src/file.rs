@@ -376,11 +376,13 @@ impl ModelFile {
     /// Writes the file atomically.
     pub fn write(&self, path: &Path) -> Result<(), ModelError> {
         let text = self.to_json();
-        railgrip_io::atomic::write_atomically(path, |w| std::io::Write::write_all(w, text.as_bytes()))
-            .map_err(|source| ModelError::Write {
-                file: path.display().to_string(),
-                source,
-            })
+        railgrip_io::atomic::write_atomically(path, |w| {
+            std::io::Write::write_all(w, text.as_bytes())
+        })
+        .map_err(|source| ModelError::Write {
+            file: path.display().to_string(),
+            source,
+        })
     }
 
     /// Parses and checks a model file's text; `file` names it in errors.
@@ -411,12 +413,15 @@ impl ModelFile {
     /// Reads a model file.
     pub fn read(path: &Path) -> Result<ModelFile, ModelError> {
         let file = path.display().to_string();
-        let text =
-            railgrip_io::input::read_text_limited(path, railgrip_io::input::MAX_MODEL_BYTES, "model file")
-                .map_err(|source| ModelError::Read {
-                    file: file.clone(),
-                    source,
-                })?;
+        let text = railgrip_io::input::read_text_limited(
+            path,
+            railgrip_io::input::MAX_MODEL_BYTES,
+            "model file",
+        )
+        .map_err(|source| ModelError::Read {
+            file: file.clone(),
+            source,
+        })?;
         Self::from_json(&text, &file)
     }
 
