@@ -69,9 +69,9 @@ fn model(layers: &str) -> Model {
         .replace("epochs = 1000", "epochs = 3");
     let pipeline = Pipeline::from_toml(&text, "bench pipeline").unwrap();
     let tables = common::bundled_tables(|n| n.starts_with("soap_"));
-    let mut t = railgrip::identify::train::train_mlp(&tables, &pipeline.train, None).unwrap();
-    t.reference_speed_mps = railgrip::identify::train::median_speed(&tables);
-    let creep = railgrip::identify::train::creep_spec(&pipeline, t.reference_speed_mps).unwrap();
+    let mut t = railgrip::identify::train_mlp(&tables, &pipeline.train, None).unwrap();
+    t.reference_speed_mps = railgrip::identify::median_speed(&tables);
+    let creep = railgrip::identify::creep_spec(&pipeline, t.reference_speed_mps).unwrap();
     let provenance = railgrip::model::Provenance {
         inputs: vec![],
         pipeline: "bench".into(),

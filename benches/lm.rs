@@ -29,8 +29,8 @@ use railgrip::config::SplitConfig;
 use railgrip::identify::dataset::{Dataset, RunTable};
 use railgrip::identify::lm::{self, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
-use railgrip::identify::train::MlpProblem;
 use railgrip::identify::InputSet;
+use railgrip::identify::MlpProblem;
 use railgrip::model::Epoch;
 
 const EPOCHS: u64 = 20;

@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 mod common;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use railgrip::identify::polach_fit::{fit_campaign, fit_polach, DEFAULT_START};
+use railgrip::identify::polach::{fit_campaign, fit_polach, DEFAULT_START};
 use railgrip::identify::RunTable;
 use railgrip::Pipeline;
 
@@ -31,7 +31,7 @@ const N: usize = 150_000;
 
 fn bench(c: &mut Criterion) {
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     let mut t = RunTable::default();
     'all: for r in &tables {

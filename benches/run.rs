@@ -13,7 +13,6 @@
 //!
 //!     cargo bench --bench run
 
-use std::sync::Arc;
 use std::time::Duration;
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -50,12 +49,12 @@ fn bench(c: &mut Criterion) {
             m.write(&out.models(), true).unwrap()
         })
     });
-    campaign::run(&root, &out, &p, opts(2, false), Arc::new(Quiet)).unwrap();
+    campaign::run(&root, &out, &p, opts(2, false), &Quiet).unwrap();
     g.bench_function("report", |b| {
         b.iter(|| railgrip::report::write_report(&out).unwrap())
     });
     g.bench_function("all", |b| {
-        b.iter(|| campaign::run(&root, &out, &p, opts(2, true), Arc::new(Quiet)).unwrap())
+        b.iter(|| campaign::run(&root, &out, &p, opts(2, true), &Quiet).unwrap())
     });
     g.finish();
 }

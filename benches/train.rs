@@ -29,8 +29,8 @@ use railgrip::config::SplitConfig;
 use railgrip::identify::dataset::{Dataset, Normalised};
 use railgrip::identify::lm::{LeastSquares, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
-use railgrip::identify::train::{creep_spec, median_speed, train_on, MlpProblem};
 use railgrip::identify::InputSet;
+use railgrip::identify::{creep_spec, median_speed, train_on, MlpProblem};
 use railgrip::model::{c_header, Model, Provenance};
 use railgrip::Pipeline;
 

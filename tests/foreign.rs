@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use railgrip::config::TrainConfig;
 use railgrip::identify::dataset::RunTable;
 use railgrip::identify::export::mlp_file;
-use railgrip::identify::train::{creep_spec, median_speed, train_mlp};
 use railgrip::identify::TrainedMlp;
+use railgrip::identify::{creep_spec, median_speed, train_mlp};
 use railgrip::model::{InputSet, Model, ModelFile, Provenance};
 use railgrip::score::{score, Grid, Sample, Score};
 use railgrip::sim::{self, AdhesionLaw, OutputFormat, Scene};
@@ -457,10 +457,10 @@ fn measure_networks_trained_on_the_truth() {
 /// absence explained.
 #[test]
 fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
-    use railgrip::identify::polach_fit::{fit_campaign, ParamStatus};
+    use railgrip::identify::polach::{fit_campaign, ParamStatus};
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     for law in ["lr", "table"] {
         let set = measurement_scenes(law, Some("_120kmh"));
         let (tables, _) = campaign(&set, dir.path());
@@ -546,10 +546,10 @@ fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
 #[test]
 fn temperature_laws_on_foreign_laws_follow_the_level() {
     use railgrip::contact::polach::{polach, PolachParams};
-    use railgrip::identify::polach_fit::fit_campaign;
+    use railgrip::identify::polach::fit_campaign;
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     for law in ["lr", "table"] {
         for seed in 1..=3 {
             let mut set = measurement_scenes(law, Some("_120kmh"));

@@ -11,9 +11,9 @@ use railgrip::config::SplitConfig;
 use railgrip::identify::dataset::{Dataset, RunTable};
 use railgrip::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
-use railgrip::identify::train::{creep_spec, train_on, MlpProblem};
 use railgrip::identify::InputSet;
 use railgrip::identify::TrainedMlp;
+use railgrip::identify::{creep_spec, train_on, MlpProblem};
 use railgrip::model::{c_header, InputFile, Model, ModelFile, Provenance};
 use railgrip::Pipeline;
 
@@ -230,10 +230,8 @@ fn multi_start_keeps_the_best_start_on_any_thread_count() {
             .unwrap()
     };
     let tables = [table];
-    let multi =
-        pool(2).install(|| railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap());
-    let again =
-        pool(1).install(|| railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap());
+    let multi = pool(2).install(|| railgrip::identify::train_mlp(&tables, &cfg, None).unwrap());
+    let again = pool(1).install(|| railgrip::identify::train_mlp(&tables, &cfg, None).unwrap());
     assert_eq!(multi.theta, again.theta);
     assert_eq!(multi.start_val_mse.len(), 4);
     let singles: Vec<TrainedMlp> = (5..9)
@@ -241,7 +239,7 @@ fn multi_start_keeps_the_best_start_on_any_thread_count() {
             let mut c = cfg.clone();
             c.seed = seed;
             c.starts = 1;
-            railgrip::identify::train::train_mlp(&tables, &c, None).unwrap()
+            railgrip::identify::train_mlp(&tables, &c, None).unwrap()
         })
         .collect();
     let best = singles
@@ -714,7 +712,7 @@ fn four_input_model() -> ModelFile {
     cfg.support_min_samples = 2;
     cfg.epochs = 200;
     let tables = tables_at_temperatures();
-    let mut t = railgrip::identify::train::train_mlp(&tables, &cfg, None).unwrap();
+    let mut t = railgrip::identify::train_mlp(&tables, &cfg, None).unwrap();
     t.reference_speed_mps = 25.0;
     let creep = creep_spec(&p, t.reference_speed_mps).unwrap();
     let provenance = Provenance {
@@ -855,9 +853,9 @@ fn four_input_files_and_data_are_checked() {
 
 /// A Polach model file with a temperature law over −20 … +20 °C.
 fn polach_model(with_temperature: bool) -> ModelFile {
-    use railgrip::identify::polach_fit::{PolachFit, TemperatureFit};
+    use railgrip::identify::polach::{PolachFit, TemperatureFit};
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let fit = PolachFit {
         group: "all runs".into(),
         mu0: 0.12,
@@ -866,7 +864,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         k_a: 0.15,
         k_s: 0.05,
         se: [0.001, 0.01, f64::INFINITY, 0.003, 0.001],
-        status: [railgrip::identify::polach_fit::ParamStatus::Estimated; 5],
+        status: [railgrip::identify::polach::ParamStatus::Estimated; 5],
         notes: vec![],
         profiles: vec![],
         samples: 4000,
@@ -922,7 +920,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
 fn polach_model_files_evaluate_the_contact_librarys_law_and_round_trip() {
     use railgrip::contact::polach::{polach, PolachParams};
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     golden_check("synthetic_polach.json", &polach_model(true).to_json());
     for with_t in [false, true] {
         let file = polach_model(with_t);
@@ -1222,7 +1220,7 @@ fn seed002_figures_on_simulated_runs() {
     );
     // Fig. 10: on validation data (axle 3) the network follows the estimated μ.
     let mut model_t = trained.clone();
-    model_t.reference_speed_mps = railgrip::identify::train::median_speed(&tables);
+    model_t.reference_speed_mps = railgrip::identify::median_speed(&tables);
     let creep = creep_spec(&p, model_t.reference_speed_mps).unwrap();
     let file = railgrip::identify::export::mlp_file(
         &model_t,
@@ -1317,7 +1315,7 @@ fn polach_rows(
 ) -> RunTable {
     use railgrip::contact::polach::polach;
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let mut rng = railgrip::rng::Rng::new(seed);
     let mut t = RunTable::default();
     let mut i = 0;
@@ -1341,16 +1339,16 @@ fn polach_rows(
     t
 }
 
-fn fit_of(t: &RunTable) -> railgrip::identify::polach_fit::PolachFit {
-    use railgrip::identify::polach_fit::{fit_polach, DEFAULT_START};
+fn fit_of(t: &RunTable) -> railgrip::identify::polach::PolachFit {
+    use railgrip::identify::polach::{fit_polach, DEFAULT_START};
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     fit_polach("synthetic", &[t], patch, q, 1, DEFAULT_START, true).unwrap()
 }
 
 #[test]
 fn polach_fit_recovers_known_parameters() {
-    use railgrip::identify::polach_fit::ParamStatus;
+    use railgrip::identify::polach::ParamStatus;
     let (t, want) = polach_table(0.0, 5.0, 0.002, 0.0);
     let f = fit_of(&t);
     eprintln!("{f:?}");
@@ -1380,7 +1378,7 @@ fn polach_fit_recovers_known_parameters() {
             1.96 * f.se[k],
             want[k]
         );
-        assert_eq!(pr.parameter, railgrip::identify::polach_fit::PARAMETERS[k]);
+        assert_eq!(pr.parameter, railgrip::identify::polach::PARAMETERS[k]);
         assert!(lo < pr.estimate && pr.estimate < hi);
         assert!(
             lo <= want[k] && want[k] <= hi,
@@ -1396,7 +1394,7 @@ fn polach_fit_recovers_known_parameters() {
         assert!(pr.points.windows(2).all(|w| w[0].0 < w[1].0));
         assert!(pr.points[..i0].windows(2).all(|w| w[0].1 >= w[1].1));
         assert!(pr.points[i0..].windows(2).all(|w| w[0].1 <= w[1].1));
-        let limit = railgrip::identify::polach_fit::PROFILE_LIMIT;
+        let limit = railgrip::identify::polach::PROFILE_LIMIT;
         assert!(pr.points[0].1 > limit && pr.points.last().unwrap().1 > limit);
     }
     // MINPACK's test ends it, in a few iterations (the analytic Jacobian).
@@ -1411,7 +1409,7 @@ fn polach_fit_recovers_known_parameters() {
 /// recovers the falling friction μ0, A, B within 2 se.
 #[test]
 fn polach_fit_says_what_data_without_small_slip_cannot_identify() {
-    use railgrip::identify::polach_fit::ParamStatus;
+    use railgrip::identify::polach::ParamStatus;
     let phi = 29.0 / 31.0;
     let (t, _) = polach_table(0.0, 20.0, 0.01, phi);
     let f = fit_of(&t);
@@ -1454,7 +1452,7 @@ fn polach_fit_says_what_data_without_small_slip_cannot_identify() {
 /// one temperature (no k(T), with the reason).
 #[test]
 fn polach_fits_of_thin_data_say_why() {
-    use railgrip::identify::polach_fit::{fit_campaign, ParamStatus};
+    use railgrip::identify::polach::{fit_campaign, ParamStatus};
     let (mut t, _) = polach_table(0.0, 20.0, 0.002, 0.0);
     t = t.subset(|i| t.dv_mps[i] < 0.05);
     assert!(t.len() > 150, "{}", t.len());
@@ -1477,13 +1475,13 @@ fn polach_fits_of_thin_data_say_why() {
     t.metadata.ambient_temperature_c = Some(10.0);
     t.name = "only".into();
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let (r, notes) = fit_campaign(&[t], patch, q, 1, 2, true);
     assert!(notes.is_empty(), "{notes:?}");
     // The fits file reads back (held parameters' standard errors are null, read as NaN).
     let json = serde_json::to_string(&r).unwrap();
     assert!(json.contains("null"), "{json}");
-    let back: railgrip::identify::polach_fit::PolachReport = serde_json::from_str(&json).unwrap();
+    let back: railgrip::identify::polach::PolachReport = serde_json::from_str(&json).unwrap();
     assert_eq!(serde_json::to_string(&back).unwrap(), json);
     assert!(r.pooled.is_some() && r.per_run.len() == 1 && r.per_temperature.len() == 1);
     assert!(r.temperature.is_none());
@@ -1527,7 +1525,7 @@ fn tables_over_temperature(
 #[test]
 fn the_temperature_form_follows_what_varies() {
     use railgrip::contact::polach::PolachParams;
-    use railgrip::identify::polach_fit::fit_campaign;
+    use railgrip::identify::polach::fit_campaign;
     let base = PolachParams {
         mu0: 0.12,
         a_ratio: 0.35,
@@ -1536,7 +1534,7 @@ fn the_temperature_form_follows_what_varies() {
         k_s: 0.05,
     };
     let p = Pipeline::default_uic_z1();
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let cases: [(&str, &dyn Fn(f64) -> PolachParams); 3] = [
         ("μ0", &|t: f64| PolachParams {
             mu0: 0.12 * (1.0 + 0.005 * (20.0 - t)),
@@ -1661,7 +1659,7 @@ fn the_temperature_form_follows_what_varies() {
 /// k_A higher in the cold as in seed 004) the law chosen has k(T).
 #[test]
 fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
-    use railgrip::identify::polach_fit::{fit_campaign, k_identified, ParamStatus, PolachFit};
+    use railgrip::identify::polach::{fit_campaign, k_identified, ParamStatus, PolachFit};
     let fit = |t: f64| PolachFit {
         group: format!("T = {t}"),
         mu0: 0.1,
@@ -1700,7 +1698,7 @@ fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
 
     let p = Pipeline::default_uic_z1();
     let tables = archive_tables(&p);
-    let (patch, q) = railgrip::identify::train::pipeline_patch(&p).unwrap();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let (report, notes) = fit_campaign(&tables, patch, q, 8, 2, true);
     assert!(notes.is_empty(), "{notes:?}");
     let ka = |t: f64| {
@@ -1719,7 +1717,7 @@ fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
     );
     assert!(ka(0.0) > 1.1 * ka(20.0) && ka(-20.0) > 1.1 * ka(20.0));
     let json = serde_json::to_string(&report).unwrap();
-    let back: railgrip::identify::polach_fit::PolachReport = serde_json::from_str(&json).unwrap();
+    let back: railgrip::identify::polach::PolachReport = serde_json::from_str(&json).unwrap();
     assert_eq!(serde_json::to_string(&back).unwrap(), json);
     let law = report.temperature.unwrap();
     eprintln!("archive: {}", law.form());
@@ -1739,7 +1737,7 @@ fn k_forms_need_temperatures_that_identify_k_and_the_archive_chooses_one() {
 
 #[test]
 fn one_rail_condition_trains_a_campaign() {
-    use railgrip::identify::train::select_condition;
+    use railgrip::identify::select_condition;
     let run = |name: &str, condition: Option<&str>| {
         let mut t = synthetic_table(10);
         t.name = name.into();

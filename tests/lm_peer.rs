@@ -28,8 +28,8 @@ use railgrip::config::SplitConfig;
 use railgrip::identify::dataset::Dataset;
 use railgrip::identify::lm::{self, LevenbergMarquardt, LmSettings};
 use railgrip::identify::mlp::{self, Shape};
-use railgrip::identify::train::MlpProblem;
 use railgrip::identify::InputSet;
+use railgrip::identify::MlpProblem;
 
 const EPOCHS: u64 = 20;
 /// The agreement asked for: relative difference of the training MSE per epoch…

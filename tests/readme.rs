@@ -1,10 +1,10 @@
-//! README's option tables are the key tables that drive the pipeline and scene checks: a key
-//! added, removed or changed in code without README (or the other way round) fails here.
-//! `UPDATE_README=1 cargo test --test readme` rewrites the tables from the code.
+//! The option tables in docs/ are the key tables that drive the pipeline and scene checks: a key
+//! added, removed or changed in code without its page (or the other way round) fails here. The
+//! pipeline file's table lives in docs/pipeline.md, the scene file's in docs/simulator.md.
+//! `UPDATE_README=1 cargo test --test readme` rewrites both tables from the code, each in its
+//! own page (the variable keeps its old name).
 
 use railgrip::config::rule::{markdown_rows, Key};
-
-const README: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/README.md");
 
 fn table(sections: &[(&str, &[&Key])]) -> String {
     let mut t = String::from("| key | default | unit | range | meaning |\n|---|---|---|---|---|\n");
@@ -14,33 +14,37 @@ fn table(sections: &[(&str, &[&Key])]) -> String {
     t
 }
 
-/// The text between `<!-- keys:NAME ... -->\n` and `<!-- /keys:NAME -->`.
-fn region(text: &str, name: &str) -> (usize, usize) {
+/// The text between `<!-- keys:NAME ... -->\n` and `<!-- /keys:NAME -->` of `page`.
+fn region(text: &str, name: &str, page: &str) -> (usize, usize) {
     let open = format!("<!-- keys:{name} ");
     let close = format!("<!-- /keys:{name} -->");
     let a = text
         .find(&open)
-        .unwrap_or_else(|| panic!("README has no {open}… marker"));
+        .unwrap_or_else(|| panic!("{page} has no {open}… marker"));
     let a = a + text[a..].find('\n').expect("marker line ends") + 1;
     let b = text[a..]
         .find(&close)
-        .unwrap_or_else(|| panic!("README has no {close} marker"))
+        .unwrap_or_else(|| panic!("{page} has no {close} marker"))
         + a;
     (a, b)
 }
 
 #[test]
-fn readme_option_tables_are_the_key_tables() {
-    let mut text = std::fs::read_to_string(README).unwrap();
+fn docs_option_tables_are_the_key_tables() {
     let update = std::env::var("UPDATE_README").as_deref() == Ok("1");
-    for (name, sections) in [
-        ("pipeline", railgrip::config::SECTIONS),
-        ("scene", railgrip::sim::scene::SECTIONS),
+    // (region name, page below the repository root, the key tables it shows)
+    for (name, page, sections) in [
+        ("pipeline", "docs/pipeline.md", railgrip::config::SECTIONS),
+        ("scene", "docs/simulator.md", railgrip::sim::scene::SECTIONS),
     ] {
+        let path = format!("{}/{page}", env!("CARGO_MANIFEST_DIR"));
+        let mut text =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {page}: {e}"));
         let want = table(sections);
-        let (a, b) = region(&text, name);
+        let (a, b) = region(&text, name, page);
         if update {
             text.replace_range(a..b, &want);
+            std::fs::write(&path, text).unwrap_or_else(|e| panic!("cannot write {page}: {e}"));
             continue;
         }
         let got = &text[a..b];
@@ -51,14 +55,11 @@ fn readme_option_tables_are_the_key_tables() {
                 .position(|(g, w)| g != w)
                 .unwrap_or(got.lines().count().min(want.lines().count()));
             panic!(
-                "README's {name} table differs from the key tables at row {line}:\n README: {:?}\n   code: {:?}\n(UPDATE_README=1 cargo test --test readme rewrites README from the code)",
+                "{page}'s {name} table differs from the key tables at row {line}:\n {page}: {:?}\n   code: {:?}\n(UPDATE_README=1 cargo test --test readme rewrites {page} from the code)",
                 got.lines().nth(line),
                 want.lines().nth(line)
             );
         }
-    }
-    if update {
-        std::fs::write(README, text).unwrap();
     }
 }
 

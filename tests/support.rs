@@ -9,7 +9,7 @@ use std::process::Command;
 
 use railgrip::identify::export::mlp_file;
 use railgrip::identify::support::audit;
-use railgrip::identify::train::{creep_spec, median_speed, train_mlp};
+use railgrip::identify::{creep_spec, median_speed, train_mlp};
 use railgrip::model::{Model, ModelFile, Provenance};
 use railgrip::score::Sample;
 use railgrip::Pipeline;

@@ -92,15 +92,15 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
     let tables = load_tables(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
-    let progress: railgrip::identify::lm::Progress = Box::new(move |e| {
+    let progress = |e: &railgrip::model::Epoch| {
         if !quiet {
             eprintln!(
                 "epoch {:>4}  train MSE {:.4e}  val MSE {:.4e}  mu {:.1e}  |grad| {:.2e}  {:.2} s",
                 e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm, e.elapsed_s
             );
         }
-    });
-    let models = train_models(tables, &pipeline, Some(progress))?;
+    };
+    let models = train_models(tables, &pipeline, Some(&progress))?;
     eprintln!(
         "data       {} run(s) on {} rail, {} valid samples; [train] split {:?}, decimate {}",
         models.runs,
@@ -184,7 +184,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     {
         // "x±se", or "x (bound)" / "x (prior)" for a parameter the fit held.
         let cell = |k: usize, x: f64| {
-            use railgrip::identify::polach_fit::ParamStatus;
+            use railgrip::identify::polach::ParamStatus;
             match f.status[k] {
                 ParamStatus::Estimated => format!("{x:.4}±{:.4}", f.se[k]),
                 ParamStatus::AtBound => format!("{x:.4} (bound)"),

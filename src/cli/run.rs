@@ -2,7 +2,7 @@
 
 use std::io::IsTerminal as _;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::Mutex;
 
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -68,8 +68,8 @@ fn run_line(r: &RunRecord) -> String {
     }
 }
 
-impl campaign::Progress for Bars {
-    fn event(&self, e: Event<'_>) {
+impl<'a> campaign::Progress<Event<'a>> for Bars {
+    fn event(&self, e: Event<'a>) {
         match e {
             Event::EstimateStarts {
                 runs,
@@ -186,7 +186,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         force: args.force,
         mcap: args.mcap,
     };
-    let o = campaign::run(&root, &out, &pipeline, options, Arc::new(Bars::new()))?;
+    let o = campaign::run(&root, &out, &pipeline, options, &Bars::new())?;
     let failed = o.failed();
     let audit_failed = o.audit.as_ref().is_some_and(|a| !a.passed);
     // No models is an error (exit 1) even when runs failed too: the help promises it, and a

@@ -67,8 +67,8 @@ fn cell_line(r: &CellResult, what: &str) -> String {
     }
 }
 
-impl study::Progress for Bar {
-    fn event(&self, e: Event<'_>) {
+impl<'a> study::Progress<Event<'a>> for Bar {
+    fn event(&self, e: Event<'a>) {
         match e {
             Event::Estimating {
                 conditionings,
@@ -131,7 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         budget_ns: args.budget_ns,
         budget_train_s: args.budget_train_s,
     };
-    let o = study::study(&archive, &plan, &args.out, options, &bar)?;
+    let o = study::run(&archive, &plan, &args.out, options, &bar)?;
     if let Some(b) = bar.bar.lock().expect("not poisoned").take() {
         b.finish_and_clear();
     }

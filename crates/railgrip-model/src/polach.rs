@@ -2,7 +2,7 @@
 //! 004_7d175079b70fb95b.txt eq. 1–2; Polach, Wear 258 (2005) 992–1000) and, when fitted over
 //! several ambient temperatures, a temperature law: k_A(T) and k_S(T) (seed 004 eq. 3) and/or
 //! μ0(T) (the adhesion level moving with temperature, seed 004 Fig. 2), in the form the fit
-//! chose by BIC (`identify::polach_fit::fit_temperature_forms`), written by `identify::export`.
+//! chose by BIC (`identify::polach::fit_temperature_forms`), written by `identify::export`.
 //!
 //! Evaluation ([`super::Model::mu_vt`], and the C header step for step), μ = F/Q of one wheel:
 //! 1. w = |Δv| (m/s); w = 0 gives μ = 0. Speed v (m/s): NaN → the reference speed (median of the

@@ -20,6 +20,7 @@ pub mod identify;
 pub mod ingest;
 pub mod linalg;
 pub mod outdir;
+pub mod progress;
 pub mod replay;
 pub mod report;
 pub mod rng;

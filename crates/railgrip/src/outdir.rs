@@ -357,6 +357,37 @@ impl StudyPaths {
     }
 }
 
+/// UTC time as RFC 3339 (`SOURCE_DATE_EPOCH` overrides the clock, for reproducible files).
+pub fn utc_now_rfc3339() -> String {
+    let secs = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|s| s.trim().parse::<i64>().ok())
+        .unwrap_or_else(|| {
+            std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map(|d| d.as_secs() as i64)
+                .unwrap_or(0)
+        });
+    let days = secs.div_euclid(86_400);
+    let rem = secs.rem_euclid(86_400);
+    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -374,5 +405,14 @@ mod tests {
         assert_eq!(m.polach_header(), Path::new("/o/models/mlp.polach.h"));
         assert_eq!(m.polach_fits(), Path::new("/o/models/mlp.polach-fits.json"));
         assert_eq!(m.polach_prefix(), "mlp_polach");
+    }
+
+    #[test]
+    fn rfc3339_dates() {
+        std::env::set_var("SOURCE_DATE_EPOCH", "1763692800");
+        assert_eq!(utc_now_rfc3339(), "2025-11-21T02:40:00Z");
+        std::env::set_var("SOURCE_DATE_EPOCH", "951782400");
+        assert_eq!(utc_now_rfc3339(), "2000-02-29T00:00:00Z");
+        std::env::remove_var("SOURCE_DATE_EPOCH");
     }
 }

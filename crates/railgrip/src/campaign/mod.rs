@@ -10,7 +10,6 @@ pub mod summary;
 pub mod train;
 
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -108,17 +107,11 @@ pub enum Event<'a> {
     StageDone(Stage),
 }
 
-/// Receives a campaign's [`Event`]s.
-pub trait Progress: Send + Sync {
-    fn event(&self, e: Event<'_>);
-}
+pub use crate::progress::{Progress, Quiet};
 
-/// A [`Progress`] that ignores everything (benchmarks, tests).
-pub struct Quiet;
-
-impl Progress for Quiet {
-    fn event(&self, _: Event<'_>) {}
-}
+/// What receives a campaign's [`Event`]s: any [`Progress`] of them (a closure, [`Quiet`], the
+/// CLI's bars).
+pub type CampaignProgress<'p> = &'p dyn for<'a> Progress<Event<'a>>;
 
 /// What [`run`] did.
 #[derive(Debug, Clone)]
@@ -249,7 +242,7 @@ pub fn run(
     out: &OutDir,
     pipeline: &Pipeline,
     options: Options,
-    progress: Arc<dyn Progress>,
+    progress: CampaignProgress<'_>,
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
     let (logs, skipped) = sources_all(root, Some(out.root()))?;
@@ -257,7 +250,7 @@ pub fn run(
     let mut stages = Vec::new();
 
     let t = Instant::now();
-    let (records, tables) = estimate_runs(root, &logs, out, pipeline, options, &*progress)?;
+    let (records, tables) = estimate_runs(root, &logs, out, pipeline, options, progress)?;
     stages.push((
         Stage::Estimate.name().to_string(),
         t.elapsed().as_secs_f64(),
@@ -266,7 +259,7 @@ pub fn run(
 
     let generation = generation_id(&pipeline.text, &records);
     let t = Instant::now();
-    let trained = train_stage(tables, out, pipeline, &generation, progress.clone())?;
+    let trained = train_stage(tables, out, pipeline, &generation, progress)?;
     stages.push((Stage::Train.name().to_string(), t.elapsed().as_secs_f64()));
     progress.event(Event::StageDone(Stage::Train));
 
@@ -305,7 +298,7 @@ pub fn run(
     stages.push(("total".to_string(), t_all.elapsed().as_secs_f64()));
     Timings {
         generation: generation.clone(),
-        finished: crate::identify::train::utc_now_rfc3339(),
+        finished: crate::outdir::utc_now_rfc3339(),
         jobs: options
             .jobs
             .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())),
@@ -344,7 +337,7 @@ pub fn estimate_runs(
     out: &OutDir,
     pipeline: &Pipeline,
     options: Options,
-    progress: &dyn Progress,
+    progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.jobs.unwrap_or(0))
@@ -472,7 +465,7 @@ fn train_stage(
     out: &OutDir,
     pipeline: &Pipeline,
     generation: &str,
-    progress: Arc<dyn Progress>,
+    progress: CampaignProgress<'_>,
 ) -> Result<Trained, CampaignError> {
     let mut t = Trained {
         condition: None,
@@ -488,8 +481,8 @@ fn train_stage(
         return Ok(t);
     }
     progress.event(Event::TrainStarts);
-    let epochs: crate::identify::lm::Progress = Box::new(move |e| progress.event(Event::Epoch(e)));
-    match train_models(tables, pipeline, Some(epochs)) {
+    let epochs = |e: &Epoch| progress.event(Event::Epoch(e));
+    match train_models(tables, pipeline, Some(&epochs)) {
         Ok(mut m) => {
             m.set_generation(generation);
             t.epochs = m.trained.history.len();

@@ -7,14 +7,13 @@ use std::path::{Path, PathBuf};
 
 use super::{CampaignError, ModelPaths};
 use crate::identify::dataset::RunTable;
-use crate::identify::lm::Progress;
-use crate::identify::polach_fit::{fit_campaign, PolachReport};
-use crate::identify::train::{
-    creep_spec, leave_one_run_out, median_speed, pipeline_patch, select_condition, train_mlp,
-    HeldOut, HeldOutFile, TrainedMlp,
+use crate::identify::family::{FitData, ModelFamily, Network, PolachWithLaws};
+use crate::identify::lm::EpochProgress;
+use crate::identify::polach::PolachReport;
+use crate::identify::{
+    leave_one_run_out, select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
 };
-use crate::identify::{export, IdentifyError};
-use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
+use crate::model::{c_header, Epoch, InputFile, Model, ModelFile, Provenance};
 use crate::Pipeline;
 
 /// Everything trained from a campaign.
@@ -39,19 +38,18 @@ pub struct CampaignModels {
     pub held_out: Vec<HeldOut>,
 }
 
-/// Trains the campaign's models from `tables` with the pipeline's `[train]` settings;
+/// Trains the campaign's models from `tables` with the pipeline's `[train]` settings: Polach's
+/// law with its temperature law first, then the network, which blends to it outside its data
+/// support (docs/model-files.md, "Data support"), and the network's leave-one-run-out scores.
 /// `progress` sees every epoch of the network's training.
 pub fn train_models(
     tables: Vec<RunTable>,
     pipeline: &Pipeline,
-    progress: Option<Progress>,
+    progress: Option<EpochProgress<'_>>,
 ) -> Result<CampaignModels, IdentifyError> {
     let choice = select_condition(tables, pipeline.train.condition.as_deref())?;
     let tables = choice.used;
     let samples = tables.iter().map(|t| t.len()).sum();
-    let mut trained = train_mlp(&tables, &pipeline.train, progress)?;
-    trained.reference_speed_mps = median_speed(&tables);
-    let creep = creep_spec(pipeline, trained.reference_speed_mps)?;
     let provenance = Provenance {
         inputs: tables
             .iter()
@@ -67,66 +65,48 @@ pub fn train_models(
         created: String::new(),
         generation: None,
     };
-    let (patch, q) = pipeline_patch(pipeline)?;
-    let (report, mut notes) = fit_campaign(
-        &tables,
-        patch,
-        q,
-        pipeline.train.decimate,
-        pipeline.train.temperature_degree,
-        pipeline.train.polach_intervals,
-    );
-    let polach = match report.pooled.as_ref() {
-        None => None,
-        Some(pooled) => {
-            let make = |t| {
-                export::polach_file(
-                    pooled,
-                    &patch,
-                    q,
-                    t,
-                    report.dv_range_mps,
-                    report.v_range_mps,
-                    trained.reference_speed_mps,
-                    provenance.clone(),
-                )
-            };
-            match make(report.temperature.as_ref()) {
-                Ok(m) => Some(m),
-                Err(e) if report.temperature.is_some() => {
-                    notes.push(format!(
-                        "Polach model written without its temperature law: {e}"
-                    ));
-                    match make(None) {
-                        Ok(m) => Some(m),
-                        Err(e) => {
-                            notes.push(format!("no Polach model file: {e}"));
-                            None
-                        }
-                    }
-                }
-                Err(e) => {
-                    notes.push(format!("no Polach model file: {e}"));
-                    None
-                }
-            }
-        }
+    let data = FitData {
+        tables: &tables,
+        pipeline,
+        provenance,
+        fallback: None,
+        epochs: None,
     };
-    // The network falls back to the Polach model outside its data (README "Data support").
+    let polach = PolachWithLaws {
+        intervals: pipeline.train.polach_intervals,
+        law_required: false,
+    }
+    .fit(&data)?;
+    let mut notes = polach.notes;
+    let polach_fits = polach.report.into_polach().ok_or_else(|| bug("Polach"))?;
+    let polach = polach.model.ok();
     let fallback = match &polach {
-        Some(p) => Some(
-            crate::model::Model::named(p.clone(), "Polach model").map_err(|e| {
-                IdentifyError::Data {
+        Some(p) => {
+            Some(
+                Model::named(p.clone(), "Polach model").map_err(|e| IdentifyError::Data {
                     what: format!("the campaign's Polach model: {e}"),
                     hint: "report this as a bug".into(),
-                }
-            })?,
-        ),
+                })?,
+            )
+        }
         None => None,
     };
-    let mlp = export::mlp_file(&trained, creep, provenance, fallback.as_ref())?;
+    let network = Network.fit(&FitData {
+        fallback: fallback.as_ref(),
+        epochs: progress,
+        ..data
+    })?;
+    notes.extend(network.notes);
+    let trained = network
+        .report
+        .into_network()
+        .ok_or_else(|| bug("network"))?;
+    let mlp = network.model.map_err(|what| IdentifyError::Data {
+        what,
+        hint: "report this as a bug".into(),
+    })?;
     let held_out = if pipeline.train.leave_one_run_out {
-        leave_one_run_out(&tables, pipeline)?
+        leave_one_run_out(&Network, &tables, pipeline)?
     } else {
         Vec::new()
     };
@@ -137,11 +117,19 @@ pub fn train_models(
         samples,
         trained,
         mlp,
-        polach_fits: report,
+        polach_fits,
         polach,
         notes,
         held_out,
     })
+}
+
+/// A family's report of another kind than the family's own.
+fn bug(family: &str) -> IdentifyError {
+    IdentifyError::Data {
+        what: format!("the {family} fit returned another family's report"),
+        hint: "report this as a bug".into(),
+    }
 }
 
 impl CampaignModels {

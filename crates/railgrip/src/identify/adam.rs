@@ -230,7 +230,7 @@ pub fn train(
     theta0: Vec<f64>,
     settings: &AdamSettings,
     seed: u64,
-    mut progress: Option<&mut dyn FnMut(&Epoch)>,
+    progress: Option<super::lm::EpochProgress<'_>>,
 ) -> Result<AdamFit, IdentifyError> {
     settings.check()?;
     let k = arch.inputs;
@@ -329,8 +329,8 @@ pub fn train(
             elapsed_s: start.elapsed().as_secs_f64(),
             gamma: None,
         };
-        if let Some(p) = progress.as_mut() {
-            p(&e);
+        if let Some(p) = progress {
+            p.event(&e);
         }
         history.push(e);
         let score = if has_val { val_mse } else { train_mse };

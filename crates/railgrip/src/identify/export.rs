@@ -2,7 +2,7 @@
 //! Polach fit with k(T) ([`polach_file`]), in the format `model` reads and evaluates.
 
 use super::mlp::Arch;
-use super::polach_fit::{PolachFit, TemperatureFit};
+use super::polach::{PolachFit, TemperatureFit};
 use super::support::{audit, support_spec};
 use super::{IdentifyError, TrainedMlp};
 use crate::contact::polach::ContactPatch;

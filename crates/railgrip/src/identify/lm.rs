@@ -183,8 +183,8 @@ fn sum_sq(v: &[f64]) -> f64 {
 
 pub use crate::model::Epoch;
 
-/// Called after every epoch (the CLI prints progress with it).
-pub type Progress = Box<dyn FnMut(&Epoch) + Send>;
+/// Receives every epoch of a training (the CLI prints progress with it).
+pub type EpochProgress<'a> = &'a dyn for<'e> crate::progress::Progress<&'e Epoch>;
 
 /// Why training stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -224,7 +224,7 @@ impl StopReason {
 /// The solver. After a run, [`LevenbergMarquardt::best`] holds the weights to use (the best
 /// validation epoch when there is validation data, else the last accepted ones) and
 /// [`LevenbergMarquardt::history`] the epochs.
-pub struct LevenbergMarquardt {
+pub struct LevenbergMarquardt<'a> {
     pub settings: LmSettings,
     mu: f64,
     fails: u32,
@@ -233,12 +233,12 @@ pub struct LevenbergMarquardt {
     stop: Option<StopReason>,
     history: Vec<Epoch>,
     start: Instant,
-    progress: Option<Progress>,
+    progress: Option<EpochProgress<'a>>,
     /// trainbr's α, β, γ (with [`LmSettings::bayesian`]).
     bayes: Option<Bayes>,
 }
 
-impl LevenbergMarquardt {
+impl<'a> LevenbergMarquardt<'a> {
     pub fn new(settings: LmSettings) -> Self {
         LevenbergMarquardt {
             settings,
@@ -259,9 +259,9 @@ impl LevenbergMarquardt {
         self.bayes
     }
 
-    /// Calls `f` after every epoch (the CLI prints progress with it).
-    pub fn with_progress(mut self, f: impl FnMut(&Epoch) + Send + 'static) -> Self {
-        self.progress = Some(Box::new(f));
+    /// Reports every epoch to `progress` (the CLI prints progress with it).
+    pub fn with_progress(mut self, progress: EpochProgress<'a>) -> Self {
+        self.progress = Some(progress);
         self
     }
 
@@ -278,7 +278,7 @@ impl LevenbergMarquardt {
 
 type LmState = IterState<Array1<f64>, (), (), (), (), f64>;
 
-impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
+impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt<'_> {
     fn name(&self) -> &str {
         "Levenberg-Marquardt (trainlm)"
     }
@@ -457,8 +457,8 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
             gamma: self.bayes.map(|b| b.gamma),
         };
         self.history.push(epoch);
-        if let Some(f) = self.progress.as_mut() {
-            f(&epoch);
+        if let Some(p) = self.progress {
+            p.event(&epoch);
         }
         if state.get_iter() + 1 >= s.epochs && self.stop.is_none() {
             self.stop = Some(StopReason::Epochs);
@@ -488,11 +488,11 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt {
 }
 
 /// Runs the solver from `theta0` and returns it (weights in [`LevenbergMarquardt::best`]).
-pub fn run<O: LeastSquares>(
+pub fn run<'a, O: LeastSquares>(
     problem: O,
-    solver: LevenbergMarquardt,
+    solver: LevenbergMarquardt<'a>,
     theta0: Vec<f64>,
-) -> Result<(LevenbergMarquardt, O), Error> {
+) -> Result<(LevenbergMarquardt<'a>, O), Error> {
     let epochs = solver.settings.epochs;
     let res = argmin::core::Executor::new(problem, solver)
         .configure(|s| s.param(Array1::from(theta0)).max_iters(epochs.max(1)))

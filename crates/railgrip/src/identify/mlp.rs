@@ -565,7 +565,7 @@ mod tests {
         let run = |isa: Isa| {
             let (mut r, mut jac) = (vec![0.0; BLOCK], vec![0.0; p * BLOCK]);
             let mut sc = Scratch::new(shape);
-            super::super::train::block_dispatch(
+            super::super::problem::block_dispatch(
                 isa,
                 shape,
                 &theta,

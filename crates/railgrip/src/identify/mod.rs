@@ -6,17 +6,27 @@
 //! them together. [`adam`] trains networks of any depth by mini-batch Adam/AdamW through burn.
 
 pub mod adam;
+pub mod campaign;
 pub mod dataset;
 pub mod export;
+pub mod family;
+pub mod held_out;
 pub mod lm;
 pub mod mlp;
-pub mod polach_fit;
+pub mod polach;
+pub mod problem;
 pub mod support;
 pub mod train;
 
 pub use crate::model::InputSet;
+pub use campaign::{
+    creep_spec, median_speed, pipeline_patch, run_condition, select_condition, ConditionChoice,
+};
 pub use dataset::{Dataset, MapMinMax, RunTable};
-pub use train::{train_mlp, TrainedMlp};
+pub use family::{FitData, Fitted, ModelFamily, FAMILIES};
+pub use held_out::{held_out_score, leave_one_run_out, HeldOut, HeldOutFile};
+pub use problem::MlpProblem;
+pub use train::{train_mlp, train_on, TrainedMlp};
 
 /// Why identification failed.
 #[derive(Debug, thiserror::Error)]

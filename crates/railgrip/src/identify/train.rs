@@ -1,25 +1,13 @@
-//! Training the seed 002 network: dataset → mapminmax → Nguyen–Widrow → trainlm.
-//!
-//! The least-squares problem ([`MlpProblem`]) works on blocks of [`mlp::BLOCK`] samples, the
-//! data stored by input column so that SIMD lanes run across samples ([`mlp::block`], AVX-512,
-//! AVX2 or plain f64, chosen at run time and bit-identical). Per block the Jacobian J (P × B)
-//! and the residuals r are built with the residuals as one more row, A = [J; rᵀ]; then the
-//! lower triangle of A Aᵀ (a symmetric rank-k update, faer's triangular matrix product) holds
-//! JᵀJ and Jᵀr at once.
-//! Blocks are grouped into fixed chunks of [`CHUNK`] samples, chunks run in parallel and are
-//! summed in order, so the result does not depend on the number of threads; memory is
-//! O(chunk × P) per thread, never O(N × P).
+//! Training the seed 002 network: dataset → mapminmax → Nguyen–Widrow → trainlm (the
+//! least-squares problem in [`super::problem`]), or Adam/AdamW through burn ([`super::adam`]);
+//! several starts kept best or averaged into an ensemble.
 
-use faer::linalg::matmul::triangular::{matmul, BlockStructure};
-use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 use super::adam::{self, AdamData, AdamSettings};
 use super::dataset::{Dataset, MapMinMax, RunTable};
-use super::lm::{
-    self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations, StopReason,
-};
-use super::mlp::{self, Scratch, Shape, BLOCK};
+use super::lm::{self, Epoch, LeastSquares, LevenbergMarquardt, LmSettings, StopReason};
+use super::mlp::{self, Shape};
 use super::support::{occupancy, Occupancy};
 use super::IdentifyError;
 use super::InputSet;
@@ -27,284 +15,8 @@ use crate::config::{
     default_support_cells, TrainConfig, Trainer, DEFAULT_AUDIT_MU_MAX, DEFAULT_SUPPORT_MIN_SAMPLES,
 };
 use crate::score::Sample;
-#[cfg(target_arch = "x86_64")]
-use crate::simd::{Avx2, Avx512, F64x4, F64x8};
-use crate::simd::{Isa, Portable};
 
-/// Samples per chunk: fixed, so the sums (chunk results added in order) do not depend on the
-/// number of threads.
-pub const CHUNK: usize = 8 * BLOCK;
-
-/// [`mlp::block`] on the widest lanes of this CPU (same bits on every path).
-#[allow(clippy::too_many_arguments)]
-pub(super) fn block_dispatch(
-    isa: Isa,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    y: &[f64],
-    n: usize,
-    r: &mut [f64],
-    jac: Option<&mut [f64]>,
-    scratch: &mut Scratch,
-) {
-    match isa {
-        // SAFETY: the token proves AVX-512F on this CPU.
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx512(t) => unsafe { block_avx512(t, shape, theta, x, y, n, r, jac, scratch) },
-        // SAFETY: the token proves AVX2 and FMA on this CPU.
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2(t) => unsafe { block_avx2(t, shape, theta, x, y, n, r, jac, scratch) },
-        _ => mlp::block::<f64>(Portable, shape, theta, x, y, n, r, jac, scratch),
-    }
-}
-
-/// [`mlp::block`] on AVX-512 registers (eight samples per vector).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[allow(clippy::too_many_arguments)]
-fn block_avx512(
-    isa: Avx512,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    y: &[f64],
-    n: usize,
-    r: &mut [f64],
-    jac: Option<&mut [f64]>,
-    scratch: &mut Scratch,
-) {
-    mlp::block::<F64x8>(isa, shape, theta, x, y, n, r, jac, scratch)
-}
-
-/// [`mlp::block`] on AVX2 registers (four samples per vector).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-fn block_avx2(
-    isa: Avx2,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    y: &[f64],
-    n: usize,
-    r: &mut [f64],
-    jac: Option<&mut [f64]>,
-    scratch: &mut Scratch,
-) {
-    mlp::block::<F64x4>(isa, shape, theta, x, y, n, r, jac, scratch)
-}
-
-/// Samples stored by input column, padded to whole blocks (padding: inputs and target 0,
-/// masked out of every sum).
-#[derive(Clone)]
-struct Columns {
-    x: Vec<Vec<f64>>,
-    y: Vec<f64>,
-    /// Real samples.
-    n: usize,
-}
-
-impl Columns {
-    /// From row-major inputs (`k` per sample) and targets.
-    fn new(x: &[f64], y: &[f64], k: usize) -> Columns {
-        let n = y.len();
-        let padded = n.div_ceil(BLOCK) * BLOCK;
-        let mut cols = vec![vec![0.0; padded]; k];
-        for (s, row) in x.chunks_exact(k).enumerate() {
-            for (c, v) in row.iter().enumerate() {
-                cols[c][s] = *v;
-            }
-        }
-        let mut yy = y.to_vec();
-        yy.resize(padded, 0.0);
-        Columns { x: cols, y: yy, n }
-    }
-
-    /// Index ranges of the chunks.
-    fn chunks(&self) -> Vec<std::ops::Range<usize>> {
-        (0..self.n)
-            .step_by(CHUNK)
-            .map(|a| a..(a + CHUNK).min(self.n))
-            .collect()
-    }
-}
-
-/// The MLP's least-squares problem on normalised data.
-pub struct MlpProblem {
-    pub shape: Shape,
-    train: Columns,
-    val: Columns,
-    /// (max − min)² / 4 of the target: normalised MSE → μ² units.
-    scale: f64,
-    isa: Isa,
-}
-
-impl MlpProblem {
-    /// From normalised row-major inputs and targets.
-    pub fn new(
-        shape: Shape,
-        x: Vec<f64>,
-        y: Vec<f64>,
-        vx: Vec<f64>,
-        vy: Vec<f64>,
-        scale: f64,
-    ) -> Self {
-        let k = shape.inputs;
-        MlpProblem {
-            shape,
-            train: Columns::new(&x, &y, k),
-            val: Columns::new(&vx, &vy, k),
-            scale,
-            isa: Isa::detect(),
-        }
-    }
-
-    /// The same data for a network of another shape (same inputs).
-    pub fn with_shape(&self, shape: Shape) -> MlpProblem {
-        assert_eq!(shape.inputs, self.shape.inputs);
-        MlpProblem {
-            shape,
-            train: self.train.clone(),
-            val: self.val.clone(),
-            scale: self.scale,
-            isa: self.isa,
-        }
-    }
-
-    /// Σ r² over `cols` (blocks in order, samples in order within a block).
-    fn sse_of(&self, theta: &[f64], cols: &Columns) -> f64 {
-        let parts: Vec<f64> = cols
-            .chunks()
-            .into_par_iter()
-            .map(|range| {
-                let mut scratch = Scratch::new(self.shape);
-                let mut r = vec![0.0; BLOCK];
-                let mut sse = 0.0;
-                for a in range.clone().step_by(BLOCK) {
-                    let n = BLOCK.min(range.end - a);
-                    let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
-                    block_dispatch(
-                        self.isa,
-                        self.shape,
-                        theta,
-                        &xs,
-                        &cols.y[a..a + BLOCK],
-                        BLOCK,
-                        &mut r,
-                        None,
-                        &mut scratch,
-                    );
-                    sse += r[..n].iter().map(|e| e * e).sum::<f64>();
-                }
-                sse
-            })
-            .collect();
-        parts.iter().sum()
-    }
-
-    /// A Aᵀ, A = [J; rᵀ] ((P + 1) × (P + 1), row-major) over the samples of `range` (one
-    /// chunk), and Σ r² summed in sample order (as [`MlpProblem::sse_of`] sums it, so that the
-    /// current and a trial error compare like for like). A holds the whole chunk, so one matrix
-    /// product serves it.
-    fn gram_of_chunk(&self, theta: &[f64], range: std::ops::Range<usize>) -> (Vec<f64>, f64) {
-        let p = self.shape.n_params();
-        let cols = &self.train;
-        let width = range.len().div_ceil(BLOCK) * BLOCK;
-        let mut scratch = Scratch::new(self.shape);
-        let mut a_mat = vec![0.0; (p + 1) * width];
-        let (mut jac, mut r) = (vec![0.0; p * BLOCK], vec![0.0; BLOCK]);
-        let mut sse = 0.0;
-        for (b, a) in range.clone().step_by(BLOCK).enumerate() {
-            let n = BLOCK.min(range.end - a);
-            let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
-            block_dispatch(
-                self.isa,
-                self.shape,
-                theta,
-                &xs,
-                &cols.y[a..a + BLOCK],
-                BLOCK,
-                &mut r,
-                Some(&mut jac),
-                &mut scratch,
-            );
-            sse += r[..n].iter().map(|e| e * e).sum::<f64>();
-            // Padding samples stay zero in A: they contribute nothing.
-            for q in 0..p {
-                a_mat[q * width + b * BLOCK..q * width + b * BLOCK + n]
-                    .copy_from_slice(&jac[q * BLOCK..q * BLOCK + n]);
-            }
-            a_mat[p * width + b * BLOCK..p * width + b * BLOCK + n].copy_from_slice(&r[..n]);
-        }
-        // The lower triangle of A Aᵀ: a symmetric rank-k update (faer, sequential).
-        let mut gram = vec![0.0; (p + 1) * (p + 1)];
-        let am = MatRef::from_row_major_slice(&a_mat, p + 1, width);
-        matmul(
-            MatMut::from_row_major_slice_mut(&mut gram, p + 1, p + 1),
-            BlockStructure::TriangularLower,
-            Accum::Replace,
-            am,
-            BlockStructure::Rectangular,
-            am.transpose(),
-            BlockStructure::Rectangular,
-            1.0,
-            Par::Seq,
-        );
-        (gram, sse)
-    }
-}
-
-impl LeastSquares for MlpProblem {
-    fn n_params(&self) -> usize {
-        self.shape.n_params()
-    }
-    fn n_train(&self) -> usize {
-        self.train.n
-    }
-    fn sse(&self, theta: &[f64]) -> f64 {
-        self.sse_of(theta, &self.train)
-    }
-    fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
-        let p = self.shape.n_params();
-        let grams: Vec<(Vec<f64>, f64)> = self
-            .train
-            .chunks()
-            .into_par_iter()
-            .map(|range| self.gram_of_chunk(theta, range))
-            .collect();
-        let mut total = vec![0.0; (p + 1) * (p + 1)];
-        let mut sse = 0.0;
-        for (g, s) in &grams {
-            for (t, v) in total.iter_mut().zip(g) {
-                *t += v;
-            }
-            sse += s;
-        }
-        // JᵀJ from the lower triangle (mirrored), Jᵀr from the last row.
-        let q = p + 1;
-        let jtj = (0..p * p)
-            .map(|i| {
-                let (a, b) = (i / p, i % p);
-                total[a.max(b) * q + a.min(b)]
-            })
-            .collect();
-        NormalEquations {
-            jtj,
-            jtr: (0..p).map(|a| total[p * q + a]).collect(),
-            sse,
-        }
-    }
-    fn validation_mse(&self, theta: &[f64]) -> Option<f64> {
-        if self.val.n == 0 {
-            return None;
-        }
-        Some(self.sse_of(theta, &self.val) / self.val.n as f64 * self.scale)
-    }
-    fn mse_scale(&self) -> f64 {
-        self.scale
-    }
-}
+use super::problem::MlpProblem;
 
 /// A trained network with everything the model file needs.
 #[derive(Debug, Clone)]
@@ -384,7 +96,7 @@ pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
 pub fn train_mlp(
     tables: &[RunTable],
     cfg: &TrainConfig,
-    progress: Option<lm::Progress>,
+    progress: Option<lm::EpochProgress<'_>>,
 ) -> Result<TrainedMlp, IdentifyError> {
     let inputs = cfg.inputs;
     if cfg.support_cells.len() != inputs.count() {
@@ -454,7 +166,7 @@ fn occupancy_of(data: &Dataset, t: &TrainedMlp, cells: &[usize], min_samples: u6
 fn train_starts(
     data: &Dataset,
     cfg: &TrainConfig,
-    progress: Option<lm::Progress>,
+    progress: Option<lm::EpochProgress<'_>>,
 ) -> Result<TrainedMlp, IdentifyError> {
     let settings = lm_settings(cfg);
     // LM: one problem (data scaled and laid out by column) for every start.
@@ -462,15 +174,10 @@ fn train_starts(
         Trainer::Lm => Some(Prepared::new(data, lm_shape(cfg))?),
         Trainer::Burn(_) => None,
     };
-    let progress = std::sync::Mutex::new(progress);
     let runs: Vec<Result<TrainedMlp, IdentifyError>> = (0..cfg.starts as u64)
         .into_par_iter()
         .map(|k| {
-            let p = if k == 0 {
-                progress.lock().map(|mut p| p.take()).unwrap_or(None)
-            } else {
-                None
-            };
+            let p = if k == 0 { progress } else { None };
             let seed = cfg.seed.wrapping_add(k);
             match &prepared {
                 Some(prepared) => prepared.fit(data, seed, settings, p),
@@ -528,7 +235,7 @@ pub fn train_on(
     hidden: usize,
     seed: u64,
     settings: LmSettings,
-    progress: Option<lm::Progress>,
+    progress: Option<lm::EpochProgress<'_>>,
 ) -> Result<TrainedMlp, IdentifyError> {
     Prepared::new(data, Shape::one(data.inputs.count(), hidden))?
         .fit(data, seed, settings, progress)
@@ -586,7 +293,7 @@ impl Prepared {
         data: &Dataset,
         seed: u64,
         settings: LmSettings,
-        progress: Option<lm::Progress>,
+        progress: Option<lm::EpochProgress<'_>>,
     ) -> Result<TrainedMlp, IdentifyError> {
         let problem = &self.problem;
         let shape = problem.shape;
@@ -663,7 +370,7 @@ fn fit_one(
     data: &Dataset,
     cfg: &TrainConfig,
     seed: u64,
-    progress: Option<lm::Progress>,
+    progress: Option<lm::EpochProgress<'_>>,
 ) -> Result<TrainedMlp, IdentifyError> {
     match cfg.trainer {
         Trainer::Lm => {
@@ -680,7 +387,7 @@ fn fit_burn(
     cfg: &TrainConfig,
     optimizer: crate::config::Optimizer,
     seed: u64,
-    mut progress: Option<lm::Progress>,
+    progress: Option<lm::EpochProgress<'_>>,
 ) -> Result<TrainedMlp, IdentifyError> {
     check_finite(data)?;
     let n = data.normalised();
@@ -700,9 +407,7 @@ fn fit_burn(
         mlp::nguyen_widrow_layers(&arch, seed),
         &adam_settings(cfg, optimizer),
         seed,
-        progress
-            .as_mut()
-            .map(|p| p.as_mut() as &mut dyn FnMut(&Epoch)),
+        progress,
     )?;
     let kept = &fit.history[fit.best_epoch - 1];
     let (train_mse, val_mse) = (kept.train_mse, kept.val_mse);
@@ -777,245 +482,4 @@ fn assemble(data: &Dataset, f: Fitted) -> TrainedMlp {
         DEFAULT_SUPPORT_MIN_SAMPLES,
     );
     t
-}
-
-/// The network of one leave-one-run-out fold scored on its held-out run.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct HeldOut {
-    pub run: String,
-    /// Valid samples of the held-out run scored (every `decimate`-th of each axle).
-    pub samples: usize,
-    /// RMSE of the exported model (creep region, clamping and support included) against the
-    /// run's own estimates, μ.
-    pub rmse_mu: f64,
-}
-
-/// Leave-one-run-out validation (issue 15, point 4): for every run, the network trained as
-/// `cfg` says — but from one start, without an ensemble — on the other runs, exported with the
-/// pipeline's creep region, and scored against the held-out run's estimates (all axles,
-/// every `cfg.decimate`-th sample). Folds run in parallel; results in run order. Fewer than
-/// two runs: none.
-pub fn leave_one_run_out(
-    tables: &[RunTable],
-    pipeline: &crate::Pipeline,
-) -> Result<Vec<HeldOut>, IdentifyError> {
-    if tables.len() < 2 {
-        return Ok(Vec::new());
-    }
-    let mut cfg = pipeline.train.clone();
-    cfg.starts = 1;
-    cfg.ensemble = 1;
-    (0..tables.len())
-        .into_par_iter()
-        .map(|i| {
-            let others: Vec<RunTable> = tables
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| *k != i)
-                .map(|(_, t)| t.clone())
-                .collect();
-            let mut t = train_mlp(&others, &cfg, None)?;
-            t.reference_speed_mps = median_speed(&others);
-            let creep = creep_spec(pipeline, t.reference_speed_mps)?;
-            let provenance = crate::model::Provenance {
-                inputs: vec![],
-                pipeline: pipeline.source.clone(),
-                pipeline_sha256: String::new(),
-                seed: cfg.seed,
-                crate_version: env!("CARGO_PKG_VERSION").into(),
-                created: String::new(),
-                generation: None,
-            };
-            let file = super::export::mlp_file(&t, creep, provenance, None)?;
-            let model =
-                crate::model::Model::named(file, "leave-one-run-out network").map_err(|e| {
-                    IdentifyError::Data {
-                        what: e.to_string(),
-                        hint: "report this as a bug".into(),
-                    }
-                })?;
-            Ok(held_out_score(&model, &tables[i], cfg.decimate))
-        })
-        .collect()
-}
-
-/// A model scored on a run it was not trained on: RMSE of the model (creep region, clamping and
-/// support included) against the run's own estimates, every `decimate`-th valid sample of all
-/// axles, at the run's ambient temperature.
-pub fn held_out_score(model: &crate::model::Model, held: &RunTable, decimate: usize) -> HeldOut {
-    let t_c = held.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
-    let (mut sq, mut n) = (0.0, 0usize);
-    for k in (0..held.len()).step_by(decimate.max(1)) {
-        let e = model.mu_vt(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k], t_c) - held.mu[k];
-        sq += e * e;
-        n += 1;
-    }
-    HeldOut {
-        run: held.name.clone(),
-        samples: n,
-        rmse_mu: (sq / n.max(1) as f64).sqrt(),
-    }
-}
-
-/// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001
-/// eq. 1–5; Kalker's c11, c22) and that load Q, N.
-pub fn pipeline_patch(
-    pipeline: &crate::Pipeline,
-) -> Result<(crate::contact::polach::ContactPatch, f64), IdentifyError> {
-    crate::vehicle::wheel_patch(&pipeline.vehicle, &pipeline.contact).map_err(|e| {
-        IdentifyError::Data {
-            what: format!("contact patch of the pipeline's [contact] section: {e}"),
-            hint: "check [contact] and vehicle.wheel_radius_m in the pipeline file".into(),
-        }
-    })
-}
-
-/// The creep region of a model for a pipeline: Kalker's creep stiffness C = G a b c11 of one
-/// wheel's Hertz patch (seed 001 eq. 1–5, 10–11) at the static wheel load Q.
-pub fn creep_spec(
-    pipeline: &crate::Pipeline,
-    reference_speed_mps: f64,
-) -> Result<crate::model::CreepSpec, IdentifyError> {
-    let (patch, q) = pipeline_patch(pipeline)?;
-    Ok(crate::model::CreepSpec {
-        blend_mps: pipeline.train.creep_blend_mps,
-        creep_stiffness_n: patch.g_pa * patch.a_m * patch.b_m * patch.c11,
-        wheel_load_n: q,
-        reference_speed_mps,
-        reference_temperature_c: None,
-    })
-}
-
-/// The runs that train a campaign's models: one rail condition (run metadata `condition`;
-/// runs without it count as `unknown`). Adhesion on dry rail and on soap are different
-/// curves, and a dry calibration run in a soap campaign would bend both the network and the
-/// Polach fits.
-#[derive(Debug)]
-pub struct ConditionChoice {
-    pub condition: String,
-    pub used: Vec<RunTable>,
-    /// (run, its condition) of the runs left out.
-    pub skipped: Vec<(String, String)>,
-}
-
-/// The rail condition of a run, `unknown` without metadata.
-pub fn run_condition(t: &RunTable) -> String {
-    t.metadata
-        .condition
-        .clone()
-        .unwrap_or_else(|| "unknown".into())
-}
-
-/// Keeps the runs of condition `wanted`, or without it of the most common condition (most
-/// runs; a tie goes to the alphabetically first).
-pub fn select_condition(
-    tables: Vec<RunTable>,
-    wanted: Option<&str>,
-) -> Result<ConditionChoice, IdentifyError> {
-    let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
-    for t in &tables {
-        *counts.entry(run_condition(t)).or_default() += 1;
-    }
-    let condition = match wanted {
-        Some(w) => {
-            if !counts.contains_key(w) {
-                return Err(IdentifyError::Data {
-                    what: format!(
-                        "train.condition = \"{w}\": no run has that condition (found {:?})",
-                        counts.keys().collect::<Vec<_>>()
-                    ),
-                    hint: "set train.condition to one of the conditions found, or leave it out"
-                        .into(),
-                });
-            }
-            w.to_string()
-        }
-        None => counts
-            .iter()
-            .max_by(|a, b| a.1.cmp(b.1).then(b.0.cmp(a.0)))
-            .map(|(c, _)| c.clone())
-            .ok_or_else(|| IdentifyError::Data {
-                what: "no runs to train on".into(),
-                hint: "give estimates tables or run logs".into(),
-            })?,
-    };
-    let (used, other): (Vec<RunTable>, Vec<RunTable>) = tables
-        .into_iter()
-        .partition(|t| run_condition(t) == condition);
-    Ok(ConditionChoice {
-        condition,
-        used,
-        skipped: other
-            .iter()
-            .map(|t| (t.name.clone(), run_condition(t)))
-            .collect(),
-    })
-}
-
-/// Median vehicle speed over the valid samples of `tables`, m/s (10 m/s when there are none).
-pub fn median_speed(tables: &[RunTable]) -> f64 {
-    let mut v: Vec<f64> = tables
-        .iter()
-        .flat_map(|t| t.v_mps.iter().copied())
-        .filter(|v| v.is_finite())
-        .collect();
-    if v.is_empty() {
-        return 10.0;
-    }
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
-}
-
-/// UTC time as RFC 3339 (`SOURCE_DATE_EPOCH` overrides the clock, for reproducible files).
-pub fn utc_now_rfc3339() -> String {
-    let secs = std::env::var("SOURCE_DATE_EPOCH")
-        .ok()
-        .and_then(|s| s.trim().parse::<i64>().ok())
-        .unwrap_or_else(|| {
-            std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map(|d| d.as_secs() as i64)
-                .unwrap_or(0)
-        });
-    let days = secs.div_euclid(86_400);
-    let rem = secs.rem_euclid(86_400);
-    // Civil date from days since 1970-01-01 (H. Hinnant's algorithm).
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z - era * 146_097;
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = doy - (153 * mp + 2) / 5 + 1;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 };
-    let y = yoe + era * 400 + i64::from(m <= 2);
-    format!(
-        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}Z",
-        rem / 3600,
-        rem / 60 % 60,
-        rem % 60
-    )
-}
-
-/// `<name>.leave-one-run-out.json`: the network's held-out scores and the generation that
-/// wrote them.
-#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
-pub struct HeldOutFile {
-    #[serde(default)]
-    pub generation: Option<String>,
-    pub runs: Vec<HeldOut>,
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn rfc3339_dates() {
-        std::env::set_var("SOURCE_DATE_EPOCH", "1763692800");
-        assert_eq!(utc_now_rfc3339(), "2025-11-21T02:40:00Z");
-        std::env::set_var("SOURCE_DATE_EPOCH", "951782400");
-        assert_eq!(utc_now_rfc3339(), "2000-02-29T00:00:00Z");
-        std::env::remove_var("SOURCE_DATE_EPOCH");
-    }
 }

@@ -21,7 +21,7 @@ use plotters::style::RGBColor;
 
 use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
 use crate::format::AXLES;
-use crate::identify::polach_fit::{PolachReport, PROFILE_LIMIT};
+use crate::identify::polach::{PolachReport, PROFILE_LIMIT};
 use crate::model::{Model, ModelError, ModelFile};
 use crate::outdir::{CampaignRecord, OutDir, RecordError, RunRecord};
 use data::{read_run, RunData};
@@ -76,7 +76,7 @@ struct Inputs<'a> {
     polach: Option<Model>,
     fits: Option<PolachReport>,
     /// Leave-one-run-out scores of the network, when the campaign computed them.
-    held_out: Vec<crate::identify::train::HeldOut>,
+    held_out: Vec<crate::identify::HeldOut>,
     /// The runs that were estimated, with their tables.
     data: Vec<(&'a RunRecord, RunData)>,
 }
@@ -108,7 +108,7 @@ impl<'a> Inputs<'a> {
                 })
             }
             Ok(t) => {
-                let f: crate::identify::train::HeldOutFile =
+                let f: crate::identify::HeldOutFile =
                     serde_json::from_str(&t).map_err(|source| ReportError::Fits {
                         file: models.leave_one_run_out().display().to_string(),
                         source,
@@ -615,17 +615,17 @@ fn network(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
 fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), ReportError> {
     let (data, polach_model) = (&i.data, &i.polach);
     h.push_str("<h2>Polach fits (seed 004 eq. 1–3)</h2>\n<table><tr><th class=\"l\">group</th><th>μ0</th><th>A</th><th>B s/m</th><th>k_A</th><th>k_S</th><th>RMSE μ</th><th>samples</th></tr>\n");
-    use crate::identify::polach_fit::ParamStatus;
+    use crate::identify::polach::ParamStatus;
     // Each parameter as estimated ± se, or held: at its bound, or at the prior where the data
     // do not identify it.
     // Each parameter as estimated ± se with its profile-likelihood 95 % interval, or held: at
     // its bound, or at its least-squares value where the data do not identify it.
-    let cell = |p: &crate::identify::polach_fit::PolachFit, k: usize, x: f64| {
+    let cell = |p: &crate::identify::polach::PolachFit, k: usize, x: f64| {
         let s = p.se[k];
         let ci = p
             .profiles
             .iter()
-            .find(|q| q.parameter == crate::identify::polach_fit::PARAMETERS[k])
+            .find(|q| q.parameter == crate::identify::polach::PARAMETERS[k])
             .map(|q| {
                 let side = |v: Option<f64>| v.map_or("–".to_string(), |v| format!("{v:.4}"));
                 format!("<br><small>[{}, {}]</small>", side(q.lower), side(q.upper))
@@ -731,7 +731,7 @@ fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Repor
             .iter()
             .enumerate()
             .filter_map(|(k, q)| {
-                let i = crate::identify::polach_fit::PARAMETERS
+                let i = crate::identify::polach::PARAMETERS
                     .iter()
                     .position(|n| *n == q.parameter)?;
                 let se = p.se[i];

@@ -12,7 +12,7 @@
 //!   difference in μ between the two (what "exact vs fast tanh" costs and buys). Timed after
 //!   all training, one cell at a time, best of 5 repetitions of ≥ 20 ms;
 //! - model file size, bytes;
-//! - RMSE against the held-out runs' own estimates (μ; [`crate::identify::train::held_out_score`]);
+//! - RMSE against the held-out runs' own estimates (μ; [`crate::identify::held_out_score`]);
 //! - when the held-out runs carry truth (`<stem>.truth.parquet` beside a log in a folder, as
 //!   `railgrip simulate` writes it), the supported-cell error against the true law
 //!   ([`crate::score`]: RMSE over the cells with ≥ 20 truth samples of one axle).
@@ -33,15 +33,12 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-pub use plan::{CellSpec, Family, Plan, DEFAULT_PLAN_NAME, DEFAULT_PLAN_TOML};
+pub use plan::{CellSpec, Plan, DEFAULT_PLAN_NAME, DEFAULT_PLAN_TOML};
 
 use crate::campaign::{process_run, sources_all, CampaignError, OutDir, RunRecord};
 use crate::identify::dataset::RunTable;
-use crate::identify::export;
-use crate::identify::polach_fit::fit_campaign;
-use crate::identify::train::{
-    creep_spec, held_out_score, median_speed, pipeline_patch, select_condition, train_mlp,
-};
+use crate::identify::family::{FitData, TemperatureNeed};
+use crate::identify::{held_out_score, select_condition};
 use crate::ingest::LogSource;
 use crate::model::{Model, ModelFile, Provenance};
 pub use crate::outdir::StudyPaths;
@@ -98,16 +95,10 @@ pub enum Event<'a> {
     Timed(&'a CellResult),
 }
 
-/// Receives a study's [`Event`]s.
-pub trait Progress: Send + Sync {
-    fn event(&self, e: Event<'_>);
-}
+pub use crate::progress::{Progress, Quiet};
 
-/// A [`Progress`] that ignores everything.
-pub struct Quiet;
-impl Progress for Quiet {
-    fn event(&self, _: Event<'_>) {}
-}
+/// What receives a study's [`Event`]s: any [`Progress`] of them.
+pub type StudyProgress<'p> = &'p dyn for<'a> Progress<Event<'a>>;
 
 /// Evaluation times of one model file, ns per μ.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -132,7 +123,8 @@ pub struct CellResult {
     pub key: String,
     pub name: String,
     pub group: String,
-    pub family: Family,
+    /// The [`crate::identify::ModelFamily::name`] of the cell's family.
+    pub family: String,
     /// Pipeline keys the cell sets, as TOML values.
     pub settings: Vec<(String, String)>,
     /// `2-10-1` for a network, `polach` / `polach+k(T)`.
@@ -201,36 +193,6 @@ pub struct Outcome {
     pub wall_s: f64,
 }
 
-/// Rough training-time model behind the plan's refusal (calibrated on the bundled archive,
-/// release build, 2 cores; README "railgrip study" compares it with the measured times).
-fn estimate_train_s(spec: &CellSpec, samples: usize) -> f64 {
-    let cfg = &spec.pipeline.train;
-    let n = (samples / cfg.decimate.max(1)) as f64;
-    match spec.family {
-        Family::Polach | Family::PolachKt => 1.0 + 1e-5 * n,
-        Family::Mlp => {
-            let arch = crate::identify::mlp::Arch {
-                inputs: cfg.inputs.count(),
-                hidden: cfg.layers.clone(),
-            };
-            let p = arch.n_params() as f64;
-            let starts = cfg.starts.max(1) as f64;
-            match cfg.trainer {
-                crate::config::Trainer::Lm => {
-                    // trainbr has no validation stop: it runs longer.
-                    let cap = if cfg.bayesian { 400.0 } else { 150.0 };
-                    let epochs = (cfg.epochs as f64).min(cap);
-                    starts * epochs * n * (8e-10 * p + 8e-12 * p * p)
-                }
-                crate::config::Trainer::Burn(_) => {
-                    let epochs = (cfg.epochs as f64).min(80.0);
-                    epochs * n * 3e-9 * p
-                }
-            }
-        }
-    }
-}
-
 fn write_text(path: &Path, text: &str) -> Result<(), StudyError> {
     crate::atomic::write_atomically(path, |w| w.write_all(text.as_bytes())).map_err(|source| {
         StudyError::Write {
@@ -254,12 +216,12 @@ struct Split {
 }
 
 /// Runs the study of `plan` over the campaign at `archive` into `out`.
-pub fn study(
+pub fn run(
     archive: &Path,
     plan: &Plan,
     out: &Path,
     options: Options,
-    progress: &dyn Progress,
+    progress: StudyProgress<'_>,
 ) -> Result<Outcome, StudyError> {
     let t_all = Instant::now();
     if plan.cells.len() > plan.max_cells && !options.force {
@@ -385,9 +347,8 @@ pub fn study(
     distinct.sort_by(f64::total_cmp);
     distinct.dedup();
     for c in &plan.cells {
-        let needs_t = c.family == Family::PolachKt
-            || (c.family == Family::Mlp && c.pipeline.train.inputs.has_temperature());
-        if needs_t && !missing.is_empty() {
+        let need = c.family.temperatures(&c.pipeline.train);
+        if need != TemperatureNeed::None && !missing.is_empty() {
             return Err(StudyError::Plan {
                 file: plan.source.clone(),
                 what: format!(
@@ -398,7 +359,7 @@ pub fn study(
                 hint: "add ambient_temperature_c to those runs' metadata, or drop the 4-input and polach_kt cells from the plan".into(),
             });
         }
-        if c.family == Family::PolachKt && distinct.len() < 2 {
+        if need == TemperatureNeed::TwoOrMore && distinct.len() < 2 {
             return Err(StudyError::Plan {
                 file: plan.source.clone(),
                 what: format!(
@@ -544,7 +505,10 @@ pub fn study(
     let samples_of = |i: usize| -> usize { splits[cond_of[i]].train.iter().map(|t| t.len()).sum() };
     let estimates: Vec<f64> = specs
         .iter()
-        .map(|(i, c, _)| estimate_train_s(c, samples_of(*i)))
+        .map(|(i, c, _)| {
+            c.family
+                .estimated_seconds(&c.pipeline.train, samples_of(*i))
+        })
         .collect();
     let pending_s: f64 = specs
         .iter()
@@ -723,7 +687,7 @@ fn train_cell(
         key: key.to_string(),
         name: spec.name(),
         group: spec.group.clone(),
-        family: spec.family,
+        family: spec.family.name().to_string(),
         settings: spec.settings.clone(),
         architecture: String::new(),
         parameters: 0,
@@ -793,7 +757,7 @@ fn train_cell(
     r
 }
 
-/// The cell's model file (network or Polach), with its shape in `r`.
+/// The cell's model file, with its shape in `r`.
 fn fit(spec: &CellSpec, train: &[RunTable], r: &mut CellResult) -> Result<ModelFile, String> {
     let pipeline = &spec.pipeline;
     let provenance = Provenance {
@@ -805,56 +769,21 @@ fn fit(spec: &CellSpec, train: &[RunTable], r: &mut CellResult) -> Result<ModelF
         created: String::new(),
         generation: None,
     };
-    let v_ref = median_speed(train);
-    match spec.family {
-        Family::Mlp => {
-            let mut cfg = pipeline.train.clone();
-            cfg.leave_one_run_out = false;
-            let mut t = train_mlp(train, &cfg, None).map_err(|e| e.to_string())?;
-            t.reference_speed_mps = v_ref;
-            let creep = creep_spec(pipeline, v_ref).map_err(|e| e.to_string())?;
-            r.architecture = t.arch.to_string();
-            r.parameters = t.arch.n_params();
-            r.train_samples = t.n_train + t.n_val;
-            r.epochs = t.history.len();
-            export::mlp_file(&t, creep, provenance, None).map_err(|e| e.to_string())
-        }
-        Family::Polach | Family::PolachKt => {
-            let (patch, q) = pipeline_patch(pipeline).map_err(|e| e.to_string())?;
-            let cfg = &pipeline.train;
-            let (report, _) =
-                fit_campaign(train, patch, q, cfg.decimate, cfg.temperature_degree, false);
-            let pooled = report
-                .pooled
-                .as_ref()
-                .ok_or("the pooled Polach fit failed (see `railgrip train` for why)")?;
-            let temperature = if spec.family == Family::PolachKt {
-                Some(report.temperature.as_ref().ok_or(
-                    "the data chose no temperature law: k(T) is not identified on these runs",
-                )?)
-            } else {
-                None
-            };
-            r.architecture = match spec.family {
-                Family::PolachKt => "polach+k(T)".into(),
-                _ => "polach".into(),
-            };
-            r.parameters = crate::identify::polach_fit::PARAMETERS.len();
-            r.train_samples = pooled.samples;
-            r.epochs = pooled.iterations;
-            export::polach_file(
-                pooled,
-                &patch,
-                q,
-                temperature,
-                report.dv_range_mps,
-                report.v_range_mps,
-                v_ref,
-                provenance,
-            )
-            .map_err(|e| e.to_string())
-        }
-    }
+    let fitted = spec
+        .family
+        .fit(&FitData {
+            tables: train,
+            pipeline,
+            provenance,
+            fallback: None,
+            epochs: None,
+        })
+        .map_err(|e| e.to_string())?;
+    let file = fitted.model?;
+    let s = fitted.shape;
+    (r.architecture, r.parameters, r.train_samples, r.epochs) =
+        (s.architecture, s.parameters, s.train_samples, s.epochs);
+    Ok(file)
 }
 
 /// Inputs (Δv, dΔv/dt, v, T) of the held-out runs, every k-th sample so that about `n` remain.
@@ -1042,7 +971,7 @@ pub fn csv(o: &Outcome) -> String {
             "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             c.key,
             q(&c.group),
-            c.family.name(),
+            c.family,
             q(&c.name),
             c.architecture,
             c.parameters,

@@ -12,6 +12,7 @@ use std::path::Path;
 use super::ladder::{ContactSpec, SimSpec, CONTACT_LAWS};
 use super::StudyError;
 use crate::config::Pipeline;
+use crate::identify::family::{by_name, ModelFamily, Network, FAMILIES};
 use crate::sim::Scene;
 
 /// The bundled default plan (`pipelines/study.toml`).
@@ -40,35 +41,13 @@ const LIST_KEYS: [&str; 5] = [
     "train.support_cells",
 ];
 
-/// What a cell identifies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Family {
-    /// The network of `[train]` (LM, or Adam/AdamW through burn).
-    Mlp,
-    /// Polach's law, pooled fit (seed 004 eq. 6–10), constant k_A, k_S.
-    Polach,
-    /// Polach's law with its temperature law μ0(T), k_A(T), k_S(T) (seed 004 Fig. 2).
-    PolachKt,
-}
-
-impl Family {
-    pub const ALL: [Family; 3] = [Family::Mlp, Family::Polach, Family::PolachKt];
-    pub fn name(self) -> &'static str {
-        match self {
-            Family::Mlp => "mlp",
-            Family::Polach => "polach",
-            Family::PolachKt => "polach_kt",
-        }
-    }
-}
-
 /// One cell of the plan.
 #[derive(Debug, Clone)]
 pub struct CellSpec {
     /// The grid's `label` (or `grid N`).
     pub group: String,
-    pub family: Family,
+    /// What the cell identifies (one of [`FAMILIES`]).
+    pub family: &'static dyn ModelFamily,
     /// The pipeline keys this cell sets, in key order, as TOML text (`train.layers = [10]`).
     pub settings: Vec<(String, String)>,
     /// The complete pipeline of the cell.
@@ -292,7 +271,7 @@ impl Plan {
                 ));
             };
             for spec in expand(grid, g, file, &base_doc, &base_name)? {
-                let key = (spec.family, spec.pipeline.text.clone());
+                let key = (spec.family.name(), spec.pipeline.text.clone());
                 if seen.insert(key) {
                     cells.push(spec);
                 }
@@ -329,7 +308,7 @@ fn expand(
 ) -> Result<Vec<CellSpec>, StudyError> {
     let at = format!("grid[{g}]");
     let mut label = format!("grid {g}");
-    let mut families = vec![Family::Mlp];
+    let mut families: Vec<&'static dyn ModelFamily> = vec![&Network];
     // Axes in key order: (pipeline key, values).
     let mut axes: BTreeMap<String, Vec<toml::Value>> = BTreeMap::new();
     let pipeline_keys = |section: &str| -> Vec<&'static str> {
@@ -357,14 +336,18 @@ fn expand(
                 families = Vec::new();
                 for f in vals {
                     let name = f.as_str().unwrap_or("");
-                    match Family::ALL.iter().find(|x| x.name() == name) {
-                        Some(x) => families.push(*x),
+                    match by_name(name) {
+                        Some(x) => families.push(x),
                         None => {
+                            let names: Vec<String> = FAMILIES
+                                .iter()
+                                .map(|f| format!("\"{}\"", f.name()))
+                                .collect();
                             return Err(err(
                                 file,
                                 format!("{at}.family: unknown family {f}"),
-                                "families are \"mlp\", \"polach\" and \"polach_kt\"",
-                            ))
+                                format!("families are {}", names.join(", ")),
+                            ));
                         }
                     }
                 }

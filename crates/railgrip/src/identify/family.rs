@@ -1,0 +1,357 @@
+//! One seam for model families: every way railgrip identifies μ from estimates — the network
+//! (seed 002; Levenberg–Marquardt, or Adam/AdamW through burn for deeper ones), Polach's law
+//! (seed 004 eq. 1–2) and Polach's law with its temperature law (seed 004 eq. 3, Fig. 2) — is a
+//! [`ModelFamily`]: fitted on run tables of one rail condition with a pipeline, it gives a model
+//! file, its shape and the fit's report. `railgrip run`, `railgrip train`, leave-one-run-out
+//! validation and `railgrip study` call families through this trait only; [`FAMILIES`] is the
+//! one list of the families a plan may name.
+
+use super::campaign::{creep_spec, median_speed, pipeline_patch};
+use super::dataset::RunTable;
+use super::export;
+use super::lm::Epoch;
+use super::polach::{fit_campaign, PolachReport, PARAMETERS};
+use super::train::{train_mlp, TrainedMlp};
+use super::IdentifyError;
+use crate::config::{TrainConfig, Trainer};
+use crate::model::{Model, ModelFile, Provenance};
+use crate::progress::Progress;
+use crate::Pipeline;
+
+/// What a family is fitted from.
+pub struct FitData<'a> {
+    /// The runs (their valid estimates), all of one rail condition.
+    pub tables: &'a [RunTable],
+    /// The pipeline: `[train]` sets the fit, `[vehicle]` and `[contact]` the contact patch and
+    /// the creep region.
+    pub pipeline: &'a Pipeline,
+    /// Written into the model file.
+    pub provenance: Provenance,
+    /// A model the fitted one blends to outside its data support (a network's fallback: the
+    /// campaign's Polach model); `None`: no fallback.
+    pub fallback: Option<&'a Model>,
+    /// Sees every epoch of an iterative training.
+    pub epochs: Option<&'a dyn for<'e> Progress<&'e Epoch>>,
+}
+
+/// What a fitted model looks like, for tables and reports.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Shape {
+    /// `2-10-1` for a network; `polach`, `polach+k(T)`.
+    pub architecture: String,
+    pub parameters: usize,
+    /// Samples the fit saw (networks: training + validation; Polach: the pooled fit's).
+    pub train_samples: usize,
+    /// Epochs (networks) or LM iterations (Polach).
+    pub epochs: usize,
+}
+
+/// A family's own account of its fit.
+#[derive(Debug)]
+pub enum Report {
+    Network(Box<TrainedMlp>),
+    Polach(Box<PolachReport>),
+}
+
+impl Report {
+    /// The network's training, when this is a network's report.
+    pub fn into_network(self) -> Option<TrainedMlp> {
+        match self {
+            Report::Network(t) => Some(*t),
+            Report::Polach(_) => None,
+        }
+    }
+
+    /// The Polach fits, when this is a Polach family's report.
+    pub fn into_polach(self) -> Option<PolachReport> {
+        match self {
+            Report::Polach(r) => Some(*r),
+            Report::Network(_) => None,
+        }
+    }
+}
+
+/// A fitted family.
+#[derive(Debug)]
+pub struct Fitted {
+    /// The model file, or why the fit gave none (the report is kept either way: the Polach
+    /// fits of a campaign are written even when the pooled one failed).
+    pub model: Result<ModelFile, String>,
+    pub shape: Shape,
+    pub report: Report,
+    /// What the fit left out and why (runs not fitted, a temperature law dropped).
+    pub notes: Vec<String>,
+}
+
+/// What a family needs of the runs' ambient temperatures (run metadata
+/// `ambient_temperature_c`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TemperatureNeed {
+    /// Nothing.
+    None,
+    /// Every run must carry one (networks with the temperature input).
+    EveryRun,
+    /// Every run must carry one and there must be two or more distinct ones (a law in T).
+    TwoOrMore,
+}
+
+/// A way of identifying μ from estimates.
+pub trait ModelFamily: Send + Sync + std::fmt::Debug {
+    /// The family's name in plans, tables and reports (`mlp`, `polach`, `polach_kt`).
+    fn name(&self) -> &'static str;
+    /// What the fit needs of the runs' ambient temperatures with these `[train]` settings.
+    fn temperatures(&self, train: &TrainConfig) -> TemperatureNeed;
+    /// Rough wall time of a fit to `samples` valid samples, s (release build, 2 cores;
+    /// calibrated on the bundled archive; docs/study.md compares it with measured times).
+    /// Plans refuse work over their time budget with it.
+    fn estimated_seconds(&self, train: &TrainConfig, samples: usize) -> f64;
+    /// Fits the family. An error means no fit at all (bad settings, no data); a fit that gives
+    /// a report but no model file says why in [`Fitted::model`].
+    fn fit(&self, data: &FitData<'_>) -> Result<Fitted, IdentifyError>;
+}
+
+/// The seed 002 network of `[train]`: `layers`, `inputs`, trained by Levenberg–Marquardt
+/// (trainlm or trainbr) or by Adam/AdamW through burn, with the pipeline's creep region and,
+/// when given, the fallback outside its data support.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Network;
+
+impl ModelFamily for Network {
+    fn name(&self) -> &'static str {
+        "mlp"
+    }
+
+    fn temperatures(&self, train: &TrainConfig) -> TemperatureNeed {
+        if train.inputs.has_temperature() {
+            TemperatureNeed::EveryRun
+        } else {
+            TemperatureNeed::None
+        }
+    }
+
+    fn estimated_seconds(&self, cfg: &TrainConfig, samples: usize) -> f64 {
+        let n = (samples / cfg.decimate.max(1)) as f64;
+        let arch = super::mlp::Arch {
+            inputs: cfg.inputs.count(),
+            hidden: cfg.layers.clone(),
+        };
+        let p = arch.n_params() as f64;
+        let starts = cfg.starts.max(1) as f64;
+        match cfg.trainer {
+            Trainer::Lm => {
+                // trainbr has no validation stop: it runs longer.
+                let cap = if cfg.bayesian { 400.0 } else { 150.0 };
+                let epochs = (cfg.epochs as f64).min(cap);
+                starts * epochs * n * (8e-10 * p + 8e-12 * p * p)
+            }
+            Trainer::Burn(_) => {
+                let epochs = (cfg.epochs as f64).min(80.0);
+                epochs * n * 3e-9 * p
+            }
+        }
+    }
+
+    fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
+        let mut t = train_mlp(d.tables, &d.pipeline.train, d.epochs)?;
+        t.reference_speed_mps = median_speed(d.tables);
+        let creep = creep_spec(d.pipeline, t.reference_speed_mps)?;
+        let file = export::mlp_file(&t, creep, d.provenance.clone(), d.fallback)?;
+        Ok(Fitted {
+            model: Ok(file),
+            shape: Shape {
+                architecture: t.arch.to_string(),
+                parameters: t.arch.n_params(),
+                train_samples: t.n_train + t.n_val,
+                epochs: t.history.len(),
+            },
+            report: Report::Network(Box::new(t)),
+            notes: Vec::new(),
+        })
+    }
+}
+
+/// Polach's law with constant parameters: the pooled fit of all runs (per-run and
+/// per-temperature fits in the report).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Polach {
+    /// Profile-likelihood intervals of the pooled and per-temperature fits (about 30 refits
+    /// per fit).
+    pub intervals: bool,
+}
+
+/// Polach's law with its temperature law μ0(T), k_A(T), k_S(T) as the data choose it (BIC).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct PolachWithLaws {
+    /// As [`Polach::intervals`].
+    pub intervals: bool,
+    /// Without a temperature law the fit gives no model (a study's `polach_kt` cell); otherwise
+    /// the model is written without the law, and a law the model file refuses is dropped with a
+    /// note (a campaign's Polach model).
+    pub law_required: bool,
+}
+
+const POOLED_FAILED: &str = "the pooled Polach fit failed (see `railgrip train` for why)";
+
+/// Every Polach fit of the runs (pooled, per run, per temperature, the temperature forms).
+fn polach_fits(
+    d: &FitData<'_>,
+    intervals: bool,
+) -> Result<(PolachReport, Vec<String>, PolachFile), IdentifyError> {
+    let (patch, wheel_load_n) = pipeline_patch(d.pipeline)?;
+    let cfg = &d.pipeline.train;
+    let (report, notes) = fit_campaign(
+        d.tables,
+        patch,
+        wheel_load_n,
+        cfg.decimate,
+        cfg.temperature_degree,
+        intervals,
+    );
+    let file = PolachFile {
+        patch,
+        wheel_load_n,
+        reference_speed_mps: median_speed(d.tables),
+    };
+    Ok((report, notes, file))
+}
+
+/// What a Polach model file needs besides the fit.
+struct PolachFile {
+    patch: crate::contact::polach::ContactPatch,
+    wheel_load_n: f64,
+    reference_speed_mps: f64,
+}
+
+impl PolachFile {
+    /// The model file of the pooled fit, with `law` when given.
+    fn write(
+        &self,
+        report: &PolachReport,
+        law: Option<&super::polach::TemperatureFit>,
+        provenance: &Provenance,
+    ) -> Result<ModelFile, String> {
+        let pooled = report.pooled.as_ref().ok_or(POOLED_FAILED)?;
+        export::polach_file(
+            pooled,
+            &self.patch,
+            self.wheel_load_n,
+            law,
+            report.dv_range_mps,
+            report.v_range_mps,
+            self.reference_speed_mps,
+            provenance.clone(),
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
+fn polach_shape(report: &PolachReport, architecture: &str) -> Shape {
+    let (train_samples, epochs) = report
+        .pooled
+        .as_ref()
+        .map_or((0, 0), |p| (p.samples, p.iterations));
+    Shape {
+        architecture: architecture.into(),
+        parameters: PARAMETERS.len(),
+        train_samples,
+        epochs,
+    }
+}
+
+impl ModelFamily for Polach {
+    fn name(&self) -> &'static str {
+        "polach"
+    }
+
+    fn temperatures(&self, _: &TrainConfig) -> TemperatureNeed {
+        TemperatureNeed::None
+    }
+
+    fn estimated_seconds(&self, cfg: &TrainConfig, samples: usize) -> f64 {
+        1.0 + 1e-5 * (samples / cfg.decimate.max(1)) as f64
+    }
+
+    fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
+        let (report, notes, file) = polach_fits(d, self.intervals)?;
+        Ok(Fitted {
+            model: file.write(&report, None, &d.provenance),
+            shape: polach_shape(&report, "polach"),
+            report: Report::Polach(Box::new(report)),
+            notes,
+        })
+    }
+}
+
+impl ModelFamily for PolachWithLaws {
+    fn name(&self) -> &'static str {
+        "polach_kt"
+    }
+
+    fn temperatures(&self, _: &TrainConfig) -> TemperatureNeed {
+        if self.law_required {
+            TemperatureNeed::TwoOrMore
+        } else {
+            TemperatureNeed::None
+        }
+    }
+
+    fn estimated_seconds(&self, cfg: &TrainConfig, samples: usize) -> f64 {
+        Polach::default().estimated_seconds(cfg, samples)
+    }
+
+    fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
+        let (report, mut notes, file) = polach_fits(d, self.intervals)?;
+        let law = report.temperature.as_ref();
+        let model = if self.law_required {
+            match (&report.pooled, law) {
+                (None, _) => Err(POOLED_FAILED.to_string()),
+                (Some(_), None) => Err(
+                    "the data chose no temperature law: k(T) is not identified on these runs"
+                        .to_string(),
+                ),
+                (Some(_), Some(law)) => file.write(&report, Some(law), &d.provenance),
+            }
+        } else if report.pooled.is_none() {
+            // fit_campaign's notes say why.
+            Err(POOLED_FAILED.to_string())
+        } else {
+            match file.write(&report, law, &d.provenance) {
+                Err(e) if law.is_some() => {
+                    notes.push(format!(
+                        "Polach model written without its temperature law: {e}"
+                    ));
+                    file.write(&report, None, &d.provenance)
+                }
+                other => other,
+            }
+            .inspect_err(|e| notes.push(format!("no Polach model file: {e}")))
+        };
+        let architecture = if self.law_required {
+            "polach+k(T)"
+        } else {
+            "polach"
+        };
+        Ok(Fitted {
+            model,
+            shape: polach_shape(&report, architecture),
+            report: Report::Polach(Box::new(report)),
+            notes,
+        })
+    }
+}
+
+/// The families a study plan may name, by [`ModelFamily::name`]; as plans fit them (Polach
+/// without profile intervals, which a study does not report).
+pub const FAMILIES: [&dyn ModelFamily; 3] = [
+    &Network,
+    &Polach { intervals: false },
+    &PolachWithLaws {
+        intervals: false,
+        law_required: true,
+    },
+];
+
+/// The family of [`FAMILIES`] called `name`.
+pub fn by_name(name: &str) -> Option<&'static dyn ModelFamily> {
+    FAMILIES.iter().copied().find(|f| f.name() == name)
+}

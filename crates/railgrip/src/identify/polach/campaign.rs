@@ -1,0 +1,171 @@
+//! A campaign's Polach fits: pooled, per run, per ambient temperature, and the temperature law.
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::fit::{fit_polach, samples, PolachFit};
+use super::law::{Sample, DEFAULT_START};
+use super::temperature::{fit_temperature_forms, TemperatureFit};
+use crate::contact::polach::ContactPatch;
+use crate::identify::dataset::RunTable;
+use crate::identify::IdentifyError;
+
+/// Polach fits of a campaign: per run, per ambient temperature, and k(T).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PolachReport {
+    pub format: String,
+    pub version: u32,
+    /// The fixed contact patch: semi-axes a, b (m), shear modulus G (Pa), c11, c22, and the
+    /// static wheel load Q (N) it was computed for.
+    pub patch: [f64; 5],
+    pub wheel_load_n: f64,
+    /// All runs pooled: the parameters of the campaign's `polach` model file.
+    pub pooled: Option<PolachFit>,
+    /// Slip and speed ranges of the samples with slip (m/s): the model's domain.
+    pub dv_range_mps: (f64, f64),
+    pub v_range_mps: (f64, f64),
+    pub per_run: Vec<PolachFit>,
+    pub per_temperature: Vec<PolachFit>,
+    /// The temperature law and the forms it was chosen from; absent with fewer than two
+    /// temperatures (`temperature_note` says why).
+    pub temperature: Option<TemperatureFit>,
+    /// Why there is no temperature law: `temperature` absent, or its chosen form constant.
+    pub temperature_note: Option<String>,
+    /// The campaign generation that wrote the file (`campaign.json`'s), when a campaign did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub generation: Option<String>,
+}
+
+/// Fits every run, every temperature group (with profile-likelihood intervals for the pooled
+/// and per-temperature fits when `intervals`) and the temperature law. Runs that cannot be
+/// fitted are skipped with their error in `notes`.
+pub fn fit_campaign(
+    tables: &[RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    degree: usize,
+    intervals: bool,
+) -> (PolachReport, Vec<String>) {
+    let start = DEFAULT_START;
+    // Every group is fitted independently: in parallel, results kept in group order.
+    let all: Vec<&RunTable> = tables.iter().collect();
+    let mut temps: Vec<f64> = tables
+        .iter()
+        .filter_map(|t| t.metadata.ambient_temperature_c)
+        .collect();
+    temps.sort_by(f64::total_cmp);
+    temps.dedup();
+    enum Group {
+        Pooled,
+        Run(usize),
+        Temperature(f64),
+    }
+    let mut groups = vec![Group::Pooled];
+    groups.extend((0..tables.len()).map(Group::Run));
+    groups.extend(temps.iter().map(|t| Group::Temperature(*t)));
+    let fits: Vec<(&Group, Result<PolachFit, IdentifyError>)> = groups
+        .par_iter()
+        .map(|g| {
+            let r = match g {
+                Group::Pooled => {
+                    fit_polach("all runs", &all, patch, q_n, decimate, start, intervals)
+                }
+                Group::Run(i) => {
+                    let t = &tables[*i];
+                    fit_polach(&t.name, &[t], patch, q_n, decimate, start, false).map(|mut f| {
+                        f.ambient_temperature_c = t.metadata.ambient_temperature_c;
+                        f
+                    })
+                }
+                Group::Temperature(temp) => {
+                    let group: Vec<&RunTable> = tables
+                        .iter()
+                        .filter(|t| t.metadata.ambient_temperature_c == Some(*temp))
+                        .collect();
+                    fit_polach(
+                        &format!("T = {temp} °C"),
+                        &group,
+                        patch,
+                        q_n,
+                        decimate,
+                        start,
+                        intervals,
+                    )
+                    .map(|mut f| {
+                        f.ambient_temperature_c = Some(*temp);
+                        f
+                    })
+                }
+            };
+            (g, r)
+        })
+        .collect();
+    let mut notes = Vec::new();
+    let (mut pooled, mut per_run, mut per_temperature) = (None, Vec::new(), Vec::new());
+    for (g, r) in fits {
+        match (g, r) {
+            (Group::Pooled, Ok(f)) => pooled = Some(f),
+            (Group::Run(_), Ok(f)) => per_run.push(f),
+            (Group::Temperature(_), Ok(f)) => per_temperature.push(f),
+            (Group::Run(i), Err(e)) => notes.push(format!("{}: {e}", tables[*i].name)),
+            (_, Err(e)) => notes.push(e.to_string()),
+        }
+    }
+    let pooled_samples = samples(&all, q_n, decimate);
+    let range = |f: fn(&Sample) -> f64| {
+        pooled_samples
+            .iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
+    let law = match &pooled {
+        Some(p) => fit_temperature_forms(&all, patch, q_n, decimate, degree, p, &per_temperature),
+        None => Err(IdentifyError::Data {
+            what: "no pooled Polach fit".into(),
+            hint: "see the notes above".into(),
+        }),
+    };
+    let (temperature, temperature_note) = match law {
+        Ok(t) => {
+            for e in &t.excluded {
+                notes.push(format!("k(T) not identified at {e}"));
+            }
+            let note = (!t.has_law()).then(|| {
+                let best_other = t
+                    .candidates
+                    .iter()
+                    .filter(|c| c.mu0_degree + c.k_degree > 0)
+                    .map(|c| c.bic - t.candidates[0].bic)
+                    .fold(f64::INFINITY, f64::min);
+                format!(
+                    "the data prefer no temperature dependence (BIC of the best temperature form {} above the constant's){}",
+                    if best_other.is_finite() { format!("{best_other:.1}") } else { "—".into() },
+                    if t.notes.is_empty() { String::new() } else { format!("; {}", t.notes.join("; ")) }
+                )
+            });
+            (Some(t), note)
+        }
+        Err(e) => (None, Some(e.to_string())),
+    };
+    (
+        PolachReport {
+            format: "railgrip-polach-fit".into(),
+            version: 3,
+            patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
+            wheel_load_n: q_n,
+            pooled,
+            dv_range_mps,
+            v_range_mps,
+            per_run,
+            per_temperature,
+            temperature,
+            temperature_note,
+            generation: None,
+        },
+        notes,
+    )
+}

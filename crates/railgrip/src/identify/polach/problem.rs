@@ -1,0 +1,256 @@
+//! The least-squares problem of one Polach fit: parameters held or free, constant or as node
+//! values over temperature (Lagrange basis per temperature group), with the analytic Jacobian.
+
+use super::law::{mu_and_gradient, mu_only, to_natural, to_unconstrained, Sample, LOWER, UPPER};
+use super::temperature::basis_at;
+use crate::identify::lm::{LeastSquares, NormalEquations};
+use crate::linalg::{cho_solve, cholesky, effective_samples};
+
+/// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
+/// `train.temperature_degree`).
+pub(super) const MAX_NODES: usize = 6;
+/// Most free coordinates of a problem (five parameters, each with up to [`MAX_NODES`]).
+pub(super) const MAX_COORDS: usize = 5 * MAX_NODES;
+
+/// The samples at one ambient temperature (a contiguous range of the problem's samples) and,
+/// per parameter, its Lagrange basis at that temperature: x_i = Σ_j basis[i][j] · node_ij.
+/// A fit without temperature law is one group with basis [1, 0, …] for every parameter.
+#[derive(Debug, Clone)]
+pub(super) struct Group {
+    pub(super) range: std::ops::Range<usize>,
+    pub(super) basis: [[f64; MAX_NODES]; 5],
+}
+
+/// One free coordinate: parameter `param`'s value at temperature node `node` (degree 0: its
+/// constant value), solved for in its unconstrained logistic coordinate.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Coord {
+    pub(super) param: usize,
+    pub(super) node: usize,
+}
+
+/// The least-squares problem of one fit: parameters held at `fixed`, the others' node values
+/// free; `ks_fixed` holds k_S itself (profile likelihood of k_S), ρ = k_S/k_A then follows k_A.
+pub(super) struct PolachProblem<'a> {
+    pub(super) samples: &'a [Sample],
+    pub(super) groups: Vec<Group>,
+    pub(super) fixed: [Option<f64>; 5],
+    pub(super) ks_fixed: Option<f64>,
+    pub(super) free: Vec<Coord>,
+}
+
+/// Node values of the five parameters.
+pub(super) type Nodes = [[f64; MAX_NODES]; 5];
+
+impl<'a> PolachProblem<'a> {
+    /// Constant parameters over all samples, `fixed` held.
+    pub(super) fn plain(
+        samples: &'a [Sample],
+        fixed: [Option<f64>; 5],
+        ks_fixed: Option<f64>,
+    ) -> Self {
+        let group = Group {
+            range: 0..samples.len(),
+            basis: basis_at([0; 5], 0.0, 0.0, 0.0),
+        };
+        Self::new(samples, vec![group], [0; 5], fixed, ks_fixed)
+    }
+
+    pub(super) fn new(
+        samples: &'a [Sample],
+        groups: Vec<Group>,
+        degrees: [usize; 5],
+        fixed: [Option<f64>; 5],
+        ks_fixed: Option<f64>,
+    ) -> Self {
+        let free = (0..5)
+            .filter(|&i| fixed[i].is_none() && !(i == 4 && ks_fixed.is_some()))
+            .flat_map(|param| (0..=degrees[param]).map(move |node| Coord { param, node }))
+            .collect();
+        PolachProblem {
+            samples,
+            groups,
+            fixed,
+            ks_fixed,
+            free,
+        }
+    }
+
+    /// Node values from θ, and each free coordinate's d(node)/dθ.
+    pub(super) fn nodes(&self, theta: &[f64]) -> (Nodes, Vec<f64>) {
+        let mut v = [[0.0; MAX_NODES]; 5];
+        let mut d = vec![0.0; self.free.len()];
+        for (k, c) in self.free.iter().enumerate() {
+            (v[c.param][c.node], d[k]) = to_natural(c.param, theta[k]);
+        }
+        (v, d)
+    }
+
+    /// θ of node values `v` (inside their bounds).
+    pub(super) fn theta(&self, v: &Nodes) -> Vec<f64> {
+        self.free
+            .iter()
+            .map(|c| to_unconstrained(c.param, v[c.param][c.node]))
+            .collect()
+    }
+
+    /// The natural parameters (μ0, A, B, k_A, ρ) at a group, and which were clamped into their
+    /// bounds (a temperature law's interpolation may leave them between nodes; a clamped
+    /// parameter does not move with its nodes).
+    #[inline]
+    pub(super) fn at_group(&self, g: &Group, v: &Nodes) -> ([f64; 5], [bool; 5]) {
+        let mut x = [0.0; 5];
+        let mut clamped = [false; 5];
+        for i in 0..5 {
+            x[i] = match self.fixed[i] {
+                Some(f) => f,
+                None => {
+                    let raw: f64 = (0..MAX_NODES).map(|j| g.basis[i][j] * v[i][j]).sum();
+                    let c = raw.clamp(LOWER[i], UPPER[i]);
+                    clamped[i] = c != raw;
+                    c
+                }
+            };
+        }
+        if let Some(ks) = self.ks_fixed {
+            x[4] = ks / x[3];
+        }
+        (x, clamped)
+    }
+
+    pub(super) fn sse_nodes(&self, v: &Nodes) -> f64 {
+        let mut sse = 0.0;
+        for g in &self.groups {
+            let (x, _) = self.at_group(g, v);
+            for s in &self.samples[g.range.clone()] {
+                let r = mu_only(&x, s) - s.mu;
+                sse += r * r;
+            }
+        }
+        sse
+    }
+
+    /// JᵀJ, Jᵀr and the SSE in θ (`natural = false`, for the solver) or in the node values
+    /// themselves (`natural = true`, for standard errors), one pass over the samples; the
+    /// residuals into `residuals` when given.
+    pub(super) fn accumulate(
+        &self,
+        theta: &[f64],
+        natural: bool,
+        mut residuals: Option<&mut Vec<f64>>,
+    ) -> NormalEquations {
+        let (v, d) = self.nodes(theta);
+        let k = self.free.len();
+        let mut jtj = vec![0.0; k * k];
+        let mut jtr = vec![0.0; k];
+        let mut sse = 0.0;
+        // Per coordinate: its parameter and d(parameter)/d(coordinate) at the group.
+        let mut row = [0.0; MAX_COORDS];
+        let mut m = [0.0; MAX_COORDS];
+        let mut ps = [0usize; MAX_COORDS];
+        for (c, co) in self.free.iter().enumerate() {
+            ps[c] = co.param;
+        }
+        for g in &self.groups {
+            let (x, clamped) = self.at_group(g, &v);
+            for (c, co) in self.free.iter().enumerate() {
+                let dd = if natural { 1.0 } else { d[c] };
+                m[c] = if clamped[co.param] {
+                    0.0
+                } else {
+                    g.basis[co.param][co.node] * dd
+                };
+            }
+            // With k_S held, k_A also moves ρ = k_S/k_A: dρ/dk_A = −k_S/k_A².
+            let drho = self.ks_fixed.map(|ks| -ks / (x[3] * x[3]));
+            for s in &self.samples[g.range.clone()] {
+                let (f, mut grad) = mu_and_gradient(&x, s);
+                if let Some(dr) = drho {
+                    grad[3] += grad[4] * dr;
+                }
+                let r = f - s.mu;
+                sse += r * r;
+                if let Some(out) = residuals.as_deref_mut() {
+                    out.push(r);
+                }
+                for c in 0..k {
+                    row[c] = grad[ps[c]] * m[c];
+                }
+                for a in 0..k {
+                    jtr[a] += row[a] * r;
+                    for b in 0..=a {
+                        jtj[a * k + b] += row[a] * row[b];
+                    }
+                }
+            }
+        }
+        for a in 0..k {
+            for b in 0..a {
+                jtj[b * k + a] = jtj[a * k + b];
+            }
+        }
+        NormalEquations { jtj, jtr, sse }
+    }
+
+    /// The covariance of the free node values at θ: σ² (JᵀJ)⁻¹ inflated by n/n_eff for the
+    /// residuals' autocorrelation ([`effective_samples`]); `None` where JᵀJ is singular.
+    pub(super) fn covariance(&self, theta: &[f64]) -> Covariance {
+        let n = self.samples.len();
+        let mut r = Vec::with_capacity(n);
+        let ne = self.accumulate(theta, true, Some(&mut r));
+        let n_eff = effective_samples(&r);
+        let k = self.free.len();
+        let sigma2 = ne.sse / (n as f64 - k as f64).max(1.0);
+        let scale = sigma2 * n as f64 / n_eff.max(1.0);
+        let cov = cholesky(&ne.jtj, k).map(|l| {
+            let mut out = vec![0.0; k * k];
+            for col in 0..k {
+                let mut unit = vec![0.0; k];
+                unit[col] = 1.0;
+                for (row, x) in cho_solve(&l, k, &unit).into_iter().enumerate() {
+                    out[row * k + col] = x * scale;
+                }
+            }
+            out
+        });
+        Covariance {
+            cov,
+            sse: ne.sse,
+            n_eff,
+            scale,
+            residuals: r,
+        }
+    }
+}
+
+/// [`PolachProblem::covariance`]'s result.
+pub(super) struct Covariance {
+    /// k × k over the free coordinates (row-major), natural units.
+    pub(super) cov: Option<Vec<f64>>,
+    pub(super) sse: f64,
+    pub(super) n_eff: f64,
+    /// σ² n/n_eff: the variance of one residual, inflated for autocorrelation.
+    pub(super) scale: f64,
+    pub(super) residuals: Vec<f64>,
+}
+
+impl LeastSquares for PolachProblem<'_> {
+    fn n_params(&self) -> usize {
+        self.free.len()
+    }
+    fn n_train(&self) -> usize {
+        self.samples.len()
+    }
+    fn sse(&self, theta: &[f64]) -> f64 {
+        self.sse_nodes(&self.nodes(theta).0)
+    }
+    /// One pass over the samples: JᵀJ and Jᵀr in the unconstrained coordinates (the
+    /// analytic Jacobian in the natural parameters times the chain of node → parameter and
+    /// θ → node, column by column).
+    fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
+        self.accumulate(theta, false, None)
+    }
+    fn validation_mse(&self, _: &[f64]) -> Option<f64> {
+        None
+    }
+}

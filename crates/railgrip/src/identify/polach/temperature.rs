@@ -1,0 +1,508 @@
+//! The temperature law: every form μ0(T), k_A(T), k_S(T)/k_A(T) up to the pipeline's degree,
+//! fitted jointly over all samples and chosen by BIC with n_eff (seed 004 eq. 3, Fig. 2).
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::fit::{constant_nodes, fit_settings, samples, solve, PolachFit};
+use super::law::{solver_order, with_patch, ParamStatus, Sample};
+use super::problem::{Group, PolachProblem, MAX_NODES};
+use crate::contact::polach::{horner, ContactPatch};
+use crate::identify::dataset::RunTable;
+use crate::identify::IdentifyError;
+use crate::linalg::effective_samples;
+
+/// One temperature form the campaign fit tried, and how it fitted.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TemperatureCandidate {
+    /// Degrees of μ0(T) and of k_A(T), k_S(T)/k_A(T) (0: constant).
+    pub mu0_degree: usize,
+    pub k_degree: usize,
+    /// Free parameters (those the pooled fit held are not counted).
+    pub parameters: usize,
+    pub sse: f64,
+    pub rmse: f64,
+    /// AIC = n_eff ln(SSE/n) + 2p and BIC = n_eff ln(SSE/n) + p ln n_eff: the Gaussian
+    /// log-likelihood of n residuals carries the information of n_eff independent ones
+    /// (n_eff of the most flexible form's residuals, the same for every candidate).
+    pub aic: f64,
+    pub bic: f64,
+    pub iterations: usize,
+    pub stop_reason: String,
+    /// Why the form cannot be used (its law leaves the valid domain), if so.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rejected: Option<String>,
+}
+
+impl TemperatureCandidate {
+    /// "μ0(T) degree 1, k(T) constant" and the like.
+    pub fn form(&self) -> String {
+        form_name(self.mu0_degree, self.k_degree)
+    }
+}
+
+pub(super) fn form_name(mu0_degree: usize, k_degree: usize) -> String {
+    let part = |name: &str, d: usize| match d {
+        0 => format!("{name} constant"),
+        d => format!("{name} degree {d}"),
+    };
+    format!("{}, {}", part("μ0(T)", mu0_degree), part("k(T)", k_degree))
+}
+
+/// The temperature law of a campaign: the form chosen by BIC among μ0(T) and k_A(T), k_S(T)
+/// of degrees 0 … `train.temperature_degree`, fitted jointly to every sample of the runs with
+/// an ambient temperature (A and B shared), and the candidates it was chosen from.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TemperatureFit {
+    /// The chosen degrees (both 0: the data prefer no temperature dependence; no law is written).
+    pub mu0_degree: usize,
+    pub k_degree: usize,
+    /// The chosen form's polynomials, ascending powers of T (°C).
+    pub mu0: Vec<f64>,
+    pub k_a: Vec<f64>,
+    pub k_s: Vec<f64>,
+    pub a_ratio: f64,
+    pub b_s_per_m: f64,
+    /// Standard errors of the parameters that do not depend on T (μ0, A, B, k_A, k_S order;
+    /// null for those that do, or that the pooled fit held).
+    #[serde(with = "super::nan_as_null")]
+    pub se: [f64; 5],
+    pub fitted_range_c: (f64, f64),
+    /// Median temperature of the samples (°C): the model file's μ0, k_A, k_S are the law's
+    /// values there (used when a caller gives no temperature).
+    pub reference_temperature_c: f64,
+    pub samples: usize,
+    pub effective_samples: f64,
+    /// `BIC`.
+    pub criterion: String,
+    pub candidates: Vec<TemperatureCandidate>,
+    /// Per temperature: (T, μ0, k_A, k_S) of that temperature's own fit minus the law.
+    pub residuals: Vec<(f64, f64, f64, f64)>,
+    /// Temperatures whose own fit did not identify k_A and k_S (k(T) forms are offered only
+    /// when two or more do), with why.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub excluded: Vec<String>,
+    /// Forms not offered, and why.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
+}
+
+impl TemperatureFit {
+    /// Whether anything depends on temperature.
+    pub fn has_law(&self) -> bool {
+        self.mu0_degree > 0 || self.k_degree > 0
+    }
+    pub fn form(&self) -> String {
+        form_name(self.mu0_degree, self.k_degree)
+    }
+    /// (μ0, k_A, k_S) at T (°C, not clamped).
+    pub fn at(&self, t_c: f64) -> (f64, f64, f64) {
+        (
+            horner(&self.mu0, t_c),
+            horner(&self.k_a, t_c),
+            horner(&self.k_s, t_c),
+        )
+    }
+    /// As a model file's temperature section (μ0 coefficients only when μ0 depends on T).
+    pub fn spec(&self) -> crate::model::polach::TemperatureSpec {
+        crate::model::polach::TemperatureSpec {
+            mu0: if self.mu0_degree > 0 {
+                self.mu0.clone()
+            } else {
+                Vec::new()
+            },
+            k_a: self.k_a.clone(),
+            k_s: self.k_s.clone(),
+            fitted_range_c: [self.fitted_range_c.0, self.fitted_range_c.1],
+        }
+    }
+}
+
+/// The temperatures whose own Polach fit identified k_A and k_S, and those left out with why
+/// (a value held because the data did not determine it says nothing about how k changes with
+/// temperature; k_S/k_A at its bound leaves k_S = k_A or 0, as determined as k_A).
+pub fn k_identified(fits: &[PolachFit]) -> (Vec<f64>, Vec<String>) {
+    let mut kept = Vec::new();
+    let mut excluded = Vec::new();
+    for f in fits {
+        let Some(t) = f.ambient_temperature_c else {
+            continue;
+        };
+        let held: Vec<String> = [(3, "k_A"), (4, "k_S")]
+            .iter()
+            .filter(|(k, _)| match f.status[*k] {
+                ParamStatus::Estimated => false,
+                ParamStatus::AtBound => *k == 3,
+                ParamStatus::NotIdentifiable => true,
+            })
+            .map(|(k, name)| format!("{name} {}", f.status[*k].text()))
+            .collect();
+        if held.is_empty() {
+            kept.push(t);
+        } else {
+            excluded.push(format!("T = {t} °C ({})", held.join(", ")));
+        }
+    }
+    (kept, excluded)
+}
+
+/// Evenly spaced temperature nodes of a degree-d law over [lo, hi].
+pub(super) fn temperature_nodes(d: usize, lo: f64, hi: f64) -> Vec<f64> {
+    if d == 0 {
+        return vec![0.5 * (lo + hi)];
+    }
+    (0..=d)
+        .map(|j| lo + (hi - lo) * j as f64 / d as f64)
+        .collect()
+}
+
+/// Per parameter, the basis at temperature t (°C) of a law of `degrees` over [lo, hi]: the
+/// Lagrange basis of its nodes, or [1, 0, …] for a constant.
+pub(super) fn basis_at(degrees: [usize; 5], lo: f64, hi: f64, t: f64) -> [[f64; MAX_NODES]; 5] {
+    std::array::from_fn(|i| {
+        if degrees[i] == 0 {
+            let mut b = [0.0; MAX_NODES];
+            b[0] = 1.0;
+            b
+        } else {
+            lagrange(&temperature_nodes(degrees[i], lo, hi), t)
+        }
+    })
+}
+
+/// The Lagrange basis of `nodes` at t.
+pub(super) fn lagrange(nodes: &[f64], t: f64) -> [f64; MAX_NODES] {
+    let mut out = [0.0; MAX_NODES];
+    for (j, tj) in nodes.iter().enumerate() {
+        out[j] = nodes
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != j)
+            .map(|(_, tm)| (t - tm) / (tj - tm))
+            .product();
+    }
+    out
+}
+
+/// The polynomial (ascending powers) through (nodes[j], values[j]): Σ_j values[j] L_j(t),
+/// each L_j expanded as Π_{m≠j} (t − t_m)/(t_j − t_m).
+pub(super) fn monomials(nodes: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; nodes.len()];
+    for (j, tj) in nodes.iter().enumerate() {
+        let mut poly = vec![values[j]];
+        for (m, tm) in nodes.iter().enumerate().filter(|(m, _)| *m != j) {
+            let _ = m;
+            let scale = 1.0 / (tj - tm);
+            let mut next = vec![0.0; poly.len() + 1];
+            for (p, c) in poly.iter().enumerate() {
+                next[p + 1] += c * scale;
+                next[p] -= c * tm * scale;
+            }
+            poly = next;
+        }
+        for (o, c) in out.iter_mut().zip(&poly) {
+            *o += c;
+        }
+    }
+    out
+}
+
+/// Product of two polynomials (ascending powers).
+pub(super) fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; a.len() + b.len() - 1];
+    for (i, x) in a.iter().enumerate() {
+        for (j, y) in b.iter().enumerate() {
+            out[i + j] += x * y;
+        }
+    }
+    out
+}
+
+/// A note when the samples' slip coverage changes monotonically with temperature: the median
+/// slip of each temperature group, ordered by temperature, strictly rising or falling over three
+/// or more temperatures by more than 20 %. A law family that does not fit the data exactly then
+/// fits different slip ranges with different parameters, and a temperature law can stand for
+/// the coverage (e.g. a campaign that brakes harder in the cold) — the data cannot tell them
+/// apart (measured on the foreign `table` law, README "Temperature law").
+pub(super) fn coverage_note(
+    s: &[Sample],
+    ranges: &[(f64, std::ops::Range<usize>)],
+) -> Option<String> {
+    if ranges.len() < 3 {
+        return None;
+    }
+    let medians: Vec<f64> = ranges
+        .iter()
+        .map(|(_, r)| {
+            let mut dv: Vec<f64> = s[r.clone()].iter().map(|x| x.dv).collect();
+            dv.sort_by(f64::total_cmp);
+            dv.get(dv.len() / 2).copied().unwrap_or(f64::NAN)
+        })
+        .collect();
+    let rising = medians.windows(2).all(|w| w[1] > w[0]);
+    let falling = medians.windows(2).all(|w| w[1] < w[0]);
+    let (first, last) = (medians[0], medians[medians.len() - 1]);
+    if !(rising || falling) || (first.max(last) / first.min(last)) < 1.2 {
+        return None;
+    }
+    Some(format!(
+        "the runs' slip coverage changes with temperature (median Δv {:.2} m/s at {} °C to {:.2} m/s at {} °C): a temperature law here may stand for the slip range each temperature's runs cover rather than for the temperature; brake at equal demand across temperatures (or add runs) to tell them apart",
+        first,
+        ranges[0].0,
+        last,
+        ranges[ranges.len() - 1].0
+    ))
+}
+
+/// One candidate's fit: its record, the law's polynomials (μ0, k_A, k_S), A, B, and the
+/// standard errors of its constant parameters.
+pub(super) struct FormFit {
+    pub(super) record: TemperatureCandidate,
+    pub(super) mu0: Vec<f64>,
+    pub(super) k_a: Vec<f64>,
+    pub(super) k_s: Vec<f64>,
+    pub(super) a_ratio: f64,
+    pub(super) b_s_per_m: f64,
+    pub(super) se: [f64; 5],
+    pub(super) residuals: Vec<f64>,
+}
+
+/// Fits the temperature law of a campaign (issue 16): the candidate forms μ0(T) of degree
+/// d_μ and k_A(T), ρ(T) = k_S/k_A of degree d_k (d ≤ min(`degree`, temperatures − 1); A and B
+/// constant), each jointly over all samples of the runs with `ambient_temperature_c`, each
+/// parameter's law as its values at evenly spaced nodes over the range (Lagrange basis;
+/// logistic bounds at the nodes, clamped between them), from the pooled fit's values, with the
+/// parameters the pooled fit held still held. The form with the least BIC (n_eff-corrected, see
+/// [`TemperatureCandidate`]) whose law stays in the valid domain over the range
+/// (0 < μ0 ≤ 1.5, 0 < k_S ≤ k_A ≤ 1) is chosen. k forms are offered only when two or more
+/// temperatures' own fits identified k_A and k_S ([`k_identified`]), μ0 forms only when the
+/// pooled fit identified μ0.
+#[allow(clippy::too_many_arguments)]
+pub fn fit_temperature_forms(
+    tables: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    degree: usize,
+    pooled: &PolachFit,
+    per_temperature: &[PolachFit],
+) -> Result<TemperatureFit, IdentifyError> {
+    let mut temps: Vec<f64> = tables
+        .iter()
+        .filter_map(|t| t.metadata.ambient_temperature_c)
+        .collect();
+    temps.sort_by(f64::total_cmp);
+    temps.dedup();
+    if temps.len() < 2 {
+        return Err(IdentifyError::Data {
+            what: format!(
+                "a temperature law needs runs at two or more ambient temperatures; found {}",
+                temps.len()
+            ),
+            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
+        });
+    }
+    let (lo, hi) = (temps[0], temps[temps.len() - 1]);
+    // Samples grouped by temperature.
+    let mut s = Vec::new();
+    let mut ranges = Vec::new();
+    for t in &temps {
+        let at: Vec<&RunTable> = tables
+            .iter()
+            .copied()
+            .filter(|r| r.metadata.ambient_temperature_c == Some(*t))
+            .collect();
+        let from = s.len();
+        s.extend(samples(&at, q_n, decimate));
+        ranges.push((*t, from..s.len()));
+    }
+    if s.len() < 20 {
+        return Err(IdentifyError::Data {
+            what: format!("only {} samples with slip for the temperature law", s.len()),
+            hint: "fit on braking runs with wheel slip".into(),
+        });
+    }
+    let s = with_patch(s, &patch);
+    // The samples' median temperature (groups are in ascending temperature).
+    let mut seen = 0;
+    let reference = ranges
+        .iter()
+        .find(|(_, r)| {
+            seen += r.len();
+            2 * seen > s.len()
+        })
+        .map_or(lo, |(t, _)| *t);
+
+    let mut notes = Vec::new();
+    let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
+    let top = degree.min(temps.len() - 1).min(MAX_NODES - 1);
+    let (k_temps, excluded) = k_identified(per_temperature);
+    let k_top = if held(3) || held(4) {
+        notes.push(format!(
+            "k(T) forms not offered: the pooled fit holds {}",
+            if held(3) { "k_A" } else { "k_S/k_A" }
+        ));
+        0
+    } else if k_temps.len() < 2 {
+        notes.push(format!(
+            "k(T) forms not offered: k_A and k_S are identified at {} of the temperatures (two or more needed); left out: {}",
+            k_temps.len(),
+            excluded.join("; ")
+        ));
+        0
+    } else {
+        top.min(k_temps.len() - 1)
+    };
+    let mu_top = if held(0) {
+        notes.push("μ0(T) forms not offered: the pooled fit holds μ0".into());
+        0
+    } else {
+        top
+    };
+    if top == 0 {
+        notes.push("train.temperature_degree = 0: only the constant form".into());
+    }
+    if let Some(n) = coverage_note(&s, &ranges) {
+        notes.push(n);
+    }
+    let x0 = solver_order(&pooled.params());
+    let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
+    let forms: Vec<(usize, usize)> = (0..=mu_top)
+        .flat_map(|dm| (0..=k_top).map(move |dk| (dm, dk)))
+        .collect();
+    let fits: Vec<Result<FormFit, IdentifyError>> = forms
+        .par_iter()
+        .map(|&(dm, dk)| {
+            let degrees = [dm, 0, 0, dk, dk];
+            let nodes: Vec<Vec<f64>> = degrees
+                .iter()
+                .map(|&d| temperature_nodes(d, lo, hi))
+                .collect();
+            let groups = ranges
+                .iter()
+                .map(|(t, r)| Group {
+                    range: r.clone(),
+                    basis: basis_at(degrees, lo, hi, *t),
+                })
+                .collect();
+            let degrees_free: [usize; 5] =
+                std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
+            let problem = PolachProblem::new(&s, groups, degrees_free, fixed, None);
+            let (problem, theta, its, stop) = solve(
+                &form_name(dm, dk),
+                problem,
+                &constant_nodes(&x0),
+                fit_settings(),
+            )?;
+            let (v, _) = problem.nodes(&theta);
+            let cov = problem.covariance(&theta);
+            let value = |i: usize| -> Vec<f64> {
+                match fixed[i] {
+                    Some(f) => vec![f],
+                    None => monomials(&nodes[i], &v[i][..=degrees[i]]),
+                }
+            };
+            let k = problem.free.len();
+            let mut se = [f64::NAN; 5];
+            for (c, co) in problem.free.iter().enumerate() {
+                if degrees[co.param] == 0 {
+                    se[co.param] = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
+                }
+            }
+            let (ka, rho) = (value(3), value(4));
+            if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
+                let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
+                if let (Some(a), Some(b), Some(m)) = (pos(3), pos(4), &cov.cov) {
+                    se[4] = (rho[0] * rho[0] * m[a * k + a]
+                        + ka[0] * ka[0] * m[b * k + b]
+                        + 2.0 * ka[0] * rho[0] * m[a * k + b])
+                        .sqrt();
+                }
+            } else {
+                se[4] = f64::NAN;
+            }
+            Ok(FormFit {
+                record: TemperatureCandidate {
+                    mu0_degree: dm,
+                    k_degree: dk,
+                    parameters: k,
+                    sse: cov.sse,
+                    rmse: (cov.sse / s.len() as f64).sqrt(),
+                    aic: f64::NAN,
+                    bic: f64::NAN,
+                    iterations: its,
+                    stop_reason: stop.text().into(),
+                    rejected: None,
+                },
+                mu0: value(0),
+                k_s: poly_mul(&ka, &rho),
+                k_a: ka,
+                a_ratio: value(1)[0],
+                b_s_per_m: value(2)[0],
+                se,
+                residuals: cov.residuals,
+            })
+        })
+        .collect();
+    let mut fits: Vec<FormFit> = fits.into_iter().collect::<Result<_, _>>()?;
+    // n_eff of the most flexible form's residuals (the last; closest to the noise alone — a
+    // form that misses a temperature trend leaves residuals correlated over whole runs, whose
+    // n_eff would hide the very trend), for every candidate.
+    let n = s.len() as f64;
+    let n_eff = effective_samples(&fits[fits.len() - 1].residuals).max(1.0);
+    for f in &mut fits {
+        let c = &mut f.record;
+        let fit_term = n_eff * (c.sse / n).ln();
+        c.aic = fit_term + 2.0 * c.parameters as f64;
+        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
+        let spec = crate::model::polach::TemperatureSpec {
+            mu0: f.mu0.clone(),
+            k_a: f.k_a.clone(),
+            k_s: f.k_s.clone(),
+            fitted_range_c: [lo, hi],
+        };
+        if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
+            c.rejected = Some(e.to_string());
+        }
+        f.residuals = Vec::new();
+    }
+    let best = fits
+        .iter()
+        .enumerate()
+        .filter(|(_, f)| f.record.rejected.is_none())
+        .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
+        .map(|(i, _)| i)
+        .ok_or_else(|| IdentifyError::Data {
+            what: "every temperature form leaves the valid domain of Polach's law".into(),
+            hint: "lower train.temperature_degree".into(),
+        })?;
+    let chosen = &fits[best];
+    let mut law = TemperatureFit {
+        mu0_degree: chosen.record.mu0_degree,
+        k_degree: chosen.record.k_degree,
+        mu0: chosen.mu0.clone(),
+        k_a: chosen.k_a.clone(),
+        k_s: chosen.k_s.clone(),
+        a_ratio: chosen.a_ratio,
+        b_s_per_m: chosen.b_s_per_m,
+        se: chosen.se,
+        fitted_range_c: (lo, hi),
+        reference_temperature_c: reference,
+        samples: s.len(),
+        effective_samples: n_eff,
+        criterion: "BIC".into(),
+        candidates: fits.into_iter().map(|f| f.record).collect(),
+        residuals: Vec::new(),
+        excluded,
+        notes,
+    };
+    law.residuals = per_temperature
+        .iter()
+        .filter_map(|f| {
+            let t = f.ambient_temperature_c?;
+            let (m, a, k) = law.at(t);
+            Some((t, f.mu0 - m, f.k_a - a, f.k_s - k))
+        })
+        .collect();
+    Ok(law)
+}

@@ -1,0 +1,165 @@
+//! Unit tests of the Polach fits' internals (law, problem, temperature basis).
+
+use super::fit::constant_nodes;
+use super::law::{
+    law_params, mu_and_gradient, mu_only, to_natural, to_unconstrained, with_patch, Sample, LOWER,
+    UPPER,
+};
+use super::problem::{Group, PolachProblem};
+use super::temperature::{basis_at, lagrange, monomials, poly_mul, temperature_nodes};
+use crate::contact::polach::{horner, ContactPatch};
+use crate::identify::lm::LeastSquares;
+
+#[test]
+fn reparametrisation_round_trips_and_respects_bounds() {
+    for (i, x) in [(0, 0.3), (1, 0.4), (2, 0.2), (3, 0.3), (4, 0.5), (2, 40.0)] {
+        let (back, dx) = to_natural(i, to_unconstrained(i, x));
+        assert!((back - x).abs() < 1e-12 * x.max(1.0), "{i}: {back} vs {x}");
+        // dx/dp against a central difference.
+        let p = to_unconstrained(i, x);
+        let h = 1e-6;
+        let fd = (to_natural(i, p + h).0 - to_natural(i, p - h).0) / (2.0 * h);
+        assert!(
+            (dx - fd).abs() < 1e-6 * fd.abs().max(1e-12),
+            "{i}: {dx} vs {fd}"
+        );
+    }
+    for (i, p) in [(0, 60.0), (1, -60.0), (2, 60.0), (3, 60.0), (4, 60.0)] {
+        let x = to_natural(i, p).0;
+        assert!(x >= LOWER[i] && x <= UPPER[i], "{i}: {x}");
+    }
+}
+
+fn patch() -> ContactPatch {
+    ContactPatch {
+        a_m: 0.0061,
+        b_m: 0.0045,
+        g_pa: 8.0e10,
+        c11: 4.1,
+        c22: 3.6,
+    }
+}
+
+proptest::proptest! {
+    /// The analytic μ is the contact library's, and its gradient matches central
+    /// differences, over the law's whole domain (issue 16).
+    #[test]
+    fn analytic_gradient_matches_the_law_and_finite_differences(
+        mu0 in 0.02f64..1.0, a in 0.01f64..0.99, b in 0.01f64..5.0,
+        k_a in 0.01f64..1.0, rho in 0.01f64..1.0,
+        dv in 0.001f64..8.0, v in 1.0f64..90.0,
+    ) {
+        let p = patch();
+        let q = 80_000.0;
+        let x = [mu0, a, b, k_a, rho];
+        let s = with_patch(vec![Sample { q_n: q, v, dv, mu: 0.0, cs: f64::NAN }], &p)[0];
+        let (f, g) = mu_and_gradient(&x, &s);
+        proptest::prop_assert_eq!(f.to_bits(), mu_only(&x, &s).to_bits());
+        let law = crate::contact::polach::polach(&p, &law_params(&x), q, v, dv, 0.0).unwrap();
+        proptest::prop_assert!((f - law.fx_n / q).abs() <= 1e-14 * f.abs().max(1e-3), "{} vs {}", f, law.fx_n / q);
+        for i in 0..5 {
+            let h = 1e-6 * x[i];
+            let (mut up, mut dn) = (x, x);
+            up[i] += h;
+            dn[i] -= h;
+            let fd = (mu_only(&up, &s) - mu_only(&dn, &s)) / (2.0 * h);
+            // Truncation O(h²) relative, plus the rounding of the difference quotient,
+            // a few ulps of f over h.
+            let tol = 1e-6 * (g[i].abs() + fd.abs()) + 16.0 * f64::EPSILON * f.abs() / h;
+            proptest::prop_assert!((g[i] - fd).abs() <= tol, "param {}: {} vs {}", i, g[i], fd);
+        }
+    }
+}
+
+/// Samples over three temperature groups for the problem tests.
+fn grouped_samples() -> (Vec<Sample>, Vec<(f64, std::ops::Range<usize>)>) {
+    let mut rng = crate::rng::Rng::new(3);
+    let mut s = Vec::new();
+    let mut ranges = Vec::new();
+    for (g, t) in [-20.0, 5.0, 30.0].iter().enumerate() {
+        let from = s.len();
+        for _ in 0..200 {
+            let dv = 0.01 + 3.0 * rng.uniform();
+            s.push(Sample {
+                q_n: 80_000.0,
+                v: 5.0 + 30.0 * rng.uniform(),
+                dv,
+                mu: 0.08 + 0.01 * g as f64 + 0.005 * rng.normal(),
+                cs: f64::NAN,
+            });
+        }
+        ranges.push((*t, from..s.len()));
+    }
+    (with_patch(s, &patch()), ranges)
+}
+
+fn groups_for(degrees: [usize; 5], ranges: &[(f64, std::ops::Range<usize>)]) -> Vec<Group> {
+    ranges
+        .iter()
+        .map(|(t, r)| Group {
+            range: r.clone(),
+            basis: basis_at(degrees, -20.0, 30.0, *t),
+        })
+        .collect()
+}
+
+/// Jᵀr of the temperature-law problem (Lagrange nodes, the logistic chain, k_S held for
+/// a profile) is the gradient of SSE/2 in θ, by central differences; and with every degree
+/// 0 the grouped problem is the plain one.
+#[test]
+fn grouped_problems_have_the_gradient_of_their_cost() {
+    let (s, ranges) = grouped_samples();
+    let x = [0.1, 0.4, 0.5, 0.2, 0.4];
+    for (degrees, fixed, ks) in [
+        ([1, 0, 0, 2, 1], [None; 5], None),
+        ([2, 0, 0, 0, 0], [None, None, Some(0.5), None, None], None),
+        ([0; 5], [None; 5], Some(0.07)),
+    ] {
+        let problem = PolachProblem::new(&s, groups_for(degrees, &ranges), degrees, fixed, ks);
+        let mut nodes = constant_nodes(&x);
+        // Distinct node values, so that the law does vary with temperature.
+        nodes[0][1] = 0.12;
+        nodes[3][2] = 0.25;
+        let theta = problem.theta(&nodes);
+        let ne = problem.normal_equations(&theta);
+        assert!((ne.sse - problem.sse(&theta)).abs() < 1e-12 * ne.sse);
+        for k in 0..theta.len() {
+            let h = 1e-6;
+            let (mut up, mut dn) = (theta.clone(), theta.clone());
+            up[k] += h;
+            dn[k] -= h;
+            let fd = (problem.sse(&up) - problem.sse(&dn)) / (4.0 * h);
+            assert!(
+                (ne.jtr[k] - fd).abs() <= 1e-6 * fd.abs().max(1e-6),
+                "{degrees:?} coordinate {k}: {} vs {fd}",
+                ne.jtr[k]
+            );
+        }
+    }
+    let plain = PolachProblem::plain(&s, [None; 5], None);
+    let grouped = PolachProblem::new(&s, groups_for([0; 5], &ranges), [0; 5], [None; 5], None);
+    let theta = plain.theta(&constant_nodes(&x));
+    assert_eq!(
+        plain.normal_equations(&theta).jtr,
+        grouped.normal_equations(&theta).jtr
+    );
+}
+
+#[test]
+fn lagrange_nodes_expand_to_the_polynomial_through_them() {
+    let c = [0.1, 0.002, -1e-5, 3e-8];
+    for d in 1..=3 {
+        // A polynomial of degree d, which d + 1 nodes determine.
+        let f = |t: f64| horner(&c[..=d], t);
+        let nodes = temperature_nodes(d, -20.0, 35.0);
+        let values: Vec<f64> = nodes.iter().map(|t| f(*t)).collect();
+        let c = monomials(&nodes, &values);
+        for t in [-20.0, -3.0, 0.0, 12.5, 35.0] {
+            assert!((horner(&c, t) - f(t)).abs() < 1e-14, "degree {d} at {t}");
+            let b = lagrange(&nodes, t);
+            let v: f64 = values.iter().zip(b).map(|(v, b)| v * b).sum();
+            assert!((v - f(t)).abs() < 1e-14, "basis, degree {d} at {t}");
+        }
+    }
+    assert_eq!(poly_mul(&[1.0, 2.0], &[3.0, 0.5]), vec![3.0, 6.5, 1.0]);
+}
