@@ -559,7 +559,7 @@ fn the_power_from_the_forces_equals_the_fields_dissipation() {
 
 #[test]
 fn fastsim_accuracy_against_grid() {
-    // README "FASTSIM: accuracy vs grid": relative error of F_x against 400 × 400 at a
+    // docs/contact.md "FASTSIM accuracy against grid and time": relative error of F_x against 400 × 400 at a
     // creepage in the saturating range (ξ = 1.5e-3, η = 2e-4, φ = 0.1 1/m: 40 % slip area),
     // elliptic bound.
     let c = creep(1.5e-3, 2e-4, 0.1);

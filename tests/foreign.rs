@@ -108,7 +108,7 @@ fn campaign(scenes: &[Scene], dir: &Path) -> (Vec<RunTable>, Vec<Sample>) {
 
 /// `[train] starts` on a law the network does not contain, from several seeds: the kept start
 /// is the best by validation error, stays positive on every supported cell, gets the loss /
-/// recovery order right and fits within the single-start figures measured (README).
+/// recovery order right and fits within the single-start figures measured (docs/simulator.md).
 #[test]
 fn multi_start_on_a_foreign_law() {
     let dir = tempfile::tempdir().unwrap();

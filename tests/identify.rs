@@ -1259,7 +1259,7 @@ fn seed002_figures_on_simulated_runs() {
     let r2 = 1.0 - se_est / var;
     eprintln!("validation (axle 3, Δv > 0.2 m/s, {n} samples): RMSE vs estimated μ {rmse_est:.5}, vs the simulator's truth {rmse_truth:.5}, R² {r2:.3}");
     assert!(rmse_est < 0.01 && r2 > 0.5, "{rmse_est} {r2}");
-    // Against the simulator's truth law (stated in README): the learned curve is as close to the
+    // Against the simulator's truth law (stated in docs/simulator.md): the learned curve is as close to the
     // truth as to the estimates it was trained on.
     assert!(rmse_truth < 0.01, "{rmse_truth}");
     // Fig. 11: a ramp 0 → 9 m/s → 0 at ±2 m/s² traces a loop: the loss branch (slip growing)

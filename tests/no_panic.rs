@@ -122,7 +122,7 @@ fn corpus(target: &str) -> Vec<Vec<u8>> {
 }
 
 // The bounded versions of the fuzz targets (fuzz/fuzz_targets/*.rs call the same
-// railgrip::fuzzing functions; README "Fuzzing" has the ≥ 10⁶-input runs).
+// railgrip::fuzzing functions; docs/limits.md#fuzzing has the ≥ 10⁶-input runs).
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 

@@ -39,7 +39,7 @@
 //! small creepage sticks everywhere (a bound evaluated on the trailing edge itself would be 0
 //! and make the last cell slide at any creepage). The spin term of p_y integrates x over the
 //! travel exactly. Error: O(1/ny²) in the sticking regime, lower order once the slip boundary
-//! crosses cells (measured in README).
+//! crosses cells (measured in docs/contact.md).
 //!
 //! **Modified FASTSIM** (Spiryagin et al. 2013): the stiffness is reduced by
 //! k = k0·[α∞ + (1 − α∞)/(1 + β ε)], L_i → L_i / k, with ε = G π a b C11 |s| / (4 N μ) the

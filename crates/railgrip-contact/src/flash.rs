@@ -1,6 +1,6 @@
 //! Contact flash temperature: the strip (bar) model of seed 000_1da9721a35dd2615.txt on a
 //! heat source from the FASTSIM slip field or from full sliding, validated against the V-Track
-//! measurements of seed 003_e1250fe8e2165249.txt (tests/contact_flash.rs, README).
+//! measurements of seed 003_e1250fe8e2165249.txt (tests/contact_fastsim.rs, docs/contact.md).
 //!
 //! **Model** (seed 000 eq. 3–11). Every surface point of the rail crosses the contact along a
 //! strip parallel to the rolling direction, in the time 2a(y)/V. At high Péclet number

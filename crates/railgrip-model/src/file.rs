@@ -1,4 +1,4 @@
-//! The model file (README "Model files"; schema `models/schema/adhesion-model.schema.json`):
+//! The model file (docs/model-files.md; schema `models/schema/adhesion-model.schema.json`):
 //! its types, the exact JSON round trip, and the checks a file passes before an evaluator is
 //! built from it. A problem is a [`Defect`], reported as a [`ModelError`] naming the file.
 
@@ -169,7 +169,7 @@ pub const MAX_SUPPORT_CELLS: usize = 1 << 20;
 /// Most cells per input of a support grid.
 pub const MAX_CELLS_PER_INPUT: usize = 1024;
 
-/// Where a network's training data lie (format version 2; README "Model files", "Data
+/// Where a network's training data lie (format version 2; docs/model-files.md, "Data
 /// support"): a grid over the normalised inputs [−1, 1]ᵏ (after the mirror of step 1 of the
 /// evaluation rule), `cells[c]` cells along input c. A cell is supported when at least
 /// `min_samples` training and validation samples fall in it. The evaluators return the network
@@ -211,7 +211,7 @@ impl SupportSpec {
 }
 
 /// The plausibility audit a network passed or failed before export (format version 2;
-/// README "Plausibility audit").
+/// docs/model-files.md#plausibility-audit).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AuditSpec {

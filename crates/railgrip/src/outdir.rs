@@ -4,7 +4,7 @@
 //! writes them, the report reads them.
 //!
 //! ```text
-//! <out>/runs/<run>/estimates.parquet   the run's estimates table (README, "Estimates table")
+//! <out>/runs/<run>/estimates.parquet   the run's estimates table (docs/input-logs.md#estimates-table)
 //! <out>/runs/<run>/run.json            its RunRecord, with the SHA-256 of its inputs
 //! <out>/summary.csv, summary.parquet   one row per run (SUMMARY_COLUMNS)
 //! <out>/models/                        mlp.json, mlp.h, mlp.history.csv, mlp.polach.json,

@@ -125,7 +125,7 @@ pub struct Outcome {
     pub models: Vec<PathBuf>,
     /// Why no models were trained.
     pub model_error: Option<String>,
-    /// The network's plausibility audit (README "Plausibility audit"); a failed audit still
+    /// The network's plausibility audit (docs/model-files.md#plausibility-audit); a failed audit still
     /// writes the model, marked.
     pub audit: Option<crate::model::AuditSpec>,
     pub notes: Vec<String>,

@@ -134,7 +134,7 @@ fn bug(family: &str) -> IdentifyError {
 
 impl CampaignModels {
     /// Writes, atomically: the network, its history, the Polach model (when there is one) and
-    /// every fit, and with `headers` the C headers of both models (README "Model files").
+    /// every fit, and with `headers` the C headers of both models (docs/model-files.md).
     /// Returns the paths written.
     pub fn write(&self, paths: &ModelPaths, headers: bool) -> Result<Vec<PathBuf>, CampaignError> {
         std::fs::create_dir_all(&paths.dir).map_err(|source| CampaignError::Write {

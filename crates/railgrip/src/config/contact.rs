@@ -60,7 +60,7 @@ const RAIL_RADIUS: Key = Key::num(
     "lateral profile radius of the rail head [assumed]",
 );
 
-/// The keys of `[contact]`, in README order.
+/// The keys of `[contact]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[&YOUNG, &POISSON, &WHEEL_RADIUS, &RAIL_RADIUS];
 
 impl Checker<'_> {

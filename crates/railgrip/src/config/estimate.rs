@@ -78,7 +78,7 @@ const SLIDING: Key = Key::num(
     "Δv above this counts as sliding in summaries",
 );
 
-/// The keys of `[estimate]`, in README order.
+/// The keys of `[estimate]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[&PHASE, &MIN_SPEED, &MIN_PRESSURE, &LOCKED, &SLIDING];
 
 impl Checker<'_> {

@@ -118,7 +118,7 @@ const MIN_DEVIATION: Key = Key::num(
     "never replace a sample closer than this to the window median",
 );
 
-/// The keys of `[filters]`, in README order.
+/// The keys of `[filters]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &MODE,
     &RADAR,

@@ -227,7 +227,7 @@ const MCAP: Key = Key {
     meaning: "`v_radar`, `omega1..4`, `p1..4`; `field` a path (`twist.linear.x`, `velocity[2]`) in protobuf/ROS 2 messages; `time = \"header\"` takes the message's header stamp",
 };
 
-/// The keys of `[ingest]`, in README order.
+/// The keys of `[ingest]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &RATE,
     &MAX_GAP,

@@ -6,7 +6,7 @@
 //! Stages only ever see validated types. Every check names the key, the value found, the
 //! allowed range and the default, e.g.
 //! `ingest.max_gap_ms = -5: must be > 2.3981 ms and <= 10000 ms (default 50 ms); ...`.
-//! The options are documented in README.md ("Pipeline file"), rendered from the key tables
+//! The options are documented in docs/pipeline.md, rendered from the key tables
 //! (a test keeps the two equal).
 
 pub mod contact;
@@ -95,7 +95,7 @@ pub mod raw {
     }
 }
 
-/// The pipeline file's sections and their key tables, in README order.
+/// The pipeline file's sections and their key tables, in the order of the documented table.
 pub const SECTIONS: &[(&str, &[&Key])] = &[
     ("vehicle", vehicle::KEYS),
     ("ingest", ingest::KEYS),

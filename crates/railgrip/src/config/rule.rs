@@ -1,6 +1,6 @@
 //! The rules every option of a pipeline or scene file follows: a [`Key`] per option (name, unit,
 //! range, default, meaning) in one table per section, which both drives the checks
-//! ([`Checker`]) and renders README's option tables ([`markdown_rows`]; a test keeps README in
+//! ([`Checker`]) and renders the docs' option tables ([`markdown_rows`]; a test keeps docs/pipeline.md in
 //! step with the tables).
 
 use std::fmt;
@@ -153,7 +153,7 @@ impl Key {
         }
     }
 
-    /// The README cell of the range.
+    /// The docs table's cell of the range.
     fn range_cell(&self) -> String {
         match self.range {
             Range::Num {
@@ -178,7 +178,7 @@ impl Key {
         }
     }
 
-    /// The README cell of the default.
+    /// The docs table's cell of the default.
     fn default_cell(&self) -> String {
         match self.default {
             Default::Text(t) if matches!(self.range, Range::Choice(_)) => format!("`{t}`"),
@@ -201,7 +201,7 @@ pub fn g(x: f64) -> String {
     }
 }
 
-/// README rows (`| key | default | unit | range | meaning |`) of a section's keys.
+/// The docs table's rows (`| key | default | unit | range | meaning |`) of a section's keys.
 pub fn markdown_rows(keys: &[&Key]) -> String {
     keys.iter()
         .map(|k| {

@@ -191,7 +191,7 @@ const OPTIMIZER: Key = Key {
     unit: "",
     range: Range::Choice(&["lm", "adam", "adamw"]),
     default: Default::Text("\"lm\""),
-    meaning: "`lm`: Levenberg–Marquardt (trainlm/trainbr, one or two hidden layers); `adam`/`adamw`: mini-batch Adam/AdamW through burn, any depth (`epochs` and `max_fail` are its epochs and patience; README \"Training deeper networks\")",
+    meaning: "`lm`: Levenberg–Marquardt (trainlm/trainbr, one or two hidden layers); `adam`/`adamw`: mini-batch Adam/AdamW through burn, any depth (`epochs` and `max_fail` are its epochs and patience; docs/training.md#training-deeper-networks)",
 };
 const LEARNING_RATE: Key = Key::num(
     "train.learning_rate",
@@ -361,7 +361,7 @@ const SUPPORT_CELLS: Key = text(
     "train.support_cells",
     "one count per input, each 2..1024, at most 2²⁰ cells",
     "`[24, 24]`; `[16, 16, 8]` with speed; `[16, 16, 8, 4]` with temperature",
-    "the model file's data-support grid over the normalised inputs (README \"Data support\")",
+    "the model file's data-support grid over the normalised inputs (docs/model-files.md#data-support)",
 );
 const SUPPORT_MIN: Key = Key::num(
     "train.support_min_samples",
@@ -387,7 +387,7 @@ const POLACH_INTERVALS: Key = text(
     "train.polach_intervals",
     "`true`, `false`",
     "`true`",
-    "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 30 LM refits per fit; README \"Intervals\")",
+    "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 30 LM refits per fit; docs/training.md#intervals)",
 );
 const CONDITION: Key = text(
     "train.condition",
@@ -396,7 +396,7 @@ const CONDITION: Key = text(
     "the rail condition whose runs train the network and the Polach fits",
 );
 
-/// The keys of `[train]`, in README order.
+/// The keys of `[train]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &HIDDEN,
     &LAYERS,

@@ -157,7 +157,7 @@ const MAX_PRESSURE: Key = required(
     "highest cylinder pressure [assumed]",
 );
 
-/// The keys of `[vehicle]`, in README order.
+/// The keys of `[vehicle]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &NAME,
     &BODY_MASS,
@@ -181,7 +181,7 @@ impl Checker<'_> {
                 "every pipeline describes its vehicle; copy the [vehicle] section of pipelines/uic_z1.toml and edit it",
             )
         })?;
-        // In README order, so that the first missing key is the one named.
+        // In the order of the documented table, so that the first missing key is the one named.
         let body_mass_kg = self.value(&BODY_MASS, v.body_mass_kg)?;
         let bogie_mass_kg = self.value(&BOGIE_MASS, v.bogie_mass_kg)?;
         let axle_inertia_kgm2 = self.value(&INERTIA, v.axle_inertia_kgm2)?;

@@ -35,7 +35,7 @@ use crate::ingest::RunLog;
 use crate::signal::{self, Conditioned, FilterError, GroupDelays};
 use crate::vehicle::axle_loads;
 
-/// Column names of the estimates table, in order (README "Estimates table").
+/// Column names of the estimates table, in order (docs/input-logs.md#estimates-table).
 pub const ESTIMATE_COLUMNS: [&str; 13] = [
     "time_s",
     "axle",

@@ -75,7 +75,7 @@ impl AdamSettings {
         let bad = |what: String| {
             Err(IdentifyError::Data {
                 what,
-                hint: "see README, \"Training deeper networks\"".into(),
+                hint: "see docs/training.md#training-deeper-networks".into(),
             })
         };
         if !(self.learning_rate.is_finite() && self.learning_rate > 0.0 && self.learning_rate < 1.0)

@@ -1,7 +1,6 @@
 //! What a campaign's fits share: the rail condition that trains them, the median speed, and
 //! the pipeline's contact patch and creep region.
 
-
 use super::dataset::RunTable;
 use super::IdentifyError;
 

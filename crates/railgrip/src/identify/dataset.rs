@@ -190,7 +190,7 @@ impl RunTable {
             _ => Err(IdentifyError::Input {
                 file: self.source.clone(),
                 message: "the network's inputs include ambient_temperature_c, but this run's metadata has no ambient temperature".into(),
-                hint: "give the log the metadata key ambient_temperature_c (°C; README \"Input logs\"), or leave ambient_temperature_c out of [train] inputs".into(),
+                hint: "give the log the metadata key ambient_temperature_c (°C; docs/input-logs.md), or leave ambient_temperature_c out of [train] inputs".into(),
             }),
         }
     }

@@ -263,7 +263,7 @@ th { background: #f2f2f2; } td.l, th.l { text-align: left; }
 "#;
 
 /// The plausibility audit at the top: a red line with the failures when the network failed
-/// it, one quiet line when it passed (README "Plausibility audit").
+/// it, one quiet line when it passed (docs/model-files.md#plausibility-audit).
 fn audit_line(h: &mut String, m: &Model) {
     let Some(a) = &m.file.audit else {
         return;

@@ -2,7 +2,7 @@
 //! section structs, one per TOML section (run, vehicle, brake, adhesion, contact, wsp, sensors,
 //! resistance), each with its key table and check side by side.
 //!
-//! Every key is documented in README.md ("Scene file", rendered from the key tables; a test
+//! Every key is documented in docs/simulator.md ("Scene file", rendered from the key tables; a test
 //! keeps them equal); a rejected value is reported as `file: key = value: allowed range
 //! (default)`, like the pipeline file.
 
@@ -261,7 +261,7 @@ pub enum AdhesionLaw {
     /// the scene lists (falling friction and speed dependence, hysteresis, k(T), cleaning) —
     /// the truth law of the bundled archive.
     Polach,
-    /// A model file (`railgrip train`'s output, README "Model files", kind mlp or polach):
+    /// A model file (`railgrip train`'s output, docs/model-files.md, kind mlp or polach):
     /// μ(Δv, dΔv/dt, v) from the model's evaluator. The model carries the adhesion effects
     /// itself, so a scene with it may not list falling_friction, hysteresis or cleaning;
     /// `temperature` is allowed for a Polach model with a temperature law and sets k_A(T),
@@ -292,7 +292,7 @@ pub struct FastsimLaw {
     pub reduction: Option<crate::contact::fastsim::Reduction>,
 }
 
-/// The `thermal` effect's parameters (every one [assumed]; README "Simulator").
+/// The `thermal` effect's parameters (every one [assumed]; docs/simulator.md).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThermalParams {
     /// Share δ of the slip power that heats the wheel (the rest goes into the rail).
@@ -385,7 +385,7 @@ const VEHICLE: Key = text(
     "the vehicle; or give the pipeline's `[vehicle]` keys inline instead",
 );
 
-/// The keys of the top level and `[vehicle]`, in README order.
+/// The keys of the top level and `[vehicle]`, in the order of the documented table.
 pub const TOP_KEYS: &[&Key] = &[&NAME, &SEED, &EFFECTS, &VEHICLE];
 
 // ---------------------------------------------------------------------------------- [run]
@@ -463,7 +463,7 @@ const GRADIENT: Key = Key::num(
 const CONDITION: Key = text("run.condition", "", "text", "\"soap\"", "metadata");
 const DIRECTION: Key = text("run.direction", "", "text", "\"forward\"", "metadata");
 
-/// The keys of `[run]`, in README order.
+/// The keys of `[run]`, in the order of the documented table.
 pub const RUN_KEYS: &[&Key] = &[
     &INITIAL_SPEED,
     &STOP_SPEED,
@@ -540,7 +540,7 @@ const CYLINDER: Key = Key::num(
     "first-order cylinder",
 );
 
-/// The keys of `[brake]`, in README order.
+/// The keys of `[brake]`, in the order of the documented table.
 pub const BRAKE_KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER];
 
 impl BrakeSection {
@@ -618,7 +618,7 @@ const LAW: Key = Key {
     unit: "",
     range: Range::Choice(&["polach", "model", "loss_recovery", "table", "fastsim"]),
     default: Default::Text("\"polach\""),
-    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; README \"Foreign laws\"); `\"fastsim\"`: Kalker's FASTSIM with Polach's falling friction (mu0, a_ratio, b_s_per_m). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with a temperature law, a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
+    meaning: "Polach's law with the listed effects; `\"model\"` with `model = \"file.json\"`: a model file from `railgrip train` (path relative to the scene) drives the wheels, its slip-rate input lagged by `hysteresis_time_constant_s`; `\"loss_recovery\"` and `\"table\"`: laws outside the families railgrip fits (truth for testing identification; docs/simulator.md#foreign-laws); `\"fastsim\"`: Kalker's FASTSIM with Polach's falling friction (mu0, a_ratio, b_s_per_m). With any but polach, falling_friction, hysteresis and cleaning may not be listed; `temperature` only for a Polach model with a temperature law, a network with the input ambient_temperature_c (it takes run.ambient_temperature_c; without the effect, its reference temperature) or loss_recovery",
 };
 const MODEL: Key = text(
     "adhesion.model",
@@ -893,10 +893,10 @@ const THERMAL_UPDATE: Key = Key::num(
     "ms",
     closed(0.001, 10.0),
     0.5,
-    "`thermal`: temperatures and friction factor brought up to date at this interval (rounded to whole steps, at least one) from the slip power summed every step; README \"Figures\" gives its cost and error",
+    "`thermal`: temperatures and friction factor brought up to date at this interval (rounded to whole steps, at least one) from the slip power summed every step; docs/benchmarks.md gives its cost and error",
 );
 
-/// The keys of `[adhesion]`, in README order.
+/// The keys of `[adhesion]`, in the order of the documented table.
 pub const ADHESION_KEYS: &[&Key] = &[
     &LAW,
     &MODEL,
@@ -1202,7 +1202,7 @@ const HOLD_MAX: Key = Key::num(
     "longest hold before re-applying [assumed]",
 );
 
-/// The keys of `[wsp]`, in README order.
+/// The keys of `[wsp]`, in the order of the documented table.
 pub const WSP_KEYS: &[&Key] = &[
     &DUMP_SLIP,
     &DUMP_RATIO,
@@ -1308,7 +1308,7 @@ const RADAR_RATE: Key = rate(
 const TACHO_RATE: Key = rate("sensors.tacho_rate_hz", "tachometer logger rate");
 const PRESSURE_RATE: Key = rate("sensors.pressure_rate_hz", "pressure logger rate");
 
-/// The keys of `[sensors]`, in README order.
+/// The keys of `[sensors]`, in the order of the documented table.
 pub const SENSORS_KEYS: &[&Key] = &[
     &RADAR_NOISE,
     &SPIKE_RATE,
@@ -1373,7 +1373,7 @@ const DAVIS_C: Key = Key::num(
     "c",
 );
 
-/// The keys of `[resistance]`, in README order.
+/// The keys of `[resistance]`, in the order of the documented table.
 pub const RESISTANCE_KEYS: &[&Key] = &[&DAVIS_A, &DAVIS_B, &DAVIS_C];
 
 impl ResistanceSection {
@@ -1386,7 +1386,7 @@ impl ResistanceSection {
     }
 }
 
-/// The scene file's sections and their key tables, in README order (`[contact]` is the
+/// The scene file's sections and their key tables, in the order of the documented table (`[contact]` is the
 /// pipeline's).
 pub const SECTIONS: &[(&str, &[&Key])] = &[
     ("top", TOP_KEYS),

@@ -48,11 +48,11 @@ pub(super) struct Setup<'a> {
     thermal: Option<Thermal>,
 }
 
-/// The `thermal` effect (README "Simulator"), per axle, from the slip Δv and contact force T
+/// The `thermal` effect (docs/simulator.md), per axle, from the slip Δv and contact force T
 /// (off the step's critical path, like the other slow coefficients). Every step adds the slip
 /// power |T Δv| to a sum; every k steps (k h = `adhesion.thermal_update_ms`, default 0.5 ms —
 /// of the order of the contact's transit time 2a/v, 0.3 ms at 120 km/h and 1 ms at 36 km/h
-/// for the bundled vehicle; its cost and error are in README "Figures") the mean power P̄ over those steps updates:
+/// for the bundled vehicle; its cost and error are in docs/benchmarks.md) the mean power P̄ over those steps updates:
 ///
 /// - tread temperature θ_w (both wheels of the axle, one heated layer of capacity C):
 ///   C dθ_w/dt = δ P̄ − h_c (θ_w − θ_amb)            (explicit Euler, step k h)

@@ -2,7 +2,7 @@
 //! wheel-slide protection that may override it, and the first-order cylinder that follows the
 //! command.
 //!
-//! WSP per axle (README "Simulator", effect `wsp`; thresholds railgrip's [assumed] values):
+//! WSP per axle (docs/simulator.md, effect `wsp`; thresholds railgrip's [assumed] values):
 //! Apply → Detect when the slip exceeds max(dump_slip_mps, dump_slip_ratio·v) or the wheel
 //! decelerates faster than the vehicle by more than decel_limit_mps2; Detect → Dump after the
 //! reaction delay; Dump → Hold (keeping the pressure reached) once the slip falls below the dump

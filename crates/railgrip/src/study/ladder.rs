@@ -5,7 +5,7 @@
 //! `reference_step_ms`: wall time (best of 3), real-time factor (simulated s per wall s), RMS
 //! of μ over every axle and output sample against the reference, and the largest |v − v_ref|
 //! (m/s). With WSP in the scene, trajectories drift apart in phase, so the μ error also holds
-//! cycle timing (README "Simulator").
+//! cycle timing (docs/simulator.md).
 //!
 //! **Contact** (`[[contact]]`): for the base pipeline's wheel patch at the static wheel load
 //! (Hertz, seed 001 eq. 1–5; Kalker's coefficients, `vehicle::wheel_hertz`), friction μ

@@ -874,7 +874,7 @@ fn time_model(m: &Model, p: &Points) -> EvalTiming {
 /// A network as a user would evaluate the model file in a plain scalar loop: inputs clamped to
 /// the domain and normalised (mapminmax), layers z = b + W t (row-major, in order) with tanh on
 /// the hidden ones, output reversed; two stack buffers, no allocation — and no creep region or
-/// support blend (README "Model files").
+/// support blend (docs/model-files.md).
 struct PlainNet {
     k: usize,
     lo: [f64; 4],

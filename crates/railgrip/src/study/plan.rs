@@ -1,4 +1,4 @@
-//! The study plan (`pipelines/study.toml`, README "railgrip study"): a base pipeline and a list
+//! The study plan (`pipelines/study.toml`, docs/study.md): a base pipeline and a list
 //! of grids. Each `[[grid]]` is the Cartesian product of its keys' values; the plan is the
 //! union of its grids, duplicates removed. A grid key is a model `family` or a pipeline key of
 //! `[filters]`, `[estimate]`, `[contact]` or `[train]` (written as in a pipeline file, e.g.
@@ -20,7 +20,7 @@ pub const DEFAULT_PLAN_TOML: &str = include_str!("../../../../pipelines/study.to
 /// How the default plan is named in messages and outputs.
 pub const DEFAULT_PLAN_NAME: &str = "<embedded pipelines/study.toml>";
 
-/// Keys of `[study]`, with what they mean (README "railgrip study").
+/// Keys of `[study]`, with what they mean (docs/study.md).
 pub const STUDY_KEYS: [(&str, &str); 5] = [
     ("pipeline", "base pipeline file, relative to the plan (default: the embedded uic_z1.toml)"),
     ("held_out", "runs scored and never trained on (default: every third run of the trained condition by name; of two runs, the second)"),
@@ -257,7 +257,7 @@ impl Plan {
             return Err(err(
                 file,
                 "the plan has no [[grid]]: nothing to study",
-                "add a [[grid]] with family = [\"mlp\"] and the keys to vary (README \"railgrip study\")",
+                "add a [[grid]] with family = [\"mlp\"] and the keys to vary (docs/study.md)",
             ));
         }
         let mut cells: Vec<CellSpec> = Vec::new();
@@ -448,7 +448,11 @@ fn expand(
                     .map_err(|e| err(file, format!("{at}: {e}"), "report this as a bug"))?;
                 let name = format!("{base_name} with {at} {}", show(combo));
                 Pipeline::from_toml(&text, &name).map_err(|e| {
-                    err(file, format!("{at}: {e}"), "change the grid's value to one the pipeline accepts (README \"Pipeline options\")")
+                    err(
+                        file,
+                        format!("{at}: {e}"),
+                        "change the grid's value to one the pipeline accepts (docs/pipeline.md)",
+                    )
                 })
             };
             out.push(CellSpec {
@@ -639,7 +643,7 @@ fn simulator_specs(doc: &toml::Table, file: &str, dir: &Path) -> Result<Vec<SimS
                 err(
                     file,
                     format!("{at}: {e}"),
-                    "choose steps the scene accepts (run.step_ms, README \"Scene file\")",
+                    "choose steps the scene accepts (run.step_ms, docs/simulator.md#scene-file)",
                 )
             })
         };

@@ -223,7 +223,7 @@ pub(super) fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
 /// or more temperatures by more than 20 %. A law family that does not fit the data exactly then
 /// fits different slip ranges with different parameters, and a temperature law can stand for
 /// the coverage (e.g. a campaign that brakes harder in the cold) — the data cannot tell them
-/// apart (measured on the foreign `table` law, README "Temperature law").
+/// apart (measured on the foreign `table` law, docs/training.md#temperature-law).
 pub(super) fn coverage_note(
     s: &[Sample],
     ranges: &[(f64, std::ops::Range<usize>)],
