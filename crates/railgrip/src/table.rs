@@ -76,3 +76,97 @@ pub fn f64_column(df: &DataFrame, name: &str) -> Result<Vec<f64>, String> {
     }
     Ok(ca.into_no_null_iter().collect())
 }
+
+/// One cell of a [`CsvText`] row.
+#[derive(Debug, Clone, Copy)]
+pub enum Cell<'a> {
+    /// Free text (names, messages): always quoted, `"` doubled inside.
+    Text(&'a str),
+    /// An identifier (a key, a family, an architecture such as `2-10-1`): written as it is,
+    /// quoted only if it holds a comma, a quote or a line break.
+    Name(&'a str),
+    /// A real number in Rust's shortest round-trip form (`0.1`, `1e-5`, `NaN`); `None`: empty.
+    Real(Option<f64>),
+    /// A count; `None`: empty.
+    Count(Option<u64>),
+    /// `true` or `false`.
+    Flag(bool),
+}
+
+/// A small CSV table written as text (results tables such as `study.csv` and a network's
+/// training history): a header row, then one line per row, `,`-separated, `\n`-terminated.
+/// Write it with [`crate::atomic::write_atomically`] like any other output.
+#[derive(Debug, Clone)]
+pub struct CsvText {
+    text: String,
+    columns: usize,
+}
+
+impl CsvText {
+    /// A table with these column names.
+    pub fn new(header: &[&str]) -> CsvText {
+        CsvText {
+            text: header.join(",") + "\n",
+            columns: header.len(),
+        }
+    }
+
+    /// Appends a row; it must have one cell per column.
+    pub fn row(&mut self, cells: &[Cell<'_>]) {
+        debug_assert_eq!(cells.len(), self.columns, "one cell per column");
+        for (i, c) in cells.iter().enumerate() {
+            if i > 0 {
+                self.text.push(',');
+            }
+            match *c {
+                Cell::Text(t) => quoted(&mut self.text, t),
+                Cell::Name(t) if t.contains([',', '"', '\n', '\r']) => quoted(&mut self.text, t),
+                Cell::Name(t) => self.text.push_str(t),
+                Cell::Real(Some(x)) => self.text.push_str(&format!("{x:?}")),
+                Cell::Count(Some(n)) => self.text.push_str(&n.to_string()),
+                Cell::Real(None) | Cell::Count(None) => {}
+                Cell::Flag(b) => self.text.push_str(if b { "true" } else { "false" }),
+            }
+        }
+        self.text.push('\n');
+    }
+
+    /// The table's text.
+    pub fn into_text(self) -> String {
+        self.text
+    }
+}
+
+fn quoted(out: &mut String, t: &str) {
+    out.push('"');
+    out.push_str(&t.replace('"', "\"\""));
+    out.push('"');
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_text_quotes_text_and_writes_numbers_round_trip() {
+        let mut t = CsvText::new(&["key", "name", "x", "n", "ok"]);
+        t.row(&[
+            Cell::Name("a1"),
+            Cell::Text("say \"hi\", twice"),
+            Cell::Real(Some(0.1)),
+            Cell::Count(None),
+            Cell::Flag(true),
+        ]);
+        t.row(&[
+            Cell::Name("b,2"),
+            Cell::Text(""),
+            Cell::Real(Some(f64::NAN)),
+            Cell::Count(Some(7)),
+            Cell::Flag(false),
+        ]);
+        assert_eq!(
+            t.into_text(),
+            "key,name,x,n,ok\na1,\"say \"\"hi\"\", twice\",0.1,,true\n\"b,2\",\"\",NaN,7,false\n"
+        );
+    }
+}

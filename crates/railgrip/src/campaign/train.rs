@@ -14,6 +14,7 @@ use crate::identify::{
     leave_one_run_out, select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
 };
 use crate::model::{c_header, Epoch, InputFile, Model, ModelFile, Provenance};
+use crate::table::{Cell, CsvText};
 use crate::Pipeline;
 
 /// Everything trained from a campaign.
@@ -222,22 +223,28 @@ fn file_name(p: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, elapsed_s, and
-/// gamma (the effective number of parameters) with Bayesian regularisation.
+/// The training history as CSV: epoch, train_mse, val_mse, mu, grad_norm, and gamma (the
+/// effective number of parameters) with Bayesian regularisation. No elapsed time: the file is a
+/// result, the same for the same inputs.
 pub fn history_csv(h: &[Epoch]) -> String {
     let bayes = h.iter().any(|e| e.gamma.is_some());
-    // No elapsed time: the file is a result, the same for the same inputs (issue 17).
-    let mut text = String::from("epoch,train_mse,val_mse,mu,grad_norm");
-    text.push_str(if bayes { ",gamma\n" } else { "\n" });
-    for e in h {
-        text.push_str(&format!(
-            "{},{:?},{:?},{:?},{:?}",
-            e.epoch, e.train_mse, e.val_mse, e.mu, e.grad_norm
-        ));
-        if bayes {
-            text.push_str(&format!(",{:?}", e.gamma.unwrap_or(f64::NAN)));
-        }
-        text.push('\n');
+    let mut header = vec!["epoch", "train_mse", "val_mse", "mu", "grad_norm"];
+    if bayes {
+        header.push("gamma");
     }
-    text
+    let mut t = CsvText::new(&header);
+    for e in h {
+        let mut row = vec![
+            Cell::Count(Some(e.epoch)),
+            Cell::Real(Some(e.train_mse)),
+            Cell::Real(Some(e.val_mse)),
+            Cell::Real(Some(e.mu)),
+            Cell::Real(Some(e.grad_norm)),
+        ];
+        if bayes {
+            row.push(Cell::Real(Some(e.gamma.unwrap_or(f64::NAN))));
+        }
+        t.row(&row);
+    }
+    t.into_text()
 }

@@ -179,7 +179,7 @@ pub fn contact_rows(
                     sq += e * e;
                     mx = mx.max(e);
                 }
-                let ns = super::ns_per_point(sweep.len(), || {
+                let ns = super::timing::ns_per_point(sweep.len(), || {
                     sweep
                         .iter()
                         .map(|&sx| f(std::hint::black_box(sx)).unwrap_or(0.0))
