@@ -1,0 +1,103 @@
+//! `[brake]`: the demanded cylinder pressures and the cylinders.
+
+use super::text;
+use crate::config::rule::{closed, Checker, Key};
+use crate::config::ConfigError;
+
+pub mod raw {
+    use serde::Deserialize;
+
+    #[derive(Debug, Default, Deserialize)]
+    #[serde(deny_unknown_fields)]
+    pub struct Brake {
+        pub demand_bar: Option<Vec<[f64; 2]>>,
+        pub demand_bar_per_axle: Option<Vec<Vec<[f64; 2]>>>,
+        pub cylinder_time_constant_s: Option<f64>,
+    }
+}
+
+/// `[brake]`: the demanded cylinder pressures and the cylinders.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BrakeSection {
+    /// Brake-cylinder pressure demand per axle (t s, p bar), piecewise linear, held after the
+    /// last point.
+    pub demand_bar: [Vec<(f64, f64)>; 4],
+    pub cylinder_time_constant_s: f64,
+}
+
+pub(super) const DEMAND: Key = text(
+    "brake.demand_bar",
+    "[s, bar]",
+    "[t, p] points, t increasing, 0 ≤ p ≤ 20",
+    "[[0, 0], [1, 0], [2.5, 3.8]]",
+    "cylinder-pressure demand of every axle, piecewise linear, held after the last point",
+);
+pub(super) const DEMAND_PER_AXLE: Key = text(
+    "brake.demand_bar_per_axle",
+    "4 × [s, bar]",
+    "four such profiles",
+    "–",
+    "the demand per axle instead",
+);
+pub(super) const CYLINDER: Key = Key::num(
+    "brake.cylinder_time_constant_s",
+    "s",
+    closed(0.005, 5.0),
+    0.15,
+    "first-order cylinder",
+);
+
+/// The keys of `[brake]`, in the order of the documented table.
+pub const KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER];
+
+impl Checker<'_> {
+    /// `[brake]` checked.
+    pub(crate) fn brake(&self, b: &raw::Brake) -> Result<BrakeSection, ConfigError> {
+        let profile = |key: &str, d: &Vec<[f64; 2]>| -> Result<Vec<(f64, f64)>, ConfigError> {
+            if d.is_empty()
+                || d.windows(2).any(|w| w[1][0] <= w[0][0])
+                || d.iter()
+                    .any(|p| !p[0].is_finite() || !(0.0..=20.0).contains(&p[1]))
+            {
+                return Err(self.invalid(
+                    key,
+                    format!("{d:?}"),
+                    "must list [t_s, p_bar] points with strictly increasing t and 0 <= p <= 20 bar",
+                ));
+            }
+            Ok(d.iter().map(|p| (p[0], p[1])).collect())
+        };
+        let demand_bar: [Vec<(f64, f64)>; 4] = match (&b.demand_bar, &b.demand_bar_per_axle) {
+            (Some(_), Some(_)) => {
+                return Err(self.invalid(
+                    DEMAND_PER_AXLE.name,
+                    format!("given with {}", DEMAND.name),
+                    "give one of the two",
+                ))
+            }
+            (_, Some(per)) => {
+                if per.len() != 4 {
+                    return Err(self.invalid(
+                        DEMAND_PER_AXLE.name,
+                        format!("{} profiles", per.len()),
+                        "must list exactly 4 profiles, axles 1..4",
+                    ));
+                }
+                let mut out: [Vec<(f64, f64)>; 4] = std::array::from_fn(|_| Vec::new());
+                for (i, d) in per.iter().enumerate() {
+                    out[i] = profile(&format!("{}[{i}]", DEMAND_PER_AXLE.name), d)?;
+                }
+                out
+            }
+            (Some(d), None) => {
+                let one = profile(DEMAND.name, d)?;
+                [one.clone(), one.clone(), one.clone(), one]
+            }
+            (None, None) => std::array::from_fn(|_| vec![(0.0, 0.0), (1.0, 0.0), (2.5, 3.8)]),
+        };
+        Ok(BrakeSection {
+            demand_bar,
+            cylinder_time_constant_s: self.value(&CYLINDER, b.cylinder_time_constant_s)?,
+        })
+    }
+}
