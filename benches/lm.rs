@@ -85,7 +85,7 @@ fn seed002(tables: &[RunTable], inputs: InputSet, n: usize) -> Data {
 /// `n` training and `n / 4` validation samples of
 /// μ = 0.08 (1 − e^(−2Δv)) e^(−0.1Δv) + 0.01 dΔv/dt.
 fn synthetic(n: usize) -> Data {
-    let mut rng = railgrip::rng::Rng::new(5);
+    let mut rng = railgrip::sim::Rng::new(5);
     let mut d = Dataset {
         inputs: InputSet::DvDdv,
         train_x: Vec::with_capacity(2 * n),

@@ -1,4 +1,4 @@
-//! The Polach fit (issue 16) on 150 000 samples of the bundled soap runs, against scipy.
+//! The Polach fit on 150 000 samples of the bundled soap runs, against scipy.
 //!
 //!     cargo bench --bench polach
 //!

@@ -264,7 +264,7 @@ fn calibrate_prints_the_pipeline_line() {
 
 #[test]
 fn train_takes_a_campaign_folder_like_run() {
-    // Issue 15: `train` refused a folder ("Is a directory") while `run` took it.
+    // `train` refused a folder ("Is a directory") while `run` took it.
     let dir = tempfile::tempdir().unwrap();
     let campaign = dir.path().join("campaign/day1");
     std::fs::create_dir_all(&campaign).unwrap();
@@ -284,7 +284,7 @@ fn train_takes_a_campaign_folder_like_run() {
     // Provenance names each log with the hash of its bytes.
     let model = std::fs::read_to_string(dir.path().join("models/mlp.json")).unwrap();
     for f in ["soap_120kmh_p20.csv", "soap_160kmh_0c.mcap"] {
-        let sha = railgrip::hash::sha256_file(&campaign.join(f)).unwrap();
+        let sha = common::sha256_file(&campaign.join(f)).unwrap();
         assert!(model.contains(&sha) && model.contains(f), "{f}: {model}");
     }
     // An empty folder: an error naming it.
@@ -520,12 +520,12 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     )
     .unwrap();
     std::fs::write(camp.join("day 2/truncated.mcap"), b"\x89MCAP0\r\n\x01\x02").unwrap();
-    // Issue 17: a well-formed CSV whose last row lies 1e9 s after the others once made the
+    // A well-formed CSV whose last row lies 1e9 s after the others once made the
     // resampler ask for terabytes and abort the whole campaign.
     let mut far = common::Table::analytic(0.5, 417.0, 0.0, 2);
     *far.time_s.last_mut().unwrap() = 1e9;
     std::fs::write(camp.join("far.csv"), far.csv_bytes()).unwrap();
-    // Issue 17: a FIFO as a log or a sidecar blocked the campaign forever, and a sidecar
+    // A FIFO as a log or a sidecar blocked the campaign forever, and a sidecar
     // pointing at /dev/zero was read to gigabytes. Both fail their own run.
     let fifo = camp.join("fifo.csv");
     let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
@@ -536,14 +536,14 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     )
     .unwrap();
     std::os::unix::fs::symlink("/dev/zero", camp.join("zero_sidecar.meta.toml")).unwrap();
-    // Files that are not logs are listed as skipped, with why (issue 17: silently skipped).
+    // Files that are not logs are listed as skipped, with why (silently skipped).
     std::fs::write(camp.join("random.bin"), [7u8; 64]).unwrap();
     std::fs::write(
         camp.join("orphan.meta.toml"),
         "ambient_temperature_c = 5.0\n",
     )
     .unwrap();
-    // A temporary file of a killed earlier run is cleaned up (issue 17: never cleaned).
+    // A temporary file of a killed earlier run is cleaned up (never cleaned).
     let o_dir = dir.path().join("out");
     std::fs::create_dir_all(o_dir.join("models")).unwrap();
     let stale_tmp = o_dir.join("models/.mlp.json.tmp-999999999");
@@ -636,7 +636,7 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(j["reused"], 3, "{j}");
     assert_eq!(j["failed"], 6);
     assert_eq!(j["skipped"].as_array().unwrap().len(), 2, "{j}");
-    // Issue 17: with runs reused, the model files' provenance hashed the estimates tables, not
+    // With runs reused, the model files' provenance hashed the estimates tables, not
     // the logs they name.
     let mlp: serde_json::Value =
         serde_json::from_slice(&std::fs::read(o_dir.join("models/mlp.json")).unwrap()).unwrap();
@@ -644,7 +644,7 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(inputs.len(), 3, "{inputs:?}");
     for i in inputs {
         let log = dir.path().join(i["path"].as_str().unwrap());
-        let want = railgrip::hash::sha256_file(&log).unwrap();
+        let want = common::sha256_file(&log).unwrap();
         assert_eq!(i["sha256"], want.as_str(), "{}", log.display());
     }
     assert_eq!(j["exit_code"], 3);
@@ -837,7 +837,7 @@ fn outputs(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 
 #[test]
 fn run_outputs_are_the_same_bytes_for_any_jobs_and_on_a_rerun() {
-    // Issue 17: run.json, campaign.json, summary, model files and the report differed between
+    // Run.json, campaign.json, summary, model files and the report differed between
     // identical runs only in timing and clock fields. Now those are in timings.json alone.
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
@@ -913,7 +913,7 @@ fn a_campaign_where_every_run_fails_exits_1_for_no_models() {
 
 #[test]
 fn an_unwritable_output_folder_fails_before_any_run_is_estimated() {
-    // Issue 17: a read-only output folder was found only after training. (The tests may run
+    // A read-only output folder was found only after training. (The tests may run
     // as root, who may write anywhere: a file where the models folder belongs stands in.)
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
@@ -953,7 +953,7 @@ fn write_errors_name_the_file_and_the_operating_systems_cause() {
 
 #[test]
 fn a_csv_that_panics_the_csv_parser_exits_1_with_a_clean_error() {
-    // Found by fuzzing (issue 17): polars panics on this file; railgrip exited 101 with a
+    // Found by fuzzing: polars panics on this file; railgrip exited 101 with a
     // backtrace. Now: exit 1, the file and line named, no panic text.
     let dir = tempfile::tempdir().unwrap();
     std::fs::copy(
@@ -1044,7 +1044,7 @@ fn contact_writes_creep_curves_and_temperatures_and_refuses_bad_values() {
     }
 }
 
-/// Issue 20: `railgrip train` with `train.layers` and `optimizer = "adam"` trains a deeper
+/// `railgrip train` with `train.layers` and `optimizer = "adam"` trains a deeper
 /// network through burn and writes a version-3 model file that `eval` and `export --c-header`
 /// take like any other.
 #[test]

@@ -447,7 +447,7 @@ fn censored_fit(slip: &[f64], temp: &[f64]) -> (f64, f64, f64) {
 /// `tests/data/flash/vtrack_censoring.py` is the same experiment in numpy.
 fn as_eq9_would_report(t0: f64, k: f64, slip_range: (f64, f64), seed: u64) -> ([f64; 3], f64) {
     const N: usize = 200_000;
-    let mut rng = railgrip::rng::Rng::new(seed);
+    let mut rng = railgrip::sim::Rng::new(seed);
     let slip: Vec<f64> = (0..N)
         .map(|_| slip_range.0 + (slip_range.1 - slip_range.0) * rng.uniform())
         .collect();

@@ -581,7 +581,7 @@ fn gap_costs(law: &str, seed: u64, at: f64, gap_s: f64, pipelines: &[&Pipeline])
     costs
 }
 
-/// Issue 17, logger gaps: a 0.2 s gap is bridged (cubic Hermite) and only the bridged
+/// logger gaps: a 0.2 s gap is bridged (cubic Hermite) and only the bridged
 /// samples plus the filters' support around them are masked. On two foreign laws, six gap
 /// places and noise seeds: the μ RMSE stays within 1.2× the gapless run's, the error the gap
 /// adds near it is far below the estimate's own, and the samples lost are about half what

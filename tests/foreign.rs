@@ -1,4 +1,4 @@
-//! Foreign-law truth (issue 15): the scenes of `pipelines/scenes/foreign/` brake on adhesion
+//! Foreign-law truth: the scenes of `pipelines/scenes/foreign/` brake on adhesion
 //! laws outside the families railgrip fits; `railgrip::score` judges a learned curve against
 //! their truth on data-supported cells.
 //!
@@ -144,7 +144,7 @@ fn multi_start_on_a_foreign_law() {
     }
 }
 
-/// Issue 15's targets on truth railgrip did not fit, for every one of 8 seeds: the default
+/// The identification targets on truth railgrip did not fit, for every one of 8 seeds: the default
 /// network (one start) trained on one run of each foreign law stays positive on every
 /// supported cell, gets the loss/recovery order of the loss_recovery law right, passes its
 /// plausibility audit, and scores within 0.010 RMSE (the issue's one-band target).
@@ -176,7 +176,7 @@ fn every_seed_holds_on_both_foreign_laws() {
     }
 }
 
-/// Issue 15's all-speeds target (RMSE ≤ 0.004 on supported cells) on the foreign laws, from
+/// The all-speeds target (RMSE ≤ 0.004 on supported cells) on the foreign laws, from
 /// several seeds: these runs span 80–200 km/h and −20 … +30 °C, and the loss_recovery law's
 /// level moves with temperature, so the network takes the runs' ambient temperature as a
 /// fourth input. It also stays positive, passes its audit and gets the loss/recovery order
@@ -259,7 +259,7 @@ fn provenance(seed: u64) -> Provenance {
     }
 }
 
-/// One training method of the measurement (issue 15, point 7).
+/// One training method of the measurement.
 struct Method {
     name: &'static str,
     starts: usize,
@@ -324,7 +324,7 @@ fn measurement_scenes(law: &str, band: Option<&str>) -> Vec<Scene> {
 }
 
 #[test]
-#[ignore = "a measurement, not a check (issue 15 sets its targets)"]
+#[ignore = "a measurement, not a check (the targets are checked by the tests above)"]
 fn measure_networks_on_foreign_laws() {
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
@@ -451,7 +451,7 @@ fn measure_networks_trained_on_the_truth() {
     }
 }
 
-/// Polach fits on data from laws outside the Polach family (issue 16): every fit of the
+/// Polach fits on data from laws outside the Polach family: every fit of the
 /// campaign — pooled, per run, per temperature — ends converged (not at μ's maximum), with
 /// every parameter classified and a reason for each one held, and k(T) is fitted or its
 /// absence explained.
@@ -534,7 +534,7 @@ fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
     }
 }
 
-/// The temperature law on truth railgrip does not fit, over three seeds (issue 16): the
+/// The temperature law on truth railgrip does not fit, over three seeds: the
 /// loss_recovery law's adhesion level moves 0.6 %/K (its peaks scale by 1 + τ(20 °C − T)),
 /// so the form chosen has μ0(T), μ0 falling from the coldest run to the warmest as the truth's
 /// peaks do, and closer to the truth than the constant law. The table law has no temperature

@@ -1,5 +1,5 @@
 //! `railgrip run` on the bundled archive gives the committed bytes: `summary.csv` (exactly:
-//! since issue 17 the wall-clock fields are in `timings.json`), the C headers of both models
+//! wall-clock fields are in `timings.json`), the C headers of both models
 //! and the Polach fits.
 //! A refactoring that changes any of them fails here; `UPDATE_GOLDEN=1 cargo test --test
 //! golden_campaign` refreshes the files after an intended change (say why in the commit).

@@ -29,7 +29,7 @@ fn law(dv: f64, ddv: f64) -> f64 {
 
 /// Samples of `law` on a deterministic scatter, as one run with axles 2 (train) and 3 (val).
 fn synthetic_table(n: usize) -> RunTable {
-    let mut rng = railgrip::rng::Rng::new(11);
+    let mut rng = railgrip::sim::Rng::new(11);
     let mut t = RunTable {
         name: "synthetic".into(),
         source: "synthetic".into(),
@@ -263,7 +263,7 @@ fn two_hidden_layers_train_deterministically_on_any_thread_count() {
         hidden2: 17,
     };
     assert_eq!(shape.n_params(), 455);
-    let mut rng = railgrip::rng::Rng::new(4);
+    let mut rng = railgrip::sim::Rng::new(4);
     let (mut x, mut y) = (Vec::new(), Vec::new());
     for _ in 0..5000 {
         let s = [
@@ -355,7 +355,7 @@ fn synthetic_model() -> ModelFile {
                 sha256: "0".repeat(64),
             }],
             pipeline: p.source.clone(),
-            pipeline_sha256: railgrip::hash::sha256_bytes(p.text.as_bytes()),
+            pipeline_sha256: common::sha256_hex(p.text.as_bytes()),
             seed: 1,
             crate_version: "golden".into(),
             created: "2026-01-01T00:00:00Z".into(),
@@ -477,7 +477,7 @@ fn batch_matches_single_calls(
     nan_at: usize,
     seed: u64,
 ) -> (Vec<f64>, Vec<f64>) {
-    let mut rng = railgrip::rng::Rng::new(seed);
+    let mut rng = railgrip::sim::Rng::new(seed);
     let dv: Vec<f64> = (0..n)
         .map(|i| {
             if i == nan_at {
@@ -597,7 +597,7 @@ fn c_header_error(model: &Model, points: &[[f64; 4]], flags: &[&str]) -> Option<
     Some((worst, differ))
 }
 
-/// Issue 17, "C-header injection": `railgrip export` copied the model's path into the header
+/// No C-header injection: `railgrip export` copied the model's path into the header
 /// comment, so a path holding `*/ int injected_symbol = 1; /*` compiled into the header. Now
 /// the comment text is made safe: the header compiles and defines no such symbol.
 #[test]
@@ -718,7 +718,7 @@ fn four_input_model() -> ModelFile {
     let provenance = Provenance {
         inputs: vec![],
         pipeline: p.source.clone(),
-        pipeline_sha256: railgrip::hash::sha256_bytes(p.text.as_bytes()),
+        pipeline_sha256: common::sha256_hex(p.text.as_bytes()),
         seed: 1,
         crate_version: "test".into(),
         created: "2026-01-01T00:00:00Z".into(),
@@ -778,7 +778,7 @@ fn a_four_input_network_takes_the_ambient_temperature() {
     // Far outside the temperatures seen the support has faded: the fallback alone.
     assert_eq!(model.support_weight_t(1.5, 0.5, 25.0, 60.0), Some(0.0));
     // Batch with temperatures = single calls, bit for bit (vectorised blocks and the tail).
-    let mut rng = railgrip::rng::Rng::new(4);
+    let mut rng = railgrip::sim::Rng::new(4);
     let n = 203;
     let cols: Vec<Vec<f64>> = [(8.0, -2.0), (12.0, -6.0), (30.0, 5.0), (70.0, -35.0)]
         .iter()
@@ -1042,14 +1042,14 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
         "temperature input goes with a temperature law",
     );
     bad(&|v| v["outside_domain"] = "clamp".into(), "\"law\"");
-    // Issue 17: free text in a unit once reached the C header unescaped; units are the
+    // Free text in a unit once reached the C header unescaped; units are the
     // inputs' own.
     bad(
         &|v| v["inputs"][0]["unit"] = "m/s */ int injected_symbol = 1; /*".into(),
         "the unit of dv_mps is \"m/s\"",
     );
     bad(&|v| v["output"]["unit"] = "N".into(), "\"mu\" in \"1\"");
-    // Issue 17, "model files that evaluate to NaN/±∞ load fine": a wheel load of 5e-324
+    // No model file that evaluates to NaN/±∞ loads: a wheel load of 5e-324
     // (finite, valid on its own) makes μ NaN; 10⁶ k(T) coefficients took seconds to check.
     bad(
         &|v| v["polach"]["wheel_load_n"] = 5e-324.into(),
@@ -1067,7 +1067,7 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
     );
 }
 
-/// Issue 17, "model files that evaluate to NaN/±∞ load fine": networks whose constants are
+/// No model file that evaluates to NaN/±∞ loads: networks whose constants are
 /// finite but extreme (weights 1e308, an output range of ±1e308) or whose output range is
 /// reversed are refused at load, naming the file and what is wrong.
 #[test]
@@ -1316,7 +1316,7 @@ fn polach_rows(
     use railgrip::contact::polach::polach;
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
-    let mut rng = railgrip::rng::Rng::new(seed);
+    let mut rng = railgrip::sim::Rng::new(seed);
     let mut t = RunTable::default();
     let mut i = 0;
     let mut noise = 0.0;
@@ -1447,7 +1447,7 @@ fn polach_fit_says_what_data_without_small_slip_cannot_identify() {
     assert!(f.stop_reason.starts_with("converged"), "{}", f.stop_reason);
 }
 
-/// Data the law cannot be fully identified from, said clearly (issue 16, bad input): slips
+/// Data the law cannot be fully identified from, said clearly (bad input): slips
 /// only in the creep region (Δv < 0.05 m/s: no falling friction to see), and a single run at
 /// one temperature (no k(T), with the reason).
 #[test]
@@ -1519,7 +1519,7 @@ fn tables_over_temperature(
         .collect()
 }
 
-/// The temperature law's form follows what varies with temperature (issue 16), over three
+/// The temperature law's form follows what varies with temperature, over three
 /// seeds: only μ0 (the adhesion level of seed 004 Fig. 2) → μ0(T) and constant k; only k_S →
 /// k(T) and constant μ0; nothing → the constant form, no law written, and a note saying so.
 #[test]
@@ -1782,7 +1782,7 @@ fn one_rail_condition_trains_a_campaign() {
 /// `base` with its network replaced by random hidden layers of `widths` (weights ~ U(−w, w)),
 /// as a version-3 file.
 fn deep_model(base: &ModelFile, widths: &[usize], w: f64, seed: u64) -> ModelFile {
-    let mut rng = railgrip::rng::Rng::new(seed);
+    let mut rng = railgrip::sim::Rng::new(seed);
     let mut m = base.clone();
     let mut layers = Vec::new();
     let mut n_in = m.inputs.len();
@@ -1803,7 +1803,7 @@ fn deep_model(base: &ModelFile, widths: &[usize], w: f64, seed: u64) -> ModelFil
     m
 }
 
-/// Issue 20: the model file holds networks of any depth (version 3), and the Rust single call,
+/// The model file holds networks of any depth (version 3), and the Rust single call,
 /// the Rust batch and the C header evaluate them with the same bits — widths that fill whole
 /// SIMD chunks and ragged ones, mirrored, creep-region, clamped and NaN inputs, with the
 /// support grid of the base file.
@@ -1878,13 +1878,13 @@ fn deep_network_files_with_bad_shapes_or_versions_are_refused() {
 
 // ------------------------------------------------------------------ burn: Adam/AdamW, autodiff
 
-/// Issue 20: burn's reverse-mode autodiff and the analytic Jacobian the LM trainer builds
+/// Burn's reverse-mode autodiff and the analytic Jacobian the LM trainer builds
 /// (`mlp::forward_grad`) agree on every parameter, for one and two hidden layers, at random
 /// weights (including saturated neurons) and inputs.
 #[test]
 fn burn_autodiff_agrees_with_the_analytic_lm_jacobian() {
     use railgrip::identify::adam::gradient_by_autodiff;
-    let mut rng = railgrip::rng::Rng::new(4);
+    let mut rng = railgrip::sim::Rng::new(4);
     for (shape, scale) in [
         (Shape::one(3, 10), 1.0),
         (Shape::one(2, 1), 3.0),
@@ -1937,7 +1937,7 @@ fn burckhardt(x: &[f64], c: [f64; 4]) -> f64 {
     c[0] * (1.0 - (-c[1] * dv).exp()) - c[2] * dv + c[3] * ddv
 }
 
-/// Issue 20: a two-hidden-layer network trained by Adam and by AdamW through burn learns a
+/// A two-hidden-layer network trained by Adam and by AdamW through burn learns a
 /// foreign law from noisy samples over several seeds (RMSE against the truth on a fresh grid
 /// within twice the noise), the same data and seed give the same weights bit for bit,
 /// early stopping keeps the best validation epoch, and bad settings are refused.
@@ -1953,7 +1953,7 @@ fn adam_through_burn_learns_a_foreign_law_deterministically() {
         (2, [0.18, 6.0, 0.010, -0.003], Optimizer::AdamW),
         (3, [0.40, 1.2, 0.045, 0.006], Optimizer::Adam),
     ] {
-        let mut rng = railgrip::rng::Rng::new(seed);
+        let mut rng = railgrip::sim::Rng::new(seed);
         let noise = 0.005;
         let mut sample = |n: usize| {
             let x: Vec<f64> = (0..2 * n).map(|_| 2.0 * rng.uniform() - 1.0).collect();

@@ -1147,7 +1147,7 @@ fn corrupt_record_length_is_an_error_not_an_allocation_abort() {
     );
 }
 
-/// Issue 17, "a 206-byte CSV takes down the whole campaign": two rows 1e9 s apart made the
+/// A 206-byte CSV must not take down the whole campaign: two rows 1e9 s apart made the
 /// resampler ask for 3.3 TB and abort; t = 1e300 overflowed the grid to 0 samples and passed
 /// as a run; a time column in ms read as s used 1.4 GB. Each is now an error before the grid is
 /// allocated, naming the file, the span and the limit, with a hint at the time unit where the
@@ -1197,7 +1197,7 @@ fn time_spans_beyond_the_limit_are_errors_before_any_allocation() {
 
 #[test]
 fn duplicate_column_names_and_overlong_headers_are_named() {
-    // Issue 17: a column named twice silently took the first; a header over 1 MiB was
+    // A column named twice silently took the first; a header over 1 MiB was
     // reported as "missing columns".
     let dir = tempfile::tempdir().unwrap();
     let text = small_csv().replacen("p4", "omega2", 1);
@@ -1221,7 +1221,7 @@ fn duplicate_column_names_and_overlong_headers_are_named() {
 #[cfg(unix)]
 #[test]
 fn fifos_and_devices_are_refused_without_blocking() {
-    // Issue 17: a FIFO log or sidecar blocked ingest forever; a sidecar linked to /dev/zero
+    // A FIFO log or sidecar blocked ingest forever; a sidecar linked to /dev/zero
     // was read to 4.2 GB.
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("pipe.csv");

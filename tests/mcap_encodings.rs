@@ -1,4 +1,4 @@
-//! MCAP logs as users record them (issue 19): protobuf and ROS 2 (CDR) messages, checked against
+//! MCAP logs as users record them: protobuf and ROS 2 (CDR) messages, checked against
 //! files and values written by the official MCAP libraries (tests/data/mcap/make_encodings.py),
 //! the JSON run of the bundled archive, prost-reflect's full decode, and hostile payloads.
 

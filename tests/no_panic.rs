@@ -193,7 +193,7 @@ fn the_fuzz_seeds_are_valid_inputs() {
 
 #[test]
 fn a_csv_that_panicked_the_polars_reader_is_a_clean_error() {
-    // Found by the csv fuzz target (issue 17): polars 0.55 panics in csv/read/builder.rs:141
+    // Found by the csv fuzz target: polars 0.55 panics in csv/read/builder.rs:141
     // on this file; `railgrip ingest` exited 101 and `railgrip run` lost the whole campaign.
     let bytes = std::fs::read(
         std::path::Path::new(env!("CARGO_MANIFEST_DIR"))

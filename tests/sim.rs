@@ -345,7 +345,7 @@ fn against_law(
 
 #[test]
 fn foreign_laws_drive_the_wheels() {
-    // Laws outside the families railgrip fits (issue 15): the truth follows them, and WSP
+    // Laws outside the families railgrip fits: the truth follows them, and WSP
     // cycles visit both the loss and the recovery branch.
     let lr = Scene::from_toml(
         "name = \"lr\"\nseed = 3\neffects = [\"load_transfer\", \"wsp\", \"temperature\"]\n[run]\ninitial_speed_kmh = 160.0\nmax_duration_s = 12.0\nambient_temperature_c = -10.0\n[adhesion]\nlaw = \"loss_recovery\"\n[brake]\ndemand_bar = [[0.0, 0.0], [0.5, 3.8]]",

@@ -1,4 +1,4 @@
-//! `railgrip study` (issue 20): plans, refusals, cells measured against truth from a law
+//! `railgrip study`: plans, refusals, cells measured against truth from a law
 //! family none of the cells contains, resumption and determinism.
 
 mod common;

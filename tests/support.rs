@@ -1,4 +1,4 @@
-//! Issue 15: what a learned model file says about its own data — the data-support grid and its
+//! What a learned model file says about its own data — the data-support grid and its
 //! blend (format version 2), ensembles and Bayesian regularisation through the pipeline, the
 //! plausibility audit, and version-1 files still loading.
 
@@ -151,7 +151,7 @@ fn the_blend_is_continuous_and_the_network_alone_at_supported_centres() {
 
 /// Samples of a law whose loss branch (rising slip, q > 0) lies above its recovery branch.
 fn hysteretic_samples() -> Vec<Sample> {
-    let mut rng = railgrip::rng::Rng::new(5);
+    let mut rng = railgrip::sim::Rng::new(5);
     (0..40_000)
         .map(|_| {
             let dv = 0.2 + 3.5 * rng.uniform();

@@ -5,9 +5,10 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::Context as _;
-use railgrip::contact::fastsim::{Bound, Creepage, Fastsim, Friction, Patch, Reduction};
+use railgrip::contact::fastsim::{Bound, Creepage, Fastsim, Field, Friction, Patch, Reduction};
 use railgrip::contact::flash::{flash_temperature, Heating, Material};
-use railgrip::contact::hertz::{hertz, HertzInput};
+use railgrip::contact::hertz::{hertz, HertzContact, HertzInput};
+use railgrip::contact::kalker::KalkerCoefficients;
 use railgrip::contact::polach::{polach, ContactPatch, PolachParams};
 use railgrip::contact::{kalker, linear_saturated_fx, shear_modulus_pa};
 
@@ -142,6 +143,41 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
+    check(&args)?;
+    let laws = Laws::new(&args)?;
+    let mut field = laws.plain.field();
+    let mut text = header(&args, laws.thermal.is_some()).join(",") + "\n";
+    for i in 0..args.steps {
+        let sx = args.creepage_max * i as f64 / (args.steps - 1) as f64;
+        let row = laws.row(&args, sx, &mut field)?;
+        let cells: Vec<String> = row.iter().map(|x| format!("{x}")).collect();
+        text += &cells.join(",");
+        text.push('\n');
+    }
+    let (h, k) = (&laws.hertz, &laws.kalker);
+    eprintln!(
+        "patch: a = {:.3} mm, b = {:.3} mm, p_max = {:.0} MPa, C11 {:.3}, C22 {:.3}, C23 {:.3}, C33 {:.3}",
+        h.a_m * 1e3,
+        h.b_m * 1e3,
+        h.p_max_pa / 1e6,
+        k.c11,
+        k.c22,
+        k.c23,
+        k.c33
+    );
+    match &args.out {
+        Some(path) => {
+            railgrip_io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
+                .with_context(|| format!("{}: cannot write", path.display()))?;
+            eprintln!("wrote {} ({} points)", path.display(), args.steps);
+        }
+        None => std::io::stdout().write_all(text.as_bytes())?,
+    }
+    Ok(EXIT_OK)
+}
+
+/// The curve's range, points and speed.
+fn check(args: &Args) -> anyhow::Result<()> {
     if args.steps < 2 || args.steps > 100_000 {
         anyhow::bail!("--steps {} must be 2 ..= 100000", args.steps);
     }
@@ -154,85 +190,12 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     if !(args.speed_kmh.is_finite() && args.speed_kmh > 0.0 && args.speed_kmh <= 1000.0) {
         anyhow::bail!("--speed-kmh {} must be in (0, 1000]", args.speed_kmh);
     }
-    let v = args.speed_kmh / 3.6;
-    let h = hertz(&HertzInput {
-        normal_n: args.load_n,
-        youngs_modulus_pa: args.youngs_modulus_pa,
-        poisson: args.poisson,
-        wheel_rolling_radius_m: args.wheel_radius_m,
-        wheel_lateral_radius_m: args.wheel_lateral_radius_m,
-        rail_longitudinal_radius_m: f64::INFINITY,
-        rail_lateral_radius_m: args.rail_lateral_radius_m,
-    })
-    .context("contact patch (Hertz): check --load-n and the radii")?;
-    let k = kalker::coefficients(h.a_m, h.b_m, args.poisson)
-        .context("Kalker coefficients: the patch's a/b is outside the table")?;
-    let g = shear_modulus_pa(args.youngs_modulus_pa, args.poisson);
-    let patch = Patch::new(&h, g, &k, args.load_n);
-    let cpatch = ContactPatch {
-        a_m: h.a_m,
-        b_m: h.b_m,
-        g_pa: g,
-        c11: k.c11,
-        c22: k.c22,
-    };
-    let friction = Friction {
-        mu0: args.mu0,
-        a_ratio: args.a_ratio,
-        b_s_per_m: args.b_s_per_m,
-    };
-    friction
-        .check()
-        .context("friction (--mu0, --a-ratio, --b-s-per-m)")?;
-    let pp = PolachParams {
-        mu0: args.mu0,
-        a_ratio: args.a_ratio,
-        b_s_per_m: args.b_s_per_m,
-        k_a: args.k_a,
-        k_s: args.k_s,
-    };
-    if args.law.contains(&Law::Polach) {
-        pp.check().context("Polach parameters (--k-a, --k-s)")?;
-    }
-    let bound = match args.bound {
-        BoundArg::Elliptic => Bound::Elliptic,
-        BoundArg::Parabolic => Bound::Parabolic,
-    };
-    let plain = Fastsim::new(args.grid, args.grid, bound).context("--grid")?;
-    let modified = plain
-        .modified(Reduction {
-            k0: args.k0,
-            alpha_inf: args.alpha_inf,
-            beta: args.beta,
-        })
-        .context("modified FASTSIM (--k0, --alpha-inf, --beta)")?;
-    let thermal = if args.temperature {
-        let m = Material {
-            conductivity_w_per_mk: args.conductivity,
-            specific_heat_j_per_kgk: args.specific_heat,
-            density_kg_per_m3: args.density,
-        };
-        let ht = Heating {
-            partition: args.partition,
-            initial_temperature_c: args.initial_temperature_c,
-            after_s: args.after_ms / 1000.0,
-        };
-        m.check()
-            .context("material (--conductivity, --specific-heat, --density)")?;
-        ht.check()
-            .context("heating (--partition, --initial-temperature-c, --after-ms)")?;
-        let first = args
-            .law
-            .iter()
-            .find(|l| matches!(l, Law::Fastsim | Law::FastsimModified))
-            .copied()
-            .context("--temperature needs a FASTSIM law in --law (fastsim or fastsim-modified)")?;
-        Some((m, ht, first))
-    } else {
-        None
-    };
-    let mut field = plain.field();
+    Ok(())
+}
 
+/// The CSV header: creepage and slip velocity, then per law its columns, then the flash
+/// temperatures.
+fn header(args: &Args, thermal: bool) -> Vec<String> {
     let mut header = vec!["creepage".to_string(), "slip_velocity_mps".to_string()];
     for l in &args.law {
         let n = l.name();
@@ -244,12 +207,127 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             header.push(format!("slip_fraction_{n}"));
         }
     }
-    if thermal.is_some() {
+    if thermal {
         header.extend(["peak_temperature_c", "after_temperature_c", "power_W"].map(String::from));
     }
-    let mut text = header.join(",") + "\n";
-    for i in 0..args.steps {
-        let sx = args.creepage_max * i as f64 / (args.steps - 1) as f64;
+    header
+}
+
+/// The patch and every law of the command line, checked.
+struct Laws {
+    hertz: HertzContact,
+    kalker: KalkerCoefficients,
+    g: f64,
+    patch: Patch,
+    cpatch: ContactPatch,
+    friction: Friction,
+    polach: PolachParams,
+    plain: Fastsim,
+    modified: Fastsim,
+    /// With --temperature: the material, the heating and the FASTSIM law it follows.
+    thermal: Option<(Material, Heating, Law)>,
+}
+
+impl Laws {
+    fn new(args: &Args) -> anyhow::Result<Laws> {
+        let h = hertz(&HertzInput {
+            normal_n: args.load_n,
+            youngs_modulus_pa: args.youngs_modulus_pa,
+            poisson: args.poisson,
+            wheel_rolling_radius_m: args.wheel_radius_m,
+            wheel_lateral_radius_m: args.wheel_lateral_radius_m,
+            rail_longitudinal_radius_m: f64::INFINITY,
+            rail_lateral_radius_m: args.rail_lateral_radius_m,
+        })
+        .context("contact patch (Hertz): check --load-n and the radii")?;
+        let k = kalker::coefficients(h.a_m, h.b_m, args.poisson)
+            .context("Kalker coefficients: the patch's a/b is outside the table")?;
+        let g = shear_modulus_pa(args.youngs_modulus_pa, args.poisson);
+        let patch = Patch::new(&h, g, &k, args.load_n);
+        let cpatch = ContactPatch {
+            a_m: h.a_m,
+            b_m: h.b_m,
+            g_pa: g,
+            c11: k.c11,
+            c22: k.c22,
+        };
+        let friction = Friction {
+            mu0: args.mu0,
+            a_ratio: args.a_ratio,
+            b_s_per_m: args.b_s_per_m,
+        };
+        friction
+            .check()
+            .context("friction (--mu0, --a-ratio, --b-s-per-m)")?;
+        let pp = PolachParams {
+            mu0: args.mu0,
+            a_ratio: args.a_ratio,
+            b_s_per_m: args.b_s_per_m,
+            k_a: args.k_a,
+            k_s: args.k_s,
+        };
+        if args.law.contains(&Law::Polach) {
+            pp.check().context("Polach parameters (--k-a, --k-s)")?;
+        }
+        let bound = match args.bound {
+            BoundArg::Elliptic => Bound::Elliptic,
+            BoundArg::Parabolic => Bound::Parabolic,
+        };
+        let plain = Fastsim::new(args.grid, args.grid, bound).context("--grid")?;
+        let modified = plain
+            .modified(Reduction {
+                k0: args.k0,
+                alpha_inf: args.alpha_inf,
+                beta: args.beta,
+            })
+            .context("modified FASTSIM (--k0, --alpha-inf, --beta)")?;
+        let thermal = if args.temperature {
+            let m = Material {
+                conductivity_w_per_mk: args.conductivity,
+                specific_heat_j_per_kgk: args.specific_heat,
+                density_kg_per_m3: args.density,
+            };
+            let ht = Heating {
+                partition: args.partition,
+                initial_temperature_c: args.initial_temperature_c,
+                after_s: args.after_ms / 1000.0,
+            };
+            m.check()
+                .context("material (--conductivity, --specific-heat, --density)")?;
+            ht.check()
+                .context("heating (--partition, --initial-temperature-c, --after-ms)")?;
+            let first = args
+                .law
+                .iter()
+                .find(|l| matches!(l, Law::Fastsim | Law::FastsimModified))
+                .copied()
+                .context(
+                    "--temperature needs a FASTSIM law in --law (fastsim or fastsim-modified)",
+                )?;
+            Some((m, ht, first))
+        } else {
+            None
+        };
+        Ok(Laws {
+            hertz: h,
+            kalker: k,
+            g,
+            patch,
+            cpatch,
+            friction,
+            polach: pp,
+            plain,
+            modified,
+            thermal,
+        })
+    }
+
+    /// One row of the table at creepage `sx` (`field`: FASTSIM's work space).
+    fn row(&self, args: &Args, sx: f64, field: &mut Field) -> anyhow::Result<Vec<f64>> {
+        let (h, k, g, v) = (&self.hertz, &self.kalker, self.g, args.speed_kmh / 3.6);
+        let (patch, cpatch, friction, pp) =
+            (&self.patch, &self.cpatch, &self.friction, &self.polach);
+        let (plain, modified, thermal) = (&self.plain, &self.modified, &self.thermal);
         let creep = Creepage {
             sx,
             sy: args.lateral_creepage,
@@ -293,7 +371,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                     } else {
                         &modified
                     };
-                    let f = fs.solve(&patch, &friction, &creep, &mut field)?;
+                    let f = fs.solve(patch, friction, &creep, field)?;
                     // The temperature of the first FASTSIM law, from the field just solved.
                     if let Some((m, ht, first)) = &thermal {
                         if first == l && thermal_row.is_none() {
@@ -314,27 +392,6 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         if let Some(t) = thermal_row {
             row.extend(t);
         }
-        let cells: Vec<String> = row.iter().map(|x| format!("{x}")).collect();
-        text += &cells.join(",");
-        text.push('\n');
+        Ok(row)
     }
-    eprintln!(
-        "patch: a = {:.3} mm, b = {:.3} mm, p_max = {:.0} MPa, C11 {:.3}, C22 {:.3}, C23 {:.3}, C33 {:.3}",
-        h.a_m * 1e3,
-        h.b_m * 1e3,
-        h.p_max_pa / 1e6,
-        k.c11,
-        k.c22,
-        k.c23,
-        k.c33
-    );
-    match &args.out {
-        Some(path) => {
-            railgrip_io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
-                .with_context(|| format!("{}: cannot write", path.display()))?;
-            eprintln!("wrote {} ({} points)", path.display(), args.steps);
-        }
-        None => std::io::stdout().write_all(text.as_bytes())?,
-    }
-    Ok(EXIT_OK)
 }

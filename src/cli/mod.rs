@@ -4,6 +4,8 @@ mod contact;
 mod estimate;
 mod ingest;
 mod model;
+mod progress;
+mod report;
 mod run;
 mod score;
 mod simulate;
@@ -43,7 +45,7 @@ enum Command {
     )]
     Run(run::Args),
     /// Rebuild the HTML report of an output folder of `railgrip run`.
-    Report(run::ReportArgs),
+    Report(report::ReportArgs),
     /// Read one log (CSV or MCAP), resample it onto a uniform time base and print a summary.
     #[command(
         long_about = "Read one braking-test log and print what was found: duration, rate per \
@@ -150,7 +152,7 @@ pub fn main() -> ExitCode {
     };
     let result = match cli.command {
         Command::Run(args) => run::run(args),
-        Command::Report(args) => run::report(args),
+        Command::Report(args) => report::report(args),
         Command::Ingest(args) => ingest::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Estimate(args) => estimate::run(args),
@@ -167,7 +169,7 @@ pub fn main() -> ExitCode {
         Err(e) => {
             // Library errors carry the whole story (where, what, hint) in their message; a
             // context added here (`file: cannot write`) is followed by its causes, down to the
-            // operating system's (issue 17: 5 of 7 "cannot write" errors once omitted it).
+            // operating system's (5 of 7 "cannot write" errors once omitted it).
             let mut msg = e.to_string();
             for cause in e.chain().skip(1) {
                 let c = cause.to_string();

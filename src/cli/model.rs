@@ -4,7 +4,8 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use railgrip::campaign::{train_models, ModelPaths};
+use railgrip::campaign::{train_models, CampaignModels, ModelPaths};
+use railgrip::identify::polach::PolachReport;
 use railgrip::identify::RunTable;
 use railgrip::ingest::LogSource;
 use railgrip::model::{c_header, Model, ModelFile};
@@ -115,9 +116,32 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         );
     }
     let written = models.write(&ModelPaths::new(&args.out, &args.name), false)?;
-    let trained = &models.trained;
-    let report = &models.polach_fits;
+    print_network(&models);
+    print_polach(&models.polach_fits);
+    print_temperature_law(&models.polach_fits);
     let notes = &models.notes;
+    for n in notes {
+        println!("warning    {n}");
+    }
+    for p in written {
+        println!("wrote      {}", p.display());
+    }
+    Ok(match &models.mlp.audit {
+        Some(a) => {
+            print_audit(a);
+            if a.passed {
+                EXIT_OK
+            } else {
+                EXIT_LOSSY
+            }
+        }
+        None => EXIT_OK,
+    })
+}
+
+/// What `train` prints about the network: shape, samples, epochs, starts, errors, support.
+fn print_network(models: &CampaignModels) {
+    let trained = &models.trained;
     println!(
         "model      network {} ({} inputs, tanh hidden layers, {} parameters)",
         trained.arch,
@@ -174,6 +198,10 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             s.fallback
         );
     }
+}
+
+/// Every Polach fit with its standard errors, what was held, and the pooled fit's intervals.
+fn print_polach(report: &PolachReport) {
     println!("\nPolach     μ0 ± se       A ± se        B s/m ± se    k_A ± se      k_S ± se      RMSE    group");
     let mut held = Vec::new();
     for f in report
@@ -220,6 +248,10 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             p.group
         );
     }
+}
+
+/// The temperature law chosen, or why there is none.
+fn print_temperature_law(report: &PolachReport) {
     match &report.temperature {
         Some(t) => {
             // ΔBIC of the runner-up among the valid forms.
@@ -255,23 +287,6 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             report.temperature_note.clone().unwrap_or_default()
         ),
     }
-    for n in notes {
-        println!("warning    {n}");
-    }
-    for p in written {
-        println!("wrote      {}", p.display());
-    }
-    Ok(match &models.mlp.audit {
-        Some(a) => {
-            print_audit(a);
-            if a.passed {
-                EXIT_OK
-            } else {
-                EXIT_LOSSY
-            }
-        }
-        None => EXIT_OK,
-    })
 }
 
 /// The network's plausibility audit: one line when it passed, the failures when not.

@@ -1,5 +1,5 @@
 //! `railgrip score`: a model file against the truth of simulated scenes, on the cells the
-//! scenes' data support (railgrip::score; issue 15).
+//! scenes' data support (railgrip::score).
 
 use std::path::PathBuf;
 

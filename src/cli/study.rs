@@ -1,12 +1,9 @@
 //! `railgrip study`: a plan of cells over a campaign, each trained and measured
-//! (railgrip::study; issue 20).
+//! (railgrip::study).
 
-use std::io::IsTerminal as _;
 use std::path::PathBuf;
-use std::sync::Mutex;
 
-use indicatif::{ProgressBar, ProgressStyle};
-use railgrip::study::{self, CellResult, Event, Plan};
+use railgrip::study::{self, CellResult, Plan};
 
 use super::EXIT_OK;
 
@@ -43,88 +40,13 @@ pub struct Args {
     json: bool,
 }
 
-/// Progress on stderr: a bar over the cells on a terminal, plain lines otherwise.
-struct Bar {
-    terminal: bool,
-    bar: Mutex<Option<ProgressBar>>,
-}
-
-fn cell_line(r: &CellResult, what: &str) -> String {
-    match &r.error {
-        Some(e) => format!("cell       {}: FAILED: {e}", r.name),
-        None => format!(
-            "cell       {}: {what} {}",
-            r.name,
-            match (what, &r.eval) {
-                ("timed", Some(e)) => format!("{:.1} ns per μ", e.single_ns),
-                _ => format!(
-                    "{:.2} s, held-out RMSE {:.5}",
-                    r.train_s.unwrap_or(f64::NAN),
-                    r.held_out_rmse.unwrap_or(f64::NAN)
-                ),
-            }
-        ),
-    }
-}
-
-impl<'a> study::Progress<Event<'a>> for Bar {
-    fn event(&self, e: Event<'a>) {
-        match e {
-            Event::Estimating {
-                conditionings,
-                runs,
-            } => eprintln!("estimate   {runs} run(s) × {conditionings} conditioning setting(s) (reused when unchanged)"),
-            Event::Planned {
-                cells,
-                reused,
-                estimated_s,
-            } => {
-                eprintln!(
-                    "study      {cells} cell(s), {reused} reused; training estimated at {:.1} min",
-                    estimated_s / 60.0
-                );
-                if self.terminal {
-                    // Each cell is trained, then timed: two steps per new cell.
-                    let b = ProgressBar::new(2 * (cells - reused) as u64);
-                    b.set_style(
-                        ProgressStyle::with_template(
-                            "{prefix:>10} [{bar:30}] {pos}/{len} {elapsed_precise} (eta {eta}) {wide_msg}",
-                        )
-                        .expect("valid template")
-                        .progress_chars("=> "),
-                    );
-                    b.set_prefix("cells");
-                    *self.bar.lock().expect("not poisoned") = Some(b);
-                }
-            }
-            Event::Trained(r) | Event::Timed(r) => {
-                let what = if matches!(e, Event::Timed(_)) { "timed" } else { "trained" };
-                let line = cell_line(r, what);
-                match &*self.bar.lock().expect("not poisoned") {
-                    Some(b) => {
-                        if r.error.is_some() {
-                            b.println(line.clone());
-                        }
-                        b.set_message(line);
-                        b.inc(if r.error.is_some() { 2 } else { 1 });
-                    }
-                    None => eprintln!("{line}"),
-                }
-            }
-        }
-    }
-}
-
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let plan = Plan::load(args.plan.as_deref(), args.pipeline.as_deref())?;
     let archive = args
         .archive
         .clone()
         .unwrap_or_else(railgrip::campaign::bundled_archive);
-    let bar = Bar {
-        terminal: std::io::stderr().is_terminal(),
-        bar: Mutex::new(None),
-    };
+    let bar = super::progress::CellBar::new();
     let options = study::Options {
         jobs: args.jobs,
         force: args.force,
@@ -132,9 +54,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         budget_train_s: args.budget_train_s,
     };
     let o = study::run(&archive, &plan, &args.out, options, &bar)?;
-    if let Some(b) = bar.bar.lock().expect("not poisoned").take() {
-        b.finish_and_clear();
-    }
+    bar.finish();
     if args.json {
         println!("{}", serde_json::to_string_pretty(&o)?);
         return Ok(EXIT_OK);

@@ -536,3 +536,17 @@ int main(void) {{
         })
         .collect()
 }
+
+/// SHA-256 of `bytes` as lowercase hex (what railgrip writes into provenance and run records).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest as _;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// SHA-256 of the file at `path`, lowercase hex.
+pub fn sha256_file(path: &Path) -> std::io::Result<String> {
+    Ok(sha256_hex(&std::fs::read(path)?))
+}

@@ -33,7 +33,7 @@ where
 }
 
 /// Removes the temporary files ([`temp_path`]) below `root`, at most `depth` folders down,
-/// that processes no longer running left behind (a killed run; issue 17: they were never
+/// that processes no longer running left behind (a killed run: they were never
 /// cleaned). Where the operating system has no `/proc`, every temporary file not of this
 /// process counts as left behind. Errors are ignored: a file that cannot be removed stays.
 pub fn remove_stale_temporaries(root: &Path, depth: usize) {

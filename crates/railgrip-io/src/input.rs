@@ -1,6 +1,6 @@
 //! Opening input files safely: only regular files, and never more bytes than a limit.
 //!
-//! Issue 17: a sidecar that was a FIFO blocked `ingest` and `run` forever (opening a FIFO for
+//! A sidecar that was a FIFO blocked `ingest` and `run` forever (opening a FIFO for
 //! reading waits for a writer), and one that pointed at /dev/zero was read to 4.2 GB. Every
 //! file railgrip reads because a user or a log named it goes through here: logs, sidecars,
 //! pipeline and scene files, model files, archives.

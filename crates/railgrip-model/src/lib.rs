@@ -24,6 +24,27 @@
 //!    above, μ_s = |N(Δv_b, dΔv/dt, v)|, k = C / (Q v) (C = G a b c11 the creep stiffness, N; Q
 //!    the wheel load, N; v the speed input or, for two-input models, the median training speed),
 //!    to the network at Δv_b: μ = w N(Δv, …) + (1 − w) μ_lin. Continuous in every input.
+//!
+//! The front door for a simulator, an FMU or a binding that only evaluates models: this crate
+//! builds with serde alone (no polars, burn, argmin or plotters).
+//!
+//! ```
+//! use railgrip_model::Model;
+//!
+//! # let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../models/golden/synthetic_mlp.json");
+//! let model = Model::load(path.as_ref())?; // read, checked, ready to evaluate
+//! let mu = model.mu(1.2, 0.5); // Δv = 1.2 m/s, dΔv/dt = 0.5 m/s²
+//! assert!(mu > 0.0 && mu < 0.6);
+//! // Many points at once, vectorised (same bits as the single call): an empty speed slice means
+//! // the reference speed.
+//! let (dv, ddv) = ([0.1, 1.2, 3.0], [0.2, 0.5, -1.0]);
+//! let mut out = [0.0; 3];
+//! model.mu_batch(&dv, &ddv, &[], &mut out);
+//! assert_eq!(out[1], mu);
+//! # Ok::<(), railgrip_model::ModelError>(())
+//! ```
+//!
+//! The C header of the same model ([`c_header`]) computes the same operations in C99.
 
 pub mod c_header;
 mod file;
@@ -114,7 +135,7 @@ enum Law {
 /// Points per input of the load-time check grid (both ends of the domain and 5 between).
 const CHECK_POINTS: usize = 7;
 
-/// Issue 17, "model files that evaluate to NaN/±∞ load fine": μ must be finite at every point of
+/// No model file that evaluates to NaN/±∞ loads: μ must be finite at every point of
 /// a grid over the declared input domains ([`CHECK_POINTS`] per input, at most 7⁴ = 2 401
 /// evaluations), the evaluator itself doing the work, so that extreme but finite constants
 /// (weights 1e308, an output range of ±1e308, a wheel load of 5e-324) are caught where they

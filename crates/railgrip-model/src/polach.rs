@@ -185,7 +185,7 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
                 "polach.temperature: coefficients or fitted range not finite".into(),
             ));
         }
-        // Issue 17: a file with 10⁶ coefficients took 3.6 s to check and made an 18 MB header.
+        // A file with 10⁶ coefficients took 3.6 s to check and made an 18 MB header.
         for (what, c) in [("mu0", &t.mu0), ("k_a", &t.k_a), ("k_s", &t.k_s)] {
             if c.len() > MAX_COEFFICIENTS {
                 return Err(Defect::Value(format!(

@@ -79,8 +79,10 @@ pub fn cho_solve(l: &[f64], k: usize, b: &[f64]) -> Vec<f64> {
     x
 }
 
-/// Diagonal of A⁻¹ from the Cholesky factor (k solves; fine for small k).
-pub fn inverse_diagonal(l: &[f64], k: usize) -> Vec<f64> {
+/// Diagonal of A⁻¹ from the Cholesky factor (k solves): the reference [`inverse_trace`] is
+/// tested against.
+#[cfg(test)]
+fn inverse_diagonal(l: &[f64], k: usize) -> Vec<f64> {
     (0..k)
         .map(|p| {
             let mut e = vec![0.0; k];

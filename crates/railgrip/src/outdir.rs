@@ -188,7 +188,7 @@ pub struct RunRecord {
     #[serde(default, skip_serializing)]
     pub reused: bool,
     /// Time to ingest, condition, estimate and write, s (of the run that computed it). Not
-    /// written to `run.json`/`campaign.json` (issue 17: the same inputs give the same bytes);
+    /// written to `run.json`/`campaign.json` (the same inputs give the same bytes);
     /// `timings.json` has it.
     #[serde(default, skip_serializing)]
     pub duration_s: f64,
@@ -228,7 +228,7 @@ pub struct CampaignRecord {
     /// Pipeline file name and its validation axles (seed 002 Fig. 10 uses the first).
     pub pipeline: String,
     pub validation_axles: Vec<u8>,
-    /// Files of the campaign that are not logs, with why (absent in files before issue 17).
+    /// Files of the campaign that are not logs, with why (absent in files of older versions).
     #[serde(default)]
     pub skipped: Vec<Skipped>,
     /// This campaign generation: the first 16 hex digits of SHA-256 over the pipeline text
@@ -258,7 +258,7 @@ pub fn generation_id(pipeline_text: &str, runs: &[RunRecord]) -> String {
 
 /// `<out>/timings.json`: how this invocation of `railgrip run` went — when, how long each
 /// stage and run took, which runs were reused. Kept out of the result files so that the same
-/// inputs give the same bytes (issue 17).
+/// inputs give the same bytes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Timings {
     pub generation: String,

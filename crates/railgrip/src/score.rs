@@ -1,5 +1,5 @@
 //! Scoring a learned adhesion curve against the truth of simulated runs, only where the runs
-//! hold data (issue 15): a model is judged on the (Δv, dΔv/dt, v) cells its training data
+//! hold data: a model is judged on the (Δv, dΔv/dt, v) cells its training data
 //! could have taught it, not on validation MSE alone, and not where it extrapolates.
 //!
 //! **Cells.** Centres every 0.1 m/s in slip Δv, at ±{0.25, 0.5, 1, 2, 4, 8} m/s² in slip rate

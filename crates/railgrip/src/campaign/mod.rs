@@ -66,7 +66,7 @@ pub struct Options {
     /// Recompute every run even when its inputs and the pipeline are unchanged.
     pub force: bool,
     /// Write `runs/<run>/<run>.railgrip.mcap` per run: estimates and the network's μ replayed
-    /// (issue 19). Without it such files of an earlier run are removed.
+    ///. Without it such files of an earlier run are removed.
     pub mcap: bool,
 }
 
@@ -199,7 +199,7 @@ pub fn sources_all(root: &Path, skip: Option<&Path>) -> Result<Sources, Campaign
     Ok((unique_names(logs), skipped))
 }
 
-/// Run names made unique (issue 17: `x.csv` and `x.mcap` once shared `runs/x/`, the last
+/// Run names made unique (`x.csv` and `x.mcap` once shared `runs/x/`, the last
 /// writer winning): where names collide, each gets its log's extension (`x_csv`, `x_mcap`);
 /// where they still collide (names that sanitise alike, `a b.csv` and `a_b.csv`), a counter in
 /// the order of the logs' paths (`a_b_csv`, `a_b_csv_2`): the same names on every run, for a
@@ -360,7 +360,7 @@ pub fn estimate_runs(
     Ok((records, tables.into_iter().flatten().collect()))
 }
 
-/// Makes the output folder ready before any work (issue 17: a read-only folder was found only
+/// Makes the output folder ready before any work (a read-only folder was found only
 /// after training, and a killed re-run could leave new models beside an old report): creates
 /// its folders and writes a probe file in each (the error names the folder and the OS cause),
 /// removes the temporary files of earlier runs that no longer live, and removes the campaign

@@ -24,7 +24,7 @@ pub fn discover(root: &Path, skip: Option<&Path>) -> Result<Vec<PathBuf>, Campai
     Ok(discover_all(root, skip)?.0)
 }
 
-/// [`discover`], and every other file below `root` with why it is not a log (issue 17: a
+/// [`discover`], and every other file below `root` with why it is not a log (a
 /// `random.bin` in a campaign was skipped without a word). Hidden entries (`.name`) and the
 /// output folder are left out silently; a metadata sidecar beside its log is part of the log.
 pub fn discover_all(

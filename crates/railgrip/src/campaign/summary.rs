@@ -7,7 +7,7 @@ use super::{CampaignError, OutDir, RunRecord};
 use crate::format::AXLES;
 
 /// Columns of `summary.csv` / `summary.parquet`, in order.
-/// How a run was computed this time (reused, seconds) is in `timings.json` (issue 17: the same
+/// How a run was computed this time (reused, seconds) is in `timings.json` (the same
 /// inputs give the same bytes).
 pub const SUMMARY_COLUMNS: [&str; 15] = [
     "run",

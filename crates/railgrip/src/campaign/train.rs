@@ -183,7 +183,7 @@ impl CampaignModels {
             }
         }
         // Files an earlier generation wrote and this one does not (no Polach model, scores
-        // switched off) are removed: nothing stale beside the new models (issue 17).
+        // switched off) are removed: nothing stale beside the new models.
         let mut stale = vec![paths.leave_one_run_out()];
         if self.polach.is_none() {
             stale.push(paths.polach());

@@ -1,4 +1,4 @@
-//! The data support and the plausibility audit of a trained network (issue 15; docs/model-files.md "Data
+//! The data support and the plausibility audit of a trained network (docs/model-files.md "Data
 //! support", "Plausibility audit"): where the training samples lie, what the evaluators fall
 //! back to elsewhere, the ensemble's spread, and the checks a network passes before export.
 

@@ -1,5 +1,5 @@
 //! Adhesion laws from outside the families railgrip fits — truth that the identification has
-//! not seen (issue 15: a network or Polach fit tested only on Polach-made data is tested on its
+//! not seen (a network or Polach fit tested only on Polach-made data is tested on its
 //! own assumptions).
 //!
 //! - [`LossRecovery`]: separate curves for a growing slip (adhesion being lost) and a falling

@@ -1,4 +1,4 @@
-//! The study's simulator and contact rows (issue 20, point 4): what the simulator's step size
+//! The study's simulator and contact rows: what the simulator's step size
 //! and the contact law's grid cost and buy, measured like the model cells.
 //!
 //! **Simulator** (`[[simulator]]`): a scene run at each `step_ms` against the same scene at

@@ -1,4 +1,4 @@
-//! `railgrip study` (issue 20): what accuracy costs in time, measured on the user's own
+//! `railgrip study`: what accuracy costs in time, measured on the user's own
 //! campaign. A plan ([`plan`], bundled `pipelines/study.toml`) declares grids of cells — model
 //! family and size, training settings, conditioning — each a complete pipeline. For every cell
 //! the campaign's runs are estimated with the cell's conditioning (shared between cells that

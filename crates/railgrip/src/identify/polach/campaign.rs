@@ -47,8 +47,64 @@ pub fn fit_campaign(
     degree: usize,
     intervals: bool,
 ) -> (PolachReport, Vec<String>) {
+    let all: Vec<&RunTable> = tables.iter().collect();
+    let (fits, mut notes) = fit_groups(tables, patch, q_n, decimate, intervals);
+    let pooled_samples = samples(&all, q_n, decimate);
+    let range = |f: fn(&Sample) -> f64| {
+        pooled_samples
+            .iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
+    let law = match &fits.pooled {
+        Some(p) => {
+            fit_temperature_forms(&all, patch, q_n, decimate, degree, p, &fits.per_temperature)
+        }
+        None => Err(IdentifyError::Data {
+            what: "no pooled Polach fit".into(),
+            hint: "see the notes above".into(),
+        }),
+    };
+    let (temperature, temperature_note) = law_and_note(law, &mut notes);
+    (
+        PolachReport {
+            format: "railgrip-polach-fit".into(),
+            version: 3,
+            patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
+            wheel_load_n: q_n,
+            pooled: fits.pooled,
+            dv_range_mps,
+            v_range_mps,
+            per_run: fits.per_run,
+            per_temperature: fits.per_temperature,
+            temperature,
+            temperature_note,
+            generation: None,
+        },
+        notes,
+    )
+}
+
+/// The fits of a campaign's groups.
+struct GroupFits {
+    pooled: Option<PolachFit>,
+    per_run: Vec<PolachFit>,
+    per_temperature: Vec<PolachFit>,
+}
+
+/// All runs pooled, every run and every ambient temperature, fitted independently: in
+/// parallel, results kept in group order; the groups that could not be fitted in the notes.
+fn fit_groups(
+    tables: &[RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    intervals: bool,
+) -> (GroupFits, Vec<String>) {
     let start = DEFAULT_START;
-    // Every group is fitted independently: in parallel, results kept in group order.
     let all: Vec<&RunTable> = tables.iter().collect();
     let mut temps: Vec<f64> = tables
         .iter()
@@ -102,34 +158,30 @@ pub fn fit_campaign(
         })
         .collect();
     let mut notes = Vec::new();
-    let (mut pooled, mut per_run, mut per_temperature) = (None, Vec::new(), Vec::new());
+    let mut out = GroupFits {
+        pooled: None,
+        per_run: Vec::new(),
+        per_temperature: Vec::new(),
+    };
     for (g, r) in fits {
         match (g, r) {
-            (Group::Pooled, Ok(f)) => pooled = Some(f),
-            (Group::Run(_), Ok(f)) => per_run.push(f),
-            (Group::Temperature(_), Ok(f)) => per_temperature.push(f),
+            (Group::Pooled, Ok(f)) => out.pooled = Some(f),
+            (Group::Run(_), Ok(f)) => out.per_run.push(f),
+            (Group::Temperature(_), Ok(f)) => out.per_temperature.push(f),
             (Group::Run(i), Err(e)) => notes.push(format!("{}: {e}", tables[*i].name)),
             (_, Err(e)) => notes.push(e.to_string()),
         }
     }
-    let pooled_samples = samples(&all, q_n, decimate);
-    let range = |f: fn(&Sample) -> f64| {
-        pooled_samples
-            .iter()
-            .map(f)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-                (lo.min(x), hi.max(x))
-            })
-    };
-    let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
-    let law = match &pooled {
-        Some(p) => fit_temperature_forms(&all, patch, q_n, decimate, degree, p, &per_temperature),
-        None => Err(IdentifyError::Data {
-            what: "no pooled Polach fit".into(),
-            hint: "see the notes above".into(),
-        }),
-    };
-    let (temperature, temperature_note) = match law {
+    (out, notes)
+}
+
+/// The temperature law when there is one, and why there is none (no law, or the constant form
+/// chosen); temperatures whose k was not identified go into `notes`.
+fn law_and_note(
+    law: Result<TemperatureFit, IdentifyError>,
+    notes: &mut Vec<String>,
+) -> (Option<TemperatureFit>, Option<String>) {
+    match law {
         Ok(t) => {
             for e in &t.excluded {
                 notes.push(format!("k(T) not identified at {e}"));
@@ -150,22 +202,5 @@ pub fn fit_campaign(
             (Some(t), note)
         }
         Err(e) => (None, Some(e.to_string())),
-    };
-    (
-        PolachReport {
-            format: "railgrip-polach-fit".into(),
-            version: 3,
-            patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
-            wheel_load_n: q_n,
-            pooled,
-            dv_range_mps,
-            v_range_mps,
-            per_run,
-            per_temperature,
-            temperature,
-            temperature_note,
-            generation: None,
-        },
-        notes,
-    )
+    }
 }

@@ -7,7 +7,7 @@ use super::law::{
     law_params, sigmoid, solver_order, to_unconstrained, with_patch, ParamStatus, Sample, AT_BOUND,
     IDENTIFIED_Z, LOWER, UPPER,
 };
-use super::problem::{Nodes, PolachProblem, MAX_NODES};
+use super::problem::{Covariance, Nodes, PolachProblem, MAX_NODES};
 use super::profile::{label, profiles, Profile};
 use crate::contact::polach::{ContactPatch, PolachParams};
 use crate::identify::dataset::RunTable;
@@ -144,7 +144,7 @@ pub(super) fn constant_nodes(x: &[f64; 5]) -> Nodes {
 }
 
 /// Fits Polach's parameters to the valid estimates of `tables` (pooled) with a fixed patch
-/// and static wheel load `q_n`, saying what the data identify (issue 16):
+/// and static wheel load `q_n`, saying what the data identify:
 /// 1. LM on all five parameters (unconstrained logistic coordinates, analytic Jacobian,
 ///    MINPACK's ftol/xtol convergence);
 /// 2. a parameter within [`AT_BOUND`] of a bound (in its logistic coordinate) is held at the
@@ -180,13 +180,15 @@ pub fn fit_polach(
         });
     }
     let s = with_patch(s, &patch);
-    let mut fixed: [Option<f64>; 5] = [None; 5];
-    let mut status = all_estimated();
-    let mut notes = Vec::new();
+    let mut held = Held {
+        fixed: [None; 5],
+        status: all_estimated(),
+        notes: Vec::new(),
+    };
     let mut current = solver_order(&start);
     let mut iterations = 0;
     let (x, var, cov, stop) = loop {
-        let problem = PolachProblem::plain(&s, fixed, None);
+        let problem = PolachProblem::plain(&s, held.fixed, None);
         let (problem, theta, its, stop) =
             solve(group, problem, &constant_nodes(&current), fit_settings())?;
         iterations += its;
@@ -195,23 +197,7 @@ pub fn fit_polach(
             .0;
         current = x;
         // 2. Bounds.
-        let mut held = false;
-        let free_now: Vec<usize> = (0..5).filter(|i| fixed[*i].is_none()).collect();
-        for i in free_now {
-            let sg = sigmoid(to_unconstrained(i, x[i]));
-            if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
-                let bound = if sg < AT_BOUND { LOWER[i] } else { UPPER[i] };
-                fixed[i] = Some(bound);
-                current[i] = bound;
-                status[i] = ParamStatus::AtBound;
-                notes.push(format!(
-                    "{} ran into its bound {bound}; held there and the rest refitted",
-                    label(i)
-                ));
-                held = true;
-            }
-        }
-        if held {
+        if held.at_bounds(&x, &mut current) {
             continue;
         }
         // 3. Identifiability of the free parameters.
@@ -221,40 +207,17 @@ pub fn fit_polach(
         for (c, co) in problem.free.iter().enumerate() {
             var[co.param] = cov.cov.as_ref().map_or(f64::INFINITY, |m| m[c * k + c]);
         }
-        // The worst-determined free parameter, if any fails the Wald test.
-        let worst = problem
-            .free
-            .iter()
-            .map(|co| (co.param, var[co.param].sqrt() / x[co.param].abs()))
-            // NaN (a zero estimate) and ∞ (singular) fail too.
-            .filter(|(_, rel)| rel.is_nan() || *rel > 1.0 / IDENTIFIED_Z)
-            .max_by(|a, b| a.1.total_cmp(&b.1));
-        if let Some((i, rel)) = worst {
-            fixed[i] = Some(x[i]);
-            status[i] = ParamStatus::NotIdentifiable;
-            notes.push(format!(
-                "{} not identifiable from these data ({:.4}, se/value = {}: its 95 % interval includes 0); held at that value and the rest refitted",
-                label(i),
-                x[i],
-                if rel.is_finite() { format!("{rel:.2}") } else { "∞ (singular)".into() },
-            ));
+        if held.worst_determined(&problem, &var, &x) {
             continue;
         }
-        // k_S = k_A ρ: its variance by the delta method needs cov(k_A, ρ).
-        let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
-        let cov_ka_rho = match (pos(3), pos(4), &cov.cov) {
-            (Some(a), Some(b), Some(m)) => m[a * k + b],
-            _ => 0.0,
-        };
-        let v0 = |v: f64| if v.is_finite() { v } else { 0.0 };
-        var[4] = match (fixed[3].is_none(), fixed[4].is_none()) {
-            (false, false) => f64::NAN,
-            _ => {
-                x[4] * x[4] * v0(var[3]) + x[3] * x[3] * v0(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho
-            }
-        };
+        var[4] = ks_variance(&problem, &cov, &x, &held.fixed, &var);
         break (x, var, cov, stop);
     };
+    let Held {
+        fixed,
+        status,
+        notes,
+    } = held;
     // k_S = k_A ρ carries the status of ρ: held at a bound, k_S/k_A is fixed (k_S = k_A, or
     // 0), and k_S has no standard error of its own.
     let p = law_params(&x);
@@ -285,4 +248,81 @@ pub fn fit_polach(
         iterations,
         stop_reason: stop.text().to_string(),
     })
+}
+
+/// What a fit holds and why: the held parameters' values, every parameter's status, notes.
+struct Held {
+    fixed: [Option<f64>; 5],
+    status: [ParamStatus; 5],
+    notes: Vec<String>,
+}
+
+impl Held {
+    /// Holds every free parameter of `x` that ran into its bound there (also in `current`, the
+    /// next start); true when one did and the rest must be refitted.
+    fn at_bounds(&mut self, x: &[f64; 5], current: &mut [f64; 5]) -> bool {
+        let mut held = false;
+        let free_now: Vec<usize> = (0..5).filter(|i| self.fixed[*i].is_none()).collect();
+        for i in free_now {
+            let sg = sigmoid(to_unconstrained(i, x[i]));
+            if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
+                let bound = if sg < AT_BOUND { LOWER[i] } else { UPPER[i] };
+                self.fixed[i] = Some(bound);
+                current[i] = bound;
+                self.status[i] = ParamStatus::AtBound;
+                self.notes.push(format!(
+                    "{} ran into its bound {bound}; held there and the rest refitted",
+                    label(i)
+                ));
+                held = true;
+            }
+        }
+        held
+    }
+
+    /// Holds the worst-determined free parameter at its value `x` if any fails the Wald test
+    /// (its 95 % interval, ±1.96 se from the variances `var`, includes 0); true when one did.
+    fn worst_determined(&mut self, problem: &PolachProblem, var: &[f64; 5], x: &[f64; 5]) -> bool {
+        let worst = problem
+            .free
+            .iter()
+            .map(|co| (co.param, var[co.param].sqrt() / x[co.param].abs()))
+            // NaN (a zero estimate) and ∞ (singular) fail too.
+            .filter(|(_, rel)| rel.is_nan() || *rel > 1.0 / IDENTIFIED_Z)
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        let Some((i, rel)) = worst else {
+            return false;
+        };
+        self.fixed[i] = Some(x[i]);
+        self.status[i] = ParamStatus::NotIdentifiable;
+        self.notes.push(format!(
+            "{} not identifiable from these data ({:.4}, se/value = {}: its 95 % interval includes 0); held at that value and the rest refitted",
+            label(i),
+            x[i],
+            if rel.is_finite() { format!("{rel:.2}") } else { "∞ (singular)".into() },
+        ));
+        true
+    }
+}
+
+/// The variance of k_S = k_A ρ by the delta method (it needs cov(k_A, ρ)); NaN when both are
+/// held.
+fn ks_variance(
+    problem: &PolachProblem,
+    cov: &Covariance,
+    x: &[f64; 5],
+    fixed: &[Option<f64>; 5],
+    var: &[f64; 5],
+) -> f64 {
+    let k = problem.free.len();
+    let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
+    let cov_ka_rho = match (pos(3), pos(4), &cov.cov) {
+        (Some(a), Some(b), Some(m)) => m[a * k + b],
+        _ => 0.0,
+    };
+    let v0 = |v: f64| if v.is_finite() { v } else { 0.0 };
+    match (fixed[3].is_none(), fixed[4].is_none()) {
+        (false, false) => f64::NAN,
+        _ => x[4] * x[4] * v0(var[3]) + x[3] * x[3] * v0(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho,
+    }
 }

@@ -267,12 +267,12 @@ pub(super) struct FormFit {
     pub(super) residuals: Vec<f64>,
 }
 
-/// Fits the temperature law of a campaign (issue 16): the candidate forms μ0(T) of degree
-/// d_μ and k_A(T), ρ(T) = k_S/k_A of degree d_k (d ≤ min(`degree`, temperatures − 1); A and B
-/// constant), each jointly over all samples of the runs with `ambient_temperature_c`, each
-/// parameter's law as its values at evenly spaced nodes over the range (Lagrange basis;
-/// logistic bounds at the nodes, clamped between them), from the pooled fit's values, with the
-/// parameters the pooled fit held still held. The form with the least BIC (n_eff-corrected, see
+/// Fits the temperature law of a campaign: the candidate forms μ0(T) of degree d_μ and k_A(T),
+/// ρ(T) = k_S/k_A of degree d_k (d ≤ min(`degree`, temperatures − 1); A and B constant), each
+/// jointly over all samples of the runs with `ambient_temperature_c`, each parameter's law as
+/// its values at evenly spaced nodes over the range (Lagrange basis; logistic bounds at the
+/// nodes, clamped between them), from the pooled fit's values, with the parameters the pooled
+/// fit held still held. The form with the least BIC (n_eff-corrected, see
 /// [`TemperatureCandidate`]) whose law stays in the valid domain over the range
 /// (0 < μ0 ≤ 1.5, 0 < k_S ≤ k_A ≤ 1) is chosen. k forms are offered only when two or more
 /// temperatures' own fits identified k_A and k_S ([`k_identified`]), μ0 forms only when the
@@ -287,185 +287,21 @@ pub fn fit_temperature_forms(
     pooled: &PolachFit,
     per_temperature: &[PolachFit],
 ) -> Result<TemperatureFit, IdentifyError> {
-    let mut temps: Vec<f64> = tables
-        .iter()
-        .filter_map(|t| t.metadata.ambient_temperature_c)
-        .collect();
-    temps.sort_by(f64::total_cmp);
-    temps.dedup();
-    if temps.len() < 2 {
-        return Err(IdentifyError::Data {
-            what: format!(
-                "a temperature law needs runs at two or more ambient temperatures; found {}",
-                temps.len()
-            ),
-            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
-        });
-    }
-    let (lo, hi) = (temps[0], temps[temps.len() - 1]);
-    // Samples grouped by temperature.
-    let mut s = Vec::new();
-    let mut ranges = Vec::new();
-    for t in &temps {
-        let at: Vec<&RunTable> = tables
-            .iter()
-            .copied()
-            .filter(|r| r.metadata.ambient_temperature_c == Some(*t))
-            .collect();
-        let from = s.len();
-        s.extend(samples(&at, q_n, decimate));
-        ranges.push((*t, from..s.len()));
-    }
-    if s.len() < 20 {
-        return Err(IdentifyError::Data {
-            what: format!("only {} samples with slip for the temperature law", s.len()),
-            hint: "fit on braking runs with wheel slip".into(),
-        });
-    }
-    let s = with_patch(s, &patch);
-    // The samples' median temperature (groups are in ascending temperature).
-    let mut seen = 0;
-    let reference = ranges
-        .iter()
-        .find(|(_, r)| {
-            seen += r.len();
-            2 * seen > s.len()
-        })
-        .map_or(lo, |(t, _)| *t);
-
-    let mut notes = Vec::new();
-    let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
-    let top = degree.min(temps.len() - 1).min(MAX_NODES - 1);
-    let (k_temps, excluded) = k_identified(per_temperature);
-    let k_top = if held(3) || held(4) {
-        notes.push(format!(
-            "k(T) forms not offered: the pooled fit holds {}",
-            if held(3) { "k_A" } else { "k_S/k_A" }
-        ));
-        0
-    } else if k_temps.len() < 2 {
-        notes.push(format!(
-            "k(T) forms not offered: k_A and k_S are identified at {} of the temperatures (two or more needed); left out: {}",
-            k_temps.len(),
-            excluded.join("; ")
-        ));
-        0
-    } else {
-        top.min(k_temps.len() - 1)
-    };
-    let mu_top = if held(0) {
-        notes.push("μ0(T) forms not offered: the pooled fit holds μ0".into());
-        0
-    } else {
-        top
-    };
-    if top == 0 {
-        notes.push("train.temperature_degree = 0: only the constant form".into());
-    }
-    if let Some(n) = coverage_note(&s, &ranges) {
-        notes.push(n);
-    }
+    let g = Grouped::of(tables, patch, q_n, decimate)?;
+    let (lo, hi) = g.range;
+    let offered = Offered::of(&g, degree, pooled, per_temperature);
     let x0 = solver_order(&pooled.params());
+    let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
-    let forms: Vec<(usize, usize)> = (0..=mu_top)
-        .flat_map(|dm| (0..=k_top).map(move |dk| (dm, dk)))
+    let forms: Vec<(usize, usize)> = (0..=offered.mu_top)
+        .flat_map(|dm| (0..=offered.k_top).map(move |dk| (dm, dk)))
         .collect();
     let fits: Vec<Result<FormFit, IdentifyError>> = forms
         .par_iter()
-        .map(|&(dm, dk)| {
-            let degrees = [dm, 0, 0, dk, dk];
-            let nodes: Vec<Vec<f64>> = degrees
-                .iter()
-                .map(|&d| temperature_nodes(d, lo, hi))
-                .collect();
-            let groups = ranges
-                .iter()
-                .map(|(t, r)| Group {
-                    range: r.clone(),
-                    basis: basis_at(degrees, lo, hi, *t),
-                })
-                .collect();
-            let degrees_free: [usize; 5] =
-                std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
-            let problem = PolachProblem::new(&s, groups, degrees_free, fixed, None);
-            let (problem, theta, its, stop) = solve(
-                &form_name(dm, dk),
-                problem,
-                &constant_nodes(&x0),
-                fit_settings(),
-            )?;
-            let (v, _) = problem.nodes(&theta);
-            let cov = problem.covariance(&theta);
-            let value = |i: usize| -> Vec<f64> {
-                match fixed[i] {
-                    Some(f) => vec![f],
-                    None => monomials(&nodes[i], &v[i][..=degrees[i]]),
-                }
-            };
-            let k = problem.free.len();
-            let mut se = [f64::NAN; 5];
-            for (c, co) in problem.free.iter().enumerate() {
-                if degrees[co.param] == 0 {
-                    se[co.param] = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
-                }
-            }
-            let (ka, rho) = (value(3), value(4));
-            if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
-                let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
-                if let (Some(a), Some(b), Some(m)) = (pos(3), pos(4), &cov.cov) {
-                    se[4] = (rho[0] * rho[0] * m[a * k + a]
-                        + ka[0] * ka[0] * m[b * k + b]
-                        + 2.0 * ka[0] * rho[0] * m[a * k + b])
-                        .sqrt();
-                }
-            } else {
-                se[4] = f64::NAN;
-            }
-            Ok(FormFit {
-                record: TemperatureCandidate {
-                    mu0_degree: dm,
-                    k_degree: dk,
-                    parameters: k,
-                    sse: cov.sse,
-                    rmse: (cov.sse / s.len() as f64).sqrt(),
-                    aic: f64::NAN,
-                    bic: f64::NAN,
-                    iterations: its,
-                    stop_reason: stop.text().into(),
-                    rejected: None,
-                },
-                mu0: value(0),
-                k_s: poly_mul(&ka, &rho),
-                k_a: ka,
-                a_ratio: value(1)[0],
-                b_s_per_m: value(2)[0],
-                se,
-                residuals: cov.residuals,
-            })
-        })
+        .map(|&(dm, dk)| fit_form(&g, [dm, 0, 0, dk, dk], fixed, &x0))
         .collect();
     let mut fits: Vec<FormFit> = fits.into_iter().collect::<Result<_, _>>()?;
-    // n_eff of the most flexible form's residuals (the last; closest to the noise alone — a
-    // form that misses a temperature trend leaves residuals correlated over whole runs, whose
-    // n_eff would hide the very trend), for every candidate.
-    let n = s.len() as f64;
-    let n_eff = effective_samples(&fits[fits.len() - 1].residuals).max(1.0);
-    for f in &mut fits {
-        let c = &mut f.record;
-        let fit_term = n_eff * (c.sse / n).ln();
-        c.aic = fit_term + 2.0 * c.parameters as f64;
-        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
-        let spec = crate::model::polach::TemperatureSpec {
-            mu0: f.mu0.clone(),
-            k_a: f.k_a.clone(),
-            k_s: f.k_s.clone(),
-            fitted_range_c: [lo, hi],
-        };
-        if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
-            c.rejected = Some(e.to_string());
-        }
-        f.residuals = Vec::new();
-    }
+    let n_eff = score_forms(&mut fits, g.samples.len(), g.range);
     let best = fits
         .iter()
         .enumerate()
@@ -487,14 +323,14 @@ pub fn fit_temperature_forms(
         b_s_per_m: chosen.b_s_per_m,
         se: chosen.se,
         fitted_range_c: (lo, hi),
-        reference_temperature_c: reference,
-        samples: s.len(),
+        reference_temperature_c: g.reference_c,
+        samples: g.samples.len(),
         effective_samples: n_eff,
         criterion: "BIC".into(),
         candidates: fits.into_iter().map(|f| f.record).collect(),
         residuals: Vec::new(),
-        excluded,
-        notes,
+        excluded: offered.excluded,
+        notes: offered.notes,
     };
     law.residuals = per_temperature
         .iter()
@@ -505,4 +341,238 @@ pub fn fit_temperature_forms(
         })
         .collect();
     Ok(law)
+}
+
+/// The samples with slip of the runs with an ambient temperature, grouped by temperature.
+struct Grouped {
+    /// The distinct temperatures, ascending, °C.
+    temps: Vec<f64>,
+    /// Lowest and highest temperature, °C.
+    range: (f64, f64),
+    /// The samples (with their patch term), one contiguous range per temperature.
+    samples: Vec<Sample>,
+    ranges: Vec<(f64, std::ops::Range<usize>)>,
+    /// The samples' median temperature, °C.
+    reference_c: f64,
+}
+
+impl Grouped {
+    fn of(
+        tables: &[&RunTable],
+        patch: ContactPatch,
+        q_n: f64,
+        decimate: usize,
+    ) -> Result<Grouped, IdentifyError> {
+        let mut temps: Vec<f64> = tables
+            .iter()
+            .filter_map(|t| t.metadata.ambient_temperature_c)
+            .collect();
+        temps.sort_by(f64::total_cmp);
+        temps.dedup();
+        if temps.len() < 2 {
+            return Err(IdentifyError::Data {
+                what: format!(
+                    "a temperature law needs runs at two or more ambient temperatures; found {}",
+                    temps.len()
+                ),
+                hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
+            });
+        }
+        let (lo, hi) = (temps[0], temps[temps.len() - 1]);
+        let mut s = Vec::new();
+        let mut ranges = Vec::new();
+        for t in &temps {
+            let at: Vec<&RunTable> = tables
+                .iter()
+                .copied()
+                .filter(|r| r.metadata.ambient_temperature_c == Some(*t))
+                .collect();
+            let from = s.len();
+            s.extend(samples(&at, q_n, decimate));
+            ranges.push((*t, from..s.len()));
+        }
+        if s.len() < 20 {
+            return Err(IdentifyError::Data {
+                what: format!("only {} samples with slip for the temperature law", s.len()),
+                hint: "fit on braking runs with wheel slip".into(),
+            });
+        }
+        let s = with_patch(s, &patch);
+        // The samples' median temperature (groups are in ascending temperature).
+        let mut seen = 0;
+        let reference_c = ranges
+            .iter()
+            .find(|(_, r)| {
+                seen += r.len();
+                2 * seen > s.len()
+            })
+            .map_or(lo, |(t, _)| *t);
+        Ok(Grouped {
+            temps,
+            range: (lo, hi),
+            samples: s,
+            ranges,
+            reference_c,
+        })
+    }
+}
+
+/// The highest degrees of μ0(T) and of k(T) the data allow, the temperatures whose k_A, k_S
+/// were not identified, and notes on what was not offered and why.
+struct Offered {
+    mu_top: usize,
+    k_top: usize,
+    excluded: Vec<String>,
+    notes: Vec<String>,
+}
+
+impl Offered {
+    fn of(g: &Grouped, degree: usize, pooled: &PolachFit, per_temperature: &[PolachFit]) -> Self {
+        let mut notes = Vec::new();
+        let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
+        let top = degree.min(g.temps.len() - 1).min(MAX_NODES - 1);
+        let (k_temps, excluded) = k_identified(per_temperature);
+        let k_top = if held(3) || held(4) {
+            notes.push(format!(
+                "k(T) forms not offered: the pooled fit holds {}",
+                if held(3) { "k_A" } else { "k_S/k_A" }
+            ));
+            0
+        } else if k_temps.len() < 2 {
+            notes.push(format!(
+                "k(T) forms not offered: k_A and k_S are identified at {} of the temperatures (two or more needed); left out: {}",
+                k_temps.len(),
+                excluded.join("; ")
+            ));
+            0
+        } else {
+            top.min(k_temps.len() - 1)
+        };
+        let mu_top = if held(0) {
+            notes.push("μ0(T) forms not offered: the pooled fit holds μ0".into());
+            0
+        } else {
+            top
+        };
+        if top == 0 {
+            notes.push("train.temperature_degree = 0: only the constant form".into());
+        }
+        if let Some(n) = coverage_note(&g.samples, &g.ranges) {
+            notes.push(n);
+        }
+        Offered {
+            mu_top,
+            k_top,
+            excluded,
+            notes,
+        }
+    }
+}
+
+/// One form (degrees of μ0, A, B, k_A, ρ) fitted jointly over every temperature group from the
+/// pooled fit's values `x0`, with `fixed` held; its polynomials (ascending powers of T) and the
+/// standard errors of its constant parameters.
+fn fit_form(
+    g: &Grouped,
+    degrees: [usize; 5],
+    fixed: [Option<f64>; 5],
+    x0: &[f64; 5],
+) -> Result<FormFit, IdentifyError> {
+    let (lo, hi) = g.range;
+    let (dm, dk) = (degrees[0], degrees[3]);
+    let nodes: Vec<Vec<f64>> = degrees
+        .iter()
+        .map(|&d| temperature_nodes(d, lo, hi))
+        .collect();
+    let groups = g
+        .ranges
+        .iter()
+        .map(|(t, r)| Group {
+            range: r.clone(),
+            basis: basis_at(degrees, lo, hi, *t),
+        })
+        .collect();
+    let degrees_free: [usize; 5] =
+        std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
+    let problem = PolachProblem::new(&g.samples, groups, degrees_free, fixed, None);
+    let (problem, theta, its, stop) = solve(
+        &form_name(dm, dk),
+        problem,
+        &constant_nodes(x0),
+        fit_settings(),
+    )?;
+    let (v, _) = problem.nodes(&theta);
+    let cov = problem.covariance(&theta);
+    let value = |i: usize| -> Vec<f64> {
+        match fixed[i] {
+            Some(f) => vec![f],
+            None => monomials(&nodes[i], &v[i][..=degrees[i]]),
+        }
+    };
+    let k = problem.free.len();
+    let mut se = [f64::NAN; 5];
+    for (c, co) in problem.free.iter().enumerate() {
+        if degrees[co.param] == 0 {
+            se[co.param] = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
+        }
+    }
+    let (ka, rho) = (value(3), value(4));
+    if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
+        let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
+        if let (Some(a), Some(b), Some(m)) = (pos(3), pos(4), &cov.cov) {
+            se[4] = (rho[0] * rho[0] * m[a * k + a]
+                + ka[0] * ka[0] * m[b * k + b]
+                + 2.0 * ka[0] * rho[0] * m[a * k + b])
+                .sqrt();
+        }
+    } else {
+        se[4] = f64::NAN;
+    }
+    Ok(FormFit {
+        record: TemperatureCandidate {
+            mu0_degree: dm,
+            k_degree: dk,
+            parameters: k,
+            sse: cov.sse,
+            rmse: (cov.sse / g.samples.len() as f64).sqrt(),
+            aic: f64::NAN,
+            bic: f64::NAN,
+            iterations: its,
+            stop_reason: stop.text().into(),
+            rejected: None,
+        },
+        mu0: value(0),
+        k_s: poly_mul(&ka, &rho),
+        k_a: ka,
+        a_ratio: value(1)[0],
+        b_s_per_m: value(2)[0],
+        se,
+        residuals: cov.residuals,
+    })
+}
+
+/// Each form's AIC and BIC with n_eff of the most flexible form's residuals (the last; closest
+/// to the noise alone — a form that misses a temperature trend leaves residuals correlated over
+/// whole runs, whose n_eff would hide the very trend), and the forms whose law leaves the valid
+/// domain over `range` rejected by the model reader's own check. Returns n_eff.
+fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f64 {
+    let n = samples as f64;
+    let n_eff = effective_samples(&fits[fits.len() - 1].residuals).max(1.0);
+    for f in fits.iter_mut() {
+        let c = &mut f.record;
+        let fit_term = n_eff * (c.sse / n).ln();
+        c.aic = fit_term + 2.0 * c.parameters as f64;
+        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
+        let spec = crate::model::polach::TemperatureSpec {
+            mu0: f.mu0.clone(),
+            k_a: f.k_a.clone(),
+            k_s: f.k_s.clone(),
+            fitted_range_c: [lo, hi],
+        };
+        if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
+            c.rejected = Some(e.to_string());
+        }
+        f.residuals = Vec::new();
+    }
+    n_eff
 }

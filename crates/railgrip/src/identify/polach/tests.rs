@@ -42,7 +42,7 @@ fn patch() -> ContactPatch {
 
 proptest::proptest! {
     /// The analytic μ is the contact library's, and its gradient matches central
-    /// differences, over the law's whole domain (issue 16).
+    /// differences, over the law's whole domain.
     #[test]
     fn analytic_gradient_matches_the_law_and_finite_differences(
         mu0 in 0.02f64..1.0, a in 0.01f64..0.99, b in 0.01f64..5.0,

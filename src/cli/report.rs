@@ -1,0 +1,88 @@
+//! `railgrip report`, and the table `railgrip run` prints of a campaign's outcome.
+
+use std::path::PathBuf;
+
+use railgrip::campaign::{self, OutDir};
+
+use super::EXIT_OK;
+
+/// The table of runs, failures, notes, files written and stage times.
+pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
+    println!(
+        "\nrun                              status   peak μ (axles 1–4)          max Δv m/s (axles 1–4)"
+    );
+    let f = |v: &[Option<f64>; 4], d: usize| -> String {
+        v.iter()
+            .map(|x| x.map_or("–".to_string(), |x| format!("{x:.d$}")))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    for r in &o.records {
+        let status = match (r.ok(), r.reused) {
+            (true, true) => "reused",
+            (true, false) => "ok",
+            _ => "FAILED",
+        };
+        println!(
+            "{:<32} {:<8} {:<27} {}",
+            r.run,
+            status,
+            f(&r.peak_mu, 3),
+            f(&r.max_dv_mps, 2)
+        );
+    }
+    for r in o.records.iter().filter(|r| !r.ok()) {
+        println!("failed     {}: {}", r.run, r.error.as_deref().unwrap_or(""));
+    }
+    for s in &o.skipped {
+        println!("skipped    {}: {}", s.path.display(), s.reason);
+    }
+    if let Some(c) = &o.condition {
+        println!("\nmodels     trained on {c} rail");
+    }
+    if let Some(e) = &o.model_error {
+        println!("\nmodels     none: {e}");
+    }
+    for n in &o.notes {
+        println!("note       {n}");
+    }
+    for p in &o.models {
+        println!("wrote      {}", p.display());
+    }
+    println!("wrote      {}", out.summary_csv().display());
+    println!("wrote      {}", out.summary_parquet().display());
+    if let Some(r) = &o.report {
+        println!("report     {}", r.display());
+    }
+    let st: Vec<String> = o
+        .stages
+        .iter()
+        .map(|(s, t)| format!("{s} {t:.2} s"))
+        .collect();
+    println!("time       {}", st.join(", "));
+    let failed = o.failed();
+    if let Some(a) = &o.audit {
+        super::model::print_audit(a);
+    }
+    if o.model_error.is_some() {
+        println!("\nNo models were trained (why: above). Exit code 1.");
+    } else if failed > 0 {
+        println!(
+            "\n{failed} of {} run(s) failed (listed above and in summary.csv); the rest completed. Exit code 3.",
+            o.records.len()
+        );
+    }
+}
+
+#[derive(clap::Args)]
+pub struct ReportArgs {
+    /// An output folder of `railgrip run`.
+    #[arg(value_name = "OUT_DIR")]
+    out: PathBuf,
+}
+
+pub fn report(args: ReportArgs) -> anyhow::Result<u8> {
+    let p = railgrip::report::write_report(&OutDir::new(&args.out))?;
+    println!("report     {}", p.display());
+    Ok(EXIT_OK)
+}
