@@ -6,13 +6,13 @@
 //! model's numbers and the symbol prefix.
 
 use super::polach::{stiffness, PolachSpec, MIN_SPEED_MPS};
-use super::{CreepSpec, ModelFile, MAX_INPUTS};
+use super::{CreepSpec, Layer, ModelFile, Scaling, SupportSpec, MAX_INPUTS};
 
 /// Shortest decimal form that reads back to the same double (C's strtod rounds correctly);
 /// every finite double, subnormals and ±1.7976931348623157e308 included, is a valid C
 /// literal this way. A checked model file has no non-finite constant, but should one reach
 /// here it is written as the C99 macro (`HUGE_VAL`, `NAN` from <math.h>), never as a bare
-/// `inf` that does not compile (issue 17).
+/// `inf` that does not compile.
 fn lit(x: f64) -> String {
     if x.is_nan() {
         return "NAN".into();
@@ -28,7 +28,7 @@ fn lit(x: f64) -> String {
     }
 }
 
-/// `s` made safe inside a C block comment (issue 17: a model path holding
+/// `s` made safe inside a C block comment (a model path holding
 /// `*/ int injected_symbol = 1; /*` once compiled into the header): `*/` and `/*` broken
 /// apart, control characters and backslashes (a line continuation) replaced by `?`.
 fn comment_text(s: &str) -> String {
@@ -118,56 +118,8 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
     let h = &m.layers[0];
     let o = m.layers.last().expect("checked: an output layer");
     let deep = &m.layers[1..m.layers.len() - 1];
-    let super::Scaling {
-        lo,
-        hi,
-        gx,
-        ox,
-        gy,
-        oy,
-        w1c,
-    } = m.scaling();
-    let arrays = [
-        array(&format!("{prefix}_lo"), &lo),
-        array(&format!("{prefix}_hi"), &hi),
-        array(&format!("{prefix}_gx"), &gx),
-        array(&format!("{prefix}_ox"), &ox),
-        array(&format!("{prefix}_w1c"), &w1c),
-        array(&format!("{prefix}_b1"), &h.biases),
-        array(&format!("{prefix}_wo"), &o.weights[0]),
-        // Stored by input neuron h, then output neuron g (W_gh at h·n + g): the C loop adds
-        // one input's terms to every output at a time (see `_net` in c/mlp.h.in).
-        array(
-            &format!("{prefix}_wd"),
-            &deep
-                .iter()
-                .flat_map(|l| {
-                    let n_prev = l.weights.first().map_or(0, Vec::len);
-                    (0..n_prev).flat_map(move |h| l.weights.iter().map(move |row| row[h]))
-                })
-                .collect::<Vec<f64>>(),
-        ),
-        array(
-            &format!("{prefix}_bd"),
-            &deep
-                .iter()
-                .flat_map(|l| l.biases.iter().copied())
-                .collect::<Vec<f64>>(),
-        ),
-        format!(
-            "static const int {prefix}_deep_n[{}] = {{{}}};\n",
-            deep.len().max(1),
-            if deep.is_empty() {
-                "0".to_string()
-            } else {
-                deep.iter()
-                    .map(|l| l.biases.len().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            }
-        ),
-    ]
-    .concat();
+    let scaling = m.scaling();
+    let arrays = network_arrays(m, &scaling, prefix);
     let max_width = m.layers[..m.layers.len() - 1]
         .iter()
         .map(|l| l.biases.len())
@@ -175,31 +127,7 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
         .unwrap_or(1);
     let sup_arrays = match &m.support {
         None => String::new(),
-        Some(sup) => {
-            let k = sup.cells.len();
-            let mut n = [1usize; MAX_INPUTS];
-            n[..k].copy_from_slice(&sup.cells);
-            let mut stride = [1usize; MAX_INPUTS];
-            for c in (0..k.saturating_sub(1)).rev() {
-                stride[c] = stride[c + 1] * n[c + 1];
-            }
-            let s: Vec<f64> = (0..sup.len())
-                .map(|j| if sup.supported(j) { 1.0 } else { 0.0 })
-                .collect();
-            let join = |v: &[usize]| {
-                v.iter()
-                    .map(|x| x.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            format!(
-                "static const int {prefix}_sup_n[{MAX_INPUTS}] = {{{}}};\nstatic const long {prefix}_sup_stride[{MAX_INPUTS}] = {{{}}};\n",
-                join(&n),
-                join(&stride)
-            ) + &array(&format!("{prefix}_sup_half"), &n.map(|v| v as f64 / 2.0))
-                + &array(&format!("{prefix}_sup_s"), &s)
-                + &array(&format!("{prefix}_sup_f"), &sup.fallback_mu)
-        }
+        Some(sup) => support_arrays(sup, prefix),
     };
     fill(
         MLP_TEMPLATE,
@@ -236,8 +164,8 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("arrays", arrays),
             ("b2", lit(o.biases[0] + 0.0)),
             ("expm1_p", railgrip_simd::EXPM1_P.map(lit).join(", ")),
-            ("gy", lit(gy)),
-            ("oy", lit(oy)),
+            ("gy", lit(scaling.gy)),
+            ("oy", lit(scaling.oy)),
             ("blend", lit(creep.blend_mps)),
             ("cpc", lit(creep.creep_stiffness_n / creep.wheel_load_n)),
             ("vref", lit(creep.reference_speed_mps)),
@@ -246,6 +174,94 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("sup_arrays", sup_arrays),
         ],
     )
+}
+
+/// The network's constant arrays (`@arrays@` of `c/mlp.h.in`): the input domain and
+/// mapminmax (`_lo`, `_hi`, `_gx`, `_ox`), the first hidden layer (`_w1c` column-major, `_b1`),
+/// the output weights (`_wo`), then the deeper hidden layers ([`deep_arrays`]).
+fn network_arrays(m: &ModelFile, s: &Scaling, prefix: &str) -> String {
+    let h = &m.layers[0];
+    let o = m.layers.last().expect("checked: an output layer");
+    let deep = &m.layers[1..m.layers.len() - 1];
+    [
+        array(&format!("{prefix}_lo"), &s.lo),
+        array(&format!("{prefix}_hi"), &s.hi),
+        array(&format!("{prefix}_gx"), &s.gx),
+        array(&format!("{prefix}_ox"), &s.ox),
+        array(&format!("{prefix}_w1c"), &s.w1c),
+        array(&format!("{prefix}_b1"), &h.biases),
+        array(&format!("{prefix}_wo"), &o.weights[0]),
+        deep_arrays(deep, prefix),
+    ]
+    .concat()
+}
+
+/// The hidden layers after the first: their weights (`_wd`), biases (`_bd`) and widths
+/// (`_deep_n`; one unused 0 for a network of one hidden layer).
+fn deep_arrays(deep: &[Layer], prefix: &str) -> String {
+    [
+        // Stored by input neuron h, then output neuron g (W_gh at h·n + g): the C loop adds
+        // one input's terms to every output at a time (see `_net` in c/mlp.h.in).
+        array(
+            &format!("{prefix}_wd"),
+            &deep
+                .iter()
+                .flat_map(|l| {
+                    let n_prev = l.weights.first().map_or(0, Vec::len);
+                    (0..n_prev).flat_map(move |h| l.weights.iter().map(move |row| row[h]))
+                })
+                .collect::<Vec<f64>>(),
+        ),
+        array(
+            &format!("{prefix}_bd"),
+            &deep
+                .iter()
+                .flat_map(|l| l.biases.iter().copied())
+                .collect::<Vec<f64>>(),
+        ),
+        format!(
+            "static const int {prefix}_deep_n[{}] = {{{}}};\n",
+            deep.len().max(1),
+            if deep.is_empty() {
+                "0".to_string()
+            } else {
+                deep.iter()
+                    .map(|l| l.biases.len().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        ),
+    ]
+    .concat()
+}
+
+/// The data-support grid's arrays (`@sup_arrays@`): cells per input and row-major strides
+/// (unused inputs 1), half the cells per input, and per cell whether it is supported (1/0)
+/// and its fallback μ.
+fn support_arrays(sup: &SupportSpec, prefix: &str) -> String {
+    let k = sup.cells.len();
+    let mut n = [1usize; MAX_INPUTS];
+    n[..k].copy_from_slice(&sup.cells);
+    let mut stride = [1usize; MAX_INPUTS];
+    for c in (0..k.saturating_sub(1)).rev() {
+        stride[c] = stride[c + 1] * n[c + 1];
+    }
+    let s: Vec<f64> = (0..sup.len())
+        .map(|j| if sup.supported(j) { 1.0 } else { 0.0 })
+        .collect();
+    let join = |v: &[usize]| {
+        v.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    format!(
+        "static const int {prefix}_sup_n[{MAX_INPUTS}] = {{{}}};\nstatic const long {prefix}_sup_stride[{MAX_INPUTS}] = {{{}}};\n",
+        join(&n),
+        join(&stride)
+    ) + &array(&format!("{prefix}_sup_half"), &n.map(|v| v as f64 / 2.0))
+        + &array(&format!("{prefix}_sup_s"), &s)
+        + &array(&format!("{prefix}_sup_f"), &sup.fallback_mu)
 }
 
 /// True for a valid C identifier that does not start with an underscore.

@@ -92,7 +92,7 @@ pub struct Epoch {
     pub mu: f64,
     /// ‖2 Jᵀr‖ at the start of the epoch.
     pub grad_norm: f64,
-    /// Seconds since training started. Not written to files (issue 17: a clock field made the
+    /// Seconds since training started. Not written to files (a clock field made the
     /// bytes differ between identical runs); read from older files.
     #[serde(default, skip_serializing)]
     pub elapsed_s: f64,
@@ -427,7 +427,7 @@ impl ModelFile {
 
     /// Shapes, names and numbers are consistent and finite.
     pub fn check(&self) -> Result<(), Defect> {
-        // Units are the inputs' own (issue 17: a free-text unit once reached the C header's
+        // Units are the inputs' own (a free-text unit once reached the C header's
         // comment unescaped), and μ is dimensionless.
         for i in &self.inputs {
             let want = InputSet::ALL
@@ -490,7 +490,26 @@ impl ModelFile {
         Ok(())
     }
 
+    /// The checks of a kind-mlp file's own sections, in the order they report: the sections
+    /// present, the inputs, the outside-domain rule, the layers, and the numbers.
     fn check_mlp_core(&self) -> Result<(), Defect> {
+        let c = self.check_mlp_sections()?;
+        self.check_mlp_inputs(c)?;
+        if self.outside_domain != "clamp" {
+            return Err(Defect::OutsideDomain {
+                found: self.outside_domain.clone(),
+                expected: "clamp",
+                note: "",
+            });
+        }
+        self.check_mlp_layers()?;
+        self.check_mlp_numbers(c)?;
+        self.check_mlp_magnitudes(c)?;
+        self.check_mlp_gains()
+    }
+
+    /// A network file has a `creep` section (returned) and no `polach` section.
+    fn check_mlp_sections(&self) -> Result<&CreepSpec, Defect> {
         if self.polach.is_some() {
             return Err(Defect::ForeignSection {
                 kind: "mlp",
@@ -503,7 +522,12 @@ impl ModelFile {
                 section: "creep",
             });
         };
-        let k = self.inputs.len();
+        Ok(c)
+    }
+
+    /// The inputs are one of the [`InputSet`]s, a temperature input needs version 2, and
+    /// `creep.reference_temperature_c` is given (finite) exactly when temperature is an input.
+    fn check_mlp_inputs(&self, c: &CreepSpec) -> Result<(), Defect> {
         let names: Vec<&str> = self.inputs.iter().map(|i| i.name.as_str()).collect();
         let Some(set) = InputSet::from_names(&names) else {
             return Err(Defect::Inputs {
@@ -531,13 +555,13 @@ impl ModelFile {
             (true, Some(t)) if !t.is_finite() => return Err(Defect::NotFinite),
             _ => {}
         }
-        if self.outside_domain != "clamp" {
-            return Err(Defect::OutsideDomain {
-                found: self.outside_domain.clone(),
-                expected: "clamp",
-                note: "",
-            });
-        }
+        Ok(())
+    }
+
+    /// 1 to [`MAX_HIDDEN_LAYERS`] tanh layers and one linear output layer (more than one
+    /// hidden layer from [`DEEP_VERSION`] on), each shaped from the previous layer's width
+    /// (the inputs for the first) to its own.
+    fn check_mlp_layers(&self) -> Result<(), Defect> {
         let n_layers = self.layers.len();
         if !(2..=MAX_HIDDEN_LAYERS + 1).contains(&n_layers) {
             return Err(Defect::Layers(format!(
@@ -558,7 +582,7 @@ impl ModelFile {
             ));
         }
         // Layer l maps the previous layer's width (the inputs for the first) to its own.
-        let mut width_in = k;
+        let mut width_in = self.inputs.len();
         for (l, layer) in self.layers.iter().enumerate() {
             let n = layer.shape[0];
             let last = l + 1 == n_layers;
@@ -579,6 +603,12 @@ impl ModelFile {
             }
             width_in = n;
         }
+        Ok(())
+    }
+
+    /// Every input range runs from min to max, every number (weights, biases, ranges, creep
+    /// constants) is finite, and the creep constants are positive.
+    fn check_mlp_numbers(&self, c: &CreepSpec) -> Result<(), Defect> {
         let mut nums: Vec<f64> = self
             .layers
             .iter()
@@ -613,7 +643,14 @@ impl ModelFile {
                 "creep: blend_mps, creep_stiffness_n, wheel_load_n and reference_speed_mps must be > 0".into(),
             ));
         }
-        // Sane magnitudes (issue 17): finite but extreme constants (weights 1e308) passed, and
+        Ok(())
+    }
+
+    /// Every number within its sane magnitude (the first beyond it, in file order, is
+    /// reported: weights and biases, input ranges, output range, creep constants), and a wheel
+    /// load of at least 1 N.
+    fn check_mlp_magnitudes(&self, c: &CreepSpec) -> Result<(), Defect> {
+        // Sane magnitudes: finite but extreme constants (weights 1e308) passed, and
         // the evaluators' derived numbers overflowed.
         let mut fields: Vec<(String, f64, f64)> = Vec::new();
         for (l, layer) in self.layers.iter().enumerate() {
@@ -661,8 +698,12 @@ impl ModelFile {
                 c.wheel_load_n
             )));
         }
-        // The evaluators' own numbers (mapminmax gains of very narrow ranges) must be finite
-        // too: a header constant `inf` does not compile.
+        Ok(())
+    }
+
+    /// The evaluators' own numbers (mapminmax gains of very narrow ranges) must be finite
+    /// too: a header constant `inf` does not compile.
+    fn check_mlp_gains(&self) -> Result<(), Defect> {
         let s = self.scaling();
         if s.gx
             .iter()

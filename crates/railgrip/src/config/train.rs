@@ -147,7 +147,7 @@ pub const DEFAULT_SUPPORT_MIN_SAMPLES: u64 = 10;
 /// `train.audit_mu_max` when the file leaves it out.
 pub const DEFAULT_AUDIT_MU_MAX: f64 = 0.6;
 
-/// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three (issue 15),
+/// Default support grid: 24 × 24 cells for two inputs, 16 × 16 × 8 for three,
 /// 16 × 16 × 8 × 4 for four (runs at few ambient temperatures: each of four temperature
 /// cells holds whole runs).
 pub fn default_support_cells(inputs: usize) -> Vec<usize> {
@@ -434,27 +434,13 @@ pub const KEYS: &[&Key] = &[
 ];
 
 impl Checker<'_> {
+    /// Checks `[train]`. The checks run in the order of the steps below (the first failing
+    /// key is the one reported): the inputs and the rail condition, the regularisation and
+    /// the optimiser, the hidden layers, which trainer can train them, the starts and the
+    /// ensemble, the Adam-only keys, the support grid, then every other key in field order.
     pub(crate) fn train(&self, t: raw::Train) -> Result<TrainConfig, ConfigError> {
-        let inputs = match t.inputs.as_deref() {
-            None => InputSet::DvDdv,
-            Some(names) => InputSet::from_names(names).ok_or_else(|| {
-                self.invalid(
-                    INPUTS.name,
-                    format!("{names:?}"),
-                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002), [\"dv_mps\", \"ddv_mps2\", \"v_mps\"] or [\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]",
-                )
-            })?,
-        };
-        let condition = match t.condition.clone() {
-            Some(c) if c.trim().is_empty() => {
-                return Err(self.invalid(
-                    CONDITION.name,
-                    "\"\"",
-                    "a rail condition as in the runs' metadata, e.g. \"soap\"; leave the key out for the most common one",
-                ))
-            }
-            c => c,
-        };
+        let inputs = self.train_inputs(&t)?;
+        let condition = self.train_condition(&t)?;
         let bayesian = self.choice(
             &REGULARISATION,
             t.regularisation.clone(),
@@ -471,112 +457,11 @@ impl Checker<'_> {
             ],
             Trainer::Lm,
         )?;
-        let hidden = self.value(&HIDDEN, t.hidden)? as usize;
-        let layers = match &t.layers {
-            None => vec![hidden],
-            Some(v) => {
-                let ok = (1..=crate::model::MAX_HIDDEN_LAYERS).contains(&v.len())
-                    && v.iter().all(|n| {
-                        n.fract() == 0.0 && (1.0..=crate::model::MAX_HIDDEN as f64).contains(n)
-                    });
-                if !ok {
-                    return Err(self.invalid(
-                        LAYERS.name,
-                        format!("{v:?}"),
-                        format!(
-                            "must list 1 to {} hidden-layer widths, each a whole number 1..={}, e.g. [32, 32]",
-                            crate::model::MAX_HIDDEN_LAYERS,
-                            crate::model::MAX_HIDDEN
-                        ),
-                    ));
-                }
-                if t.hidden.is_some() {
-                    return Err(self.invalid(
-                        HIDDEN.name,
-                        hidden.to_string(),
-                        "give either train.hidden or train.layers (whose first entry is the first layer's width), not both",
-                    ));
-                }
-                v.iter().map(|n| *n as usize).collect()
-            }
-        };
-        if trainer == Trainer::Lm && layers.len() > 2 {
-            return Err(self.invalid(
-                LAYERS.name,
-                format!("{layers:?}"),
-                "Levenberg–Marquardt trains one or two hidden layers: set train.optimizer = \"adam\" or \"adamw\" for deeper networks",
-            ));
-        }
-        if trainer != Trainer::Lm && bayesian {
-            return Err(self.invalid(
-                REGULARISATION.name,
-                "\"bayesian\"",
-                "Bayesian regularisation is MATLAB trainbr, a Levenberg–Marquardt variant: use train.optimizer = \"lm\", or weight_decay with adam/adamw",
-            ));
-        }
-        let starts = self.value(&STARTS, t.starts)? as usize;
-        let ensemble = self.value(&ENSEMBLE, t.ensemble)? as usize;
-        if ensemble > 1 && trainer != Trainer::Lm {
-            return Err(self.invalid(
-                ENSEMBLE.name,
-                ensemble.to_string(),
-                "an ensemble averages Levenberg–Marquardt networks: use train.optimizer = \"lm\", or ensemble = 1",
-            ));
-        }
-        if ensemble > starts {
-            return Err(self.invalid(
-                ENSEMBLE.name,
-                ensemble.to_string(),
-                format!("must be at most train.starts ({starts}): raise starts or lower ensemble"),
-            ));
-        }
-        if ensemble > 1 && layers.len() > 1 {
-            return Err(self.invalid(
-                ENSEMBLE.name,
-                ensemble.to_string(),
-                "an ensemble averages networks of one hidden layer: use train.hidden, or ensemble = 1",
-            ));
-        }
-        if trainer == Trainer::Lm {
-            for (key, given) in [
-                (&LEARNING_RATE, t.learning_rate.is_some()),
-                (&WEIGHT_DECAY, t.weight_decay.is_some()),
-                (&BATCH, t.batch.is_some()),
-            ] {
-                if given {
-                    return Err(self.invalid(
-                        key.name,
-                        "(given)",
-                        "is a setting of train.optimizer = \"adam\" or \"adamw\"; Levenberg–Marquardt has none",
-                    ));
-                }
-            }
-        }
-        let n_inputs = inputs.count();
-        let support_cells = match &t.support_cells {
-            None => default_support_cells(n_inputs),
-            Some(v) => {
-                let max = crate::model::MAX_CELLS_PER_INPUT as f64;
-                let ok = v.len() == n_inputs
-                    && v.iter()
-                        .all(|c| c.fract() == 0.0 && (2.0..=max).contains(c));
-                let cells: Vec<usize> = v.iter().map(|c| *c as usize).collect();
-                let total = cells.iter().try_fold(1usize, |a, &c| a.checked_mul(c));
-                if !ok || total.is_none_or(|n| n > crate::model::MAX_SUPPORT_CELLS) {
-                    return Err(self.invalid(
-                        SUPPORT_CELLS.name,
-                        format!("{v:?}"),
-                        format!(
-                            "must give {n_inputs} whole counts (one per input), each 2..={}, with at most {} cells in all (e.g. {:?})",
-                            crate::model::MAX_CELLS_PER_INPUT,
-                            crate::model::MAX_SUPPORT_CELLS,
-                            default_support_cells(n_inputs)
-                        ),
-                    ));
-                }
-                cells
-            }
-        };
+        let layers = self.train_layers(&t)?;
+        self.check_train_trainer(trainer, bayesian, &layers)?;
+        let (starts, ensemble) = self.train_starts_and_ensemble(&t, trainer, &layers)?;
+        self.check_train_adam_keys(&t, trainer)?;
+        let support_cells = self.train_support_cells(&t, inputs.count())?;
         Ok(TrainConfig {
             hidden: layers[0],
             layers,
@@ -615,6 +500,181 @@ impl Checker<'_> {
             audit_mu_max: self.value(&AUDIT_MU_MAX, t.audit_mu_max)?,
             leave_one_run_out: t.leave_one_run_out.unwrap_or(true),
             polach_intervals: t.polach_intervals.unwrap_or(true),
+        })
+    }
+
+    /// `train.inputs`: one of the [`InputSet`]s by its names (Δv and dΔv/dt when left out).
+    fn train_inputs(&self, t: &raw::Train) -> Result<InputSet, ConfigError> {
+        Ok(match t.inputs.as_deref() {
+            None => InputSet::DvDdv,
+            Some(names) => InputSet::from_names(names).ok_or_else(|| {
+                self.invalid(
+                    INPUTS.name,
+                    format!("{names:?}"),
+                    "must be [\"dv_mps\", \"ddv_mps2\"] (seed 002), [\"dv_mps\", \"ddv_mps2\", \"v_mps\"] or [\"dv_mps\", \"ddv_mps2\", \"v_mps\", \"ambient_temperature_c\"]",
+                )
+            })?,
+        })
+    }
+
+    /// `train.condition`: a rail condition that is not blank (`None`: the most common one).
+    fn train_condition(&self, t: &raw::Train) -> Result<Option<String>, ConfigError> {
+        Ok(match t.condition.clone() {
+            Some(c) if c.trim().is_empty() => {
+                return Err(self.invalid(
+                    CONDITION.name,
+                    "\"\"",
+                    "a rail condition as in the runs' metadata, e.g. \"soap\"; leave the key out for the most common one",
+                ))
+            }
+            c => c,
+        })
+    }
+
+    /// The hidden layers' widths: `train.hidden` alone, or `train.layers` (1 to
+    /// `MAX_HIDDEN_LAYERS` whole widths of 1 to `MAX_HIDDEN`), never both.
+    fn train_layers(&self, t: &raw::Train) -> Result<Vec<usize>, ConfigError> {
+        let hidden = self.value(&HIDDEN, t.hidden)? as usize;
+        Ok(match &t.layers {
+            None => vec![hidden],
+            Some(v) => {
+                let ok = (1..=crate::model::MAX_HIDDEN_LAYERS).contains(&v.len())
+                    && v.iter().all(|n| {
+                        n.fract() == 0.0 && (1.0..=crate::model::MAX_HIDDEN as f64).contains(n)
+                    });
+                if !ok {
+                    return Err(self.invalid(
+                        LAYERS.name,
+                        format!("{v:?}"),
+                        format!(
+                            "must list 1 to {} hidden-layer widths, each a whole number 1..={}, e.g. [32, 32]",
+                            crate::model::MAX_HIDDEN_LAYERS,
+                            crate::model::MAX_HIDDEN
+                        ),
+                    ));
+                }
+                if t.hidden.is_some() {
+                    return Err(self.invalid(
+                        HIDDEN.name,
+                        hidden.to_string(),
+                        "give either train.hidden or train.layers (whose first entry is the first layer's width), not both",
+                    ));
+                }
+                v.iter().map(|n| *n as usize).collect()
+            }
+        })
+    }
+
+    /// Levenberg–Marquardt trains one or two hidden layers; Bayesian regularisation is an LM
+    /// variant.
+    fn check_train_trainer(
+        &self,
+        trainer: Trainer,
+        bayesian: bool,
+        layers: &[usize],
+    ) -> Result<(), ConfigError> {
+        if trainer == Trainer::Lm && layers.len() > 2 {
+            return Err(self.invalid(
+                LAYERS.name,
+                format!("{layers:?}"),
+                "Levenberg–Marquardt trains one or two hidden layers: set train.optimizer = \"adam\" or \"adamw\" for deeper networks",
+            ));
+        }
+        if trainer != Trainer::Lm && bayesian {
+            return Err(self.invalid(
+                REGULARISATION.name,
+                "\"bayesian\"",
+                "Bayesian regularisation is MATLAB trainbr, a Levenberg–Marquardt variant: use train.optimizer = \"lm\", or weight_decay with adam/adamw",
+            ));
+        }
+        Ok(())
+    }
+
+    /// `train.starts` and `train.ensemble`: an ensemble averages at most `starts`
+    /// Levenberg–Marquardt networks of one hidden layer.
+    fn train_starts_and_ensemble(
+        &self,
+        t: &raw::Train,
+        trainer: Trainer,
+        layers: &[usize],
+    ) -> Result<(usize, usize), ConfigError> {
+        let starts = self.value(&STARTS, t.starts)? as usize;
+        let ensemble = self.value(&ENSEMBLE, t.ensemble)? as usize;
+        if ensemble > 1 && trainer != Trainer::Lm {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                "an ensemble averages Levenberg–Marquardt networks: use train.optimizer = \"lm\", or ensemble = 1",
+            ));
+        }
+        if ensemble > starts {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                format!("must be at most train.starts ({starts}): raise starts or lower ensemble"),
+            ));
+        }
+        if ensemble > 1 && layers.len() > 1 {
+            return Err(self.invalid(
+                ENSEMBLE.name,
+                ensemble.to_string(),
+                "an ensemble averages networks of one hidden layer: use train.hidden, or ensemble = 1",
+            ));
+        }
+        Ok((starts, ensemble))
+    }
+
+    /// Levenberg–Marquardt takes none of the Adam/AdamW keys (`learning_rate`,
+    /// `weight_decay`, `batch`).
+    fn check_train_adam_keys(&self, t: &raw::Train, trainer: Trainer) -> Result<(), ConfigError> {
+        if trainer == Trainer::Lm {
+            for (key, given) in [
+                (&LEARNING_RATE, t.learning_rate.is_some()),
+                (&WEIGHT_DECAY, t.weight_decay.is_some()),
+                (&BATCH, t.batch.is_some()),
+            ] {
+                if given {
+                    return Err(self.invalid(
+                        key.name,
+                        "(given)",
+                        "is a setting of train.optimizer = \"adam\" or \"adamw\"; Levenberg–Marquardt has none",
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// `train.support_cells`: one whole count of 2 to `MAX_CELLS_PER_INPUT` per input, at
+    /// most `MAX_SUPPORT_CELLS` in all ([`default_support_cells`] when left out).
+    fn train_support_cells(
+        &self,
+        t: &raw::Train,
+        n_inputs: usize,
+    ) -> Result<Vec<usize>, ConfigError> {
+        Ok(match &t.support_cells {
+            None => default_support_cells(n_inputs),
+            Some(v) => {
+                let max = crate::model::MAX_CELLS_PER_INPUT as f64;
+                let ok = v.len() == n_inputs
+                    && v.iter()
+                        .all(|c| c.fract() == 0.0 && (2.0..=max).contains(c));
+                let cells: Vec<usize> = v.iter().map(|c| *c as usize).collect();
+                let total = cells.iter().try_fold(1usize, |a, &c| a.checked_mul(c));
+                if !ok || total.is_none_or(|n| n > crate::model::MAX_SUPPORT_CELLS) {
+                    return Err(self.invalid(
+                        SUPPORT_CELLS.name,
+                        format!("{v:?}"),
+                        format!(
+                            "must give {n_inputs} whole counts (one per input), each 2..={}, with at most {} cells in all (e.g. {:?})",
+                            crate::model::MAX_CELLS_PER_INPUT,
+                            crate::model::MAX_SUPPORT_CELLS,
+                            default_support_cells(n_inputs)
+                        ),
+                    ));
+                }
+                cells
+            }
         })
     }
 

@@ -1,4 +1,4 @@
-//! Networks of any depth and width trained by mini-batch Adam or AdamW through burn (issue 20):
+//! Networks of any depth and width trained by mini-batch Adam or AdamW through burn:
 //! the alternative to Levenberg–Marquardt ([`super::lm`]) for networks whose Jacobian is too
 //! big for the normal equations (LM's memory and time grow with parameters², Adam's with
 //! parameters).
@@ -28,7 +28,7 @@ use std::time::Instant;
 
 use burn::module::{Module, Param};
 use burn::nn::Linear;
-use burn::optim::{AdamConfig, AdamWConfig, GradientsParams};
+use burn::optim::{AdamConfig, AdamWConfig, GradientsParams, ModuleOptimizer};
 use burn::prelude::{Device, Tensor};
 use burn::tensor::activation::tanh;
 use burn::tensor::{FloatDType, TensorData};
@@ -233,99 +233,31 @@ pub fn train(
     progress: Option<super::lm::EpochProgress<'_>>,
 ) -> Result<AdamFit, IdentifyError> {
     settings.check()?;
-    let k = arch.inputs;
-    let n = data.y.len();
-    assert_eq!(data.x.len(), n * k, "x holds n × inputs values");
-    assert_eq!(data.vx.len(), data.vy.len() * k, "vx holds n_val × inputs");
-    assert_eq!(theta0.len(), arch.n_params(), "θ of the architecture");
-    if n == 0 {
-        return Err(IdentifyError::Data {
-            what: "no training samples".into(),
-            hint: "train on runs with valid estimates".into(),
-        });
-    }
+    let n = check_data(arch, data, &theta0)?;
     let dev = device()?;
     let mut net = BurnNet::from_theta(arch, &theta0, &dev);
     let lr = settings.learning_rate;
-    let decay = settings.weight_decay as f32;
-    let mut optim = match settings.optimizer {
-        Optimizer::Adam => {
-            let c = AdamConfig::new();
-            if decay > 0.0 {
-                c.with_weight_decay(Some(burn::optim::decay::WeightDecayConfig::new(decay)))
-                    .init()
-            } else {
-                c.init()
-            }
-        }
-        Optimizer::AdamW => AdamWConfig::new().with_weight_decay(decay).init(),
-    };
+    let mut optim = optimizer(settings);
     let has_val = !data.vy.is_empty();
     let mut rng = Rng::new(seed ^ 0x5eed_ada3);
     let mut order: Vec<usize> = (0..n).collect();
-    let mut bx = Vec::with_capacity(settings.batch * k);
-    let mut by = Vec::with_capacity(settings.batch);
+    let mut batches = MiniBatches::new(data, arch.inputs, settings.batch, &dev);
     let start = Instant::now();
     let mut history = Vec::new();
     let mut best = (f64::INFINITY, theta0.clone(), 0usize);
     let mut stop = StopReason::Epochs;
     for epoch in 1..=settings.max_epochs {
-        // Fisher–Yates with railgrip's generator: the same order for the same seed.
-        for i in (1..n).rev() {
-            let j = ((i + 1) as f64 * rng.uniform()) as usize;
-            order.swap(i, j.min(i));
-        }
-        let mut grad_sq = 0.0;
-        let mut batches = 0usize;
-        for chunk in order.chunks(settings.batch) {
-            bx.clear();
-            by.clear();
-            for &i in chunk {
-                bx.extend_from_slice(&data.x[i * k..(i + 1) * k]);
-                by.push(data.y[i]);
-            }
-            let m = chunk.len();
-            let x = Tensor::<2>::from_data(TensorData::new(bx.clone(), [m, k]), &dev);
-            let y = Tensor::<2>::from_data(TensorData::new(by.clone(), [m, 1]), &dev);
-            let e = net.forward(x) - y;
-            let loss = (e.clone() * e).mean();
-            let grads = loss.backward();
-            let grads = GradientsParams::from_grads(grads, &net);
-            let mut sq = 0.0;
-            for layer in &net.layers {
-                if let Some(g) = grads.get::<2>(layer.weight.id) {
-                    sq += g.clone().mul(g).sum().into_scalar::<f64>();
-                }
-                if let Some(g) = grads.get::<1>(layer.bias.as_ref().expect("biases").id) {
-                    sq += g.clone().mul(g).sum().into_scalar::<f64>();
-                }
-            }
-            grad_sq += sq;
-            batches += 1;
-            net = optim.step(lr, net, grads);
-        }
+        shuffle(&mut order, &mut rng);
+        let grad_norm;
+        (net, grad_norm) = batches.epoch(net, &mut optim, lr, &order);
         let theta = net.theta(arch);
-        let train_mse = mse(arch, &theta, data.x, data.y) * data.scale;
-        let val_mse = if has_val {
-            mse(arch, &theta, data.vx, data.vy) * data.scale
-        } else {
-            f64::NAN
-        };
-        if !train_mse.is_finite() {
-            return Err(IdentifyError::Data {
-                what: format!(
-                    "{} diverged at epoch {epoch} (training MSE {train_mse})",
-                    settings.optimizer.name()
-                ),
-                hint: "lower learning_rate".into(),
-            });
-        }
+        let (train_mse, val_mse) = epoch_errors(arch, &theta, data, settings, epoch)?;
         let e = Epoch {
             epoch: epoch as u64,
             train_mse,
             val_mse,
             mu: lr,
-            grad_norm: (grad_sq / batches as f64).sqrt(),
+            grad_norm,
             elapsed_s: start.elapsed().as_secs_f64(),
             gamma: None,
         };
@@ -347,6 +279,150 @@ pub fn train(
         stop,
         best_epoch: best.2,
     })
+}
+
+/// The data's shapes fit `arch` and `theta0` (asserted: the caller builds them), and there is
+/// at least one training sample; returns their number.
+fn check_data(arch: &Arch, data: &AdamData, theta0: &[f64]) -> Result<usize, IdentifyError> {
+    let k = arch.inputs;
+    let n = data.y.len();
+    assert_eq!(data.x.len(), n * k, "x holds n × inputs values");
+    assert_eq!(data.vx.len(), data.vy.len() * k, "vx holds n_val × inputs");
+    assert_eq!(theta0.len(), arch.n_params(), "θ of the architecture");
+    if n == 0 {
+        return Err(IdentifyError::Data {
+            what: "no training samples".into(),
+            hint: "train on runs with valid estimates".into(),
+        });
+    }
+    Ok(n)
+}
+
+/// burn's optimiser for `settings`: Adam, with λ as burn's L2 weight decay when λ > 0, or
+/// AdamW with λ decoupled.
+fn optimizer(settings: &AdamSettings) -> ModuleOptimizer {
+    let decay = settings.weight_decay as f32;
+    match settings.optimizer {
+        Optimizer::Adam => {
+            let c = AdamConfig::new();
+            if decay > 0.0 {
+                c.with_weight_decay(Some(burn::optim::decay::WeightDecayConfig::new(decay)))
+                    .init()
+            } else {
+                c.init()
+            }
+        }
+        Optimizer::AdamW => AdamWConfig::new().with_weight_decay(decay).init(),
+    }
+}
+
+/// Fisher–Yates with railgrip's generator: the same order for the same seed.
+fn shuffle(order: &mut [usize], rng: &mut Rng) {
+    let n = order.len();
+    for i in (1..n).rev() {
+        let j = ((i + 1) as f64 * rng.uniform()) as usize;
+        order.swap(i, j.min(i));
+    }
+}
+
+/// The training and validation MSE (reported unit; NaN without validation data) of θ after
+/// `epoch`; an error when the training MSE is not finite (training diverged).
+fn epoch_errors(
+    arch: &Arch,
+    theta: &[f64],
+    data: &AdamData,
+    settings: &AdamSettings,
+    epoch: usize,
+) -> Result<(f64, f64), IdentifyError> {
+    let train_mse = mse(arch, theta, data.x, data.y) * data.scale;
+    let val_mse = if !data.vy.is_empty() {
+        mse(arch, theta, data.vx, data.vy) * data.scale
+    } else {
+        f64::NAN
+    };
+    if !train_mse.is_finite() {
+        return Err(IdentifyError::Data {
+            what: format!(
+                "{} diverged at epoch {epoch} (training MSE {train_mse})",
+                settings.optimizer.name()
+            ),
+            hint: "lower learning_rate".into(),
+        });
+    }
+    Ok((train_mse, val_mse))
+}
+
+/// The mini-batches of an epoch: the training data, cut in the epoch's sample order into
+/// batches of `size` samples (the last one shorter), copied through reused buffers.
+struct MiniBatches<'d, 'a> {
+    data: &'d AdamData<'a>,
+    /// Inputs per sample.
+    k: usize,
+    size: usize,
+    dev: &'d Device,
+    bx: Vec<f64>,
+    by: Vec<f64>,
+}
+
+impl<'d, 'a> MiniBatches<'d, 'a> {
+    fn new(data: &'d AdamData<'a>, k: usize, size: usize, dev: &'d Device) -> Self {
+        MiniBatches {
+            data,
+            k,
+            size,
+            dev,
+            bx: Vec::with_capacity(size * k),
+            by: Vec::with_capacity(size),
+        }
+    }
+
+    /// One epoch: a step of `optim` with step size `lr` on the MSE of each mini-batch, in
+    /// `order`. Returns the network and the root mean square over the mini-batches of ‖∇E‖.
+    fn epoch(
+        &mut self,
+        mut net: BurnNet,
+        optim: &mut ModuleOptimizer,
+        lr: f64,
+        order: &[usize],
+    ) -> (BurnNet, f64) {
+        let (data, k) = (self.data, self.k);
+        let mut grad_sq = 0.0;
+        let mut batches = 0usize;
+        for chunk in order.chunks(self.size) {
+            self.bx.clear();
+            self.by.clear();
+            for &i in chunk {
+                self.bx.extend_from_slice(&data.x[i * k..(i + 1) * k]);
+                self.by.push(data.y[i]);
+            }
+            let m = chunk.len();
+            let x = Tensor::<2>::from_data(TensorData::new(self.bx.clone(), [m, k]), self.dev);
+            let y = Tensor::<2>::from_data(TensorData::new(self.by.clone(), [m, 1]), self.dev);
+            let e = net.forward(x) - y;
+            let loss = (e.clone() * e).mean();
+            let grads = loss.backward();
+            let grads = GradientsParams::from_grads(grads, &net);
+            grad_sq += gradient_sq(&net, &grads);
+            batches += 1;
+            net = optim.step(lr, net, grads);
+        }
+        (net, (grad_sq / batches as f64).sqrt())
+    }
+}
+
+/// ‖∇E‖² of one mini-batch: the squares of every layer's weight and bias gradients, summed
+/// layer by layer.
+fn gradient_sq(net: &BurnNet, grads: &GradientsParams) -> f64 {
+    let mut sq = 0.0;
+    for layer in &net.layers {
+        if let Some(g) = grads.get::<2>(layer.weight.id) {
+            sq += g.clone().mul(g).sum().into_scalar::<f64>();
+        }
+        if let Some(g) = grads.get::<1>(layer.bias.as_ref().expect("biases").id) {
+            sq += g.clone().mul(g).sum().into_scalar::<f64>();
+        }
+    }
+    sq
 }
 
 /// ∂ŷ/∂θ at one normalised input `x` by burn's reverse-mode autodiff (θ in [`Arch`]'s order):

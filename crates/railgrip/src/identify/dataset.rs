@@ -81,7 +81,11 @@ impl RunTable {
                 RunMetadata::from_pairs(&pairs).ok()
             })
             .unwrap_or_default();
-        let df = reader.finish().map_err(|e| bad(e.to_string()))?;
+        let df = reader.finish().map_err(|source| IdentifyError::Table {
+            file: path.display().to_string(),
+            source,
+            hint: "give an estimates table written by `railgrip estimate` (or the run logs themselves)".into(),
+        })?;
         let f64col = |name: &str| crate::table::f64_column(&df, name).map_err(bad);
         let valid_ca = df
             .column("valid")

@@ -317,12 +317,14 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt<'_> {
         Ok((state.cost(sse / n * scale), None))
     }
 
+    /// One epoch (see the module documentation): the normal equations at θ, the stop tests
+    /// of the epoch's start, the μ loop and trainbr's update, the validation watch, and the
+    /// epoch's record.
     fn next_iter(
         &mut self,
         problem: &mut Problem<O>,
         mut state: LmState,
     ) -> Result<(LmState, Option<KV>), Error> {
-        let s = self.settings;
         let theta = state.take_param().expect("set in init").to_vec();
         let (ne, n, scale, p) = problem.problem("jacobian_count", |o| {
             Ok((
@@ -332,137 +334,22 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt<'_> {
                 o.n_params(),
             ))
         })?;
-        // The gradient of the objective: 2 Jᵀr (trainlm) or 2 (β Jᵀr + α θ) (trainbr).
-        let rhs: Vec<f64> = match self.bayes {
-            None => ne.jtr.clone(),
-            Some(b) => ne
-                .jtr
-                .iter()
-                .zip(&theta)
-                .map(|(g, t)| b.beta * g + b.alpha * t)
-                .collect(),
-        };
+        let rhs = self.gradient(&ne, &theta);
         let grad_norm = 2.0 * sum_sq(&rhs).sqrt();
-        let mse = ne.sse / n * scale;
-        if mse <= s.goal {
-            self.stop = Some(StopReason::Goal);
-        } else if grad_norm < s.min_grad {
-            self.stop = Some(StopReason::MinGrad);
-        }
-        // trainlm: JᵀJ + μ I; trainbr: β JᵀJ + (μ + α) I.
-        let (data_weight, ridge) = match self.bayes {
-            None => (1.0, 0.0),
-            Some(b) => (b.beta, b.alpha),
-        };
-        let objective = |sse: f64, t: &[f64]| match self.bayes {
-            None => sse,
-            Some(b) => b.objective(sse, sum_sq(t)),
-        };
+        self.check_goal_and_gradient(ne.sse / n * scale, grad_norm);
         let mut next = theta.clone();
         let mut next_sse = ne.sse;
         if self.stop.is_none() {
-            let f0 = objective(ne.sse, &theta);
-            let mut a: Vec<f64> = ne.jtj.iter().map(|v| data_weight * v).collect();
-            let diagonal: Vec<f64> = (0..p).map(|d| a[d * p + d]).collect();
-            loop {
-                for d in 0..p {
-                    a[d * p + d] = diagonal[d] + (self.mu + ridge);
-                }
-                let trial = cholesky(&a, p).map(|l| {
-                    let step = cho_solve(&l, p, &rhs);
-                    theta
-                        .iter()
-                        .zip(&step)
-                        .map(|(t, d)| t - d)
-                        .collect::<Vec<f64>>()
-                });
-                let accepted = match trial {
-                    Some(t) if t.iter().all(|v| v.is_finite()) => {
-                        let e = problem.problem("cost_count", |o| Ok(o.sse(&t)))?;
-                        if e.is_finite() && objective(e, &t) < f0 {
-                            next = t;
-                            next_sse = e;
-                            true
-                        } else {
-                            false
-                        }
-                    }
-                    _ => false,
-                };
-                if accepted {
-                    let f1 = objective(next_sse, &next);
-                    let step = next
-                        .iter()
-                        .zip(&theta)
-                        .map(|(a, b)| (a - b) * (a - b))
-                        .sum::<f64>()
-                        .sqrt();
-                    if s.ftol > 0.0 && f0 - f1 <= s.ftol * f0 {
-                        self.stop = Some(StopReason::CostConverged);
-                    } else if s.xtol > 0.0 && step <= s.xtol * (sum_sq(&theta).sqrt() + s.xtol) {
-                        self.stop = Some(StopReason::StepConverged);
-                    }
-                    self.mu *= s.mu_dec;
-                    if self.bayes.is_some() {
-                        // trainbr's floor.
-                        self.mu = self.mu.max(1e-20);
-                    }
-                    break;
-                }
-                self.mu *= s.mu_inc;
-                if self.mu > s.mu_max {
-                    self.stop = Some(if s.ftol > 0.0 {
-                        StopReason::NoFurtherReduction
-                    } else {
-                        StopReason::MuMax
-                    });
-                    break;
-                }
+            let mut system = DampedSystem::new(&ne.jtj, p, self.bayes);
+            if let Some((t, e)) = self.damped_step(problem, &mut system, &theta, &rhs, ne.sse)? {
+                next = t;
+                next_sse = e;
             }
-            if let (Some(b), false) = (self.bayes, self.stop == Some(StopReason::MuMax)) {
-                // γ = P − α tr((β JᵀJ + α I)⁻¹) with JᵀJ of the epoch's start (as trainbr).
-                for d in 0..p {
-                    a[d * p + d] = diagonal[d] + b.alpha;
-                }
-                if let Some(l) = cholesky(&a, p) {
-                    let gamma = (p as f64 - b.alpha * inverse_trace(&l, p)).clamp(0.0, p as f64);
-                    self.bayes = Some(Bayes::update(gamma, n, next_sse, sum_sq(&next), b.beta));
-                }
-            }
+            self.update_bayes(&mut system, n, next_sse, &next);
         }
         let val = problem.problem("validation_count", |o| Ok(o.validation_mse(&next)))?;
-        match val {
-            // trainbr: validation is watched, never chooses.
-            _ if self.bayes.is_some() => self.best = Some(next.clone()),
-            Some(v) if v < self.best_val => {
-                self.best_val = v;
-                self.best = Some(next.clone());
-                self.fails = 0;
-            }
-            Some(_) => {
-                self.fails += 1;
-                if self.fails >= s.max_fail && self.stop.is_none() {
-                    self.stop = Some(StopReason::ValidationStop);
-                }
-            }
-            None => self.best = Some(next.clone()),
-        }
-        let epoch = Epoch {
-            epoch: state.get_iter() + 1,
-            train_mse: next_sse / n * scale,
-            val_mse: val.unwrap_or(f64::NAN),
-            mu: self.mu,
-            grad_norm,
-            elapsed_s: self.start.elapsed().as_secs_f64(),
-            gamma: self.bayes.map(|b| b.gamma),
-        };
-        self.history.push(epoch);
-        if let Some(p) = self.progress {
-            p.event(&epoch);
-        }
-        if state.get_iter() + 1 >= s.epochs && self.stop.is_none() {
-            self.stop = Some(StopReason::Epochs);
-        }
+        self.watch_validation(val, &next);
+        let epoch = self.record_epoch(state.get_iter() + 1, next_sse / n * scale, val, grad_norm);
         let kv =
             argmin::kv!("mu" => self.mu; "grad_norm" => grad_norm; "val_mse" => epoch.val_mse;);
         Ok((
@@ -484,6 +371,222 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt<'_> {
                 TerminationStatus::Terminated(TerminationReason::SolverExit(r.text().into()))
             }
         }
+    }
+}
+
+/// The damped system of one epoch: the data-weighted JᵀJ (row-major, p×p) whose diagonal is
+/// reset to its undamped values plus a shift before each factorisation — trainlm:
+/// JᵀJ + μ I; trainbr: β JᵀJ + (μ + α) I.
+struct DampedSystem {
+    p: usize,
+    a: Vec<f64>,
+    /// The diagonal of the data-weighted JᵀJ.
+    diagonal: Vec<f64>,
+    /// What the damping adds to μ: 0 (trainlm) or α (trainbr).
+    ridge: f64,
+}
+
+impl DampedSystem {
+    fn new(jtj: &[f64], p: usize, bayes: Option<Bayes>) -> DampedSystem {
+        let (data_weight, ridge) = match bayes {
+            None => (1.0, 0.0),
+            Some(b) => (b.beta, b.alpha),
+        };
+        let a: Vec<f64> = jtj.iter().map(|v| data_weight * v).collect();
+        let diagonal: Vec<f64> = (0..p).map(|d| a[d * p + d]).collect();
+        DampedSystem {
+            p,
+            a,
+            diagonal,
+            ridge,
+        }
+    }
+
+    /// Sets the diagonal to the undamped one plus `shift`.
+    fn shift_diagonal(&mut self, shift: f64) {
+        let p = self.p;
+        for d in 0..p {
+            self.a[d * p + d] = self.diagonal[d] + shift;
+        }
+    }
+
+    /// θ − (the system)⁻¹ `rhs`, `None` when the Cholesky factorisation fails.
+    fn trial(&self, theta: &[f64], rhs: &[f64]) -> Option<Vec<f64>> {
+        let p = self.p;
+        cholesky(&self.a, p).map(|l| {
+            let step = cho_solve(&l, p, rhs);
+            theta
+                .iter()
+                .zip(&step)
+                .map(|(t, d)| t - d)
+                .collect::<Vec<f64>>()
+        })
+    }
+}
+
+/// The objective a step must lower: the SSE (trainlm) or F = β E_D + α E_W (trainbr).
+fn objective(bayes: Option<Bayes>, sse: f64, t: &[f64]) -> f64 {
+    match bayes {
+        None => sse,
+        Some(b) => b.objective(sse, sum_sq(t)),
+    }
+}
+
+impl LevenbergMarquardt<'_> {
+    /// The gradient of the objective, 2 Jᵀr (trainlm) or 2 (β Jᵀr + α θ) (trainbr), over 2:
+    /// the right-hand side of the damped system.
+    fn gradient(&self, ne: &NormalEquations, theta: &[f64]) -> Vec<f64> {
+        match self.bayes {
+            None => ne.jtr.clone(),
+            Some(b) => ne
+                .jtr
+                .iter()
+                .zip(theta)
+                .map(|(g, t)| b.beta * g + b.alpha * t)
+                .collect(),
+        }
+    }
+
+    /// Stops on the goal (training MSE `mse` at or below it) or on a gradient norm below
+    /// min_grad, at the epoch's start.
+    fn check_goal_and_gradient(&mut self, mse: f64, grad_norm: f64) {
+        let s = self.settings;
+        if mse <= s.goal {
+            self.stop = Some(StopReason::Goal);
+        } else if grad_norm < s.min_grad {
+            self.stop = Some(StopReason::MinGrad);
+        }
+    }
+
+    /// The μ loop: tries θ' = θ − (system + μ I)⁻¹ `rhs`, raising μ by mu_inc after every
+    /// rejected step (factorisation failed, a non-finite step or SSE, or an objective not
+    /// below `sse`'s), until a step is accepted — returned with its SSE, μ lowered by mu_dec —
+    /// or μ exceeds mu_max (stop; `None`).
+    fn damped_step<O: LeastSquares>(
+        &mut self,
+        problem: &mut Problem<O>,
+        system: &mut DampedSystem,
+        theta: &[f64],
+        rhs: &[f64],
+        sse: f64,
+    ) -> Result<Option<(Vec<f64>, f64)>, Error> {
+        let s = self.settings;
+        let bayes = self.bayes;
+        let f0 = objective(bayes, sse, theta);
+        loop {
+            system.shift_diagonal(self.mu + system.ridge);
+            let accepted = match system.trial(theta, rhs) {
+                Some(t) if t.iter().all(|v| v.is_finite()) => {
+                    let e = problem.problem("cost_count", |o| Ok(o.sse(&t)))?;
+                    if e.is_finite() && objective(bayes, e, &t) < f0 {
+                        Some((t, e))
+                    } else {
+                        None
+                    }
+                }
+                _ => None,
+            };
+            if let Some((next, next_sse)) = accepted {
+                self.check_convergence(f0, objective(bayes, next_sse, &next), theta, &next);
+                self.mu *= s.mu_dec;
+                if self.bayes.is_some() {
+                    // trainbr's floor.
+                    self.mu = self.mu.max(1e-20);
+                }
+                return Ok(Some((next, next_sse)));
+            }
+            self.mu *= s.mu_inc;
+            if self.mu > s.mu_max {
+                self.stop = Some(if s.ftol > 0.0 {
+                    StopReason::NoFurtherReduction
+                } else {
+                    StopReason::MuMax
+                });
+                return Ok(None);
+            }
+        }
+    }
+
+    /// MINPACK's tests on an accepted step from `theta` to `next` that took the objective
+    /// from `f0` to `f1`: a relative reduction of at most ftol, or a step of at most
+    /// xtol (‖θ‖ + xtol).
+    fn check_convergence(&mut self, f0: f64, f1: f64, theta: &[f64], next: &[f64]) {
+        let s = self.settings;
+        let step = next
+            .iter()
+            .zip(theta)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt();
+        if s.ftol > 0.0 && f0 - f1 <= s.ftol * f0 {
+            self.stop = Some(StopReason::CostConverged);
+        } else if s.xtol > 0.0 && step <= s.xtol * (sum_sq(theta).sqrt() + s.xtol) {
+            self.stop = Some(StopReason::StepConverged);
+        }
+    }
+
+    /// trainbr's update after the epoch (unless μ reached its maximum):
+    /// γ = P − α tr((β JᵀJ + α I)⁻¹) with JᵀJ of the epoch's start (as trainbr), then α and
+    /// β from γ and the new weights `next` with their SSE.
+    fn update_bayes(&mut self, system: &mut DampedSystem, n: f64, next_sse: f64, next: &[f64]) {
+        if let (Some(b), false) = (self.bayes, self.stop == Some(StopReason::MuMax)) {
+            let p = system.p;
+            system.shift_diagonal(b.alpha);
+            if let Some(l) = cholesky(&system.a, p) {
+                let gamma = (p as f64 - b.alpha * inverse_trace(&l, p)).clamp(0.0, p as f64);
+                self.bayes = Some(Bayes::update(gamma, n, next_sse, sum_sq(next), b.beta));
+            }
+        }
+    }
+
+    /// Keeps `next` as the best weights when its validation MSE `val` is a new best (or
+    /// always, without validation data or with trainbr), else counts a validation failure
+    /// and stops after max_fail of them in a row.
+    fn watch_validation(&mut self, val: Option<f64>, next: &[f64]) {
+        match val {
+            // trainbr: validation is watched, never chooses.
+            _ if self.bayes.is_some() => self.best = Some(next.to_vec()),
+            Some(v) if v < self.best_val => {
+                self.best_val = v;
+                self.best = Some(next.to_vec());
+                self.fails = 0;
+            }
+            Some(_) => {
+                self.fails += 1;
+                if self.fails >= self.settings.max_fail && self.stop.is_none() {
+                    self.stop = Some(StopReason::ValidationStop);
+                }
+            }
+            None => self.best = Some(next.to_vec()),
+        }
+    }
+
+    /// Appends epoch `epoch` (1-based) to the history, reports it to the progress
+    /// receiver, and stops after the last epoch allowed.
+    fn record_epoch(
+        &mut self,
+        epoch: u64,
+        train_mse: f64,
+        val: Option<f64>,
+        grad_norm: f64,
+    ) -> Epoch {
+        let record = Epoch {
+            epoch,
+            train_mse,
+            val_mse: val.unwrap_or(f64::NAN),
+            mu: self.mu,
+            grad_norm,
+            elapsed_s: self.start.elapsed().as_secs_f64(),
+            gamma: self.bayes.map(|b| b.gamma),
+        };
+        self.history.push(record);
+        if let Some(p) = self.progress {
+            p.event(&record);
+        }
+        if epoch >= self.settings.epochs && self.stop.is_none() {
+            self.stop = Some(StopReason::Epochs);
+        }
+        record
     }
 }
 

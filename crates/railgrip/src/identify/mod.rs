@@ -37,6 +37,14 @@ pub enum IdentifyError {
         message: String,
         hint: String,
     },
+    /// A table the table reader refuses.
+    #[error("{file}: {source}. Hint: {hint}")]
+    Table {
+        file: String,
+        #[source]
+        source: polars::error::PolarsError,
+        hint: String,
+    },
     #[error("{file}: cannot read: {source}")]
     Read {
         file: String,

@@ -28,16 +28,18 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         file: path.display().to_string(),
         source,
     })?;
-    let df = ParquetReader::new(file)
-        .finish()
-        .map_err(|e| bad(e.to_string()))?;
+    let table = |source| ReportError::Table {
+        file: path.display().to_string(),
+        source,
+    };
+    let df = ParquetReader::new(file).finish().map_err(table)?;
     let f = |name: &str| -> Result<Vec<f64>, ReportError> {
         let c = df
             .column(name)
             .map_err(|_| bad(format!("no column {name}")))?
             .cast(&DataType::Float64)
-            .map_err(|e| bad(e.to_string()))?;
-        let ca = c.f64().map_err(|e| bad(e.to_string()))?;
+            .map_err(table)?;
+        let ca = c.f64().map_err(table)?;
         Ok(ca.iter().map(|x| x.unwrap_or(f64::NAN)).collect())
     };
     let (t, axle, v, p, dv, ddv, mu) = (
@@ -53,7 +55,7 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         .column("valid")
         .map_err(|_| bad("no column valid".into()))?
         .bool()
-        .map_err(|e| bad(e.to_string()))?
+        .map_err(table)?
         .clone();
     let valid: Vec<bool> = vcol.iter().map(|x| x.unwrap_or(false)).collect();
     let mut d = RunData {

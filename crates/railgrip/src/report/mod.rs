@@ -53,6 +53,13 @@ pub enum ReportError {
     },
     #[error("{file}: {message}")]
     Data { file: String, message: String },
+    /// A table of the output folder that the table reader refuses.
+    #[error("{file}: {source}")]
+    Table {
+        file: String,
+        #[source]
+        source: polars::error::PolarsError,
+    },
     /// A file of another campaign generation than `campaign.json`'s.
     #[error("{file}: written by campaign generation {found}, but campaign.json is generation {campaign} (an interrupted or concurrent `railgrip run`). Hint: rerun `railgrip run` into this folder")]
     Stale {
@@ -60,8 +67,12 @@ pub enum ReportError {
         found: String,
         campaign: String,
     },
-    #[error("plot \"{plot}\": {message}")]
-    Plot { plot: String, message: String },
+    #[error("plot \"{plot}\": {source}")]
+    Plot {
+        plot: String,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
     #[error("{file}: cannot write: {source}")]
     Write {
         file: String,

@@ -107,7 +107,7 @@ impl SimOutput {
                     McapCompression::Zstd,
                     1_700_000_000_000_000_000,
                 )
-                .map_err(|e| std::io::Error::other(e.to_string()))?;
+                .map_err(std::io::Error::other)?;
                 std::io::Write::write_all(w, buf.get_ref())
             })
             .map_err(werr(&path))?;

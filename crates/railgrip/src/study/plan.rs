@@ -137,85 +137,149 @@ impl Plan {
         let doc: toml::Table = text
             .parse()
             .map_err(|e: toml::de::Error| err(file, e.to_string(), "fix the TOML syntax"))?;
-        for k in doc.keys() {
-            if !["study", "grid", "simulator", "contact"].contains(&k.as_str()) {
-                return Err(err(
-                    file,
-                    format!("unknown top-level key `{k}`"),
-                    "a plan has a [study] table, [[grid]] tables and optionally [[simulator]] and [[contact]] tables",
-                ));
-            }
-        }
+        check_top_level_keys(&doc, file)?;
         let empty = toml::Table::new();
-        let study = match doc.get("study") {
-            None => &empty,
-            Some(toml::Value::Table(t)) => t,
-            Some(_) => return Err(err(file, "`study` is not a table", "write [study]")),
-        };
-        let allowed: Vec<&str> = STUDY_KEYS.iter().map(|(k, _)| *k).collect();
-        for k in study.keys() {
-            if !allowed.contains(&k.as_str()) {
-                return Err(err(
-                    file,
-                    format!("unknown key study.{k}"),
-                    format!("[study] takes {}", allowed.join(", ")),
-                ));
-            }
-        }
-        // The base pipeline: --pipeline, the plan's key, or the embedded default; read and
-        // checked by the pipeline's own loader (its text is what the cells patch).
-        let path = match (base, study.get("pipeline")) {
-            (Some(p), _) => Some(p.to_path_buf()),
-            (None, None) => None,
-            (None, Some(toml::Value::String(s))) => Some(match dir {
-                Some(d) => d.join(s),
-                None => crate::source_tree().join("pipelines").join(s),
-            }),
-            (None, Some(v)) => {
-                return Err(err(
-                    file,
-                    format!("study.pipeline = {v}: not a file name"),
-                    "give the pipeline file as a string, relative to the plan",
-                ))
-            }
-        };
-        let base_pipeline = Pipeline::load(path.as_deref()).map_err(|e| {
-            err(
+        let study = study_table(&doc, file)?.unwrap_or(&empty);
+        let (base_pipeline, base_name, base_doc) = load_base(study, file, dir, base)?;
+        let held_out = held_out(study, file)?;
+        let limits = StudyLimits::read(study, file)?;
+        let cells = grid_cells(&doc, file, &base_doc, &base_name)?;
+        let rows_dir = dir
+            .map(Path::to_path_buf)
+            .unwrap_or_else(|| crate::source_tree().join("pipelines"));
+        let simulator = simulator_specs(&doc, file, &rows_dir)?;
+        let contact = contact_specs(&doc, file)?;
+        Ok(Plan {
+            base_pipeline,
+            simulator,
+            contact,
+            source: file.to_string(),
+            text: text.to_string(),
+            base: base_name,
+            held_out,
+            max_cells: limits.max_cells,
+            max_minutes: limits.max_minutes,
+            eval_points: limits.eval_points,
+            cells,
+        })
+    }
+}
+
+/// A plan's top-level keys are `study`, `grid`, `simulator` and `contact`.
+fn check_top_level_keys(doc: &toml::Table, file: &str) -> Result<(), StudyError> {
+    for k in doc.keys() {
+        if !["study", "grid", "simulator", "contact"].contains(&k.as_str()) {
+            return Err(err(
                 file,
-                format!("base pipeline: {e}"),
-                "fix the pipeline the plan names (study.pipeline is relative to the plan; --pipeline overrides it)",
-            )
-        })?;
-        let base_name = base_pipeline.source.clone();
-        let base_doc: toml::Table = base_pipeline.text.parse().map_err(|e: toml::de::Error| {
-            err(&base_name, e.to_string(), "fix the pipeline's TOML syntax")
-        })?;
-        let held_out = match study.get("held_out") {
-            None => None,
-            Some(toml::Value::Array(a)) => {
-                let mut names = Vec::new();
-                for v in a {
-                    match v {
-                        toml::Value::String(s) => names.push(s.clone()),
-                        _ => {
-                            return Err(err(
-                                file,
-                                format!("study.held_out: {v} is not a run name"),
-                                "give run names as strings, e.g. [\"soap_120kmh_0c\"]",
-                            ))
-                        }
+                format!("unknown top-level key `{k}`"),
+                "a plan has a [study] table, [[grid]] tables and optionally [[simulator]] and [[contact]] tables",
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The `[study]` table (`None` when absent), holding only [`STUDY_KEYS`].
+fn study_table<'a>(
+    doc: &'a toml::Table,
+    file: &str,
+) -> Result<Option<&'a toml::Table>, StudyError> {
+    let study = match doc.get("study") {
+        None => return Ok(None),
+        Some(toml::Value::Table(t)) => t,
+        Some(_) => return Err(err(file, "`study` is not a table", "write [study]")),
+    };
+    let allowed: Vec<&str> = STUDY_KEYS.iter().map(|(k, _)| *k).collect();
+    for k in study.keys() {
+        if !allowed.contains(&k.as_str()) {
+            return Err(err(
+                file,
+                format!("unknown key study.{k}"),
+                format!("[study] takes {}", allowed.join(", ")),
+            ));
+        }
+    }
+    Ok(Some(study))
+}
+
+/// The base pipeline: --pipeline (`base`), the plan's key (relative to the plan's `dir`), or
+/// the embedded default; read and checked by the pipeline's own loader (its text is what the
+/// cells patch). Returns it with its name and its text as a TOML table.
+fn load_base(
+    study: &toml::Table,
+    file: &str,
+    dir: Option<&Path>,
+    base: Option<&Path>,
+) -> Result<(Pipeline, String, toml::Table), StudyError> {
+    let path = match (base, study.get("pipeline")) {
+        (Some(p), _) => Some(p.to_path_buf()),
+        (None, None) => None,
+        (None, Some(toml::Value::String(s))) => Some(match dir {
+            Some(d) => d.join(s),
+            None => crate::source_tree().join("pipelines").join(s),
+        }),
+        (None, Some(v)) => {
+            return Err(err(
+                file,
+                format!("study.pipeline = {v}: not a file name"),
+                "give the pipeline file as a string, relative to the plan",
+            ))
+        }
+    };
+    let base_pipeline = Pipeline::load(path.as_deref()).map_err(|e| {
+        err(
+            file,
+            format!("base pipeline: {e}"),
+            "fix the pipeline the plan names (study.pipeline is relative to the plan; --pipeline overrides it)",
+        )
+    })?;
+    let base_name = base_pipeline.source.clone();
+    let base_doc: toml::Table = base_pipeline.text.parse().map_err(|e: toml::de::Error| {
+        err(&base_name, e.to_string(), "fix the pipeline's TOML syntax")
+    })?;
+    Ok((base_pipeline, base_name, base_doc))
+}
+
+/// `study.held_out`: the names of the runs scored and never trained on (`None` when absent).
+fn held_out(study: &toml::Table, file: &str) -> Result<Option<Vec<String>>, StudyError> {
+    Ok(match study.get("held_out") {
+        None => None,
+        Some(toml::Value::Array(a)) => {
+            let mut names = Vec::new();
+            for v in a {
+                match v {
+                    toml::Value::String(s) => names.push(s.clone()),
+                    _ => {
+                        return Err(err(
+                            file,
+                            format!("study.held_out: {v} is not a run name"),
+                            "give run names as strings, e.g. [\"soap_120kmh_0c\"]",
+                        ))
                     }
                 }
-                Some(names)
             }
-            Some(v) => {
-                return Err(err(
-                    file,
-                    format!("study.held_out = {v}: not a list"),
-                    "give a list of run names",
-                ))
-            }
-        };
+            Some(names)
+        }
+        Some(v) => {
+            return Err(err(
+                file,
+                format!("study.held_out = {v}: not a list"),
+                "give a list of run names",
+            ))
+        }
+    })
+}
+
+/// The limits of `[study]`.
+struct StudyLimits {
+    max_cells: usize,
+    eval_points: usize,
+    max_minutes: f64,
+}
+
+impl StudyLimits {
+    /// `study.max_cells`, `study.eval_points` and `study.max_minutes`, checked in this order.
+    fn read(study: &toml::Table, file: &str) -> Result<StudyLimits, StudyError> {
         let int = |key: &str, default: i64, lo: i64, hi: i64| -> Result<i64, StudyError> {
             match study.get(key) {
                 None => Ok(default),
@@ -241,64 +305,61 @@ impl Plan {
                 ))
             }
         };
-
-        let grids = match doc.get("grid") {
-            None => &Vec::new(),
-            Some(toml::Value::Array(a)) => a,
-            Some(_) => {
-                return Err(err(
-                    file,
-                    "`grid` is not a list of tables",
-                    "write each grid as [[grid]]",
-                ))
-            }
-        };
-        if grids.is_empty() {
-            return Err(err(
-                file,
-                "the plan has no [[grid]]: nothing to study",
-                "add a [[grid]] with family = [\"mlp\"] and the keys to vary (docs/study.md)",
-            ));
-        }
-        let mut cells: Vec<CellSpec> = Vec::new();
-        let mut seen = std::collections::HashSet::new();
-        for (g, grid) in grids.iter().enumerate() {
-            let toml::Value::Table(grid) = grid else {
-                return Err(err(
-                    file,
-                    format!("grid[{g}] is not a table"),
-                    "write [[grid]]",
-                ));
-            };
-            for spec in expand(grid, g, file, &base_doc, &base_name)? {
-                let key = (spec.family.name(), spec.pipeline.text.clone());
-                if seen.insert(key) {
-                    cells.push(spec);
-                }
-            }
-        }
-        let rows_dir = dir
-            .map(Path::to_path_buf)
-            .unwrap_or_else(|| crate::source_tree().join("pipelines"));
-        let simulator = simulator_specs(&doc, file, &rows_dir)?;
-        let contact = contact_specs(&doc, file)?;
-        Ok(Plan {
-            base_pipeline,
-            simulator,
-            contact,
-            source: file.to_string(),
-            text: text.to_string(),
-            base: base_name,
-            held_out,
+        Ok(StudyLimits {
             max_cells,
-            max_minutes,
             eval_points,
-            cells,
+            max_minutes,
         })
     }
 }
 
-/// The cells of one grid: the product of its axes.
+/// The cells of the plan's `[[grid]]` tables (at least one), grid by grid, a cell of the same
+/// family and pipeline as an earlier one left out.
+fn grid_cells(
+    doc: &toml::Table,
+    file: &str,
+    base_doc: &toml::Table,
+    base_name: &str,
+) -> Result<Vec<CellSpec>, StudyError> {
+    let grids: &[toml::Value] = match doc.get("grid") {
+        None => &[],
+        Some(toml::Value::Array(a)) => a,
+        Some(_) => {
+            return Err(err(
+                file,
+                "`grid` is not a list of tables",
+                "write each grid as [[grid]]",
+            ))
+        }
+    };
+    if grids.is_empty() {
+        return Err(err(
+            file,
+            "the plan has no [[grid]]: nothing to study",
+            "add a [[grid]] with family = [\"mlp\"] and the keys to vary (docs/study.md)",
+        ));
+    }
+    let mut cells: Vec<CellSpec> = Vec::new();
+    let mut seen = std::collections::HashSet::new();
+    for (g, grid) in grids.iter().enumerate() {
+        let toml::Value::Table(grid) = grid else {
+            return Err(err(
+                file,
+                format!("grid[{g}] is not a table"),
+                "write [[grid]]",
+            ));
+        };
+        for spec in expand(grid, g, file, base_doc, base_name)? {
+            let key = (spec.family.name(), spec.pipeline.text.clone());
+            if seen.insert(key) {
+                cells.push(spec);
+            }
+        }
+    }
+    Ok(cells)
+}
+
+/// The cells of one grid: the product of its axes, family by family.
 fn expand(
     grid: &toml::Table,
     g: usize,
@@ -307,109 +368,185 @@ fn expand(
     base_name: &str,
 ) -> Result<Vec<CellSpec>, StudyError> {
     let at = format!("grid[{g}]");
-    let mut label = format!("grid {g}");
-    let mut families: Vec<&'static dyn ModelFamily> = vec![&Network];
-    // Axes in key order: (pipeline key, values).
-    let mut axes: BTreeMap<String, Vec<toml::Value>> = BTreeMap::new();
-    let pipeline_keys = |section: &str| -> Vec<&'static str> {
-        crate::config::SECTIONS
-            .iter()
-            .filter(|(s, _)| *s == section)
-            .flat_map(|(_, keys)| keys.iter().map(|k| k.name))
-            .collect()
-    };
-    for (k, v) in grid {
-        match (k.as_str(), v) {
-            ("label", toml::Value::String(s)) => label = s.clone(),
-            ("label", v) => {
-                return Err(err(
-                    file,
-                    format!("{at}.label = {v}: not text"),
-                    "give a short name in quotes",
-                ))
-            }
-            ("family", v) => {
-                let vals = match v {
-                    toml::Value::Array(a) => a.clone(),
-                    v => vec![v.clone()],
-                };
-                families = Vec::new();
-                for f in vals {
-                    let name = f.as_str().unwrap_or("");
-                    match by_name(name) {
-                        Some(x) => families.push(x),
-                        None => {
-                            let names: Vec<String> = FAMILIES
-                                .iter()
-                                .map(|f| format!("\"{}\"", f.name()))
-                                .collect();
-                            return Err(err(
-                                file,
-                                format!("{at}.family: unknown family {f}"),
-                                format!("families are {}", names.join(", ")),
-                            ));
-                        }
-                    }
-                }
-                if families.is_empty() {
+    let spec = GridSpec::read(grid, g, &at, file)?;
+    let combos = product(&spec.axes);
+    let mut out = Vec::new();
+    for family in spec.families {
+        for combo in &combos {
+            out.push(CellSpec {
+                group: spec.label.clone(),
+                family,
+                settings: combo
+                    .iter()
+                    .map(|(k, v)| (k.clone(), short(k, v)))
+                    .collect(),
+                pipeline: cell_pipeline(base, combo, true, file, &at, base_name)?,
+                conditioning: cell_pipeline(base, combo, false, file, &at, base_name)?,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// What one `[[grid]]` table says.
+struct GridSpec {
+    /// `label` (default `grid N`).
+    label: String,
+    /// `family` (default the network).
+    families: Vec<&'static dyn ModelFamily>,
+    /// Axes in key order: (pipeline key, values).
+    axes: BTreeMap<String, Vec<toml::Value>>,
+}
+
+impl GridSpec {
+    /// Reads grid `g` (named `at` in messages), key by key.
+    fn read(grid: &toml::Table, g: usize, at: &str, file: &str) -> Result<GridSpec, StudyError> {
+        let mut spec = GridSpec {
+            label: format!("grid {g}"),
+            families: vec![&Network],
+            axes: BTreeMap::new(),
+        };
+        for (k, v) in grid {
+            match (k.as_str(), v) {
+                ("label", toml::Value::String(s)) => spec.label = s.clone(),
+                ("label", v) => {
                     return Err(err(
                         file,
-                        format!("{at}.family is empty: no cells"),
-                        "give at least one family",
-                    ));
+                        format!("{at}.label = {v}: not text"),
+                        "give a short name in quotes",
+                    ))
+                }
+                ("family", v) => spec.families = grid_families(v, at, file)?,
+                (section, toml::Value::Table(t)) if GRID_SECTIONS.contains(&section) => {
+                    section_axes(section, t, at, file, &mut spec.axes)?
+                }
+                (other, _) => {
+                    return Err(err(
+                        file,
+                        format!("{at}: unknown key {other}"),
+                        format!(
+                            "a grid takes label, family and the pipeline sections {}",
+                            GRID_SECTIONS.join(", ")
+                        ),
+                    ))
                 }
             }
-            (section, toml::Value::Table(t)) if GRID_SECTIONS.contains(&section) => {
-                let known = pipeline_keys(section);
-                for (key, v) in t {
-                    let full = format!("{section}.{key}");
-                    if !known.contains(&full.as_str()) {
-                        return Err(err(
-                            file,
-                            format!("{at}: unknown key {full}"),
-                            format!("[{section}] keys are {}", known.join(", ")),
-                        ));
-                    }
-                    let vals = match v {
-                        toml::Value::Array(a) => {
-                            if LIST_KEYS.contains(&full.as_str())
-                                && a.iter().any(|x| !matches!(x, toml::Value::Array(_)))
-                            {
-                                return Err(err(
-                                    file,
-                                    format!("{at}.{full} = {v}: {full} takes a list, so the grid takes a list of lists"),
-                                    format!("write {full} = [{v}] for one cell, or e.g. [[10], [20]] for two"),
-                                ));
-                            }
-                            a.clone()
-                        }
-                        v => vec![v.clone()],
-                    };
-                    if vals.is_empty() {
-                        return Err(err(
-                            file,
-                            format!("{at}.{full} = []: an empty list makes no cells"),
-                            "give at least one value",
-                        ));
-                    }
-                    axes.insert(full, vals);
-                }
-            }
-            (other, _) => {
+        }
+        Ok(spec)
+    }
+}
+
+/// A grid's `family`: one family name or a list of them (at least one), each of
+/// [`FAMILIES`].
+fn grid_families(
+    v: &toml::Value,
+    at: &str,
+    file: &str,
+) -> Result<Vec<&'static dyn ModelFamily>, StudyError> {
+    let vals = match v {
+        toml::Value::Array(a) => a.clone(),
+        v => vec![v.clone()],
+    };
+    let mut families = Vec::new();
+    for f in vals {
+        let name = f.as_str().unwrap_or("");
+        match by_name(name) {
+            Some(x) => families.push(x),
+            None => {
+                let names: Vec<String> = FAMILIES
+                    .iter()
+                    .map(|f| format!("\"{}\"", f.name()))
+                    .collect();
                 return Err(err(
                     file,
-                    format!("{at}: unknown key {other}"),
-                    format!(
-                        "a grid takes label, family and the pipeline sections {}",
-                        GRID_SECTIONS.join(", ")
-                    ),
-                ))
+                    format!("{at}.family: unknown family {f}"),
+                    format!("families are {}", names.join(", ")),
+                ));
             }
         }
     }
-    // The product, first axis slowest.
+    if families.is_empty() {
+        return Err(err(
+            file,
+            format!("{at}.family is empty: no cells"),
+            "give at least one family",
+        ));
+    }
+    Ok(families)
+}
+
+/// The pipeline keys of `section` (`train.layers`, …).
+fn pipeline_keys(section: &str) -> Vec<&'static str> {
+    crate::config::SECTIONS
+        .iter()
+        .filter(|(s, _)| *s == section)
+        .flat_map(|(_, keys)| keys.iter().map(|k| k.name))
+        .collect()
+}
+
+/// The axes a grid's pipeline section `t` (`[grid.train]`, …) adds to `axes`, one per key,
+/// each a pipeline key of the section.
+fn section_axes(
+    section: &str,
+    t: &toml::Table,
+    at: &str,
+    file: &str,
+    axes: &mut BTreeMap<String, Vec<toml::Value>>,
+) -> Result<(), StudyError> {
+    let known = pipeline_keys(section);
+    for (key, v) in t {
+        let full = format!("{section}.{key}");
+        if !known.contains(&full.as_str()) {
+            return Err(err(
+                file,
+                format!("{at}: unknown key {full}"),
+                format!("[{section}] keys are {}", known.join(", ")),
+            ));
+        }
+        let vals = axis_values(&full, v, at, file)?;
+        axes.insert(full, vals);
+    }
+    Ok(())
+}
+
+/// The values of the axis of pipeline key `full`: a list (of lists for a key whose value is
+/// a list), or a single value as one cell; never empty.
+fn axis_values(
+    full: &str,
+    v: &toml::Value,
+    at: &str,
+    file: &str,
+) -> Result<Vec<toml::Value>, StudyError> {
+    let vals = match v {
+        toml::Value::Array(a) => {
+            if LIST_KEYS.contains(&full) && a.iter().any(|x| !matches!(x, toml::Value::Array(_))) {
+                return Err(err(
+                    file,
+                    format!(
+                        "{at}.{full} = {v}: {full} takes a list, so the grid takes a list of lists"
+                    ),
+                    format!("write {full} = [{v}] for one cell, or e.g. [[10], [20]] for two"),
+                ));
+            }
+            a.clone()
+        }
+        v => vec![v.clone()],
+    };
+    if vals.is_empty() {
+        return Err(err(
+            file,
+            format!("{at}.{full} = []: an empty list makes no cells"),
+            "give at least one value",
+        ));
+    }
+    Ok(vals)
+}
+
+/// The Cartesian product of the axes, first axis slowest: every combination of one value
+/// per axis, as (pipeline key, value) in key order.
+fn product(axes: &BTreeMap<String, Vec<toml::Value>>) -> Vec<Vec<(String, toml::Value)>> {
     let mut combos: Vec<Vec<(String, toml::Value)>> = vec![vec![]];
-    for (k, vals) in &axes {
+    for (k, vals) in axes {
         combos = combos
             .into_iter()
             .flat_map(|c| {
@@ -421,53 +558,48 @@ fn expand(
             })
             .collect();
     }
-    let mut out = Vec::new();
-    for family in families {
-        for combo in &combos {
-            let with = |train: bool| -> Result<Pipeline, StudyError> {
-                let mut doc = base.clone();
-                for (k, v) in combo {
-                    let (section, key) = k.split_once('.').expect("section.key");
-                    if section == "train" && !train {
-                        continue;
-                    }
-                    let entry = doc
-                        .entry(section.to_string())
-                        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-                    if let toml::Value::Table(t) = entry {
-                        // `hidden` and `layers` say the same thing; the pipeline refuses both.
-                        match key {
-                            "layers" => t.remove("hidden"),
-                            "hidden" => t.remove("layers"),
-                            _ => None,
-                        };
-                        t.insert(key.to_string(), v.clone());
-                    }
-                }
-                let text = toml::to_string(&doc)
-                    .map_err(|e| err(file, format!("{at}: {e}"), "report this as a bug"))?;
-                let name = format!("{base_name} with {at} {}", show(combo));
-                Pipeline::from_toml(&text, &name).map_err(|e| {
-                    err(
-                        file,
-                        format!("{at}: {e}"),
-                        "change the grid's value to one the pipeline accepts (docs/pipeline.md)",
-                    )
-                })
+    combos
+}
+
+/// The base pipeline `base` with `combo`'s keys set (without its `[train]` keys unless
+/// `train`: the conditioning pipeline), checked by the pipeline's own rules.
+fn cell_pipeline(
+    base: &toml::Table,
+    combo: &[(String, toml::Value)],
+    train: bool,
+    file: &str,
+    at: &str,
+    base_name: &str,
+) -> Result<Pipeline, StudyError> {
+    let mut doc = base.clone();
+    for (k, v) in combo {
+        let (section, key) = k.split_once('.').expect("section.key");
+        if section == "train" && !train {
+            continue;
+        }
+        let entry = doc
+            .entry(section.to_string())
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(t) = entry {
+            // `hidden` and `layers` say the same thing; the pipeline refuses both.
+            match key {
+                "layers" => t.remove("hidden"),
+                "hidden" => t.remove("layers"),
+                _ => None,
             };
-            out.push(CellSpec {
-                group: label.clone(),
-                family,
-                settings: combo
-                    .iter()
-                    .map(|(k, v)| (k.clone(), short(k, v)))
-                    .collect(),
-                pipeline: with(true)?,
-                conditioning: with(false)?,
-            });
+            t.insert(key.to_string(), v.clone());
         }
     }
-    Ok(out)
+    let text = toml::to_string(&doc)
+        .map_err(|e| err(file, format!("{at}: {e}"), "report this as a bug"))?;
+    let name = format!("{base_name} with {at} {}", show(combo));
+    Pipeline::from_toml(&text, &name).map_err(|e| {
+        err(
+            file,
+            format!("{at}: {e}"),
+            "change the grid's value to one the pipeline accepts (docs/pipeline.md)",
+        )
+    })
 }
 
 fn show(combo: &[(String, toml::Value)]) -> String {
