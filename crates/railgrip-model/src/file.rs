@@ -304,8 +304,8 @@ pub struct Provenance {
     pub pipeline_sha256: String,
     pub seed: u64,
     pub crate_version: String,
-    /// UTC, RFC 3339. Empty, and not written, since issue 17 (the time is in the output
-    /// folder's `timings.json`); files written before carry it.
+    /// UTC, RFC 3339. Empty and not written: the time is in the output
+    /// folder's `timings.json` (files of older versions carry it).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub created: String,
     /// The campaign generation that wrote the file (see `CampaignRecord::generation`).
