@@ -85,6 +85,7 @@ fn model(layers: &str) -> Model {
     Model::new(file).unwrap()
 }
 
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 fn bench(c: &mut Criterion) {
     let d = data();
     let Normalised {

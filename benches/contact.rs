@@ -20,6 +20,7 @@ use railgrip::contact::polach::{polach, ContactPatch, PolachParams};
 
 const N: usize = 1024;
 
+/// The closed-form laws: linear + saturation, Polach, Kalker's linear creep.
 fn bench(c: &mut Criterion) {
     let patch = ContactPatch {
         a_m: 0.0043,
@@ -78,7 +79,10 @@ fn bench(c: &mut Criterion) {
         })
     });
     g.finish();
+}
 
+/// FASTSIM per grid and bound, the modified FASTSIM, the flash temperature; then the peers.
+fn bench_fastsim(c: &mut Criterion) {
     let mut g = c.benchmark_group("contact_fastsim");
     let h = hertz_from_curvatures(50_000.0, 2.1e11, 0.3, 0.5 / 0.46, 0.5 / 0.3).unwrap();
     let k = kalker::coefficients(h.a_m, h.b_m, 0.3).unwrap();
@@ -231,5 +235,5 @@ fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
     }
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, bench, bench_fastsim);
 criterion_main!(benches);

@@ -198,6 +198,7 @@ impl Cdr {
 }
 
 /// The hour as protobuf (`ros2` false) or ROS 2 CDR messages, written once.
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 fn encoded_file(ros2: bool, time: &[f64], cols: &[Vec<f64>; 9]) -> PathBuf {
     use prost_reflect::prost::Message as _;
     use prost_reflect::{DescriptorPool, DynamicMessage, Value};

@@ -52,6 +52,7 @@ fn data() -> (Dataset, f64) {
     (d.head(N), median_speed(&tables))
 }
 
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 fn bench(c: &mut Criterion) {
     let (d, v_ref) = data();
     let shape = Shape::one(2, 10);

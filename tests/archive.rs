@@ -198,7 +198,7 @@ fn decompression_bombs_and_damaged_archives_fail_cleanly() {
     assert!(e.contains("cut.tar.gz"), "{e}");
 }
 
-/// Issue 17, "run-name collision": `x.csv` and `x.mcap` in one campaign once shared
+/// "run-name collision": `x.csv` and `x.mcap` in one campaign once shared
 /// `runs/x/`, the last writer winning and re-runs alternating between sources. Colliding names
 /// now carry their log's format, and names that sanitise alike a counter — the same on every
 /// run, for a folder and for the same campaign as an archive.

@@ -298,6 +298,7 @@ fn train_takes_a_campaign_folder_like_run() {
     );
 }
 
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 #[test]
 fn train_eval_export_work_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
@@ -500,6 +501,7 @@ fn files_below(dir: &Path) -> Vec<PathBuf> {
     out
 }
 
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 #[test]
 fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     let dir = tempfile::tempdir().unwrap();

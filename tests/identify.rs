@@ -1522,6 +1522,7 @@ fn tables_over_temperature(
 /// The temperature law's form follows what varies with temperature, over three
 /// seeds: only μ0 (the adhesion level of seed 004 Fig. 2) → μ0(T) and constant k; only k_S →
 /// k(T) and constant μ0; nothing → the constant form, no law written, and a note saying so.
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 #[test]
 fn the_temperature_form_follows_what_varies() {
     use railgrip::contact::polach::PolachParams;
@@ -1941,6 +1942,7 @@ fn burckhardt(x: &[f64], c: [f64; 4]) -> f64 {
 /// foreign law from noisy samples over several seeds (RMSE against the truth on a fresh grid
 /// within twice the noise), the same data and seed give the same weights bit for bit,
 /// early stopping keeps the best validation epoch, and bad settings are refused.
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 #[test]
 fn adam_through_burn_learns_a_foreign_law_deterministically() {
     use railgrip::identify::adam::{train, AdamData, AdamSettings, Optimizer};

@@ -214,6 +214,7 @@ fn err(path: &Path, p: &Pipeline) -> String {
     format!("{}", ingest_file(path, p).unwrap_err())
 }
 
+#[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
 #[test]
 fn bad_encodings_schemas_messages_and_paths_are_clear_errors() {
     let dir = tempfile::tempdir().unwrap();

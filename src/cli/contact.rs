@@ -343,7 +343,7 @@ impl Laws {
                         g,
                         h.a_m,
                         h.b_m,
-                        &k,
+                        k,
                         sx,
                         args.lateral_creepage,
                         args.spin_per_m,
@@ -351,13 +351,13 @@ impl Laws {
                     row.extend([f.fx_n, f.fx_n / args.load_n]);
                 }
                 Law::Saturated => {
-                    let fx = linear_saturated_fx(&cpatch, friction.mu(sx * v), args.load_n, sx)?;
+                    let fx = linear_saturated_fx(cpatch, friction.mu(sx * v), args.load_n, sx)?;
                     row.extend([fx, fx / args.load_n]);
                 }
                 Law::Polach => {
                     let f = polach(
-                        &cpatch,
-                        &pp,
+                        cpatch,
+                        pp,
                         args.load_n,
                         v,
                         sx * v,
@@ -375,7 +375,7 @@ impl Laws {
                     // The temperature of the first FASTSIM law, from the field just solved.
                     if let Some((m, ht, first)) = &thermal {
                         if first == l && thermal_row.is_none() {
-                            let t = flash_temperature(&field, v, m, ht)?;
+                            let t = flash_temperature(field, v, m, ht)?;
                             thermal_row = Some([t.peak_c, t.after_c, f.power_w]);
                         }
                     }

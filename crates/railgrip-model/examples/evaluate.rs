@@ -13,9 +13,12 @@ use std::path::PathBuf;
 use railgrip_model::Model;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let path = std::env::args_os().nth(1).map(PathBuf::from).unwrap_or_else(|| {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../models/golden/synthetic_mlp.json")
-    });
+    let path = std::env::args_os()
+        .nth(1)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../models/golden/synthetic_mlp.json")
+        });
     // Reads and checks the file (format, version, shapes, finite everywhere on its domain).
     let model = Model::load(&path)?;
     println!(

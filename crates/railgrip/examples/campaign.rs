@@ -18,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let archive = args.next().unwrap_or_else(campaign::bundled_archive);
     let out = OutDir::new(args.next().unwrap_or_else(|| "out-example".into()));
     let pipeline = Pipeline::load(None)?; // the embedded UIC-Z1 pipeline
-    // Any closure receives the campaign's events (the CLI draws progress bars from them).
+                                          // Any closure receives the campaign's events (the CLI draws progress bars from them).
     let progress = |e: Event<'_>| match e {
         Event::RunDone(r) => println!("run   {}: {}", r.run, if r.ok() { "ok" } else { "failed" }),
         Event::StageDone(s) => println!("stage {} done", s.name()),

@@ -1,5 +1,5 @@
 //! One input, every reader: the entry points of the cargo-fuzz targets in `fuzz/` and of the
-//! bounded no-panic tests (`tests/no_panic.rs`), so both exercise the same code (issue 17).
+//! bounded no-panic tests (`tests/no_panic.rs`), so both exercise the same code.
 //! Each takes raw bytes, runs them through the public API as a user's file would go, and
 //! panics only on a broken promise — an error that does not name its file, a model that loads
 //! but evaluates to a non-finite μ inside its domain, a pipeline that loads but does not load

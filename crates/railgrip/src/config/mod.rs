@@ -241,6 +241,7 @@ mod tests {
         );
     }
 
+    #[allow(clippy::too_many_lines)] // a test or benchmark: one scenario end to end
     #[test]
     fn bad_filter_estimate_contact_and_train_keys_name_the_key_and_the_rule() {
         let err = |from: &str, to: &str| {

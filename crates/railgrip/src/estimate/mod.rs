@@ -29,7 +29,7 @@ pub mod calibrate;
 
 use std::path::{Path, PathBuf};
 
-use crate::config::{FilterMode, Phase, Pipeline};
+use crate::config::{EstimateConfig, FilterMode, Phase, Pipeline};
 use crate::format::{RunMetadata, AXLES};
 use crate::ingest::RunLog;
 use crate::signal::{self, Conditioned, FilterError, GroupDelays};
@@ -192,9 +192,7 @@ pub fn estimate(log: &RunLog, pipeline: &Pipeline) -> Result<Estimates, Estimate
 pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -> Estimates {
     let veh = &pipeline.vehicle;
     let cfg = &pipeline.estimate;
-    let n = log.len();
     let r = veh.wheel_radius_m;
-    let (inv_r, j) = (1.0 / r, veh.axle_inertia_kgm2);
     let Conditioned {
         v_mps,
         accel_mps2,
@@ -210,7 +208,6 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
         despiked,
         ..
     } = c;
-    let braking = cfg.phase == Phase::Braking;
     // The loads of eq. 12–13 are affine in the deceleration: N_i = N0_i + dN_i · d.
     let n0 = axle_loads(veh, 0.0);
     let dn: [f64; AXLES] = {
@@ -218,29 +215,100 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
         std::array::from_fn(|a| one[a] - n0[a])
     };
     let mut decel_mps2 = accel_mps2;
-    // Column by column: each loop is a plain map over slices, which the compiler vectorises.
+    let run = Run {
+        n: log.len(),
+        v_mps: &v_mps,
+        accel_mps2: &decel_mps2, // still dv/dt here
+        has_data: &has_data,
+        usable: &usable,
+        settled: &settled,
+        near_bridge: &near_bridge,
+        braking: cfg.phase == Phase::Braking,
+        r,
+        inv_r: 1.0 / r,
+        j: veh.axle_inertia_kgm2,
+        cfg,
+    };
     let mut omega_radps = omega_radps.into_iter();
     let mut p_bar = p_bar.into_iter();
     let mut omega_dot = omega_dot_radps2.into_iter();
     let axles: [AxleEstimates; AXLES] = std::array::from_fn(|a| {
-        let omega = omega_radps.next().expect("4 axles");
-        let p = p_bar.next().expect("4 axles");
-        let mut wd = omega_dot.next().expect("4 axles");
-        let alpha = veh.brake_torque_nm_per_bar[a];
-        let acc = &decel_mps2; // still dv/dt here
-        let dv_mps: Vec<f64> = if braking {
+        run.axle(
+            omega_radps.next().expect("4 axles"),
+            p_bar.next().expect("4 axles"),
+            omega_dot.next().expect("4 axles"),
+            veh.brake_torque_nm_per_bar[a],
+            (n0[a], dn[a]),
+        )
+    });
+    for x in decel_mps2.iter_mut() {
+        *x = -*x;
+    }
+    Estimates {
+        source: log.source.clone(),
+        sample_rate_hz: log.sample_rate_hz,
+        time_s: log.time_s.clone(),
+        v_mps,
+        decel_mps2,
+        axles,
+        phase: cfg.phase,
+        mode,
+        group_delay_s,
+        despiked,
+        metadata: log.metadata.clone(),
+        sliding_threshold_mps: cfg.sliding_threshold_mps,
+        wheel_radius_m: r,
+    }
+}
+
+/// What every axle's estimation reads: the run's conditioned vehicle speed and its rate,
+/// the masks, and the settings.
+struct Run<'a> {
+    /// Samples of the run.
+    n: usize,
+    v_mps: &'a [f64],
+    /// dv/dt, m/s².
+    accel_mps2: &'a [f64],
+    has_data: &'a [bool],
+    usable: &'a [bool],
+    settled: &'a [bool],
+    near_bridge: &'a [bool],
+    braking: bool,
+    /// Wheel radius r (m), 1 / r, and the axle's inertia J (kg m²).
+    r: f64,
+    inv_r: f64,
+    j: f64,
+    cfg: &'a EstimateConfig,
+}
+
+impl Run<'_> {
+    /// The estimates of one axle from its filtered ω, p and ω̇ (which becomes the slip rate),
+    /// its brake coefficient α (N m/bar) and its load N = N0 − dN · v̇ (`loads` = (N0, dN)).
+    /// Column by column: each loop is a plain map over slices, which the compiler vectorises.
+    fn axle(
+        &self,
+        omega: Vec<f64>,
+        p: Vec<f64>,
+        mut wd: Vec<f64>,
+        alpha: f64,
+        (n0, dn): (f64, f64),
+    ) -> AxleEstimates {
+        let (r, inv_r, j) = (self.r, self.inv_r, self.j);
+        let v_mps = self.v_mps;
+        let acc = self.accel_mps2;
+        let dv_mps: Vec<f64> = if self.braking {
             v_mps.iter().zip(&omega).map(|(v, w)| v - r * w).collect()
         } else {
             v_mps.iter().zip(&omega).map(|(v, w)| r * w - v).collect()
         };
-        let normal_n: Vec<f64> = acc.iter().map(|x| n0[a] - dn[a] * x).collect();
+        let normal_n: Vec<f64> = acc.iter().map(|x| n0 - dn * x).collect();
         let tangential_n: Vec<f64> = wd
             .iter()
             .zip(&p)
             .map(|(w, p)| (j * w + alpha * p) * inv_r)
             .collect();
         // dΔv/dt = v̇ − r ω̇ (braking), written over ω̇, which is not needed after T.
-        let sign = if braking { 1.0 } else { -1.0 };
+        let sign = if self.braking { 1.0 } else { -1.0 };
         for (w, a) in wd.iter_mut().zip(acc) {
             *w = sign * (a - r * *w);
         }
@@ -250,19 +318,45 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
             .zip(&normal_n)
             .map(|(t, nn)| if *nn > 0.0 { t / nn } else { f64::NAN })
             .collect();
+        let (valid, masked) = self.validity(&omega, &p, &dv_mps, &ddv_mps2, &tangential_n, &mu);
+        AxleEstimates {
+            omega_radps: omega,
+            p_bar: p,
+            dv_mps,
+            ddv_mps2,
+            normal_n,
+            tangential_n,
+            mu,
+            valid,
+            masked,
+        }
+    }
+
+    /// The validity flag of each sample of one axle, and the invalid samples counted under
+    /// their first failing reason (in the order of [`MaskCounts::pairs`]).
+    fn validity(
+        &self,
+        omega: &[f64],
+        p: &[f64],
+        dv_mps: &[f64],
+        ddv_mps2: &[f64],
+        tangential_n: &[f64],
+        mu: &[f64],
+    ) -> (Vec<bool>, MaskCounts) {
+        let (cfg, r, braking, v_mps) = (self.cfg, self.r, self.braking, self.v_mps);
         let mut masked = MaskCounts::default();
-        let valid: Vec<bool> = (0..n)
+        let valid: Vec<bool> = (0..self.n)
             .map(|i| {
                 let m = &mut masked;
-                if !usable[i] {
-                    if has_data[i] {
+                if !self.usable[i] {
+                    if self.has_data[i] {
                         m.short_segment += 1;
                     } else {
                         m.no_data += 1;
                     }
-                } else if near_bridge[i] {
+                } else if self.near_bridge[i] {
                     m.bridged_gap += 1;
-                } else if !settled[i] {
+                } else if !self.settled[i] {
                     m.settling += 1;
                 } else if !(v_mps[i] >= cfg.min_speed_mps) {
                     m.low_speed += 1;
@@ -283,35 +377,7 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
                 false
             })
             .collect();
-        AxleEstimates {
-            omega_radps: omega,
-            p_bar: p,
-            dv_mps,
-            ddv_mps2,
-            normal_n,
-            tangential_n,
-            mu,
-            valid,
-            masked,
-        }
-    });
-    for x in decel_mps2.iter_mut() {
-        *x = -*x;
-    }
-    Estimates {
-        source: log.source.clone(),
-        sample_rate_hz: log.sample_rate_hz,
-        time_s: log.time_s.clone(),
-        v_mps,
-        decel_mps2,
-        axles,
-        phase: cfg.phase,
-        mode,
-        group_delay_s,
-        despiked,
-        metadata: log.metadata.clone(),
-        sliding_threshold_mps: cfg.sliding_threshold_mps,
-        wheel_radius_m: r,
+        (valid, masked)
     }
 }
 

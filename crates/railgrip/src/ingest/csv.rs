@@ -6,6 +6,7 @@
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
 use std::sync::Arc;
 
 use polars::prelude::*;
@@ -44,7 +45,7 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
         path: path.to_path_buf(),
         source: e,
     })?;
-    // Issue 17: a header over 1 MiB was cut there and then reported as "missing columns".
+    // A header over 1 MiB was once cut there and then reported as "missing columns".
     if !line.ends_with('\n') && line.len() as u64 == MAX_HEADER_BYTES {
         return Err(IngestError::CsvBadLine {
             path: path.to_path_buf(),
@@ -68,16 +69,51 @@ fn normalise(s: &str) -> String {
         .to_ascii_lowercase()
 }
 
+/// Reads a CSV log: the header is checked against the mapped columns, polars reads those
+/// columns as `f64`, each is converted to its canonical unit and checked, and the nine
+/// channels share the time column.
 pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel>, IngestError> {
     let path = src.name();
     let header = read_header(src)?;
     let wanted = wanted(cfg);
-    let missing: Vec<_> = wanted
+    check_header(path, &header, &wanted)?;
+    let names: Vec<PlSmallStr> = wanted
         .iter()
-        .filter(|(_, c)| !header.contains(&c.column))
+        .map(|(_, c)| PlSmallStr::from(c.column.as_str()))
         .collect();
-    // Issue 17: a column named twice silently took the first.
-    for (key, c) in &wanted {
+    let df = read_frame(src, cfg, &names)?;
+    let extracted = extract_columns(df, &wanted, &names);
+    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
+    for (v, (_, c)) in extracted.into_iter().zip(&wanted) {
+        match v {
+            Some(v) => columns.push(v),
+            None => {
+                return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+                    path: path.to_path_buf(),
+                    message: format!("column {:?} has empty or non-finite cells", c.column),
+                }))
+            }
+        }
+    }
+    let time = columns.remove(0);
+    if time.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
+            path: path.to_path_buf(),
+            message: "the time column does not increase strictly".into(),
+        }));
+    }
+    Ok(channels(src, cfg, time, columns))
+}
+
+/// Checks the header against the mapped columns: a column named twice is an error (it once
+/// silently took the first), then every mapped column must be present, with "did you mean"
+/// suggestions for the missing ones.
+fn check_header(
+    path: &Path,
+    header: &[String],
+    wanted: &[(&'static str, &CsvColumn)],
+) -> Result<(), IngestError> {
+    for (key, c) in wanted {
         let at: Vec<usize> = header
             .iter()
             .enumerate()
@@ -101,49 +137,65 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
             });
         }
     }
-    if !missing.is_empty() {
-        let mut hints = Vec::new();
-        for (key, c) in &missing {
-            let n = normalise(&c.column);
-            if let Some(h) = header.iter().find(|h| {
-                let hn = normalise(h);
-                !hn.is_empty() && (hn == n || hn.contains(&n) || n.contains(&hn))
-            }) {
-                hints.push(format!(
-                    "{key} = {{ column = {h:?}, unit = \"{}\" }}",
-                    c.unit
-                ));
-            }
-        }
-        let hint = if hints.is_empty() {
-            "map each signal to its column and unit in [ingest.csv] of a pipeline file (--pipeline), e.g. v_radar = { column = \"speed\", unit = \"km/h\" }".to_string()
-        } else {
-            format!(
-                "map them in [ingest.csv] of a pipeline file (--pipeline), e.g. {}",
-                hints.join("; ")
-            )
-        };
-        return Err(IngestError::CsvMissingColumns {
-            path: path.to_path_buf(),
-            missing: missing
-                .iter()
-                .map(|(k, c)| format!("{:?} ({k})", c.column))
-                .collect::<Vec<_>>()
-                .join(", "),
-            present: header
-                .iter()
-                .map(|h| format!("{h:?}"))
-                .collect::<Vec<_>>()
-                .join(", "),
-            hint,
-        });
-    }
-
-    let names: Vec<PlSmallStr> = wanted
+    let missing: Vec<_> = wanted
         .iter()
-        .map(|(_, c)| PlSmallStr::from(c.column.as_str()))
+        .filter(|(_, c)| !header.contains(&c.column))
         .collect();
-    let mut unique = names.clone();
+    if missing.is_empty() {
+        return Ok(());
+    }
+    Err(IngestError::CsvMissingColumns {
+        path: path.to_path_buf(),
+        missing: missing
+            .iter()
+            .map(|(k, c)| format!("{:?} ({k})", c.column))
+            .collect::<Vec<_>>()
+            .join(", "),
+        present: header
+            .iter()
+            .map(|h| format!("{h:?}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        hint: missing_columns_hint(header, &missing),
+    })
+}
+
+/// The hint for missing columns: a mapping line for every missing signal whose column name
+/// resembles a header name (compared [`normalise`]d), else a generic example.
+fn missing_columns_hint(header: &[String], missing: &[&(&'static str, &CsvColumn)]) -> String {
+    let mut hints = Vec::new();
+    for (key, c) in missing {
+        let n = normalise(&c.column);
+        if let Some(h) = header.iter().find(|h| {
+            let hn = normalise(h);
+            !hn.is_empty() && (hn == n || hn.contains(&n) || n.contains(&hn))
+        }) {
+            hints.push(format!(
+                "{key} = {{ column = {h:?}, unit = \"{}\" }}",
+                c.unit
+            ));
+        }
+    }
+    if hints.is_empty() {
+        "map each signal to its column and unit in [ingest.csv] of a pipeline file (--pipeline), e.g. v_radar = { column = \"speed\", unit = \"km/h\" }".to_string()
+    } else {
+        format!(
+            "map them in [ingest.csv] of a pipeline file (--pipeline), e.g. {}",
+            hints.join("; ")
+        )
+    }
+}
+
+/// Reads the mapped columns `names` (each once) with polars as `f64`. A parser error or a
+/// panic inside polars becomes the line-exact rescan's error or the parser's message; a
+/// file with a header and no rows is an error.
+fn read_frame(
+    src: &LogSource,
+    cfg: &IngestConfig,
+    names: &[PlSmallStr],
+) -> Result<DataFrame, IngestError> {
+    let path = src.name();
+    let mut unique = names.to_vec();
     unique.sort();
     unique.dedup();
     let schema: Schema = unique
@@ -154,10 +206,10 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
         .with_has_header(true)
         .with_columns(Some(unique.clone().into()))
         .with_schema_overwrite(Some(Arc::new(schema)));
-    // polars 0.55 panics on some malformed rows (found by fuzzing, issue 17: a 731-byte CSV
-    // with a row cut inside a number panicked in `csv/read/builder.rs` — "slice index starts
-    // at 1 but ends at 0" — and took down `railgrip run`). The panic is caught here and becomes
-    // an error like polars' own: the line-exact rescan, or the parser's message.
+    // polars 0.55 panics on some malformed rows (found by fuzzing: a 731-byte CSV with a row
+    // cut inside a number panicked in `csv/read/builder.rs` — "slice index starts at 1 but
+    // ends at 0" — and took down `railgrip run`). The panic is caught here and becomes an
+    // error like polars' own: the line-exact rescan, or the parser's message.
     let read = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| match src {
         LogSource::File(p) => options
             .try_into_reader_with_file_path(Some(p.clone()))
@@ -194,10 +246,18 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
             hint: "the logger stopped before recording; re-export the run".into(),
         });
     }
+    Ok(df)
+}
 
-    // Copy each column out of polars' chunks (one copy, no rechunk), converting its unit and
-    // checking finiteness; columns in parallel.
-    let extracted: Vec<Option<Vec<f64>>> = wanted
+/// Copies each mapped column out of polars' chunks (one copy, no rechunk), converting its
+/// unit; columns in parallel. `None` for a column with empty or non-finite cells. The frame
+/// is dropped before returning, ahead of any rescan.
+fn extract_columns(
+    df: DataFrame,
+    wanted: &[(&'static str, &CsvColumn)],
+    names: &[PlSmallStr],
+) -> Vec<Option<Vec<f64>>> {
+    wanted
         .par_iter()
         .enumerate()
         .map(|(i, (_, c))| {
@@ -218,30 +278,19 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
             }
             v.iter().all(|x| x.is_finite()).then_some(v)
         })
-        .collect();
-    drop(df);
-    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
-    for (v, (_, c)) in extracted.into_iter().zip(&wanted) {
-        match v {
-            Some(v) => columns.push(v),
-            None => {
-                return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
-                    path: path.to_path_buf(),
-                    message: format!("column {:?} has empty or non-finite cells", c.column),
-                }))
-            }
-        }
-    }
-    let time = columns.remove(0);
-    if time.windows(2).any(|w| w[1] <= w[0]) {
-        return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
-            path: path.to_path_buf(),
-            message: "the time column does not increase strictly".into(),
-        }));
-    }
+        .collect()
+}
+
+/// The nine channels of the log, in [`Signal::ALL`] order, sharing one time vector.
+fn channels(
+    src: &LogSource,
+    cfg: &IngestConfig,
+    time: Vec<f64>,
+    columns: Vec<Vec<f64>>,
+) -> Vec<RawChannel> {
     let time = Arc::new(time);
     let locate = Locator::CsvRows(Arc::new(src.clone()));
-    Ok(Signal::ALL
+    Signal::ALL
         .iter()
         .zip(columns)
         .map(|(s, values)| RawChannel {
@@ -256,7 +305,7 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
             locate: locate.clone(),
             dropped: 0,
         })
-        .collect())
+        .collect()
 }
 
 /// Rescans the file and returns the first problem with its line and column, or `None` if the

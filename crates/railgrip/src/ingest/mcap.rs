@@ -17,9 +17,12 @@ use ::mcap::sans_io::{LinearReadEvent, LinearReader, LinearReaderOptions};
 use ::mcap::McapError;
 use serde::de::{DeserializeSeed, Deserializer, IgnoredAny, MapAccess, Visitor};
 
-use super::{IngestError, Location, Locator, RawChannel, Warning, WarningKind};
+use super::{DecodeError, IngestError, Location, Locator, RawChannel, Warning, WarningKind};
 use crate::config::IngestConfig;
 use crate::format::{RunMetadata, Signal, MCAP_MESSAGE_ENCODING, MCAP_METADATA_NAME};
+
+/// The hint for a mapped field path that does not parse or does not fit the channel's schema.
+const MAP_HINT: &str = "set `field` of the signal in [ingest.mcap] of the pipeline to one of the fields listed (a path such as twist.linear.x, [k] for an array element)";
 
 /// Largest decompressed chunk accepted when the file itself is smaller, bytes.
 const MAX_CHUNK_BYTES: usize = 256 << 20;
@@ -42,23 +45,31 @@ pub struct FieldPath {
 
 impl FieldPath {
     /// Parses `a.b[2].c`.
-    pub fn parse(text: &str) -> Result<FieldPath, String> {
+    pub fn parse(text: &str) -> Result<FieldPath, DecodeError> {
         let mut segments = Vec::new();
         for part in text.split('.') {
             let (name, index) = match part.find('[') {
                 None => (part, None),
                 Some(open) => {
                     let inner = part[open + 1..].strip_suffix(']').ok_or_else(|| {
-                        format!("field path {text:?}: {part:?} has an unclosed '['")
+                        DecodeError::PathUnclosedIndex {
+                            path: text.to_string(),
+                            part: part.to_string(),
+                        }
                     })?;
-                    let k: usize = inner.parse().map_err(|_| {
-                        format!("field path {text:?}: index [{inner}] is not a whole number")
-                    })?;
+                    let k: usize = inner
+                        .parse()
+                        .map_err(|_| DecodeError::PathIndexNotANumber {
+                            path: text.to_string(),
+                            index: inner.to_string(),
+                        })?;
                     (&part[..open], Some(k))
                 }
             };
             if name.is_empty() {
-                return Err(format!("field path {text:?} has an empty name"));
+                return Err(DecodeError::PathEmptyName {
+                    path: text.to_string(),
+                });
             }
             segments.push((name.to_string(), index));
         }
@@ -84,13 +95,13 @@ impl MessageDecoder {
         schema_data: &[u8],
         fields: &[&str],
         header_time: bool,
-    ) -> Result<MessageDecoder, String> {
+    ) -> Result<MessageDecoder, DecodeError> {
         let paths = fields
             .iter()
             .map(|f| FieldPath::parse(f))
             .collect::<Result<Vec<_>, _>>()?;
         if paths.len() > STAMP_SLOTS.0 {
-            return Err(format!("more than {} fields", STAMP_SLOTS.0));
+            return Err(DecodeError::TooManyFields { max: STAMP_SLOTS.0 });
         }
         let decoder = match encoding {
             MCAP_MESSAGE_ENCODING => Decoder::Json,
@@ -107,9 +118,10 @@ impl MessageDecoder {
                 header_time,
             )?),
             e => {
-                return Err(format!(
-                    "unknown encoding {e:?}; railgrip reads {SUPPORTED_ENCODINGS}"
-                ))
+                return Err(DecodeError::UnknownEncoding {
+                    encoding: e.to_string(),
+                    supported: SUPPORTED_ENCODINGS,
+                })
             }
         };
         Ok(MessageDecoder {
@@ -119,7 +131,11 @@ impl MessageDecoder {
     }
 
     /// The mapped fields' values of one payload, then the stamp (seconds, nanoseconds).
-    pub fn extract(&self, payload: &[u8], json_names: &[&str]) -> Result<Vec<Option<f64>>, String> {
+    pub fn extract(
+        &self,
+        payload: &[u8],
+        json_names: &[&str],
+    ) -> Result<Vec<Option<f64>>, DecodeError> {
         let mut found: Found = [None; 12];
         match &self.decoder {
             Decoder::Json => extract(payload, json_names, &mut found)?,
@@ -134,11 +150,11 @@ impl MessageDecoder {
     /// The whole message decoded by the underlying decoder (prost-reflect's `DynamicMessage`,
     /// every CDR field, serde_json's `Value`): the "bare decode" of the ingest benchmark.
     /// Returns a count of what was decoded.
-    pub fn decode_whole(&self, payload: &[u8]) -> Result<usize, String> {
+    pub fn decode_whole(&self, payload: &[u8]) -> Result<usize, DecodeError> {
         match &self.decoder {
             Decoder::Json => serde_json::from_slice::<serde_json::Value>(payload)
                 .map(|v| v.as_object().map_or(0, |o| o.len()))
-                .map_err(|e| e.to_string()),
+                .map_err(|source| DecodeError::Json { source }),
             Decoder::Protobuf(p) => p.decode_dynamic(payload).map(|m| m.fields().count()),
             Decoder::Ros2(r) => r.decode_all(payload),
         }
@@ -442,7 +458,6 @@ impl<'a> Reader<'a> {
             what,
             hint: hint.to_string(),
         };
-        let map_hint = "set `field` of the signal in [ingest.mcap] of the pipeline to one of the fields listed (a path such as twist.linear.x, [k] for an array element)";
         let schema = |want: &str| -> Result<&(String, String, Vec<u8>), IngestError> {
             let s = self.schemas.get(&schema_id).ok_or_else(|| {
                 schema_error(
@@ -468,8 +483,25 @@ impl<'a> Reader<'a> {
         let paths = || -> Result<Vec<FieldPath>, IngestError> {
             plan.fields
                 .iter()
-                .map(|(_, f)| FieldPath::parse(f).map_err(|e| schema_error(e, map_hint)))
+                .map(|(_, f)| {
+                    FieldPath::parse(f).map_err(|source| IngestError::McapFieldPath {
+                        path: self.path.to_path_buf(),
+                        topic: topic.to_string(),
+                        hint: MAP_HINT,
+                        source: Box::new(source),
+                    })
+                })
                 .collect()
+        };
+        let compile_error = |schema_encoding: &'static str, schema: &str, source: DecodeError| {
+            IngestError::McapDecoder {
+                path: self.path.to_path_buf(),
+                topic: topic.to_string(),
+                schema_encoding,
+                schema: schema.to_string(),
+                hint: MAP_HINT,
+                source: Box::new(source),
+            }
         };
         match encoding {
             MCAP_MESSAGE_ENCODING => {
@@ -485,13 +517,13 @@ impl<'a> Reader<'a> {
                 let (name, _, data) = schema("protobuf")?;
                 super::protobuf::Decoder::new(name, data, &paths()?, plan.header_time)
                     .map(Decoder::Protobuf)
-                    .map_err(|e| schema_error(format!("protobuf schema {name}: {e}"), map_hint))
+                    .map_err(|e| compile_error("protobuf", name, e))
             }
             "cdr" => {
                 let (name, _, data) = schema("ros2msg")?;
                 super::ros2::Decoder::new(name, data, &paths()?, plan.header_time)
                     .map(Decoder::Ros2)
-                    .map_err(|e| schema_error(format!("ros2msg schema {name}: {e}"), map_hint))
+                    .map_err(|e| compile_error("ros2msg", name, e))
             }
             _ => Err(IngestError::McapEncoding {
                 path: self.path.to_path_buf(),
@@ -515,13 +547,14 @@ impl<'a> Reader<'a> {
         let index = plan.messages;
         plan.messages += 1;
         let path = self.path;
+        let location = || Location::Mcap {
+            topic: plan.topic.clone(),
+            message: index,
+            log_time_ns: header.log_time,
+        };
         let bad = |what: String, hint: String| IngestError::McapBadMessage {
             path: path.to_path_buf(),
-            location: Location::Mcap {
-                topic: plan.topic.clone(),
-                message: index,
-                log_time_ns: header.log_time,
-            },
+            location: location(),
             what,
             hint,
         };
@@ -532,10 +565,11 @@ impl<'a> Reader<'a> {
             Decoder::Protobuf(p) => p.extract(payload, &mut found),
             Decoder::Ros2(r) => r.extract(payload, &mut found),
         };
-        decoded.map_err(|what| match decoder {
-            Decoder::Json => bad(
-                what,
-                format!(
+        decoded.map_err(|source| match decoder {
+            Decoder::Json => IngestError::McapJsonMessage {
+                path: path.to_path_buf(),
+                location: location(),
+                hint: format!(
                     "each message on {} must be a JSON object with the number field(s) {}",
                     plan.topic,
                     names
@@ -544,15 +578,15 @@ impl<'a> Reader<'a> {
                         .collect::<Vec<_>>()
                         .join(", ")
                 ),
-            ),
-            other => bad(
-                format!(
-                    "sequence {}: the {} message does not decode against its schema: {what}",
-                    header.sequence,
-                    other.name()
-                ),
-                "the message or its schema is damaged; check the file with `mcap doctor` or re-record it".into(),
-            ),
+                source: Box::new(source),
+            },
+            other => IngestError::McapUndecodable {
+                path: path.to_path_buf(),
+                location: location(),
+                sequence: header.sequence,
+                decoder: other.name(),
+                source: Box::new(source),
+            },
         })?;
         for (k, (sig, field)) in plan.fields.iter().enumerate() {
             match found[k] {
@@ -750,18 +784,18 @@ fn preview(data: &[u8]) -> String {
 
 /// Extracts the named number fields of a JSON object without allocating; other fields are
 /// skipped. `found[k]` receives field `names[k]` (at most 8 fields per topic).
-fn extract<S: AsRef<str>>(data: &[u8], names: &[S], found: &mut Found) -> Result<(), String> {
+fn extract<S: AsRef<str>>(data: &[u8], names: &[S], found: &mut Found) -> Result<(), DecodeError> {
     if names.len() > STAMP_SLOTS.0 {
-        return Err(format!(
-            "more than {} fields mapped to one topic",
-            STAMP_SLOTS.0
-        ));
+        return Err(DecodeError::JsonTooManyFields { max: STAMP_SLOTS.0 });
     }
     let mut de = serde_json::Deserializer::from_slice(data);
     FieldsSeed { names, found }
         .deserialize(&mut de)
         .and_then(|_| de.end())
-        .map_err(|e| format!("not a JSON object of numbers: {e} in {}", preview(data)))
+        .map_err(|source| DecodeError::JsonNotNumbers {
+            preview: preview(data),
+            source,
+        })
 }
 
 struct FieldsSeed<'a, 'b, S> {
@@ -909,14 +943,20 @@ mod tests {
     #[test]
     fn non_numbers_and_bad_json_are_errors() {
         let mut found = [None; 12];
-        let e = extract(br#"{"v":"12.5"}"#, &["v"], &mut found).unwrap_err();
+        let e = extract(br#"{"v":"12.5"}"#, &["v"], &mut found)
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains("field \"v\" is a string, expected a number"),
             "{e}"
         );
-        let e = extract(br#"{"v":1.0"#, &["v"], &mut found).unwrap_err();
+        let e = extract(br#"{"v":1.0"#, &["v"], &mut found)
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("not a JSON object of numbers"), "{e}");
-        let e = extract(b"[1,2]", &["v"], &mut found).unwrap_err();
+        let e = extract(b"[1,2]", &["v"], &mut found)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("not a JSON object"), "{e}");
     }
 }

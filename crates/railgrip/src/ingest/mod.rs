@@ -11,6 +11,7 @@
 //! canonical units (s, m/s, rad/s, bar gauge).
 
 mod csv;
+mod decode_error;
 mod mcap;
 mod protobuf;
 mod resample;
@@ -26,6 +27,7 @@ use crate::config::{IngestConfig, Pipeline, PlausibilityAction};
 use crate::format::{RunMetadata, Signal, AXLES};
 use rayon::prelude::*;
 
+pub use decode_error::DecodeError;
 pub use mcap::{FieldPath, MessageDecoder, SUPPORTED_ENCODINGS};
 pub use resample::linear_interpolation_bound;
 
@@ -147,6 +149,27 @@ pub enum IngestError {
         what: String,
         hint: String,
     },
+    /// A mapped field path of a protobuf or CDR channel that does not parse.
+    #[error("{path}: topic {topic}: {source}. Hint: {hint}")]
+    McapFieldPath {
+        path: PathBuf,
+        topic: String,
+        hint: &'static str,
+        #[source]
+        source: Box<DecodeError>,
+    },
+    /// A channel's schema (`schema_encoding` "protobuf" or "ros2msg") that does not compile
+    /// for the mapped field paths.
+    #[error("{path}: topic {topic}: {schema_encoding} schema {schema}: {source}. Hint: {hint}")]
+    McapDecoder {
+        path: PathBuf,
+        topic: String,
+        schema_encoding: &'static str,
+        schema: String,
+        hint: &'static str,
+        #[source]
+        source: Box<DecodeError>,
+    },
     #[error("{path}: missing MCAP topic(s) {missing}; the file has {present}. Hint: map the signals to topics in [ingest.mcap] of the pipeline, e.g. v_radar = {{ topic = \"/radar/speed\", field = \"v\", unit = \"m/s\" }}")]
     McapMissingTopics {
         path: PathBuf,
@@ -166,6 +189,26 @@ pub enum IngestError {
         what: String,
         hint: String,
     },
+    /// A JSON message that is not an object with the mapped number fields.
+    #[error("{path}: {location}: {source}. Hint: {hint}")]
+    McapJsonMessage {
+        path: PathBuf,
+        location: Location,
+        hint: String,
+        #[source]
+        source: Box<DecodeError>,
+    },
+    /// A protobuf or CDR message (`decoder` names which) that does not decode against its
+    /// schema; `sequence` is the message's sequence number.
+    #[error("{path}: {location}: sequence {sequence}: the {decoder} message does not decode against its schema: {source}. Hint: the message or its schema is damaged; check the file with `mcap doctor` or re-record it")]
+    McapUndecodable {
+        path: PathBuf,
+        location: Location,
+        sequence: u32,
+        decoder: &'static str,
+        #[source]
+        source: Box<DecodeError>,
+    },
     #[error("{path}: {location}: {signal} = {value} {unit} is outside the plausibility limits [{min}, {max}] {unit}. Hint: fix the sensor data, or set ingest.plausibility.action = \"warn\" to drop such samples")]
     Implausible {
         path: PathBuf,
@@ -178,8 +221,8 @@ pub enum IngestError {
     },
     #[error("{path}: the channels do not overlap long enough to resample: {what}. Hint: every signal must have data over a common time span of at least two samples")]
     NoOverlap { path: PathBuf, what: String },
-    /// The channels' common time span would make a uniform grid beyond the limits (issue 17:
-    /// two rows 1e9 s apart once asked for terabytes).
+    /// The channels' common time span would make a uniform grid beyond the limits (two
+    /// rows 1e9 s apart once asked for terabytes).
     #[error("{path}: the channels span {span_s:.6e} s from t = {t_start} s, {samples:.3e} samples at {rate_hz} Hz; the limit is ingest.max_duration_s = {limit_s} s and 2e7 samples. Hint: {hint}")]
     TooLong {
         path: PathBuf,

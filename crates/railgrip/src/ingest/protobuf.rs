@@ -14,6 +14,7 @@
 use prost_reflect::{Cardinality, DescriptorPool, FieldDescriptor, Kind, MessageDescriptor, Value};
 
 use super::mcap::{FieldPath, Found, STAMP_SLOTS};
+use super::DecodeError;
 
 /// How a wanted field's value is decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -151,20 +152,20 @@ impl Decoder {
         data: &[u8],
         fields: &[FieldPath],
         header_time: bool,
-    ) -> Result<Decoder, String> {
-        let pool = DescriptorPool::decode(data).map_err(|e| {
-            format!("the protobuf schema {schema_name} is not a valid FileDescriptorSet: {e}")
+    ) -> Result<Decoder, DecodeError> {
+        let pool = DescriptorPool::decode(data).map_err(|source| DecodeError::ProtobufSchema {
+            schema: schema_name.to_string(),
+            source,
         })?;
         let message = pool.get_message_by_name(schema_name).ok_or_else(|| {
-            let names: Vec<String> = pool
-                .all_messages()
-                .take(20)
-                .map(|m| m.full_name().to_string())
-                .collect();
-            format!(
-                "the schema's FileDescriptorSet has no message {schema_name}; it has {}",
-                names.join(", ")
-            )
+            DecodeError::ProtobufNoMessage {
+                schema: schema_name.to_string(),
+                available: pool
+                    .all_messages()
+                    .take(20)
+                    .map(|m| m.full_name().to_string())
+                    .collect(),
+            }
         })?;
         let mut d = Decoder {
             message,
@@ -184,12 +185,9 @@ impl Decoder {
                         .and_then(|chain| chain.last().cloned())
                         .is_some_and(|f| matches!(f.kind(), Kind::Message(m) if m.full_name() == "google.protobuf.Timestamp"))
                 })
-                .ok_or_else(|| {
-                    format!(
-                        "time = \"header\" needs a google.protobuf.Timestamp at header.stamp or timestamp in {}; its fields: {}",
-                        d.message.full_name(),
-                        listing(&d.message)
-                    )
+                .ok_or_else(|| DecodeError::ProtobufNoTimestamp {
+                    message: d.message.full_name().to_string(),
+                    fields: listing(&d.message),
                 })?;
             d.add(
                 &FieldPath::parse(&format!("{stamp}.seconds")).expect("valid"),
@@ -204,35 +202,35 @@ impl Decoder {
     }
 
     /// The field descriptors along `path` (wrappers not unwrapped).
-    fn resolve(&self, path: &FieldPath) -> Result<Vec<FieldDescriptor>, String> {
+    fn resolve(&self, path: &FieldPath) -> Result<Vec<FieldDescriptor>, DecodeError> {
         let mut m = self.message.clone();
         let mut chain = Vec::new();
         for (depth, (name, index)) in path.segments.iter().enumerate() {
             let Some(f) = m.get_field_by_name(name) else {
-                return Err(format!(
-                    "{} has no field {name:?}; its fields: {}",
-                    m.full_name(),
-                    listing(&m)
-                ));
+                return Err(DecodeError::NoSuchField {
+                    message: m.full_name().to_string(),
+                    field: name.clone(),
+                    fields: listing(&m),
+                });
             };
             if f.is_map() {
-                return Err(format!(
-                    "{}.{name} is a map (unsupported field type for a signal)",
-                    m.full_name()
-                ));
+                return Err(DecodeError::MapField {
+                    message: m.full_name().to_string(),
+                    field: name.clone(),
+                });
             }
             match (f.is_list(), index) {
                 (false, Some(_)) => {
-                    return Err(format!(
-                        "{}.{name} is not repeated; drop the [index]",
-                        m.full_name()
-                    ))
+                    return Err(DecodeError::NotRepeated {
+                        message: m.full_name().to_string(),
+                        field: name.clone(),
+                    })
                 }
                 (true, None) => {
-                    return Err(format!(
-                        "{}.{name} is a repeated field; pick an element, e.g. {name}[0]",
-                        m.full_name()
-                    ))
+                    return Err(DecodeError::RepeatedWithoutIndex {
+                        message: m.full_name().to_string(),
+                        field: name.clone(),
+                    })
                 }
                 _ => {}
             }
@@ -241,11 +239,11 @@ impl Decoder {
                 match f.kind() {
                     Kind::Message(sub) => m = sub,
                     _ => {
-                        return Err(format!(
-                            "{}.{name} is a {}, it has no fields",
-                            m.full_name(),
-                            kind_name(&f)
-                        ))
+                        return Err(DecodeError::NoSubfields {
+                            message: m.full_name().to_string(),
+                            field: name.clone(),
+                            type_name: kind_name(&f),
+                        })
                     }
                 }
             }
@@ -254,7 +252,7 @@ impl Decoder {
         Ok(chain)
     }
 
-    fn add(&mut self, path: &FieldPath, slot: usize) -> Result<(), String> {
+    fn add(&mut self, path: &FieldPath, slot: usize) -> Result<(), DecodeError> {
         let mut chain = self.resolve(path)?;
         let mut indexes: Vec<Option<usize>> = path.segments.iter().map(|s| s.1).collect();
         let last = chain.last().expect("paths have a segment").clone();
@@ -266,20 +264,16 @@ impl Decoder {
                 Scalar::of(&chain.last().expect("pushed").kind()).expect("wrapped numbers")
             }
             Kind::Message(m) => {
-                return Err(format!(
-                    "{} is a message ({}); name a number field inside it, e.g. {}.<field>; its fields: {}",
-                    path.text,
-                    m.full_name(),
-                    path.text,
-                    listing(&m)
-                ))
+                return Err(DecodeError::MessageNotNumber {
+                    field: path.text.clone(),
+                    message_type: m.full_name().to_string(),
+                    path: path.text.clone(),
+                    fields: listing(&m),
+                })
             }
-            k => Scalar::of(&k).ok_or_else(|| {
-                format!(
-                    "{} is a {}, not a number (unsupported field type for a signal)",
-                    path.text,
-                    kind_name(&last)
-                )
+            k => Scalar::of(&k).ok_or_else(|| DecodeError::NotANumber {
+                field: path.text.clone(),
+                type_name: kind_name(&last),
             })?,
         };
         let default = default_of(chain.last().expect("chain"));
@@ -327,7 +321,7 @@ impl Decoder {
     }
 
     /// Reads the planned fields of one protobuf payload into `found`.
-    pub(super) fn extract(&self, payload: &[u8], found: &mut Found) -> Result<(), String> {
+    pub(super) fn extract(&self, payload: &[u8], found: &mut Found) -> Result<(), DecodeError> {
         for &(slot, default) in &self.defaults {
             found[slot] = Some(default);
         }
@@ -345,20 +339,24 @@ impl Decoder {
     }
 
     /// prost-reflect's full decode of a payload (the bare decode the benchmark compares with).
-    pub fn decode_dynamic(&self, payload: &[u8]) -> Result<prost_reflect::DynamicMessage, String> {
+    pub fn decode_dynamic(
+        &self,
+        payload: &[u8],
+    ) -> Result<prost_reflect::DynamicMessage, DecodeError> {
         prost_reflect::DynamicMessage::decode(self.message.clone(), payload)
-            .map_err(|e| e.to_string())
+            .map_err(|source| DecodeError::Protobuf { source })
     }
 }
 
-fn check_indexes(node: &Node, counts: &[usize]) -> Result<(), String> {
+fn check_indexes(node: &Node, counts: &[usize]) -> Result<(), DecodeError> {
     for w in &node.wants {
         if let Some(i) = w.index {
             if counts[w.counter] <= i {
-                return Err(format!(
-                    "repeated field {} has {} element(s); [{i}] is out of range",
-                    w.name, counts[w.counter]
-                ));
+                return Err(DecodeError::RepeatedIndex {
+                    field: w.name.clone(),
+                    count: counts[w.counter],
+                    index: i,
+                });
             }
         }
         if let Take::Into(sub) = &w.take {
@@ -379,11 +377,11 @@ impl Wire<'_> {
     fn at(&self) -> usize {
         self.base + self.pos
     }
-    fn varint(&mut self) -> Result<u64, String> {
+    fn varint(&mut self) -> Result<u64, DecodeError> {
         let mut x = 0u64;
         for k in 0..10 {
             let Some(&b) = self.buf.get(self.pos) else {
-                return Err(format!("varint cut off at byte {}", self.at()));
+                return Err(DecodeError::VarintCutOff { offset: self.at() });
             };
             self.pos += 1;
             x |= ((b & 0x7f) as u64) << (7 * k);
@@ -391,21 +389,23 @@ impl Wire<'_> {
                 return Ok(x);
             }
         }
-        Err(format!("varint longer than 10 bytes at byte {}", self.at()))
+        Err(DecodeError::VarintTooLong { offset: self.at() })
     }
-    fn take(&mut self, n: usize) -> Result<&[u8], String> {
-        let end = self.pos.checked_add(n).filter(|&e| e <= self.buf.len()).ok_or_else(|| {
-            format!(
-                "{n} byte(s) needed at byte {}, but the message ends at byte {} (truncated, or a length is corrupt)",
-                self.at(),
-                self.base + self.buf.len()
-            )
-        })?;
+    fn take(&mut self, n: usize) -> Result<&[u8], DecodeError> {
+        let end = self
+            .pos
+            .checked_add(n)
+            .filter(|&e| e <= self.buf.len())
+            .ok_or_else(|| DecodeError::ProtobufTruncated {
+                needed: n,
+                offset: self.at(),
+                end: self.base + self.buf.len(),
+            })?;
         let s = &self.buf[self.pos..end];
         self.pos = end;
         Ok(s)
     }
-    fn skip(&mut self, wire: u8) -> Result<(), String> {
+    fn skip(&mut self, wire: u8) -> Result<(), DecodeError> {
         match wire {
             0 => self.varint().map(|_| ()),
             1 => self.take(8).map(|_| ()),
@@ -414,15 +414,18 @@ impl Wire<'_> {
                 let n = self.varint()? as usize;
                 self.take(n).map(|_| ())
             }
-            3 | 4 => Err(format!(
-                "group (wire type {wire}) at byte {}: proto2 groups are not supported",
-                self.at()
-            )),
-            w => Err(format!("invalid wire type {w} at byte {}", self.at())),
+            3 | 4 => Err(DecodeError::Group {
+                wire_type: wire,
+                offset: self.at(),
+            }),
+            w => Err(DecodeError::InvalidWireType {
+                wire_type: w,
+                offset: self.at(),
+            }),
         }
     }
     /// One value of `s`, sent with wire type `wire` (already known to match).
-    fn scalar(&mut self, s: Scalar) -> Result<f64, String> {
+    fn scalar(&mut self, s: Scalar) -> Result<f64, DecodeError> {
         Ok(match s {
             Scalar::Double => f64::from_le_bytes(self.take(8)?.try_into().expect("8")),
             Scalar::Float => f32::from_le_bytes(self.take(4)?.try_into().expect("4")) as f64,
@@ -453,7 +456,7 @@ fn walk(
     node: &Node,
     found: &mut Found,
     counts: &mut [usize],
-) -> Result<(), String> {
+) -> Result<(), DecodeError> {
     let mut w = Wire { buf, pos: 0, base };
     while w.pos < buf.len() {
         let tag_at = w.at();
@@ -461,7 +464,7 @@ fn walk(
         let number = (tag >> 3) as u32;
         let wire = (tag & 7) as u8;
         if number == 0 {
-            return Err(format!("field number 0 at byte {tag_at}"));
+            return Err(DecodeError::FieldNumberZero { offset: tag_at });
         }
         let mut matched = false;
         for want in node.wants.iter().filter(|x| x.number == number) {
@@ -493,19 +496,23 @@ fn walk(
                         }
                         counts[want.counter] += 1;
                     } else {
-                        return Err(format!(
-                            "field {} (number {number}) has wire type {wire} at byte {tag_at}, its schema type needs {}",
-                            want.name,
-                            s.wire()
-                        ));
+                        return Err(DecodeError::WireTypeMismatch {
+                            field: want.name.clone(),
+                            number,
+                            found: wire,
+                            expected: s.wire(),
+                            offset: tag_at,
+                        });
                     }
                 }
                 Take::Into(sub) => {
                     if wire != 2 {
-                        return Err(format!(
-                            "field {} (number {number}) is a message but has wire type {wire} at byte {tag_at}",
-                            want.name
-                        ));
+                        return Err(DecodeError::MessageWireType {
+                            field: want.name.clone(),
+                            number,
+                            found: wire,
+                            offset: tag_at,
+                        });
                     }
                     let n = w.varint()? as usize;
                     let start = w.at();

@@ -9,7 +9,7 @@
 //! on both sides, with end slopes from a least-squares line through each side's samples of
 //! the last/first [`SLOPE_WINDOW_S`]; the grid samples inside stay valid, so the filters run
 //! through, and the hole is listed as a bridged [`Gap`] — conditioning masks the bridged
-//! samples and the filters' support around them (`signal::condition`). Issue 17: splitting the
+//! samples and the filters' support around them (`signal::condition`). Splitting the
 //! filters at a 0.2 s logger gap and masking the settling at both new ends cost ~640 samples
 //! per axle. A longer hole gets NaN in that channel and `valid = false`; the filters split
 //! there. Masking over splitting the run: the time base stays one uniform grid, later stages
@@ -335,15 +335,62 @@ fn check_span(
     })
 }
 
+/// Resamples the channels onto one uniform grid over their common span: trimmed edges and
+/// holes are reported as warnings, holes listed as [`Gap`]s, and per channel the rate, the
+/// longest step and the value range are summarised.
 pub(super) fn resample(
     path: &Path,
     channels: &[RawChannel],
     cfg: &IngestConfig,
 ) -> Result<Resampled, IngestError> {
     let fs = cfg.sample_rate_hz;
-    let max_gap = cfg.max_gap_s;
     let kept: Vec<_> = channels.iter().map(kept).collect();
-    for (ch, (t, _)) in channels.iter().zip(&kept) {
+    let o = overlap(path, channels, &kept, fs)?;
+    check_span(path, &kept, o.t_start, o.t_end, cfg)?;
+    let n = ((o.t_end - o.t_start) * fs + 1e-9).floor() as usize + 1;
+    let time_s: Vec<f64> = (0..n)
+        .map(|j| (o.t_start + j as f64 / fs).min(o.t_end))
+        .collect();
+    let mut walk = Walk {
+        channels,
+        kept: &kept,
+        cfg,
+        span: (o.t_start, o.t_end),
+        valid: vec![true; n],
+        outputs: (0..channels.len()).map(|_| Vec::new()).collect(),
+        stats: (0..channels.len()).map(|_| None).collect(),
+        gaps: Vec::new(),
+        warnings: trim_warnings(channels, &o, cfg.max_gap_s),
+        time_s,
+    };
+    for members in time_groups(&kept) {
+        walk.group(&members);
+    }
+    Ok(walk.finish())
+}
+
+/// The channels' common span and where it comes from.
+struct Overlap {
+    /// The latest channel start and the channel (index) that sets it, s.
+    t_start: f64,
+    i_start: usize,
+    /// The earliest channel end and the channel that sets it, s.
+    t_end: f64,
+    i_end: usize,
+    /// The earliest start and the latest end of any channel, s.
+    earliest: f64,
+    latest: f64,
+}
+
+/// The common span of the channels' kept samples: every channel needs two, and the span must
+/// hold at least one sample period at `fs`.
+fn overlap(
+    path: &Path,
+    channels: &[RawChannel],
+    kept: &[Kept<'_>],
+    fs: f64,
+) -> Result<Overlap, IngestError> {
+    for (ch, (t, _)) in channels.iter().zip(kept) {
         if t.len() < 2 {
             return Err(IngestError::NoOverlap {
                 path: path.to_path_buf(),
@@ -372,39 +419,48 @@ pub(super) fn resample(
             ),
         });
     }
-    check_span(path, &kept, t_start, t_end, cfg)?;
-    let n = ((t_end - t_start) * fs + 1e-9).floor() as usize + 1;
-    let time_s: Vec<f64> = (0..n)
-        .map(|j| (t_start + j as f64 / fs).min(t_end))
-        .collect();
+    Ok(Overlap {
+        t_start,
+        i_start,
+        t_end,
+        i_end,
+        earliest: firsts.iter().copied().fold(f64::INFINITY, f64::min),
+        latest: lasts.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+    })
+}
 
+/// Warnings for data cut off before the common span starts or after it ends (more than
+/// `max_gap` s of it).
+fn trim_warnings(channels: &[RawChannel], o: &Overlap, max_gap: f64) -> Vec<Warning> {
     let mut warnings = Vec::new();
-    let earliest = firsts.iter().copied().fold(f64::INFINITY, f64::min);
-    let latest = lasts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    if t_start - earliest > max_gap {
+    if o.t_start - o.earliest > max_gap {
         warnings.push(Warning {
             kind: WarningKind::Trimmed,
             message: format!(
-                "trimmed {:.3} s at the start: {} has no data before t = {t_start:.3} s",
-                t_start - earliest,
-                channels[i_start].signal
+                "trimmed {:.3} s at the start: {} has no data before t = {:.3} s",
+                o.t_start - o.earliest,
+                channels[o.i_start].signal,
+                o.t_start
             ),
         });
     }
-    if latest - t_end > max_gap {
+    if o.latest - o.t_end > max_gap {
         warnings.push(Warning {
             kind: WarningKind::Trimmed,
             message: format!(
-                "trimmed {:.3} s at the end: {} has no data after t = {t_end:.3} s",
-                latest - t_end,
-                channels[i_end].signal
+                "trimmed {:.3} s at the end: {} has no data after t = {:.3} s",
+                o.latest - o.t_end,
+                channels[o.i_end].signal,
+                o.t_end
             ),
         });
     }
+    warnings
+}
 
-    // Channels sharing a time base (all of a CSV, the fields of one MCAP topic) are
-    // interpolated together: one walk over the grid per group, in parallel over grid chunks,
-    // writing every member's output and the validity mask. Nothing per sample is stored twice.
+/// The channels grouped by shared time base (all of a CSV, the fields of one MCAP topic), in
+/// order of first appearance, as indexes into `kept`.
+fn time_groups(kept: &[Kept<'_>]) -> Vec<Vec<usize>> {
     let mut groups: Vec<(TimeKey, Vec<usize>)> = Vec::new();
     for (i, (t, _)) in kept.iter().enumerate() {
         let key = TimeKey::of(t);
@@ -413,89 +469,136 @@ pub(super) fn resample(
             None => groups.push((key, vec![i])),
         }
     }
-    let mut valid = vec![true; n];
-    let mut outputs: Vec<Vec<f64>> = (0..channels.len()).map(|_| Vec::new()).collect();
-    let mut stats: Vec<Option<ChannelStats>> = (0..channels.len()).map(|_| None).collect();
-    let mut gaps = Vec::new();
-    for (_, members) in &groups {
+    groups.into_iter().map(|(_, members)| members).collect()
+}
+
+/// A resampling in progress: the grid and validity mask, each channel's output and
+/// statistics as its group is walked, and the holes and warnings in the order found.
+struct Walk<'a> {
+    channels: &'a [RawChannel],
+    kept: &'a [Kept<'a>],
+    cfg: &'a IngestConfig,
+    /// The common span [t_start, t_end], s.
+    span: (f64, f64),
+    time_s: Vec<f64>,
+    valid: Vec<bool>,
+    outputs: Vec<Vec<f64>>,
+    stats: Vec<Option<ChannelStats>>,
+    gaps: Vec<Gap>,
+    warnings: Vec<Warning>,
+}
+
+impl Walk<'_> {
+    /// Interpolates one group of channels sharing a time base together: one walk over the
+    /// grid, in parallel over grid chunks, writing every member's output and the validity
+    /// mask (nothing per sample is stored twice); then each member's gap warnings, holes and
+    /// statistics.
+    fn group(&mut self, members: &[usize]) {
+        let (channels, kept, cfg) = (self.channels, self.kept, self.cfg);
+        let max_gap = cfg.max_gap_s;
         let t = &kept[members[0]].0[..];
         let values: Vec<&[f64]> = members.iter().map(|&i| &kept[i].1[..]).collect();
-        let (outs, invalid) =
-            interpolate_group(t, &values, &time_s, (max_gap, cfg.bridge_gap_s), &mut valid);
-        let (group_gaps, median, max_step) = step_summary(t, max_gap, t_start, t_end);
+        let (outs, invalid) = interpolate_group(
+            t,
+            &values,
+            &self.time_s,
+            (max_gap, cfg.bridge_gap_s),
+            &mut self.valid,
+        );
+        let (group_gaps, median, max_step) = step_summary(t, max_gap, self.span.0, self.span.1);
         type Holes = Vec<(f64, f64)>;
         let (bridged, open): (Holes, Holes) = group_gaps
             .iter()
             .partition(|(a, b)| b - a <= cfg.bridge_gap_s);
-        let longest = |g: &[(f64, f64)]| {
-            *g.iter()
-                .max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))
-                .expect("non-empty")
-        };
         for (&i, out) in members.iter().zip(outs) {
             let ch = &channels[i];
-            if !open.is_empty() {
-                let l = longest(&open);
-                warnings.push(Warning {
-                    kind: WarningKind::Gap,
-                    message: format!(
-                        "{}: {} gap(s) longer than {} ms not interpolated ({invalid} samples marked invalid); longest {:.3} s from t = {:.3} s to {:.3} s",
-                        ch.signal,
-                        open.len(),
-                        (max_gap.max(cfg.bridge_gap_s)) * 1e3,
-                        l.1 - l.0,
-                        l.0,
-                        l.1
-                    ),
-                });
-            }
-            if !bridged.is_empty() {
-                let l = longest(&bridged);
-                warnings.push(Warning {
-                    kind: WarningKind::Gap,
-                    message: format!(
-                        "{}: {} gap(s) longer than {} ms bridged by cubic Hermite interpolation (ingest.bridge_gap_ms = {}; the bridged samples and the filters' support around them are masked); longest {:.3} s from t = {:.3} s to {:.3} s",
-                        ch.signal,
-                        bridged.len(),
-                        max_gap * 1e3,
-                        cfg.bridge_gap_s * 1e3,
-                        l.1 - l.0,
-                        l.0,
-                        l.1
-                    ),
-                });
-            }
-            gaps.extend(group_gaps.iter().map(|&(from_s, to_s)| Gap {
-                signal: ch.signal,
-                from_s,
-                to_s,
-                bridged: to_s - from_s <= cfg.bridge_gap_s,
-            }));
+            self.gap_warnings(ch, &open, &bridged, invalid);
+            self.gaps
+                .extend(group_gaps.iter().map(|&(from_s, to_s)| Gap {
+                    signal: ch.signal,
+                    from_s,
+                    to_s,
+                    bridged: to_s - from_s <= cfg.bridge_gap_s,
+                }));
             let (min, max) = min_max(&kept[i].1);
-            stats[i] = Some(ChannelStats {
+            self.stats[i] = Some(ChannelStats {
                 rate_hz: 1.0 / median,
                 max_step_s: max_step,
                 min,
                 max,
             });
-            outputs[i] = out;
+            self.outputs[i] = out;
         }
     }
-    gaps.sort_by_key(|g| g.signal);
-    let per_channel: Vec<(Vec<f64>, ChannelStats)> = outputs
-        .into_iter()
-        .zip(stats)
-        .map(|(o, s)| (o, s.expect("every channel is in one group")))
-        .collect();
-    let (columns, stats) = per_channel.into_iter().unzip();
-    Ok(Resampled {
-        time_s,
-        columns,
-        valid,
-        gaps,
-        warnings,
-        stats,
-    })
+
+    /// The warnings of one channel about its `open` holes (`invalid` grid samples masked)
+    /// and its `bridged` ones, each naming the longest.
+    fn gap_warnings(
+        &mut self,
+        ch: &RawChannel,
+        open: &[(f64, f64)],
+        bridged: &[(f64, f64)],
+        invalid: usize,
+    ) {
+        let (max_gap, bridge_gap) = (self.cfg.max_gap_s, self.cfg.bridge_gap_s);
+        let longest = |g: &[(f64, f64)]| {
+            *g.iter()
+                .max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))
+                .expect("non-empty")
+        };
+        if !open.is_empty() {
+            let l = longest(open);
+            self.warnings.push(Warning {
+                kind: WarningKind::Gap,
+                message: format!(
+                    "{}: {} gap(s) longer than {} ms not interpolated ({invalid} samples marked invalid); longest {:.3} s from t = {:.3} s to {:.3} s",
+                    ch.signal,
+                    open.len(),
+                    (max_gap.max(bridge_gap)) * 1e3,
+                    l.1 - l.0,
+                    l.0,
+                    l.1
+                ),
+            });
+        }
+        if !bridged.is_empty() {
+            let l = longest(bridged);
+            self.warnings.push(Warning {
+                kind: WarningKind::Gap,
+                message: format!(
+                    "{}: {} gap(s) longer than {} ms bridged by cubic Hermite interpolation (ingest.bridge_gap_ms = {}; the bridged samples and the filters' support around them are masked); longest {:.3} s from t = {:.3} s to {:.3} s",
+                    ch.signal,
+                    bridged.len(),
+                    max_gap * 1e3,
+                    bridge_gap * 1e3,
+                    l.1 - l.0,
+                    l.0,
+                    l.1
+                ),
+            });
+        }
+    }
+
+    /// The resampled run: holes sorted by signal, outputs and statistics in channel order.
+    fn finish(self) -> Resampled {
+        let mut gaps = self.gaps;
+        gaps.sort_by_key(|g| g.signal);
+        let per_channel: Vec<(Vec<f64>, ChannelStats)> = self
+            .outputs
+            .into_iter()
+            .zip(self.stats)
+            .map(|(o, s)| (o, s.expect("every channel is in one group")))
+            .collect();
+        let (columns, stats) = per_channel.into_iter().unzip();
+        Resampled {
+            time_s: self.time_s,
+            columns,
+            valid: self.valid,
+            gaps,
+            warnings: self.warnings,
+            stats,
+        }
+    }
 }
 
 #[cfg(test)]

@@ -61,7 +61,9 @@ fn range_of(vals: impl Iterator<Item = f64>) -> Range<f64> {
     (lo - pad)..(hi + pad)
 }
 
-fn plot_err<E: std::error::Error + Send + Sync + 'static>(plot: &str) -> impl Fn(E) -> ReportError + '_ {
+fn plot_err<E: std::error::Error + Send + Sync + 'static>(
+    plot: &str,
+) -> impl Fn(E) -> ReportError + '_ {
     move |e| ReportError::Plot {
         plot: plot.to_string(),
         source: Box::new(e),
@@ -126,7 +128,7 @@ pub(crate) fn chart_axes(
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e))?;
+        root.fill(&WHITE).map_err(&err)?;
         let mut b = ChartBuilder::on(&root);
         b.caption(title, ("sans-serif", 15))
             .margin(8)
@@ -144,7 +146,7 @@ pub(crate) fn chart_axes(
                     .axis_desc_style(("sans-serif", 12))
                     .light_line_style(RGBColor(235, 235, 235))
                     .draw()
-                    .map_err(|e| err(e))?;
+                    .map_err(&err)?;
                 for s in series {
                     let color = s.color;
                     let pts: Vec<(f64, f64)> = s.pts.iter().map(|&(x, y)| (x, $map(y))).collect();
@@ -157,13 +159,13 @@ pub(crate) fn chart_axes(
                                 Circle::new(p, 1, color.mix(0.5).filled())
                             }
                         }))
-                        .map_err(|e| err(e))?
+                        .map_err(&err)?
                     } else {
                         c.draw_series(LineSeries::new(
                             stride(&pts, MAX_LINE),
                             color.stroke_width(1),
                         ))
-                        .map_err(|e| err(e))?
+                        .map_err(&err)?
                     };
                     if !s.name.is_empty() {
                         anno.label(s.name.clone()).legend(move |(x, y)| {
@@ -178,13 +180,11 @@ pub(crate) fn chart_axes(
                         .border_style(RGBColor(180, 180, 180))
                         .position(SeriesLabelPosition::UpperRight)
                         .draw()
-                        .map_err(|e| err(e))?;
+                        .map_err(&err)?;
                 }
             }};
         }
-        let c = b
-            .build_cartesian_2d(xr, yr)
-            .map_err(|e| err(e))?;
+        let c = b.build_cartesian_2d(xr, yr).map_err(&err)?;
         if log_y {
             // log10 of the data on a linear axis, labelled with 10^tick: plotters' own log
             // axis labels powers of ten only, so a range inside one decade had no labels.
@@ -194,7 +194,7 @@ pub(crate) fn chart_axes(
         } else {
             draw!(c, |y: f64| y, |y: &f64| tick(*y));
         }
-        root.present().map_err(|e| err(e))?;
+        root.present().map_err(&err)?;
     }
     Ok(svg)
 }
@@ -260,7 +260,7 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(|e| err(e))?;
+        root.fill(&WHITE).map_err(&err)?;
         let (left, right) = root.split_horizontally(SIZE.0 - 90);
         let mut c = ChartBuilder::on(&left)
             .caption(title, ("sans-serif", 15))
@@ -268,7 +268,7 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
             .x_label_area_size(38)
             .y_label_area_size(62)
             .build_cartesian_2d(0.0..i0.domain_max, i1.domain_min..i1.domain_max)
-            .map_err(|e| err(e))?;
+            .map_err(&err)?;
         c.configure_mesh()
             .x_desc("Δv (m/s)")
             .y_desc("dΔv/dt (m/s²)")
@@ -276,7 +276,7 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
             .axis_desc_style(("sans-serif", 12))
             .disable_mesh()
             .draw()
-            .map_err(|e| err(e))?;
+            .map_err(&err)?;
         c.draw_series((0..ny).flat_map(|j| {
             let grid = &grid;
             (0..nx).map(move |i| {
@@ -286,7 +286,7 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
                 )
             })
         }))
-        .map_err(|e| err(e))?;
+        .map_err(&err)?;
         // Cells outside the data support (the model blends to its fallback there) shaded grey
         // in proportion to 1 − w.
         c.draw_series((0..ny).flat_map(|j| {
@@ -301,21 +301,21 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
                 })
             })
         }))
-        .map_err(|e| err(e))?;
+        .map_err(&err)?;
         let mut bar = ChartBuilder::on(&right)
             .margin_top(40)
             .margin_bottom(46)
             .margin_right(8)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..1.0, lo..hi)
-            .map_err(|e| err(e))?;
+            .map_err(&err)?;
         bar.configure_mesh()
             .disable_x_axis()
             .disable_mesh()
             .y_desc("μ")
             .label_style(("sans-serif", 10))
             .draw()
-            .map_err(|e| err(e))?;
+            .map_err(&err)?;
         bar.draw_series((0..100).map(|k| {
             let (a, b) = (
                 lo + span * k as f64 / 100.0,
@@ -323,8 +323,8 @@ pub(super) fn heatmap(model: &Model) -> Result<String, ReportError> {
             );
             Rectangle::new([(0.0, a), (1.0, b)], colormap(k as f64 / 99.0).filled())
         }))
-        .map_err(|e| err(e))?;
-        root.present().map_err(|e| err(e))?;
+        .map_err(&err)?;
+        root.present().map_err(&err)?;
     }
     Ok(svg)
 }

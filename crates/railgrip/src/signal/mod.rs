@@ -140,6 +140,63 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
         .copied()
         .filter(|(a, b)| b - a >= filter::MIN_LEN)
         .collect();
+    let (outs, despiked) = filter_segments(log, cfg, &f, &segs)?;
+    let dt = 1.0 / fs;
+    let [v_mps, o1, o2, o3, o4, p1, p2, p3, p4] = outs;
+    let omega_radps = [o1, o2, o3, o4];
+    let accel_mps2 = derivative_of(&v_mps, &segs, dt);
+    let omega_dot_radps2: [Vec<f64>; AXLES] =
+        std::array::from_fn(|a| derivative_of(&omega_radps[a], &segs, dt));
+    let p_bar = [p1, p2, p3, p4];
+    let mode = cfg.mode;
+    let m = Masks::new(log, cfg, &all_segs, &segs);
+    let delay = |lp: &LowPass4| match mode {
+        FilterMode::ZeroPhase => 0.0,
+        FilterMode::Causal => lp.dc_group_delay_s(),
+    };
+    Ok(Conditioned {
+        sample_rate_hz: fs,
+        mode,
+        v_mps,
+        accel_mps2,
+        omega_radps,
+        omega_dot_radps2,
+        p_bar,
+        has_data: m.has_data,
+        usable: m.usable,
+        settled: m.settled,
+        settle_s: m.settle_s,
+        near_bridge: m.near_bridge,
+        bridge_support_s: m.bridge_support_s,
+        despiked,
+        group_delay_s: GroupDelays {
+            radar_s: delay(&f.radar),
+            tacho_s: delay(&f.tacho),
+            pressure_s: delay(&f.pressure),
+        },
+    })
+}
+
+/// Sets the samples of `v` outside the segments `segs` to NaN (the rest is left as is).
+fn nan_outside(v: &mut [f64], segs: &[(usize, usize)]) {
+    let mut at = 0;
+    for &(a, b) in segs {
+        v[at..a].fill(f64::NAN);
+        at = b;
+    }
+    v[at..].fill(f64::NAN);
+}
+
+/// Despikes the radar and low-passes the nine channels (radar, ω1..ω4, p1..p4) of each
+/// segment in `segs` in lockstep, zero-phase or causal; NaN outside the segments. Returns
+/// the filtered channels and the number of radar samples the Hampel filter replaced.
+fn filter_segments(
+    log: &RunLog,
+    cfg: &FilterConfig,
+    f: &Filters,
+    segs: &[(usize, usize)],
+) -> Result<([Vec<f64>; LANES], usize), FilterError> {
+    let fs = log.sample_rate_hz;
     let n = log.len();
     let bank: [LowPass4; LANES] = std::array::from_fn(|l| match l {
         0 => f.radar,
@@ -153,23 +210,15 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
     });
     // Zeroed allocations come from the OS already zero (no fill pass); only the samples
     // outside the conditioned segments are set to NaN.
-    let nan_outside = |v: &mut Vec<f64>| {
-        let mut at = 0;
-        for &(a, b) in &segs {
-            v[at..a].fill(f64::NAN);
-            at = b;
-        }
-        v[at..].fill(f64::NAN);
-    };
     let mut outs: [Vec<f64>; LANES] = std::array::from_fn(|_| {
         let mut v = vec![0.0; n];
-        nan_outside(&mut v);
+        nan_outside(&mut v, segs);
         v
     });
     let mut radar = Vec::new();
     let mut buf: Vec<[f64; LANES]> = Vec::new();
     let mut despiked = 0;
-    for &(a, b) in &segs {
+    for &(a, b) in segs {
         radar.clear();
         radar.extend_from_slice(&log.v_radar_mps[a..b]);
         if let Some(d) = cfg.despike {
@@ -199,73 +248,77 @@ pub fn condition(log: &RunLog, cfg: &FilterConfig) -> Result<Conditioned, Filter
             }
         }
     }
-    let dt = 1.0 / fs;
-    let deriv = |y: &[f64]| {
-        let mut d = vec![0.0; n];
-        nan_outside(&mut d);
-        for &(a, b) in &segs {
-            derivative::derivative(&y[a..b], dt, &mut d[a..b]);
+    Ok((outs, despiked))
+}
+
+/// The time derivative of `y` (sample step `dt`, s) segment by segment; NaN outside `segs`.
+fn derivative_of(y: &[f64], segs: &[(usize, usize)], dt: f64) -> Vec<f64> {
+    let mut d = vec![0.0; y.len()];
+    nan_outside(&mut d, segs);
+    for &(a, b) in segs {
+        derivative::derivative(&y[a..b], dt, &mut d[a..b]);
+    }
+    d
+}
+
+/// The per-sample masks of a conditioned run and the margins they use.
+struct Masks {
+    has_data: Vec<bool>,
+    usable: Vec<bool>,
+    settled: Vec<bool>,
+    settle_s: f64,
+    near_bridge: Vec<bool>,
+    bridge_support_s: f64,
+}
+
+impl Masks {
+    /// `has_data` over every segment (`all_segs`); `usable` over the conditioned ones
+    /// (`segs`), `settled` one period of the lowest cut-off inside their ends; the bridged
+    /// gaps and the filters' support around them are `near_bridge` and never settled.
+    fn new(
+        log: &RunLog,
+        cfg: &FilterConfig,
+        all_segs: &[(usize, usize)],
+        segs: &[(usize, usize)],
+    ) -> Masks {
+        let fs = log.sample_rate_hz;
+        let n = log.len();
+        let mut usable = vec![false; n];
+        let mut settled = vec![false; n];
+        let lowest = cfg
+            .radar_cutoff_hz
+            .min(cfg.tacho_cutoff_hz)
+            .min(cfg.pressure_cutoff_hz);
+        let settle_s = 1.0 / lowest;
+        let guard = (settle_s * fs).ceil() as usize;
+        for &(a, b) in segs {
+            usable[a..b].fill(true);
+            if b - a > 2 * guard {
+                settled[a + guard..b - guard].fill(true);
+            }
         }
-        d
-    };
-    let [v_mps, o1, o2, o3, o4, p1, p2, p3, p4] = outs;
-    let omega_radps = [o1, o2, o3, o4];
-    let accel_mps2 = deriv(&v_mps);
-    let omega_dot_radps2: [Vec<f64>; AXLES] = std::array::from_fn(|a| deriv(&omega_radps[a]));
-    let p_bar = [p1, p2, p3, p4];
-    let mode = cfg.mode;
-    let mut usable = vec![false; n];
-    let mut settled = vec![false; n];
-    let lowest = cfg
-        .radar_cutoff_hz
-        .min(cfg.tacho_cutoff_hz)
-        .min(cfg.pressure_cutoff_hz);
-    let settle_s = 1.0 / lowest;
-    let guard = (settle_s * fs).ceil() as usize;
-    for &(a, b) in &segs {
-        usable[a..b].fill(true);
-        if b - a > 2 * guard {
-            settled[a + guard..b - guard].fill(true);
+        // Bridged gaps: the interpolated samples and the filters' support around them.
+        let support = bridge_support_s(cfg);
+        let mut near_bridge = vec![false; n];
+        if let (Some(&t0), true) = (log.time_s.first(), log.gaps.iter().any(|g| g.bridged)) {
+            for g in log.gaps.iter().filter(|g| g.bridged) {
+                let a = (((g.from_s - support - t0) * fs).floor().max(0.0) as usize).min(n);
+                let b = (((g.to_s + support - t0) * fs).ceil().max(0.0) as usize + 1).min(n);
+                near_bridge[a..b].fill(true);
+                settled[a..b].fill(false);
+            }
+        }
+        let mut has_data = vec![false; n];
+        for &(a, b) in all_segs {
+            has_data[a..b].fill(true);
+        }
+        Masks {
+            has_data,
+            usable,
+            settled,
+            settle_s,
+            near_bridge,
+            bridge_support_s: support,
         }
     }
-    // Bridged gaps: the interpolated samples and the filters' support around them.
-    let bridge_support_s = bridge_support_s(cfg);
-    let mut near_bridge = vec![false; n];
-    if let (Some(&t0), true) = (log.time_s.first(), log.gaps.iter().any(|g| g.bridged)) {
-        for g in log.gaps.iter().filter(|g| g.bridged) {
-            let a = (((g.from_s - bridge_support_s - t0) * fs).floor().max(0.0) as usize).min(n);
-            let b = (((g.to_s + bridge_support_s - t0) * fs).ceil().max(0.0) as usize + 1).min(n);
-            near_bridge[a..b].fill(true);
-            settled[a..b].fill(false);
-        }
-    }
-    let mut has_data = vec![false; n];
-    for &(a, b) in &all_segs {
-        has_data[a..b].fill(true);
-    }
-    let delay = |lp: &LowPass4| match mode {
-        FilterMode::ZeroPhase => 0.0,
-        FilterMode::Causal => lp.dc_group_delay_s(),
-    };
-    Ok(Conditioned {
-        sample_rate_hz: fs,
-        mode,
-        v_mps,
-        accel_mps2,
-        omega_radps,
-        omega_dot_radps2,
-        p_bar,
-        has_data,
-        usable,
-        settled,
-        settle_s,
-        near_bridge,
-        bridge_support_s,
-        despiked,
-        group_delay_s: GroupDelays {
-            radar_s: delay(&f.radar),
-            tacho_s: delay(&f.tacho),
-            pressure_s: delay(&f.pressure),
-        },
-    })
 }

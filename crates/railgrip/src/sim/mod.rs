@@ -57,10 +57,10 @@ pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 use sensors::Logger;
 use state::Setup;
 
-pub use crate::vehicle::{axle_loads, static_axle_load, G_MPS2};
 /// The simulator's random numbers (SplitMix64; sensor noise and spikes come from it, seeded by
 /// the scene's `seed`): public so that tests and tools can draw the same streams.
 pub use crate::rng::Rng;
+pub use crate::vehicle::{axle_loads, static_axle_load, G_MPS2};
 
 /// Why a simulation could not run or its output could not be written.
 #[derive(Debug, thiserror::Error)]
