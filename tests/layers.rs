@@ -169,16 +169,11 @@ fn used(text: &str) -> BTreeSet<String> {
         }
     }
     // Items the crate root defines or re-exports stand for the module they come from.
-    for (item, module) in [
-        ("Pipeline", "config"),
-        ("source_tree", "lib"),
-        ("progress", "progress"),
-    ] {
+    for (item, module) in [("Pipeline", "config")] {
         if out.remove(item) {
             out.insert(module.into());
         }
     }
-    out.remove("lib");
     out
 }
 

@@ -8,10 +8,10 @@
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
+use crate::config::Pipeline;
 use crate::ingest::{ingest_source, LogSource};
 use crate::model::{c_header, Model, ModelFile};
 use crate::sim::Scene;
-use crate::Pipeline;
 
 fn pipeline() -> &'static Pipeline {
     static P: OnceLock<Pipeline> = OnceLock::new();

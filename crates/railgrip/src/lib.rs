@@ -69,10 +69,3 @@ pub use config::Pipeline;
 pub use ingest::{ingest_file, RunLog};
 pub use model::Model;
 pub use study::run as run_study;
-
-/// The root of the source tree this library was built from, where `fixtures/` and
-/// `pipelines/` live (the bundled archive and the study's scenes).
-pub(crate) fn source_tree() -> &'static std::path::Path {
-    let manifest = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    manifest.ancestors().nth(2).unwrap_or(manifest)
-}

@@ -97,7 +97,7 @@ pub fn axle_load_coefficients(v: &Vehicle) -> ([f64; AXLES], [f64; AXLES]) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Pipeline;
+    use crate::config::Pipeline;
 
     #[test]
     fn loads_sum_to_the_weight_and_braking_loads_the_front() {

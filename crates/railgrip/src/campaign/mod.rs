@@ -22,10 +22,10 @@ pub use runs::{discover, discover_all, input_hash, process_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use train::{train_models, CampaignModels};
 
+use crate::config::Pipeline;
 use crate::identify::dataset::RunTable;
 use crate::ingest::LogSource;
 use crate::model::Epoch;
-use crate::Pipeline;
 
 /// Why the campaign as a whole could not go on.
 #[derive(Debug, thiserror::Error)]
@@ -148,7 +148,7 @@ impl Outcome {
 
 /// The bundled archive of this source tree (`fixtures/archive`).
 pub fn bundled_archive() -> PathBuf {
-    crate::source_tree().join("fixtures/archive")
+    crate::config::source_tree().join("fixtures/archive")
 }
 
 /// The logs of a campaign with their run names: a folder, searched on disk (leaving out

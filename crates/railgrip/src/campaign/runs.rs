@@ -13,10 +13,10 @@ use std::time::Instant;
 use sha2::{Digest, Sha256};
 
 use super::{CampaignError, OutDir, RunRecord, RunStatus};
+use crate::config::Pipeline;
 use crate::format::AXLES;
 use crate::identify::dataset::RunTable;
 use crate::ingest::LogSource;
-use crate::Pipeline;
 
 /// Log files (`.csv`, `.mcap`) below `root`, recursively, in path order; hidden entries and
 /// `skip` (the output folder, when it lies inside) are left out.

@@ -6,6 +6,7 @@ use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use super::{CampaignError, ModelPaths};
+use crate::config::Pipeline;
 use crate::identify::dataset::RunTable;
 use crate::identify::family::{FitData, ModelFamily, Network, PolachWithLaws};
 use crate::identify::lm::EpochProgress;
@@ -15,7 +16,6 @@ use crate::identify::{
 };
 use crate::model::{c_header, Epoch, InputFile, Model, ModelFile, Provenance};
 use crate::table::{Cell, CsvText};
-use crate::Pipeline;
 
 /// Everything trained from a campaign.
 #[derive(Debug)]

@@ -179,6 +179,13 @@ pub fn check_vehicle(v: raw::Vehicle, file: &str) -> Result<Vehicle, ConfigError
     Checker { file }.vehicle(Some(v))
 }
 
+/// The root of the source tree this library was built from, where `fixtures/` and
+/// `pipelines/` live (the bundled archive, the study's plans and scenes).
+pub(crate) fn source_tree() -> &'static Path {
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest.ancestors().nth(2).unwrap_or(manifest)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

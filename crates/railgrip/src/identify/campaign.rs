@@ -7,7 +7,7 @@ use super::IdentifyError;
 /// The contact patch of one wheel at the static wheel load for a pipeline (Hertz, seed 001
 /// eq. 1–5; Kalker's c11, c22) and that load Q, N.
 pub fn pipeline_patch(
-    pipeline: &crate::Pipeline,
+    pipeline: &crate::config::Pipeline,
 ) -> Result<(crate::contact::polach::ContactPatch, f64), IdentifyError> {
     crate::vehicle::wheel_patch(&pipeline.vehicle, &pipeline.contact).map_err(|e| {
         IdentifyError::Data {
@@ -20,7 +20,7 @@ pub fn pipeline_patch(
 /// The creep region of a model for a pipeline: Kalker's creep stiffness C = G a b c11 of one
 /// wheel's Hertz patch (seed 001 eq. 1–5, 10–11) at the static wheel load Q.
 pub fn creep_spec(
-    pipeline: &crate::Pipeline,
+    pipeline: &crate::config::Pipeline,
     reference_speed_mps: f64,
 ) -> Result<crate::model::CreepSpec, IdentifyError> {
     let (patch, q) = pipeline_patch(pipeline)?;

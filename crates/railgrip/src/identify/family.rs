@@ -13,10 +13,10 @@ use super::lm::Epoch;
 use super::polach::{fit_campaign, PolachReport, PARAMETERS};
 use super::train::{train_mlp, TrainedMlp};
 use super::IdentifyError;
+use crate::config::Pipeline;
 use crate::config::{TrainConfig, Trainer};
 use crate::model::{Model, ModelFile, Provenance};
 use crate::progress::Progress;
-use crate::Pipeline;
 
 /// What a family is fitted from.
 pub struct FitData<'a> {

@@ -6,8 +6,8 @@ use rayon::prelude::*;
 use super::dataset::RunTable;
 use super::family::{FitData, ModelFamily};
 use super::IdentifyError;
+use crate::config::Pipeline;
 use crate::model::{Model, Provenance};
-use crate::Pipeline;
 
 /// A model of one leave-one-run-out fold scored on its held-out run.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

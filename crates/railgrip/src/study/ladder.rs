@@ -20,10 +20,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use super::StudyError;
+use crate::config::Pipeline;
 use crate::contact::fastsim::{Bound, Creepage, Fastsim, Friction, Patch};
 use crate::contact::polach::{polach, ContactPatch, PolachParams};
 use crate::sim::Scene;
-use crate::Pipeline;
 
 /// A `[[simulator]]` entry, checked: one scene per step.
 #[derive(Debug, Clone)]

@@ -146,7 +146,7 @@ impl Plan {
         let cells = grid_cells(&doc, file, &base_doc, &base_name)?;
         let rows_dir = dir
             .map(Path::to_path_buf)
-            .unwrap_or_else(|| crate::source_tree().join("pipelines"));
+            .unwrap_or_else(|| crate::config::source_tree().join("pipelines"));
         let simulator = simulator_specs(&doc, file, &rows_dir)?;
         let contact = contact_specs(&doc, file)?;
         Ok(Plan {
@@ -216,7 +216,7 @@ fn load_base(
         (None, None) => None,
         (None, Some(toml::Value::String(s))) => Some(match dir {
             Some(d) => d.join(s),
-            None => crate::source_tree().join("pipelines").join(s),
+            None => crate::config::source_tree().join("pipelines").join(s),
         }),
         (None, Some(v)) => {
             return Err(err(

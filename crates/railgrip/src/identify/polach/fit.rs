@@ -7,11 +7,11 @@ use super::law::{
     law_params, sigmoid, solver_order, to_unconstrained, with_patch, ParamStatus, Sample, AT_BOUND,
     IDENTIFIED_Z, LOWER, UPPER,
 };
-use super::problem::{Covariance, Nodes, PolachProblem, MAX_NODES};
+use super::problem::{constant_nodes, fit_settings, solve, Covariance, PolachProblem};
 use super::profile::{label, profiles, Profile};
 use crate::contact::polach::{ContactPatch, PolachParams};
 use crate::identify::dataset::RunTable;
-use crate::identify::lm::{self, LevenbergMarquardt, LmSettings};
+
 use crate::identify::IdentifyError;
 
 /// A fitted parameter set with one standard error per parameter.
@@ -85,62 +85,6 @@ pub(super) fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sa
         }
     }
     out
-}
-
-/// LM settings of the Polach fits: MINPACK's convergence tests (ftol = xtol = 1e-10), so that
-/// a fit whose cost stopped falling ends as converged rather than running μ to its maximum.
-pub(super) fn fit_settings() -> LmSettings {
-    LmSettings {
-        epochs: 300,
-        min_grad: 1e-12,
-        ftol: 1e-10,
-        xtol: 1e-10,
-        ..LmSettings::default()
-    }
-}
-
-/// The refits of a profile, warm-started next to their optimum: ftol = xtol = 1e-8 (an SSE
-/// within 1e-8 of its minimum moves the profile statistic by about 1e-8 n_eff, 5e-5 for the
-/// bundled archive's pooled fit).
-pub(super) fn profile_settings() -> LmSettings {
-    LmSettings {
-        ftol: 1e-7,
-        xtol: 1e-7,
-        ..fit_settings()
-    }
-}
-
-/// Solves `problem` from node values `start`: the problem back, its optimal θ, iterations and
-/// why it stopped.
-pub(super) fn solve<'a>(
-    group: &str,
-    problem: PolachProblem<'a>,
-    start: &Nodes,
-    settings: LmSettings,
-) -> Result<(PolachProblem<'a>, Vec<f64>, usize, lm::StopReason), IdentifyError> {
-    let theta0 = problem.theta(start);
-    if theta0.is_empty() {
-        return Ok((problem, theta0, 0, lm::StopReason::MinGrad));
-    }
-    let (solver, problem) =
-        lm::run(problem, LevenbergMarquardt::new(settings), theta0).map_err(|e| {
-            IdentifyError::Solver {
-                fit: format!("Polach fit {group}"),
-                source: e.into(),
-            }
-        })?;
-    let theta = solver.best().expect("solver ran").to_vec();
-    let stop = solver.stop_reason().unwrap_or(lm::StopReason::Epochs);
-    Ok((problem, theta, solver.history().len(), stop))
-}
-
-/// Constant node values of natural parameters `x`.
-pub(super) fn constant_nodes(x: &[f64; 5]) -> Nodes {
-    let mut v = [[0.0; MAX_NODES]; 5];
-    for i in 0..5 {
-        v[i] = [x[i]; MAX_NODES];
-    }
-    v
 }
 
 /// Fits Polach's parameters to the valid estimates of `tables` (pooled) with a fixed patch

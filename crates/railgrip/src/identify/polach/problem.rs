@@ -2,8 +2,8 @@
 //! values over temperature (Lagrange basis per temperature group), with the analytic Jacobian.
 
 use super::law::{mu_and_gradient, mu_only, to_natural, to_unconstrained, Sample, LOWER, UPPER};
-use super::temperature::basis_at;
-use crate::identify::lm::{LeastSquares, NormalEquations};
+use crate::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
+use crate::identify::IdentifyError;
 use crate::linalg::{cho_solve, cholesky, effective_samples};
 
 /// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
@@ -253,4 +253,98 @@ impl LeastSquares for PolachProblem<'_> {
     fn validation_mse(&self, _: &[f64]) -> Option<f64> {
         None
     }
+}
+
+/// Solves `problem` from node values `start`: the problem back, its optimal θ, iterations and
+/// why it stopped.
+pub(super) fn solve<'a>(
+    group: &str,
+    problem: PolachProblem<'a>,
+    start: &Nodes,
+    settings: LmSettings,
+) -> Result<(PolachProblem<'a>, Vec<f64>, usize, lm::StopReason), IdentifyError> {
+    let theta0 = problem.theta(start);
+    if theta0.is_empty() {
+        return Ok((problem, theta0, 0, lm::StopReason::MinGrad));
+    }
+    let (solver, problem) =
+        lm::run(problem, LevenbergMarquardt::new(settings), theta0).map_err(|e| {
+            IdentifyError::Solver {
+                fit: format!("Polach fit {group}"),
+                source: e.into(),
+            }
+        })?;
+    let theta = solver.best().expect("solver ran").to_vec();
+    let stop = solver.stop_reason().unwrap_or(lm::StopReason::Epochs);
+    Ok((problem, theta, solver.history().len(), stop))
+}
+
+/// Constant node values of natural parameters `x`.
+pub(super) fn constant_nodes(x: &[f64; 5]) -> Nodes {
+    let mut v = [[0.0; MAX_NODES]; 5];
+    for i in 0..5 {
+        v[i] = [x[i]; MAX_NODES];
+    }
+    v
+}
+
+/// LM settings of the Polach fits: MINPACK's convergence tests (ftol = xtol = 1e-10), so that
+/// a fit whose cost stopped falling ends as converged rather than running μ to its maximum.
+pub(super) fn fit_settings() -> LmSettings {
+    LmSettings {
+        epochs: 300,
+        min_grad: 1e-12,
+        ftol: 1e-10,
+        xtol: 1e-10,
+        ..LmSettings::default()
+    }
+}
+
+/// The refits of a profile, warm-started next to their optimum: ftol = xtol = 1e-8 (an SSE
+/// within 1e-8 of its minimum moves the profile statistic by about 1e-8 n_eff, 5e-5 for the
+/// bundled archive's pooled fit).
+pub(super) fn profile_settings() -> LmSettings {
+    LmSettings {
+        ftol: 1e-7,
+        xtol: 1e-7,
+        ..fit_settings()
+    }
+}
+
+/// Evenly spaced temperature nodes of a degree-d law over [lo, hi].
+pub(super) fn temperature_nodes(d: usize, lo: f64, hi: f64) -> Vec<f64> {
+    if d == 0 {
+        return vec![0.5 * (lo + hi)];
+    }
+    (0..=d)
+        .map(|j| lo + (hi - lo) * j as f64 / d as f64)
+        .collect()
+}
+
+/// Per parameter, the basis at temperature t (°C) of a law of `degrees` over [lo, hi]: the
+/// Lagrange basis of its nodes, or [1, 0, …] for a constant.
+pub(super) fn basis_at(degrees: [usize; 5], lo: f64, hi: f64, t: f64) -> [[f64; MAX_NODES]; 5] {
+    std::array::from_fn(|i| {
+        if degrees[i] == 0 {
+            let mut b = [0.0; MAX_NODES];
+            b[0] = 1.0;
+            b
+        } else {
+            lagrange(&temperature_nodes(degrees[i], lo, hi), t)
+        }
+    })
+}
+
+/// The Lagrange basis of `nodes` at t.
+pub(super) fn lagrange(nodes: &[f64], t: f64) -> [f64; MAX_NODES] {
+    let mut out = [0.0; MAX_NODES];
+    for (j, tj) in nodes.iter().enumerate() {
+        out[j] = nodes
+            .iter()
+            .enumerate()
+            .filter(|(m, _)| *m != j)
+            .map(|(_, tm)| (t - tm) / (tj - tm))
+            .product();
+    }
+    out
 }

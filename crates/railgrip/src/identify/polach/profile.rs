@@ -3,8 +3,8 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fit::{constant_nodes, profile_settings, solve};
 use super::law::{law_params, ParamStatus, Sample, LOWER, PARAMETERS, UPPER};
+use super::problem::{constant_nodes, profile_settings, solve};
 use super::problem::{Covariance, PolachProblem};
 
 /// The profile likelihood of one parameter: at each value the others refitted, the statistic

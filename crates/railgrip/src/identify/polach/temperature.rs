@@ -4,8 +4,9 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fit::{constant_nodes, fit_settings, samples, solve, PolachFit};
+use super::fit::{samples, PolachFit};
 use super::law::{solver_order, with_patch, ParamStatus, Sample};
+use super::problem::{basis_at, constant_nodes, fit_settings, solve, temperature_nodes};
 use super::problem::{Group, PolachProblem, MAX_NODES};
 use crate::contact::polach::{horner, ContactPatch};
 use crate::identify::dataset::RunTable;
@@ -144,44 +145,6 @@ pub fn k_identified(fits: &[PolachFit]) -> (Vec<f64>, Vec<String>) {
         }
     }
     (kept, excluded)
-}
-
-/// Evenly spaced temperature nodes of a degree-d law over [lo, hi].
-pub(super) fn temperature_nodes(d: usize, lo: f64, hi: f64) -> Vec<f64> {
-    if d == 0 {
-        return vec![0.5 * (lo + hi)];
-    }
-    (0..=d)
-        .map(|j| lo + (hi - lo) * j as f64 / d as f64)
-        .collect()
-}
-
-/// Per parameter, the basis at temperature t (°C) of a law of `degrees` over [lo, hi]: the
-/// Lagrange basis of its nodes, or [1, 0, …] for a constant.
-pub(super) fn basis_at(degrees: [usize; 5], lo: f64, hi: f64, t: f64) -> [[f64; MAX_NODES]; 5] {
-    std::array::from_fn(|i| {
-        if degrees[i] == 0 {
-            let mut b = [0.0; MAX_NODES];
-            b[0] = 1.0;
-            b
-        } else {
-            lagrange(&temperature_nodes(degrees[i], lo, hi), t)
-        }
-    })
-}
-
-/// The Lagrange basis of `nodes` at t.
-pub(super) fn lagrange(nodes: &[f64], t: f64) -> [f64; MAX_NODES] {
-    let mut out = [0.0; MAX_NODES];
-    for (j, tj) in nodes.iter().enumerate() {
-        out[j] = nodes
-            .iter()
-            .enumerate()
-            .filter(|(m, _)| *m != j)
-            .map(|(_, tm)| (t - tm) / (tj - tm))
-            .product();
-    }
-    out
 }
 
 /// The polynomial (ascending powers) through (nodes[j], values[j]): Σ_j values[j] L_j(t),

@@ -1,12 +1,11 @@
 //! Unit tests of the Polach fits' internals (law, problem, temperature basis).
 
-use super::fit::constant_nodes;
 use super::law::{
     law_params, mu_and_gradient, mu_only, to_natural, to_unconstrained, with_patch, Sample, LOWER,
     UPPER,
 };
-use super::problem::{Group, PolachProblem};
-use super::temperature::{basis_at, lagrange, monomials, poly_mul, temperature_nodes};
+use super::problem::{basis_at, constant_nodes, lagrange, temperature_nodes, Group, PolachProblem};
+use super::temperature::{monomials, poly_mul};
 use crate::contact::polach::{horner, ContactPatch};
 use crate::identify::lm::LeastSquares;
 
