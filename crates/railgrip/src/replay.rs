@@ -24,6 +24,13 @@ pub enum ReplayError {
     },
     #[error("{path}: cannot read the estimates table for the replay: {message}. Hint: run `railgrip run --force` to estimate the run again")]
     Read { path: PathBuf, message: String },
+    /// The estimates table could not be opened or decoded.
+    #[error("{path}: cannot read the estimates table for the replay: {source}. Hint: run `railgrip run --force` to estimate the run again")]
+    Table {
+        path: PathBuf,
+        #[source]
+        source: Box<dyn std::error::Error + Send + Sync>,
+    },
 }
 
 /// The columns a replay writes, per sample of the run's uniform time base.
@@ -69,13 +76,13 @@ impl ReplayRun {
             path: path.to_path_buf(),
             message,
         };
+        let table = |source: Box<dyn std::error::Error + Send + Sync>| ReplayError::Table {
+            path: path.to_path_buf(),
+            source,
+        };
         let df = std::fs::File::open(path)
-            .map_err(|e| bad(e.to_string()))
-            .and_then(|f| {
-                ParquetReader::new(f)
-                    .finish()
-                    .map_err(|e| bad(e.to_string()))
-            })?;
+            .map_err(|e| table(e.into()))
+            .and_then(|f| ParquetReader::new(f).finish().map_err(|e| table(e.into())))?;
         let c = ESTIMATE_COLUMNS;
         let col = |name: &str| -> Result<Vec<f64>, ReplayError> {
             let c = df
@@ -90,7 +97,7 @@ impl ReplayRun {
         };
         let valid_ca = df
             .column(c[12])
-            .map_err(|e| bad(e.to_string()))?
+            .map_err(|e| table(e.into()))?
             .bool()
             .map_err(|e| bad(format!("column {}: {e}", c[12])))?
             .clone();
@@ -150,7 +157,7 @@ pub fn write_replay(
     model: Option<&Model>,
     t0_ns: u64,
 ) -> Result<usize, ReplayError> {
-    let err = |e: mcap::McapError| std::io::Error::other(e.to_string());
+    let err = std::io::Error::other::<mcap::McapError>;
     let mut count = 0;
     crate::atomic::write_atomically(path, |w| -> Result<(), std::io::Error> {
         let mut writer = mcap::WriteOptions::new()
