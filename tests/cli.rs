@@ -538,14 +538,14 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     )
     .unwrap();
     std::os::unix::fs::symlink("/dev/zero", camp.join("zero_sidecar.meta.toml")).unwrap();
-    // Files that are not logs are listed as skipped, with why (silently skipped).
+    // Files that are not logs are listed as skipped, with why (they used to be skipped silently).
     std::fs::write(camp.join("random.bin"), [7u8; 64]).unwrap();
     std::fs::write(
         camp.join("orphan.meta.toml"),
         "ambient_temperature_c = 5.0\n",
     )
     .unwrap();
-    // A temporary file of a killed earlier run is cleaned up (never cleaned).
+    // A temporary file of a killed earlier run is cleaned up (it used to stay).
     let o_dir = dir.path().join("out");
     std::fs::create_dir_all(o_dir.join("models")).unwrap();
     let stale_tmp = o_dir.join("models/.mlp.json.tmp-999999999");
@@ -839,7 +839,7 @@ fn outputs(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
 
 #[test]
 fn run_outputs_are_the_same_bytes_for_any_jobs_and_on_a_rerun() {
-    // Run.json, campaign.json, summary, model files and the report differed between
+    // run.json, campaign.json, summary, model files and the report once differed between
     // identical runs only in timing and clock fields. Now those are in timings.json alone.
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");

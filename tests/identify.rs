@@ -731,7 +731,7 @@ fn four_input_model() -> ModelFile {
 fn a_four_input_network_takes_the_ambient_temperature() {
     let file = four_input_model();
     schema_check(&file.to_json(), "four-input model");
-    // Also the golden file the evaluator's every-instruction-set test reads (src/model/net.rs).
+    // Also the golden file the evaluator's every-instruction-set test reads (crates/railgrip-model/src/net.rs).
     let mut golden = file.clone();
     for e in &mut golden.history {
         e.elapsed_s = 0.0;

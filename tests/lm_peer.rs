@@ -6,7 +6,7 @@
 //! 40 (P = 201), from several Nguyen–Widrow starts.
 //!
 //! 1e-9 is a property of the data, not of LM: a trajectory amplifies rounding. Measured
-//! (session 7): numpy differs from itself by up to 6e-9 when only J'J is summed in another
+//! (2026-11-22): numpy differs from itself by up to 6e-9 when only J'J is summed in another
 //! order (gemm instead of syrk) on a near-exact fit of a smooth law, 2e-12 on 15 000 samples of
 //! this data, up to 8e-9 on some starts with 6 000. So the test also runs numpy with two
 //! rounding probes (J'J by gemm; tanh from exp) and, where numpy's own movement exceeds

@@ -17,8 +17,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args_os().skip(1).map(PathBuf::from);
     let archive = args.next().unwrap_or_else(campaign::bundled_archive);
     let out = OutDir::new(args.next().unwrap_or_else(|| "out-example".into()));
-    let pipeline = Pipeline::load(None)?; // the embedded UIC-Z1 pipeline
-                                          // Any closure receives the campaign's events (the CLI draws progress bars from them).
+    // The embedded UIC-Z1 pipeline; Pipeline::load(Some(path)) reads yours.
+    let pipeline = Pipeline::load(None)?;
+    // Any closure receives the campaign's events (the CLI draws progress bars from them).
     let progress = |e: Event<'_>| match e {
         Event::RunDone(r) => println!("run   {}: {}", r.run, if r.ok() { "ok" } else { "failed" }),
         Event::StageDone(s) => println!("stage {} done", s.name()),
@@ -26,11 +27,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let outcome = run_campaign(&archive, &out, &pipeline, Options::default(), &progress)?;
     println!(
-        "{} runs ({} failed), models trained on {} rail",
+        "{} runs ({} failed)",
         outcome.records.len(),
-        outcome.failed(),
-        outcome.condition.as_deref().unwrap_or("no")
+        outcome.failed()
     );
+    match (&outcome.condition, &outcome.model_error) {
+        (Some(c), _) => println!("models trained on {c} rail"),
+        (None, Some(e)) => println!("no models: {e}"),
+        (None, None) => println!("no models"),
+    }
     for p in &outcome.models {
         println!("wrote {}", p.display());
     }

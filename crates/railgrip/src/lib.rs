@@ -13,7 +13,7 @@
 //! let pipeline = Pipeline::load(None)?; // the embedded UIC-Z1 pipeline; Some(path) for yours
 //! let out = OutDir::new("out");
 //! let outcome = run_campaign("fixtures/archive".as_ref(), &out, &pipeline, Options::default(), &Quiet)?;
-//! println!("{} runs, {} failed; trained on {:?} rail", outcome.records.len(), outcome.failed(), outcome.condition);
+//! println!("{} runs, {} failed; models in {}", outcome.records.len(), outcome.failed(), out.models().dir.display());
 //! let model = Model::load(&out.models().mlp())?;
 //! println!("μ at Δv = 1 m/s, dΔv/dt = 0.5 m/s²: {:.4}", model.mu(1.0, 0.5));
 //! # Ok(())

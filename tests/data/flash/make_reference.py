@@ -1,4 +1,4 @@
-"""Reference for railgrip's flash-temperature strip model (src/contact/flash.rs).
+"""Reference for railgrip's flash-temperature strip model (crates/railgrip-contact/src/flash.rs).
 
 Jaeger's surface temperature of a semi-infinite body under a heat flux q(t) switched on at
 t = 0 (Carslaw & Jaeger 1959, Duhamel's integral of the constant-flux solution):

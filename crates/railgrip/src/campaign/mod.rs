@@ -65,8 +65,8 @@ pub struct Options {
     pub jobs: Option<usize>,
     /// Recompute every run even when its inputs and the pipeline are unchanged.
     pub force: bool,
-    /// Write `runs/<run>/<run>.railgrip.mcap` per run: estimates and the network's μ replayed
-    ///. Without it such files of an earlier run are removed.
+    /// Write `runs/<run>/<run>.railgrip.mcap` per run: estimates and the network's μ replayed.
+    /// Without it such files of an earlier run are removed.
     pub mcap: bool,
 }
 

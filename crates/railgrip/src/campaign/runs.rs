@@ -233,8 +233,8 @@ pub fn process_run(
 }
 
 /// The earlier outputs of run `name` when its record says ok for the same input hash and its
-/// estimates table reads back. The table's provenance is the log's SHA-256 `log_sha` (issue
-/// 17: it was the estimates table's own hash on every reuse).
+/// estimates table reads back. The table's provenance is the log's SHA-256 `log_sha` (not the
+/// estimates table's own hash, which a reused run once carried).
 fn reuse(
     now: &RunRecord,
     name: &str,

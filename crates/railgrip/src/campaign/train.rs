@@ -8,13 +8,11 @@ use std::path::{Path, PathBuf};
 use super::{CampaignError, ModelPaths};
 use crate::config::Pipeline;
 use crate::identify::dataset::RunTable;
-use crate::identify::family::{FitData, ModelFamily, Network, PolachWithLaws};
+use crate::identify::family::{campaign_models, FitData};
 use crate::identify::lm::EpochProgress;
 use crate::identify::polach::PolachReport;
-use crate::identify::{
-    leave_one_run_out, select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
-};
-use crate::model::{c_header, Epoch, InputFile, Model, ModelFile, Provenance};
+use crate::identify::{select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp};
+use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
 use crate::table::{Cell, CsvText};
 
 /// Everything trained from a campaign.
@@ -39,10 +37,9 @@ pub struct CampaignModels {
     pub held_out: Vec<HeldOut>,
 }
 
-/// Trains the campaign's models from `tables` with the pipeline's `[train]` settings: Polach's
-/// law with its temperature law first, then the network, which blends to it outside its data
-/// support (docs/model-files.md, "Data support"), and the network's leave-one-run-out scores.
-/// `progress` sees every epoch of the network's training.
+/// Trains the campaign's models ([`campaign_models`]) from the runs of one rail condition of
+/// `tables` with the pipeline's `[train]` settings. `progress` sees every epoch of the network's
+/// training.
 pub fn train_models(
     tables: Vec<RunTable>,
     pipeline: &Pipeline,
@@ -66,71 +63,25 @@ pub fn train_models(
         created: String::new(),
         generation: None,
     };
-    let data = FitData {
+    let fit = campaign_models(FitData {
         tables: &tables,
         pipeline,
         provenance,
         fallback: None,
-        epochs: None,
-    };
-    let polach = PolachWithLaws {
-        intervals: pipeline.train.polach_intervals,
-        law_required: false,
-    }
-    .fit(&data)?;
-    let mut notes = polach.notes;
-    let polach_fits = polach.report.into_polach().ok_or_else(|| bug("Polach"))?;
-    let polach = polach.model.ok();
-    let fallback = match &polach {
-        Some(p) => {
-            Some(
-                Model::named(p.clone(), "Polach model").map_err(|e| IdentifyError::Data {
-                    what: format!("the campaign's Polach model: {e}"),
-                    hint: "report this as a bug".into(),
-                })?,
-            )
-        }
-        None => None,
-    };
-    let network = Network.fit(&FitData {
-        fallback: fallback.as_ref(),
         epochs: progress,
-        ..data
     })?;
-    notes.extend(network.notes);
-    let trained = network
-        .report
-        .into_network()
-        .ok_or_else(|| bug("network"))?;
-    let mlp = network.model.map_err(|what| IdentifyError::Data {
-        what,
-        hint: "report this as a bug".into(),
-    })?;
-    let held_out = if pipeline.train.leave_one_run_out {
-        leave_one_run_out(&Network, &tables, pipeline)?
-    } else {
-        Vec::new()
-    };
     Ok(CampaignModels {
         condition: choice.condition,
         skipped: choice.skipped,
         runs: tables.len(),
         samples,
-        trained,
-        mlp,
-        polach_fits,
-        polach,
-        notes,
-        held_out,
+        trained: fit.trained,
+        mlp: fit.mlp,
+        polach_fits: fit.polach_fits,
+        polach: fit.polach,
+        notes: fit.notes,
+        held_out: fit.held_out,
     })
-}
-
-/// A family's report of another kind than the family's own.
-fn bug(family: &str) -> IdentifyError {
-    IdentifyError::Data {
-        what: format!("the {family} fit returned another family's report"),
-        hint: "report this as a bug".into(),
-    }
 }
 
 impl CampaignModels {

@@ -9,6 +9,7 @@
 use super::campaign::{creep_spec, median_speed, pipeline_patch};
 use super::dataset::RunTable;
 use super::export;
+use super::held_out::{leave_one_run_out, HeldOut};
 use super::lm::Epoch;
 use super::polach::{fit_campaign, PolachReport, PARAMETERS};
 use super::train::{train_mlp, TrainedMlp};
@@ -76,7 +77,7 @@ impl Report {
 pub struct Fitted {
     /// The model file, or why the fit gave none (the report is kept either way: the Polach
     /// fits of a campaign are written even when the pooled one failed).
-    pub model: Result<ModelFile, String>,
+    pub model: Result<ModelFile, IdentifyError>,
     pub shape: Shape,
     pub report: Report,
     /// What the fit left out and why (runs not fitted, a temperature law dropped).
@@ -229,8 +230,11 @@ impl PolachFile {
         report: &PolachReport,
         law: Option<&super::polach::TemperatureFit>,
         provenance: &Provenance,
-    ) -> Result<ModelFile, String> {
-        let pooled = report.pooled.as_ref().ok_or(POOLED_FAILED)?;
+    ) -> Result<ModelFile, IdentifyError> {
+        let pooled = report
+            .pooled
+            .as_ref()
+            .ok_or(IdentifyError::NotFitted { why: POOLED_FAILED })?;
         export::polach_file(
             pooled,
             &self.patch,
@@ -241,7 +245,6 @@ impl PolachFile {
             self.reference_speed_mps,
             provenance.clone(),
         )
-        .map_err(|e| e.to_string())
     }
 }
 
@@ -284,7 +287,11 @@ impl ModelFamily for Polach {
 
 impl ModelFamily for PolachWithLaws {
     fn name(&self) -> &'static str {
-        "polach_kt"
+        if self.law_required {
+            "polach_kt"
+        } else {
+            "polach_laws"
+        }
     }
 
     fn temperatures(&self, _: &TrainConfig) -> TemperatureNeed {
@@ -304,16 +311,15 @@ impl ModelFamily for PolachWithLaws {
         let law = report.temperature.as_ref();
         let model = if self.law_required {
             match (&report.pooled, law) {
-                (None, _) => Err(POOLED_FAILED.to_string()),
-                (Some(_), None) => Err(
-                    "the data chose no temperature law: k(T) is not identified on these runs"
-                        .to_string(),
-                ),
+                (None, _) => Err(IdentifyError::NotFitted { why: POOLED_FAILED }),
+                (Some(_), None) => Err(IdentifyError::NotFitted {
+                    why: "the data chose no temperature law: k(T) is not identified on these runs",
+                }),
                 (Some(_), Some(law)) => file.write(&report, Some(law), &d.provenance),
             }
         } else if report.pooled.is_none() {
             // fit_campaign's notes say why.
-            Err(POOLED_FAILED.to_string())
+            Err(IdentifyError::NotFitted { why: POOLED_FAILED })
         } else {
             match file.write(&report, law, &d.provenance) {
                 Err(e) if law.is_some() => {
@@ -337,6 +343,83 @@ impl ModelFamily for PolachWithLaws {
             report: Report::Polach(Box::new(report)),
             notes,
         })
+    }
+}
+
+/// What a campaign trains ([`campaign_models`]).
+#[derive(Debug)]
+pub struct CampaignFit {
+    /// The network's training and its model file.
+    pub trained: TrainedMlp,
+    pub mlp: ModelFile,
+    /// Every Polach fit, and the Polach model file when the pooled fit gave one.
+    pub polach_fits: PolachReport,
+    pub polach: Option<ModelFile>,
+    /// What the fits left out and why.
+    pub notes: Vec<String>,
+    /// The network's leave-one-run-out scores (empty when `train.leave_one_run_out` is off).
+    pub held_out: Vec<HeldOut>,
+}
+
+/// The models of a campaign, as `railgrip run` and `railgrip train` train them: Polach's law
+/// with its temperature law as the data choose it ([`PolachWithLaws`]; a law the model file
+/// refuses is dropped with a note), then the network of `[train]` ([`Network`]), which blends to
+/// the Polach model outside its data support (docs/model-files.md, "Data support"), and with
+/// `train.leave_one_run_out` the network's leave-one-run-out scores. `data.fallback` is ignored:
+/// the Polach model is the network's fallback.
+pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> {
+    let (pipeline, tables) = (data.pipeline, data.tables);
+    let polach = PolachWithLaws {
+        intervals: pipeline.train.polach_intervals,
+        law_required: false,
+    }
+    .fit(&data)?;
+    let mut notes = polach.notes;
+    let polach_fits = polach
+        .report
+        .into_polach()
+        .ok_or_else(|| wrong_report("Polach"))?;
+    let polach = polach.model.ok();
+    let fallback = match &polach {
+        Some(p) => {
+            Some(
+                Model::named(p.clone(), "Polach model").map_err(|e| IdentifyError::Data {
+                    what: format!("the campaign's Polach model: {e}"),
+                    hint: "report this as a bug".into(),
+                })?,
+            )
+        }
+        None => None,
+    };
+    let network = Network.fit(&FitData {
+        fallback: fallback.as_ref(),
+        ..data
+    })?;
+    notes.extend(network.notes);
+    let trained = network
+        .report
+        .into_network()
+        .ok_or_else(|| wrong_report("network"))?;
+    let held_out = if pipeline.train.leave_one_run_out {
+        leave_one_run_out(&Network, tables, pipeline)?
+    } else {
+        Vec::new()
+    };
+    Ok(CampaignFit {
+        trained,
+        mlp: network.model?,
+        polach_fits,
+        polach,
+        notes,
+        held_out,
+    })
+}
+
+/// A family's report of another kind than the family's own.
+fn wrong_report(family: &str) -> IdentifyError {
+    IdentifyError::Data {
+        what: format!("the {family} fit returned another family's report"),
+        hint: "report this as a bug".into(),
     }
 }
 

@@ -65,7 +65,7 @@ pub fn leave_one_run_out(
                 what: format!("leave-one-run-out fold without {}: {what}", tables[i].name),
                 hint: "report this as a bug".into(),
             };
-            let file = fitted.model.map_err(bug)?;
+            let file = fitted.model.map_err(|e| bug(e.to_string()))?;
             let model =
                 Model::named(file, "leave-one-run-out model").map_err(|e| bug(e.to_string()))?;
             Ok(held_out_score(&model, &tables[i], fold.train.decimate))

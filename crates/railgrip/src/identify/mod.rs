@@ -1,9 +1,17 @@
-//! Identification (seed 002 002_8d8769283f5e9cb6.txt, "Neural network" and Fig. 9–11): the
-//! adhesion curve μ(Δv, dΔv/dt) learned by a tanh MLP trained with Levenberg–Marquardt.
+//! Identification: the adhesion curve μ(Δv, dΔv/dt[, v, T]) learned from the estimates by the
+//! model families — the seed 002 network (002_8d8769283f5e9cb6.txt, "Neural network" and
+//! Fig. 9–11), Polach's law (seed 004 eq. 1–2) and Polach's law with its temperature law
+//! (seed 004 eq. 3, Fig. 2).
 //!
-//! [`dataset`] turns estimates into training/validation sets, [`mlp`] is the network and its
-//! analytic Jacobian, [`lm`] the trainlm-style solver (an argmin `Solver`), and [`train`] ties
-//! them together. [`adam`] trains networks of any depth by mini-batch Adam/AdamW through burn.
+//! [`family`] is the one seam: every family is a [`ModelFamily`], fitted on run tables with a
+//! pipeline into a model file, its shape and its report; [`campaign_models`] is what a campaign
+//! trains. Below it: [`dataset`] turns estimates into training/validation sets, [`mlp`] is the
+//! network and its analytic Jacobian, [`problem`] its least-squares problem, [`lm`] the
+//! trainlm-style solver (an argmin `Solver`), [`train`] multi-start training and ensembles,
+//! [`adam`] networks of any depth by mini-batch Adam/AdamW through burn; [`polach`] the Polach
+//! fits, profiles and temperature law; [`held_out`] held-out scores and leave-one-run-out;
+//! [`campaign`] the rail condition, median speed, patch and creep region a campaign's fits
+//! share; [`support`] the data support and the audit; [`export`] the model files.
 
 pub mod adam;
 pub mod campaign;
@@ -23,7 +31,7 @@ pub use campaign::{
     creep_spec, median_speed, pipeline_patch, run_condition, select_condition, ConditionChoice,
 };
 pub use dataset::{Dataset, MapMinMax, RunTable};
-pub use family::{FitData, Fitted, ModelFamily, FAMILIES};
+pub use family::{campaign_models, CampaignFit, FitData, Fitted, ModelFamily, FAMILIES};
 pub use held_out::{held_out_score, leave_one_run_out, HeldOut, HeldOutFile};
 pub use problem::MlpProblem;
 pub use train::{train_mlp, train_on, TrainedMlp};
@@ -61,6 +69,10 @@ pub enum IdentifyError {
         #[source]
         source: Box<dyn std::error::Error + Send + Sync>,
     },
+    /// A family fitted its report but could not give a model file from it (the pooled fit
+    /// failed, no temperature law was chosen where one is required).
+    #[error("{why}")]
+    NotFitted { why: &'static str },
     /// A fit produced parameters outside the model file's valid domain.
     #[error("{group}: {defect}. Hint: the Polach fit left its valid domain; check the estimates it was fitted to")]
     InvalidModel {

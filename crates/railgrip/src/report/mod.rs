@@ -159,8 +159,8 @@ impl<'a> Inputs<'a> {
     }
 }
 
-/// A file the report reads must come from the campaign generation of `campaign.json` (issue
-/// 17: a killed re-run could leave new models beside an old campaign record). Records written
+/// A file the report reads must come from the campaign generation of `campaign.json` (a killed
+/// re-run could otherwise leave new models beside an old campaign record). Records written
 /// before generations existed are not checked.
 fn same_generation(
     camp: &CampaignRecord,

@@ -219,7 +219,7 @@ fn fit(spec: &CellSpec, train: &[RunTable], r: &mut CellResult) -> Result<ModelF
             epochs: None,
         })
         .map_err(|e| e.to_string())?;
-    let file = fitted.model?;
+    let file = fitted.model.map_err(|e| e.to_string())?;
     let s = fitted.shape;
     (r.architecture, r.parameters, r.train_samples, r.epochs) =
         (s.architecture, s.parameters, s.train_samples, s.epochs);

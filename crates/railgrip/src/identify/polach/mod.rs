@@ -7,8 +7,8 @@
 //! the static wheel load, pipeline `[contact]`) is held fixed.
 //!
 //! Parameters are fitted by the same Levenberg–Marquardt solver as the network, on
-//! unconstrained coordinates with bounds by reparametrisation (logistic, see [`LOWER`],
-//! [`UPPER`]), with the analytic Jacobian ([`mu_and_gradient`]). What the data cannot identify
+//! unconstrained coordinates with bounds by reparametrisation (logistic, `law::LOWER`,
+//! `law::UPPER`), with the analytic Jacobian (`law::mu_and_gradient`). What the data cannot identify
 //! is held and named ([`fit_polach`]); the estimated parameters get Wald standard errors
 //! corrected for the residuals' autocorrelation (n_eff, [`crate::linalg::effective_samples`])
 //! and profile-likelihood intervals ([`Profile`]).
