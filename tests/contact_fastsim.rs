@@ -389,7 +389,7 @@ fn v_track_flash_temperatures_of_seed_003() {
             100.0 * (p.model_c / p.measured_c - 1.0)
         );
     }
-    // Rises with the slip ratio. Measured: −10.7 %, −1.0 %, +6.4 %. The target is
+    // Rises with the slip ratio. Measured: −10.7 %, −1.0 %, +6.4 %. The target is
     // 10 % at each point; compared raw, 5 % misses it by 0.7 points (the measured regression's
     // intercept, 260 °C at zero slip, lies 60 K above the 200 °C initial temperature every
     // model here starts from; `v_track_model_read_as_seed_003_read_its_camera` compares like

@@ -67,7 +67,7 @@ fn truth_from_sim(out: &railgrip::sim::SimOutput) -> Truth {
     }
 }
 
-/// Per-axle μ RMSE over valid samples with true Δv > 0.2 m/s (the measure), and the
+/// Per-axle μ RMSE over valid samples with true Δv > 0.2 m/s (the estimator's measure), and the
 /// number of samples it covers.
 fn mu_rmse(e: &Estimates, truth: &Truth) -> [(f64, usize); AXLES] {
     std::array::from_fn(|a| {

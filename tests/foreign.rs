@@ -147,7 +147,7 @@ fn multi_start_on_a_foreign_law() {
 /// The identification targets on truth railgrip did not fit, for every one of 8 seeds: the default
 /// network (one start) trained on one run of each foreign law stays positive on every
 /// supported cell, gets the loss/recovery order of the loss_recovery law right, passes its
-/// plausibility audit, and scores within 0.010 RMSE (the one-band target).
+/// plausibility audit, and scores within 0.010 RMSE (the one-band target).
 #[test]
 fn every_seed_holds_on_both_foreign_laws() {
     let dir = tempfile::tempdir().unwrap();
@@ -185,7 +185,7 @@ fn every_seed_holds_on_both_foreign_laws() {
 fn four_input_networks_hold_over_all_speeds_and_temperatures() {
     let dir = tempfile::tempdir().unwrap();
     let p = Pipeline::default_uic_z1();
-    // The target, and for the table law what its estimates allow: its sharp peak is
+    // The targets: 0.004 for the loss/recovery law, and for the table law what its estimates allow: its sharp peak is
     // smeared by the conditioning (the same network trained on the true samples scores 0.0022,
     // `measure_networks_trained_on_the_truth`; on the estimates 0.0049).
     for (law, target) in [("lr", 0.004), ("table", 0.0055)] {

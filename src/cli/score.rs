@@ -1,12 +1,14 @@
 //! `railgrip score`: a model file against the truth of simulated scenes, on the cells the
-//! scenes' data support (railgrip::score).
+//! scenes' data support (railgrip::score): per scene, then the curve view per initial speed and
+//! the replay view per speed band.
 
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use anyhow::Context as _;
 use railgrip::model::Model;
-use railgrip::score::{score, Grid, Sample, Score};
-use railgrip::sim::{self, Scene};
+use railgrip::score::{curve, replay, score, Band, Grid, Sample, Score, Stats, SPEED_BANDS_KMH};
+use railgrip::sim::{self, Scene, TrueLaw};
 
 use super::{EXIT_LOSSY, EXIT_OK};
 
@@ -29,29 +31,64 @@ pub struct Args {
     json: bool,
 }
 
+/// True loss − recovery differences below this give no hysteresis ratio.
+const MIN_HYSTERESIS: f64 = 0.002;
+
 #[derive(serde::Serialize)]
 struct Line {
     scene: String,
+    initial_speed_kmh: f64,
+    ambient_temperature_c: f64,
     cells: usize,
     rmse: f64,
     max_error: f64,
     negative_cells: usize,
     hysteresis_true: Option<f64>,
     hysteresis_predicted: Option<f64>,
+    /// The curve view at the run's initial speed and temperature (laws in closed form only).
+    curve: Option<Stats>,
+    curve_hysteresis_ratio: Option<f64>,
+    /// The replay view per speed band.
+    replay: Vec<Band>,
 }
 
 impl Line {
-    fn new(scene: &str, s: &Score) -> Line {
+    fn new(scene: &str, v0_kmh: f64, t_c: f64, s: &Score) -> Line {
         Line {
             scene: scene.to_string(),
+            initial_speed_kmh: v0_kmh,
+            ambient_temperature_c: t_c,
             cells: s.cells.len(),
             rmse: s.rmse,
             max_error: s.max_error,
             negative_cells: s.negative_cells,
             hysteresis_true: s.hysteresis.map(|h| h.0),
             hysteresis_predicted: s.hysteresis.map(|h| h.1),
+            curve: None,
+            curve_hysteresis_ratio: None,
+            replay: Vec::new(),
         }
     }
+}
+
+/// One row of the per-band tables: pooled statistics and the range of the runs' biases.
+#[derive(serde::Serialize)]
+struct BandRow {
+    lo_kmh: f64,
+    hi_kmh: f64,
+    runs: usize,
+    pooled: Stats,
+    bias_min: f64,
+    bias_max: f64,
+    /// Curve view only: the range of the runs' hysteresis ratios.
+    hysteresis_ratio: Option<(f64, f64)>,
+}
+
+#[derive(serde::Serialize)]
+struct Report {
+    scenes: Vec<Line>,
+    curve_by_initial_speed: Vec<BandRow>,
+    replay_by_speed_band: Vec<BandRow>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
@@ -60,11 +97,13 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         min_samples: args.min_samples.max(1),
         ..Grid::default()
     };
+    let predict = |dv, q, v, t| model.mu_vt(dv, q, v, t);
     let mut lines = Vec::new();
     let mut pooled: Vec<Sample> = Vec::new();
     let mut runs = 0usize;
     for path in &args.scenes {
         let scene = Scene::load(path)?;
+        let law = TrueLaw::of(&scene)?;
         let seeds = if args.seeds.is_empty() {
             vec![scene.seed]
         } else {
@@ -72,12 +111,22 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         };
         for seed in seeds {
             let out = sim::simulate(&scene, Some(seed))?;
-            let t_c = scene.run.ambient_temperature_c;
+            let (v0_kmh, t_c) = (scene.run.initial_speed_kmh, scene.run.ambient_temperature_c);
             let samples = out.truth.samples(t_c);
             let name = format!("{} (seed {seed})", scene.name);
-            let s = score(&samples, &grid, |dv, q, v, t| model.mu_vt(dv, q, v, t))
-                .with_context(|| format!("{}: scoring {}", path.display(), args.model.display()))?;
-            lines.push(Line::new(&name, &s));
+            let context = || format!("{}: scoring {}", path.display(), args.model.display());
+            let s = score(&samples, &grid, predict).with_context(context)?;
+            let mut line = Line::new(&name, v0_kmh, t_c, &s);
+            if let Some(law) = &law {
+                let c = curve(&samples, &grid, v0_kmh / 3.6, t_c, predict, |dv, q, v, _| {
+                    law.mu(dv, q, v)
+                })
+                .with_context(context)?;
+                line.curve = Some(c.stats);
+                line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
+            }
+            line.replay = replay(&samples, &grid, &SPEED_BANDS_KMH, predict).with_context(context)?;
+            lines.push(line);
             // Pooled: the axles of each simulated run numbered apart (while they fit a u8),
             // so that a cell's support counts one run's samples.
             let offset = if runs < 63 { 4 * runs as u8 } else { 0 };
@@ -89,34 +138,139 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         }
     }
     // All scenes together, each sample at its own scene's ambient temperature.
-    let all = score(&pooled, &grid, |dv, q, v, t| model.mu_vt(dv, q, v, t))?;
-    lines.push(Line::new("all", &all));
-    let negative = lines.iter().any(|l| l.negative_cells > 0);
+    let all = score(&pooled, &grid, predict)?;
+    let negative = lines.iter().any(|l| l.negative_cells > 0) || all.negative_cells > 0;
+    let report = Report {
+        curve_by_initial_speed: curve_rows(&lines),
+        replay_by_speed_band: replay_rows(&lines),
+        scenes: lines,
+    };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&lines)?);
+        println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        println!(
-            "{:<40} {:>6} {:>8} {:>8} {:>9} {:>12}",
-            "scene", "cells", "RMSE μ", "max |e|", "μ̂ < 0", "hysteresis"
-        );
-        for l in &lines {
-            println!(
-                "{:<40} {:>6} {:>8.4} {:>8.4} {:>9} {:>12}",
-                l.scene,
-                l.cells,
-                l.rmse,
-                l.max_error,
-                l.negative_cells,
-                match (l.hysteresis_true, l.hysteresis_predicted) {
-                    (Some(t), Some(p)) => format!("{p:+.4}/{t:+.4}"),
-                    _ => "–".into(),
-                }
-            );
-        }
-        println!("\nCells: Δv every 0.1 m/s (±0.1), dΔv/dt ±{{0.25 … 8}} m/s² (×0.5–1.5), v every 10 km/h (±15), ≥ {} truth samples of one axle. Hysteresis: mean μ(Δv,+q) − μ(Δv,−q) over 0.5–3 m/s, predicted/true.", grid.min_samples);
+        print_report(&report, &all, grid.min_samples);
         if negative {
             println!("The model predicts μ < 0 on supported cells. Exit code 3.");
         }
     }
     Ok(if negative { EXIT_LOSSY } else { EXIT_OK })
+}
+
+/// The curve view grouped by the runs' initial speeds (each run's cells pooled).
+fn curve_rows(lines: &[Line]) -> Vec<BandRow> {
+    let mut by: BTreeMap<u64, Vec<&Line>> = BTreeMap::new();
+    for l in lines.iter().filter(|l| l.curve.is_some()) {
+        by.entry(l.initial_speed_kmh.to_bits()).or_default().push(l);
+    }
+    let mut rows: Vec<BandRow> = by
+        .into_values()
+        .map(|ls| {
+            let stats: Vec<Stats> = ls.iter().filter_map(|l| l.curve).collect();
+            let ratios: Vec<f64> = ls.iter().filter_map(|l| l.curve_hysteresis_ratio).collect();
+            let v = ls[0].initial_speed_kmh;
+            row(v, v, &stats, &ratios)
+        })
+        .collect();
+    rows.sort_by(|a, b| a.lo_kmh.total_cmp(&b.lo_kmh));
+    rows
+}
+
+/// The replay view per speed band over all runs.
+fn replay_rows(lines: &[Line]) -> Vec<BandRow> {
+    let mut by: BTreeMap<u64, (f64, f64, Vec<Stats>)> = BTreeMap::new();
+    for b in lines.iter().flat_map(|l| &l.replay) {
+        by.entry(b.lo_kmh.to_bits())
+            .or_insert((b.lo_kmh, b.hi_kmh, Vec::new()))
+            .2
+            .push(b.stats);
+    }
+    let mut rows: Vec<BandRow> = by
+        .into_values()
+        .map(|(lo, hi, stats)| row(lo, hi, &stats, &[]))
+        .collect();
+    rows.sort_by(|a, b| a.lo_kmh.total_cmp(&b.lo_kmh));
+    rows
+}
+
+/// Pools per-run statistics: n-weighted bias and mean square, largest error, bias range.
+fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
+    let n: usize = stats.iter().map(|s| s.n).sum();
+    let w = |f: &dyn Fn(&Stats) -> f64| stats.iter().map(|s| s.n as f64 * f(s)).sum::<f64>();
+    let nf = n.max(1) as f64;
+    BandRow {
+        lo_kmh: lo,
+        hi_kmh: hi,
+        runs: stats.len(),
+        pooled: Stats {
+            n,
+            rmse: (w(&|s| s.rmse * s.rmse) / nf).sqrt(),
+            bias: w(&|s| s.bias) / nf,
+            max_error: stats.iter().map(|s| s.max_error).fold(0.0, f64::max),
+        },
+        bias_min: stats.iter().map(|s| s.bias).fold(f64::INFINITY, f64::min),
+        bias_max: stats.iter().map(|s| s.bias).fold(f64::NEG_INFINITY, f64::max),
+        hysteresis_ratio: (!ratios.is_empty()).then(|| {
+            let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (lo, hi)
+        }),
+    }
+}
+
+fn print_report(r: &Report, all: &Score, min_samples: usize) {
+    println!(
+        "{:<40} {:>6} {:>8} {:>8} {:>9} {:>16} {:>9} {:>9}",
+        "scene", "cells", "RMSE μ", "max |e|", "μ̂ < 0", "hysteresis", "curve", "bias"
+    );
+    let all_line = Line::new("all", f64::NAN, f64::NAN, all);
+    for l in r.scenes.iter().chain(std::iter::once(&all_line)) {
+        println!(
+            "{:<40} {:>6} {:>8.4} {:>8.4} {:>9} {:>16} {:>9} {:>9}",
+            l.scene,
+            l.cells,
+            l.rmse,
+            l.max_error,
+            l.negative_cells,
+            match (l.hysteresis_true, l.hysteresis_predicted) {
+                (Some(t), Some(p)) => format!("{p:+.4}/{t:+.4}"),
+                _ => "–".into(),
+            },
+            l.curve.map_or("–".into(), |c| format!("{:.4}", c.rmse)),
+            l.curve.map_or("–".into(), |c| format!("{:+.4}", c.bias)),
+        );
+    }
+    println!("\nCells: Δv every 0.1 m/s (±0.1), dΔv/dt ±{{0.25 … 8}} m/s² (×0.5–1.5), v every 10 km/h (±15), ≥ {min_samples} truth samples of one axle. Hysteresis: mean μ(Δv,+q) − μ(Δv,−q) over 0.5–3 m/s, predicted/true.");
+    let table = |title: &str, rows: &[BandRow], speed: &dyn Fn(&BandRow) -> String| {
+        println!("\n{title}");
+        println!(
+            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>19} {:>13}",
+            "km/h", "runs", "n", "RMSE μ", "bias", "max |e|", "run biases", "hyst. ratio"
+        );
+        for b in rows {
+            println!(
+                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>8.4} {:>19} {:>13}",
+                speed(b),
+                b.runs,
+                b.pooled.n,
+                b.pooled.rmse,
+                b.pooled.bias,
+                b.pooled.max_error,
+                format!("{:+.4} … {:+.4}", b.bias_min, b.bias_max),
+                b.hysteresis_ratio
+                    .map_or("–".into(), |(lo, hi)| format!("{lo:.2} … {hi:.2}")),
+            );
+        }
+    };
+    if !r.curve_by_initial_speed.is_empty() {
+        table(
+            "Curve view: the model at each run's initial speed and ambient temperature against the true law, on the run's supported (Δv, dΔv/dt) cells (n = cells)",
+            &r.curve_by_initial_speed,
+            &|b| format!("{:.0}", b.lo_kmh),
+        );
+    }
+    table(
+        "Replay view: the model at each sample's own inputs against its μ, samples in supported cells, by the sample's speed (n = samples)",
+        &r.replay_by_speed_band,
+        &|b| format!("{:.0}–{:.0}", b.lo_kmh, b.hi_kmh),
+    );
 }

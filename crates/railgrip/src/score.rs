@@ -17,6 +17,16 @@
 //! with 0.5 ≤ Δv_c ≤ 3 m/s: the mean of μ(Δv, +q) − μ(Δv, −q), true (cell means of the truth)
 //! and predicted (cell means of the model) — a law whose recovery branch lies below its loss
 //! branch has a positive value, and a model must reproduce its sign.
+//!
+//! Two further views of one run, each reported per speed band with RMSE, **bias** (mean
+//! μ̂ − μ: a model 8 % high where braking matters is biased, not only noisy) and max error:
+//! - [`curve`]: the model on the run's supported (Δv, dΔv/dt) cells (support counted over the
+//!   run's whole speed range, per axle) at the run's **initial speed and ambient temperature**,
+//!   against the true law there — what a simulator that starts a brake from that speed asks.
+//!   Its hysteresis ratio is predicted over true loss − recovery difference.
+//! - [`replay`]: the model at every sample's own inputs (samples in a supported cell of their
+//!   axle), against the sample's μ, binned by the sample's speed — what a simulator replaying
+//!   the run sees.
 
 use std::collections::BTreeMap;
 
@@ -202,6 +212,229 @@ pub fn score(
         hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
         hysteresis_pairs: pairs,
     })
+}
+
+/// Error statistics of μ̂ − μ over `n` cells or samples.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct Stats {
+    pub n: usize,
+    pub rmse: f64,
+    /// Mean μ̂ − μ.
+    pub bias: f64,
+    /// Largest |μ̂ − μ|.
+    pub max_error: f64,
+}
+
+impl Stats {
+    /// Statistics of `errors` (μ̂ − μ); all zero for none.
+    pub fn of(errors: impl IntoIterator<Item = f64>) -> Stats {
+        let (mut n, mut sum, mut sq, mut max) = (0usize, 0.0, 0.0, 0.0f64);
+        for e in errors {
+            n += 1;
+            sum += e;
+            sq += e * e;
+            max = max.max(e.abs());
+        }
+        if n == 0 {
+            return Stats::default();
+        }
+        Stats {
+            n,
+            rmse: (sq / n as f64).sqrt(),
+            bias: sum / n as f64,
+            max_error: max,
+        }
+    }
+}
+
+/// One supported (Δv, dΔv/dt) cell of a run in the [`curve`] view: its centre, the samples
+/// behind its support (the best-supported axle's), and the true and predicted μ at the centre.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct CurveCell {
+    pub dv_mps: f64,
+    pub ddv_mps2: f64,
+    pub samples: usize,
+    pub true_mu: f64,
+    pub predicted_mu: f64,
+}
+
+/// What [`curve`] found for one run.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CurveScore {
+    /// The speed (m/s) and ambient temperature (°C) the curve is taken at.
+    pub v_mps: f64,
+    pub t_c: f64,
+    pub cells: Vec<CurveCell>,
+    pub stats: Stats,
+    /// Mean μ(Δv, +q) − μ(Δv, −q) over supported pairs with 0.5 ≤ Δv ≤ 3 m/s: true and
+    /// predicted; `None` without pairs.
+    pub hysteresis: Option<(f64, f64)>,
+}
+
+impl CurveScore {
+    /// Predicted over true loss − recovery difference, where the true one is at least
+    /// `min_true` (the ratio of two near-zero differences means nothing).
+    pub fn hysteresis_ratio(&self, min_true: f64) -> Option<f64> {
+        self.hysteresis
+            .filter(|(t, _)| t.abs() >= min_true)
+            .map(|(t, p)| p / t)
+    }
+}
+
+/// The curve view of one run (module text): `predict` and the true `law`, both
+/// μ(Δv, dΔv/dt, v, T), on the (Δv, dΔv/dt) cells the run's `samples` support, at speed
+/// `v_mps` (m/s) and temperature `t_c` (°C).
+pub fn curve(
+    samples: &[Sample],
+    grid: &Grid,
+    v_mps: f64,
+    t_c: f64,
+    predict: impl Fn(f64, f64, f64, f64) -> f64,
+    law: impl Fn(f64, f64, f64, f64) -> f64,
+) -> Result<CurveScore, ScoreError> {
+    // Support of (axle, q, Δv) over all speeds: the speed index folded to one.
+    let wide = Grid {
+        v_step_kmh: 1e9,
+        v_half_kmh: 1e9,
+        ..grid.clone()
+    };
+    let counts = support(samples, &wide)?;
+    let mut best: BTreeMap<(i64, i64), usize> = BTreeMap::new();
+    for ((_, _, qi, di), n) in &counts {
+        if *n >= grid.min_samples {
+            let b = best.entry((*qi, *di)).or_default();
+            *b = (*b).max(*n);
+        }
+    }
+    if best.is_empty() {
+        return Err(ScoreError::NoSupport {
+            min: grid.min_samples,
+        });
+    }
+    let mut cells = Vec::with_capacity(best.len());
+    for ((qi, di), n) in &best {
+        let dv = *di as f64 * grid.dv_step_mps;
+        let q = qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1];
+        let (p, t) = (predict(dv, q, v_mps, t_c), law(dv, q, v_mps, t_c));
+        if !p.is_finite() || !t.is_finite() {
+            return Err(ScoreError::Model { dv, ddv: q, v: v_mps });
+        }
+        cells.push(CurveCell {
+            dv_mps: dv,
+            ddv_mps2: q,
+            samples: *n,
+            true_mu: t,
+            predicted_mu: p,
+        });
+    }
+    let stats = Stats::of(cells.iter().map(|c| c.predicted_mu - c.true_mu));
+    // The cells are in `best`'s key order: the index of a key is its cell's.
+    let index: BTreeMap<(i64, i64), usize> = best.keys().enumerate().map(|(i, k)| (*k, i)).collect();
+    let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
+    for (&(qi, di), &i) in &index {
+        let up = &cells[i];
+        if qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&up.dv_mps) {
+            continue;
+        }
+        if let Some(&j) = index.get(&(-qi, di)) {
+            dt += up.true_mu - cells[j].true_mu;
+            dp += up.predicted_mu - cells[j].predicted_mu;
+            pairs += 1;
+        }
+    }
+    Ok(CurveScore {
+        v_mps,
+        t_c,
+        cells,
+        stats,
+        hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
+    })
+}
+
+/// One speed band of the [`replay`] view: [lo, hi) km/h and the statistics of its samples.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Band {
+    pub lo_kmh: f64,
+    pub hi_kmh: f64,
+    pub stats: Stats,
+}
+
+/// The speed bands of the per-band tables, km/h: 0–40, 40–80, 80–120, 120–145, 145–170,
+/// 170–210 (a run's top speed and the first seconds of its brake fall in the band of its
+/// initial speed for 80, 120, 160 and 200 km/h runs).
+pub const SPEED_BANDS_KMH: [f64; 7] = [0.0, 40.0, 80.0, 120.0, 145.0, 170.0, 210.0];
+
+/// The replay view (module text): μ̂ − μ of every sample in a supported cell of its axle,
+/// binned by the sample's speed over `edges_kmh` (ascending; samples outside are left out).
+/// Bands without samples are left out.
+pub fn replay(
+    samples: &[Sample],
+    grid: &Grid,
+    edges_kmh: &[f64],
+    predict: impl Fn(f64, f64, f64, f64) -> f64,
+) -> Result<Vec<Band>, ScoreError> {
+    let counts = support(samples, grid)?;
+    let mut errors: Vec<Vec<f64>> = vec![Vec::new(); edges_kmh.len().saturating_sub(1)];
+    for s in samples {
+        let v_kmh = s.v_mps * 3.6;
+        let Some(b) = edges_kmh
+            .windows(2)
+            .position(|w| v_kmh >= w[0] && v_kmh < w[1])
+        else {
+            continue;
+        };
+        if !cells_of(grid, s)
+            .iter()
+            .any(|k| counts.get(k).is_some_and(|n| *n >= grid.min_samples))
+        {
+            continue;
+        }
+        let p = predict(s.dv_mps, s.ddv_mps2, s.v_mps, s.t_c);
+        if !p.is_finite() {
+            return Err(ScoreError::Model {
+                dv: s.dv_mps,
+                ddv: s.ddv_mps2,
+                v: s.v_mps,
+            });
+        }
+        errors[b].push(p - s.mu);
+    }
+    if errors.iter().all(Vec::is_empty) {
+        return Err(ScoreError::NoSupport {
+            min: grid.min_samples,
+        });
+    }
+    Ok(errors
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| !e.is_empty())
+        .map(|(b, e)| Band {
+            lo_kmh: edges_kmh[b],
+            hi_kmh: edges_kmh[b + 1],
+            stats: Stats::of(e.iter().copied()),
+        })
+        .collect())
+}
+
+/// Samples per (axle, cell), the samples checked finite.
+fn support(samples: &[Sample], grid: &Grid) -> Result<BTreeMap<Key, usize>, ScoreError> {
+    let mut counts: BTreeMap<Key, usize> = BTreeMap::new();
+    for (index, s) in samples.iter().enumerate() {
+        for (x, what) in [
+            (s.dv_mps, "Δv"),
+            (s.ddv_mps2, "dΔv/dt"),
+            (s.v_mps, "v"),
+            (s.mu, "μ"),
+        ] {
+            if !x.is_finite() {
+                return Err(ScoreError::NotFinite { index, what });
+            }
+        }
+        for k in cells_of(grid, s) {
+            *counts.entry(k).or_default() += 1;
+        }
+    }
+    Ok(counts)
 }
 
 /// The cells a sample belongs to.

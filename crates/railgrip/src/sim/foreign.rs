@@ -7,8 +7,14 @@
 //!   SAE 870421, 1987; here with E = 0): μ_b(Δv) = D sin(C atan(B Δv)), peak D at
 //!   Δv_p = tan(π/(2C))/B, falling to D sin(Cπ/2) at large slip. The two are blended by the
 //!   lagged slip rate q: μ = β μ_loss + (1 − β) μ_rec, β = ½ (1 + z/√(1 + z²)), z = q/q0.
-//!   Both peaks scale with speed, D(v) = D (1 + κ (v_ref − v)/(v_ref + v)), and, with the
-//!   `temperature` effect, with the ambient temperature, D(T) = D (1 + τ (20 °C − T)).
+//!   Both peaks scale with speed by one of two forms ([`SpeedForm`]): `ratio`,
+//!   D(v) = D (1 + κ (v_ref − v)/(v_ref + v)), flat at the top (like Curtius–Kniffler's
+//!   7.5/(v + 44) + 0.161, v in km/h: −4 % from 120 to 160 km/h), or `quadratic`,
+//!   D(v) = D (1 + κ (1 − (v/v_ref)²)), steeper at the top, as adhesion on wet and
+//!   contaminated rail falls with rolling speed in seed 002 Fig. 8 (κ = 0.16, v_ref = 120 km/h:
+//!   −12 % from 120 to 160 km/h, −18 % from 160 to 200 km/h); with the `temperature` effect,
+//!   with the ambient temperature, D(T) = D (1 + τ (20 °C − T)); and by the run's rail
+//!   condition, D × s (`level_scale`: the run-to-run spread of a contamination).
 //!   Every parameter is [assumed]: chosen to look like soap-contaminated rail (seed 002
 //!   Fig. 7–8, μ 0.02–0.10, peak near 1 m/s), not fitted to anything.
 //! - [`SlipTable`]: μ(Δv) tabulated per speed, linear between nodes in Δv and in speed, held
@@ -38,6 +44,38 @@ impl Branch {
     }
 }
 
+/// How the peaks of [`LossRecovery`] scale with speed v (m/s), κ and v_ref given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SpeedForm {
+    /// 1 + κ (v_ref − v)/(v_ref + |v|): bounded, flat at the top.
+    Ratio,
+    /// 1 + κ (1 − (v/v_ref)²): falls faster the faster the train runs; positive only below
+    /// v_ref √(1 + 1/κ) (the scene checks its initial speed).
+    Quadratic,
+}
+
+impl SpeedForm {
+    /// The name in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            SpeedForm::Ratio => "ratio",
+            SpeedForm::Quadratic => "quadratic",
+        }
+    }
+
+    /// The peaks' factor at speed `v` (m/s), coefficient `kappa` and reference `v_ref` (m/s).
+    #[inline]
+    pub fn factor(self, kappa: f64, v_ref: f64, v: f64) -> f64 {
+        match self {
+            SpeedForm::Ratio => 1.0 + kappa * (v_ref - v) / (v_ref + v.abs()),
+            SpeedForm::Quadratic => {
+                let r = v / v_ref;
+                1.0 + kappa * (1.0 - r * r)
+            }
+        }
+    }
+}
+
 /// Separate loss and recovery curves blended by the lagged slip rate (see the module text).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct LossRecovery {
@@ -47,6 +85,10 @@ pub struct LossRecovery {
     pub blend_ddv_mps2: f64,
     /// κ: the peaks' speed dependence, 1.
     pub speed_coefficient: f64,
+    /// How the peaks scale with speed.
+    pub speed_form: SpeedForm,
+    /// s: the run's rail condition as a factor of both peaks, 1.
+    pub level_scale: f64,
     /// v_ref, m/s.
     pub reference_speed_mps: f64,
     /// τ: the peaks' temperature dependence, 1/K (applied with the `temperature` effect).
@@ -63,14 +105,16 @@ pub struct PreparedLossRecovery {
     inv_q0: f64,
     kappa: f64,
     v_ref: f64,
+    form: SpeedForm,
 }
 
 impl LossRecovery {
     /// The law at ambient temperature `t_c` (°C; `None`: no temperature dependence).
     pub fn prepare(&self, t_c: Option<f64>) -> PreparedLossRecovery {
-        let temp = t_c.map_or(1.0, |t| {
-            1.0 + self.temperature_coefficient_per_k * (20.0 - t)
-        });
+        let temp = self.level_scale
+            * t_c.map_or(1.0, |t| {
+                1.0 + self.temperature_coefficient_per_k * (20.0 - t)
+            });
         let coef = |br: Branch| {
             let (b, c) = br.shape();
             (br.peak_mu * temp, b, c)
@@ -81,14 +125,21 @@ impl LossRecovery {
             inv_q0: 1.0 / self.blend_ddv_mps2,
             kappa: self.speed_coefficient,
             v_ref: self.reference_speed_mps,
+            form: self.speed_form,
         }
     }
 }
 
 impl PreparedLossRecovery {
+    /// The peaks' speed factor at `v` (m/s).
+    #[inline]
+    pub fn speed_factor(&self, v: f64) -> f64 {
+        self.form.factor(self.kappa, self.v_ref, v)
+    }
+
     /// μ at slip `w` (m/s), lagged slip rate `q` (m/s²) and speed `v` (m/s).
     pub fn mu(&self, w: f64, q: f64, v: f64) -> f64 {
-        let speed = 1.0 + self.kappa * (self.v_ref - v) / (self.v_ref + v.abs());
+        let speed = self.speed_factor(v);
         let curve = |(d, b, c): (f64, f64, f64)| d * (c * (b * w).atan()).sin();
         let z = q * self.inv_q0;
         let beta = 0.5 * (1.0 + z / (1.0 + z * z).sqrt());
@@ -97,7 +148,7 @@ impl PreparedLossRecovery {
 
     /// Peak μ of the loss and the recovery branch at speed `v` (m/s).
     pub fn peaks(&self, v: f64) -> (f64, f64) {
-        let speed = 1.0 + self.kappa * (self.v_ref - v) / (self.v_ref + v.abs());
+        let speed = self.speed_factor(v);
         (speed * self.loss.0, speed * self.recovery.0)
     }
 }
@@ -293,6 +344,8 @@ mod tests {
             },
             blend_ddv_mps2: 0.5,
             speed_coefficient: 0.3,
+            speed_form: SpeedForm::Ratio,
+            level_scale: 1.0,
             reference_speed_mps: 120.0 / 3.6,
             temperature_coefficient_per_k: 0.006,
         }

@@ -241,6 +241,23 @@ fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
                     ));
                 }
             }
+            // The speed factor must stay positive over the run (v ≤ the initial speed; both
+            // forms fall monotonically with speed).
+            let v0 = sc.run.initial_speed_kmh / 3.6;
+            let speed = l
+                .speed_form
+                .factor(l.speed_coefficient, l.reference_speed_mps, v0);
+            if speed < 0.05 {
+                return Err(err(
+                    format!(
+                        "adhesion.peak_speed_coefficient = {} ({}) at run.initial_speed_kmh = {} scales the peaks by {speed:.3}",
+                        l.speed_coefficient,
+                        l.speed_form.name(),
+                        sc.run.initial_speed_kmh
+                    ),
+                    "the speed factor must be at least 0.05 up to the initial speed: choose a smaller coefficient, a higher adhesion.reference_speed_kmh or peak_speed_form = \"ratio\"",
+                ));
+            }
             return Ok(Some(ScalarLaw::LossRecovery(l.prepare(t))));
         }
         AdhesionLaw::Table(_) if with_t => {
@@ -283,6 +300,29 @@ fn load_law(sc: &Scene) -> Result<Option<ScalarLaw>, SimError> {
                 "remove temperature from effects, or use a Polach model fitted at several ambient temperatures that cover run.ambient_temperature_c, or a network with the input ambient_temperature_c",
             )
         })
+}
+
+/// A scene's adhesion law as a function μ(Δv, dΔv/dt, v) at the scene's ambient temperature:
+/// the truth the [`crate::score::curve`] view compares a model with at any speed. Laws given in
+/// closed form only — `loss_recovery`, `table` and a model file; the Polach law's effects
+/// (hysteresis lag, per-axle cleaning) and FASTSIM's patch are states of a running simulation.
+#[derive(Debug, Clone)]
+pub struct TrueLaw(ScalarLaw);
+
+impl TrueLaw {
+    /// The law of `sc` (checked as [`simulate`] checks it); `None` for `polach` and `fastsim`.
+    pub fn of(sc: &Scene) -> Result<Option<TrueLaw>, SimError> {
+        if matches!(sc.adhesion.law, AdhesionLaw::Polach | AdhesionLaw::Fastsim(_)) {
+            return Ok(None);
+        }
+        Ok(load_law(sc)?.map(TrueLaw))
+    }
+
+    /// μ at slip `dv` (m/s), slip rate `ddv` (m/s²; the simulator lags it, the law does not)
+    /// and speed `v` (m/s).
+    pub fn mu(&self, dv: f64, ddv: f64, v: f64) -> f64 {
+        self.0.mu(dv, ddv, v, 1.0)
+    }
 }
 
 /// Runs a scene. `seed` overrides the scene's seed.

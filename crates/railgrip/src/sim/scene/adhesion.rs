@@ -5,8 +5,8 @@ use std::path::Path;
 
 use super::laws::{
     fastsim_law, loss_recovery, slip_table, FastsimLaw, FASTSIM_ALPHA_INF, FASTSIM_BETA,
-    FASTSIM_BOUND, FASTSIM_GRID, FASTSIM_K0, LOSS_PEAK, LOSS_RESIDUAL, LOSS_SLIP, PEAK_SPEED,
-    PEAK_TEMPERATURE, RECOVERY_PEAK, RECOVERY_RESIDUAL, RECOVERY_SLIP, TABLE_MU, TABLE_SLIPS,
+    FASTSIM_BOUND, FASTSIM_GRID, FASTSIM_K0, LEVEL_SCALE, LOSS_PEAK, LOSS_RESIDUAL, LOSS_SLIP,
+    PEAK_SPEED, PEAK_SPEED_FORM, PEAK_TEMPERATURE, RECOVERY_PEAK, RECOVERY_RESIDUAL, RECOVERY_SLIP, TABLE_MU, TABLE_SLIPS,
     TABLE_SPEEDS,
 };
 use super::text;
@@ -47,6 +47,8 @@ pub mod raw {
         pub recovery_peak_slip_mps: Option<f64>,
         pub recovery_residual: Option<f64>,
         pub peak_speed_coefficient: Option<f64>,
+        pub peak_speed_form: Option<String>,
+        pub level_scale: Option<f64>,
         pub peak_temperature_coefficient_per_k: Option<f64>,
         pub table_speeds_kmh: Option<Vec<f64>>,
         pub table_slips_mps: Option<Vec<f64>>,
@@ -264,6 +266,8 @@ pub const KEYS: &[&Key] = &[
     &RECOVERY_SLIP,
     &RECOVERY_RESIDUAL,
     &PEAK_SPEED,
+    &PEAK_SPEED_FORM,
+    &LEVEL_SCALE,
     &PEAK_TEMPERATURE,
     &TABLE_SPEEDS,
     &TABLE_SLIPS,
@@ -326,10 +330,12 @@ impl Checker<'_> {
             a.recovery_peak_slip_mps,
             a.recovery_residual,
             a.peak_speed_coefficient,
+            a.level_scale,
             a.peak_temperature_coefficient_per_k,
         ]
         .iter()
-        .any(Option::is_some);
+        .any(Option::is_some)
+            || a.peak_speed_form.is_some();
         if lr_given && !matches!(law, AdhesionLaw::LossRecovery(_)) {
             return Err(self.invalid(
                 "adhesion.loss_*/recovery_*/peak_*",

@@ -65,6 +65,20 @@ pub(super) const PEAK_SPEED: Key = Key::num(
     0.3,
     "`loss_recovery`: peaks × (1 + κ (v_ref − v)/(v_ref + v)) [assumed]",
 );
+pub(super) const PEAK_SPEED_FORM: Key = Key {
+    name: "adhesion.peak_speed_form",
+    unit: "",
+    range: Range::Choice(&["ratio", "quadratic"]),
+    default: Default::Text("\"ratio\""),
+    meaning: "`loss_recovery`: how the peaks fall with speed: `\"ratio\"` × (1 + κ (v_ref − v)/(v_ref + v)), flat at the top; `\"quadratic\"` × (1 + κ (1 − (v/v_ref)²)), steeper at the top (docs/simulator.md#foreign-laws) [assumed]",
+};
+pub(super) const LEVEL_SCALE: Key = Key::num(
+    "adhesion.level_scale",
+    "",
+    closed(0.2, 5.0),
+    1.0,
+    "`loss_recovery`: both peaks × this — the run's rail condition (run-to-run spread) [assumed]",
+);
 pub(super) const PEAK_TEMPERATURE: Key = Key::num(
     "adhesion.peak_temperature_coefficient_per_k",
     "1/K",
@@ -182,7 +196,18 @@ pub(super) fn loss_recovery(
     c: &Checker,
     a: &raw::Adhesion,
 ) -> Result<crate::sim::foreign::LossRecovery, ConfigError> {
-    use crate::sim::foreign::{Branch, LossRecovery};
+    use crate::sim::foreign::{Branch, LossRecovery, SpeedForm};
+    let speed_form = match a.peak_speed_form.as_deref() {
+        None | Some("ratio") => SpeedForm::Ratio,
+        Some("quadratic") => SpeedForm::Quadratic,
+        Some(other) => {
+            return Err(c.invalid(
+                PEAK_SPEED_FORM.name,
+                format!("{other:?}"),
+                "must be \"ratio\" or \"quadratic\"",
+            ))
+        }
+    };
     Ok(LossRecovery {
         loss: Branch {
             peak_mu: c.value(&LOSS_PEAK, a.loss_peak_mu)?,
@@ -196,6 +221,8 @@ pub(super) fn loss_recovery(
         },
         blend_ddv_mps2: c.value(&HYSTERESIS_DDV, a.hysteresis_ddv_mps2)?,
         speed_coefficient: c.value(&PEAK_SPEED, a.peak_speed_coefficient)?,
+        speed_form,
+        level_scale: c.value(&LEVEL_SCALE, a.level_scale)?,
         reference_speed_mps: c.value(&REFERENCE_SPEED, a.reference_speed_kmh)? / 3.6,
         temperature_coefficient_per_k: c
             .value(&PEAK_TEMPERATURE, a.peak_temperature_coefficient_per_k)?,
