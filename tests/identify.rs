@@ -879,6 +879,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
     let t = TemperatureFit {
         mu0_degree: 1,
         k_degree: 2,
+        speed: None,
         mu0: vec![0.12, -0.0005],
         k_a: vec![0.15, -0.002, 1e-5],
         k_s: vec![0.05, -0.0005, 0.0],
@@ -1133,10 +1134,85 @@ fn network_files_that_would_evaluate_to_nan_are_refused() {
     assert!(ModelFile::from_json(&good, "good.json").is_ok());
 }
 
+/// `polach_model` with μ0's speed law `form` and coefficients over its fitted speeds.
+fn with_speed_law(mut file: ModelFile, form: &str, coefficients: &[f64]) -> ModelFile {
+    let v = &file.inputs[1];
+    let range = [v.domain_min, v.domain_max];
+    file.polach.as_mut().unwrap().speed = Some(railgrip::model::polach::SpeedSpec {
+        form: form.into(),
+        coefficients: coefficients.to_vec(),
+        fitted_range_mps: range,
+    });
+    file
+}
+
+#[test]
+fn polach_speed_laws_scale_mu0_and_are_checked() {
+    use railgrip::model::polach::CURTIUS_KNIFFLER_SPEED_MPS as VC;
+    let base = Model::new(polach_model(true)).unwrap();
+    let poly = Model::new(with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1])).unwrap();
+    let ck = Model::new(with_speed_law(polach_model(false), "curtius_kniffler", &[0.6])).unwrap();
+    let plain = Model::new(polach_model(false)).unwrap();
+    // At the reference speed (25 m/s) g = 1: the same μ as without the law.
+    for dv in [0.2, 1.0, 3.0] {
+        for t in [f64::NAN, -10.0, 15.0] {
+            assert_eq!(poly.mu_vt(dv, 0.0, 25.0, t), base.mu_vt(dv, 0.0, 25.0, t));
+        }
+    }
+    // Elsewhere μ0 × g(v): at large slip μ ≈ μ_w ∝ μ0 (the creep term saturates), so the
+    // ratio of μ with and without the law tends to g(v).
+    let g_poly = |v: f64| {
+        let u = v / 25.0 - 1.0;
+        1.0 + u * (-0.3 + u * -0.1)
+    };
+    let g_ck = |v: f64| 1.0 + 0.6 * ((25.0 + VC) / (v + VC) - 1.0);
+    for v in [5.0, 15.0, 40.0] {
+        let r = poly.mu_vt(4.0, 0.0, v, 0.0) / base.mu_vt(4.0, 0.0, v, 0.0);
+        assert!((r / g_poly(v) - 1.0).abs() < 0.02, "{v}: {r} vs {}", g_poly(v));
+        let r = ck.mu_vt(4.0, 0.0, v, f64::NAN) / plain.mu_vt(4.0, 0.0, v, f64::NAN);
+        assert!((r / g_ck(v) - 1.0).abs() < 0.02, "{v}: {r} vs {}", g_ck(v));
+    }
+    // The level falls with speed for these coefficients; clamped beyond the fitted speeds.
+    assert!(poly.mu_vt(4.0, 0.0, 40.0, 0.0) < poly.mu_vt(4.0, 0.0, 10.0, 0.0));
+    let at = |m: &Model, v: f64| m.mu_vt(4.0, 0.0, v, 0.0) / base.mu_vt(4.0, 0.0, v, 0.0);
+    assert!((at(&poly, 60.0) - at(&poly, 44.0)).abs() < 0.01);
+    // Checks: unknown form, wrong count, a factor leaving its bounds, range ≠ the v domain.
+    let good = with_speed_law(polach_model(true), "polynomial", &[-0.3]).to_json();
+    let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
+        assert_refused(&good, "bad.polach.json", edit, needle)
+    };
+    bad(&|v| v["polach"]["speed"]["form"] = "cubic".into(), "curtius_kniffler");
+    bad(
+        &|v| v["polach"]["speed"]["coefficients"] = serde_json::json!([0.1, 0.1, 0.1, 0.1]),
+        "coefficients",
+    );
+    bad(
+        &|v| {
+            v["polach"]["speed"]["form"] = "curtius_kniffler".into();
+            v["polach"]["speed"]["coefficients"] = serde_json::json!([0.1, 0.1]);
+        },
+        "curtius_kniffler 1",
+    );
+    bad(
+        &|v| v["polach"]["speed"]["coefficients"] = serde_json::json!([-20.0]),
+        "speed factor",
+    );
+    bad(
+        &|v| v["polach"]["speed"]["fitted_range_mps"] = serde_json::json!([1.0, 44.0]),
+        "fitted_range_mps",
+    );
+}
+
 #[test]
 fn polach_c_header_agrees_with_the_rust_evaluator() {
-    for with_t in [false, true] {
-        let model = Model::new(polach_model(with_t)).unwrap();
+    let files = [
+        ("plain", polach_model(false)),
+        ("k(T)", polach_model(true)),
+        ("k(T), μ0(v) polynomial", with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1, 0.02])),
+        ("μ0(v) Curtius–Kniffler", with_speed_law(polach_model(false), "curtius_kniffler", &[0.6])),
+    ];
+    for (with_t, file) in files {
+        let model = Model::new(file).unwrap();
         let mut pts = Vec::new();
         for i in 0..=80 {
             let dv = -4.0 + 0.1 * i as f64;
@@ -1150,7 +1226,7 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
         pts.push([1.0, f64::INFINITY, 30.0, 0.0]);
         if let Some((worst, _)) = c_header_error(&model, &pts, &[]) {
             eprintln!(
-                "Polach C header (k(T): {with_t}) vs Rust: max |Δμ| = {worst:.1e} over {} points",
+                "Polach C header ({with_t}) vs Rust: max |Δμ| = {worst:.1e} over {} points",
                 pts.len()
             );
             assert!(worst <= 1e-12, "{worst}");

@@ -5,7 +5,7 @@
 //! itself lives in `c/mlp.h.in` and `c/polach.h.in`, with `@name@` placeholders for the
 //! model's numbers and the symbol prefix.
 
-use super::polach::{stiffness, PolachSpec, MIN_SPEED_MPS};
+use super::polach::{stiffness, PolachSpec, CURTIUS_KNIFFLER_SPEED_MPS, MIN_SPEED_MPS};
 use super::{CreepSpec, Layer, ModelFile, Scaling, SupportSpec, MAX_INPUTS};
 
 /// Shortest decimal form that reads back to the same double (C's strtod rounds correctly);
@@ -289,6 +289,16 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
     } else {
         mu0_t.clone()
     };
+    // Without a speed law: one unused 0 coefficient and the range [0, 0] (HAS_SPEED 0).
+    let (speed_c, ck, v_lo, v_hi) = match &p.speed {
+        Some(s) => (
+            s.coefficients.clone(),
+            s.form == "curtius_kniffler",
+            s.fitted_range_mps[0],
+            s.fitted_range_mps[1],
+        ),
+        None => (vec![0.0], false, 0.0, 0.0),
+    };
     let up = prefix.to_uppercase();
     fill(
         POLACH_TEMPLATE,
@@ -305,6 +315,13 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
                 }
                 .to_string(),
             ),
+            (
+                "vl",
+                match &p.speed {
+                    None => String::new(),
+                    Some(s) => format!(" and μ0's speed law ({})", s.form),
+                },
+            ),
             ("ver", env!("CARGO_PKG_VERSION").to_string()),
             ("source", comment_text(source)),
             ("fmt", comment_text(&m.format)),
@@ -313,6 +330,12 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
             ("rmse", lit(m.metrics.train_mse.sqrt())),
             ("inputs", inputs_line(m)),
             ("has_t", u8::from(has_t).to_string()),
+            ("has_v", u8::from(p.speed.is_some()).to_string()),
+            ("ck", u8::from(ck).to_string()),
+            ("nsp", speed_c.len().to_string()),
+            ("v_lo", lit(v_lo)),
+            ("v_hi", lit(v_hi)),
+            ("v_c", lit(CURTIUS_KNIFFLER_SPEED_MPS)),
             ("nmu0", mu0_t.len().to_string()),
             ("nka", ka_t.len().to_string()),
             ("nks", ks_t.len().to_string()),
@@ -331,7 +354,8 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
                 "arrays",
                 array(&format!("{prefix}_mu0_T"), &mu0_arr)
                     + &array(&format!("{prefix}_ka_T"), &ka_t)
-                    + &array(&format!("{prefix}_ks_T"), &ks_t),
+                    + &array(&format!("{prefix}_ks_T"), &ks_t)
+                    + &array(&format!("{prefix}_speed_c"), &speed_c),
             ),
         ],
     )

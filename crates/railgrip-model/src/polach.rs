@@ -10,7 +10,10 @@
 //!    bound as v → 0 and μ tends to the friction coefficient; the floor keeps it finite).
 //! 2. μ0, k_A, k_S: the file's values, or with a temperature law and a finite T,
 //!    k_A(T), k_S(T) = Σ c_i T^i (Horner, T clamped to the fitted range), and μ0(T) likewise
-//!    when the law has μ0 coefficients (else the file's μ0).
+//!    when the law has μ0 coefficients (else the file's μ0). With a speed law ([`SpeedSpec`]),
+//!    μ0 × g(v), v (after step 1) clamped to the law's fitted range: the adhesion level falling
+//!    with rolling speed (seed 002 Fig. 8), which Polach's law alone does not have — it makes
+//!    μ fall with slip velocity only (seed 004 eq. 2).
 //! 3. μ_w = μ0 [(1 − A) e^(−B w) + A]; ε = K (w / v) / μ_w with K = π G a b c11 / (4 Q)
 //!    (eq. 2 with C = (3/8)(G/a) c11, the creepage s = w/v and the wheel load Q of the fit);
 //!    μ = sign(Δv) · (2 μ_w / π) [k_A ε / (1 + (k_A ε)²) + arctan(k_S ε)] (eq. 1).
@@ -65,6 +68,111 @@ pub struct PolachSpec {
     /// k_A(T), k_S(T) when fitted over two or more ambient temperatures.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub temperature: Option<TemperatureSpec>,
+    /// μ0's speed law g(v), when the fit chose one (an older railgrip refuses the file by its
+    /// unknown field rather than evaluating it without).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<SpeedSpec>,
+}
+
+/// Curtius–Kniffler's speed constant, m/s: their μ(v) = 7.5/(v + 44) + 0.161, v in km/h.
+pub const CURTIUS_KNIFFLER_SPEED_MPS: f64 = 44.0 / 3.6;
+
+/// Most coefficients of a polynomial speed law.
+pub const MAX_SPEED_COEFFICIENTS: usize = 3;
+
+/// Points of the fitted speed range at which a speed law is checked.
+const SPEED_CHECKS: usize = 1001;
+
+/// The adhesion level's speed law: μ0(v[, T]) = μ0[(T)] · g(v), g(v) = 1 + Σ_j c_j φ_j(v),
+/// g(v_ref) = 1 at the file's reference speed v_ref (m/s).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeedSpec {
+    /// `"polynomial"`: φ_j = u^j, u = v/v_ref − 1, j = 1 … n (n ≤ 3);
+    /// `"curtius_kniffler"`: one φ = (v_ref + v_c)/(v + v_c) − 1 with v_c = 44 km/h — the
+    /// shape of Curtius & Kniffler's 7.5/(v + 44) + 0.161 (Elektrische Bahnen 20 (1950)),
+    /// its level and depth fitted.
+    pub form: String,
+    /// c_1 … c_n (–).
+    pub coefficients: Vec<f64>,
+    /// The speeds the fit covers (m/s); v outside is clamped to it.
+    pub fitted_range_mps: [f64; 2],
+}
+
+/// A checked speed law for evaluation.
+#[derive(Debug, Clone)]
+pub(crate) struct SpeedEval {
+    kneed: bool,
+    coefficients: Vec<f64>,
+    v_ref: f64,
+    lo: f64,
+    hi: f64,
+}
+
+impl SpeedEval {
+    pub(crate) fn new(s: &SpeedSpec, v_ref: f64) -> SpeedEval {
+        SpeedEval {
+            kneed: s.form == "curtius_kniffler",
+            coefficients: s.coefficients.clone(),
+            v_ref,
+            lo: s.fitted_range_mps[0],
+            hi: s.fitted_range_mps[1],
+        }
+    }
+
+    /// g(v), v (m/s) clamped to the fitted range; the C header does the same operations.
+    #[inline]
+    pub(crate) fn factor(&self, v: f64) -> f64 {
+        let v = v.clamp(self.lo, self.hi);
+        if self.kneed {
+            let phi = (self.v_ref + CURTIUS_KNIFFLER_SPEED_MPS) / (v + CURTIUS_KNIFFLER_SPEED_MPS)
+                - 1.0;
+            1.0 + self.coefficients[0] * phi
+        } else {
+            let u = v / self.v_ref - 1.0;
+            1.0 + u * horner(&self.coefficients, u)
+        }
+    }
+}
+
+/// Checks a speed law: its form and coefficients, its range, and 0.05 ≤ g(v) with
+/// μ0_max · g(v) ≤ 1.5 over the range (`mu0_max`: the largest μ0, over temperature too).
+pub fn check_speed_law(s: &SpeedSpec, v_ref: f64, mu0_max: f64) -> Result<(), Defect> {
+    let n = s.coefficients.len();
+    let ok_count = match s.form.as_str() {
+        "polynomial" => (1..=MAX_SPEED_COEFFICIENTS).contains(&n),
+        "curtius_kniffler" => n == 1,
+        other => {
+            return Err(Defect::Value(format!(
+                "polach.speed.form = {other:?}: must be \"polynomial\" or \"curtius_kniffler\""
+            )))
+        }
+    };
+    if !ok_count {
+        return Err(Defect::Value(format!(
+            "polach.speed ({}) has {n} coefficients: a polynomial takes 1 to {MAX_SPEED_COEFFICIENTS}, curtius_kniffler 1",
+            s.form
+        )));
+    }
+    let [lo, hi] = s.fitted_range_mps;
+    if s.coefficients.iter().any(|c| !c.is_finite())
+        || !(lo.is_finite() && hi.is_finite() && lo >= 0.0 && lo <= hi)
+    {
+        return Err(Defect::Value(
+            "polach.speed: coefficients or fitted range not finite (the range must be ≥ 0)".into(),
+        ));
+    }
+    let e = SpeedEval::new(s, v_ref);
+    for i in 0..SPEED_CHECKS {
+        let v = lo + (hi - lo) * i as f64 / (SPEED_CHECKS - 1) as f64;
+        let g = e.factor(v);
+        if !(g >= 0.05 && mu0_max * g <= 1.5) {
+            return Err(Defect::Value(format!(
+                "polach.speed: μ0's speed factor g({v:.3} m/s) = {g:.4} leaves 0.05 ≤ g and μ0 g ≤ 1.5 (largest μ0 {mu0_max})"
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Hertz + Kalker patch of one wheel.
@@ -203,7 +311,35 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
         }
         check_law(t, p.mu0)?;
     }
+    if let Some(sp) = &p.speed {
+        let dom = &m.inputs[1];
+        if dom.domain_min != sp.fitted_range_mps[0] || dom.domain_max != sp.fitted_range_mps[1] {
+            return Err(Defect::InputRange {
+                input: "v_mps".into(),
+                what: "domain differs from polach.speed.fitted_range_mps",
+            });
+        }
+        check_speed_law(sp, p.reference_speed_mps, mu0_max(p))?;
+    }
     Ok(())
+}
+
+/// The largest μ0 of a spec: its μ0, or the largest of μ0(T) over the temperature range.
+fn mu0_max(p: &PolachSpec) -> f64 {
+    match &p.temperature {
+        Some(t) if !t.mu0.is_empty() => {
+            let [lo, hi] = t.fitted_range_c;
+            (0..TEMPERATURE_CHECKS)
+                .map(|i| {
+                    horner(
+                        &t.mu0,
+                        lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64,
+                    )
+                })
+                .fold(p.mu0, f64::max)
+        }
+        _ => p.mu0,
+    }
 }
 
 /// Whether a temperature law keeps 0 < μ0(T) ≤ 1.5 and 0 < k_S(T) ≤ k_A(T) ≤ 1 at
@@ -256,6 +392,7 @@ pub(crate) struct PolachEval {
     dv: (f64, f64),
     v: (f64, f64),
     temperature: Option<TemperatureEval>,
+    speed: Option<SpeedEval>,
 }
 
 /// The temperature law of an evaluator: μ0(T) (empty: constant), k_A(T), k_S(T), range (°C).
@@ -306,6 +443,10 @@ impl PolachEval {
                 lo: t.fitted_range_c[0],
                 hi: t.fitted_range_c[1],
             }),
+            speed: p
+                .speed
+                .as_ref()
+                .map(|s| SpeedEval::new(s, p.reference_speed_mps)),
         }
     }
 
@@ -316,7 +457,7 @@ impl PolachEval {
         if !(dv.is_finite() && ddv.is_finite()) {
             return f64::NAN;
         }
-        let (mu0, ka, ks) = match &self.temperature {
+        let (mut mu0, ka, ks) = match &self.temperature {
             Some(law) if t_c.is_finite() => law.at(t_c, self.mu0),
             _ => (self.mu0, self.k_a, self.k_s),
         };
@@ -325,6 +466,9 @@ impl PolachEval {
         } else {
             self.v_ref
         };
+        if let Some(s) = &self.speed {
+            mu0 *= s.factor(v);
+        }
         let w = dv.abs();
         if w == 0.0 {
             return 0.0;

@@ -174,7 +174,13 @@ pub fn polach_file(
             fit.se,
         ),
     };
-    let temperature = law.map(|t| t.spec());
+    let temperature = law.filter(|t| t.has_temperature_law()).map(|t| t.spec());
+    let speed = law.and_then(|t| t.speed.as_ref()).map(|s| {
+        let mut spec = s.spec();
+        // The law clamps v to the fitted speeds: the model's v domain.
+        spec.fitted_range_mps = [v_range.0, v_range.1];
+        spec
+    });
     if let Some(t) = &temperature {
         inputs.push(input(
             TEMPERATURE_INPUT,
@@ -212,6 +218,7 @@ pub fn polach_file(
             wheel_load_n,
             reference_speed_mps: v_ref,
             temperature,
+            speed,
         }),
         provenance,
         metrics: Metrics {

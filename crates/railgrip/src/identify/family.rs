@@ -315,6 +315,9 @@ impl ModelFamily for PolachWithLaws {
                 (Some(_), None) => Err(IdentifyError::NotFitted {
                     why: "the data chose no temperature law: k(T) is not identified on these runs",
                 }),
+                (Some(_), Some(law)) if !law.has_temperature_law() => Err(IdentifyError::NotFitted {
+                    why: "the data chose no temperature law: k(T) is not identified on these runs",
+                }),
                 (Some(_), Some(law)) => file.write(&report, Some(law), &d.provenance),
             }
         } else if report.pooled.is_none() {

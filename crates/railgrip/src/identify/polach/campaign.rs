@@ -61,7 +61,17 @@ pub fn fit_campaign(
     let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
     let law = match &fits.pooled {
         Some(p) => {
-            fit_temperature_forms(&all, patch, q_n, decimate, degree, p, &fits.per_temperature)
+            let v_ref = crate::identify::median_speed(tables);
+            fit_temperature_forms(
+                &all,
+                patch,
+                q_n,
+                decimate,
+                degree,
+                p,
+                &fits.per_temperature,
+                v_ref,
+            )
         }
         None => Err(IdentifyError::Data {
             what: "no pooled Polach fit".into(),
@@ -190,11 +200,11 @@ fn law_and_note(
                 let best_other = t
                     .candidates
                     .iter()
-                    .filter(|c| c.mu0_degree + c.k_degree > 0)
+                    .filter(|c| c.mu0_degree + c.k_degree > 0 || c.speed_form.is_some())
                     .map(|c| c.bic - t.candidates[0].bic)
                     .fold(f64::INFINITY, f64::min);
                 format!(
-                    "the data prefer no temperature dependence (BIC of the best temperature form {} above the constant's){}",
+                    "the data prefer no temperature or speed dependence (BIC of the best other form {} above the constant's){}",
                     if best_other.is_finite() { format!("{best_other:.1}") } else { "—".into() },
                     if t.notes.is_empty() { String::new() } else { format!("; {}", t.notes.join("; ")) }
                 )

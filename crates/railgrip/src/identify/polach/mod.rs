@@ -32,7 +32,9 @@ pub use campaign::{fit_campaign, PolachReport};
 pub use fit::{fit_polach, PolachFit};
 pub use law::{ParamStatus, DEFAULT_START, PARAMETERS};
 pub use profile::{Profile, PROFILE_LIMIT};
-pub use temperature::{fit_temperature_forms, k_identified, TemperatureCandidate, TemperatureFit};
+pub use temperature::{
+    fit_temperature_forms, k_identified, SpeedLaw, TemperatureCandidate, TemperatureFit,
+};
 
 /// Standard errors in files: NaN (held, not identifiable or not applicable) written as `null`
 /// and read back as NaN (JSON has no NaN).
@@ -46,5 +48,22 @@ mod nan_as_null {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<[f64; 5], D::Error> {
         let v = <[Option<f64>; 5]>::deserialize(d)?;
         Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+    }
+}
+
+/// [`nan_as_null`] for a list of any length.
+mod nan_as_null_vec {
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    pub fn serialize<S: Serializer>(x: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        x.iter()
+            .map(|v| v.is_finite().then_some(*v))
+            .collect::<Vec<_>>()
+            .serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        let v = <Vec<Option<f64>>>::deserialize(d)?;
+        Ok(v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
     }
 }

@@ -1,5 +1,7 @@
 //! The least-squares problem of one Polach fit: parameters held or free, constant or as node
-//! values over temperature (Lagrange basis per temperature group), with the analytic Jacobian.
+//! values over temperature (Lagrange basis per temperature group), optionally μ0 × g(v) with a
+//! speed law linear in its coefficients (`railgrip_model::polach::SpeedSpec`), with the
+//! analytic Jacobian.
 
 use super::law::{mu_and_gradient, mu_only, to_natural, to_unconstrained, Sample, LOWER, UPPER};
 use crate::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
@@ -9,8 +11,55 @@ use crate::linalg::{cho_solve, cholesky, effective_samples};
 /// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
 /// `train.temperature_degree`).
 pub(super) const MAX_NODES: usize = 6;
-/// Most free coordinates of a problem (five parameters, each with up to [`MAX_NODES`]).
-pub(super) const MAX_COORDS: usize = 5 * MAX_NODES;
+/// Most free coordinates of a problem (five parameters, each with up to [`MAX_NODES`], and
+/// the speed law's coefficients).
+pub(super) const MAX_COORDS: usize = 6 * MAX_NODES;
+/// The row of [`Nodes`] (and [`Coord::param`]) holding the speed law's coefficients.
+pub(super) const SPEED: usize = 5;
+/// The speed factor g(v) is held at this floor where the coefficients would take it below
+/// (the model file's check refuses such a law; the fit must not divide by it on the way).
+const MIN_SPEED_FACTOR: f64 = 0.05;
+
+/// μ0's speed law in a fit: g(v) = 1 + Σ_j c_j φ_j(v), φ_j = u^j with u = v/v_ref − 1
+/// (polynomial of `terms` terms), or φ = (v_ref + v_c)/(v + v_c) − 1 (Curtius–Kniffler's
+/// shape, one term); v clamped to the samples' speed range as the model file clamps it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct SpeedBasis {
+    pub(super) curtius_kniffler: bool,
+    pub(super) terms: usize,
+    pub(super) v_ref: f64,
+    pub(super) range: (f64, f64),
+}
+
+impl SpeedBasis {
+    /// φ_j(v) for j < terms.
+    #[inline]
+    pub(super) fn phi(&self, v: f64) -> [f64; 3] {
+        let v = v.clamp(self.range.0, self.range.1);
+        let mut out = [0.0; 3];
+        if self.curtius_kniffler {
+            let vc = crate::model::polach::CURTIUS_KNIFFLER_SPEED_MPS;
+            out[0] = (self.v_ref + vc) / (v + vc) - 1.0;
+        } else {
+            let u = v / self.v_ref - 1.0;
+            let mut p = u;
+            for o in out.iter_mut().take(self.terms) {
+                *o = p;
+                p *= u;
+            }
+        }
+        out
+    }
+
+    /// The form's name in the model file.
+    pub(super) fn form(&self) -> &'static str {
+        if self.curtius_kniffler {
+            "curtius_kniffler"
+        } else {
+            "polynomial"
+        }
+    }
+}
 
 /// The samples at one ambient temperature (a contiguous range of the problem's samples) and,
 /// per parameter, its Lagrange basis at that temperature: x_i = Σ_j basis[i][j] · node_ij.
@@ -37,10 +86,11 @@ pub(super) struct PolachProblem<'a> {
     pub(super) fixed: [Option<f64>; 5],
     pub(super) ks_fixed: Option<f64>,
     pub(super) free: Vec<Coord>,
+    pub(super) speed: Option<SpeedBasis>,
 }
 
-/// Node values of the five parameters.
-pub(super) type Nodes = [[f64; MAX_NODES]; 5];
+/// Node values of the five parameters, and in row [`SPEED`] the speed law's coefficients.
+pub(super) type Nodes = [[f64; MAX_NODES]; 6];
 
 impl<'a> PolachProblem<'a> {
     /// Constant parameters over all samples, `fixed` held.
@@ -73,15 +123,48 @@ impl<'a> PolachProblem<'a> {
             fixed,
             ks_fixed,
             free,
+            speed: None,
+        }
+    }
+
+    /// This problem with μ0 × g(v) of `basis`, its coefficients free (from 0: g = 1).
+    pub(super) fn with_speed(mut self, basis: SpeedBasis) -> Self {
+        self.free.extend((0..basis.terms).map(|node| Coord {
+            param: SPEED,
+            node,
+        }));
+        self.speed = Some(basis);
+        self
+    }
+
+    /// g(v) of sample `s` under coefficients `v[SPEED]`, its basis φ, and whether g was held
+    /// at its floor (then it does not move with the coefficients). 1 without a speed law.
+    #[inline]
+    fn speed_factor(&self, v: &Nodes, s: &Sample) -> (f64, [f64; 3], bool) {
+        match &self.speed {
+            None => (1.0, [0.0; 3], true),
+            Some(b) => {
+                let phi = b.phi(s.v);
+                let g = 1.0 + (0..b.terms).map(|j| v[SPEED][j] * phi[j]).sum::<f64>();
+                if g < MIN_SPEED_FACTOR {
+                    (MIN_SPEED_FACTOR, phi, true)
+                } else {
+                    (g, phi, false)
+                }
+            }
         }
     }
 
     /// Node values from θ, and each free coordinate's d(node)/dθ.
     pub(super) fn nodes(&self, theta: &[f64]) -> (Nodes, Vec<f64>) {
-        let mut v = [[0.0; MAX_NODES]; 5];
+        let mut v = [[0.0; MAX_NODES]; 6];
         let mut d = vec![0.0; self.free.len()];
         for (k, c) in self.free.iter().enumerate() {
-            (v[c.param][c.node], d[k]) = to_natural(c.param, theta[k]);
+            (v[c.param][c.node], d[k]) = if c.param == SPEED {
+                (theta[k], 1.0)
+            } else {
+                to_natural(c.param, theta[k])
+            };
         }
         (v, d)
     }
@@ -90,7 +173,13 @@ impl<'a> PolachProblem<'a> {
     pub(super) fn theta(&self, v: &Nodes) -> Vec<f64> {
         self.free
             .iter()
-            .map(|c| to_unconstrained(c.param, v[c.param][c.node]))
+            .map(|c| {
+                if c.param == SPEED {
+                    v[c.param][c.node]
+                } else {
+                    to_unconstrained(c.param, v[c.param][c.node])
+                }
+            })
             .collect()
     }
 
@@ -123,7 +212,13 @@ impl<'a> PolachProblem<'a> {
         for g in &self.groups {
             let (x, _) = self.at_group(g, v);
             for s in &self.samples[g.range.clone()] {
-                let r = mu_only(&x, s) - s.mu;
+                let r = if self.speed.is_some() {
+                    let mut xs = x;
+                    xs[0] *= self.speed_factor(v, s).0;
+                    mu_only(&xs, s) - s.mu
+                } else {
+                    mu_only(&x, s) - s.mu
+                };
                 sse += r * r;
             }
         }
@@ -155,7 +250,9 @@ impl<'a> PolachProblem<'a> {
             let (x, clamped) = self.at_group(g, &v);
             for (c, co) in self.free.iter().enumerate() {
                 let dd = if natural { 1.0 } else { d[c] };
-                m[c] = if clamped[co.param] {
+                m[c] = if co.param == SPEED {
+                    1.0
+                } else if clamped[co.param] {
                     0.0
                 } else {
                     g.basis[co.param][co.node] * dd
@@ -164,7 +261,16 @@ impl<'a> PolachProblem<'a> {
             // With k_S held, k_A also moves ρ = k_S/k_A: dρ/dk_A = −k_S/k_A².
             let drho = self.ks_fixed.map(|ks| -ks / (x[3] * x[3]));
             for s in &self.samples[g.range.clone()] {
-                let (f, mut grad) = mu_and_gradient(&x, s);
+                // With a speed law μ0_eff = μ0 g(v): dμ/dμ0 = g ∂μ/∂μ0_eff and
+                // dμ/dc_j = μ0 φ_j ∂μ/∂μ0_eff (φ_j = 0 where g sits at its floor).
+                let (gv, phi, held) = self.speed_factor(&v, s);
+                let (f, mut grad) = if self.speed.is_some() {
+                    let mut xs = x;
+                    xs[0] *= gv;
+                    mu_and_gradient(&xs, s)
+                } else {
+                    mu_and_gradient(&x, s)
+                };
                 if let Some(dr) = drho {
                     grad[3] += grad[4] * dr;
                 }
@@ -173,8 +279,20 @@ impl<'a> PolachProblem<'a> {
                 if let Some(out) = residuals.as_deref_mut() {
                     out.push(r);
                 }
-                for c in 0..k {
-                    row[c] = grad[ps[c]] * m[c];
+                if self.speed.is_some() {
+                    let dmu0 = grad[0];
+                    for (c, co) in self.free.iter().enumerate() {
+                        row[c] = match co.param {
+                            SPEED if held => 0.0,
+                            SPEED => dmu0 * x[0] * phi[co.node],
+                            0 => dmu0 * gv * m[c],
+                            p => grad[p] * m[c],
+                        };
+                    }
+                } else {
+                    for c in 0..k {
+                        row[c] = grad[ps[c]] * m[c];
+                    }
                 }
                 for a in 0..k {
                     jtr[a] += row[a] * r;
@@ -279,9 +397,9 @@ pub(super) fn solve<'a>(
     Ok((problem, theta, solver.history().len(), stop))
 }
 
-/// Constant node values of natural parameters `x`.
+/// Constant node values of natural parameters `x` (no speed dependence).
 pub(super) fn constant_nodes(x: &[f64; 5]) -> Nodes {
-    let mut v = [[0.0; MAX_NODES]; 5];
+    let mut v = [[0.0; MAX_NODES]; 6];
     for i in 0..5 {
         v[i] = [x[i]; MAX_NODES];
     }

@@ -1,5 +1,8 @@
-//! The temperature law: every form μ0(T), k_A(T), k_S(T)/k_A(T) up to the pipeline's degree,
-//! fitted jointly over all samples and chosen by BIC with n_eff (seed 004 eq. 3, Fig. 2).
+//! The temperature and speed law: every form μ0(T), k_A(T), k_S(T)/k_A(T) up to the
+//! pipeline's degree (seed 004 eq. 3, Fig. 2), each with and without a speed law of the
+//! adhesion level μ0 × g(v) (linear or quadratic in v, or Curtius–Kniffler's shape: level
+//! falling with rolling speed, seed 002 Fig. 8, which Polach's law alone lacks), fitted
+//! jointly over all samples and chosen by BIC with n_eff.
 
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -7,7 +10,7 @@ use serde::{Deserialize, Serialize};
 use super::fit::{samples, PolachFit};
 use super::law::{solver_order, with_patch, ParamStatus, Sample};
 use super::problem::{basis_at, constant_nodes, fit_settings, solve, temperature_nodes};
-use super::problem::{Group, PolachProblem, MAX_NODES};
+use super::problem::{Group, PolachProblem, SpeedBasis, MAX_NODES, SPEED};
 use crate::contact::polach::{horner, ContactPatch};
 use crate::identify::dataset::RunTable;
 use crate::identify::IdentifyError;
@@ -19,6 +22,9 @@ pub struct TemperatureCandidate {
     /// Degrees of μ0(T) and of k_A(T), k_S(T)/k_A(T) (0: constant).
     pub mu0_degree: usize,
     pub k_degree: usize,
+    /// μ0's speed law: "polynomial 1", "polynomial 2", "curtius_kniffler"; absent: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed_form: Option<String>,
     /// Free parameters (those the pooled fit held are not counted).
     pub parameters: usize,
     pub sse: f64,
@@ -38,7 +44,60 @@ pub struct TemperatureCandidate {
 impl TemperatureCandidate {
     /// "μ0(T) degree 1, k(T) constant" and the like.
     pub fn form(&self) -> String {
-        form_name(self.mu0_degree, self.k_degree)
+        with_speed(
+            form_name(self.mu0_degree, self.k_degree),
+            self.speed_form.as_deref(),
+        )
+    }
+}
+
+/// A form's name with its speed law.
+fn with_speed(name: String, speed: Option<&str>) -> String {
+    match speed {
+        None => name,
+        Some(f) => format!("{name}, μ0(v) {f}"),
+    }
+}
+
+/// μ0's fitted speed law (`railgrip_model::polach::SpeedSpec` with its standard errors).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SpeedLaw {
+    /// "polynomial" or "curtius_kniffler".
+    pub form: String,
+    pub coefficients: Vec<f64>,
+    #[serde(with = "super::nan_as_null_vec")]
+    pub standard_errors: Vec<f64>,
+    /// v_ref (m/s): g(v_ref) = 1; the model file's reference speed.
+    pub reference_speed_mps: f64,
+    /// The samples' speeds (m/s); v is clamped to them.
+    pub fitted_range_mps: (f64, f64),
+}
+
+impl SpeedLaw {
+    /// g(v) at `v` (m/s).
+    pub fn factor(&self, v: f64) -> f64 {
+        let basis = SpeedBasis {
+            curtius_kniffler: self.form == "curtius_kniffler",
+            terms: self.coefficients.len(),
+            v_ref: self.reference_speed_mps,
+            range: self.fitted_range_mps,
+        };
+        let phi = basis.phi(v);
+        1.0 + self
+            .coefficients
+            .iter()
+            .zip(phi)
+            .map(|(c, p)| c * p)
+            .sum::<f64>()
+    }
+
+    /// As a model file's speed section.
+    pub fn spec(&self) -> crate::model::polach::SpeedSpec {
+        crate::model::polach::SpeedSpec {
+            form: self.form.clone(),
+            coefficients: self.coefficients.clone(),
+            fitted_range_mps: [self.fitted_range_mps.0, self.fitted_range_mps.1],
+        }
     }
 }
 
@@ -55,9 +114,12 @@ pub(super) fn form_name(mu0_degree: usize, k_degree: usize) -> String {
 /// an ambient temperature (A and B shared), and the candidates it was chosen from.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TemperatureFit {
-    /// The chosen degrees (both 0: the data prefer no temperature dependence; no law is written).
+    /// The chosen degrees (both 0: the data prefer no temperature dependence).
     pub mu0_degree: usize,
     pub k_degree: usize,
+    /// The chosen speed law of μ0; absent: none (or none offered).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub speed: Option<SpeedLaw>,
     /// The chosen form's polynomials, ascending powers of T (°C).
     pub mu0: Vec<f64>,
     pub k_a: Vec<f64>,
@@ -89,12 +151,22 @@ pub struct TemperatureFit {
 }
 
 impl TemperatureFit {
-    /// Whether anything depends on temperature.
+    /// Whether anything depends on temperature or speed (a law is written).
     pub fn has_law(&self) -> bool {
+        self.has_temperature_law() || self.speed.is_some()
+    }
+    /// Whether anything depends on temperature.
+    pub fn has_temperature_law(&self) -> bool {
         self.mu0_degree > 0 || self.k_degree > 0
     }
     pub fn form(&self) -> String {
-        form_name(self.mu0_degree, self.k_degree)
+        with_speed(
+            form_name(self.mu0_degree, self.k_degree),
+            self.speed
+                .as_ref()
+                .map(|s| speed_name(&s.form, s.coefficients.len()))
+                .as_deref(),
+        )
     }
     /// (μ0, k_A, k_S) at T (°C, not clamped).
     pub fn at(&self, t_c: f64) -> (f64, f64, f64) {
@@ -227,6 +299,7 @@ pub(super) struct FormFit {
     pub(super) a_ratio: f64,
     pub(super) b_s_per_m: f64,
     pub(super) se: [f64; 5],
+    pub(super) speed: Option<SpeedLaw>,
     pub(super) residuals: Vec<f64>,
 }
 
@@ -249,19 +322,23 @@ pub fn fit_temperature_forms(
     degree: usize,
     pooled: &PolachFit,
     per_temperature: &[PolachFit],
+    v_ref: f64,
 ) -> Result<TemperatureFit, IdentifyError> {
     let g = Grouped::of(tables, patch, q_n, decimate)?;
     let (lo, hi) = g.range;
-    let offered = Offered::of(&g, degree, pooled, per_temperature);
+    let offered = Offered::of(&g, degree, pooled, per_temperature, v_ref);
     let x0 = solver_order(&pooled.params());
     let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
-    let forms: Vec<(usize, usize)> = (0..=offered.mu_top)
+    // Speed forms innermost, the most flexible last (its residuals set n_eff).
+    let speeds = offered.speeds.clone();
+    let forms: Vec<(usize, usize, Option<SpeedBasis>)> = (0..=offered.mu_top)
         .flat_map(|dm| (0..=offered.k_top).map(move |dk| (dm, dk)))
+        .flat_map(|(dm, dk)| speeds.iter().map(move |sp| (dm, dk, *sp)))
         .collect();
     let fits: Vec<Result<FormFit, IdentifyError>> = forms
         .par_iter()
-        .map(|&(dm, dk)| fit_form(&g, [dm, 0, 0, dk, dk], fixed, &x0))
+        .map(|&(dm, dk, sp)| fit_form(&g, [dm, 0, 0, dk, dk], sp, fixed, &x0))
         .collect();
     let mut fits: Vec<FormFit> = fits.into_iter().collect::<Result<_, _>>()?;
     let n_eff = score_forms(&mut fits, g.samples.len(), g.range);
@@ -272,13 +349,14 @@ pub fn fit_temperature_forms(
         .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
         .map(|(i, _)| i)
         .ok_or_else(|| IdentifyError::Data {
-            what: "every temperature form leaves the valid domain of Polach's law".into(),
+            what: "every temperature and speed form leaves the valid domain of Polach's law".into(),
             hint: "lower train.temperature_degree".into(),
         })?;
     let chosen = &fits[best];
     let mut law = TemperatureFit {
         mu0_degree: chosen.record.mu0_degree,
         k_degree: chosen.record.k_degree,
+        speed: chosen.speed.clone(),
         mu0: chosen.mu0.clone(),
         k_a: chosen.k_a.clone(),
         k_s: chosen.k_s.clone(),
@@ -297,6 +375,7 @@ pub fn fit_temperature_forms(
     };
     law.residuals = per_temperature
         .iter()
+        .filter(|_| law.has_temperature_law())
         .filter_map(|f| {
             let t = f.ambient_temperature_c?;
             let (m, a, k) = law.at(t);
@@ -317,6 +396,8 @@ struct Grouped {
     ranges: Vec<(f64, std::ops::Range<usize>)>,
     /// The samples' median temperature, °C.
     reference_c: f64,
+    /// Lowest and highest speed of the samples, m/s.
+    speeds: (f64, f64),
 }
 
 impl Grouped {
@@ -332,13 +413,10 @@ impl Grouped {
             .collect();
         temps.sort_by(f64::total_cmp);
         temps.dedup();
-        if temps.len() < 2 {
+        if temps.is_empty() {
             return Err(IdentifyError::Data {
-                what: format!(
-                    "a temperature law needs runs at two or more ambient temperatures; found {}",
-                    temps.len()
-                ),
-                hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata".into(),
+                what: "a temperature or speed law needs runs with an ambient temperature; found none".into(),
+                hint: "give the runs ambient_temperature_c in their metadata".into(),
             });
         }
         let (lo, hi) = (temps[0], temps[temps.len() - 1]);
@@ -370,12 +448,16 @@ impl Grouped {
                 2 * seen > s.len()
             })
             .map_or(lo, |(t, _)| *t);
+        let speeds = s.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x.v), b.max(x.v))
+        });
         Ok(Grouped {
             temps,
             range: (lo, hi),
             samples: s,
             ranges,
             reference_c,
+            speeds,
         })
     }
 }
@@ -385,15 +467,54 @@ impl Grouped {
 struct Offered {
     mu_top: usize,
     k_top: usize,
+    /// The speed laws to try: None (no speed law) first.
+    speeds: Vec<Option<SpeedBasis>>,
     excluded: Vec<String>,
     notes: Vec<String>,
 }
 
+/// Speed laws are offered when the samples span at least this ratio of speeds (highest over
+/// lowest) and this many m/s: a level's speed dependence needs a range to be told from noise.
+const SPEED_SPAN_RATIO: f64 = 1.5;
+const SPEED_SPAN_MPS: f64 = 10.0;
+
+/// A speed form's name in the candidates' table.
+fn speed_name(form: &str, terms: usize) -> String {
+    if form == "polynomial" {
+        format!("polynomial {terms}")
+    } else {
+        form.to_string()
+    }
+}
+
 impl Offered {
-    fn of(g: &Grouped, degree: usize, pooled: &PolachFit, per_temperature: &[PolachFit]) -> Self {
+    fn of(
+        g: &Grouped,
+        degree: usize,
+        pooled: &PolachFit,
+        per_temperature: &[PolachFit],
+        v_ref: f64,
+    ) -> Self {
         let mut notes = Vec::new();
         let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
         let top = degree.min(g.temps.len() - 1).min(MAX_NODES - 1);
+        let (vlo, vhi) = g.speeds;
+        let mut speeds = vec![None];
+        if held(0) {
+            notes.push("μ0(v) forms not offered: the pooled fit holds μ0".into());
+        } else if vhi < SPEED_SPAN_RATIO * vlo || vhi - vlo < SPEED_SPAN_MPS {
+            notes.push(format!(
+                "μ0(v) forms not offered: the samples span {vlo:.1} … {vhi:.1} m/s (a speed law needs ×{SPEED_SPAN_RATIO} and {SPEED_SPAN_MPS} m/s)"
+            ));
+        } else {
+            let basis = |ck: bool, terms: usize| SpeedBasis {
+                curtius_kniffler: ck,
+                terms,
+                v_ref,
+                range: g.speeds,
+            };
+            speeds.extend([Some(basis(false, 1)), Some(basis(true, 1)), Some(basis(false, 2))]);
+        }
         let (k_temps, excluded) = k_identified(per_temperature);
         let k_top = if held(3) || held(4) {
             notes.push(format!(
@@ -417,7 +538,9 @@ impl Offered {
         } else {
             top
         };
-        if top == 0 {
+        if g.temps.len() == 1 {
+            notes.push("one ambient temperature: no temperature forms".into());
+        } else if top == 0 {
             notes.push("train.temperature_degree = 0: only the constant form".into());
         }
         if let Some(n) = coverage_note(&g.samples, &g.ranges) {
@@ -426,6 +549,7 @@ impl Offered {
         Offered {
             mu_top,
             k_top,
+            speeds,
             excluded,
             notes,
         }
@@ -438,6 +562,7 @@ impl Offered {
 fn fit_form(
     g: &Grouped,
     degrees: [usize; 5],
+    speed: Option<SpeedBasis>,
     fixed: [Option<f64>; 5],
     x0: &[f64; 5],
 ) -> Result<FormFit, IdentifyError> {
@@ -457,9 +582,13 @@ fn fit_form(
         .collect();
     let degrees_free: [usize; 5] =
         std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
-    let problem = PolachProblem::new(&g.samples, groups, degrees_free, fixed, None);
+    let mut problem = PolachProblem::new(&g.samples, groups, degrees_free, fixed, None);
+    if let Some(b) = speed {
+        problem = problem.with_speed(b);
+    }
+    let speed_label = speed.map(|b| speed_name(b.form(), b.terms));
     let (problem, theta, its, stop) = solve(
-        &form_name(dm, dk),
+        &with_speed(form_name(dm, dk), speed_label.as_deref()),
         problem,
         &constant_nodes(x0),
         fit_settings(),
@@ -474,11 +603,22 @@ fn fit_form(
     };
     let k = problem.free.len();
     let mut se = [f64::NAN; 5];
+    let mut speed_se = Vec::new();
     for (c, co) in problem.free.iter().enumerate() {
-        if degrees[co.param] == 0 {
-            se[co.param] = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
+        let sd = cov.cov.as_ref().map_or(f64::NAN, |m| m[c * k + c].sqrt());
+        if co.param == SPEED {
+            speed_se.push(sd);
+        } else if degrees[co.param] == 0 {
+            se[co.param] = sd;
         }
     }
+    let speed_law = speed.map(|b| SpeedLaw {
+        form: b.form().into(),
+        coefficients: v[SPEED][..b.terms].to_vec(),
+        standard_errors: speed_se,
+        reference_speed_mps: b.v_ref,
+        fitted_range_mps: b.range,
+    });
     let (ka, rho) = (value(3), value(4));
     if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
         let pos = |p: usize| problem.free.iter().position(|c| c.param == p);
@@ -495,6 +635,7 @@ fn fit_form(
         record: TemperatureCandidate {
             mu0_degree: dm,
             k_degree: dk,
+            speed_form: speed_label,
             parameters: k,
             sse: cov.sse,
             rmse: (cov.sse / g.samples.len() as f64).sqrt(),
@@ -510,6 +651,7 @@ fn fit_form(
         a_ratio: value(1)[0],
         b_s_per_m: value(2)[0],
         se,
+        speed: speed_law,
         residuals: cov.residuals,
     })
 }
@@ -534,6 +676,16 @@ fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f6
         };
         if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
             c.rejected = Some(e.to_string());
+        } else if let Some(sp) = &f.speed {
+            // The largest μ0 over the temperature range, as the model file's check takes it.
+            let mu0_max = (0..=100)
+                .map(|i| horner(&f.mu0, lo + (hi - lo) * f64::from(i) / 100.0))
+                .fold(f64::NEG_INFINITY, f64::max);
+            if let Err(e) =
+                crate::model::polach::check_speed_law(&sp.spec(), sp.reference_speed_mps, mu0_max)
+            {
+                c.rejected = Some(e.to_string());
+            }
         }
         f.residuals = Vec::new();
     }
