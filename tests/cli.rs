@@ -313,7 +313,10 @@ fn train_eval_export_work_end_to_end() {
         "validation",
         "Polach",
         "95 %       mu0 [",
-        "T law      μ0(T) constant, k(T) constant chosen by BIC among 4 forms",
+        // Two runs at two temperatures: no temperature law; from 120 and 160 km/h, the level's
+        // speed law (the truth's falls with speed).
+        "law        μ0(T) constant, k(T) constant, μ0(v) curtius_kniffler chosen by BIC among 16 forms",
+        "μ0 × g(v), curtius_kniffler: c = [",
     ] {
         assert!(s.contains(needle), "{needle}: {s}");
     }

@@ -1150,8 +1150,18 @@ fn with_speed_law(mut file: ModelFile, form: &str, coefficients: &[f64]) -> Mode
 fn polach_speed_laws_scale_mu0_and_are_checked() {
     use railgrip::model::polach::CURTIUS_KNIFFLER_SPEED_MPS as VC;
     let base = Model::new(polach_model(true)).unwrap();
-    let poly = Model::new(with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1])).unwrap();
-    let ck = Model::new(with_speed_law(polach_model(false), "curtius_kniffler", &[0.6])).unwrap();
+    let poly = Model::new(with_speed_law(
+        polach_model(true),
+        "polynomial",
+        &[-0.3, -0.1],
+    ))
+    .unwrap();
+    let ck = Model::new(with_speed_law(
+        polach_model(false),
+        "curtius_kniffler",
+        &[0.6],
+    ))
+    .unwrap();
     let plain = Model::new(polach_model(false)).unwrap();
     // At the reference speed (25 m/s) g = 1: the same μ as without the law.
     for dv in [0.2, 1.0, 3.0] {
@@ -1168,7 +1178,11 @@ fn polach_speed_laws_scale_mu0_and_are_checked() {
     let g_ck = |v: f64| 1.0 + 0.6 * ((25.0 + VC) / (v + VC) - 1.0);
     for v in [5.0, 15.0, 40.0] {
         let r = poly.mu_vt(4.0, 0.0, v, 0.0) / base.mu_vt(4.0, 0.0, v, 0.0);
-        assert!((r / g_poly(v) - 1.0).abs() < 0.02, "{v}: {r} vs {}", g_poly(v));
+        assert!(
+            (r / g_poly(v) - 1.0).abs() < 0.02,
+            "{v}: {r} vs {}",
+            g_poly(v)
+        );
         let r = ck.mu_vt(4.0, 0.0, v, f64::NAN) / plain.mu_vt(4.0, 0.0, v, f64::NAN);
         assert!((r / g_ck(v) - 1.0).abs() < 0.02, "{v}: {r} vs {}", g_ck(v));
     }
@@ -1181,7 +1195,10 @@ fn polach_speed_laws_scale_mu0_and_are_checked() {
     let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
         assert_refused(&good, "bad.polach.json", edit, needle)
     };
-    bad(&|v| v["polach"]["speed"]["form"] = "cubic".into(), "curtius_kniffler");
+    bad(
+        &|v| v["polach"]["speed"]["form"] = "cubic".into(),
+        "curtius_kniffler",
+    );
     bad(
         &|v| v["polach"]["speed"]["coefficients"] = serde_json::json!([0.1, 0.1, 0.1, 0.1]),
         "coefficients",
@@ -1208,8 +1225,14 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
     let files = [
         ("plain", polach_model(false)),
         ("k(T)", polach_model(true)),
-        ("k(T), μ0(v) polynomial", with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1, 0.02])),
-        ("μ0(v) Curtius–Kniffler", with_speed_law(polach_model(false), "curtius_kniffler", &[0.6])),
+        (
+            "k(T), μ0(v) polynomial",
+            with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1, 0.02]),
+        ),
+        (
+            "μ0(v) Curtius–Kniffler",
+            with_speed_law(polach_model(false), "curtius_kniffler", &[0.6]),
+        ),
     ];
     for (with_t, file) in files {
         let model = Model::new(file).unwrap();
@@ -1389,6 +1412,19 @@ fn polach_rows(
     sigma: f64,
     phi: f64,
 ) -> RunTable {
+    polach_rows_level(truth, &|_| 1.0, seed, n, (dv_min, v_min), sigma, phi)
+}
+
+/// [`polach_rows`] with μ0 × `level(v)` (v in m/s).
+fn polach_rows_level(
+    truth: &railgrip::contact::polach::PolachParams,
+    level: &dyn Fn(f64) -> f64,
+    seed: u64,
+    n: usize,
+    (dv_min, v_min): (f64, f64),
+    sigma: f64,
+    phi: f64,
+) -> RunTable {
     use railgrip::contact::polach::polach;
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
@@ -1403,7 +1439,11 @@ fn polach_rows(
         if dv < dv_min {
             continue;
         }
-        let mu = polach(&patch, truth, q, v, dv, 0.0).unwrap().fx_n / q + noise;
+        let at_v = railgrip::contact::polach::PolachParams {
+            mu0: truth.mu0 * level(v),
+            ..*truth
+        };
+        let mu = polach(&patch, &at_v, q, v, dv, 0.0).unwrap().fx_n / q + noise;
         t.axle.push(2);
         t.time_s.push(i as f64 * 0.01);
         t.v_mps.push(v);
@@ -1552,7 +1592,7 @@ fn polach_fits_of_thin_data_say_why() {
     t.name = "only".into();
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
-    let (r, notes) = fit_campaign(&[t], patch, q, 1, 2, true);
+    let (r, notes) = fit_campaign(&[t.clone()], patch, q, 1, 2, true);
     assert!(notes.is_empty(), "{notes:?}");
     // The fits file reads back (held parameters' standard errors are null, read as NaN).
     let json = serde_json::to_string(&r).unwrap();
@@ -1560,11 +1600,145 @@ fn polach_fits_of_thin_data_say_why() {
     let back: railgrip::identify::polach::PolachReport = serde_json::from_str(&json).unwrap();
     assert_eq!(serde_json::to_string(&back).unwrap(), json);
     assert!(r.pooled.is_some() && r.per_run.len() == 1 && r.per_temperature.len() == 1);
+    // Its speeds (20–35 m/s) are wide enough for speed forms, which the data do not choose.
+    assert!(r.temperature.as_ref().is_some_and(|t| !t.has_law()));
+    let why = r.temperature_note.unwrap();
+    assert!(
+        why.contains("one ambient temperature: no temperature forms"),
+        "{why}"
+    );
+    // Narrower speeds: no law at all, and why.
+    let narrow = t.subset(|i| t.v_mps[i] < 28.0);
+    let (r, _) = fit_campaign(&[narrow], patch, q, 1, 2, false);
     assert!(r.temperature.is_none());
     let why = r.temperature_note.unwrap();
     assert!(
-        why.contains("two or more ambient temperatures; found 1"),
+        why.contains("two or more ambient temperatures; found 1")
+            && why.contains("too narrow for a speed law"),
         "{why}"
+    );
+}
+
+/// μ0's speed law follows the data over three seeds: a level falling with speed (linearly,
+/// and steeper at the top) → a speed law chosen by BIC, its factor within 2 % of the truth
+/// over the fitted speeds, the model file and its evaluator following it; at one ambient
+/// temperature the speed forms are fitted alone.
+#[test]
+fn the_speed_law_follows_a_level_that_falls_with_speed() {
+    use railgrip::contact::polach::PolachParams;
+    use railgrip::identify::polach::fit_campaign;
+    let base = PolachParams {
+        mu0: 0.12,
+        a_ratio: 0.35,
+        b_s_per_m: 0.5,
+        k_a: 0.15,
+        k_s: 0.05,
+    };
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
+    let cases: [(&str, &dyn Fn(f64) -> f64); 2] = [
+        ("linear", &|v: f64| 1.0 + 0.3 * (1.0 - v / 25.0)),
+        ("quadratic", &|v: f64| {
+            1.0 + 0.2 * (1.0 - (v / 25.0).powi(2))
+        }),
+    ];
+    for (what, level) in cases {
+        for seed in 1..=3 {
+            let tables: Vec<RunTable> = [0.0, 20.0]
+                .iter()
+                .enumerate()
+                .map(|(k, &temp)| {
+                    let mut t = polach_rows_level(
+                        &base,
+                        level,
+                        seed * 10 + k as u64,
+                        6000,
+                        (0.0, 5.0),
+                        0.005,
+                        29.0 / 31.0,
+                    );
+                    t.name = format!("run_{temp}");
+                    t.metadata.ambient_temperature_c = Some(temp);
+                    t
+                })
+                .collect();
+            let (r, _) = fit_campaign(&tables, patch, q, 1, 2, false);
+            let t = r.temperature.as_ref().expect("a law");
+            let s = t
+                .speed
+                .as_ref()
+                .unwrap_or_else(|| panic!("{what} {seed}: {}", t.form()));
+            let v_ref = railgrip::identify::median_speed(&tables);
+            assert_eq!(s.reference_speed_mps, v_ref);
+            eprintln!(
+                "{what} seed {seed}: {} c = {:?} ± {:?}",
+                t.form(),
+                s.coefficients,
+                s.standard_errors
+            );
+            for v in [6.0, 15.0, 25.0, 34.0] {
+                let want = level(v) / level(v_ref);
+                let got = s.factor(v);
+                assert!(
+                    (got / want - 1.0).abs() < 0.02,
+                    "{what} seed {seed} g({v}) = {got}, truth {want}"
+                );
+            }
+            // The model file carries the law; its evaluator scales μ0 by it.
+            let file = railgrip::identify::export::polach_file(
+                r.pooled.as_ref().unwrap(),
+                &patch,
+                q,
+                Some(t),
+                r.dv_range_mps,
+                r.v_range_mps,
+                v_ref,
+                railgrip::model::Provenance {
+                    inputs: vec![],
+                    pipeline: "uic_z1.toml".into(),
+                    pipeline_sha256: "0".repeat(64),
+                    seed: 0,
+                    crate_version: "0.1.0".into(),
+                    created: "2026-01-01T00:00:00Z".into(),
+                    generation: None,
+                },
+            )
+            .unwrap();
+            let model = Model::new(file).unwrap();
+            let (m, ka, ks) = t.at(0.0);
+            for v in [8.0, 30.0] {
+                let want = railgrip::contact::polach::polach(
+                    &patch,
+                    &PolachParams {
+                        mu0: m * s.factor(v),
+                        a_ratio: t.a_ratio,
+                        b_s_per_m: t.b_s_per_m,
+                        k_a: ka,
+                        k_s: ks,
+                    },
+                    q,
+                    v,
+                    1.5,
+                    0.0,
+                )
+                .unwrap()
+                .fx_n
+                    / q;
+                let got = model.mu_vt(1.5, 0.0, v, 0.0);
+                assert!((got / want - 1.0).abs() < 1e-9, "{what}: {got} vs {want}");
+            }
+        }
+    }
+    // One ambient temperature: the speed forms alone (4 candidates).
+    let mut one = polach_rows_level(&base, cases[0].1, 7, 6000, (0.0, 5.0), 0.005, 29.0 / 31.0);
+    one.metadata.ambient_temperature_c = Some(10.0);
+    let (r, _) = fit_campaign(&[one], patch, q, 1, 2, false);
+    let t = r.temperature.as_ref().expect("a speed law");
+    assert_eq!(t.candidates.len(), 4);
+    assert!(
+        t.speed.is_some() && !t.has_temperature_law(),
+        "{}",
+        t.form()
     );
 }
 
@@ -1644,7 +1818,10 @@ fn the_temperature_form_follows_what_varies() {
                 "{what} seed {seed}: chose {}; {table:?}; {notes:?}",
                 t.form()
             );
-            assert_eq!(t.candidates.len(), 9, "{what}");
+            // 3 × 3 temperature forms, each without and with three speed laws (15–35 m/s).
+            assert_eq!(t.candidates.len(), 36, "{what}");
+            // The level does not depend on speed: no speed law (BIC).
+            assert!(t.speed.is_none(), "{what} seed {seed}: {}", t.form());
             match what {
                 "μ0" => assert!(
                     t.mu0_degree >= 1 && t.k_degree == 0,
@@ -1659,7 +1836,10 @@ fn the_temperature_form_follows_what_varies() {
                 _ => {
                     assert!(!t.has_law(), "{what} seed {seed}: {}", t.form());
                     let note = r.temperature_note.as_deref().unwrap();
-                    assert!(note.contains("prefer no temperature dependence"), "{note}");
+                    assert!(
+                        note.contains("prefer no temperature or speed dependence"),
+                        "{note}"
+                    );
                 }
             }
             // The law recovers what varies: within 3 % of the truth over the range.

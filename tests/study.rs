@@ -35,7 +35,7 @@ fn plan_error(plan: &str) -> String {
 }
 
 #[test]
-fn the_default_plan_covers_the_issue_s_grid() {
+fn the_default_plan_covers_the_whole_grid() {
     let p = Plan::load(None, None).unwrap();
     assert_eq!(p.text, DEFAULT_PLAN_TOML);
     let has = |f: &dyn Fn(&railgrip::study::CellSpec) -> bool| p.cells.iter().any(f);

@@ -353,10 +353,25 @@ fn score_prints_supported_cell_scores_and_exits_3_on_negative_adhesion() {
         String::from_utf8_lossy(&o.stderr)
     );
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    let rows = v.as_array().unwrap();
-    assert_eq!(rows.len(), 2);
-    assert_eq!(rows[1]["scene"], "all");
+    let rows = v["scenes"].as_array().unwrap();
+    assert_eq!(rows.len(), 1);
+    assert_eq!(v["all"]["scene"], "all");
     assert!(rows[0]["cells"].as_u64().unwrap() > 100 && rows[0]["rmse"].as_f64().unwrap() > 0.0);
+    // The curve view at the run's initial speed against the table law, and the replay view
+    // per speed band: a run braking from 120 km/h fills the bands below 120 km/h.
+    let curve = &rows[0]["curve"];
+    assert!(curve["n"].as_u64().unwrap() > 20 && curve["rmse"].as_f64().unwrap() > 0.0);
+    assert!(curve["rmse"].as_f64().unwrap() >= curve["bias"].as_f64().unwrap().abs());
+    let by_speed = v["curve_by_initial_speed"].as_array().unwrap();
+    assert_eq!(by_speed.len(), 1);
+    assert_eq!(by_speed[0]["lo_kmh"], 120.0);
+    let bands: Vec<f64> = v["replay_by_speed_band"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["lo_kmh"].as_f64().unwrap())
+        .collect();
+    assert_eq!(bands, [0.0, 40.0, 80.0], "{v}");
     // A network that predicts negative adhesion: exit code 3 and the line that says so.
     let mut bad = ModelFile::read(&good).unwrap();
     for w in bad.layers[1].weights[0].iter_mut() {

@@ -264,7 +264,7 @@ fn print_temperature_law(report: &PolachReport) {
             bics.sort_by(f64::total_cmp);
             let next = bics.get(1).map_or(f64::NAN, |b| b - bics[0]);
             println!(
-                "T law      {} chosen by {} among {} forms (next best ΔBIC {:.1}); fitted over {} … {} °C",
+                "law        {} chosen by {} among {} forms (next best ΔBIC {:.1}); fitted over {} … {} °C",
                 t.form(),
                 t.criterion,
                 t.candidates.len(),
@@ -272,10 +272,28 @@ fn print_temperature_law(report: &PolachReport) {
                 t.fitted_range_c.0,
                 t.fitted_range_c.1
             );
-            if t.has_law() {
+            if t.has_temperature_law() {
                 println!(
                     "           μ0 = {:?}, k_A = {:?}, k_S = {:?} (ascending powers of T in °C)",
                     t.mu0, t.k_a, t.k_s
+                );
+            }
+            if let Some(s) = &t.speed {
+                let coefficients: Vec<String> = s
+                    .coefficients
+                    .iter()
+                    .zip(&s.standard_errors)
+                    .map(|(c, e)| format!("{c:.4} ± {e:.4}"))
+                    .collect();
+                println!(
+                    "           μ0 × g(v), {}: c = [{}], g(v_ref = {:.1} m/s) = 1, g = {:.3} … {:.3} over {:.1} … {:.1} m/s",
+                    s.form,
+                    coefficients.join(", "),
+                    s.reference_speed_mps,
+                    s.factor(s.fitted_range_mps.1),
+                    s.factor(s.fitted_range_mps.0),
+                    s.fitted_range_mps.0,
+                    s.fitted_range_mps.1
                 );
             }
             for n in &t.notes {
@@ -283,7 +301,7 @@ fn print_temperature_law(report: &PolachReport) {
             }
         }
         None => println!(
-            "T law      none: {}",
+            "law        none: {}",
             report.temperature_note.clone().unwrap_or_default()
         ),
     }

@@ -87,6 +87,8 @@ struct BandRow {
 #[derive(serde::Serialize)]
 struct Report {
     scenes: Vec<Line>,
+    /// Every scene's samples pooled (the per-cell score only).
+    all: Line,
     curve_by_initial_speed: Vec<BandRow>,
     replay_by_speed_band: Vec<BandRow>,
 }
@@ -118,14 +120,20 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             let s = score(&samples, &grid, predict).with_context(context)?;
             let mut line = Line::new(&name, v0_kmh, t_c, &s);
             if let Some(law) = &law {
-                let c = curve(&samples, &grid, v0_kmh / 3.6, t_c, predict, |dv, q, v, _| {
-                    law.mu(dv, q, v)
-                })
+                let c = curve(
+                    &samples,
+                    &grid,
+                    v0_kmh / 3.6,
+                    t_c,
+                    predict,
+                    |dv, q, v, _| law.mu(dv, q, v),
+                )
                 .with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
             }
-            line.replay = replay(&samples, &grid, &SPEED_BANDS_KMH, predict).with_context(context)?;
+            line.replay =
+                replay(&samples, &grid, &SPEED_BANDS_KMH, predict).with_context(context)?;
             lines.push(line);
             // Pooled: the axles of each simulated run numbered apart (while they fit a u8),
             // so that a cell's support counts one run's samples.
@@ -144,11 +152,12 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         curve_by_initial_speed: curve_rows(&lines),
         replay_by_speed_band: replay_rows(&lines),
         scenes: lines,
+        all: Line::new("all", f64::NAN, f64::NAN, &all),
     };
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print_report(&report, &all, grid.min_samples);
+        print_report(&report, grid.min_samples);
         if negative {
             println!("The model predicts μ < 0 on supported cells. Exit code 3.");
         }
@@ -208,7 +217,10 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             max_error: stats.iter().map(|s| s.max_error).fold(0.0, f64::max),
         },
         bias_min: stats.iter().map(|s| s.bias).fold(f64::INFINITY, f64::min),
-        bias_max: stats.iter().map(|s| s.bias).fold(f64::NEG_INFINITY, f64::max),
+        bias_max: stats
+            .iter()
+            .map(|s| s.bias)
+            .fold(f64::NEG_INFINITY, f64::max),
         hysteresis_ratio: (!ratios.is_empty()).then(|| {
             let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
             let hi = ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -217,13 +229,12 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
     }
 }
 
-fn print_report(r: &Report, all: &Score, min_samples: usize) {
+fn print_report(r: &Report, min_samples: usize) {
     println!(
         "{:<40} {:>6} {:>8} {:>8} {:>9} {:>16} {:>9} {:>9}",
         "scene", "cells", "RMSE μ", "max |e|", "μ̂ < 0", "hysteresis", "curve", "bias"
     );
-    let all_line = Line::new("all", f64::NAN, f64::NAN, all);
-    for l in r.scenes.iter().chain(std::iter::once(&all_line)) {
+    for l in r.scenes.iter().chain(std::iter::once(&r.all)) {
         println!(
             "{:<40} {:>6} {:>8.4} {:>8.4} {:>9} {:>16} {:>9} {:>9}",
             l.scene,

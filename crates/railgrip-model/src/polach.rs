@@ -125,8 +125,8 @@ impl SpeedEval {
     pub(crate) fn factor(&self, v: f64) -> f64 {
         let v = v.clamp(self.lo, self.hi);
         if self.kneed {
-            let phi = (self.v_ref + CURTIUS_KNIFFLER_SPEED_MPS) / (v + CURTIUS_KNIFFLER_SPEED_MPS)
-                - 1.0;
+            let phi =
+                (self.v_ref + CURTIUS_KNIFFLER_SPEED_MPS) / (v + CURTIUS_KNIFFLER_SPEED_MPS) - 1.0;
             1.0 + self.coefficients[0] * phi
         } else {
             let u = v / self.v_ref - 1.0;

@@ -317,7 +317,11 @@ pub fn curve(
         let q = qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1];
         let (p, t) = (predict(dv, q, v_mps, t_c), law(dv, q, v_mps, t_c));
         if !p.is_finite() || !t.is_finite() {
-            return Err(ScoreError::Model { dv, ddv: q, v: v_mps });
+            return Err(ScoreError::Model {
+                dv,
+                ddv: q,
+                v: v_mps,
+            });
         }
         cells.push(CurveCell {
             dv_mps: dv,
@@ -329,7 +333,8 @@ pub fn curve(
     }
     let stats = Stats::of(cells.iter().map(|c| c.predicted_mu - c.true_mu));
     // The cells are in `best`'s key order: the index of a key is its cell's.
-    let index: BTreeMap<(i64, i64), usize> = best.keys().enumerate().map(|(i, k)| (*k, i)).collect();
+    let index: BTreeMap<(i64, i64), usize> =
+        best.keys().enumerate().map(|(i, k)| (*k, i)).collect();
     let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
     for (&(qi, di), &i) in &index {
         let up = &cells[i];
@@ -522,6 +527,52 @@ mod tests {
         let (t, p) = flat.hysteresis.unwrap();
         assert!(p.abs() < 0.1 * t, "{t} {p}");
         assert!(flat.negative_cells > 0);
+    }
+
+    #[test]
+    fn curve_and_replay_views_report_the_bias_per_band() {
+        let s = samples(40_000);
+        let g = Grid::default();
+        // The law itself: no error, the hysteresis ratio 1.
+        let c = curve(&s, &g, 33.0, f64::NAN, law, law).unwrap();
+        assert!(
+            c.stats.n > 50 && c.stats.rmse == 0.0 && c.stats.bias == 0.0,
+            "{c:?}"
+        );
+        let ratio = c.hysteresis_ratio(0.002).unwrap();
+        assert!((ratio - 1.0).abs() < 1e-12, "{ratio}");
+        // An offset is a bias of that size, at any speed the curve is taken at.
+        for v in [10.0, 33.0, 60.0] {
+            let off = curve(
+                &s,
+                &g,
+                v,
+                f64::NAN,
+                |a, b, c, t| law(a, b, c, t) + 0.01,
+                law,
+            )
+            .unwrap();
+            assert!((off.stats.bias - 0.01).abs() < 1e-12 && (off.stats.rmse - 0.01).abs() < 1e-12);
+        }
+        // A model without branches has hysteresis ratio 0; below the threshold there is none.
+        let flat = curve(&s, &g, 33.0, f64::NAN, |a, _, c, t| law(a, 1.0, c, t), law).unwrap();
+        assert!(flat.hysteresis_ratio(0.002).unwrap().abs() < 1e-12);
+        assert!(flat.hysteresis_ratio(1.0).is_none());
+        // Replay: samples at 30–35 m/s (108–126 km/h) fall in two bands; a model 10 % high is
+        // biased by 10 % of the mean μ there, per band.
+        let r = replay(&s, &g, &SPEED_BANDS_KMH, |a, b, c, t| 1.1 * law(a, b, c, t)).unwrap();
+        assert_eq!(r.len(), 2, "{r:?}");
+        assert_eq!(
+            (r[0].lo_kmh, r[0].hi_kmh, r[1].lo_kmh),
+            (80.0, 120.0, 120.0)
+        );
+        for b in &r {
+            assert!(b.stats.bias > 0.002 && b.stats.bias < 0.01, "{b:?}");
+            assert!(b.stats.max_error >= b.stats.rmse && b.stats.rmse >= b.stats.bias);
+        }
+        // Nothing supported: an error, not an empty table.
+        assert!(replay(&s[..30], &g, &SPEED_BANDS_KMH, law).is_err());
+        assert!(curve(&s[..30], &g, 33.0, 0.0, law, law).is_err());
     }
 
     #[test]

@@ -312,7 +312,10 @@ pub struct TrueLaw(ScalarLaw);
 impl TrueLaw {
     /// The law of `sc` (checked as [`simulate`] checks it); `None` for `polach` and `fastsim`.
     pub fn of(sc: &Scene) -> Result<Option<TrueLaw>, SimError> {
-        if matches!(sc.adhesion.law, AdhesionLaw::Polach | AdhesionLaw::Fastsim(_)) {
+        if matches!(
+            sc.adhesion.law,
+            AdhesionLaw::Polach | AdhesionLaw::Fastsim(_)
+        ) {
             return Ok(None);
         }
         Ok(load_law(sc)?.map(TrueLaw))

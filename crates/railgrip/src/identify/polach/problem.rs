@@ -129,10 +129,8 @@ impl<'a> PolachProblem<'a> {
 
     /// This problem with μ0 × g(v) of `basis`, its coefficients free (from 0: g = 1).
     pub(super) fn with_speed(mut self, basis: SpeedBasis) -> Self {
-        self.free.extend((0..basis.terms).map(|node| Coord {
-            param: SPEED,
-            node,
-        }));
+        self.free
+            .extend((0..basis.terms).map(|node| Coord { param: SPEED, node }));
         self.speed = Some(basis);
         self
     }

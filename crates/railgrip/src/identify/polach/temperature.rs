@@ -327,6 +327,15 @@ pub fn fit_temperature_forms(
     let g = Grouped::of(tables, patch, q_n, decimate)?;
     let (lo, hi) = g.range;
     let offered = Offered::of(&g, degree, pooled, per_temperature, v_ref);
+    if g.temps.len() < 2 && offered.speeds.len() == 1 {
+        return Err(IdentifyError::Data {
+            what: format!(
+                "a temperature law needs runs at two or more ambient temperatures; found 1 (and the samples' speeds, {:.1} … {:.1} m/s, are too narrow for a speed law)",
+                g.speeds.0, g.speeds.1
+            ),
+            hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata, or from several initial speeds".into(),
+        });
+    }
     let x0 = solver_order(&pooled.params());
     let held = |i: usize| pooled.status[i] != ParamStatus::Estimated;
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
@@ -349,7 +358,10 @@ pub fn fit_temperature_forms(
         .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
         .map(|(i, _)| i)
         .ok_or_else(|| IdentifyError::Data {
-            what: "every temperature and speed form leaves the valid domain of Polach's law".into(),
+            what: format!(
+                "every temperature and speed form leaves the valid domain of Polach's law (the constant form: {})",
+                fits[0].record.rejected.as_deref().unwrap_or("–")
+            ),
             hint: "lower train.temperature_degree".into(),
         })?;
     let chosen = &fits[best];
@@ -415,7 +427,9 @@ impl Grouped {
         temps.dedup();
         if temps.is_empty() {
             return Err(IdentifyError::Data {
-                what: "a temperature or speed law needs runs with an ambient temperature; found none".into(),
+                what:
+                    "a temperature or speed law needs runs with an ambient temperature; found none"
+                        .into(),
                 hint: "give the runs ambient_temperature_c in their metadata".into(),
             });
         }
@@ -448,9 +462,11 @@ impl Grouped {
                 2 * seen > s.len()
             })
             .map_or(lo, |(t, _)| *t);
-        let speeds = s.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
-            (a.min(x.v), b.max(x.v))
-        });
+        let speeds = s
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x.v), b.max(x.v))
+            });
         Ok(Grouped {
             temps,
             range: (lo, hi),
@@ -513,7 +529,11 @@ impl Offered {
                 v_ref,
                 range: g.speeds,
             };
-            speeds.extend([Some(basis(false, 1)), Some(basis(true, 1)), Some(basis(false, 2))]);
+            speeds.extend([
+                Some(basis(false, 1)),
+                Some(basis(true, 1)),
+                Some(basis(false, 2)),
+            ]);
         }
         let (k_temps, excluded) = k_identified(per_temperature);
         let k_top = if held(3) || held(4) {
@@ -674,7 +694,15 @@ fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f6
             k_s: f.k_s.clone(),
             fitted_range_c: [lo, hi],
         };
-        if let Err(e) = crate::model::polach::check_law(&spec, f.mu0[0]) {
+        // A law is written only for what depends on temperature (the constant form's values
+        // are the pooled fit's, checked as the model file is).
+        let with_t = c.mu0_degree > 0 || c.k_degree > 0;
+        let law = if with_t {
+            crate::model::polach::check_law(&spec, f.mu0[0])
+        } else {
+            Ok(())
+        };
+        if let Err(e) = law {
             c.rejected = Some(e.to_string());
         } else if let Some(sp) = &f.speed {
             // The largest μ0 over the temperature range, as the model file's check takes it.

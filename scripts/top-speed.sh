@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# The top-speed measurement: simulates the 12 scenes of pipelines/scenes/top_speed (80/120/160/
+# 200 km/h × three ambient temperatures, the adhesion level falling steeper at the top) once per
+# noise seed, runs `railgrip run` on each seed's campaign and scores the campaign's models per
+# speed band in the curve and replay views (docs/simulator.md#scoring-against-the-truth).
+#
+#   scripts/top-speed.sh [OUT_DIR] [SEEDS]      default: target/top-speed "1 2 3"
+#
+# Prints one `railgrip score` report per seed and model; the per-band tables of docs/training.md
+# come from it. Needs a release build (cargo build --release).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out="${1:-target/top-speed}"
+seeds="${2:-1 2 3}"
+bin="${RAILGRIP:-target/release/railgrip}"
+[ -x "$bin" ] || { echo "no $bin: run cargo build --release first (or set RAILGRIP)" >&2; exit 2; }
+scenes=(pipelines/scenes/top_speed/*.toml)
+for seed in $seeds; do
+    archive="$out/seed$seed/archive"
+    mkdir -p "$archive"
+    for s in "${scenes[@]}"; do
+        "$bin" simulate "$s" --out "$archive" --seed "$seed" --format csv >/dev/null
+    done
+    "$bin" run "$archive" --out "$out/seed$seed/out" >/dev/null
+    for model in mlp.json mlp.polach.json; do
+        echo "== seed $seed: $model"
+        "$bin" score "$out/seed$seed/out/models/$model" "${scenes[@]}" --seeds "$seed" || true
+    done
+done
