@@ -24,11 +24,11 @@
 #define MLP_POLACH_SPEED_CURTIUS_KNIFFLER 1
 #define MLP_POLACH_N_SPEED 1
 
-static const double mlp_polach_mu0 = 0.09503681202931866;
-static const double mlp_polach_a_ratio = 0.2966878568246303;
-static const double mlp_polach_b = 0.3451358176436344;
-static const double mlp_polach_k_a = 0.15286842106593088;
-static const double mlp_polach_k_s = 0.06417261811483299;
+static const double mlp_polach_mu0 = 0.0950368145445296;
+static const double mlp_polach_a_ratio = 0.2966878659781932;
+static const double mlp_polach_b = 0.34513584848542556;
+static const double mlp_polach_k_a = 0.15286853540117085;
+static const double mlp_polach_k_s = 0.06417263537108078;
 static const double mlp_polach_stiffness = 156.58227415921093;
 static const double mlp_polach_v_ref = 20.556800584267528;
 static const double mlp_polach_v_min = 0.1;
@@ -42,16 +42,16 @@ static const double mlp_polach_mu0_T[1] = {
     0.0
 };
 static const double mlp_polach_ka_T[2] = {
-    0.15286842106593088,
-    -0.0017841180668732803
+    0.15286853540117085,
+    -0.0017841189820098123
 };
 static const double mlp_polach_ks_T[3] = {
-    0.06417261811483299,
-    -0.0005778869320350417,
-    -1.996521917297943e-6
+    0.06417263537108078,
+    -0.0005778869864119334,
+    -1.996521109866676e-6
 };
 static const double mlp_polach_speed_c[1] = {
-    0.0976736698435514
+    0.09767365365126578
 };
 
 /* Polynomial with coefficients in ascending powers, by Horner's rule. */

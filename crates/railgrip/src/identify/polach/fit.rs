@@ -210,7 +210,15 @@ impl Held {
         for i in free_now {
             let sg = sigmoid(to_unconstrained(i, x[i]));
             if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
-                let bound = if sg < AT_BOUND { LOWER[i] } else { UPPER[i] };
+                // A lower bound of 0 (μ0, A, k_A, ρ) is not a valid Polach law (the model
+                // file needs them > 0): held where the bound was detected, σ = AT_BOUND —
+                // A = 1e-4 rather than 0. Upper bounds are valid values and are held exactly.
+                let bound = if sg < AT_BOUND {
+                    let p = (AT_BOUND / (1.0 - AT_BOUND)).ln();
+                    super::law::to_natural(i, p).0.max(LOWER[i])
+                } else {
+                    UPPER[i]
+                };
                 self.fixed[i] = Some(bound);
                 current[i] = bound;
                 self.status[i] = ParamStatus::AtBound;
