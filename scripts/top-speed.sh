@@ -6,6 +6,8 @@
 #
 #   scripts/top-speed.sh [OUT_DIR] [SEEDS]      default: target/top-speed "1 2 3"
 #
+# PIPELINE=file.toml runs the campaign with that pipeline (e.g. train.inputs with v_mps and
+# ambient_temperature_c for the 4-input network).
 # Prints one `railgrip score` report per seed and model; the per-band tables of docs/training.md
 # come from it. Needs a release build (cargo build --release).
 set -euo pipefail
@@ -21,9 +23,10 @@ for seed in $seeds; do
     for s in "${scenes[@]}"; do
         "$bin" simulate "$s" --out "$archive" --seed "$seed" --format csv >/dev/null
     done
-    "$bin" run "$archive" --out "$out/seed$seed/out" >/dev/null
+    "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} >/dev/null
     for model in mlp.json mlp.polach.json; do
         echo "== seed $seed: $model"
+        [ -f "$out/seed$seed/out/models/$model" ] || { echo "no $model (see the run's notes)"; continue; }
         "$bin" score "$out/seed$seed/out/models/$model" "${scenes[@]}" --seeds "$seed" || true
     done
 done
