@@ -1621,8 +1621,7 @@ fn polach_fits_of_thin_data_say_why() {
 
 /// μ0's speed law follows the data over three seeds: a level falling with speed (linearly,
 /// and steeper at the top) → a speed law chosen by BIC, its factor within 2 % of the truth
-/// over the fitted speeds, the model file and its evaluator following it; at one ambient
-/// temperature the speed forms are fitted alone.
+/// over the fitted speeds, the model file and its evaluator following it.
 #[test]
 fn the_speed_law_follows_a_level_that_falls_with_speed() {
     use railgrip::contact::polach::PolachParams;
@@ -1729,10 +1728,28 @@ fn the_speed_law_follows_a_level_that_falls_with_speed() {
             }
         }
     }
+}
+
+/// At one ambient temperature the speed forms are fitted alone, and with intervals each
+/// coefficient gets its profile-likelihood interval.
+#[test]
+fn speed_forms_alone_at_one_temperature_with_intervals() {
+    use railgrip::contact::polach::PolachParams;
+    use railgrip::identify::polach::fit_campaign;
+    let base = PolachParams {
+        mu0: 0.12,
+        a_ratio: 0.35,
+        b_s_per_m: 0.5,
+        k_a: 0.15,
+        k_s: 0.05,
+    };
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
+    let linear = |v: f64| 1.0 + 0.3 * (1.0 - v / 25.0);
     // One ambient temperature: the speed forms alone (4 candidates).
-    let mut one = polach_rows_level(&base, cases[0].1, 7, 6000, (0.0, 5.0), 0.005, 29.0 / 31.0);
+    let mut one = polach_rows_level(&base, &linear, 7, 6000, (0.0, 5.0), 0.005, 29.0 / 31.0);
     one.metadata.ambient_temperature_c = Some(10.0);
-    let (r, _) = fit_campaign(&[one], patch, q, 1, 2, false);
+    let (r, _) = fit_campaign(&[one], patch, q, 1, 2, true);
     let t = r.temperature.as_ref().expect("a speed law");
     assert_eq!(t.candidates.len(), 4);
     assert!(
@@ -1740,6 +1757,16 @@ fn the_speed_law_follows_a_level_that_falls_with_speed() {
         "{}",
         t.form()
     );
+    // With intervals: each coefficient's profile-likelihood interval holds its estimate and
+    // is about ±1.96 standard errors wide (the law is nearly linear in its coefficients).
+    let s = t.speed.as_ref().unwrap();
+    assert_eq!(s.profiles.len(), s.coefficients.len(), "{s:?}");
+    for (p, se) in s.profiles.iter().zip(&s.standard_errors) {
+        let (lo, hi) = (p.lower.unwrap(), p.upper.unwrap());
+        assert!(lo < p.estimate && p.estimate < hi, "{p:?}");
+        let half = 0.5 * (hi - lo) / se;
+        assert!((1.5..2.5).contains(&half), "{p:?}: ±{half} se");
+    }
 }
 
 /// Campaign tables at −20, 0 and +20 °C from Polach's law with `at(T)` giving its

@@ -295,6 +295,18 @@ fn print_temperature_law(report: &PolachReport) {
                     s.fitted_range_mps.0,
                     s.fitted_range_mps.1
                 );
+                let limits = |x: Option<f64>| x.map_or("–".to_string(), |v| format!("{v:.4}"));
+                let intervals: Vec<String> = s
+                    .profiles
+                    .iter()
+                    .map(|p| format!("{} [{}, {}]", p.parameter, limits(p.lower), limits(p.upper)))
+                    .collect();
+                if !intervals.is_empty() {
+                    println!(
+                        "           95 % {} (profile likelihood)",
+                        intervals.join(", ")
+                    );
+                }
             }
             for n in &t.notes {
                 println!("           {n}");

@@ -71,6 +71,7 @@ pub fn fit_campaign(
                 p,
                 &fits.per_temperature,
                 v_ref,
+                intervals,
             )
         }
         None => Err(IdentifyError::Data {

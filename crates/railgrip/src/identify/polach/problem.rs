@@ -87,6 +87,8 @@ pub(super) struct PolachProblem<'a> {
     pub(super) ks_fixed: Option<f64>,
     pub(super) free: Vec<Coord>,
     pub(super) speed: Option<SpeedBasis>,
+    /// Speed-law coefficients held at a value (profile likelihood of a coefficient).
+    pub(super) speed_held: [Option<f64>; 3],
 }
 
 /// Node values of the five parameters, and in row [`SPEED`] the speed law's coefficients.
@@ -124,14 +126,20 @@ impl<'a> PolachProblem<'a> {
             ks_fixed,
             free,
             speed: None,
+            speed_held: [None; 3],
         }
     }
 
-    /// This problem with μ0 × g(v) of `basis`, its coefficients free (from 0: g = 1).
-    pub(super) fn with_speed(mut self, basis: SpeedBasis) -> Self {
-        self.free
-            .extend((0..basis.terms).map(|node| Coord { param: SPEED, node }));
+    /// This problem with μ0 × g(v) of `basis`, its coefficients free (from the start's values)
+    /// except those `held` at a value.
+    pub(super) fn with_speed(mut self, basis: SpeedBasis, held: [Option<f64>; 3]) -> Self {
+        self.free.extend(
+            (0..basis.terms)
+                .filter(|j| held[*j].is_none())
+                .map(|node| Coord { param: SPEED, node }),
+        );
         self.speed = Some(basis);
+        self.speed_held = held;
         self
     }
 
@@ -156,6 +164,11 @@ impl<'a> PolachProblem<'a> {
     /// Node values from θ, and each free coordinate's d(node)/dθ.
     pub(super) fn nodes(&self, theta: &[f64]) -> (Nodes, Vec<f64>) {
         let mut v = [[0.0; MAX_NODES]; 6];
+        for (j, h) in self.speed_held.iter().enumerate() {
+            if let Some(c) = h {
+                v[SPEED][j] = *c;
+            }
+        }
         let mut d = vec![0.0; self.free.len()];
         for (k, c) in self.free.iter().enumerate() {
             (v[c.param][c.node], d[k]) = if c.param == SPEED {

@@ -15,7 +15,8 @@ use super::problem::{Covariance, PolachProblem};
 /// law's curvature, so it may be asymmetric.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Profile {
-    /// `mu0`, `a_ratio`, `b_s_per_m`, `k_a` or `k_s`.
+    /// `mu0`, `a_ratio`, `b_s_per_m`, `k_a` or `k_s`; `speed_c1`, … for a speed law's
+    /// coefficients.
     pub parameter: String,
     pub estimate: f64,
     /// The interval's limits, interpolated linearly in √Δ between the profile points around

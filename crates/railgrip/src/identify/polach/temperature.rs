@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use super::fit::{samples, PolachFit};
 use super::law::{solver_order, with_patch, ParamStatus, Sample};
-use super::problem::{basis_at, constant_nodes, fit_settings, solve, temperature_nodes};
+use super::problem::temperature_nodes;
+use super::problem::{basis_at, constant_nodes, fit_settings, profile_settings, solve};
 use super::problem::{Group, Nodes, PolachProblem, SpeedBasis, MAX_NODES, SPEED};
 use crate::contact::polach::{horner, ContactPatch};
 use crate::identify::dataset::RunTable;
@@ -71,6 +72,10 @@ pub struct SpeedLaw {
     pub reference_speed_mps: f64,
     /// The samples' speeds (m/s); v is clamped to them.
     pub fitted_range_mps: (f64, f64),
+    /// Profile-likelihood intervals of the coefficients (`speed_c1`, …) when the fits have
+    /// intervals (`train.polach_intervals`).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub profiles: Vec<super::profile::Profile>,
 }
 
 impl SpeedLaw {
@@ -303,6 +308,9 @@ pub(super) struct FormFit {
     pub(super) residuals: Vec<f64>,
     /// The solution's node values (the start of the form's speed-law fits).
     pub(super) nodes: Nodes,
+    /// SSE at the solution and σ² n/n_eff (the profile statistic's scale).
+    pub(super) sse: f64,
+    pub(super) scale: f64,
 }
 
 /// Fits the temperature law of a campaign: the candidate forms μ0(T) of degree d_μ and k_A(T),
@@ -314,7 +322,8 @@ pub(super) struct FormFit {
 /// [`TemperatureCandidate`]) whose law stays in the valid domain over the range
 /// (0 < μ0 ≤ 1.5, 0 < k_S ≤ k_A ≤ 1) is chosen. k forms are offered only when two or more
 /// temperatures' own fits identified k_A and k_S ([`k_identified`]), μ0 forms only when the
-/// pooled fit identified μ0.
+/// pooled fit identified μ0. With `intervals`, the chosen speed law's coefficients get
+/// profile-likelihood intervals.
 #[allow(clippy::too_many_arguments)]
 pub fn fit_temperature_forms(
     tables: &[&RunTable],
@@ -325,6 +334,7 @@ pub fn fit_temperature_forms(
     pooled: &PolachFit,
     per_temperature: &[PolachFit],
     v_ref: f64,
+    intervals: bool,
 ) -> Result<TemperatureFit, IdentifyError> {
     let g = Grouped::of(tables, patch, q_n, decimate)?;
     let (lo, hi) = g.range;
@@ -357,10 +367,14 @@ pub fn fit_temperature_forms(
             hint: "lower train.temperature_degree".into(),
         })?;
     let chosen = &fits[best];
+    let mut speed = chosen.speed.clone();
+    if let (Some(s), true) = (&mut speed, intervals) {
+        s.profiles = speed_profiles(&g, chosen, fixed);
+    }
     let mut law = TemperatureFit {
         mu0_degree: chosen.record.mu0_degree,
         k_degree: chosen.record.k_degree,
-        speed: chosen.speed.clone(),
+        speed,
         mu0: chosen.mu0.clone(),
         k_a: chosen.k_a.clone(),
         k_s: chosen.k_s.clone(),
@@ -637,6 +651,116 @@ fn most_flexible(fits: &[FormFit]) -> &FormFit {
         .expect("at least the constant form")
 }
 
+/// The least-squares problem of one form over every temperature group, `fixed` parameters and
+/// `speed_held` coefficients held.
+fn form_problem<'a>(
+    g: &'a Grouped,
+    degrees: [usize; 5],
+    speed: Option<SpeedBasis>,
+    fixed: [Option<f64>; 5],
+    speed_held: [Option<f64>; 3],
+) -> PolachProblem<'a> {
+    let (lo, hi) = g.range;
+    let groups = g
+        .ranges
+        .iter()
+        .map(|(t, r)| Group {
+            range: r.clone(),
+            basis: basis_at(degrees, lo, hi, *t),
+        })
+        .collect();
+    let degrees_free: [usize; 5] =
+        std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
+    let problem = PolachProblem::new(&g.samples, groups, degrees_free, fixed, None);
+    match speed {
+        Some(b) => problem.with_speed(b, speed_held),
+        None => problem,
+    }
+}
+
+/// The profile likelihood of each coefficient of the chosen form's speed law
+/// ([`super::profile::Profile`], the same statistic and limits as the Polach fits' intervals):
+/// at values c_j ± z se_j the rest of the form refitted, warm-started from the previous point.
+fn speed_profiles(
+    g: &Grouped,
+    chosen: &FormFit,
+    fixed: [Option<f64>; 5],
+) -> Vec<super::profile::Profile> {
+    use super::profile::{Profile, Side, PROFILE_LIMIT, PROFILE_STEPS};
+    let Some(law) = &chosen.speed else {
+        return Vec::new();
+    };
+    let basis = SpeedBasis {
+        curtius_kniffler: law.form == "curtius_kniffler",
+        terms: law.coefficients.len(),
+        v_ref: law.reference_speed_mps,
+        range: law.fitted_range_mps,
+    };
+    let r = &chosen.record;
+    let degrees = [r.mu0_degree, 0, 0, r.k_degree, r.k_degree];
+    let sides: Vec<(usize, f64)> = (0..basis.terms)
+        .filter(|j| law.standard_errors[*j].is_finite() && law.standard_errors[*j] > 0.0)
+        .flat_map(|j| [(j, -1.0), (j, 1.0)])
+        .collect();
+    let walked: Vec<(usize, Side)> = sides
+        .par_iter()
+        .map(|&(j, dir)| {
+            let (c0, se) = (law.coefficients[j], law.standard_errors[j]);
+            let mut warm = chosen.nodes;
+            let (mut pts, mut prev): (Vec<(f64, f64)>, (f64, f64)) = (Vec::new(), (c0, 0.0));
+            for z in PROFILE_STEPS {
+                let at = c0 + dir * z * se;
+                let mut held = [None; 3];
+                held[j] = Some(at);
+                let problem = form_problem(g, degrees, Some(basis), fixed, held);
+                let Ok((problem, theta, _, _)) =
+                    solve("speed-law profile", problem, &warm, profile_settings())
+                else {
+                    return (j, (pts, None));
+                };
+                warm = problem.nodes(&theta).0;
+                let stat = ((problem.sse_nodes(&warm) - chosen.sse) / chosen.scale).max(0.0);
+                pts.push((at, stat));
+                if stat > PROFILE_LIMIT {
+                    let (z0, z1) = (prev.1.sqrt(), stat.sqrt());
+                    let t = ((PROFILE_LIMIT.sqrt() - z0) / (z1 - z0)).clamp(0.0, 1.0);
+                    return (j, (pts, Some(prev.0 + t * (at - prev.0))));
+                }
+                prev = (at, stat);
+            }
+            (j, (pts, None))
+        })
+        .collect();
+    // Each side's first point tells which side it is.
+    let side = |j: usize, below: bool| {
+        walked
+            .iter()
+            .find(|(k, (pts, _))| {
+                *k == j
+                    && pts
+                        .first()
+                        .is_some_and(|x| (x.0 < law.coefficients[j]) == below)
+            })
+            .map(|(_, s)| s)
+    };
+    (0..basis.terms)
+        .filter_map(|j| {
+            let (lo_pts, lower) = side(j, true)?;
+            let (hi_pts, upper) = side(j, false)?;
+            let mut points: Vec<(f64, f64)> = lo_pts.iter().rev().copied().collect();
+            points.push((law.coefficients[j], 0.0));
+            points.extend(hi_pts.iter().copied());
+            Some(Profile {
+                parameter: format!("speed_c{}", j + 1),
+                estimate: law.coefficients[j],
+                lower: *lower,
+                upper: *upper,
+                points,
+            })
+        })
+        .collect()
+}
+
 /// One form (degrees of μ0, A, B, k_A, ρ, optionally μ0's speed law) fitted jointly over every
 /// temperature group from node values `start`, with `fixed` held; its polynomials (ascending
 /// powers of T) and the standard errors of its constant parameters.
@@ -653,20 +777,7 @@ fn fit_form(
         .iter()
         .map(|&d| temperature_nodes(d, lo, hi))
         .collect();
-    let groups = g
-        .ranges
-        .iter()
-        .map(|(t, r)| Group {
-            range: r.clone(),
-            basis: basis_at(degrees, lo, hi, *t),
-        })
-        .collect();
-    let degrees_free: [usize; 5] =
-        std::array::from_fn(|i| if fixed[i].is_some() { 0 } else { degrees[i] });
-    let mut problem = PolachProblem::new(&g.samples, groups, degrees_free, fixed, None);
-    if let Some(b) = speed {
-        problem = problem.with_speed(b);
-    }
+    let problem = form_problem(g, degrees, speed, fixed, [None; 3]);
     let speed_label = speed.map(|b| speed_name(b.form(), b.terms));
     let (problem, theta, its, stop) = solve(
         &with_speed(form_name(dm, dk), speed_label.as_deref()),
@@ -699,6 +810,7 @@ fn fit_form(
         standard_errors: speed_se,
         reference_speed_mps: b.v_ref,
         fitted_range_mps: b.range,
+        profiles: Vec::new(),
     });
     let (ka, rho) = (value(3), value(4));
     if degrees[3] == 0 && fixed[3].is_none() && fixed[4].is_none() {
@@ -735,6 +847,8 @@ fn fit_form(
         speed: speed_law,
         residuals: cov.residuals,
         nodes: v,
+        sse: cov.sse,
+        scale: cov.scale,
     })
 }
 
