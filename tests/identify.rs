@@ -1607,14 +1607,14 @@ fn polach_fits_of_thin_data_say_why() {
         why.contains("one ambient temperature: no temperature forms"),
         "{why}"
     );
-    // Narrower speeds: no law at all, and why.
+    // Narrower speeds: no law at all, and why (here: this creep-only fit holds μ0).
     let narrow = t.subset(|i| t.v_mps[i] < 28.0);
     let (r, _) = fit_campaign(&[narrow], patch, q, 1, 2, false);
     assert!(r.temperature.is_none());
     let why = r.temperature_note.unwrap();
     assert!(
         why.contains("two or more ambient temperatures; found 1")
-            && why.contains("too narrow for a speed law"),
+            && why.contains("μ0(v) forms not offered"),
         "{why}"
     );
 }

@@ -365,8 +365,9 @@ pub struct Band {
 }
 
 /// The speed bands of the per-band tables, km/h: 0–40, 40–80, 80–120, 120–145, 145–170,
-/// 170–210 (a run's top speed and the first seconds of its brake fall in the band of its
-/// initial speed for 80, 120, 160 and 200 km/h runs).
+/// 170–210 (a band's lower edge belongs to it: a run braking from 80 or 120 km/h fills the
+/// bands below its initial speed, one from 160 or 200 km/h reaches into the 145–170 or
+/// 170–210 band with its first seconds of brake).
 pub const SPEED_BANDS_KMH: [f64; 7] = [0.0, 40.0, 80.0, 120.0, 145.0, 170.0, 210.0];
 
 /// The replay view (module text): μ̂ − μ of every sample in a supported cell of its axle,

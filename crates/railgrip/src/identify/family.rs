@@ -327,7 +327,7 @@ impl ModelFamily for PolachWithLaws {
             match file.write(&report, law, &d.provenance) {
                 Err(e) if law.is_some() => {
                     notes.push(format!(
-                        "Polach model written without its temperature law: {e}"
+                        "Polach model written without its temperature and speed laws: {e}"
                     ));
                     file.write(&report, None, &d.provenance)
                 }

@@ -92,7 +92,8 @@ pub(super) fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sa
 /// 1. LM on all five parameters (unconstrained logistic coordinates, analytic Jacobian,
 ///    MINPACK's ftol/xtol convergence);
 /// 2. a parameter within [`AT_BOUND`] of a bound (in its logistic coordinate) is held at the
-///    bound (`at bound`) and the rest refitted;
+///    bound (`at bound`; a lower bound of 0, which no Polach law may take, where it was
+///    detected: A = 1e-4) and the rest refitted;
 /// 3. standard errors σ² (JᵀJ)⁻¹ in the natural parameters, inflated by n/n_eff for the
 ///    residuals' autocorrelation ([`effective_samples`]); the free parameter with the largest
 ///    se/x above 1/1.96 (Wald interval including zero; a singular JᵀJ counts as infinite) is held
@@ -212,12 +213,13 @@ impl Held {
             if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
                 // A lower bound of 0 (μ0, A, k_A, ρ) is not a valid Polach law (the model
                 // file needs them > 0): held where the bound was detected, σ = AT_BOUND —
-                // A = 1e-4 rather than 0. Upper bounds are valid values and are held exactly.
-                let bound = if sg < AT_BOUND {
-                    let p = (AT_BOUND / (1.0 - AT_BOUND)).ln();
-                    super::law::to_natural(i, p).0.max(LOWER[i])
-                } else {
+                // A = 1e-4 rather than 0. Other bounds are valid values, held exactly.
+                let bound = if sg >= AT_BOUND {
                     UPPER[i]
+                } else if LOWER[i] == 0.0 {
+                    super::law::to_natural(i, (AT_BOUND / (1.0 - AT_BOUND)).ln()).0
+                } else {
+                    LOWER[i]
                 };
                 self.fixed[i] = Some(bound);
                 current[i] = bound;

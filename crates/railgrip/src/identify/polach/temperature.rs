@@ -340,10 +340,14 @@ pub fn fit_temperature_forms(
     let (lo, hi) = g.range;
     let offered = Offered::of(&g, degree, pooled, per_temperature, v_ref);
     if g.temps.len() < 2 && offered.speeds.len() == 1 {
+        let why = offered
+            .notes
+            .iter()
+            .find(|n| n.starts_with("μ0(v) forms not offered"))
+            .map_or("", String::as_str);
         return Err(IdentifyError::Data {
             what: format!(
-                "a temperature law needs runs at two or more ambient temperatures; found 1 (and the samples' speeds, {:.1} … {:.1} m/s, are too narrow for a speed law)",
-                g.speeds.0, g.speeds.1
+                "a temperature law needs runs at two or more ambient temperatures; found 1 ({why})"
             ),
             hint: "give runs at several ambient temperatures with ambient_temperature_c in their metadata, or from several initial speeds".into(),
         });
@@ -416,6 +420,8 @@ struct Grouped {
     reference_c: f64,
     /// Lowest and highest speed of the samples, m/s.
     speeds: (f64, f64),
+    /// Runs without an ambient temperature (left out of these samples).
+    without_temperature: usize,
 }
 
 impl Grouped {
@@ -480,6 +486,10 @@ impl Grouped {
             ranges,
             reference_c,
             speeds,
+            without_temperature: tables
+                .iter()
+                .filter(|t| t.metadata.ambient_temperature_c.is_none())
+                .count(),
         })
     }
 }
@@ -524,6 +534,11 @@ impl Offered {
         let mut speeds = vec![None];
         if held(0) {
             notes.push("μ0(v) forms not offered: the pooled fit holds μ0".into());
+        } else if g.without_temperature > 0 {
+            notes.push(format!(
+                "μ0(v) forms not offered: {} run(s) have no ambient temperature (the speed law is fitted with the temperature forms, on the runs that have one, and must cover the model's whole speed range)",
+                g.without_temperature
+            ));
         } else if vhi < SPEED_SPAN_RATIO * vlo || vhi - vlo < SPEED_SPAN_MPS {
             notes.push(format!(
                 "μ0(v) forms not offered: the samples span {vlo:.1} … {vhi:.1} m/s (a speed law needs ×{SPEED_SPAN_RATIO} and {SPEED_SPAN_MPS} m/s)"
@@ -614,7 +629,10 @@ fn fit_all_forms(
     let n_eff = effective_samples(&most_flexible(&base).residuals).max(1.0);
     let bic =
         |f: &FormFit| n_eff * (f.record.sse / n).ln() + f.record.parameters as f64 * n_eff.ln();
-    let mut order: Vec<usize> = (0..base.len()).collect();
+    // The valid temperature forms by BIC (a form whose law is refused cannot be chosen).
+    let mut order: Vec<usize> = (0..base.len())
+        .filter(|i| law_rejection(&base[*i], g.range).is_none())
+        .collect();
     order.sort_by(|a, b| bic(&base[*a]).total_cmp(&bic(&base[*b])));
     order.truncate(SPEED_ON_T_FORMS);
     let jobs: Vec<(usize, SpeedBasis)> = order
@@ -645,10 +663,27 @@ fn fit_all_forms(
 
 /// The fit with the most free parameters (the last of them).
 fn most_flexible(fits: &[FormFit]) -> &FormFit {
+    // `max_by_key` returns the last of equal maxima.
     fits.iter()
-        .rev()
         .max_by_key(|f| f.record.parameters)
         .expect("at least the constant form")
+}
+
+/// Why a form's temperature law cannot be written (the model reader's own check), if so; the
+/// constant form writes no law and is never refused for it.
+fn law_rejection(f: &FormFit, (lo, hi): (f64, f64)) -> Option<String> {
+    if f.record.mu0_degree == 0 && f.record.k_degree == 0 {
+        return None;
+    }
+    let spec = crate::model::polach::TemperatureSpec {
+        mu0: f.mu0.clone(),
+        k_a: f.k_a.clone(),
+        k_s: f.k_s.clone(),
+        fitted_range_c: [lo, hi],
+    };
+    crate::model::polach::check_law(&spec, f.mu0[0])
+        .err()
+        .map(|e| e.to_string())
 }
 
 /// The least-squares problem of one form over every temperature group, `fixed` parameters and
@@ -861,37 +896,23 @@ fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f6
     let n = samples as f64;
     let n_eff = effective_samples(&most_flexible(fits).residuals).max(1.0);
     for f in fits.iter_mut() {
-        let c = &mut f.record;
-        let fit_term = n_eff * (c.sse / n).ln();
-        c.aic = fit_term + 2.0 * c.parameters as f64;
-        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
-        let spec = crate::model::polach::TemperatureSpec {
-            mu0: f.mu0.clone(),
-            k_a: f.k_a.clone(),
-            k_s: f.k_s.clone(),
-            fitted_range_c: [lo, hi],
-        };
-        // A law is written only for what depends on temperature (the constant form's values
-        // are the pooled fit's, checked as the model file is).
-        let with_t = c.mu0_degree > 0 || c.k_degree > 0;
-        let law = if with_t {
-            crate::model::polach::check_law(&spec, f.mu0[0])
-        } else {
-            Ok(())
-        };
-        if let Err(e) = law {
-            c.rejected = Some(e.to_string());
-        } else if let Some(sp) = &f.speed {
+        // A law is written only for what depends on temperature or speed (the constant form's
+        // values are the pooled fit's, checked as the model file is).
+        let rejected = law_rejection(f, (lo, hi)).or_else(|| {
+            let sp = f.speed.as_ref()?;
             // The largest μ0 over the temperature range, as the model file's check takes it.
             let mu0_max = (0..=100)
                 .map(|i| horner(&f.mu0, lo + (hi - lo) * f64::from(i) / 100.0))
                 .fold(f64::NEG_INFINITY, f64::max);
-            if let Err(e) =
-                crate::model::polach::check_speed_law(&sp.spec(), sp.reference_speed_mps, mu0_max)
-            {
-                c.rejected = Some(e.to_string());
-            }
-        }
+            crate::model::polach::check_speed_law(&sp.spec(), sp.reference_speed_mps, mu0_max)
+                .err()
+                .map(|e| e.to_string())
+        });
+        let c = &mut f.record;
+        let fit_term = n_eff * (c.sse / n).ln();
+        c.aic = fit_term + 2.0 * c.parameters as f64;
+        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
+        c.rejected = rejected;
         f.residuals = Vec::new();
     }
     n_eff
