@@ -406,6 +406,24 @@ fn foreign_laws_drive_the_wheels() {
     assert!(e.contains("must be at least 0.05"), "{e}");
     let e = err("[adhesion]\nlaw = \"magic\"");
     assert!(e.contains("\"loss_recovery\", \"table\""), "{e}");
+    // The speed form and the rail condition: known values, their range, only with their law,
+    // and a quadratic fall that would make the peaks vanish before the initial speed.
+    let e = err("[adhesion]\nlaw = \"loss_recovery\"\npeak_speed_form = \"cubic\"");
+    assert!(
+        e.contains("adhesion.peak_speed_form") && e.contains("\"ratio\" or \"quadratic\""),
+        "{e}"
+    );
+    let e = err("[adhesion]\nlaw = \"loss_recovery\"\nlevel_scale = 0.1");
+    assert!(e.contains("adhesion.level_scale"), "{e}");
+    let e = err("[adhesion]\nlaw = \"table\"\nlevel_scale = 1.05");
+    assert!(e.contains("only with law = \"loss_recovery\""), "{e}");
+    let e = err("[adhesion]\nlaw = \"table\"\npeak_speed_form = \"quadratic\"");
+    assert!(e.contains("only with law = \"loss_recovery\""), "{e}");
+    let e = err("[run]\ninitial_speed_kmh = 300.0\n[adhesion]\nlaw = \"loss_recovery\"\npeak_speed_form = \"quadratic\"\npeak_speed_coefficient = 0.3");
+    assert!(
+        e.contains("run.initial_speed_kmh = 300") && e.contains("must be at least 0.05"),
+        "{e}"
+    );
 }
 
 #[test]
