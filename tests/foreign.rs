@@ -19,7 +19,12 @@ use railgrip::sim::{self, AdhesionLaw, OutputFormat, Scene};
 use railgrip::Pipeline;
 
 fn scenes() -> Vec<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes/foreign");
+    scene_files("pipelines/scenes/foreign")
+}
+
+/// The scene files (`*.toml`) of a folder of the repository, sorted.
+fn scene_files(folder: &str) -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join(folder);
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -34,12 +39,7 @@ fn scenes() -> Vec<PathBuf> {
 /// of the scenes above lose ~4 %), and the three runs at one speed differ in rail condition.
 #[test]
 fn top_speed_scenes_follow_a_level_that_falls_steeper_at_the_top() {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes/top_speed");
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    paths.sort();
+    let paths = scene_files("pipelines/scenes/top_speed");
     assert_eq!(paths.len(), 12, "{paths:?}");
     let mut scales = std::collections::BTreeSet::new();
     for path in paths {
@@ -677,12 +677,7 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 #[test]
 fn polach_with_a_speed_law_holds_the_top_speed_bands() {
     use railgrip::score::{replay, SPEED_BANDS_KMH};
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenes/top_speed");
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    paths.sort();
+    let paths = scene_files("pipelines/scenes/top_speed");
     let scenes: Vec<Scene> = paths.iter().map(|p| Scene::load(p).unwrap()).collect();
     for seed in [1, 2, 3] {
         let tmp = tempfile::tempdir().unwrap();

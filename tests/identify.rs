@@ -851,6 +851,19 @@ fn four_input_files_and_data_are_checked() {
 
 // ------------------------------------------------------------------ Polach model files
 
+/// The provenance of the synthetic Polach model files (fixed, so their bytes are).
+fn polach_provenance() -> railgrip::model::Provenance {
+    railgrip::model::Provenance {
+        inputs: vec![],
+        pipeline: "uic_z1.toml".into(),
+        pipeline_sha256: "0".repeat(64),
+        seed: 0,
+        crate_version: "0.1.0".into(),
+        created: "2026-01-01T00:00:00Z".into(),
+        generation: None,
+    }
+}
+
 /// A Polach model file with a temperature law over −20 … +20 °C.
 fn polach_model(with_temperature: bool) -> ModelFile {
     use railgrip::identify::polach::{PolachFit, TemperatureFit};
@@ -904,15 +917,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         (0.01, 4.5),
         (3.0, 44.0),
         25.0,
-        railgrip::model::Provenance {
-            inputs: vec![],
-            pipeline: "uic_z1.toml".into(),
-            pipeline_sha256: "0".repeat(64),
-            seed: 0,
-            crate_version: "0.1.0".into(),
-            created: "2026-01-01T00:00:00Z".into(),
-            generation: None,
-        },
+        polach_provenance(),
     )
     .unwrap()
 }
@@ -1692,15 +1697,7 @@ fn the_speed_law_follows_a_level_that_falls_with_speed() {
                 r.dv_range_mps,
                 r.v_range_mps,
                 v_ref,
-                railgrip::model::Provenance {
-                    inputs: vec![],
-                    pipeline: "uic_z1.toml".into(),
-                    pipeline_sha256: "0".repeat(64),
-                    seed: 0,
-                    crate_version: "0.1.0".into(),
-                    created: "2026-01-01T00:00:00Z".into(),
-                    generation: None,
-                },
+                polach_provenance(),
             )
             .unwrap();
             let model = Model::new(file).unwrap();
@@ -1894,15 +1891,7 @@ fn the_temperature_form_follows_what_varies() {
                 r.dv_range_mps,
                 r.v_range_mps,
                 25.0,
-                railgrip::model::Provenance {
-                    inputs: vec![],
-                    pipeline: "uic_z1.toml".into(),
-                    pipeline_sha256: "0".repeat(64),
-                    seed: 0,
-                    crate_version: "0.1.0".into(),
-                    created: "2026-01-01T00:00:00Z".into(),
-                    generation: None,
-                },
+                polach_provenance(),
             )
             .unwrap();
             let law = file.polach.as_ref().unwrap().temperature.as_ref();

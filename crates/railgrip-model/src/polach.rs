@@ -99,6 +99,14 @@ pub struct SpeedSpec {
     pub fitted_range_mps: [f64; 2],
 }
 
+impl SpeedSpec {
+    /// g(v) at speed `v` (m/s) with the file's reference speed `v_ref` (m/s), as the evaluator
+    /// computes it.
+    pub fn factor(&self, v_ref: f64, v: f64) -> f64 {
+        SpeedEval::new(self, v_ref).factor(v)
+    }
+}
+
 /// A checked speed law for evaluation.
 #[derive(Debug, Clone)]
 pub(crate) struct SpeedEval {
@@ -326,7 +334,14 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
 
 /// The largest μ0 of a spec: its μ0, or the largest of μ0(T) over the temperature range.
 fn mu0_max(p: &PolachSpec) -> f64 {
-    match &p.temperature {
+    largest_mu0(p.mu0, p.temperature.as_ref())
+}
+
+/// The largest adhesion level of base `mu0` and a temperature law `t` (the largest of μ0(T) at
+/// the checked temperatures of its range when it has μ0 coefficients): what
+/// [`check_speed_law`] takes as `mu0_max`.
+pub fn largest_mu0(mu0: f64, t: Option<&TemperatureSpec>) -> f64 {
+    match t {
         Some(t) if !t.mu0.is_empty() => {
             let [lo, hi] = t.fitted_range_c;
             (0..TEMPERATURE_CHECKS)
@@ -336,9 +351,9 @@ fn mu0_max(p: &PolachSpec) -> f64 {
                         lo + (hi - lo) * i as f64 / (TEMPERATURE_CHECKS - 1) as f64,
                     )
                 })
-                .fold(p.mu0, f64::max)
+                .fold(mu0, f64::max)
         }
-        _ => p.mu0,
+        _ => mu0,
     }
 }
 

@@ -140,16 +140,7 @@ pub fn score(
 ) -> Result<Score, ScoreError> {
     let mut acc: BTreeMap<Key, Acc> = BTreeMap::new();
     for (index, s) in samples.iter().enumerate() {
-        for (x, what) in [
-            (s.dv_mps, "Δv"),
-            (s.ddv_mps2, "dΔv/dt"),
-            (s.v_mps, "v"),
-            (s.mu, "μ"),
-        ] {
-            if !x.is_finite() {
-                return Err(ScoreError::NotFinite { index, what });
-            }
-        }
+        check_finite(index, s)?;
         let keys = cells_of(grid, s);
         if keys.is_empty() {
             continue;
@@ -292,10 +283,10 @@ pub fn curve(
     predict: impl Fn(f64, f64, f64, f64) -> f64,
     law: impl Fn(f64, f64, f64, f64) -> f64,
 ) -> Result<CurveScore, ScoreError> {
-    // Support of (axle, q, Δv) over all speeds: the speed index folded to one.
+    // Support of (axle, q, Δv) over all speeds: one speed cell holding every speed.
     let wide = Grid {
         v_step_kmh: 1e9,
-        v_half_kmh: 1e9,
+        v_half_kmh: 0.5e9,
         ..grid.clone()
     };
     let counts = support(samples, &wide)?;
@@ -426,21 +417,27 @@ pub fn replay(
 fn support(samples: &[Sample], grid: &Grid) -> Result<BTreeMap<Key, usize>, ScoreError> {
     let mut counts: BTreeMap<Key, usize> = BTreeMap::new();
     for (index, s) in samples.iter().enumerate() {
-        for (x, what) in [
-            (s.dv_mps, "Δv"),
-            (s.ddv_mps2, "dΔv/dt"),
-            (s.v_mps, "v"),
-            (s.mu, "μ"),
-        ] {
-            if !x.is_finite() {
-                return Err(ScoreError::NotFinite { index, what });
-            }
-        }
+        check_finite(index, s)?;
         for k in cells_of(grid, s) {
             *counts.entry(k).or_default() += 1;
         }
     }
     Ok(counts)
+}
+
+/// Sample `index` has finite inputs and μ (truth files hold finite values only).
+fn check_finite(index: usize, s: &Sample) -> Result<(), ScoreError> {
+    for (x, what) in [
+        (s.dv_mps, "Δv"),
+        (s.ddv_mps2, "dΔv/dt"),
+        (s.v_mps, "v"),
+        (s.mu, "μ"),
+    ] {
+        if !x.is_finite() {
+            return Err(ScoreError::NotFinite { index, what });
+        }
+    }
+    Ok(())
 }
 
 /// The cells a sample belongs to.

@@ -79,21 +79,9 @@ pub struct SpeedLaw {
 }
 
 impl SpeedLaw {
-    /// g(v) at `v` (m/s).
+    /// g(v) at `v` (m/s), as the model file's evaluator computes it.
     pub fn factor(&self, v: f64) -> f64 {
-        let basis = SpeedBasis {
-            curtius_kniffler: self.form == "curtius_kniffler",
-            terms: self.coefficients.len(),
-            v_ref: self.reference_speed_mps,
-            range: self.fitted_range_mps,
-        };
-        let phi = basis.phi(v);
-        1.0 + self
-            .coefficients
-            .iter()
-            .zip(phi)
-            .map(|(c, p)| c * p)
-            .sum::<f64>()
+        self.spec().factor(self.reference_speed_mps, v)
     }
 
     /// As a model file's speed section.
@@ -901,9 +889,13 @@ fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f6
         let rejected = law_rejection(f, (lo, hi)).or_else(|| {
             let sp = f.speed.as_ref()?;
             // The largest μ0 over the temperature range, as the model file's check takes it.
-            let mu0_max = (0..=100)
-                .map(|i| horner(&f.mu0, lo + (hi - lo) * f64::from(i) / 100.0))
-                .fold(f64::NEG_INFINITY, f64::max);
+            let law = crate::model::polach::TemperatureSpec {
+                mu0: f.mu0.clone(),
+                k_a: Vec::new(),
+                k_s: Vec::new(),
+                fitted_range_c: [lo, hi],
+            };
+            let mu0_max = crate::model::polach::largest_mu0(f.mu0[0], Some(&law));
             crate::model::polach::check_speed_law(&sp.spec(), sp.reference_speed_mps, mu0_max)
                 .err()
                 .map(|e| e.to_string())
