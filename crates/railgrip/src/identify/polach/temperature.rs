@@ -615,8 +615,7 @@ fn fit_all_forms(
     // The provisional BIC of the temperature forms (n_eff of the most flexible one).
     let n = g.samples.len() as f64;
     let n_eff = effective_samples(&most_flexible(&base).residuals).max(1.0);
-    let bic =
-        |f: &FormFit| n_eff * (f.record.sse / n).ln() + f.record.parameters as f64 * n_eff.ln();
+    let bic = |f: &FormFit| information(f.record.sse, n, f.record.parameters, n_eff).1;
     // The valid temperature forms by BIC (a form whose law is refused cannot be chosen).
     let mut order: Vec<usize> = (0..base.len())
         .filter(|i| law_rejection(&base[*i], g.range).is_none())
@@ -647,6 +646,13 @@ fn fit_all_forms(
         }
     }
     Ok(out)
+}
+
+/// AIC = n_eff ln(SSE/n) + 2p and BIC = n_eff ln(SSE/n) + p ln n_eff of a fit with `p` free
+/// parameters and `sse` over `n` samples (see [`TemperatureCandidate`]).
+fn information(sse: f64, n: f64, p: usize, n_eff: f64) -> (f64, f64) {
+    let fit_term = n_eff * (sse / n).ln();
+    (fit_term + 2.0 * p as f64, fit_term + p as f64 * n_eff.ln())
 }
 
 /// The fit with the most free parameters (the last of them).
@@ -901,9 +907,7 @@ fn score_forms(fits: &mut [FormFit], samples: usize, (lo, hi): (f64, f64)) -> f6
                 .map(|e| e.to_string())
         });
         let c = &mut f.record;
-        let fit_term = n_eff * (c.sse / n).ln();
-        c.aic = fit_term + 2.0 * c.parameters as f64;
-        c.bic = fit_term + c.parameters as f64 * n_eff.ln();
+        (c.aic, c.bic) = information(c.sse, n, c.parameters, n_eff);
         c.rejected = rejected;
         f.residuals = Vec::new();
     }
