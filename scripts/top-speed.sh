@@ -8,8 +8,8 @@
 #
 # PIPELINE=file.toml runs the campaign with that pipeline (e.g. train.inputs with v_mps and
 # ambient_temperature_c for the 4-input network).
-# Prints one `railgrip score` report per seed and model; the per-band tables of docs/training.md
-# come from it. Needs a release build (cargo build --release).
+# Prints the chosen model and one `railgrip score` report per seed and candidate model; the
+# per-band tables of docs/training.md come from it. Needs a release build (cargo build --release).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/top-speed}"
@@ -24,7 +24,9 @@ for seed in $seeds; do
         "$bin" simulate "$s" --out "$archive" --seed "$seed" --format csv >/dev/null
     done
     "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} >/dev/null
-    for model in mlp.json mlp.polach.json; do
+    chosen=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get('chosen_model',''))" "$out/seed$seed/out/campaign.json")
+    echo "== seed $seed: the campaign chose $chosen"
+    for model in mlp.json mlp.polach.json mlp.3in.json mlp.4in.json mlp.residual.json; do
         echo "== seed $seed: $model"
         [ -f "$out/seed$seed/out/models/$model" ] || { echo "no $model (see the run's notes)"; continue; }
         "$bin" score "$out/seed$seed/out/models/$model" "${scenes[@]}" --seeds "$seed" || true

@@ -928,6 +928,11 @@ fn polach_model_files_evaluate_the_contact_librarys_law_and_round_trip() {
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     golden_check("synthetic_polach.json", &polach_model(true).to_json());
+    // The speed law's section is in the schema too.
+    schema_check(
+        &with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1]).to_json(),
+        "Polach model file with a speed law",
+    );
     for with_t in [false, true] {
         let file = polach_model(with_t);
         schema_check(&file.to_json(), "Polach model file");
@@ -1260,6 +1265,146 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
             assert!(worst <= 1e-12, "{worst}");
         }
     }
+}
+
+// ------------------------------------------------------------------ residual (grey-box) networks
+
+/// The synthetic network as a residual over a Polach law with k(T) and a Curtius–Kniffler speed
+/// law (the law Polach files are tested with), falling back to the law outside its support.
+fn residual_model() -> (ModelFile, ModelFile) {
+    let law = with_speed_law(polach_model(true), "curtius_kniffler", &[0.6]);
+    let mut f = synthetic_model();
+    f.base = law.polach.clone();
+    let s = f.support.as_mut().unwrap();
+    s.fallback = "law".into();
+    s.fallback_mu = vec![0.0; s.fallback_mu.len()];
+    (f, law)
+}
+
+/// Points over the slip plane (both signs, the creep region, inside, across and outside the
+/// support) at several speeds and temperatures (NaN: the references).
+fn residual_points() -> Vec<[f64; 4]> {
+    let mut pts = Vec::new();
+    for i in 0..=40 {
+        let dv = -4.0 + 0.2 * i as f64;
+        for ddv in [-6.0, -1.0, 0.0, 0.7, 5.0] {
+            for (v, t) in [
+                (f64::NAN, f64::NAN),
+                (12.0, -10.0),
+                (30.0, 7.5),
+                (55.0, 20.0),
+            ] {
+                pts.push([dv, ddv, v, t]);
+            }
+        }
+    }
+    pts.push([f64::NAN, 0.0, 30.0, 0.0]);
+    pts
+}
+
+/// A residual network is its law plus the network before the creep region (seed 002 eq. 6–8
+/// apply to the sum), odd in the slip like every model, the law alone where the support is 0
+/// and law + network where it is 1; the batch path and the C header give the same bits.
+#[test]
+fn residual_networks_add_their_law_and_fall_back_to_it() {
+    let (file, law_file) = residual_model();
+    file.check().unwrap();
+    let text = file.to_json();
+    schema_check(&text, "residual network");
+    let back = ModelFile::from_json(&text, "residual").unwrap();
+    assert_eq!(back, file, "JSON round trip");
+    let model = Model::new(back).unwrap();
+    let law = Model::new(law_file).unwrap();
+    let plain = Model::new(synthetic_model()).unwrap();
+    let blend = file.creep.as_ref().unwrap().blend_mps;
+    let pts = residual_points();
+    let (mut outside, mut inside) = (0, 0);
+    for p in &pts {
+        let [dv, ddv, v, t] = *p;
+        let mu = model.mu_vt(dv, ddv, v, t);
+        if !dv.is_finite() {
+            assert!(mu.is_nan());
+            continue;
+        }
+        assert!(mu.is_finite(), "{p:?}");
+        assert_eq!(model.mu_vt(-dv, -ddv, v, t), -mu, "odd at {p:?}");
+        if dv.abs() < blend || !v.is_finite() {
+            continue;
+        }
+        match model.support_weight_t(dv, ddv, v, t) {
+            Some(0.0) => {
+                outside += 1;
+                assert_eq!(mu, law.mu_vt(dv, ddv, v, t), "the law alone at {p:?}");
+            }
+            Some(1.0) => {
+                inside += 1;
+                let n = plain.mu_vt(dv, ddv, v, t);
+                let b = law.mu_vt(dv, ddv, v, t);
+                assert!(
+                    (mu - (n + b)).abs() <= 1e-15,
+                    "law + network at {p:?}: {mu} vs {}",
+                    n + b
+                );
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        outside > 10 && inside > 10,
+        "{outside} outside, {inside} inside"
+    );
+    // The batch path with speeds and temperatures, lane by lane the single call's bits.
+    let col = |k: usize| pts.iter().map(|p| p[k]).collect::<Vec<f64>>();
+    let mut out = vec![0.0; pts.len()];
+    model.mu_batch_t(&col(0), &col(1), &col(2), &col(3), &mut out);
+    for (p, o) in pts.iter().zip(&out) {
+        let single = model.mu_vt(p[0], p[1], p[2], p[3]);
+        assert!(
+            o.to_bits() == single.to_bits() || (o.is_nan() && single.is_nan()),
+            "{p:?}"
+        );
+    }
+    batch_matches_single_calls(&model, 301, 7, 11);
+    for flags in [&[][..], &["-DRG_EXACT_FMA", "-ffp-contract=off"][..]] {
+        if let Some((worst, differ)) = c_header_error(&model, &pts, flags) {
+            eprintln!(
+                "residual C header {flags:?} vs Rust: max |Δμ| = {worst:.1e}, {differ} differ"
+            );
+            assert!(worst <= 1e-12, "{worst}");
+            if !flags.is_empty() {
+                assert_eq!(differ, 0, "bit-identical with exact fma");
+            }
+        }
+    }
+}
+
+/// What a residual network file cannot be: a law fallback without a law, a law with a
+/// non-zero fallback, a law outside Polach's domain.
+#[test]
+fn residual_network_files_reject_what_they_cannot_evaluate() {
+    let good = residual_model().0.to_json();
+    let bad = |edit: &dyn Fn(&mut serde_json::Value), needle: &str| {
+        assert_refused(&good, "bad.residual.json", edit, needle)
+    };
+    bad(
+        &|v| {
+            v.as_object_mut().unwrap().remove("base");
+        },
+        "fallback \"law\" goes with",
+    );
+    bad(
+        &|v| v["support"]["fallback"] = "polach".into(),
+        "fallback \"law\" goes with",
+    );
+    bad(
+        &|v| v["support"]["fallback_mu"][0] = 0.1.into(),
+        "fallback_mu must be 0",
+    );
+    bad(&|v| v["base"]["mu0"] = 2.0.into(), "base:");
+    bad(
+        &|v| v["base"]["speed"]["coefficients"] = serde_json::json!([40.0]),
+        "base: polach.speed",
+    );
 }
 
 // ------------------------------------------------------------------ seed 002 on simulated runs

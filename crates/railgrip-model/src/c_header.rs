@@ -172,8 +172,51 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("tref", lit(creep.reference_temperature_c.unwrap_or(0.0))),
             ("has_sup", u8::from(m.support.is_some()).to_string()),
             ("sup_arrays", sup_arrays),
+            ("has_base", u8::from(m.base.is_some()).to_string()),
+            (
+                "base",
+                match &m.base {
+                    None => String::new(),
+                    Some(b) => base_law(m, b, prefix, source),
+                },
+            ),
+            (
+                "resid",
+                if m.base.is_some() {
+                    format!("\n * A residual (grey-box) network: mu = the Polach law {prefix}_base_mu_vt(dv, 0, v, T)\n * plus the network, before the creep region; outside the data support the law alone.")
+                } else {
+                    String::new()
+                },
+            ),
         ],
     )
+}
+
+/// A residual network's Polach law as C (`c/polach.h.in` with the prefix `<prefix>_base`),
+/// placed in the network's header before the network.
+fn base_law(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> String {
+    let pre = format!("{prefix}_base");
+    let inputs = if p.temperature.is_some() {
+        "dv_mps [m/s], v_mps [m/s], ambient_temperature_c [°C] (as the network's)"
+    } else {
+        "dv_mps [m/s], v_mps [m/s] (as the network's)"
+    };
+    let text = polach_text(
+        p,
+        &pre,
+        &[
+            (
+                "source",
+                format!("the base law of {}", comment_text(source)),
+            ),
+            ("fmt", comment_text(&m.format)),
+            ("fv", m.version.to_string()),
+            ("nt", m.metrics.train_samples.to_string()),
+            ("rmse", "(see the network)".into()),
+            ("inputs", inputs.into()),
+        ],
+    );
+    format!("\n{text}\n")
 }
 
 /// The network's constant arrays (`@arrays@` of `c/mlp.h.in`): the input domain and
@@ -272,6 +315,23 @@ pub fn valid_prefix(p: &str) -> bool {
 }
 
 fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> String {
+    polach_text(
+        p,
+        prefix,
+        &[
+            ("source", comment_text(source)),
+            ("fmt", comment_text(&m.format)),
+            ("fv", m.version.to_string()),
+            ("nt", m.metrics.train_samples.to_string()),
+            ("rmse", lit(m.metrics.train_mse.sqrt())),
+            ("inputs", inputs_line(m)),
+        ],
+    )
+}
+
+/// `c/polach.h.in` for the law `p` under `prefix`, with the descriptive values `about`
+/// (source, fmt, fv, nt, rmse, inputs).
+fn polach_text(p: &PolachSpec, prefix: &str, about: &[(&str, String)]) -> String {
     let (has_t, mu0_t, ka_t, ks_t, t_lo, t_hi) = match &p.temperature {
         Some(t) => (
             true,
@@ -300,65 +360,58 @@ fn polach_header(m: &ModelFile, p: &PolachSpec, prefix: &str, source: &str) -> S
         None => (vec![0.0], false, 0.0, 0.0),
     };
     let up = prefix.to_uppercase();
-    fill(
-        POLACH_TEMPLATE,
-        &[
-            ("pre", prefix.to_string()),
-            ("guard", format!("{up}_ADHESION_MODEL_H")),
-            ("up", up),
-            (
-                "tl",
-                match (has_t, mu0_t.is_empty()) {
-                    (false, _) => "",
-                    (true, true) => " and k_A(T), k_S(T)",
-                    (true, false) => " and μ0(T), k_A(T), k_S(T)",
-                }
-                .to_string(),
-            ),
-            (
-                "vl",
-                match &p.speed {
-                    None => String::new(),
-                    Some(s) => format!(" and μ0's speed law ({})", s.form),
-                },
-            ),
-            ("ver", env!("CARGO_PKG_VERSION").to_string()),
-            ("source", comment_text(source)),
-            ("fmt", comment_text(&m.format)),
-            ("fv", m.version.to_string()),
-            ("nt", m.metrics.train_samples.to_string()),
-            ("rmse", lit(m.metrics.train_mse.sqrt())),
-            ("inputs", inputs_line(m)),
-            ("has_t", u8::from(has_t).to_string()),
-            ("has_v", u8::from(p.speed.is_some()).to_string()),
-            ("ck", u8::from(ck).to_string()),
-            ("nsp", speed_c.len().to_string()),
-            ("v_lo", lit(v_lo)),
-            ("v_hi", lit(v_hi)),
-            ("v_c", lit(CURTIUS_KNIFFLER_SPEED_MPS)),
-            ("nmu0", mu0_t.len().to_string()),
-            ("nka", ka_t.len().to_string()),
-            ("nks", ks_t.len().to_string()),
-            ("mu0", lit(p.mu0)),
-            ("a", lit(p.a_ratio)),
-            ("b", lit(p.b_s_per_m)),
-            ("k_a", lit(p.k_a)),
-            ("k_s", lit(p.k_s)),
-            ("stiff", lit(stiffness(p))),
-            ("vref", lit(p.reference_speed_mps)),
-            ("vmin", lit(MIN_SPEED_MPS)),
-            ("pi", lit(std::f64::consts::PI)),
-            ("t_lo", lit(t_lo)),
-            ("t_hi", lit(t_hi)),
-            (
-                "arrays",
-                array(&format!("{prefix}_mu0_T"), &mu0_arr)
-                    + &array(&format!("{prefix}_ka_T"), &ka_t)
-                    + &array(&format!("{prefix}_ks_T"), &ks_t)
-                    + &array(&format!("{prefix}_speed_c"), &speed_c),
-            ),
-        ],
-    )
+    let mut values = about.to_vec();
+    values.extend([
+        ("pre", prefix.to_string()),
+        ("guard", format!("{up}_ADHESION_MODEL_H")),
+        ("up", up),
+        (
+            "tl",
+            match (has_t, mu0_t.is_empty()) {
+                (false, _) => "",
+                (true, true) => " and k_A(T), k_S(T)",
+                (true, false) => " and μ0(T), k_A(T), k_S(T)",
+            }
+            .to_string(),
+        ),
+        (
+            "vl",
+            match &p.speed {
+                None => String::new(),
+                Some(s) => format!(" and μ0's speed law ({})", s.form),
+            },
+        ),
+        ("ver", env!("CARGO_PKG_VERSION").to_string()),
+        ("has_t", u8::from(has_t).to_string()),
+        ("has_v", u8::from(p.speed.is_some()).to_string()),
+        ("ck", u8::from(ck).to_string()),
+        ("nsp", speed_c.len().to_string()),
+        ("v_lo", lit(v_lo)),
+        ("v_hi", lit(v_hi)),
+        ("v_c", lit(CURTIUS_KNIFFLER_SPEED_MPS)),
+        ("nmu0", mu0_t.len().to_string()),
+        ("nka", ka_t.len().to_string()),
+        ("nks", ks_t.len().to_string()),
+        ("mu0", lit(p.mu0)),
+        ("a", lit(p.a_ratio)),
+        ("b", lit(p.b_s_per_m)),
+        ("k_a", lit(p.k_a)),
+        ("k_s", lit(p.k_s)),
+        ("stiff", lit(stiffness(p))),
+        ("vref", lit(p.reference_speed_mps)),
+        ("vmin", lit(MIN_SPEED_MPS)),
+        ("pi", lit(std::f64::consts::PI)),
+        ("t_lo", lit(t_lo)),
+        ("t_hi", lit(t_hi)),
+        (
+            "arrays",
+            array(&format!("{prefix}_mu0_T"), &mu0_arr)
+                + &array(&format!("{prefix}_ka_T"), &ka_t)
+                + &array(&format!("{prefix}_ks_T"), &ks_t)
+                + &array(&format!("{prefix}_speed_c"), &speed_c),
+        ),
+    ]);
+    fill(POLACH_TEMPLATE, &values)
 }
 
 #[cfg(test)]

@@ -365,6 +365,12 @@ pub struct ModelFile {
     /// kind mlp, version 2: the plausibility audit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub audit: Option<AuditSpec>,
+    /// kind mlp: the Polach law (with its temperature and speed laws) the network is a residual
+    /// over — a grey-box model, μ = μ_P(Δv, v, T) + N(Δv, dΔv/dt, …) (see [`crate`], step 3);
+    /// its support grid falls back to the law itself (`fallback = "law"`, `fallback_mu` all 0).
+    /// An older railgrip refuses such a file by its unknown field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub base: Option<polach::PolachSpec>,
 }
 
 impl ModelFile {
@@ -481,6 +487,20 @@ impl ModelFile {
         }
         if let Some(s) = &self.support {
             check_support(s, self.inputs.len())?;
+            let law = s.fallback == "law";
+            if law != self.base.is_some() {
+                return Err(Defect::Support(
+                    "fallback \"law\" goes with a \"base\" Polach law (a residual network), and a residual network falls back to its law".into(),
+                ));
+            }
+            if law && s.fallback_mu.iter().any(|&f| f != 0.0) {
+                return Err(Defect::Support(
+                    "a residual network's fallback_mu must be 0 (the residual vanishes outside the data; the law remains)".into(),
+                ));
+            }
+        }
+        if let Some(b) = &self.base {
+            polach::check_spec(b).map_err(|d| Defect::Value(format!("base: {d}")))?;
         }
         if let Some(a) = &self.audit {
             if !(a.mu_max.is_finite() && a.mu_max > 0.0) {
@@ -801,9 +821,9 @@ fn check_support(s: &SupportSpec, inputs: usize) -> Result<(), Defect> {
     if s.min_samples == 0 {
         return bad("min_samples must be at least 1".into());
     }
-    if s.fallback != "polach" && s.fallback != "nearest" {
+    if !["polach", "nearest", "law"].contains(&s.fallback.as_str()) {
         return bad(format!(
-            "fallback \"{}\" is not \"polach\" or \"nearest\"",
+            "fallback \"{}\" is not \"polach\", \"nearest\" or \"law\"",
             s.fallback
         ));
     }

@@ -16,7 +16,9 @@
 //! 3. Data support (version-2 files with a support grid, [`SupportSpec`]): N becomes
 //!    w N + (1 − w) F, w the support indicator and F the fallback |μ| of the grid's cells,
 //!    interpolated multilinearly between cell centres at the normalised, unclamped inputs,
-//!    w fading to 0 over one cell beyond the grid's edge (module `support`).
+//!    w fading to 0 over one cell beyond the grid's edge (module `support`). A residual
+//!    (grey-box) network, a file with a `base` Polach law ([`polach`]), then adds the law:
+//!    N ← w N + μ_P(Δv, v, T) (its fallback F is 0: outside the data the law alone).
 //! 4. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
 //!    is replaced by the linear law", eq. 6–8): below the blend slip Δv_b the model blends, with
 //!    the weight w = t²(3 − 2t), t = Δv/Δv_b, from the Kalker linear law saturated by

@@ -4,6 +4,7 @@
 //! by lane — bit-identical results whatever the CPU (tested below).
 
 use super::file::{ModelFile, Scaling, MAX_HIDDEN, MAX_INPUTS};
+use super::polach::PolachEval;
 use super::support::SupportEval;
 use railgrip_contact::saturation::she_ratio;
 use railgrip_simd::{self as simd, Isa, Lanes, Portable};
@@ -59,6 +60,8 @@ pub(super) struct Net {
     /// Every layer at most 64 neurons wide (padded): the deep path's activation buffers are
     /// then 64 long, not [`MAX_HIDDEN`] (zeroing 4 KB per call cost ~12 % at 3-32-32-1).
     narrow: bool,
+    /// A residual network's Polach law, added after the support blend (`None`: a plain network).
+    base: Option<Box<PolachEval>>,
 }
 
 /// A hidden layer after the first: `n` neurons fed by the previous layer's activations.
@@ -201,6 +204,7 @@ impl Net {
             narrow: pad <= NARROW && deep.iter().all(|l| l.pad <= NARROW),
             deep,
             wo: o.weights[0].clone(),
+            base: file.base.as_ref().map(|b| Box::new(PolachEval::of_law(b))),
         }
     }
 
@@ -441,13 +445,24 @@ impl Net {
     }
 
     /// Steps 2 and 3 of the evaluation rule: the network, blended towards the fallback
-    /// outside the data support (version-2 files with a grid).
+    /// outside the data support (version-2 files with a grid), plus a residual network's law.
     #[inline(always)]
     fn net_supported<V: Lanes>(&self, isa: V::Isa, x: [f64; MAX_INPUTS]) -> f64 {
         let n = self.net::<V>(isa, x);
-        match &self.support {
+        let n = match &self.support {
             None => n,
             Some(sup) => sup.apply(&self.raw_inputs(x), n),
+        };
+        self.plus_base(x, n)
+    }
+
+    /// `n` plus a residual network's law at the mirrored inputs `x` (Δv ≥ 0, v, T; dΔv/dt is
+    /// not an input of the law); `n` for a plain network.
+    #[inline(always)]
+    fn plus_base(&self, x: [f64; MAX_INPUTS], n: f64) -> f64 {
+        match &self.base {
+            None => n,
+            Some(b) => n + b.mu_vt(x[0], 0.0, x[2], x[3]),
         }
     }
 
@@ -599,13 +614,12 @@ impl Net {
             out[l] = if !(dv.is_finite() && ddv.is_finite()) {
                 f64::NAN
             } else if x[0][l] >= self.blend {
-                match &self.support {
-                    None => sgn[l] * net[l],
-                    Some(sup) => {
-                        let raw = self.raw_inputs([x[0][l], x[1][l], x[2][l], x[3][l]]);
-                        sgn[l] * sup.apply(&raw, net[l])
-                    }
-                }
+                let xl = [x[0][l], x[1][l], x[2][l], x[3][l]];
+                let n = match &self.support {
+                    None => net[l],
+                    Some(sup) => sup.apply(&self.raw_inputs(xl), net[l]),
+                };
+                sgn[l] * self.plus_base(xl, n)
             } else {
                 self.mu_vt(dv, ddv, input.v[l], input.t[l])
             };

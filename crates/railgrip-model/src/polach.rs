@@ -253,6 +253,32 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
             });
         }
     }
+    check_spec(p)?;
+    if let Some(t) = &p.temperature {
+        let dom = &m.inputs[2];
+        if dom.domain_min != t.fitted_range_c[0] || dom.domain_max != t.fitted_range_c[1] {
+            return Err(Defect::InputRange {
+                input: TEMPERATURE_INPUT.into(),
+                what: "domain differs from polach.temperature.fitted_range_c",
+            });
+        }
+    }
+    if let Some(sp) = &p.speed {
+        let dom = &m.inputs[1];
+        if dom.domain_min != sp.fitted_range_mps[0] || dom.domain_max != sp.fitted_range_mps[1] {
+            return Err(Defect::InputRange {
+                input: "v_mps".into(),
+                what: "domain differs from polach.speed.fitted_range_mps",
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The checks of a Polach law on its own (a `polach` file's section, or a residual network's
+/// `base`): the parameter domain, the patch, the standard errors, and that the temperature and
+/// speed laws keep their bounds over their ranges.
+pub(crate) fn check_spec(p: &PolachSpec) -> Result<(), Defect> {
     PolachParams {
         mu0: p.mu0,
         a_ratio: p.a_ratio,
@@ -310,23 +336,9 @@ pub(crate) fn check(m: &ModelFile) -> Result<(), Defect> {
                 )));
             }
         }
-        let dom = &m.inputs[2];
-        if dom.domain_min != lo || dom.domain_max != hi {
-            return Err(Defect::InputRange {
-                input: TEMPERATURE_INPUT.into(),
-                what: "domain differs from polach.temperature.fitted_range_c",
-            });
-        }
         check_law(t, p.mu0)?;
     }
     if let Some(sp) = &p.speed {
-        let dom = &m.inputs[1];
-        if dom.domain_min != sp.fitted_range_mps[0] || dom.domain_max != sp.fitted_range_mps[1] {
-            return Err(Defect::InputRange {
-                input: "v_mps".into(),
-                what: "domain differs from polach.speed.fitted_range_mps",
-            });
-        }
         check_speed_law(sp, p.reference_speed_mps, mu0_max(p))?;
     }
     Ok(())
@@ -442,6 +454,15 @@ impl PolachEval {
             .as_ref()
             .expect("checked: kind polach has a polach section");
         PolachEval {
+            dv: (m.inputs[0].domain_min, m.inputs[0].domain_max),
+            v: (m.inputs[1].domain_min, m.inputs[1].domain_max),
+            ..PolachEval::of_law(p)
+        }
+    }
+
+    /// The law of a checked spec alone (a residual network's base; no input domain).
+    pub(crate) fn of_law(p: &PolachSpec) -> PolachEval {
+        PolachEval {
             mu0: p.mu0,
             a_ratio: p.a_ratio,
             b: p.b_s_per_m,
@@ -449,8 +470,8 @@ impl PolachEval {
             k_s: p.k_s,
             stiffness: stiffness(p),
             v_ref: p.reference_speed_mps,
-            dv: (m.inputs[0].domain_min, m.inputs[0].domain_max),
-            v: (m.inputs[1].domain_min, m.inputs[1].domain_max),
+            dv: (0.0, f64::INFINITY),
+            v: (0.0, f64::INFINITY),
             temperature: p.temperature.as_ref().map(|t| TemperatureEval {
                 mu0: t.mu0.clone(),
                 k_a: t.k_a.clone(),

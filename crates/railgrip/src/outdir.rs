@@ -148,6 +148,40 @@ impl ModelPaths {
     pub fn leave_one_run_out(&self) -> PathBuf {
         self.file(".leave-one-run-out.json")
     }
+    /// The model choice: every candidate's held-out scores and the chosen one.
+    pub fn choice(&self) -> PathBuf {
+        self.file(".choice.json")
+    }
+    /// The file tag of model-choice candidate `candidate` other than `mlp` and `polach`
+    /// (`mlp_3in` → `3in`, `residual` → `residual`).
+    fn tag(candidate: &str) -> &str {
+        candidate.strip_prefix("mlp_").unwrap_or(candidate)
+    }
+    /// The model file of candidate `candidate` (`mlp`: [`ModelPaths::mlp`], `polach`:
+    /// [`ModelPaths::polach`], others `<name>.<tag>.json`).
+    pub fn candidate(&self, candidate: &str) -> PathBuf {
+        match candidate {
+            "mlp" => self.mlp(),
+            "polach" => self.polach(),
+            c => self.file(&format!(".{}.json", Self::tag(c))),
+        }
+    }
+    /// The C header of candidate `candidate`.
+    pub fn candidate_header(&self, candidate: &str) -> PathBuf {
+        match candidate {
+            "mlp" => self.mlp_header(),
+            "polach" => self.polach_header(),
+            c => self.file(&format!(".{}.h", Self::tag(c))),
+        }
+    }
+    /// The C symbol prefix of candidate `candidate`.
+    pub fn candidate_prefix(&self, candidate: &str) -> String {
+        match candidate {
+            "mlp" => self.mlp_prefix(),
+            "polach" => self.polach_prefix(),
+            c => format!("{}_{}", self.name, Self::tag(c)),
+        }
+    }
     pub fn mlp_prefix(&self) -> String {
         self.name.clone()
     }
@@ -236,6 +270,10 @@ pub struct CampaignRecord {
     /// fits and scores files carry it; the report reads only files of its generation.
     #[serde(default)]
     pub generation: Option<String>,
+    /// The campaign's model, `models/<file>` (the candidate `train.model` chose; absent when no
+    /// model was trained and in files of older versions).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chosen_model: Option<String>,
 }
 
 /// The generation id of a campaign with `pipeline_text` and these runs (see

@@ -28,6 +28,7 @@
 #define MLP_N_HIDDEN 10
 #define MLP_N_DEEP 0
 #define MLP_MAX_WIDTH 10
+#define MLP_HAS_BASE 0
 
 static const double mlp_lo[4] = {
     -0.024778465938281924,
@@ -1429,11 +1430,23 @@ static inline void mlp_normalise(const double x[4], double xn[4]) {
     }
 }
 
-/* The network blended towards the fallback outside the data support. */
+/* A residual network's Polach law added to n at the mirrored inputs x (dv >= 0, v, T);
+ * n for a plain network. */
+static inline double mlp_plus_base(const double x[4], double n) {
+#if MLP_HAS_BASE
+    return n + mlp_base_mu_vt(x[0], 0.0, x[2], x[3]);
+#else
+    (void)x;
+    return n;
+#endif
+}
+
+/* The network blended towards the fallback outside the data support, plus a residual
+ * network's law. */
 static inline double mlp_net_supported(const double x[4]) {
     double xn[4];
     mlp_normalise(x, xn);
-    return mlp_support(xn, mlp_net(x));
+    return mlp_plus_base(x, mlp_support(xn, mlp_net(x)));
 }
 
 static inline double mlp_she(double x) {
@@ -1529,7 +1542,7 @@ static inline void mlp_mu_batch_t(const double *dv, const double *ddv, const dou
                 double xl[4], xr[4];
                 xl[0] = x[0][l]; xl[1] = x[1][l]; xl[2] = x[2][l]; xl[3] = x[3][l];
                 mlp_normalise(xl, xr);
-                out[b + l] = sgn[l] * mlp_support(xr, (y[l] - mlp_oy) / mlp_gy);
+                out[b + l] = sgn[l] * mlp_plus_base(xl, mlp_support(xr, (y[l] - mlp_oy) / mlp_gy));
             } else {
                 out[b + l] = mlp_mu_vt(d, dd, v ? v[b + l] : NAN, t ? t[b + l] : NAN);
             }

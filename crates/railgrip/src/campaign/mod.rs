@@ -282,6 +282,12 @@ pub fn run(
         },
         skipped: skipped.clone(),
         generation: Some(generation.clone()),
+        chosen_model: trained.chosen.as_ref().map(|p| {
+            format!(
+                "models/{}",
+                p.file_name().unwrap_or_default().to_string_lossy()
+            )
+        }),
     }
     .write(out)?;
     let mut notes = trained.notes;
@@ -393,7 +399,7 @@ pub fn prepare_output(out: &OutDir) -> Result<(), CampaignError> {
 }
 
 /// With `mcap`, writes each estimated run's `<run>.railgrip.mcap` (its estimates and the
-/// trained network's μ, or the estimates alone when no network was trained), in parallel;
+/// campaign's chosen model's μ, or the estimates alone when no model was trained), in parallel;
 /// without, removes such files an earlier run left (they would show an older model).
 /// A run whose replay cannot be written gets a note; the others go on.
 fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bool) -> Vec<String> {
@@ -403,18 +409,18 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
         }
         return vec![];
     }
-    let mlp = out.models().mlp();
     let mut load_note = None;
-    let model = if trained.models.contains(&mlp) {
-        crate::model::Model::load(&mlp)
+    let model = match &trained.chosen {
+        Some(chosen) => crate::model::Model::load(chosen)
             .map_err(|e| {
                 load_note = Some(format!("replay MCAP files hold the estimates only: {e}"))
             })
-            .ok()
-    } else {
-        load_note =
-            Some("replay MCAP files hold the estimates only: no network model was trained".into());
-        None
+            .ok(),
+        None => {
+            load_note =
+                Some("replay MCAP files hold the estimates only: no model was trained".into());
+            None
+        }
     };
     for r in records.iter().filter(|r| !r.ok()) {
         // A failed run has no estimates; no replay of an earlier run stays beside it.
@@ -455,6 +461,8 @@ struct Trained {
     /// Network training epochs and seconds (for `timings.json`).
     epochs: usize,
     train_s: Option<f64>,
+    /// The chosen model's file.
+    chosen: Option<PathBuf>,
 }
 
 /// Stage 2: the campaign's models from the pooled tables, written with their C headers.
@@ -475,6 +483,7 @@ fn train_stage(
         notes: vec![],
         epochs: 0,
         train_s: None,
+        chosen: None,
     };
     if tables.is_empty() {
         t.model_error = Some("no run could be estimated, so no model was trained".to_string());
@@ -497,6 +506,11 @@ fn train_stage(
             }
             t.audit = m.mlp.audit.clone();
             t.models = m.write(&out.models(), true)?;
+            t.chosen = Some(out.models().candidate(&m.choice.chosen));
+            t.notes.push(format!(
+                "campaign model: {} ({})",
+                m.choice.chosen, m.choice.reason
+            ));
         }
         Err(e) => t.model_error = Some(e.to_string()),
     }

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use super::{CampaignError, ModelPaths};
 use crate::config::Pipeline;
+use crate::identify::choice::Choice;
 use crate::identify::dataset::RunTable;
 use crate::identify::family::{campaign_models, FitData};
 use crate::identify::lm::EpochProgress;
@@ -35,6 +36,10 @@ pub struct CampaignModels {
     pub notes: Vec<String>,
     /// Leave-one-run-out scores (empty when switched off or with one run).
     pub held_out: Vec<HeldOut>,
+    /// The other candidates of the model choice, by name.
+    pub others: Vec<(String, ModelFile)>,
+    /// The model choice: the candidates' held-out scores and the chosen one.
+    pub choice: Choice,
 }
 
 /// Trains the campaign's models ([`campaign_models`]) from the runs of one rail condition of
@@ -81,6 +86,8 @@ pub fn train_models(
         polach: fit.polach,
         notes: fit.notes,
         held_out: fit.held_out,
+        others: fit.others,
+        choice: fit.choice,
     })
 }
 
@@ -119,31 +126,27 @@ impl CampaignModels {
             let text = serde_json::to_string_pretty(&file).expect("scores serialise") + "\n";
             put(paths.leave_one_run_out(), text)?;
         }
+        for (name, file) in &self.others {
+            put(paths.candidate(name), file.to_json())?;
+        }
+        let choice = serde_json::to_string_pretty(&self.choice).expect("choice serialises") + "\n";
+        put(paths.choice(), choice)?;
         if headers {
-            let source = file_name(&paths.mlp());
-            put(
-                paths.mlp_header(),
-                c_header::c_header(&self.mlp, &paths.mlp_prefix(), &source),
-            )?;
-            if let Some(p) = &self.polach {
-                let source = file_name(&paths.polach());
+            for (name, file) in self.files() {
+                let source = file_name(&paths.candidate(name));
                 put(
-                    paths.polach_header(),
-                    c_header::c_header(p, &paths.polach_prefix(), &source),
+                    paths.candidate_header(name),
+                    c_header::c_header(file, &paths.candidate_prefix(name), &source),
                 )?;
             }
         }
         // Files an earlier generation wrote and this one does not (no Polach model, scores
-        // switched off) are removed: nothing stale beside the new models.
+        // switched off, a candidate not fitted) are removed: nothing stale beside the new
+        // models.
         let mut stale = vec![paths.leave_one_run_out()];
-        if self.polach.is_none() {
-            stale.push(paths.polach());
-        }
-        if !headers || self.polach.is_none() {
-            stale.push(paths.polach_header());
-        }
-        if !headers {
-            stale.push(paths.mlp_header());
+        for name in CANDIDATE_NAMES {
+            stale.push(paths.candidate(name));
+            stale.push(paths.candidate_header(name));
         }
         for p in stale {
             if !written.contains(&p) {
@@ -158,15 +161,42 @@ impl CampaignModels {
         Ok(written)
     }
 
+    /// Every model file with its candidate name: the network of `[train]`, the Polach model,
+    /// the other candidates.
+    pub fn files(&self) -> Vec<(&str, &ModelFile)> {
+        let mut f = vec![("mlp", &self.mlp)];
+        if let Some(p) = &self.polach {
+            f.push(("polach", p));
+        }
+        f.extend(self.others.iter().map(|(n, m)| (n.as_str(), m)));
+        f
+    }
+
+    /// The chosen model's file (`None` when the choice names a model that was not written).
+    pub fn chosen(&self) -> Option<&ModelFile> {
+        self.files()
+            .into_iter()
+            .find(|(n, _)| *n == self.choice.chosen)
+            .map(|(_, f)| f)
+    }
+
     /// Marks every file of these models as written by campaign generation `g`.
     pub fn set_generation(&mut self, g: &str) {
         self.mlp.provenance.generation = Some(g.to_string());
         if let Some(p) = &mut self.polach {
             p.provenance.generation = Some(g.to_string());
         }
+        for (_, f) in &mut self.others {
+            f.provenance.generation = Some(g.to_string());
+        }
+        self.choice.generation = Some(g.to_string());
         self.polach_fits.generation = Some(g.to_string());
     }
 }
+
+/// Every candidate a campaign may write (`identify::choice::candidates`).
+pub const CANDIDATE_NAMES: [&str; 6] =
+    ["mlp", "polach", "mlp_2in", "mlp_3in", "mlp_4in", "residual"];
 
 fn file_name(p: &Path) -> String {
     p.file_name()

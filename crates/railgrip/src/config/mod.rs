@@ -26,8 +26,8 @@ pub use ingest::{CsvColumn, IngestConfig, McapField, Plausibility, PlausibilityA
 pub(crate) use rule::Checker;
 pub use rule::Key;
 pub use train::{
-    default_support_cells, Optimizer, SplitConfig, TrainConfig, Trainer, DEFAULT_AUDIT_MU_MAX,
-    DEFAULT_SUPPORT_MIN_SAMPLES, TRAINBR_MU,
+    default_support_cells, ModelChoice, Optimizer, SplitConfig, TrainConfig, Trainer,
+    DEFAULT_AUDIT_MU_MAX, DEFAULT_SUPPORT_MIN_SAMPLES, TRAINBR_MU,
 };
 pub use vehicle::Vehicle;
 

@@ -45,6 +45,32 @@ pub mod raw {
         pub audit_mu_max: Option<f64>,
         pub leave_one_run_out: Option<bool>,
         pub polach_intervals: Option<bool>,
+        pub model: Option<String>,
+        pub folds: Option<f64>,
+    }
+}
+
+/// Which model a campaign exports as its model (`train.model`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModelChoice {
+    /// Every candidate scored by held-out runs, the best chosen (docs/training.md#model-choice).
+    Auto,
+    /// The network of `[train]` (seed 002).
+    Mlp,
+    /// The grey-box network over the campaign's Polach law.
+    Residual,
+    /// Polach's law with the temperature and speed laws BIC chose.
+    Polach,
+}
+
+impl ModelChoice {
+    pub fn name(self) -> &'static str {
+        match self {
+            ModelChoice::Auto => "auto",
+            ModelChoice::Mlp => "mlp",
+            ModelChoice::Residual => "residual",
+            ModelChoice::Polach => "polach",
+        }
     }
 }
 
@@ -138,6 +164,11 @@ pub struct TrainConfig {
     pub leave_one_run_out: bool,
     /// Profile-likelihood intervals of the pooled and per-temperature Polach fits.
     pub polach_intervals: bool,
+    /// The campaign's model: chosen by held-out runs, or named.
+    pub model: ModelChoice,
+    /// Held-out folds of runs for the model choice: one run out at a time up to this many
+    /// runs, this many folds of runs beyond.
+    pub folds: usize,
 }
 
 /// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
@@ -381,13 +412,27 @@ const LEAVE_ONE_OUT: Key = text(
     "train.leave_one_run_out",
     "`true`, `false`",
     "`true`",
-    "score networks trained without each run on that run (report; one single-start training per run)",
+    "score networks trained without each run on that run (report; one single-start training per run, or with `train.model = \"auto\"` and at most `train.folds` runs the model choice's folds of the network)",
 );
 const POLACH_INTERVALS: Key = text(
     "train.polach_intervals",
     "`true`, `false`",
     "`true`",
     "profile-likelihood 95 % intervals of the pooled and per-temperature Polach fits (about 30 LM refits per fit; docs/training.md#intervals)",
+);
+const MODEL: Key = Key {
+    name: "train.model",
+    unit: "",
+    range: Range::Choice(&["auto", "mlp", "residual", "polach"]),
+    default: Default::Text("\"auto\""),
+    meaning: "the campaign's model: `auto` scores every candidate (2/3/4-input network, residual network, Polach with its laws) on held-out runs and exports the best; `mlp` the network of `[train]` (seed 002), `residual` the grey-box network over the Polach law, `polach` the law alone (docs/training.md#model-choice)",
+};
+const FOLDS: Key = Key::num(
+    "train.folds",
+    "",
+    int(2.0, 1000.0),
+    8.0,
+    "`auto`: one run held out at a time up to this many runs, this many folds of runs beyond",
 );
 const CONDITION: Key = text(
     "train.condition",
@@ -431,6 +476,8 @@ pub const KEYS: &[&Key] = &[
     &AUDIT_MU_MAX,
     &LEAVE_ONE_OUT,
     &POLACH_INTERVALS,
+    &MODEL,
+    &FOLDS,
 ];
 
 impl Checker<'_> {
@@ -500,6 +547,18 @@ impl Checker<'_> {
             audit_mu_max: self.value(&AUDIT_MU_MAX, t.audit_mu_max)?,
             leave_one_run_out: t.leave_one_run_out.unwrap_or(true),
             polach_intervals: t.polach_intervals.unwrap_or(true),
+            model: self.choice(
+                &MODEL,
+                t.model.clone(),
+                &[
+                    ("auto", ModelChoice::Auto),
+                    ("mlp", ModelChoice::Mlp),
+                    ("residual", ModelChoice::Residual),
+                    ("polach", ModelChoice::Polach),
+                ],
+                ModelChoice::Auto,
+            )?,
+            folds: self.value(&FOLDS, t.folds)? as usize,
         })
     }
 

@@ -50,6 +50,29 @@ pub fn mlp_file(
     provenance: Provenance,
     polach: Option<&Model>,
 ) -> Result<ModelFile, IdentifyError> {
+    network_file(t, creep, provenance, polach, None)
+}
+
+/// Builds the file of a residual (grey-box) network: `t` trained on μ − μ_P, `base` the law
+/// μ_P (a `polach` model file's section) embedded as the file's `base`; its support grid falls
+/// back to the law itself, and the audit sees the whole model (law plus network) against the
+/// data (`t.data` must hold μ, not the residual).
+pub fn residual_file(
+    t: &TrainedMlp,
+    creep: CreepSpec,
+    provenance: Provenance,
+    base: PolachSpec,
+) -> Result<ModelFile, IdentifyError> {
+    network_file(t, creep, provenance, None, Some(base))
+}
+
+fn network_file(
+    t: &TrainedMlp,
+    creep: CreepSpec,
+    provenance: Provenance,
+    polach: Option<&Model>,
+    base: Option<PolachSpec>,
+) -> Result<ModelFile, IdentifyError> {
     let inputs = t
         .inputs
         .names()
@@ -99,6 +122,7 @@ pub fn mlp_file(
         history: t.history.clone(),
         support: None,
         audit: None,
+        base,
     };
     let invalid = |defect| IdentifyError::InvalidModel {
         group: "network".into(),
@@ -232,6 +256,7 @@ pub fn polach_file(
         history: vec![],
         support: None,
         audit: None,
+        base: None,
     };
     file.check().map_err(|defect| IdentifyError::InvalidModel {
         group: fit.group.clone(),

@@ -6,16 +6,19 @@
 //! validation and `railgrip study` call families through this trait only; [`FAMILIES`] is the
 //! one list of the families a plan may name.
 
+use rayon::prelude::*;
+
 use super::campaign::{creep_spec, median_speed, pipeline_patch};
+use super::choice::{self, Choice};
 use super::dataset::RunTable;
 use super::export;
 use super::held_out::{leave_one_run_out, HeldOut};
 use super::lm::Epoch;
-use super::polach::{fit_campaign, PolachReport, PARAMETERS};
+use super::polach::{fit_campaign, fit_campaign_form, FormChoice, PolachReport, PARAMETERS};
 use super::train::{train_mlp, TrainedMlp};
 use super::IdentifyError;
 use crate::config::Pipeline;
-use crate::config::{TrainConfig, Trainer};
+use crate::config::{ModelChoice, TrainConfig, Trainer};
 use crate::model::{Model, ModelFile, Provenance};
 use crate::progress::Progress;
 
@@ -189,6 +192,9 @@ pub struct PolachWithLaws {
     /// the model is written without the law, and a law the model file refuses is dropped with a
     /// note (a campaign's Polach model).
     pub law_required: bool,
+    /// Refit this form only (no BIC search, no per-run or per-temperature fits): the model
+    /// choice's folds refit the form the campaign chose.
+    pub pinned: Option<FormChoice>,
 }
 
 const POOLED_FAILED: &str = "the pooled Polach fit failed (see `railgrip train` for why)";
@@ -197,17 +203,21 @@ const POOLED_FAILED: &str = "the pooled Polach fit failed (see `railgrip train` 
 fn polach_fits(
     d: &FitData<'_>,
     intervals: bool,
+    pinned: Option<FormChoice>,
 ) -> Result<(PolachReport, Vec<String>, PolachFile), IdentifyError> {
     let (patch, wheel_load_n) = pipeline_patch(d.pipeline)?;
     let cfg = &d.pipeline.train;
-    let (report, notes) = fit_campaign(
-        d.tables,
-        patch,
-        wheel_load_n,
-        cfg.decimate,
-        cfg.temperature_degree,
-        intervals,
-    );
+    let (report, notes) = match pinned {
+        Some(form) => fit_campaign_form(d.tables, patch, wheel_load_n, cfg.decimate, form),
+        None => fit_campaign(
+            d.tables,
+            patch,
+            wheel_load_n,
+            cfg.decimate,
+            cfg.temperature_degree,
+            intervals,
+        ),
+    };
     let file = PolachFile {
         patch,
         wheel_load_n,
@@ -275,7 +285,7 @@ impl ModelFamily for Polach {
     }
 
     fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
-        let (report, notes, file) = polach_fits(d, self.intervals)?;
+        let (report, notes, file) = polach_fits(d, self.intervals, None)?;
         Ok(Fitted {
             model: file.write(&report, None, &d.provenance),
             shape: polach_shape(&report, "polach"),
@@ -307,7 +317,7 @@ impl ModelFamily for PolachWithLaws {
     }
 
     fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
-        let (report, mut notes, file) = polach_fits(d, self.intervals)?;
+        let (report, mut notes, file) = polach_fits(d, self.intervals, self.pinned)?;
         let law = report.temperature.as_ref();
         let model = if self.law_required {
             match (&report.pooled, law) {
@@ -349,6 +359,92 @@ impl ModelFamily for PolachWithLaws {
     }
 }
 
+/// The grey-box network (`train.model = "residual"`): Polach's law with its temperature and
+/// speed laws ([`PolachWithLaws`]; or `FitData::fallback` when that is a Polach model — a
+/// campaign passes its own), then the network of `[train]` trained on the residual
+/// μ − μ_P(Δv, v, T) of every sample (T the run's ambient temperature), the law embedded in
+/// the file: μ = μ_P + N (docs/model-files.md, "Residual networks"). The law carries the speed
+/// and temperature structure where the data thin out — outside the data support the residual
+/// fades and the law alone remains — and the network the shape and the hysteresis it misses.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Residual;
+
+impl ModelFamily for Residual {
+    fn name(&self) -> &'static str {
+        "residual"
+    }
+
+    fn temperatures(&self, train: &TrainConfig) -> TemperatureNeed {
+        Network.temperatures(train)
+    }
+
+    fn estimated_seconds(&self, cfg: &TrainConfig, samples: usize) -> f64 {
+        Network.estimated_seconds(cfg, samples) + Polach::default().estimated_seconds(cfg, samples)
+    }
+
+    fn fit(&self, d: &FitData<'_>) -> Result<Fitted, IdentifyError> {
+        let mut notes = Vec::new();
+        let base = match d.fallback {
+            Some(m) if m.file.polach.is_some() => m.clone(),
+            _ => {
+                let law = PolachWithLaws {
+                    intervals: false,
+                    law_required: false,
+                    pinned: None,
+                }
+                .fit(d)?;
+                notes.extend(law.notes);
+                let file = law.model.map_err(|e| IdentifyError::Data {
+                    what: format!("the residual network needs a Polach law to stand on: {e}"),
+                    hint: "use train.model = \"mlp\" on these runs".into(),
+                })?;
+                Model::named(file, "the residual network's law").map_err(|e| {
+                    IdentifyError::Data {
+                        what: format!("the residual network's law: {e}"),
+                        hint: "report this as a bug".into(),
+                    }
+                })?
+            }
+        };
+        let residual: Vec<RunTable> = d.tables.iter().map(|t| minus_law(t, &base)).collect();
+        let mut t = train_mlp(&residual, &d.pipeline.train, d.epochs)?;
+        t.reference_speed_mps = median_speed(d.tables);
+        // The audit compares the whole model with μ, not with the residual.
+        for s in &mut t.data {
+            s.mu += base.mu_vt(s.dv_mps, s.ddv_mps2, s.v_mps, s.t_c);
+        }
+        let creep = creep_spec(d.pipeline, t.reference_speed_mps)?;
+        let spec = base
+            .file
+            .polach
+            .clone()
+            .ok_or_else(|| wrong_report("residual network's law"))?;
+        let file = export::residual_file(&t, creep, d.provenance.clone(), spec)?;
+        Ok(Fitted {
+            model: Ok(file),
+            shape: Shape {
+                architecture: format!("polach+{}", t.arch),
+                parameters: t.arch.n_params() + PARAMETERS.len(),
+                train_samples: t.n_train + t.n_val,
+                epochs: t.history.len(),
+            },
+            report: Report::Network(Box::new(t)),
+            notes,
+        })
+    }
+}
+
+/// `t` with μ replaced by the residual μ − μ_P(Δv, v, T) over the law `base` (T the run's
+/// ambient temperature; unknown: the law's reference).
+fn minus_law(t: &RunTable, base: &Model) -> RunTable {
+    let t_c = t.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
+    let mut r = t.clone();
+    for k in 0..r.mu.len() {
+        r.mu[k] -= base.mu_vt(r.dv_mps[k], r.ddv_mps2[k], r.v_mps[k], t_c);
+    }
+    r
+}
+
 /// What a campaign trains ([`campaign_models`]).
 #[derive(Debug)]
 pub struct CampaignFit {
@@ -358,26 +454,47 @@ pub struct CampaignFit {
     /// Every Polach fit, and the Polach model file when the pooled fit gave one.
     pub polach_fits: PolachReport,
     pub polach: Option<ModelFile>,
+    /// The other candidates fitted on all runs (`mlp_3in`, `residual`, …), by name.
+    pub others: Vec<(String, ModelFile)>,
+    /// Which candidate is the campaign's model, and every candidate's held-out scores.
+    pub choice: Choice,
     /// What the fits left out and why.
     pub notes: Vec<String>,
     /// The network's leave-one-run-out scores (empty when `train.leave_one_run_out` is off).
     pub held_out: Vec<HeldOut>,
 }
 
+impl CampaignFit {
+    /// The chosen model's file.
+    pub fn chosen(&self) -> Option<&ModelFile> {
+        match self.choice.chosen.as_str() {
+            "mlp" => Some(&self.mlp),
+            "polach" => self.polach.as_ref(),
+            name => self.others.iter().find(|(n, _)| n == name).map(|(_, f)| f),
+        }
+    }
+}
+
 /// The models of a campaign, as `railgrip run` and `railgrip train` train them: Polach's law
-/// with its temperature law as the data choose it ([`PolachWithLaws`]; a law the model file
-/// refuses is dropped with a note), then the network of `[train]` ([`Network`]), which blends to
-/// the Polach model outside its data support (docs/model-files.md, "Data support"), and with
-/// `train.leave_one_run_out` the network's leave-one-run-out scores. `data.fallback` is ignored:
-/// the Polach model is the network's fallback.
+/// with its temperature and speed laws as the data choose them ([`PolachWithLaws`]; a law the
+/// model file refuses is dropped with a note), the network of `[train]` ([`Network`]), which
+/// blends to the Polach model outside its data support (docs/model-files.md, "Data support"),
+/// the other candidates of `train.model` ([`choice::candidates`]; in parallel), with
+/// `train.model = "auto"` every candidate's held-out scores and the choice
+/// ([`choice::score_candidates`], [`choice::choose`]), and with `train.leave_one_run_out` the
+/// network's leave-one-run-out scores. `data.fallback` is ignored: the Polach model is the
+/// networks' fallback and the residual network's law.
 pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> {
     let (pipeline, tables) = (data.pipeline, data.tables);
+    let cands = choice::candidates(pipeline, tables);
     let polach = PolachWithLaws {
         intervals: pipeline.train.polach_intervals,
         law_required: false,
+        pinned: None,
     }
     .fit(&data)?;
     let mut notes = polach.notes;
+    let polach_shape = polach.shape.clone();
     let polach_fits = polach
         .report
         .into_polach()
@@ -395,26 +512,115 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
         None => None,
     };
     let network = Network.fit(&FitData {
+        tables,
+        pipeline,
+        provenance: data.provenance.clone(),
         fallback: fallback.as_ref(),
-        ..data
+        epochs: data.epochs,
     })?;
     notes.extend(network.notes);
+    let network_shape = network.shape.clone();
     let trained = network
         .report
         .into_network()
         .ok_or_else(|| wrong_report("network"))?;
-    let held_out = if pipeline.train.leave_one_run_out {
-        leave_one_run_out(&Network, tables, pipeline)?
+    let mlp = network.model?;
+    // The other candidates on all runs, in parallel (each with the campaign's Polach model).
+    let rest: Vec<(Shape, Result<ModelFile, String>, Vec<String>)> = cands[2..]
+        .par_iter()
+        .map(|c| {
+            match c.family(None).fit(&FitData {
+                tables,
+                pipeline: &c.pipeline,
+                provenance: data.provenance.clone(),
+                fallback: fallback.as_ref(),
+                epochs: None,
+            }) {
+                Ok(f) => (f.shape, f.model.map_err(|e| e.to_string()), f.notes),
+                Err(e) => (Shape::default(), Err(e.to_string()), vec![]),
+            }
+        })
+        .collect();
+    let mut shapes = vec![
+        (polach_shape.architecture.clone(), polach_shape.parameters),
+        (network_shape.architecture.clone(), network_shape.parameters),
+    ];
+    let mut available = vec![polach.is_some(), true];
+    let mut others = Vec::new();
+    for (c, (shape, model, n)) in cands[2..].iter().zip(rest) {
+        notes.extend(n);
+        shapes.push((shape.architecture, shape.parameters));
+        available.push(model.is_ok());
+        match model {
+            Ok(f) => others.push((c.name.clone(), f)),
+            Err(e) => notes.push(format!("candidate {}: not fitted: {e}", c.name)),
+        }
+    }
+    let scores = if pipeline.train.model == ModelChoice::Auto {
+        choice::score_candidates(
+            &cands,
+            &shapes,
+            tables,
+            pipeline.train.folds,
+            pipeline.train.decimate,
+            // The form the Polach model file holds (a law the file refused is not refitted).
+            polach_fits
+                .temperature
+                .as_ref()
+                .filter(|_| {
+                    polach
+                        .as_ref()
+                        .and_then(|p| p.polach.as_ref())
+                        .is_some_and(|s| s.temperature.is_some() || s.speed.is_some())
+                })
+                .map(|t| t.form_choice())
+                .unwrap_or_default(),
+        )
     } else {
         Vec::new()
     };
+    let (chosen, reason) = choice::choose(pipeline.train.model, &scores, &available)?;
+    let choice = Choice {
+        setting: pipeline.train.model.name().into(),
+        folds: tables.len().min(pipeline.train.folds),
+        candidates: scores,
+        chosen: cands[chosen].name.clone(),
+        reason,
+        generation: None,
+    };
+    let held_out = network_held_out(&choice, tables, pipeline)?;
     Ok(CampaignFit {
         trained,
-        mlp: network.model?,
+        mlp,
         polach_fits,
         polach,
+        others,
+        choice,
         notes,
         held_out,
+    })
+}
+
+/// The network's leave-one-run-out scores: none when `train.leave_one_run_out` is off; the
+/// model choice's folds of the network when each of them held out one run; else one
+/// single-start training per run ([`leave_one_run_out`]).
+fn network_held_out(
+    choice: &Choice,
+    tables: &[RunTable],
+    pipeline: &Pipeline,
+) -> Result<Vec<HeldOut>, IdentifyError> {
+    Ok(match choice.candidates.iter().find(|c| c.name == "mlp") {
+        _ if !pipeline.train.leave_one_run_out => Vec::new(),
+        Some(c) if tables.len() <= pipeline.train.folds && c.runs.len() == tables.len() => c
+            .runs
+            .iter()
+            .map(|r| HeldOut {
+                run: r.run.clone(),
+                samples: r.samples,
+                rmse_mu: r.rmse_mu,
+            })
+            .collect(),
+        _ => leave_one_run_out(&Network, tables, pipeline)?,
     })
 }
 
@@ -428,12 +634,14 @@ fn wrong_report(family: &str) -> IdentifyError {
 
 /// The families a study plan may name, by [`ModelFamily::name`]; as plans fit them (Polach
 /// without profile intervals, which a study does not report).
-pub const FAMILIES: [&dyn ModelFamily; 3] = [
+pub const FAMILIES: [&dyn ModelFamily; 4] = [
     &Network,
+    &Residual,
     &Polach { intervals: false },
     &PolachWithLaws {
         intervals: false,
         law_required: true,
+        pinned: None,
     },
 ];
 

@@ -11,10 +11,12 @@
 //! [`adam`] networks of any depth by mini-batch Adam/AdamW through burn; [`polach`] the Polach
 //! fits, profiles and temperature law; [`held_out`] held-out scores and leave-one-run-out;
 //! [`campaign`] the rail condition, median speed, patch and creep region a campaign's fits
-//! share; [`support`] the data support and the audit; [`export`] the model files.
+//! share; [`support`] the data support and the audit; [`export`] the model files; [`choice`]
+//! the campaign's model chosen among the candidates by held-out runs.
 
 pub mod adam;
 pub mod campaign;
+pub mod choice;
 pub mod dataset;
 pub mod export;
 pub mod family;

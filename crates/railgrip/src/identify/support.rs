@@ -149,6 +149,8 @@ pub fn support_spec(
         .map(|x| net.mu_vt(x[0], x[1], x[2], x[3]).abs())
         .collect();
     let (fallback, fallback_mu) = match polach {
+        // A residual network fades to its law: the residual's fallback is 0.
+        _ if file.base.is_some() => ("law", vec![0.0; centres.len()]),
         Some(p) => (
             "polach",
             centres

@@ -10,6 +10,7 @@
 //! validation data (Fig. 10), the hysteresis loop of a slip ramp 0 → 9 m/s → 0 (Fig. 11) and
 //! μ over the (Δv, dΔv/dt) plane; then the Polach fits and k_A(T), k_S(T) (seed 004 eq. 3).
 
+mod choice;
 mod data;
 mod network;
 pub(crate) mod plot;
@@ -89,6 +90,9 @@ struct Inputs<'a> {
     fits: Option<PolachReport>,
     /// Leave-one-run-out scores of the network, when the campaign computed them.
     held_out: Vec<crate::identify::HeldOut>,
+    /// The model choice and the chosen model, when the campaign wrote them.
+    choice: Option<crate::identify::choice::Choice>,
+    chosen: Option<Model>,
     /// The runs that were estimated, with their tables.
     data: Vec<(&'a RunRecord, RunData)>,
 }
@@ -136,6 +140,36 @@ impl<'a> Inputs<'a> {
         for r in camp.runs.iter().filter(|r| r.ok()) {
             data.push((r, read_run(&out.run_estimates(&r.run))?));
         }
+        let choice: Option<crate::identify::choice::Choice> =
+            match std::fs::read_to_string(models.choice()) {
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+                Err(source) => {
+                    return Err(ReportError::Read {
+                        file: models.choice().display().to_string(),
+                        source,
+                    })
+                }
+                Ok(t) => Some(
+                    serde_json::from_str(&t).map_err(|source| ReportError::Fits {
+                        file: models.choice().display().to_string(),
+                        source,
+                    })?,
+                ),
+            };
+        if let Some(c) = &choice {
+            same_generation(camp, &models.choice(), c.generation.as_deref())?;
+        }
+        let chosen = match &camp.chosen_model {
+            Some(rel) => {
+                let path = out.root().join(rel);
+                let m = optional_model(&path)?;
+                if let Some(m) = &m {
+                    same_generation(camp, &path, m.file.provenance.generation.as_deref())?;
+                }
+                m
+            }
+            None => None,
+        };
         let mlp = optional_model(&models.mlp())?;
         let polach = optional_model(&models.polach())?;
         for (path, m) in [(models.mlp(), &mlp), (models.polach(), &polach)] {
@@ -149,6 +183,8 @@ impl<'a> Inputs<'a> {
             polach,
             fits,
             held_out,
+            choice,
+            chosen,
             data,
         })
     }
@@ -197,6 +233,9 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
     head(&mut h, &i);
     if let Some(m) = &i.mlp {
         audit_line(&mut h, m);
+    }
+    if let Some(c) = &i.choice {
+        choice::campaign_model(&mut h, &i, c, i.chosen.as_ref());
     }
     runs(&mut h, &i);
     across_runs(&mut h, &i)?;

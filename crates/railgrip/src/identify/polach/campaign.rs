@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::fit::{fit_polach, samples, PolachFit};
 use super::law::{Sample, DEFAULT_START};
-use super::temperature::{fit_temperature_forms, TemperatureFit};
+use super::temperature::{fit_temperature_forms, FormChoice, TemperatureFit};
 use crate::contact::polach::ContactPatch;
 use crate::identify::dataset::RunTable;
 use crate::identify::IdentifyError;
@@ -72,6 +72,7 @@ pub fn fit_campaign(
                 &fits.per_temperature,
                 v_ref,
                 intervals,
+                None,
             )
         }
         None => Err(IdentifyError::Data {
@@ -91,6 +92,71 @@ pub fn fit_campaign(
             v_range_mps,
             per_run: fits.per_run,
             per_temperature: fits.per_temperature,
+            temperature,
+            temperature_note,
+            generation: None,
+        },
+        notes,
+    )
+}
+
+/// The lean fit of a model-choice fold: all runs pooled (no intervals) and the temperature
+/// and speed form `form` refitted on them (no search, no per-run or per-temperature fits).
+pub fn fit_campaign_form(
+    tables: &[RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    form: FormChoice,
+) -> (PolachReport, Vec<String>) {
+    let all: Vec<&RunTable> = tables.iter().collect();
+    let mut notes = Vec::new();
+    let pooled = fit_polach("all runs", &all, patch, q_n, decimate, DEFAULT_START, false)
+        .map_err(|e| notes.push(e.to_string()))
+        .ok();
+    let pooled_samples = samples(&all, q_n, decimate);
+    let range = |f: fn(&Sample) -> f64| {
+        pooled_samples
+            .iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
+    };
+    let law = match (&pooled, form == FormChoice::default()) {
+        (Some(_), true) => Err(IdentifyError::Data {
+            what: "the campaign chose no temperature or speed law".into(),
+            hint: "none needed".into(),
+        }),
+        (Some(p), false) => fit_temperature_forms(
+            &all,
+            patch,
+            q_n,
+            decimate,
+            0,
+            p,
+            &[],
+            crate::identify::median_speed(tables),
+            false,
+            Some(form),
+        ),
+        (None, _) => Err(IdentifyError::Data {
+            what: "no pooled Polach fit".into(),
+            hint: "see the notes above".into(),
+        }),
+    };
+    let (temperature, temperature_note) = law_and_note(law, &mut notes);
+    (
+        PolachReport {
+            format: "railgrip-polach-fit".into(),
+            version: 3,
+            patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
+            wheel_load_n: q_n,
+            pooled,
+            dv_range_mps: range(|s| s.dv),
+            v_range_mps: range(|s| s.v),
+            per_run: Vec::new(),
+            per_temperature: Vec::new(),
             temperature,
             temperature_note,
             generation: None,

@@ -28,12 +28,12 @@ mod temperature;
 #[cfg(test)]
 mod tests;
 
-pub use campaign::{fit_campaign, PolachReport};
+pub use campaign::{fit_campaign, fit_campaign_form, PolachReport};
 pub use fit::{fit_polach, PolachFit};
 pub use law::{ParamStatus, DEFAULT_START, PARAMETERS};
 pub use profile::{Profile, PROFILE_LIMIT};
 pub use temperature::{
-    fit_temperature_forms, k_identified, SpeedLaw, TemperatureCandidate, TemperatureFit,
+    fit_temperature_forms, k_identified, FormChoice, SpeedLaw, TemperatureCandidate, TemperatureFit,
 };
 
 /// Standard errors in files: NaN (held, not identifiable or not applicable) written as `null`

@@ -184,6 +184,30 @@ impl TemperatureFit {
     }
 }
 
+/// A temperature and speed form by its degrees and speed law: the form a campaign chose, which
+/// the model choice's folds refit (parameters only, no search) on their runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FormChoice {
+    pub mu0_degree: usize,
+    pub k_degree: usize,
+    /// The speed law: (Curtius–Kniffler, terms); `None`: none.
+    pub speed: Option<(bool, usize)>,
+}
+
+impl TemperatureFit {
+    /// The chosen form, to refit elsewhere.
+    pub fn form_choice(&self) -> FormChoice {
+        FormChoice {
+            mu0_degree: self.mu0_degree,
+            k_degree: self.k_degree,
+            speed: self
+                .speed
+                .as_ref()
+                .map(|s| (s.form == "curtius_kniffler", s.coefficients.len())),
+        }
+    }
+}
+
 /// The temperatures whose own Polach fit identified k_A and k_S, and those left out with why
 /// (a value held because the data did not determine it says nothing about how k changes with
 /// temperature; k_S/k_A at its bound leaves k_S = k_A or 0, as determined as k_A).
@@ -323,10 +347,14 @@ pub fn fit_temperature_forms(
     per_temperature: &[PolachFit],
     v_ref: f64,
     intervals: bool,
+    pinned: Option<FormChoice>,
 ) -> Result<TemperatureFit, IdentifyError> {
     let g = Grouped::of(tables, patch, q_n, decimate)?;
     let (lo, hi) = g.range;
-    let offered = Offered::of(&g, degree, pooled, per_temperature, v_ref);
+    let offered = match pinned {
+        None => Offered::of(&g, degree, pooled, per_temperature, v_ref),
+        Some(f) => Offered::pinned(&g, f, v_ref),
+    };
     if g.temps.len() < 2 && offered.speeds.len() == 1 {
         let why = offered
             .notes
@@ -345,9 +373,12 @@ pub fn fit_temperature_forms(
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
     let mut fits = fit_all_forms(&g, &offered, fixed, &x0)?;
     let n_eff = score_forms(&mut fits, g.samples.len(), g.range);
+    // A pinned form with a speed law: that fit (the last), not the one without.
+    let skip = usize::from(pinned.is_some_and(|f| f.speed.is_some()) && fits.len() > 1);
     let best = fits
         .iter()
         .enumerate()
+        .skip(skip)
         .filter(|(_, f)| f.record.rejected.is_none())
         .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
         .map(|(i, _)| i)
@@ -487,6 +518,8 @@ impl Grouped {
 struct Offered {
     mu_top: usize,
     k_top: usize,
+    /// Only the form of these degrees (a pinned form), not every one up to the tops.
+    only: bool,
     /// The speed laws to try: None (no speed law) first.
     speeds: Vec<Option<SpeedBasis>>,
     excluded: Vec<String>,
@@ -578,9 +611,33 @@ impl Offered {
         Offered {
             mu_top,
             k_top,
+            only: false,
             speeds,
             excluded,
             notes,
+        }
+    }
+
+    /// Exactly the form `f` (its degrees capped at the temperatures − 1 of these samples; its
+    /// speed law over these samples' speeds).
+    fn pinned(g: &Grouped, f: FormChoice, v_ref: f64) -> Self {
+        let top = (g.temps.len() - 1).min(MAX_NODES - 1);
+        let mut speeds = vec![None];
+        if let Some((ck, terms)) = f.speed {
+            speeds.push(Some(SpeedBasis {
+                curtius_kniffler: ck,
+                terms,
+                v_ref,
+                range: g.speeds,
+            }));
+        }
+        Offered {
+            mu_top: f.mu0_degree.min(top),
+            k_top: f.k_degree.min(top),
+            only: true,
+            speeds,
+            excluded: Vec::new(),
+            notes: Vec::new(),
         }
     }
 }
@@ -600,9 +657,13 @@ fn fit_all_forms(
     fixed: [Option<f64>; 5],
     x0: &[f64; 5],
 ) -> Result<Vec<FormFit>, IdentifyError> {
-    let t_forms: Vec<(usize, usize)> = (0..=offered.mu_top)
-        .flat_map(|dm| (0..=offered.k_top).map(move |dk| (dm, dk)))
-        .collect();
+    let t_forms: Vec<(usize, usize)> = if offered.only {
+        vec![(offered.mu_top, offered.k_top)]
+    } else {
+        (0..=offered.mu_top)
+            .flat_map(|dm| (0..=offered.k_top).map(move |dk| (dm, dk)))
+            .collect()
+    };
     let start = constant_nodes(x0);
     let base: Vec<FormFit> = t_forms
         .par_iter()
