@@ -1098,3 +1098,101 @@ fn train_a_deeper_network_through_burn_end_to_end() {
     let h = std::fs::read_to_string(dir.path().join("deep.h")).unwrap();
     assert!(h.contains("#define RAILGRIP_N_DEEP 1"), "{h}");
 }
+
+/// The model choice writes every candidate, its table and the chosen file's name, the same
+/// bytes on one worker thread as on two (folds and candidates run in parallel); a named
+/// `train.model` is obeyed and writes no candidates beyond the network and the Polach model.
+#[test]
+fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+    let run = |out: &str, threads: &str, pipeline: Option<&str>| {
+        let mut args = vec!["run", "campaign", "--out", out, "--mcap"];
+        if let Some(p) = pipeline {
+            args.extend(["--pipeline", p]);
+        }
+        let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+            .args(&args)
+            .current_dir(dir.path())
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        outputs(&dir.path().join(out))
+    };
+    let one = run("one", "1", None);
+    let two = run("two", "2", None);
+    assert_eq!(
+        one.keys().collect::<Vec<_>>(),
+        two.keys().collect::<Vec<_>>()
+    );
+    for (k, v) in &one {
+        assert!(
+            two[k] == *v,
+            "{} differs between 1 and 2 threads",
+            k.display()
+        );
+    }
+    let camp_json: serde_json::Value =
+        serde_json::from_slice(&one[Path::new("campaign.json")]).unwrap();
+    let chosen = camp_json["chosen_model"].as_str().unwrap();
+    let choice: serde_json::Value =
+        serde_json::from_slice(&one[Path::new("models/mlp.choice.json")]).unwrap();
+    let name = choice["chosen"].as_str().unwrap();
+    assert_eq!(choice["setting"], "auto");
+    assert_eq!(choice["folds"], 3, "{choice}");
+    let names: Vec<&str> = choice["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["name"].as_str().unwrap())
+        .collect();
+    // Three runs at three temperatures: the 4-input network is a candidate.
+    assert_eq!(names, ["polach", "mlp", "mlp_3in", "mlp_4in", "residual"]);
+    for c in choice["candidates"].as_array().unwrap() {
+        assert!(c["rmse_mu"].as_f64().unwrap() > 0.0, "{c}");
+        assert_eq!(c["runs"].as_array().unwrap().len(), 3, "{c}");
+    }
+    let best = choice["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .min_by(|a, b| {
+            a["rmse_mu"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["rmse_mu"].as_f64().unwrap())
+        })
+        .unwrap();
+    assert_eq!(best["name"], name);
+    // The chosen file and its header exist; the report names it.
+    assert!(one.contains_key(Path::new(chosen)), "{chosen}");
+    assert!(
+        one.contains_key(Path::new(&chosen.replace(".json", ".h"))),
+        "{chosen}"
+    );
+    let report = String::from_utf8_lossy(&one[Path::new("report/index.html")]).into_owned();
+    assert!(
+        report.contains("Campaign model") && report.contains(chosen),
+        "report"
+    );
+    // A named model: the Polach model, no other candidates, no scores.
+    let pipeline = dir.path().join("polach.toml");
+    let text_p =
+        railgrip::config::DEFAULT_PIPELINE_TOML.replace("model = \"auto\"", "model = \"polach\"");
+    std::fs::write(&pipeline, text_p).unwrap();
+    let named = run("named", "2", Some(pipeline.to_str().unwrap()));
+    let camp_json: serde_json::Value =
+        serde_json::from_slice(&named[Path::new("campaign.json")]).unwrap();
+    assert_eq!(camp_json["chosen_model"], "models/mlp.polach.json");
+    assert!(!named.keys().any(|k| k.to_string_lossy().contains("3in")));
+    let choice: serde_json::Value =
+        serde_json::from_slice(&named[Path::new("models/mlp.choice.json")]).unwrap();
+    assert_eq!(choice["candidates"].as_array().unwrap().len(), 0);
+}

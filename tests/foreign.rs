@@ -6,6 +6,8 @@
 //! supported-cell scores of the networks `railgrip train` makes from these runs:
 //!     cargo test --test foreign -- --ignored --nocapture
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use railgrip::config::TrainConfig;
@@ -669,14 +671,27 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 }
 
 /// The top-speed campaign (12 runs at 80–200 km/h whose level falls steeper at the top), one
-/// per noise seed, through `railgrip run`: the campaign's Polach model carries a speed law of
-/// μ0 and its replay bias, pooled per speed band, stays within ±0.004 in every band (without
-/// a speed law a Polach model cannot follow the level; the 2-input network is printed beside
-/// it: +0.0055 at 145–170 km/h and +0.0105 at 170–210 km/h, measured). Per run and band the
-/// biases spread wider (about −0.010 … +0.015: a run's rail condition is ±5 % of the mean).
+/// per noise seed, through `railgrip run` with its defaults (`train.model = "auto"`), every
+/// model scored against the truth it does not contain, per speed band:
+/// - the campaign's Polach model carries a speed law of μ0 and its replay bias, pooled per
+///   speed band, stays within ±0.004 in every band (without a speed law a Polach model cannot
+///   follow the level);
+/// - the model the campaign chose by held-out runs (the residual network on every seed
+///   measured) has a pooled replay bias within ±0.002 in every band (+0.0011 at most,
+///   measured), and in the curve view (the model at each run's initial speed and temperature)
+///   a bias within ±0.0065 at every initial speed (+0.0055 at most) — at 200 km/h less than
+///   half the 2-input network's (+0.0044 against +0.0198, measured);
+/// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
+///   170–210 km/h, measured).
+///
+/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): a
+/// curve bias within ±0.002, curve RMSE ≤ 0.005, the hysteresis ratio at the top speeds, and per
+/// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
+/// which no model input carries).
 #[test]
-fn polach_with_a_speed_law_holds_the_top_speed_bands() {
-    use railgrip::score::{replay, SPEED_BANDS_KMH};
+#[allow(clippy::too_many_lines)]
+fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
+    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
     let paths = scene_files("pipelines/scenes/top_speed");
     let scenes: Vec<Scene> = paths.iter().map(|p| Scene::load(p).unwrap()).collect();
     for seed in [1, 2, 3] {
@@ -699,41 +714,185 @@ fn polach_with_a_speed_law_holds_the_top_speed_bands() {
             "{}",
             String::from_utf8_lossy(&o.stderr)
         );
-        let models = tmp.path().join("out/models");
+        let out = tmp.path().join("out");
+        let models = out.join("models");
         let polach = ModelFile::read(&models.join("mlp.polach.json")).unwrap();
         assert!(
             polach.polach.as_ref().unwrap().speed.is_some(),
             "seed {seed}: no speed law"
         );
+        let camp: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("campaign.json")).unwrap())
+                .unwrap();
+        let chosen = camp["chosen_model"].as_str().unwrap().to_string();
+        let mut curve_200 = Vec::new();
         for (name, file) in [
             ("polach", polach),
             (
                 "network",
                 ModelFile::read(&models.join("mlp.json")).unwrap(),
             ),
+            ("chosen", ModelFile::read(&out.join(&chosen)).unwrap()),
         ] {
             let model = Model::new(file).unwrap();
+            let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
             // Per band: n-weighted bias over the runs.
             let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
-            for t in &truths {
-                let bands = replay(t, &Grid::default(), &SPEED_BANDS_KMH, |dv, q, v, tc| {
-                    model.mu_vt(dv, q, v, tc)
-                })
-                .unwrap();
+            // Per initial speed: n-weighted curve bias over the runs.
+            let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+            for (t, sc) in truths.iter().zip(&scenes) {
+                let bands = replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap();
                 for b in bands {
                     let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
                     sums[i].0 += b.stats.bias * b.stats.n as f64;
                     sums[i].1 += b.stats.n;
                 }
+                let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
+                let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
+                let c = curve(
+                    t,
+                    &Grid::default(),
+                    v0 / 3.6,
+                    t_c,
+                    predict,
+                    |dv, q, v, _| law.mu(dv, q, v),
+                )
+                .unwrap();
+                let e = curves.entry(v0.round() as i64).or_default();
+                e.0 += c.stats.bias * c.stats.n as f64;
+                e.1 += c.stats.n;
             }
             let biases: Vec<f64> = sums.iter().map(|(s, n)| s / (*n).max(1) as f64).collect();
-            eprintln!("seed {seed} {name}: replay bias per band {biases:.4?}");
-            if name == "polach" {
-                assert!(
+            let curve_bias: Vec<(i64, f64)> = curves
+                .iter()
+                .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
+                .collect();
+            eprintln!(
+                "seed {seed} {name} ({chosen}): replay bias per band {biases:.4?}; curve bias per initial speed {curve_bias:.4?}"
+            );
+            curve_200.push(curve_bias.last().unwrap().1);
+            match name {
+                "polach" => assert!(
                     biases.iter().all(|b| b.abs() <= 0.004),
                     "seed {seed}: {biases:?}"
-                );
+                ),
+                "chosen" => {
+                    assert!(
+                        biases.iter().all(|b| b.abs() <= 0.002),
+                        "seed {seed}: {chosen} replay {biases:?}"
+                    );
+                    assert!(
+                        curve_bias.iter().all(|(_, b)| b.abs() <= 0.0065),
+                        "seed {seed}: {chosen} curve {curve_bias:?}"
+                    );
+                }
+                _ => {}
             }
+        }
+        // At 200 km/h: the chosen model against the 2-input network.
+        assert!(
+            curve_200[2].abs() < 0.5 * curve_200[1].abs(),
+            "seed {seed}: curve bias at 200 km/h {curve_200:?} (polach, network, chosen)"
+        );
+    }
+}
+
+/// The defaults of seed 002's 2-input network, measured on a law it does not contain: one
+/// 120 km/h run of the top-speed family (`lrq_120kmh_p12`: the level falling with speed, every
+/// sensor effect), five Nguyen–Widrow seeds, scored in the curve view (the model at the run's
+/// initial speed and ambient temperature against the true law, on the run's own supported
+/// cells). For each `train.decimate` in 1, 2, 4 the median RMSE and training time are printed
+/// (docs/training.md#defaults-chosen-by-measurement); at the default decimation numpy trainlm
+/// (`benches/peers/trainlm_numpy.py`), given the same normalised samples and the same initial
+/// weights, and its weights exported through the same model-file path, is no better: railgrip's
+/// median ≤ numpy's × 1.02 (the trajectories agree to 1e-9 for 20 epochs,
+/// `tests/lm_peer.rs`; over hundreds of epochs rounding moves where validation stops).
+#[test]
+fn the_default_network_holds_against_numpy_trainlm_on_the_same_samples() {
+    use railgrip::identify::dataset::Dataset;
+    use railgrip::identify::mlp::{self, Shape};
+    use railgrip::score::curve;
+    if !common::python_has("numpy", "numpy") {
+        return;
+    }
+    let p = Pipeline::default_uic_z1();
+    let scene = std::env::var("PEER_SCENE").unwrap_or("lrq_120kmh_p12".into());
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("pipelines/scenes/top_speed/{scene}.toml"));
+    let sc = Scene::load(&path).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let (tables, truth) = campaign(std::slice::from_ref(&sc), dir.path());
+    let law = railgrip::sim::TrueLaw::of(&sc).unwrap().unwrap();
+    let (v0, t_c) = (sc.run.initial_speed_kmh / 3.6, sc.run.ambient_temperature_c);
+    let curve_rmse = |file: &ModelFile| {
+        let m = Model::new(file.clone()).unwrap();
+        curve(
+            &truth,
+            &Grid::default(),
+            v0,
+            t_c,
+            |dv, q, v, t| m.mu_vt(dv, q, v, t),
+            |dv, q, v, _| law.mu(dv, q, v),
+        )
+        .unwrap()
+        .stats
+        .rmse
+    };
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let default = p.train.decimate;
+    for decimate in [1, 2, 4] {
+        let (mut ours, mut peer, mut secs) = (Vec::new(), Vec::new(), Vec::new());
+        for seed in 1..=5 {
+            let mut cfg = p.train.clone();
+            cfg.seed = seed;
+            cfg.decimate = decimate;
+            let Scored {
+                net, file, secs: s, ..
+            } = train_and_score(&tables, &truth, &cfg);
+            ours.push(curve_rmse(&file));
+            secs.push(s);
+            if decimate != default {
+                continue;
+            }
+            // numpy trainlm on the same samples from the same start.
+            let d = Dataset::build(&tables, cfg.inputs, &cfg.split, decimate).unwrap();
+            let n = d.normalised();
+            let problem = dir.path().join(format!("peer_{seed}.json"));
+            let shape = Shape::one(2, cfg.hidden);
+            common::write_trainlm_problem(
+                &problem,
+                2,
+                cfg.hidden,
+                (&n.x, &n.y, &n.vx, &n.vy),
+                n.scale,
+                &mlp::nguyen_widrow(shape, seed),
+                &railgrip::identify::train::lm_settings(&cfg),
+            );
+            let theta = common::trainlm_numpy_theta(&problem).unwrap();
+            assert_eq!(theta.len(), net.theta.len());
+            let theirs = TrainedMlp { theta, ..net };
+            let creep = creep_spec(&p, theirs.reference_speed_mps).unwrap();
+            let f = mlp_file(&theirs, creep, provenance(seed), None).unwrap();
+            peer.push(curve_rmse(&f));
+        }
+        eprintln!(
+            "decimate {decimate}: railgrip curve RMSE median {:.4} (seeds {ours:.4?}), training {:.2} s median{}",
+            median(ours.clone()),
+            median(secs),
+            if peer.is_empty() {
+                String::new()
+            } else {
+                format!("; numpy trainlm median {:.4} ({peer:.4?})", median(peer.clone()))
+            }
+        );
+        if decimate == default {
+            assert!(
+                median(ours.clone()) <= 1.02 * median(peer.clone()),
+                "railgrip {ours:?} against numpy {peer:?}"
+            );
         }
     }
 }

@@ -13,7 +13,8 @@ MATLAB's order (IW row-major, b1, LW, b2), exactly railgrip's problem.
 
 Reads the problem railgrip writes (normalised training and validation data, initial weights,
 shape, settings), trains `repeats` times and prints one JSON line: the seconds per epoch of
-the fastest repeat, the epochs run, and the training MSE (mu^2 units) after every epoch.
+the fastest repeat, the epochs run, the training MSE (mu^2 units) after every epoch, and the
+weights trainlm returns ("theta": those of the best validation error).
 
 With "bayesian": true in the settings it trains as MATLAB trainbr: F = beta*E_D + alpha*E_W,
 steps -(beta J'J + (mu + alpha) I) \\ (beta J'r + alpha theta) accepted when F falls, then
@@ -85,6 +86,7 @@ def main(path, repeats):
         n = len(y)
         bayes = bool(s.get("bayesian", False))
         best_val = sse(theta, vx, vy) / len(vy) * scale if len(vy) else np.inf
+        best_theta = theta.copy()
         fails = 0
         history = []
         gammas = []
@@ -146,23 +148,26 @@ def main(path, repeats):
             elif len(vy):
                 v = sse(theta, vx, vy) / len(vy) * scale
                 if v < best_val:
-                    best_val, fails = v, 0
+                    best_val, fails, best_theta = v, 0, theta.copy()
                 else:
                     fails += 1
                     if fails >= s["max_fail"]:
                         break
             if stop:
                 break
-        return history, gammas
+        # trainlm returns the weights of the best validation error (without validation: the
+        # last ones).
+        kept = best_theta if len(vy) and not bayes else theta
+        return history, gammas, kept
 
     best = float("inf")
-    history, gammas = None, None
+    history, gammas, kept = None, None, None
     for _ in range(repeats):
         t0 = time.perf_counter()
-        history, gammas = train()
+        history, gammas, kept = train()
         best = min(best, (time.perf_counter() - t0) / max(len(history), 1))
     print(json.dumps({"seconds_per_epoch": best, "epochs": len(history), "train_mse": history,
-                      "gamma": gammas}))
+                      "gamma": gammas, "theta": kept.tolist()}))
 
 
 if __name__ == "__main__":

@@ -119,6 +119,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     print_network(&models);
     print_polach(&models.polach_fits);
     print_temperature_law(&models.polach_fits);
+    print_choice(&models.choice);
     let notes = &models.notes;
     for n in notes {
         println!("warning    {n}");
@@ -137,6 +138,21 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         }
         None => EXIT_OK,
     })
+}
+
+/// The model choice: every candidate's held-out scores and the chosen one.
+fn print_choice(c: &railgrip::identify::choice::Choice) {
+    for k in &c.candidates {
+        let score = match (k.rmse_mu, k.bias_mu) {
+            (Some(r), Some(b)) => format!(
+                "held-out RMSE {r:.5}, bias {b:+.5}, worst run {:.5}",
+                k.worst_run_rmse_mu.unwrap_or(f64::NAN)
+            ),
+            _ => format!("not scored: {}", k.error.as_deref().unwrap_or("–")),
+        };
+        println!("candidate  {:<9} {:<16} {score}", k.name, k.architecture);
+    }
+    println!("chosen     {} ({})", c.chosen, c.reason);
 }
 
 /// What `train` prints about the network: shape, samples, epochs, starts, errors, support.

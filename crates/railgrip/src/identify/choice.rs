@@ -373,17 +373,19 @@ pub fn score_candidates(
 
 /// The candidate `train.model` names, or with `auto` the lowest held-out RMSE among the
 /// candidates every fold could fit (ties: the earlier candidate, the simpler one first); the
-/// network of `[train]` when no candidate could be scored. `available` says which candidates
-/// have a model file from the fit on all runs.
+/// network of `[train]` when no candidate could be scored. `names` are the candidates' names,
+/// `scores` their held-out scores in the same order (empty unless `auto`), `available` says
+/// which have a model file from the fit on all runs.
 pub fn choose(
     setting: ModelChoice,
+    names: &[&str],
     scores: &[CandidateScore],
     available: &[bool],
 ) -> Result<(usize, String), IdentifyError> {
     let named = |name: &str| {
-        scores
+        names
             .iter()
-            .position(|s| s.name == name)
+            .position(|n| *n == name)
             .filter(|&i| available[i])
             .ok_or_else(|| IdentifyError::Data {
                 what: format!("train.model = \"{name}\": that model could not be fitted on these runs (see the notes)"),
@@ -466,19 +468,29 @@ mod tests {
             score("mlp_4in", None),
         ];
         let all = [true; 5];
+        let names: Vec<&str> = s.iter().map(|c| c.name.as_str()).collect();
         // A tie goes to the earlier candidate.
-        assert_eq!(choose(ModelChoice::Auto, &s, &all).unwrap().0, 2);
+        assert_eq!(choose(ModelChoice::Auto, &names, &s, &all).unwrap().0, 2);
         // A candidate without a model file on all runs is not chosen.
         let no3 = [true, true, false, true, true];
-        assert_eq!(choose(ModelChoice::Auto, &s, &no3).unwrap().0, 3);
+        assert_eq!(choose(ModelChoice::Auto, &names, &s, &no3).unwrap().0, 3);
         // Unscored everywhere: the network of [train].
         let none: Vec<CandidateScore> = s.iter().map(|c| score(&c.name, None)).collect();
-        let (i, why) = choose(ModelChoice::Auto, &none, &all).unwrap();
+        let (i, why) = choose(ModelChoice::Auto, &names, &none, &all).unwrap();
         assert_eq!(none[i].name, "mlp");
         assert!(why.contains("no candidate"), "{why}");
-        assert_eq!(choose(ModelChoice::Polach, &s, &all).unwrap().0, 0);
-        assert_eq!(choose(ModelChoice::Residual, &s, &all).unwrap().0, 3);
-        let e = choose(ModelChoice::Polach, &s, &[false, true, true, true, true]).unwrap_err();
+        assert_eq!(choose(ModelChoice::Polach, &names, &[], &all).unwrap().0, 0);
+        assert_eq!(
+            choose(ModelChoice::Residual, &names, &[], &all).unwrap().0,
+            3
+        );
+        let e = choose(
+            ModelChoice::Polach,
+            &names,
+            &[],
+            &[false, true, true, true, true],
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("train.model = \"polach\""), "{e}");
     }
 }

@@ -579,7 +579,8 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
     } else {
         Vec::new()
     };
-    let (chosen, reason) = choice::choose(pipeline.train.model, &scores, &available)?;
+    let names: Vec<&str> = cands.iter().map(|c| c.name.as_str()).collect();
+    let (chosen, reason) = choice::choose(pipeline.train.model, &names, &scores, &available)?;
     let choice = Choice {
         setting: pipeline.train.model.name().into(),
         folds: tables.len().min(pipeline.train.folds),
