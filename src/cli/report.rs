@@ -40,6 +40,9 @@ pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     if let Some(c) = &o.condition {
         println!("\nmodels     trained on {c} rail");
     }
+    if let Some((path, why)) = &o.chosen {
+        println!("chosen     {} ({why})", path.display());
+    }
     if let Some(e) = &o.model_error {
         println!("\nmodels     none: {e}");
     }

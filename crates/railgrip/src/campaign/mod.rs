@@ -125,6 +125,8 @@ pub struct Outcome {
     pub models: Vec<PathBuf>,
     /// Why no models were trained.
     pub model_error: Option<String>,
+    /// The campaign's model (`campaign.json`'s `chosen_model`), which candidate it is and why.
+    pub chosen: Option<(PathBuf, String)>,
     /// The network's plausibility audit (docs/model-files.md#plausibility-audit); a failed audit still
     /// writes the model, marked.
     pub audit: Option<crate::model::AuditSpec>,
@@ -326,6 +328,7 @@ pub fn run(
         records,
         condition: trained.condition,
         models: trained.models,
+        chosen: trained.chosen.map(|p| (p, trained.chosen_why)),
         model_error: trained.model_error,
         audit: trained.audit,
         notes,
@@ -461,8 +464,9 @@ struct Trained {
     /// Network training epochs and seconds (for `timings.json`).
     epochs: usize,
     train_s: Option<f64>,
-    /// The chosen model's file.
+    /// The chosen model's file, and which candidate it is and why.
     chosen: Option<PathBuf>,
+    chosen_why: String,
 }
 
 /// Stage 2: the campaign's models from the pooled tables, written with their C headers.
@@ -484,6 +488,7 @@ fn train_stage(
         epochs: 0,
         train_s: None,
         chosen: None,
+        chosen_why: String::new(),
     };
     if tables.is_empty() {
         t.model_error = Some("no run could be estimated, so no model was trained".to_string());
@@ -507,10 +512,7 @@ fn train_stage(
             t.audit = m.mlp.audit.clone();
             t.models = m.write(&out.models(), true)?;
             t.chosen = Some(out.models().candidate(&m.choice.chosen));
-            t.notes.push(format!(
-                "campaign model: {} ({})",
-                m.choice.chosen, m.choice.reason
-            ));
+            t.chosen_why = format!("{}: {}", m.choice.chosen, m.choice.reason);
         }
         Err(e) => t.model_error = Some(e.to_string()),
     }
