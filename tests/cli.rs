@@ -1191,8 +1191,20 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     let camp_json: serde_json::Value =
         serde_json::from_slice(&named[Path::new("campaign.json")]).unwrap();
     assert_eq!(camp_json["chosen_model"], "models/mlp.polach.json");
-    assert!(!named.keys().any(|k| k.to_string_lossy().contains("3in")));
+    let others = ["2in", "3in", "4in", "residual"];
+    let other = |k: &Path| {
+        let n = k.to_string_lossy();
+        others
+            .iter()
+            .any(|o| n.contains(&format!("mlp.{o}.json")) || n.contains(&format!("mlp.{o}.h")))
+    };
+    assert!(!named.keys().any(|k| other(k)), "{:?}", named.keys());
     let choice: serde_json::Value =
         serde_json::from_slice(&named[Path::new("models/mlp.choice.json")]).unwrap();
     assert_eq!(choice["candidates"].as_array().unwrap().len(), 0);
+    assert_eq!(choice["folds"], 0);
+    // The same over the first output folder: the candidates it held are removed.
+    assert!(one.keys().any(|k| other(k)));
+    let again = run("one", "2", Some(pipeline.to_str().unwrap()));
+    assert!(!again.keys().any(|k| other(k)), "{:?}", again.keys());
 }

@@ -1045,6 +1045,8 @@ fn polach_model_files_reject_what_they_cannot_evaluate() {
         "k_A",
     );
     bad(&|v| v["polach"]["k_s"] = 0.5.into(), "k_S");
+    // A residual network's law section belongs to networks.
+    bad(&|v| v["base"] = v["polach"].clone(), "\"base\" section");
     bad(&|v| v["polach"]["patch"]["c11"] = (-1.0).into(), "c11");
     bad(
         &|v| {
@@ -1272,7 +1274,17 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
 /// The synthetic network as a residual over a Polach law with k(T) and a Curtius–Kniffler speed
 /// law (the law Polach files are tested with), falling back to the law outside its support.
 fn residual_model() -> (ModelFile, ModelFile) {
-    let law = with_speed_law(polach_model(true), "curtius_kniffler", &[0.6]);
+    let mut law = with_speed_law(polach_model(true), "curtius_kniffler", &[0.6]);
+    // The law's k_A at 0 °C away from the file's base k_A: a call without a temperature must
+    // take the base values in Rust and in C alike (not the law at 0 °C).
+    let spec = law.polach.as_mut().unwrap();
+    spec.temperature.as_mut().unwrap().k_a[0] += 0.004;
+    let base_ka = spec.k_a;
+    let t = spec.temperature.as_ref().unwrap();
+    assert!(
+        (t.k_a[0] - base_ka).abs() > 1e-3,
+        "the law at 0 °C differs from its base"
+    );
     let mut f = synthetic_model();
     f.base = law.polach.clone();
     let s = f.support.as_mut().unwrap();

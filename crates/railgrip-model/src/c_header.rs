@@ -169,7 +169,12 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             ("blend", lit(creep.blend_mps)),
             ("cpc", lit(creep.creep_stiffness_n / creep.wheel_load_n)),
             ("vref", lit(creep.reference_speed_mps)),
-            ("tref", lit(creep.reference_temperature_c.unwrap_or(0.0))),
+            // NaN without one, as the Rust evaluator: a residual network's law then takes its
+            // base values (a plain network of fewer than 4 inputs ignores T).
+            (
+                "tref",
+                lit(creep.reference_temperature_c.unwrap_or(f64::NAN)),
+            ),
             ("has_sup", u8::from(m.support.is_some()).to_string()),
             ("sup_arrays", sup_arrays),
             ("has_base", u8::from(m.base.is_some()).to_string()),

@@ -466,10 +466,12 @@ impl ModelFile {
         }
         match self.kind {
             ModelKind::Mlp => self.check_mlp()?,
-            ModelKind::Polach if self.support.is_some() || self.audit.is_some() => {
+            ModelKind::Polach
+                if self.support.is_some() || self.audit.is_some() || self.base.is_some() =>
+            {
                 return Err(Defect::ForeignSection {
                     kind: "polach",
-                    what: "\"support\" or \"audit\" section",
+                    what: "\"support\", \"audit\" or \"base\" section",
                 })
             }
             ModelKind::Polach => polach::check(self)?,

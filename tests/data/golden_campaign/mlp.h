@@ -2,7 +2,8 @@
  * Format railgrip-adhesion-model v2; trained on 34916 samples, validation MSE 7.48511560453417e-5.
  * Inputs (clamped to the domain seen in training): dv_mps [m/s] in [-0.024778465938281924, 4.8090248500470025], ddv_mps2 [m/s²] in [-8.628435126047014, 5.942988338146724].
  * Header-only C99: #include it and call mlp_mu(dv, ddv), mlp_mu_v(dv, ddv, v),
- * mlp_mu_vt(dv, ddv, v, t_c) (t_c: the fourth input of 4-input networks, else ignored),
+ * mlp_mu_vt(dv, ddv, v, t_c) (t_c: the fourth input of 4-input networks and the temperature
+ * of a residual network's law, else ignored),
  * mlp_mu_batch(dv, ddv, v_or_NULL, out, n) or mlp_mu_batch_t(dv, ddv, v_or_NULL, t_or_NULL, out, n).
  * Same arithmetic as railgrip's Rust evaluator (railgrip::model::Model::mu_v), fused
  * multiply-adds included (MLP_FMA): bit-identical results when those use C99 fma() (targets
@@ -113,7 +114,7 @@ static const double mlp_oy = -1.0735312916903286;
 static const double mlp_blend = 0.2;
 static const double mlp_creep_per_creepage = 199.36674346407014;
 static const double mlp_v_ref = 20.556800584267528;
-static const double mlp_t_ref = 0.0;
+static const double mlp_t_ref = NAN;
 
 static inline double mlp_clamp(double x, double lo, double hi) {
     return x < lo ? lo : (x > hi ? hi : x);
@@ -1455,7 +1456,8 @@ static inline double mlp_she(double x) {
 
 /* μ at slip dv [m/s], slip rate ddv [m/s²], speed v [m/s] and ambient temperature t_c [°C]
  * (v: third input of 3- and 4-input models and the creep slope; NAN → the reference speed;
- * t_c: fourth input of 4-input models, NAN → the reference temperature, else ignored). */
+ * t_c: fourth input of 4-input models, NAN → the reference temperature; a residual network's
+ * law takes it too, NAN and no reference → the law's base values; else ignored). */
 static inline double mlp_mu_vt(double dv_mps, double ddv_mps2, double v_mps, double t_c) {
     double s = 1.0, dv = dv_mps, ddv = ddv_mps2, v, tc, net, sat, v_creep, slope, lin, w;
     double x[4], xb[4];

@@ -15,7 +15,7 @@ use super::export;
 use super::held_out::{leave_one_run_out, HeldOut};
 use super::lm::Epoch;
 use super::polach::{fit_campaign, fit_campaign_form, FormChoice, PolachReport, PARAMETERS};
-use super::train::{train_mlp, TrainedMlp};
+use super::train::{audit_samples, train_mlp, TrainedMlp};
 use super::IdentifyError;
 use crate::config::Pipeline;
 use crate::config::{ModelChoice, TrainConfig, Trainer};
@@ -410,9 +410,7 @@ impl ModelFamily for Residual {
         let mut t = train_mlp(&residual, &d.pipeline.train, d.epochs)?;
         t.reference_speed_mps = median_speed(d.tables);
         // The audit compares the whole model with μ, not with the residual.
-        for s in &mut t.data {
-            s.mu += base.mu_vt(s.dv_mps, s.ddv_mps2, s.v_mps, s.t_c);
-        }
+        t.data = audit_samples(d.tables, &d.pipeline.train)?;
         let creep = creep_spec(d.pipeline, t.reference_speed_mps)?;
         let spec = base
             .file
@@ -583,7 +581,11 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
     let (chosen, reason) = choice::choose(pipeline.train.model, &names, &scores, &available)?;
     let choice = Choice {
         setting: pipeline.train.model.name().into(),
-        folds: tables.len().min(pipeline.train.folds),
+        folds: if scores.is_empty() {
+            0
+        } else {
+            tables.len().min(pipeline.train.folds)
+        },
         candidates: scores,
         chosen: cands[chosen].name.clone(),
         reason,

@@ -73,6 +73,33 @@ impl TrainedMlp {
     }
 }
 
+/// The audit's samples of `tables`: the split and decimation of `cfg`, with the speed (and, for
+/// networks with the temperature input, the run's ambient temperature) of every sample, pooled
+/// as axle 1.
+pub fn audit_samples(tables: &[RunTable], cfg: &TrainConfig) -> Result<Vec<Sample>, IdentifyError> {
+    let full = if cfg.inputs.has_temperature() {
+        InputSet::DvDdvVT
+    } else {
+        InputSet::DvDdvV
+    };
+    let k = full.count();
+    let with_v = Dataset::build(tables, full, &cfg.split, cfg.decimate)?;
+    Ok(with_v
+        .train_x
+        .chunks_exact(k)
+        .zip(&with_v.train_y)
+        .chain(with_v.val_x.chunks_exact(k).zip(&with_v.val_y))
+        .map(|(x, mu)| Sample {
+            axle: 1,
+            dv_mps: x[0],
+            ddv_mps2: x[1],
+            v_mps: x[2],
+            t_c: x.get(3).copied().unwrap_or(f64::NAN),
+            mu: *mu,
+        })
+        .collect())
+}
+
 /// LM settings of a pipeline's `[train]` section.
 pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
     LmSettings {
@@ -124,28 +151,7 @@ pub fn train_mlp(
         t.sort_by(f64::total_cmp);
         trained.reference_temperature_c = Some(t[t.len() / 2]);
     }
-    // The audit's samples: the same split with the speed (and temperature) of every sample.
-    let full = if inputs.has_temperature() {
-        InputSet::DvDdvVT
-    } else {
-        InputSet::DvDdvV
-    };
-    let k = full.count();
-    let with_v = Dataset::build(tables, full, &cfg.split, cfg.decimate)?;
-    trained.data = with_v
-        .train_x
-        .chunks_exact(k)
-        .zip(&with_v.train_y)
-        .chain(with_v.val_x.chunks_exact(k).zip(&with_v.val_y))
-        .map(|(x, mu)| Sample {
-            axle: 1,
-            dv_mps: x[0],
-            ddv_mps2: x[1],
-            v_mps: x[2],
-            t_c: x.get(3).copied().unwrap_or(f64::NAN),
-            mu: *mu,
-        })
-        .collect();
+    trained.data = audit_samples(tables, cfg)?;
     trained.audit_mu_max = cfg.audit_mu_max;
     Ok(trained)
 }

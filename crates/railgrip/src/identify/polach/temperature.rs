@@ -373,15 +373,18 @@ pub fn fit_temperature_forms(
     let fixed: [Option<f64>; 5] = std::array::from_fn(|i| held(i).then_some(x0[i]));
     let mut fits = fit_all_forms(&g, &offered, fixed, &x0)?;
     let n_eff = score_forms(&mut fits, g.samples.len(), g.range);
-    // A pinned form with a speed law: that fit (the last), not the one without.
-    let skip = usize::from(pinned.is_some_and(|f| f.speed.is_some()) && fits.len() > 1);
-    let best = fits
-        .iter()
-        .enumerate()
-        .skip(skip)
-        .filter(|(_, f)| f.record.rejected.is_none())
-        .min_by(|a, b| a.1.record.bic.total_cmp(&b.1.record.bic))
-        .map(|(i, _)| i)
+    // A pinned form with a speed law: that fit (the last), not the one without — unless its
+    // law is refused on these samples; then the form without (the law still stands on its
+    // temperature form).
+    let valid = |i: &usize| fits[*i].record.rejected.is_none();
+    let pinned_speed = pinned.is_some_and(|f| f.speed.is_some()) && fits.len() > 1;
+    let by_bic = |from: usize| {
+        (from..fits.len())
+            .filter(valid)
+            .min_by(|a, b| fits[*a].record.bic.total_cmp(&fits[*b].record.bic))
+    };
+    let best = by_bic(usize::from(pinned_speed))
+        .or_else(|| if pinned_speed { by_bic(0) } else { None })
         .ok_or_else(|| IdentifyError::Data {
             what: format!(
                 "every temperature and speed form leaves the valid domain of Polach's law (the constant form: {})",
