@@ -6,8 +6,12 @@
 //!   estimates table of every run (`--force`: nothing reused) — `campaign::estimate_runs`;
 //! - `run/estimate_reused`: the same stage when every run is unchanged (hashing and reading
 //!   the tables back);
-//! - `run/train`: the network and the Polach/k(T) fits on the pooled estimates, files written
+//! - `run/train`: the campaign's models on the pooled estimates with the default
+//!   `train.model = "auto"` (every candidate, its held-out folds and the choice), files written
 //!   — `campaign::train_models` and `CampaignModels::write`;
+//! - `run/train_named_mlp`: the same with `train.model = "mlp"` (the network and the Polach
+//!   model, no folds; the leave-one-run-out networks instead) — what the choice costs, side by
+//!   side;
 //! - `run/report`: the HTML report — `report::write_report`;
 //! - `run/all`: `campaign::run` with `--force`, everything above in one call.
 //!
@@ -46,6 +50,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("train", |b| {
         b.iter(|| {
             let m = campaign::train_models(tables.clone(), &p, None).unwrap();
+            m.write(&out.models(), true).unwrap()
+        })
+    });
+    let mut named = p.clone();
+    named.train.model = railgrip::config::ModelChoice::Mlp;
+    g.bench_function("train_named_mlp", |b| {
+        b.iter(|| {
+            let m = campaign::train_models(tables.clone(), &named, None).unwrap();
             m.write(&out.models(), true).unwrap()
         })
     });

@@ -107,6 +107,10 @@ pub enum DecodeError {
         #[source]
         source: prost_reflect::DescriptorError,
     },
+    /// A FileDescriptorSet so malformed that prost-reflect panicked while describing what is
+    /// wrong with it (an index into its empty file list); the panic is caught.
+    #[error("the protobuf schema {schema} is not a valid FileDescriptorSet (its descriptor references a file the set does not hold)")]
+    ProtobufSchemaBroken { schema: String },
     /// The FileDescriptorSet lacks the channel's message; `available` lists (some of) its
     /// messages.
     #[error("the schema's FileDescriptorSet has no message {schema}; it has {}", .available.join(", "))]

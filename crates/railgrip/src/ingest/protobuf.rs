@@ -153,7 +153,14 @@ impl Decoder {
         fields: &[FieldPath],
         header_time: bool,
     ) -> Result<Decoder, DecodeError> {
-        let pool = DescriptorPool::decode(data).map_err(|source| DecodeError::ProtobufSchema {
+        // prost-reflect 0.16 can panic while building the error of a corrupted set (its error
+        // label indexes the set's files unchecked): a bad schema is an error, never a panic.
+        let decoded = std::panic::catch_unwind(|| DescriptorPool::decode(data)).map_err(|_| {
+            DecodeError::ProtobufSchemaBroken {
+                schema: schema_name.to_string(),
+            }
+        })?;
+        let pool = decoded.map_err(|source| DecodeError::ProtobufSchema {
             schema: schema_name.to_string(),
             source,
         })?;
