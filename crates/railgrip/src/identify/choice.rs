@@ -294,12 +294,11 @@ fn fold(
 }
 
 /// Every candidate's held-out scores over the folds of `tables` (see the module text), in the
-/// order of `cands`. `shapes` gives each candidate's architecture and parameter count (from
-/// its fit on all runs), `form` the temperature and speed form the campaign's Polach fit chose
+/// order of `cands` (the architecture and parameter count are left for the caller, who has
+/// the fits on all runs), `form` the temperature and speed form the campaign's Polach fit chose
 /// (the folds refit it; the search itself is not repeated per fold).
 pub fn score_candidates(
     cands: &[Candidate],
-    shapes: &[(String, usize)],
     tables: &[RunTable],
     folds: usize,
     decimate: usize,
@@ -355,8 +354,8 @@ pub fn score_candidates(
             }
             CandidateScore {
                 name: cand.name.clone(),
-                architecture: shapes[c].0.clone(),
-                parameters: shapes[c].1,
+                architecture: String::new(),
+                parameters: 0,
                 rmse_mu: complete.then(|| pooled.rmse()),
                 bias_mu: complete.then(|| pooled.bias()),
                 worst_run_rmse_mu: complete.then_some(worst),

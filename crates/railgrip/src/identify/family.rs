@@ -509,13 +509,32 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
         }
         None => None,
     };
-    let network = Network.fit(&FitData {
-        tables,
-        pipeline,
-        provenance: data.provenance.clone(),
-        fallback: fallback.as_ref(),
-        epochs: data.epochs,
-    })?;
+    // The form the Polach model file holds (a law the file refused is not refitted).
+    let form = polach_fits
+        .temperature
+        .as_ref()
+        .filter(|_| {
+            polach
+                .as_ref()
+                .and_then(|p| p.polach.as_ref())
+                .is_some_and(|s| s.temperature.is_some() || s.speed.is_some())
+        })
+        .map(|t| t.form_choice())
+        .unwrap_or_default();
+    // The candidates on all runs beside the folds: both in parallel, so that no core idles
+    // while a single-start network trains.
+    let (fits, mut scores) = rayon::join(
+        || fit_on_all_runs(&cands, &data, fallback.as_ref()),
+        || {
+            if pipeline.train.model == ModelChoice::Auto {
+                let t = &pipeline.train;
+                choice::score_candidates(&cands, tables, t.folds, t.decimate, form)
+            } else {
+                Vec::new()
+            }
+        },
+    );
+    let (network, rest) = fits?;
     notes.extend(network.notes);
     let network_shape = network.shape.clone();
     let trained = network
@@ -523,22 +542,6 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
         .into_network()
         .ok_or_else(|| wrong_report("network"))?;
     let mlp = network.model?;
-    // The other candidates on all runs, in parallel (each with the campaign's Polach model).
-    let rest: Vec<(Shape, Result<ModelFile, String>, Vec<String>)> = cands[2..]
-        .par_iter()
-        .map(|c| {
-            match c.family(None).fit(&FitData {
-                tables,
-                pipeline: &c.pipeline,
-                provenance: data.provenance.clone(),
-                fallback: fallback.as_ref(),
-                epochs: None,
-            }) {
-                Ok(f) => (f.shape, f.model.map_err(|e| e.to_string()), f.notes),
-                Err(e) => (Shape::default(), Err(e.to_string()), vec![]),
-            }
-        })
-        .collect();
     let mut shapes = vec![
         (polach_shape.architecture.clone(), polach_shape.parameters),
         (network_shape.architecture.clone(), network_shape.parameters),
@@ -554,29 +557,10 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
             Err(e) => notes.push(format!("candidate {}: not fitted: {e}", c.name)),
         }
     }
-    let scores = if pipeline.train.model == ModelChoice::Auto {
-        choice::score_candidates(
-            &cands,
-            &shapes,
-            tables,
-            pipeline.train.folds,
-            pipeline.train.decimate,
-            // The form the Polach model file holds (a law the file refused is not refitted).
-            polach_fits
-                .temperature
-                .as_ref()
-                .filter(|_| {
-                    polach
-                        .as_ref()
-                        .and_then(|p| p.polach.as_ref())
-                        .is_some_and(|s| s.temperature.is_some() || s.speed.is_some())
-                })
-                .map(|t| t.form_choice())
-                .unwrap_or_default(),
-        )
-    } else {
-        Vec::new()
-    };
+    for (s, (architecture, parameters)) in scores.iter_mut().zip(&shapes) {
+        s.architecture.clone_from(architecture);
+        s.parameters = *parameters;
+    }
     let names: Vec<&str> = cands.iter().map(|c| c.name.as_str()).collect();
     let (chosen, reason) = choice::choose(pipeline.train.model, &names, &scores, &available)?;
     let choice = Choice {
@@ -602,6 +586,48 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
         notes,
         held_out,
     })
+}
+
+/// What [`fit_on_all_runs`] gives: the network of `[train]`, and per other candidate its shape,
+/// its model file or why not, and its notes.
+type AllRunFits = (Fitted, Vec<(Shape, Result<ModelFile, String>, Vec<String>)>);
+
+/// The network of `[train]` (with `data.epochs`) and the candidates after it on all runs, in
+/// parallel, each with the campaign's Polach model as fallback or base.
+fn fit_on_all_runs(
+    cands: &[choice::Candidate],
+    data: &FitData<'_>,
+    fallback: Option<&Model>,
+) -> Result<AllRunFits, IdentifyError> {
+    let (network, rest) = rayon::join(
+        || {
+            Network.fit(&FitData {
+                tables: data.tables,
+                pipeline: data.pipeline,
+                provenance: data.provenance.clone(),
+                fallback,
+                epochs: data.epochs,
+            })
+        },
+        || {
+            cands[2..]
+                .par_iter()
+                .map(|c| {
+                    match c.family(None).fit(&FitData {
+                        tables: data.tables,
+                        pipeline: &c.pipeline,
+                        provenance: data.provenance.clone(),
+                        fallback,
+                        epochs: None,
+                    }) {
+                        Ok(f) => (f.shape, f.model.map_err(|e| e.to_string()), f.notes),
+                        Err(e) => (Shape::default(), Err(e.to_string()), vec![]),
+                    }
+                })
+                .collect()
+        },
+    );
+    Ok((network?, rest))
 }
 
 /// The network's leave-one-run-out scores: none when `train.leave_one_run_out` is off; the
