@@ -122,6 +122,12 @@ fn bad_plans_are_refused_with_the_key_and_the_allowed_values() {
         e.contains("unknown family") && e.contains("polach_kt"),
         "{e}"
     );
+    // A cell fits the family it names; the campaign's model choice is no cell key.
+    let e = plan_error("[[grid]]\ntrain.model = [\"residual\"]\n");
+    assert!(
+        e.contains("grid[0]: train.model and train.folds") && e.contains("\"residual\""),
+        "{e}"
+    );
     let e = plan_error("[study]\nmax_cells = 5\n");
     assert!(e.contains("no [[grid]]"), "{e}");
     let e = plan_error("[[grid]]\ntrain.decimate = []\n");

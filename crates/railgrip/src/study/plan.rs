@@ -432,6 +432,22 @@ impl GridSpec {
                 }
             }
         }
+        // A cell fits one family; train.model (a campaign's choice among models) would be
+        // silently ignored.
+        if spec.axes.contains_key("train.model") || spec.axes.contains_key("train.folds") {
+            return Err(err(
+                file,
+                format!("{at}: train.model and train.folds choose a campaign's model; a study cell fits the one its family names"),
+                format!(
+                    "give family = one or more of {} (\"residual\" is train.model = \"residual\")",
+                    FAMILIES
+                        .iter()
+                        .map(|f| format!("\"{}\"", f.name()))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
         Ok(spec)
     }
 }
