@@ -195,8 +195,8 @@ pub fn fold_of(i: usize, n: usize, folds: usize) -> usize {
 
 /// Sums of one run's errors.
 #[derive(Debug, Clone, Default)]
-struct Sums {
-    n: usize,
+pub(super) struct Sums {
+    pub(super) n: usize,
     sum: f64,
     sq: f64,
 }
@@ -207,7 +207,7 @@ impl Sums {
         self.sum += o.sum;
         self.sq += o.sq;
     }
-    fn rmse(&self) -> f64 {
+    pub(super) fn rmse(&self) -> f64 {
         (self.sq / self.n.max(1) as f64).sqrt()
     }
     fn bias(&self) -> f64 {
@@ -216,7 +216,7 @@ impl Sums {
 }
 
 /// `model` on every `decimate`-th valid sample of `run` at the run's ambient temperature.
-fn errors(model: &Model, run: &RunTable, decimate: usize) -> Sums {
+pub(super) fn errors(model: &Model, run: &RunTable, decimate: usize) -> Sums {
     let t_c = run.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
     let mut s = Sums::default();
     for k in (0..run.len()).step_by(decimate.max(1)) {

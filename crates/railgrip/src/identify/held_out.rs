@@ -77,17 +77,11 @@ pub fn leave_one_run_out(
 /// support included) against the run's own estimates, every `decimate`-th valid sample of all
 /// axles, at the run's ambient temperature.
 pub fn held_out_score(model: &Model, held: &RunTable, decimate: usize) -> HeldOut {
-    let t_c = held.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
-    let (mut sq, mut n) = (0.0, 0usize);
-    for k in (0..held.len()).step_by(decimate.max(1)) {
-        let e = model.mu_vt(held.dv_mps[k], held.ddv_mps2[k], held.v_mps[k], t_c) - held.mu[k];
-        sq += e * e;
-        n += 1;
-    }
+    let s = super::choice::errors(model, held, decimate);
     HeldOut {
         run: held.name.clone(),
-        samples: n,
-        rmse_mu: (sq / n.max(1) as f64).sqrt(),
+        samples: s.n,
+        rmse_mu: s.rmse(),
     }
 }
 

@@ -100,62 +100,24 @@ struct Inputs<'a> {
 impl<'a> Inputs<'a> {
     fn load(out: &OutDir, camp: &'a CampaignRecord) -> Result<Inputs<'a>, ReportError> {
         let models = out.models();
-        let fits: Option<PolachReport> = match std::fs::read_to_string(models.polach_fits()) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(source) => {
-                return Err(ReportError::Read {
-                    file: models.polach_fits().display().to_string(),
-                    source,
-                })
-            }
-            Ok(t) => Some(
-                serde_json::from_str(&t).map_err(|source| ReportError::Fits {
-                    file: models.polach_fits().display().to_string(),
-                    source,
-                })?,
-            ),
-        };
-        let held_out = match std::fs::read_to_string(models.leave_one_run_out()) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
-            Err(source) => {
-                return Err(ReportError::Read {
-                    file: models.leave_one_run_out().display().to_string(),
-                    source,
-                })
-            }
-            Ok(t) => {
-                let f: crate::identify::HeldOutFile =
-                    serde_json::from_str(&t).map_err(|source| ReportError::Fits {
-                        file: models.leave_one_run_out().display().to_string(),
-                        source,
-                    })?;
-                same_generation(camp, &models.leave_one_run_out(), f.generation.as_deref())?;
-                f.runs
-            }
-        };
+        let fits: Option<PolachReport> = optional_json(&models.polach_fits())?;
         if let Some(f) = &fits {
             same_generation(camp, &models.polach_fits(), f.generation.as_deref())?;
         }
+        let held_out_file: Option<crate::identify::HeldOutFile> =
+            optional_json(&models.leave_one_run_out())?;
+        let held_out = match held_out_file {
+            Some(f) => {
+                same_generation(camp, &models.leave_one_run_out(), f.generation.as_deref())?;
+                f.runs
+            }
+            None => Vec::new(),
+        };
         let mut data = Vec::new();
         for r in camp.runs.iter().filter(|r| r.ok()) {
             data.push((r, read_run(&out.run_estimates(&r.run))?));
         }
-        let choice: Option<crate::identify::choice::Choice> =
-            match std::fs::read_to_string(models.choice()) {
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-                Err(source) => {
-                    return Err(ReportError::Read {
-                        file: models.choice().display().to_string(),
-                        source,
-                    })
-                }
-                Ok(t) => Some(
-                    serde_json::from_str(&t).map_err(|source| ReportError::Fits {
-                        file: models.choice().display().to_string(),
-                        source,
-                    })?,
-                ),
-            };
+        let choice: Option<crate::identify::choice::Choice> = optional_json(&models.choice())?;
         if let Some(c) = &choice {
             same_generation(camp, &models.choice(), c.generation.as_deref())?;
         }
@@ -211,6 +173,25 @@ fn same_generation(
             found: f.unwrap_or("none").to_string(),
             campaign: g.clone(),
         }),
+    }
+}
+
+/// The JSON file at `path` when the campaign wrote one (`None` when it is absent); a file that
+/// is there but cannot be read or parsed is an error naming it.
+fn optional_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<Option<T>, ReportError> {
+    let file = || path.display().to_string();
+    match std::fs::read_to_string(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(ReportError::Read {
+            file: file(),
+            source,
+        }),
+        Ok(t) => serde_json::from_str(&t)
+            .map(Some)
+            .map_err(|source| ReportError::Fits {
+                file: file(),
+                source,
+            }),
     }
 }
 

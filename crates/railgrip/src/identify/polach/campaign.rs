@@ -48,56 +48,23 @@ pub fn fit_campaign(
     intervals: bool,
 ) -> (PolachReport, Vec<String>) {
     let all: Vec<&RunTable> = tables.iter().collect();
-    let (fits, mut notes) = fit_groups(tables, patch, q_n, decimate, intervals);
-    let pooled_samples = samples(&all, q_n, decimate);
-    let range = |f: fn(&Sample) -> f64| {
-        pooled_samples
-            .iter()
-            .map(f)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-                (lo.min(x), hi.max(x))
-            })
-    };
-    let (dv_range_mps, v_range_mps) = (range(|s| s.dv), range(|s| s.v));
+    let (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals);
     let law = match &fits.pooled {
-        Some(p) => {
-            let v_ref = crate::identify::median_speed(tables);
-            fit_temperature_forms(
-                &all,
-                patch,
-                q_n,
-                decimate,
-                degree,
-                p,
-                &fits.per_temperature,
-                v_ref,
-                intervals,
-                None,
-            )
-        }
-        None => Err(IdentifyError::Data {
-            what: "no pooled Polach fit".into(),
-            hint: "see the notes above".into(),
-        }),
+        Some(p) => fit_temperature_forms(
+            &all,
+            patch,
+            q_n,
+            decimate,
+            degree,
+            p,
+            &fits.per_temperature,
+            crate::identify::median_speed(tables),
+            intervals,
+            None,
+        ),
+        None => Err(no_pooled_fit()),
     };
-    let (temperature, temperature_note) = law_and_note(law, &mut notes);
-    (
-        PolachReport {
-            format: "railgrip-polach-fit".into(),
-            version: 3,
-            patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
-            wheel_load_n: q_n,
-            pooled: fits.pooled,
-            dv_range_mps,
-            v_range_mps,
-            per_run: fits.per_run,
-            per_temperature: fits.per_temperature,
-            temperature,
-            temperature_note,
-            generation: None,
-        },
-        notes,
-    )
+    report(&all, patch, q_n, decimate, fits, law, notes)
 }
 
 /// The lean fit of a model-choice fold: all runs pooled (no intervals) and the temperature
@@ -114,15 +81,6 @@ pub fn fit_campaign_form(
     let pooled = fit_polach("all runs", &all, patch, q_n, decimate, DEFAULT_START, false)
         .map_err(|e| notes.push(e.to_string()))
         .ok();
-    let pooled_samples = samples(&all, q_n, decimate);
-    let range = |f: fn(&Sample) -> f64| {
-        pooled_samples
-            .iter()
-            .map(f)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
-                (lo.min(x), hi.max(x))
-            })
-    };
     let law = match (&pooled, form == FormChoice::default()) {
         (Some(_), true) => Err(IdentifyError::Data {
             what: "the campaign chose no temperature or speed law".into(),
@@ -140,10 +98,42 @@ pub fn fit_campaign_form(
             false,
             Some(form),
         ),
-        (None, _) => Err(IdentifyError::Data {
-            what: "no pooled Polach fit".into(),
-            hint: "see the notes above".into(),
-        }),
+        (None, _) => Err(no_pooled_fit()),
+    };
+    let fits = GroupFits {
+        pooled,
+        per_run: Vec::new(),
+        per_temperature: Vec::new(),
+    };
+    report(&all, patch, q_n, decimate, fits, law, notes)
+}
+
+fn no_pooled_fit() -> IdentifyError {
+    IdentifyError::Data {
+        what: "no pooled Polach fit".into(),
+        hint: "see the notes above".into(),
+    }
+}
+
+/// The report of a campaign's fits and its temperature law (or why there is none), with the
+/// slip and speed ranges of the pooled samples.
+fn report(
+    all: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    fits: GroupFits,
+    law: Result<TemperatureFit, IdentifyError>,
+    mut notes: Vec<String>,
+) -> (PolachReport, Vec<String>) {
+    let pooled_samples = samples(all, q_n, decimate);
+    let range = |f: fn(&Sample) -> f64| {
+        pooled_samples
+            .iter()
+            .map(f)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), x| {
+                (lo.min(x), hi.max(x))
+            })
     };
     let (temperature, temperature_note) = law_and_note(law, &mut notes);
     (
@@ -152,11 +142,11 @@ pub fn fit_campaign_form(
             version: 3,
             patch: [patch.a_m, patch.b_m, patch.g_pa, patch.c11, patch.c22],
             wheel_load_n: q_n,
-            pooled,
+            pooled: fits.pooled,
             dv_range_mps: range(|s| s.dv),
             v_range_mps: range(|s| s.v),
-            per_run: Vec::new(),
-            per_temperature: Vec::new(),
+            per_run: fits.per_run,
+            per_temperature: fits.per_temperature,
             temperature,
             temperature_note,
             generation: None,
