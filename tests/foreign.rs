@@ -677,17 +677,21 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 ///   speed band, stays within ±0.004 in every band (without a speed law a Polach model cannot
 ///   follow the level);
 /// - the model the campaign chose by held-out runs (the residual network on every seed
-///   measured) has a pooled replay bias within ±0.002 in every band (+0.0011 at most,
+///   measured) has a pooled replay bias within ±0.002 in every band (+0.0010 at most,
 ///   measured), and in the curve view (the model at each run's initial speed and temperature)
-///   a bias within ±0.0065 at every initial speed (+0.0055 at most) — at 200 km/h less than
-///   half the 2-input network's (+0.0044 against +0.0198, measured);
+///   a bias within ±0.004 at every initial speed (+0.0032 at most) — at 200 km/h less than
+///   half the 2-input network's (+0.0010 … +0.0017 against +0.0198, measured) — and a
+///   loss/recovery difference of 0.45–1.3 times the truth's in every run where the truth's is
+///   at least 0.002 (0.51 … 0.90 measured; 0.08 at 200 km/h when the residual's support was
+///   counted per speed cell);
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
 /// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): a
-/// curve bias within ±0.002, curve RMSE ≤ 0.005, the hysteresis ratio at the top speeds, and per
-/// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
-/// which no model input carries).
+/// curve bias within ±0.002 (+0.0024 … +0.0032 at 120 km/h), curve RMSE ≤ 0.005 (0.0050 …
+/// 0.0089), a hysteresis ratio of 0.8–1.2 everywhere, and per run and band a replay bias
+/// within ±0.0015 (each run's rail condition is ±5 % of the mean, which no model input
+/// carries).
 #[test]
 #[allow(clippy::too_many_lines)]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
@@ -740,6 +744,8 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
             // Per initial speed: n-weighted curve bias over the runs.
             let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+            // Per run: the curve's hysteresis ratio where the true difference is ≥ 0.002.
+            let mut hysteresis = Vec::new();
             for (t, sc) in truths.iter().zip(&scenes) {
                 let bands = replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap();
                 for b in bands {
@@ -758,6 +764,9 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
                     |dv, q, v, _| law.mu(dv, q, v),
                 )
                 .unwrap();
+                if let Some(r) = c.hysteresis_ratio(0.002) {
+                    hysteresis.push((v0.round() as i64, r));
+                }
                 let e = curves.entry(v0.round() as i64).or_default();
                 e.0 += c.stats.bias * c.stats.n as f64;
                 e.1 += c.stats.n;
@@ -768,7 +777,7 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
                 .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
                 .collect();
             eprintln!(
-                "seed {seed} {name} ({chosen}): replay bias per band {biases:.4?}; curve bias per initial speed {curve_bias:.4?}"
+                "seed {seed} {name} ({chosen}): replay bias per band {biases:.4?}; curve bias per initial speed {curve_bias:.4?}; hysteresis ratio per run {hysteresis:.2?}"
             );
             curve_200.push(curve_bias.last().unwrap().1);
             match name {
@@ -782,8 +791,15 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
                         "seed {seed}: {chosen} replay {biases:?}"
                     );
                     assert!(
-                        curve_bias.iter().all(|(_, b)| b.abs() <= 0.0065),
+                        curve_bias.iter().all(|(_, b)| b.abs() <= 0.004),
                         "seed {seed}: {chosen} curve {curve_bias:?}"
+                    );
+                    // The loss/recovery difference holds up to the top speed (a residual
+                    // whose support was counted per speed cell kept 0.1 of it at 200 km/h).
+                    assert!(
+                        hysteresis.len() >= 9
+                            && hysteresis.iter().all(|(_, r)| (0.45..=1.3).contains(r)),
+                        "seed {seed}: {chosen} hysteresis ratios {hysteresis:?}"
                     );
                 }
                 _ => {}

@@ -15,6 +15,7 @@ use super::export;
 use super::held_out::{leave_one_run_out, HeldOut};
 use super::lm::Epoch;
 use super::polach::{fit_campaign, fit_campaign_form, FormChoice, PolachReport, PARAMETERS};
+use super::support::projected_onto_slip;
 use super::train::{audit_samples, train_mlp, TrainedMlp};
 use super::IdentifyError;
 use crate::config::Pipeline;
@@ -408,6 +409,7 @@ impl ModelFamily for Residual {
         };
         let residual: Vec<RunTable> = d.tables.iter().map(|t| minus_law(t, &base)).collect();
         let mut t = train_mlp(&residual, &d.pipeline.train, d.epochs)?;
+        t.occupancy = projected_onto_slip(&t.occupancy);
         t.reference_speed_mps = median_speed(d.tables);
         // The audit compares the whole model with μ, not with the residual.
         t.data = audit_samples(d.tables, &d.pipeline.train)?;

@@ -62,6 +62,26 @@ pub fn occupancy(
     }
 }
 
+/// `occ` with every cell's count replaced by the sum over its column along speed and
+/// temperature (the inputs after Δv and dΔv/dt): a (Δv, dΔv/dt) cell seen at any speed and
+/// temperature is supported at all of them. A residual network's support: its law carries the
+/// speed and temperature structure, so the residual it learnt at one speed holds at the
+/// others, where a per-speed grid would fade it to the law alone at the top speed of every
+/// run that started there (docs/model-files.md, "Residual networks"). Two-input grids are
+/// unchanged.
+pub fn projected_onto_slip(occ: &Occupancy) -> Occupancy {
+    let inner: usize = occ.cells.iter().skip(2).product();
+    let mut counts = occ.counts.clone();
+    for column in counts.chunks_mut(inner) {
+        let sum: u64 = column.iter().sum();
+        column.fill(sum);
+    }
+    Occupancy {
+        counts,
+        ..occ.clone()
+    }
+}
+
 /// The physical inputs (Δv, dΔv/dt, v, T) at the centre of every cell, in flat order; v and T
 /// are NaN (the reference values) where the model does not take them.
 pub fn cell_centres(file: &ModelFile, cells: &[usize]) -> Vec<[f64; MAX_INPUTS]> {
@@ -272,6 +292,26 @@ mod tests {
         ];
         let o = occupancy(&x, 2, &norm, &norm, &[4, 2], 2);
         assert_eq!(o.counts, vec![0, 2, 0, 0, 0, 0, 1, 1]);
+    }
+
+    #[test]
+    fn projection_sums_each_slip_column_over_speed_and_temperature() {
+        // 2 × 1 (Δv, dΔv/dt) cells × 3 speeds × 2 temperatures.
+        let occ = Occupancy {
+            cells: vec![2, 1, 3, 2],
+            min_samples: 5,
+            counts: vec![1, 0, 3, 0, 0, 2, 0, 0, 0, 0, 4, 0],
+        };
+        let p = projected_onto_slip(&occ);
+        assert_eq!(p.counts, vec![6, 6, 6, 6, 6, 6, 4, 4, 4, 4, 4, 4]);
+        assert_eq!((p.cells, p.min_samples), (occ.cells.clone(), 5));
+        // Two inputs: nothing to project.
+        let two = Occupancy {
+            cells: vec![2, 2],
+            min_samples: 1,
+            counts: vec![0, 3, 1, 0],
+        };
+        assert_eq!(projected_onto_slip(&two), two);
     }
 
     #[test]
