@@ -97,7 +97,7 @@ fn study_report_renders_in_headless_chromium_without_console_errors() {
     common::two_run_campaign(&dir.path().join("campaign"));
     std::fs::write(
         dir.path().join("plan.toml"),
-        "[[grid]]\nlabel = \"Polach\"\nfamily = \"polach\"\n[[grid]]\nlabel = \"LM\"\ntrain.layers = [[3], [6]]\n",
+        "[[grid]]\nlabel = \"Polach\"\ntrain.model = \"polach_pooled\"\n[[grid]]\nlabel = \"LM\"\ntrain.layers = [[3], [6]]\n",
     )
     .unwrap();
     let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))

@@ -39,7 +39,7 @@ fn the_default_plan_covers_the_whole_grid() {
     let p = Plan::load(None, None).unwrap();
     assert_eq!(p.text, DEFAULT_PLAN_TOML);
     let has = |f: &dyn Fn(&railgrip::study::CellSpec) -> bool| p.cells.iter().any(f);
-    assert!(has(&|c| c.family.name() == "polach"));
+    assert!(has(&|c| c.family.name() == "polach_pooled"));
     assert!(has(&|c| c.family.name() == "polach_kt"));
     for inputs in [2, 3, 4] {
         for width in [3, 5, 10, 20, 40] {
@@ -102,7 +102,7 @@ fn the_default_plan_covers_the_whole_grid() {
 
 #[test]
 fn bad_plans_are_refused_with_the_key_and_the_allowed_values() {
-    let e = plan_error("[study]\nmax_cell = 3\n[[grid]]\nfamily = \"mlp\"\n");
+    let e = plan_error("[study]\nmax_cell = 3\n[[grid]]\ntrain.model = \"mlp\"\n");
     assert!(
         e.contains("study.max_cell") && e.contains("max_cells, max_minutes"),
         "{e}"
@@ -117,15 +117,23 @@ fn bad_plans_are_refused_with_the_key_and_the_allowed_values() {
         e.contains("unknown key vehicle") && e.contains("filters, estimate, contact, train"),
         "{e}"
     );
-    let e = plan_error("[[grid]]\nfamily = [\"gbm\"]\n");
+    let e = plan_error("[[grid]]\ntrain.model = [\"gbm\"]\n");
     assert!(
-        e.contains("unknown family") && e.contains("polach_kt"),
+        e.contains("grid[0].train.model: unknown model") && e.contains("polach_kt"),
         "{e}"
     );
-    // A cell fits the family it names; the campaign's model choice is no cell key.
-    let e = plan_error("[[grid]]\ntrain.model = [\"residual\"]\n");
+    // A cell fits the one model it names; the campaign's choice among models is no cell.
+    let e = plan_error("[[grid]]\ntrain.model = [\"mlp\", \"auto\"]\n");
     assert!(
-        e.contains("grid[0]: train.model and train.folds") && e.contains("\"residual\""),
+        e.contains("grid[0].train.model = \"auto\"") && e.contains("\"residual\""),
+        "{e}"
+    );
+    let e = plan_error("[[grid]]\ntrain.folds = [4, 8]\n");
+    assert!(e.contains("grid[0]: train.folds"), "{e}");
+    // The key of earlier releases names the new one.
+    let e = plan_error("[[grid]]\nfamily = \"polach\"\n");
+    assert!(
+        e.contains("family is now train.model") && e.contains("polach_pooled"),
         "{e}"
     );
     let e = plan_error("[study]\nmax_cells = 5\n");
@@ -141,13 +149,13 @@ fn bad_plans_are_refused_with_the_key_and_the_allowed_values() {
     assert!(e.contains("train.optimizer") && e.contains("sgd"), "{e}");
     let e = plan_error("[[grid]]\ntrain.layers = [[3, 3, 3]]\n");
     assert!(e.contains("adam"), "LM takes two layers at most: {e}");
-    let e = plan_error("[grid]\nfamily = \"mlp\"\n");
+    let e = plan_error("[grid]\ntrain.model = \"mlp\"\n");
     assert!(e.contains("[[grid]]"), "{e}");
     let e = plan_error("[study]\nheld_out = \"run1\"\n[[grid]]\n");
     assert!(e.contains("study.held_out") && e.contains("list"), "{e}");
     let e = plan_error("[study]\nmax_minutes = -1\n[[grid]]\n");
     assert!(e.contains("study.max_minutes"), "{e}");
-    let e = plan_error("[[grid]]\nfamily = \"mlp\"\n[extra]\n");
+    let e = plan_error("[[grid]]\ntrain.model = \"mlp\"\n[extra]\n");
     assert!(e.contains("unknown top-level key `extra`"), "{e}");
     let e = plan_error("[[grid]\n");
     assert!(e.contains("plan.toml") && e.contains("TOML"), "{e}");
@@ -210,7 +218,7 @@ fn foreign_campaign(dir: &Path, seed: u64) {
 const SMALL_PLAN: &str = r#"
 [[grid]]
 label = "Polach"
-family = "polach"
+train.model = "polach_pooled"
 
 [[grid]]
 label = "LM"
@@ -275,7 +283,7 @@ fn cells_are_scored_against_a_foreign_law_resume_and_repeat_bit_for_bit() {
             let e = &c["eval"];
             assert!(e["single_ns"].as_f64().unwrap() > 0.0, "{c}");
             assert!(e["batch_ns"].as_f64().unwrap() > 0.0, "{c}");
-            if c["family"] == "mlp" {
+            if c["model"] == "mlp" {
                 best_net = best_net.min(truth);
                 assert_eq!(c["truth_negative_cells"], 0, "μ̂ < 0 on data: {c}");
                 // The fast tanh changes μ by rounding only.
@@ -293,7 +301,10 @@ fn cells_are_scored_against_a_foreign_law_resume_and_repeat_bit_for_bit() {
                 .is_file());
         }
         // Polach's law cannot have the table's sharp peak; the best network is nearer the truth.
-        let polach = cells.iter().find(|c| c["family"] == "polach").unwrap();
+        let polach = cells
+            .iter()
+            .find(|c| c["model"] == "polach_pooled")
+            .unwrap();
         assert!(
             best_net < polach["truth_rmse"].as_f64().unwrap(),
             "seed {seed}: best network {best_net} vs Polach {}",
@@ -420,7 +431,7 @@ fn inputs_the_campaign_lacks_and_unknown_runs_are_named() {
     );
     let t = refused(
         dir.path(),
-        "[study]\nheld_out = [\"nope\"]\n[[grid]]\nfamily = \"polach\"\n",
+        "[study]\nheld_out = [\"nope\"]\n[[grid]]\ntrain.model = \"polach_pooled\"\n",
     );
     assert!(
         t.contains("held_out names nope") && t.contains("soap_120kmh_p20"),
@@ -437,7 +448,7 @@ fn simulator_and_contact_rows_measure_step_and_grid() {
         dir.path().join("plan.toml"),
         format!(
             r#"[[grid]]
-family = "polach"
+train.model = "polach_pooled"
 
 [[simulator]]
 scene = "{}"
@@ -548,7 +559,7 @@ fn a_broken_truth_table_or_base_pipeline_is_named() {
     std::fs::write(camp.join("soap_120kmh_p20.truth.parquet"), b"not parquet").unwrap();
     let t = refused(
         dir.path(),
-        "[study]\nheld_out = [\"soap_120kmh_p20\"]\n[[grid]]\nfamily = \"polach\"\n",
+        "[study]\nheld_out = [\"soap_120kmh_p20\"]\n[[grid]]\ntrain.model = \"polach_pooled\"\n",
     );
     assert!(
         t.contains("soap_120kmh_p20.truth.parquet") && t.contains("railgrip simulate"),

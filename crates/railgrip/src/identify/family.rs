@@ -102,7 +102,8 @@ pub enum TemperatureNeed {
 
 /// A way of identifying μ from estimates.
 pub trait ModelFamily: Send + Sync + std::fmt::Debug {
-    /// The family's name in plans, tables and reports (`mlp`, `polach`, `polach_kt`).
+    /// The family's name in plans (a grid's `train.model`), tables and reports (`mlp`,
+    /// `residual`, `polach`, `polach_pooled`, `polach_kt`).
     fn name(&self) -> &'static str;
     /// What the fit needs of the runs' ambient temperatures with these `[train]` settings.
     fn temperatures(&self, train: &TrainConfig) -> TemperatureNeed;
@@ -274,7 +275,7 @@ fn polach_shape(report: &PolachReport, architecture: &str) -> Shape {
 
 impl ModelFamily for Polach {
     fn name(&self) -> &'static str {
-        "polach"
+        "polach_pooled"
     }
 
     fn temperatures(&self, _: &TrainConfig) -> TemperatureNeed {
@@ -301,7 +302,7 @@ impl ModelFamily for PolachWithLaws {
         if self.law_required {
             "polach_kt"
         } else {
-            "polach_laws"
+            "polach"
         }
     }
 
@@ -663,11 +664,19 @@ fn wrong_report(family: &str) -> IdentifyError {
     }
 }
 
-/// The families a study plan may name, by [`ModelFamily::name`]; as plans fit them (Polach
+/// The families a study grid's `train.model` may name, by [`ModelFamily::name`]: the values
+/// of a pipeline's `train.model` but `auto` (`mlp`, `residual`, `polach` — Polach with the laws
+/// BIC chooses, as `run` exports it) and two study-only Polach variants (`polach_pooled`
+/// without laws, `polach_kt` with a temperature law required); as plans fit them (Polach
 /// without profile intervals, which a study does not report).
-pub const FAMILIES: [&dyn ModelFamily; 4] = [
+pub const FAMILIES: [&dyn ModelFamily; 5] = [
     &Network,
     &Residual,
+    &PolachWithLaws {
+        intervals: false,
+        law_required: false,
+        pinned: None,
+    },
     &Polach { intervals: false },
     &PolachWithLaws {
         intervals: false,

@@ -118,7 +118,10 @@ pub struct CellResult {
     pub key: String,
     pub name: String,
     pub group: String,
-    /// The [`crate::identify::ModelFamily::name`] of the cell's family.
+    /// The model the cell fits: its grid's `train.model`, the
+    /// [`crate::identify::ModelFamily::name`] of its family (`model` in the files; cells of
+    /// earlier releases said `family`).
+    #[serde(rename = "model", alias = "family")]
     pub family: String,
     /// Pipeline keys the cell sets, as TOML values.
     pub settings: Vec<(String, String)>,
@@ -386,7 +389,7 @@ pub fn csv(o: &Outcome) -> String {
     let mut t = CsvText::new(&[
         "key",
         "group",
-        "family",
+        "model",
         "name",
         "architecture",
         "parameters",

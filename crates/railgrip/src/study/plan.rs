@@ -1,9 +1,9 @@
 //! The study plan (`pipelines/study.toml`, docs/study.md): a base pipeline and a list
 //! of grids. Each `[[grid]]` is the Cartesian product of its keys' values; the plan is the
-//! union of its grids, duplicates removed. A grid key is a model `family` or a pipeline key of
-//! `[filters]`, `[estimate]`, `[contact]` or `[train]` (written as in a pipeline file, e.g.
-//! `train.layers`); its value is a list of values, one cell each (a single non-list value is one
-//! cell). Every cell is a complete pipeline checked by the pipeline's own rules, so a plan can
+//! union of its grids, duplicates removed. A grid key is a pipeline key of `[filters]`,
+//! `[estimate]`, `[contact]` or `[train]` (written as in a pipeline file, e.g. `train.layers`);
+//! its value is a list of values, one cell each (a single non-list value is one cell).
+//! `train.model` is the model axis: each cell fits the one model it names ([`FAMILIES`]). Every cell is a complete pipeline checked by the pipeline's own rules, so a plan can
 //! vary nothing a pipeline could not say.
 
 use std::collections::BTreeMap;
@@ -392,7 +392,7 @@ fn expand(
 struct GridSpec {
     /// `label` (default `grid N`).
     label: String,
-    /// `family` (default the network).
+    /// `train.model` (default the network).
     families: Vec<&'static dyn ModelFamily>,
     /// Axes in key order: (pipeline key, values).
     axes: BTreeMap<String, Vec<toml::Value>>,
@@ -416,7 +416,13 @@ impl GridSpec {
                         "give a short name in quotes",
                     ))
                 }
-                ("family", v) => spec.families = grid_families(v, at, file)?,
+                ("family", _) => {
+                    return Err(err(
+                        file,
+                        format!("{at}: family is now train.model"),
+                        "write train.model = [\"mlp\", \"residual\", \"polach\", …] (a pipeline's train.model values, plus \"polach_pooled\" for the old family \"polach\" and \"polach_kt\"; docs/study.md)",
+                    ))
+                }
                 (section, toml::Value::Table(t)) if GRID_SECTIONS.contains(&section) => {
                     section_axes(section, t, at, file, &mut spec.axes)?
                 }
@@ -432,61 +438,56 @@ impl GridSpec {
                 }
             }
         }
-        // A cell fits one family; train.model (a campaign's choice among models) would be
-        // silently ignored.
-        if spec.axes.contains_key("train.model") || spec.axes.contains_key("train.folds") {
+        // The model axis: a cell fits the one model its train.model names.
+        if let Some(models) = spec.axes.remove("train.model") {
+            spec.families = grid_families(&models, at, file)?;
+        }
+        // train.folds sets how a campaign's choice among models is scored; a cell has none.
+        if spec.axes.contains_key("train.folds") {
             return Err(err(
                 file,
-                format!("{at}: train.model and train.folds choose a campaign's model; a study cell fits the one its family names"),
-                format!(
-                    "give family = one or more of {} (\"residual\" is train.model = \"residual\")",
-                    FAMILIES
-                        .iter()
-                        .map(|f| format!("\"{}\"", f.name()))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
+                format!("{at}: train.folds scores a campaign's choice among models; a study cell fits the one model its train.model names"),
+                "leave train.folds out of the grid (a study scores every cell on its held-out runs)",
             ));
         }
         Ok(spec)
     }
 }
 
-/// A grid's `family`: one family name or a list of them (at least one), each of
-/// [`FAMILIES`].
+/// A grid's `train.model` values (at least one), each a name of [`FAMILIES`]; `auto` (a
+/// campaign's choice among models) is refused with the names to list instead.
 fn grid_families(
-    v: &toml::Value,
+    vals: &[toml::Value],
     at: &str,
     file: &str,
 ) -> Result<Vec<&'static dyn ModelFamily>, StudyError> {
-    let vals = match v {
-        toml::Value::Array(a) => a.clone(),
-        v => vec![v.clone()],
+    let names = || {
+        FAMILIES
+            .iter()
+            .map(|f| format!("\"{}\"", f.name()))
+            .collect::<Vec<_>>()
+            .join(", ")
     };
     let mut families = Vec::new();
     for f in vals {
         let name = f.as_str().unwrap_or("");
         match by_name(name) {
             Some(x) => families.push(x),
-            None => {
-                let names: Vec<String> = FAMILIES
-                    .iter()
-                    .map(|f| format!("\"{}\"", f.name()))
-                    .collect();
+            None if name == "auto" => {
                 return Err(err(
                     file,
-                    format!("{at}.family: unknown family {f}"),
-                    format!("families are {}", names.join(", ")),
+                    format!("{at}.train.model = \"auto\": a study cell fits one model, not a campaign's choice among them"),
+                    format!("list the candidates to compare: {}", names()),
+                ))
+            }
+            None => {
+                return Err(err(
+                    file,
+                    format!("{at}.train.model: unknown model {f}"),
+                    format!("a grid's train.model is one of {}", names()),
                 ));
             }
         }
-    }
-    if families.is_empty() {
-        return Err(err(
-            file,
-            format!("{at}.family is empty: no cells"),
-            "give at least one family",
-        ));
     }
     Ok(families)
 }
