@@ -693,123 +693,212 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// within ±0.0015 (each run's rail condition is ±5 % of the mean, which no model input
 /// carries).
 #[test]
-#[allow(clippy::too_many_lines)]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
-    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
-    let paths = scene_files("pipelines/scenes/top_speed");
-    let scenes: Vec<Scene> = paths.iter().map(|p| Scene::load(p).unwrap()).collect();
     for seed in [1, 2, 3] {
-        let tmp = tempfile::tempdir().unwrap();
-        let archive = tmp.path().join("archive");
-        let mut truths = Vec::new();
-        for sc in &scenes {
-            let out = sim::simulate(sc, Some(seed)).unwrap();
-            out.write(&archive, &sc.name, OutputFormat::Csv).unwrap();
-            truths.push(out.truth.samples(sc.run.ambient_temperature_c));
-        }
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_railgrip"))
-            .args(["run", archive.to_str().unwrap(), "--out", "out"])
-            .current_dir(tmp.path())
-            .output()
-            .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let out = tmp.path().join("out");
-        let models = out.join("models");
-        let polach = ModelFile::read(&models.join("mlp.polach.json")).unwrap();
+        let c = run_and_score("pipelines/scenes/top_speed", seed);
+        let polach = &c.models["polach"];
         assert!(
-            polach.polach.as_ref().unwrap().speed.is_some(),
-            "seed {seed}: no speed law"
+            polach.replay.iter().all(|b| b.abs() <= 0.004),
+            "seed {seed}: {:?}",
+            polach.replay
         );
-        let camp: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("campaign.json")).unwrap())
-                .unwrap();
-        let chosen = camp["chosen_model"].as_str().unwrap().to_string();
-        let mut curve_200 = Vec::new();
-        for (name, file) in [
-            ("polach", polach),
-            (
-                "network",
-                ModelFile::read(&models.join("mlp.json")).unwrap(),
-            ),
-            ("chosen", ModelFile::read(&out.join(&chosen)).unwrap()),
-        ] {
-            let model = Model::new(file).unwrap();
-            let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
-            // Per band: n-weighted bias over the runs.
-            let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
-            // Per initial speed: n-weighted curve bias over the runs.
-            let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
-            // Per run: the curve's hysteresis ratio where the true difference is ≥ 0.002.
-            let mut hysteresis = Vec::new();
-            for (t, sc) in truths.iter().zip(&scenes) {
-                let bands = replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap();
-                for b in bands {
-                    let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
-                    sums[i].0 += b.stats.bias * b.stats.n as f64;
-                    sums[i].1 += b.stats.n;
-                }
-                let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
-                let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
-                let c = curve(
-                    t,
-                    &Grid::default(),
-                    v0 / 3.6,
-                    t_c,
-                    predict,
-                    |dv, q, v, _| law.mu(dv, q, v),
-                )
-                .unwrap();
-                if let Some(r) = c.hysteresis_ratio(0.002) {
-                    hysteresis.push((v0.round() as i64, r));
-                }
-                let e = curves.entry(v0.round() as i64).or_default();
-                e.0 += c.stats.bias * c.stats.n as f64;
-                e.1 += c.stats.n;
+        let chosen = &c.models["chosen"];
+        assert!(
+            chosen.replay.iter().all(|b| b.abs() <= 0.002),
+            "seed {seed}: {} replay {:?}",
+            c.chosen,
+            chosen.replay
+        );
+        assert!(
+            chosen.curve.iter().all(|(_, b)| b.abs() <= 0.004),
+            "seed {seed}: {} curve {:?}",
+            c.chosen,
+            chosen.curve
+        );
+        // The loss/recovery difference holds up to the top speed (a residual whose support
+        // was counted per speed cell kept 0.1 of it at 200 km/h).
+        assert!(
+            chosen.hysteresis.len() >= 9
+                && chosen
+                    .hysteresis
+                    .iter()
+                    .all(|(_, r)| (0.45..=1.3).contains(r)),
+            "seed {seed}: {} hysteresis ratios {:?}",
+            c.chosen,
+            chosen.hysteresis
+        );
+        // At 200 km/h: the chosen model against the 2-input network.
+        let top = |m: &str| c.models[m].curve.last().unwrap().1;
+        assert!(
+            top("chosen").abs() < 0.5 * top("network").abs(),
+            "seed {seed}: curve bias at 200 km/h: chosen {} network {}",
+            top("chosen"),
+            top("network")
+        );
+    }
+}
+
+/// The model choice and the residual network on the other foreign law: the seven `table`
+/// scenes of pipelines/scenes/foreign (μ tabulated per speed with a sharp peak and a plateau,
+/// 80–200 km/h, −20 … +30 °C; a law no candidate contains), two noise seeds, through `railgrip
+/// run` with its defaults and scored per speed band against the truth:
+/// - the chosen model (the 3-input network on both seeds, held-out RMSE 0.0044 against the
+///   residual's 0.0047, measured) has a pooled replay bias within ±0.003 in every band
+///   (+0.0017 at most) and a curve bias within ±0.004 at every initial speed (+0.0025 at most),
+///   at 200 km/h under half the 2-input network's (+0.0024 against +0.0104);
+/// - the residual network, a candidate not chosen here, has a curve bias within ±0.003 at
+///   every initial speed (+0.0009 at most) and a replay bias within ±0.003 in every band.
+#[test]
+fn the_model_choice_and_the_residual_network_hold_on_the_table_law() {
+    for seed in [1, 2] {
+        let c = run_and_score("pipelines/scenes/foreign/table_", seed);
+        for (name, curve_max, replay_max) in [("chosen", 0.004, 0.003), ("residual", 0.003, 0.003)]
+        {
+            let m = &c.models[name];
+            assert!(
+                m.curve.iter().all(|(_, b)| b.abs() <= curve_max),
+                "seed {seed}: {name} ({}) curve {:?}",
+                c.chosen,
+                m.curve
+            );
+            assert!(
+                m.replay.iter().all(|b| b.abs() <= replay_max),
+                "seed {seed}: {name} ({}) replay {:?}",
+                c.chosen,
+                m.replay
+            );
+        }
+        let top = |m: &str| c.models[m].curve.last().unwrap().1;
+        assert!(
+            top("chosen").abs() < 0.5 * top("network").abs(),
+            "seed {seed}: curve bias at 200 km/h: chosen {} network {}",
+            top("chosen"),
+            top("network")
+        );
+    }
+}
+
+/// What [`run_and_score`] found for one model.
+struct BandScores {
+    /// Replay bias per band of [`railgrip::score::SPEED_BANDS_KMH`], pooled over the runs
+    /// (sample-weighted; 0 for an empty band).
+    replay: Vec<f64>,
+    /// Curve bias per initial speed (km/h), pooled over that speed's runs (cell-weighted).
+    curve: Vec<(i64, f64)>,
+    /// Per run: (initial speed, the curve's hysteresis ratio) where the truth's loss − recovery
+    /// difference is at least 0.002.
+    hysteresis: Vec<(i64, f64)>,
+}
+
+/// A campaign and its models' scores per speed band ([`run_and_score`]).
+struct CampaignScores {
+    /// `campaign.json`'s `chosen_model`.
+    chosen: String,
+    /// By name: `polach` (mlp.polach.json), `network` (mlp.json, the 2-input network),
+    /// `residual` (mlp.residual.json) and `chosen`.
+    models: std::collections::BTreeMap<&'static str, BandScores>,
+}
+
+/// Simulates the scenes whose paths start with `prefix` (a folder, or a folder and a file-name
+/// prefix) at noise `seed`, runs `railgrip run` with its defaults on them, and scores the
+/// campaign's models against each scene's true law in the replay and curve views.
+fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
+    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
+    let (folder, start) = prefix.rsplit_once('/').unwrap();
+    let paths: Vec<PathBuf> = scene_files(folder)
+        .into_iter()
+        .filter(|p| p.file_name().unwrap().to_string_lossy().starts_with(start))
+        .collect();
+    assert!(paths.len() >= 4, "{prefix}: {paths:?}");
+    let scenes: Vec<Scene> = paths.iter().map(|p| Scene::load(p).unwrap()).collect();
+    let tmp = tempfile::tempdir().unwrap();
+    let archive = tmp.path().join("archive");
+    let mut truths = Vec::new();
+    for sc in &scenes {
+        let out = sim::simulate(sc, Some(seed)).unwrap();
+        out.write(&archive, &sc.name, OutputFormat::Csv).unwrap();
+        truths.push(out.truth.samples(sc.run.ambient_temperature_c));
+    }
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["run", archive.to_str().unwrap(), "--out", "out"])
+        .current_dir(tmp.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let out = tmp.path().join("out");
+    let models = out.join("models");
+    let polach = ModelFile::read(&models.join("mlp.polach.json")).unwrap();
+    assert!(
+        polach.polach.as_ref().unwrap().speed.is_some(),
+        "{prefix} seed {seed}: no speed law"
+    );
+    let camp: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("campaign.json")).unwrap()).unwrap();
+    let chosen = camp["chosen_model"].as_str().unwrap().to_string();
+    let mut scores = std::collections::BTreeMap::new();
+    for (name, file) in [
+        ("polach", polach),
+        (
+            "network",
+            ModelFile::read(&models.join("mlp.json")).unwrap(),
+        ),
+        (
+            "residual",
+            ModelFile::read(&models.join("mlp.residual.json")).unwrap(),
+        ),
+        ("chosen", ModelFile::read(&out.join(&chosen)).unwrap()),
+    ] {
+        let model = Model::new(file).unwrap();
+        let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
+        let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
+        let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+        let mut hysteresis = Vec::new();
+        for (t, sc) in truths.iter().zip(&scenes) {
+            for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap() {
+                let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
+                sums[i].0 += b.stats.bias * b.stats.n as f64;
+                sums[i].1 += b.stats.n;
             }
-            let biases: Vec<f64> = sums.iter().map(|(s, n)| s / (*n).max(1) as f64).collect();
-            let curve_bias: Vec<(i64, f64)> = curves
+            let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
+            let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
+            let c = curve(
+                t,
+                &Grid::default(),
+                v0 / 3.6,
+                t_c,
+                predict,
+                |dv, q, v, _| law.mu(dv, q, v),
+            )
+            .unwrap();
+            if let Some(r) = c.hysteresis_ratio(0.002) {
+                hysteresis.push((v0.round() as i64, r));
+            }
+            let e = curves.entry(v0.round() as i64).or_default();
+            e.0 += c.stats.bias * c.stats.n as f64;
+            e.1 += c.stats.n;
+        }
+        let s = BandScores {
+            replay: sums.iter().map(|(s, n)| s / (*n).max(1) as f64).collect(),
+            curve: curves
                 .iter()
                 .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
-                .collect();
-            eprintln!(
-                "seed {seed} {name} ({chosen}): replay bias per band {biases:.4?}; curve bias per initial speed {curve_bias:.4?}; hysteresis ratio per run {hysteresis:.2?}"
-            );
-            curve_200.push(curve_bias.last().unwrap().1);
-            match name {
-                "polach" => assert!(
-                    biases.iter().all(|b| b.abs() <= 0.004),
-                    "seed {seed}: {biases:?}"
-                ),
-                "chosen" => {
-                    assert!(
-                        biases.iter().all(|b| b.abs() <= 0.002),
-                        "seed {seed}: {chosen} replay {biases:?}"
-                    );
-                    assert!(
-                        curve_bias.iter().all(|(_, b)| b.abs() <= 0.004),
-                        "seed {seed}: {chosen} curve {curve_bias:?}"
-                    );
-                    // The loss/recovery difference holds up to the top speed (a residual
-                    // whose support was counted per speed cell kept 0.1 of it at 200 km/h).
-                    assert!(
-                        hysteresis.len() >= 9
-                            && hysteresis.iter().all(|(_, r)| (0.45..=1.3).contains(r)),
-                        "seed {seed}: {chosen} hysteresis ratios {hysteresis:?}"
-                    );
-                }
-                _ => {}
-            }
-        }
-        // At 200 km/h: the chosen model against the 2-input network.
-        assert!(
-            curve_200[2].abs() < 0.5 * curve_200[1].abs(),
-            "seed {seed}: curve bias at 200 km/h {curve_200:?} (polach, network, chosen)"
+                .collect(),
+            hysteresis,
+        };
+        eprintln!(
+            "{prefix} seed {seed} {name} ({chosen}): replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}",
+            s.replay, s.curve, s.hysteresis
         );
+        scores.insert(name, s);
+    }
+    CampaignScores {
+        chosen,
+        models: scores,
     }
 }
 
