@@ -695,7 +695,7 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 #[test]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
-        let c = run_and_score("pipelines/scenes/top_speed", seed);
+        let c = run_and_score("pipelines/scenes/top_speed/", seed);
         let polach = &c.models["polach"];
         assert!(
             polach.replay.iter().all(|b| b.abs() <= 0.004),
@@ -799,8 +799,8 @@ struct CampaignScores {
     models: std::collections::BTreeMap<&'static str, BandScores>,
 }
 
-/// Simulates the scenes whose paths start with `prefix` (a folder, or a folder and a file-name
-/// prefix) at noise `seed`, runs `railgrip run` with its defaults on them, and scores the
+/// Simulates the scenes whose paths start with `prefix` (a folder and a file-name prefix:
+/// `folder/` for all of the folder, `folder/table_` for some) at noise `seed`, runs `railgrip run` with its defaults on them, and scores the
 /// campaign's models against each scene's true law in the replay and curve views.
 fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
     use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
