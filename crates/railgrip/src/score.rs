@@ -371,15 +371,8 @@ pub fn replay(
     predict: impl Fn(f64, f64, f64, f64) -> f64,
 ) -> Result<Vec<Band>, ScoreError> {
     let counts = support(samples, grid)?;
-    let mut errors: Vec<Vec<f64>> = vec![Vec::new(); edges_kmh.len().saturating_sub(1)];
+    let mut errors = Vec::new();
     for s in samples {
-        let v_kmh = s.v_mps * 3.6;
-        let Some(b) = edges_kmh
-            .windows(2)
-            .position(|w| v_kmh >= w[0] && v_kmh < w[1])
-        else {
-            continue;
-        };
         if !cells_of(grid, s)
             .iter()
             .any(|k| counts.get(k).is_some_and(|n| *n >= grid.min_samples))
@@ -394,14 +387,31 @@ pub fn replay(
                 v: s.v_mps,
             });
         }
-        errors[b].push(p - s.mu);
+        errors.push((s.v_mps * 3.6, p - s.mu));
     }
-    if errors.iter().all(Vec::is_empty) {
+    let bands = by_speed_band(edges_kmh, errors);
+    if bands.is_empty() {
         return Err(ScoreError::NoSupport {
             min: grid.min_samples,
         });
     }
-    Ok(errors
+    Ok(bands)
+}
+
+/// Errors (speed km/h, μ̂ − μ) binned by speed over `edges_kmh` (ascending; a band's lower
+/// edge belongs to it; errors outside every band are left out), the [`Stats`] of each band
+/// that has errors.
+pub fn by_speed_band(edges_kmh: &[f64], errors: impl IntoIterator<Item = (f64, f64)>) -> Vec<Band> {
+    let mut binned: Vec<Vec<f64>> = vec![Vec::new(); edges_kmh.len().saturating_sub(1)];
+    for (v_kmh, e) in errors {
+        if let Some(b) = edges_kmh
+            .windows(2)
+            .position(|w| v_kmh >= w[0] && v_kmh < w[1])
+        {
+            binned[b].push(e);
+        }
+    }
+    binned
         .iter()
         .enumerate()
         .filter(|(_, e)| !e.is_empty())
@@ -410,7 +420,7 @@ pub fn replay(
             hi_kmh: edges_kmh[b + 1],
             stats: Stats::of(e.iter().copied()),
         })
-        .collect())
+        .collect()
 }
 
 /// Samples per (axle, cell), the samples checked finite.

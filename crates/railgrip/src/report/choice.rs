@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 use super::{esc, opt, Inputs};
 use crate::identify::choice::Choice;
 use crate::model::Model;
-use crate::score::SPEED_BANDS_KMH;
+use crate::score::{self, SPEED_BANDS_KMH};
 
 /// The section: the choice, the candidates' table, and the chosen model per speed band.
 pub(super) fn campaign_model(h: &mut String, i: &Inputs, choice: &Choice, chosen: Option<&Model>) {
@@ -52,35 +52,22 @@ pub(super) fn campaign_model(h: &mut String, i: &Inputs, choice: &Choice, chosen
 /// The chosen model at every valid axle-2 sample of the training condition's runs (its own
 /// Δv, dΔv/dt, v and the run's ambient temperature) against the estimate, per speed band.
 fn by_speed_band(h: &mut String, i: &Inputs, m: &Model) {
-    let bands = SPEED_BANDS_KMH.len() - 1;
-    let mut sums = vec![(0usize, 0.0f64, 0.0f64); bands];
+    let mut errors = Vec::new();
     for (r, d) in i.data.iter().filter(|(r, _)| i.in_condition(r)) {
         let t_c = r.ambient_temperature_c.unwrap_or(f64::NAN);
         for &(dv, ddv, mu, _, v) in &d.valid[1] {
-            let kmh = v * 3.6;
-            let Some(b) =
-                (0..bands).find(|&b| kmh >= SPEED_BANDS_KMH[b] && kmh < SPEED_BANDS_KMH[b + 1])
-            else {
-                continue;
-            };
             let e = m.mu_vt(dv, ddv, v, t_c) - mu;
             if e.is_finite() {
-                sums[b].0 += 1;
-                sums[b].1 += e;
-                sums[b].2 += e * e;
+                errors.push((v * 3.6, e));
             }
         }
     }
     h.push_str("<h3>The campaign model per speed band</h3>\n<p class=\"note\">Replayed at every valid sample of axle 2 (its own inputs, the run's ambient temperature) against the estimate; the speed is the vehicle's at the sample. A bias that grows with speed is a level the model does not let fall with speed.</p>\n<table><tr><th class=\"l\">speed band (km/h)</th><th>samples</th><th>bias μ</th><th>RMSE μ</th></tr>\n");
-    for (b, (n, s, q)) in sums.iter().enumerate().filter(|(_, s)| s.0 > 0) {
-        let nf = *n as f64;
+    for b in score::by_speed_band(&SPEED_BANDS_KMH, errors) {
         let _ = writeln!(
             *h,
-            "<tr><td class=\"l\">{:.0} – {:.0}</td><td>{n}</td><td>{:+.5}</td><td>{:.5}</td></tr>",
-            SPEED_BANDS_KMH[b],
-            SPEED_BANDS_KMH[b + 1],
-            s / nf,
-            (q / nf).sqrt()
+            "<tr><td class=\"l\">{:.0} – {:.0}</td><td>{}</td><td>{:+.5}</td><td>{:.5}</td></tr>",
+            b.lo_kmh, b.hi_kmh, b.stats.n, b.stats.bias, b.stats.rmse
         );
     }
     h.push_str("</table>\n");
