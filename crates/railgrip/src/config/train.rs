@@ -166,8 +166,8 @@ pub struct TrainConfig {
     pub polach_intervals: bool,
     /// The campaign's model: chosen by held-out runs, or named.
     pub model: ModelChoice,
-    /// Held-out folds of runs for the model choice: one run out at a time up to this many
-    /// runs, this many folds of runs beyond.
+    /// Held-out folds of runs for the model choice and leave-one-run-out: one run out at a
+    /// time up to this many runs, this many folds of runs beyond.
     pub folds: usize,
 }
 
@@ -412,7 +412,7 @@ const LEAVE_ONE_OUT: Key = text(
     "train.leave_one_run_out",
     "`true`, `false`",
     "`true`",
-    "score networks trained without each run on that run (report; one single-start training per run, or with `train.model = \"auto\"` and at most `train.folds` runs the model choice's folds of the network)",
+    "score networks trained without each run on that run (report; one single-start training per run — per fold of runs beyond `train.folds` runs — or with `train.model = \"auto\"` the model choice's folds of the network)",
 );
 const POLACH_INTERVALS: Key = text(
     "train.polach_intervals",
@@ -432,7 +432,7 @@ const FOLDS: Key = Key::num(
     "",
     int(2.0, 1000.0),
     8.0,
-    "`auto`: one run held out at a time up to this many runs, this many folds of runs beyond",
+    "held-out runs of the model choice (`auto`) and of leave-one-run-out: one run out at a time up to this many runs, this many folds of runs beyond (run i in fold i mod K)",
 );
 const CONDITION: Key = text(
     "train.condition",

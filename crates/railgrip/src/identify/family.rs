@@ -634,8 +634,8 @@ fn fit_on_all_runs(
 }
 
 /// The network's leave-one-run-out scores: none when `train.leave_one_run_out` is off; the
-/// model choice's folds of the network when each of them held out one run; else one
-/// single-start training per run ([`leave_one_run_out`]).
+/// model choice's folds of the network when it scored them (one run out at a time up to
+/// `train.folds` runs, K folds beyond); else [`leave_one_run_out`]'s folds.
 fn network_held_out(
     choice: &Choice,
     tables: &[RunTable],
@@ -643,7 +643,7 @@ fn network_held_out(
 ) -> Result<Vec<HeldOut>, IdentifyError> {
     Ok(match choice.candidates.iter().find(|c| c.name == "mlp") {
         _ if !pipeline.train.leave_one_run_out => Vec::new(),
-        Some(c) if tables.len() <= pipeline.train.folds && c.runs.len() == tables.len() => c
+        Some(c) if c.runs.len() == tables.len() => c
             .runs
             .iter()
             .map(|r| HeldOut {

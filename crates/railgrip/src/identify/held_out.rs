@@ -23,7 +23,10 @@ pub struct HeldOut {
 /// Leave-one-run-out validation: for every run, `family` fitted as the pipeline says — a
 /// network from one start, without an ensemble — on the other runs, and its model scored
 /// against the held-out run's estimates (all axles, every `train.decimate`-th sample): how the
-/// model generalises across runs, which the axle split cannot show. Folds run in parallel;
+/// model generalises across runs, which the axle split cannot show. Beyond `train.folds` runs,
+/// K = `train.folds` folds of runs instead (run i in fold i mod K, [`super::choice::fold_of`]):
+/// each fold's model is fitted on the runs of the other folds and scores the runs of its own,
+/// so the cost grows with the runs like one fit, not like their square. Folds run in parallel;
 /// results in run order. Fewer than two runs: none.
 pub fn leave_one_run_out(
     family: &dyn ModelFamily,
@@ -45,15 +48,22 @@ pub fn leave_one_run_out(
         created: String::new(),
         generation: None,
     };
-    (0..tables.len())
+    let n = tables.len();
+    let folds = n.min(pipeline.train.folds.max(2));
+    let fold_of = |i: usize| super::choice::fold_of(i, n, folds);
+    let scored: Vec<Vec<(usize, HeldOut)>> = (0..folds)
         .into_par_iter()
-        .map(|i| {
-            let others: Vec<RunTable> = tables
-                .iter()
-                .enumerate()
-                .filter(|(k, _)| *k != i)
-                .map(|(_, t)| t.clone())
+        .map(|f| {
+            let others: Vec<RunTable> = (0..n)
+                .filter(|&k| fold_of(k) != f)
+                .map(|k| tables[k].clone())
                 .collect();
+            let held: Vec<usize> = (0..n).filter(|&k| fold_of(k) == f).collect();
+            let names = held
+                .iter()
+                .map(|&k| tables[k].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ");
             let fitted = family.fit(&FitData {
                 tables: &others,
                 pipeline: &fold,
@@ -62,15 +72,21 @@ pub fn leave_one_run_out(
                 epochs: None,
             })?;
             let bug = |what: String| IdentifyError::Data {
-                what: format!("leave-one-run-out fold without {}: {what}", tables[i].name),
+                what: format!("leave-one-run-out fold without {names}: {what}"),
                 hint: "report this as a bug".into(),
             };
             let file = fitted.model.map_err(|e| bug(e.to_string()))?;
             let model =
                 Model::named(file, "leave-one-run-out model").map_err(|e| bug(e.to_string()))?;
-            Ok(held_out_score(&model, &tables[i], fold.train.decimate))
+            Ok(held
+                .iter()
+                .map(|&k| (k, held_out_score(&model, &tables[k], fold.train.decimate)))
+                .collect())
         })
-        .collect()
+        .collect::<Result<_, IdentifyError>>()?;
+    let mut all: Vec<(usize, HeldOut)> = scored.into_iter().flatten().collect();
+    all.sort_by_key(|(k, _)| *k);
+    Ok(all.into_iter().map(|(_, h)| h).collect())
 }
 
 /// A model scored on a run it was not trained on: RMSE of the model (creep region, clamping and
