@@ -8,7 +8,9 @@
 #
 #   scripts/same-outputs.sh OLD_BIN OLD_REPO NEW_BIN NEW_REPO [WORK_DIR]
 #
-# Exit code 0 when every compared file is the same.
+# Exit code 0 when every compared file is the same. The study plan names its models by
+# `train.model`; a binary from before the study's model axis (which took `family`) refuses it:
+# compare those with the copy of this script from their own commit.
 set -euo pipefail
 old_bin=$1 old_repo=$2 new_bin=$3 new_repo=$4
 work=${5:-$(mktemp -d)}
@@ -23,7 +25,7 @@ eval_points = 256
 
 [[grid]]
 label = "Polach"
-family = ["polach", "polach_kt"]
+train.model = ["polach_pooled", "polach_kt"]
 
 [[grid]]
 label = "LM"

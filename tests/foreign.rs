@@ -781,7 +781,7 @@ fn the_model_choice_and_the_residual_network_hold_on_the_table_law() {
 /// What [`run_and_score`] found for one model.
 struct BandScores {
     /// Replay bias per band of [`railgrip::score::SPEED_BANDS_KMH`], pooled over the runs
-    /// (sample-weighted; 0 for an empty band).
+    /// (sample-weighted; every band holds samples).
     replay: Vec<f64>,
     /// Curve bias per initial speed (km/h), pooled over that speed's runs (cell-weighted).
     curve: Vec<(i64, f64)>,
@@ -800,8 +800,9 @@ struct CampaignScores {
 }
 
 /// Simulates the scenes whose paths start with `prefix` (a folder and a file-name prefix:
-/// `folder/` for all of the folder, `folder/table_` for some) at noise `seed`, runs `railgrip run` with its defaults on them, and scores the
-/// campaign's models against each scene's true law in the replay and curve views.
+/// `folder/` for all of the folder, `folder/table_` for some) at noise `seed`, runs `railgrip
+/// run` with its defaults on them, and scores the campaign's models against each scene's true
+/// law in the replay and curve views. Every speed band must hold samples of every model.
 fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
     use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
     let (folder, start) = prefix.rsplit_once('/').unwrap();
@@ -882,8 +883,12 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
             e.0 += c.stats.bias * c.stats.n as f64;
             e.1 += c.stats.n;
         }
+        assert!(
+            sums.iter().all(|(_, n)| *n > 0),
+            "{prefix} seed {seed} {name}: a speed band without scored samples {sums:?}"
+        );
         let s = BandScores {
-            replay: sums.iter().map(|(s, n)| s / (*n).max(1) as f64).collect(),
+            replay: sums.iter().map(|(s, n)| s / *n as f64).collect(),
             curve: curves
                 .iter()
                 .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))

@@ -2553,3 +2553,44 @@ fn leave_one_run_out_holds_out_folds_of_runs_beyond_train_folds() {
         }
     }
 }
+
+/// A fitted residual network's support is counted per (Δv, dΔv/dt) cell over all speeds: its
+/// law carries the speed, so a slip and slip rate seen at any speed is supported at all of
+/// them (bundled soap runs, inputs Δv, dΔv/dt, v; 16 × 16 × 8 cells).
+#[test]
+fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
+    use railgrip::identify::family::{FitData, ModelFamily, Residual};
+    let tables = common::bundled_tables(|n| n.starts_with("soap_"));
+    let mut p = Pipeline::default_uic_z1();
+    p.train.epochs = 30;
+    p.train.inputs = InputSet::DvDdvV;
+    p.train.support_cells = vec![16, 16, 8];
+    let fitted = Residual
+        .fit(&FitData {
+            tables: &tables,
+            pipeline: &p,
+            provenance: Provenance {
+                inputs: vec![],
+                pipeline: String::new(),
+                pipeline_sha256: String::new(),
+                seed: 1,
+                crate_version: String::new(),
+                created: String::new(),
+                generation: None,
+            },
+            fallback: None,
+            epochs: None,
+        })
+        .unwrap();
+    let file = fitted.model.unwrap();
+    assert!(file.base.is_some());
+    let s = file.support.as_ref().unwrap();
+    assert_eq!(s.cells, vec![16, 16, 8]);
+    let mut seen = 0;
+    for column in s.counts.chunks(8) {
+        assert!(column.iter().all(|&c| c == column[0]), "{column:?}");
+        seen += usize::from(column[0] >= s.min_samples);
+    }
+    // The slips seen are supported at every speed, including the speed cells no run reached.
+    assert!(seen > 20, "{seen} supported (Δv, dΔv/dt) cells");
+}

@@ -373,9 +373,11 @@ pub fn replay(
     let counts = support(samples, grid)?;
     let mut errors = Vec::new();
     for s in samples {
-        if !cells_of(grid, s)
-            .iter()
-            .any(|k| counts.get(k).is_some_and(|n| *n >= grid.min_samples))
+        // Samples outside every band, or in no supported cell, are not scored (nor predicted).
+        if band_of(edges_kmh, s.v_mps * 3.6).is_none()
+            || !cells_of(grid, s)
+                .iter()
+                .any(|k| counts.get(k).is_some_and(|n| *n >= grid.min_samples))
         {
             continue;
         }
@@ -404,10 +406,7 @@ pub fn replay(
 pub fn by_speed_band(edges_kmh: &[f64], errors: impl IntoIterator<Item = (f64, f64)>) -> Vec<Band> {
     let mut binned: Vec<Vec<f64>> = vec![Vec::new(); edges_kmh.len().saturating_sub(1)];
     for (v_kmh, e) in errors {
-        if let Some(b) = edges_kmh
-            .windows(2)
-            .position(|w| v_kmh >= w[0] && v_kmh < w[1])
-        {
+        if let Some(b) = band_of(edges_kmh, v_kmh) {
             binned[b].push(e);
         }
     }
@@ -421,6 +420,13 @@ pub fn by_speed_band(edges_kmh: &[f64], errors: impl IntoIterator<Item = (f64, f
             stats: Stats::of(e.iter().copied()),
         })
         .collect()
+}
+
+/// The band of `edges_kmh` (ascending) speed `v_kmh` falls in: [lo, hi), `None` outside.
+fn band_of(edges_kmh: &[f64], v_kmh: f64) -> Option<usize> {
+    edges_kmh
+        .windows(2)
+        .position(|w| v_kmh >= w[0] && v_kmh < w[1])
 }
 
 /// Samples per (axle, cell), the samples checked finite.

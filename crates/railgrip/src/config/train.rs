@@ -160,7 +160,8 @@ pub struct TrainConfig {
     pub support_min_samples: u64,
     /// The plausibility audit's ceiling: 0 ≤ μ ≤ this on every supported cell.
     pub audit_mu_max: f64,
-    /// Leave-one-run-out scores for the report (one more training per run).
+    /// Leave-one-run-out scores for the report (one more training per run; per fold of runs
+    /// beyond `folds` runs).
     pub leave_one_run_out: bool,
     /// Profile-likelihood intervals of the pooled and per-temperature Polach fits.
     pub polach_intervals: bool,

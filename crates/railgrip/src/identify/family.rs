@@ -1,10 +1,11 @@
 //! One seam for model families: every way railgrip identifies μ from estimates — the network
 //! (seed 002; Levenberg–Marquardt, or Adam/AdamW through burn for deeper ones), Polach's law
-//! (seed 004 eq. 1–2) and Polach's law with its temperature law (seed 004 eq. 3, Fig. 2) — is a
+//! (seed 004 eq. 1–2), Polach's law with its temperature and speed laws (seed 004 eq. 3, Fig. 2)
+//! and the residual network over that law — is a
 //! [`ModelFamily`]: fitted on run tables of one rail condition with a pipeline, it gives a model
 //! file, its shape and the fit's report. `railgrip run`, `railgrip train`, leave-one-run-out
 //! validation and `railgrip study` call families through this trait only; [`FAMILIES`] is the
-//! one list of the families a plan may name.
+//! one list of the models a study grid's `train.model` may name.
 
 use rayon::prelude::*;
 

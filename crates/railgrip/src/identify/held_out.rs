@@ -1,5 +1,6 @@
 //! How a model generalises across runs: a model scored on a run it was not trained on, and
-//! leave-one-run-out validation (one fit per run on all the others).
+//! leave-one-run-out validation (one fit per run on all the others; per fold of runs beyond
+//! `train.folds` runs).
 
 use rayon::prelude::*;
 

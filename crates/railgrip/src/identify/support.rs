@@ -241,7 +241,7 @@ pub fn audit(model: &Model, data: &[Sample], mu_max: f64) -> AuditSpec {
                         v += &format!(", {:.1} °C", x[3]);
                     }
                     failures.push(format!(
-                        "cell Δv {:.3} m/s, dΔv/dt {:.3} m/s²{v} ({} samples): μ = {mu:.4} outside [0, {mu_max}]",
+                        "cell Δv {:.3} m/s, dΔv/dt {:.3} m/s²{v} (support count {}): μ = {mu:.4} outside [0, {mu_max}]",
                         x[0], x[1], sup.counts[j]
                     ));
                 }

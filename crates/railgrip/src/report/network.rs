@@ -54,7 +54,7 @@ fn metrics(h: &mut String, m: &Model) {
 /// Each leave-one-run-out fold's score on its held-out run.
 fn leave_one_run_out(h: &mut String, i: &Inputs) {
     if !i.held_out.is_empty() {
-        h.push_str("<h3>Leave-one-run-out</h3>\n<p class=\"note\">Each row: a network trained (one start) on the other runs, scored against this run's own estimates (all axles) — generalisation across runs, which the axle split above cannot show.</p>\n<table><tr><th class=\"l\">held-out run</th><th>samples</th><th>RMSE μ</th></tr>\n");
+        h.push_str("<h3>Leave-one-run-out</h3>\n<p class=\"note\">Each row: a network trained (one start) on the other runs (beyond train.folds runs: on the runs of the other folds), scored against this run's own estimates (all axles) — generalisation across runs, which the axle split above cannot show.</p>\n<table><tr><th class=\"l\">held-out run</th><th>samples</th><th>RMSE μ</th></tr>\n");
         for r in &i.held_out {
             let _ = writeln!(
                 *h,

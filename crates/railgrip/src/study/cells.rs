@@ -42,7 +42,7 @@ pub(super) fn keyed<'a>(
         .enumerate()
         .map(|(index, spec)| {
             let text = format!(
-                "railgrip {}\nfamily {}\n{}\nruns\n{}held out {:?}\ncondition {}\ntiming points {}\n",
+                "railgrip {}\nmodel {}\n{}\nruns\n{}held out {:?}\ncondition {}\ntiming points {}\n",
                 env!("CARGO_PKG_VERSION"),
                 spec.family.name(),
                 spec.pipeline.text,

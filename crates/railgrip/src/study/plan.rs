@@ -3,8 +3,9 @@
 //! union of its grids, duplicates removed. A grid key is a pipeline key of `[filters]`,
 //! `[estimate]`, `[contact]` or `[train]` (written as in a pipeline file, e.g. `train.layers`);
 //! its value is a list of values, one cell each (a single non-list value is one cell).
-//! `train.model` is the model axis: each cell fits the one model it names ([`FAMILIES`]). Every cell is a complete pipeline checked by the pipeline's own rules, so a plan can
-//! vary nothing a pipeline could not say.
+//! `train.model` is the model axis: each cell fits the one model it names ([`FAMILIES`]).
+//! Every cell is a complete pipeline checked by the pipeline's own rules, so a plan can vary
+//! nothing a pipeline could not say.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -336,7 +337,7 @@ fn grid_cells(
         return Err(err(
             file,
             "the plan has no [[grid]]: nothing to study",
-            "add a [[grid]] with family = [\"mlp\"] and the keys to vary (docs/study.md)",
+            "add a [[grid]] with train.model = [\"mlp\"] and the keys to vary (docs/study.md)",
         ));
     }
     let mut cells: Vec<CellSpec> = Vec::new();
@@ -431,7 +432,7 @@ impl GridSpec {
                         file,
                         format!("{at}: unknown key {other}"),
                         format!(
-                            "a grid takes label, family and the pipeline sections {}",
+                            "a grid takes label and the pipeline sections {} (train.model: the model a cell fits)",
                             GRID_SECTIONS.join(", ")
                         ),
                     ))
