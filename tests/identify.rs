@@ -2499,13 +2499,30 @@ fn adam_through_burn_learns_a_foreign_law_deterministically() {
     }
 }
 
+/// `family` fitted on `tables` as `p` says, without a fallback.
+fn fit_family(
+    family: &dyn railgrip::identify::family::ModelFamily,
+    tables: &[RunTable],
+    p: &Pipeline,
+) -> railgrip::identify::family::Fitted {
+    family
+        .fit(&railgrip::identify::family::FitData {
+            tables,
+            pipeline: p,
+            provenance: polach_provenance(),
+            fallback: None,
+            epochs: None,
+        })
+        .unwrap()
+}
+
 /// Leave-one-run-out holds out one run at a time up to `train.folds` runs and K folds of runs
 /// beyond (run i in fold i mod K): each run's score is that of the model fitted without its
 /// fold, so the trainings grow with the folds, not with the runs. Checked against fits made
 /// here by hand on the bundled soap runs (7), with K = 3 and with the default 8.
 #[test]
 fn leave_one_run_out_holds_out_folds_of_runs_beyond_train_folds() {
-    use railgrip::identify::family::{FitData, ModelFamily, Network};
+    use railgrip::identify::family::Network;
     use railgrip::identify::{held_out_score, leave_one_run_out};
     let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     assert_eq!(tables.len(), 7);
@@ -2516,23 +2533,7 @@ fn leave_one_run_out_holds_out_folds_of_runs_beyond_train_folds() {
             .filter(|k| !held.contains(k))
             .map(|k| tables[k].clone())
             .collect();
-        let fitted = Network
-            .fit(&FitData {
-                tables: &others,
-                pipeline: p,
-                provenance: Provenance {
-                    inputs: vec![],
-                    pipeline: String::new(),
-                    pipeline_sha256: String::new(),
-                    seed: p.train.seed,
-                    crate_version: String::new(),
-                    created: String::new(),
-                    generation: None,
-                },
-                fallback: None,
-                epochs: None,
-            })
-            .unwrap();
+        let fitted = fit_family(&Network, &others, p);
         Model::new(fitted.model.unwrap()).unwrap()
     };
     for (folds, check) in [
@@ -2559,29 +2560,13 @@ fn leave_one_run_out_holds_out_folds_of_runs_beyond_train_folds() {
 /// them (bundled soap runs, inputs Δv, dΔv/dt, v; 16 × 16 × 8 cells).
 #[test]
 fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
-    use railgrip::identify::family::{FitData, ModelFamily, Residual};
+    use railgrip::identify::family::Residual;
     let tables = common::bundled_tables(|n| n.starts_with("soap_"));
     let mut p = Pipeline::default_uic_z1();
     p.train.epochs = 30;
     p.train.inputs = InputSet::DvDdvV;
     p.train.support_cells = vec![16, 16, 8];
-    let fitted = Residual
-        .fit(&FitData {
-            tables: &tables,
-            pipeline: &p,
-            provenance: Provenance {
-                inputs: vec![],
-                pipeline: String::new(),
-                pipeline_sha256: String::new(),
-                seed: 1,
-                crate_version: String::new(),
-                created: String::new(),
-                generation: None,
-            },
-            fallback: None,
-            epochs: None,
-        })
-        .unwrap();
+    let fitted = fit_family(&Residual, &tables, &p);
     let file = fitted.model.unwrap();
     assert!(file.base.is_some());
     let s = file.support.as_ref().unwrap();
