@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::contact::polach::{ContactPatch, PolachParams};
+use crate::simd::{atan_parts, exp_lanes, Select};
 
 /// One sample for the fit.
 #[derive(Debug, Clone, Copy)]
@@ -128,44 +129,67 @@ pub(super) fn law_params(x: &[f64; 5]) -> PolachParams {
 ///   (ε falls as μ_w rises), ∂μ_w/∂μ0 = g, ∂μ_w/∂A = μ0 (1 − e^(−Bw)),
 ///   ∂μ_w/∂B = −μ0 (1 − A) w e^(−Bw);
 ///   ∂f/∂k_A = (2μ_w/π) ε [(1 − x²)/(1 + x²)² + ρ/(1 + y²)], ∂f/∂ρ = (2μ_w/π) ε k_A/(1 + y²).
-/// The value is the contact library's `polach(…).fx_n / Q` (tested to 1e-14).
-#[inline]
+/// The value is the contact library's `polach(…).fx_n / Q` (tested to 1e-14). The fits
+/// evaluate it a block at a time ([`law_lanes`] through `LawBlock`); this one-sample form is
+/// the tests'.
+#[cfg(test)]
 pub(super) fn mu_and_gradient(x: &[f64; 5], s: &Sample) -> (f64, [f64; 5]) {
     let [mu0, a, b, k_a, rho] = *x;
-    let k_s = k_a * rho;
-    let e = (-b * s.dv).exp();
-    let g = (1.0 - a) * e + a;
-    let mu_w = mu0 * g;
-    let eps = s.cs / mu_w;
-    let (xa, ys) = (k_a * eps, k_s * eps);
-    let (dxa, dys) = (1.0 + xa * xa, 1.0 + ys * ys);
-    let inv_dxa = 1.0 / dxa;
-    let bracket = xa * inv_dxa + ys.atan();
-    let two_pi = 2.0 / std::f64::consts::PI;
-    let f = two_pi * mu_w * bracket;
-    let h1 = (1.0 - xa * xa) * (inv_dxa * inv_dxa);
-    let inv_dys = 1.0 / dys;
-    let df_dmuw = two_pi * (bracket - xa * h1 - ys * inv_dys);
-    let scale = two_pi * mu_w * eps;
+    law_lanes::<f64, true>(mu0, [a, b, k_a, rho], s.dv, s.cs)
+}
+
+/// The value of [`mu_and_gradient`] alone (the same operations, as the trial steps take it).
+#[cfg(test)]
+pub(super) fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
+    let [mu0, a, b, k_a, rho] = *x;
+    law_lanes::<f64, false>(mu0, [a, b, k_a, rho], s.dv, s.cs).0
+}
+
+/// atan's argument is held below this: atan(10¹⁸) = π/2 in f64, and [`atan_parts`] keeps its
+/// homogeneous polynomial finite (its denominator grows as the 13th power of the argument).
+const ATAN_ARGUMENT_MAX: f64 = 1e18;
+
+/// [`mu_and_gradient`] on every lane (with `GRAD` false the gradient is left zero): μ0 per
+/// lane (a speed law makes it vary by sample), (A, B, k_A, ρ) shared, slip `dv` (m/s) and
+/// the patch term `cs` per lane. e^(−Bw) is [`exp_lanes`] and atan y is [`atan_parts`]:
+/// every lane performs the same IEEE operations, so the plain f64 path and the vector paths
+/// give the same bits (tested).
+#[inline(always)]
+pub(super) fn law_lanes<V: Select, const GRAD: bool>(
+    mu0: V,
+    [a, b, k_a, rho]: [f64; 4],
+    dv: V,
+    cs: V,
+) -> (V, [V; 5]) {
+    let isa = mu0.isa();
+    let c = |x: f64| V::splat(isa, x);
+    let one = c(1.0);
+    let e = exp_lanes(c(-b).mul(dv));
+    let g = c(1.0 - a).fma(e, c(a));
+    let mu_w = mu0.mul(g);
+    let eps = cs.div(mu_w);
+    let xa = c(k_a).mul(eps);
+    let ys = c(k_a * rho).mul(eps);
+    let inv_dxa = one.div(xa.fma(xa, one));
+    let (off, num, den) = atan_parts(ys.min(c(ATAN_ARGUMENT_MAX)), one);
+    let bracket = xa.fma(inv_dxa, off.add(num.div(den)));
+    let two_pi = c(2.0 / std::f64::consts::PI);
+    let f = two_pi.mul(mu_w).mul(bracket);
+    if !GRAD {
+        return (f, [c(0.0); 5]);
+    }
+    let h1 = xa.fnma(xa, one).mul(inv_dxa.mul(inv_dxa));
+    let inv_dys = one.div(ys.fma(ys, one));
+    let df_dmuw = two_pi.mul(ys.fnma(inv_dys, xa.fnma(h1, bracket)));
+    let scale = two_pi.mul(mu_w).mul(eps);
     (
         f,
         [
-            df_dmuw * g,
-            df_dmuw * mu0 * (1.0 - e),
-            -df_dmuw * mu0 * (1.0 - a) * s.dv * e,
-            scale * (h1 + rho * inv_dys),
-            scale * k_a * inv_dys,
+            df_dmuw.mul(g),
+            df_dmuw.mul(mu0).mul(one.sub(e)),
+            df_dmuw.mul(mu0).mul(c(a - 1.0)).mul(dv).mul(e),
+            scale.mul(c(rho).fma(inv_dys, h1)),
+            scale.mul(c(k_a)).mul(inv_dys),
         ],
     )
-}
-
-/// The value of [`mu_and_gradient`] alone (the same operations; for trial steps).
-#[inline]
-pub(super) fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
-    let [mu0, a, b, k_a, rho] = *x;
-    let e = (-b * s.dv).exp();
-    let mu_w = mu0 * ((1.0 - a) * e + a);
-    let eps = s.cs / mu_w;
-    let (xa, ys) = (k_a * eps, k_a * rho * eps);
-    2.0 / std::f64::consts::PI * mu_w * (xa * (1.0 / (1.0 + xa * xa)) + ys.atan())
 }

@@ -19,6 +19,7 @@
 //! `train.temperature_degree` — fitted jointly over all samples and chosen by BIC
 //! ([`fit_temperature_forms`]).
 
+mod block;
 mod campaign;
 mod fit;
 mod law;

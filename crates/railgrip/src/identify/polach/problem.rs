@@ -3,10 +3,12 @@
 //! speed law linear in its coefficients (`railgrip_model::polach::SpeedSpec`), with the
 //! analytic Jacobian.
 
-use super::law::{mu_and_gradient, mu_only, to_natural, to_unconstrained, Sample, LOWER, UPPER};
+use super::block::{Gram, LawBlock, BLOCK};
+use super::law::{to_natural, to_unconstrained, Sample, LOWER, UPPER};
 use crate::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
 use crate::identify::IdentifyError;
 use crate::linalg::{cho_solve, cholesky, effective_samples};
+use crate::simd::Isa;
 
 /// Most coefficients per parameter of a temperature law (degree ≤ 5, the bound of
 /// `train.temperature_degree`).
@@ -89,6 +91,8 @@ pub(super) struct PolachProblem<'a> {
     pub(super) speed: Option<SpeedBasis>,
     /// Speed-law coefficients held at a value (profile likelihood of a coefficient).
     pub(super) speed_held: [Option<f64>; 3],
+    /// The lanes the law is evaluated on ([`LawBlock::eval`]).
+    isa: Isa,
 }
 
 /// Node values of the five parameters, and in row [`SPEED`] the speed law's coefficients.
@@ -127,6 +131,7 @@ impl<'a> PolachProblem<'a> {
             free,
             speed: None,
             speed_held: [None; 3],
+            isa: Isa::detect(),
         }
     }
 
@@ -218,19 +223,19 @@ impl<'a> PolachProblem<'a> {
         (x, clamped)
     }
 
+    /// The SSE at node values `v`.
     pub(super) fn sse_nodes(&self, v: &Nodes) -> f64 {
         let mut sse = 0.0;
+        let mut blk = LawBlock::new();
         for g in &self.groups {
             let (x, _) = self.at_group(g, v);
-            for s in &self.samples[g.range.clone()] {
-                let r = if self.speed.is_some() {
-                    let mut xs = x;
-                    xs[0] *= self.speed_factor(v, s).0;
-                    mu_only(&xs, s) - s.mu
-                } else {
-                    mu_only(&x, s) - s.mu
-                };
-                sse += r * r;
+            for chunk in self.samples[g.range.clone()].chunks(BLOCK) {
+                blk.load(chunk, |s| x[0] * self.speed_factor(v, s).0);
+                blk.eval(self.isa, [x[1], x[2], x[3], x[4]], false);
+                for (s, f) in chunk.iter().zip(&blk.f) {
+                    let r = f - s.mu;
+                    sse += r * r;
+                }
             }
         }
         sse
@@ -247,8 +252,7 @@ impl<'a> PolachProblem<'a> {
     ) -> NormalEquations {
         let (v, d) = self.nodes(theta);
         let k = self.free.len();
-        let mut jtj = vec![0.0; k * k];
-        let mut jtr = vec![0.0; k];
+        let mut gram = Gram::new(k);
         let mut sse = 0.0;
         // Per coordinate: its parameter and d(parameter)/d(coordinate) at the group.
         let mut row = [0.0; MAX_COORDS];
@@ -257,6 +261,7 @@ impl<'a> PolachProblem<'a> {
         for (c, co) in self.free.iter().enumerate() {
             ps[c] = co.param;
         }
+        let mut blk = LawBlock::new();
         for g in &self.groups {
             let (x, clamped) = self.at_group(g, &v);
             for (c, co) in self.free.iter().enumerate() {
@@ -271,53 +276,42 @@ impl<'a> PolachProblem<'a> {
             }
             // With k_S held, k_A also moves ρ = k_S/k_A: dρ/dk_A = −k_S/k_A².
             let drho = self.ks_fixed.map(|ks| -ks / (x[3] * x[3]));
-            for s in &self.samples[g.range.clone()] {
-                // With a speed law μ0_eff = μ0 g(v): dμ/dμ0 = g ∂μ/∂μ0_eff and
-                // dμ/dc_j = μ0 φ_j ∂μ/∂μ0_eff (φ_j = 0 where g sits at its floor).
-                let (gv, phi, held) = self.speed_factor(&v, s);
-                let (f, mut grad) = if self.speed.is_some() {
-                    let mut xs = x;
-                    xs[0] *= gv;
-                    mu_and_gradient(&xs, s)
-                } else {
-                    mu_and_gradient(&x, s)
-                };
-                if let Some(dr) = drho {
-                    grad[3] += grad[4] * dr;
-                }
-                let r = f - s.mu;
-                sse += r * r;
-                if let Some(out) = residuals.as_deref_mut() {
-                    out.push(r);
-                }
-                if self.speed.is_some() {
-                    let dmu0 = grad[0];
-                    for (c, co) in self.free.iter().enumerate() {
-                        row[c] = match co.param {
-                            SPEED if held => 0.0,
-                            SPEED => dmu0 * x[0] * phi[co.node],
-                            0 => dmu0 * gv * m[c],
-                            p => grad[p] * m[c],
-                        };
+            for chunk in self.samples[g.range.clone()].chunks(BLOCK) {
+                blk.load(chunk, |s| x[0] * self.speed_factor(&v, s).0);
+                blk.eval(self.isa, [x[1], x[2], x[3], x[4]], true);
+                for (i, s) in chunk.iter().enumerate() {
+                    // With a speed law μ0_eff = μ0 g(v): dμ/dμ0 = g ∂μ/∂μ0_eff and
+                    // dμ/dc_j = μ0 φ_j ∂μ/∂μ0_eff (φ_j = 0 where g sits at its floor).
+                    let mut grad: [f64; 5] = std::array::from_fn(|p| blk.grad[p][i]);
+                    if let Some(dr) = drho {
+                        grad[3] += grad[4] * dr;
                     }
-                } else {
-                    for c in 0..k {
-                        row[c] = grad[ps[c]] * m[c];
+                    let r = blk.f[i] - s.mu;
+                    sse += r * r;
+                    if let Some(out) = residuals.as_deref_mut() {
+                        out.push(r);
                     }
-                }
-                for a in 0..k {
-                    jtr[a] += row[a] * r;
-                    for b in 0..=a {
-                        jtj[a * k + b] += row[a] * row[b];
+                    if self.speed.is_some() {
+                        let (gv, phi, held) = self.speed_factor(&v, s);
+                        let dmu0 = grad[0];
+                        for (c, co) in self.free.iter().enumerate() {
+                            row[c] = match co.param {
+                                SPEED if held => 0.0,
+                                SPEED => dmu0 * x[0] * phi[co.node],
+                                0 => dmu0 * gv * m[c],
+                                p => grad[p] * m[c],
+                            };
+                        }
+                    } else {
+                        for c in 0..k {
+                            row[c] = grad[ps[c]] * m[c];
+                        }
                     }
+                    gram.push(&row, r);
                 }
             }
         }
-        for a in 0..k {
-            for b in 0..a {
-                jtj[b * k + a] = jtj[a * k + b];
-            }
-        }
+        let (jtj, jtr) = gram.finish();
         NormalEquations { jtj, jtr, sse }
     }
 

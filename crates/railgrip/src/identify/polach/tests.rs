@@ -162,3 +162,50 @@ fn lagrange_nodes_expand_to_the_polynomial_through_them() {
     }
     assert_eq!(poly_mul(&[1.0, 2.0], &[3.0, 0.5]), vec![3.0, 6.5, 1.0]);
 }
+
+/// The block evaluation gives every sample the bits of the one-sample law, on every lane
+/// width this CPU has (vector lanes and the f64 tail alike), with and without the gradient.
+#[test]
+fn the_law_on_vector_lanes_has_the_one_sample_laws_bits() {
+    use super::block::{LawBlock, BLOCK};
+    let p = patch();
+    let mut rng = crate::rng::Rng::new(11);
+    // 61 samples: whole vectors and a tail; slips from creep to 8 m/s.
+    let samples: Vec<Sample> = (0..61)
+        .map(|i| Sample {
+            q_n: 80_000.0,
+            v: 1.0 + 80.0 * rng.uniform(),
+            dv: if i == 0 {
+                1e-6
+            } else {
+                8.0 * rng.uniform() + 1e-4
+            },
+            mu: 0.0,
+            cs: f64::NAN,
+        })
+        .collect();
+    let samples = with_patch(samples, &p);
+    assert!(samples.len() < BLOCK);
+    for x in [
+        [0.3, 0.4, 0.6, 0.3, 0.5],
+        [0.05, 0.9, 40.0, 1.0, 1e-4],
+        [1.2, 0.01, 0.001, 1e-3, 1.0],
+    ] {
+        for isa in crate::simd::Isa::all_available() {
+            for grad in [false, true] {
+                let mut blk = LawBlock::new();
+                blk.load(&samples, |_| x[0]);
+                blk.eval(isa, [x[1], x[2], x[3], x[4]], grad);
+                for (i, s) in samples.iter().enumerate() {
+                    let (f, g) = mu_and_gradient(&x, s);
+                    assert_eq!(blk.f[i].to_bits(), f.to_bits(), "{isa:?} sample {i}");
+                    if grad {
+                        for (k, gk) in g.iter().enumerate() {
+                            assert_eq!(blk.grad[k][i].to_bits(), gk.to_bits(), "{isa:?} {i} {k}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
