@@ -2499,11 +2499,20 @@ fn adam_through_burn_learns_a_foreign_law_deterministically() {
     }
 }
 
-/// `family` fitted on `tables` as `p` says, without a fallback.
+/// `family` fitted on `tables` as `p` says, without a fallback, audited.
 fn fit_family(
     family: &dyn railgrip::identify::family::ModelFamily,
     tables: &[RunTable],
     p: &Pipeline,
+) -> railgrip::identify::family::Fitted {
+    fit_family_audited(family, tables, p, true)
+}
+
+fn fit_family_audited(
+    family: &dyn railgrip::identify::family::ModelFamily,
+    tables: &[RunTable],
+    p: &Pipeline,
+    audit: bool,
 ) -> railgrip::identify::family::Fitted {
     family
         .fit(&railgrip::identify::family::FitData {
@@ -2512,8 +2521,35 @@ fn fit_family(
             provenance: polach_provenance(),
             fallback: None,
             epochs: None,
+            audit,
         })
         .unwrap()
+}
+
+/// A fit that is only scored on held-out runs skips the plausibility audit and nothing else:
+/// its file is the audited fit's without the audit (network and residual network).
+#[test]
+fn a_fit_without_the_audit_differs_only_by_the_audit() {
+    use railgrip::identify::family::{ModelFamily, Network, Residual};
+    let tables = common::bundled_tables(|n| n.starts_with("soap_"));
+    let mut p = Pipeline::default_uic_z1();
+    p.train.epochs = 10;
+    let families: [&dyn ModelFamily; 2] = [&Network, &Residual];
+    for family in families {
+        let audited = fit_family_audited(family, &tables, &p, true).model.unwrap();
+        let mut lean = fit_family_audited(family, &tables, &p, false)
+            .model
+            .unwrap();
+        assert!(audited.audit.is_some(), "{}", family.name());
+        assert!(lean.audit.is_none(), "{}", family.name());
+        lean.audit.clone_from(&audited.audit);
+        assert_eq!(
+            serde_json::to_string(&lean).unwrap(),
+            serde_json::to_string(&audited).unwrap(),
+            "{}",
+            family.name()
+        );
+    }
 }
 
 /// Leave-one-run-out holds out one run at a time up to `train.folds` runs and K folds of runs

@@ -74,6 +74,7 @@ pub fn train_models(
         provenance,
         fallback: None,
         epochs: progress,
+        audit: true,
     })?;
     Ok(CampaignModels {
         condition: choice.condition,

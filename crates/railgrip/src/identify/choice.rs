@@ -268,6 +268,7 @@ fn fold(
                 provenance: provenance.clone(),
                 fallback,
                 epochs: None,
+                audit: false,
             })
             .map_err(|e| e.to_string())?;
         let file: ModelFile = fitted.model.map_err(|e| e.to_string())?;

@@ -3,7 +3,7 @@
 
 use super::mlp::Arch;
 use super::polach::{PolachFit, TemperatureFit};
-use super::support::{audit, support_spec};
+use super::support::{self, support_spec};
 use super::{IdentifyError, TrainedMlp};
 use crate::contact::polach::ContactPatch;
 use crate::model::polach::{PatchSpec, PolachSpec, TEMPERATURE_INPUT};
@@ -50,7 +50,7 @@ pub fn mlp_file(
     provenance: Provenance,
     polach: Option<&Model>,
 ) -> Result<ModelFile, IdentifyError> {
-    network_file(t, creep, provenance, polach, None)
+    network_file(t, creep, provenance, polach, None, true)
 }
 
 /// Builds the file of a residual (grey-box) network: `t` trained on μ − μ_P, `base` the law
@@ -63,15 +63,17 @@ pub fn residual_file(
     provenance: Provenance,
     base: PolachSpec,
 ) -> Result<ModelFile, IdentifyError> {
-    network_file(t, creep, provenance, None, Some(base))
+    network_file(t, creep, provenance, None, Some(base), true)
 }
 
-fn network_file(
+/// [`mlp_file`] (`base` none) or [`residual_file`], the audit only when `audit`.
+pub(crate) fn network_file(
     t: &TrainedMlp,
     creep: CreepSpec,
     provenance: Provenance,
     polach: Option<&Model>,
     base: Option<PolachSpec>,
+    audit: bool,
 ) -> Result<ModelFile, IdentifyError> {
     let inputs = t
         .inputs
@@ -150,8 +152,10 @@ fn network_file(
     };
     file.support = Some(support_spec(&file, &t.occupancy, polach, &members).map_err(model_error)?);
     file.check().map_err(invalid)?;
-    let model = Model::named(file.clone(), "trained network").map_err(model_error)?;
-    file.audit = Some(audit(&model, &t.data, t.audit_mu_max));
+    if audit {
+        let model = Model::named(file.clone(), "trained network").map_err(model_error)?;
+        file.audit = Some(support::audit(&model, &t.data, t.audit_mu_max));
+    }
     Ok(file)
 }
 

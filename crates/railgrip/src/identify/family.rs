@@ -38,6 +38,10 @@ pub struct FitData<'a> {
     pub fallback: Option<&'a Model>,
     /// Sees every epoch of an iterative training.
     pub epochs: Option<&'a dyn for<'e> Progress<&'e Epoch>>,
+    /// Run the network's plausibility audit into its file (docs/model-files.md); off for
+    /// fits that are only scored on held-out runs and then dropped (the model choice's
+    /// folds, leave-one-run-out), where it would cost about a tenth of the training.
+    pub audit: bool,
 }
 
 /// What a fitted model looks like, for tables and reports.
@@ -162,7 +166,8 @@ impl ModelFamily for Network {
         let mut t = train_mlp(d.tables, &d.pipeline.train, d.epochs)?;
         t.reference_speed_mps = median_speed(d.tables);
         let creep = creep_spec(d.pipeline, t.reference_speed_mps)?;
-        let file = export::mlp_file(&t, creep, d.provenance.clone(), d.fallback)?;
+        let file =
+            export::network_file(&t, creep, d.provenance.clone(), d.fallback, None, d.audit)?;
         Ok(Fitted {
             model: Ok(file),
             shape: Shape {
@@ -414,14 +419,17 @@ impl ModelFamily for Residual {
         t.occupancy = projected_onto_slip(&t.occupancy);
         t.reference_speed_mps = median_speed(d.tables);
         // The audit compares the whole model with μ, not with the residual.
-        t.data = audit_samples(d.tables, &d.pipeline.train)?;
+        if d.audit {
+            t.data = audit_samples(d.tables, &d.pipeline.train)?;
+        }
         let creep = creep_spec(d.pipeline, t.reference_speed_mps)?;
         let spec = base
             .file
             .polach
             .clone()
             .ok_or_else(|| wrong_report("residual network's law"))?;
-        let file = export::residual_file(&t, creep, d.provenance.clone(), spec)?;
+        let file =
+            export::network_file(&t, creep, d.provenance.clone(), None, Some(spec), d.audit)?;
         Ok(Fitted {
             model: Ok(file),
             shape: Shape {
@@ -611,6 +619,7 @@ fn fit_on_all_runs(
                 provenance: data.provenance.clone(),
                 fallback,
                 epochs: data.epochs,
+                audit: data.audit,
             })
         },
         || {
@@ -623,6 +632,7 @@ fn fit_on_all_runs(
                         provenance: data.provenance.clone(),
                         fallback,
                         epochs: None,
+                        audit: data.audit,
                     }) {
                         Ok(f) => (f.shape, f.model.map_err(|e| e.to_string()), f.notes),
                         Err(e) => (Shape::default(), Err(e.to_string()), vec![]),

@@ -71,6 +71,7 @@ pub fn leave_one_run_out(
                 provenance: provenance.clone(),
                 fallback: None,
                 epochs: None,
+                audit: false,
             })?;
             let bug = |what: String| IdentifyError::Data {
                 what: format!("leave-one-run-out fold without {names}: {what}"),

@@ -217,6 +217,7 @@ fn fit(spec: &CellSpec, train: &[RunTable], r: &mut CellResult) -> Result<ModelF
             provenance,
             fallback: None,
             epochs: None,
+            audit: true,
         })
         .map_err(|e| e.to_string())?;
     let file = fitted.model.map_err(|e| e.to_string())?;
