@@ -1182,6 +1182,14 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
         report.contains("Campaign model") && report.contains(chosen),
         "report"
     );
+    // The bundled campaign's Polach law has a speed law: the report draws μ0 × g(v).
+    let polach: serde_json::Value =
+        serde_json::from_slice(&one[Path::new("models/mlp.polach.json")]).unwrap();
+    assert!(polach["polach"]["speed"].is_object(), "no speed law");
+    assert!(
+        report.contains("Speed law of the level"),
+        "no speed-law chart"
+    );
     // A named model: the Polach model, no other candidates, no scores.
     let pipeline = dir.path().join("polach.toml");
     let text_p =

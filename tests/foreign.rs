@@ -135,7 +135,11 @@ fn foreign_scenes_cover_the_plane_and_their_truth_follows_their_law() {
 /// truth samples, the axles of each run numbered apart (as `railgrip score` pools scenes: a
 /// cell's support counts one run's axle).
 fn campaign(scenes: &[Scene], dir: &Path) -> (Vec<RunTable>, Vec<Sample>) {
-    let p = Pipeline::default_uic_z1();
+    campaign_with(scenes, dir, &Pipeline::default_uic_z1())
+}
+
+/// [`campaign`] with the estimates of pipeline `p`.
+fn campaign_with(scenes: &[Scene], dir: &Path, p: &Pipeline) -> (Vec<RunTable>, Vec<Sample>) {
     let (mut tables, mut truth) = (Vec::new(), Vec::new());
     for (r, sc) in scenes.iter().enumerate() {
         let out = sim::simulate(sc, None).unwrap();
@@ -151,8 +155,8 @@ fn campaign(scenes: &[Scene], dir: &Path) -> (Vec<RunTable>, Vec<Sample>) {
                 }),
         );
         let path = dir.join(format!("{}.csv", sc.name));
-        let log = railgrip::ingest_file(&path, &p).unwrap();
-        let e = railgrip::estimate::estimate(&log, &p).unwrap();
+        let log = railgrip::ingest_file(&path, p).unwrap();
+        let e = railgrip::estimate::estimate(&log, p).unwrap();
         tables.push(RunTable::from_estimates(&sc.name, &sc.name, "", &e));
     }
     (tables, truth)
@@ -1005,5 +1009,104 @@ fn the_default_network_holds_against_numpy_trainlm_on_the_same_samples() {
                 "railgrip {ours:?} against numpy {peer:?}"
             );
         }
+    }
+}
+
+/// The residual network (the top-speed campaign's chosen model) trained once on the runs'
+/// estimates and once on their truth (true Δv, dΔv/dt, v → true μ, the same pipeline): its
+/// curve bias per initial speed and its hysteresis ratio per run, to tell what the estimates
+/// cost from what the network and its training cost:
+///     cargo test --release --test foreign residual_network_on_the_truth -- --ignored --nocapture
+#[test]
+#[ignore = "a measurement"]
+fn measure_the_residual_network_on_the_truth_at_the_top_speeds() {
+    use railgrip::identify::family::{FitData, ModelFamily, Residual};
+    use railgrip::score::curve;
+    let dir = tempfile::tempdir().unwrap();
+    let scenes: Vec<Scene> = scene_files("pipelines/scenes/top_speed")
+        .iter()
+        .map(|p| Scene::load(p).unwrap())
+        .collect();
+    // MEASURE_TACHO_HZ: the tachometers' and pressures' low-pass cut-off of the estimates.
+    let mut conditioning = Pipeline::default_uic_z1();
+    if let Ok(hz) = std::env::var("MEASURE_TACHO_HZ") {
+        conditioning.filters.tacho_cutoff_hz = hz.parse().unwrap();
+        conditioning.filters.pressure_cutoff_hz = conditioning.filters.tacho_cutoff_hz;
+    }
+    let (mut estimated, truth) = campaign_with(&scenes, dir.path(), &conditioning);
+    for (t, sc) in estimated.iter_mut().zip(&scenes) {
+        t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
+    }
+    let mut from_truth = Vec::new();
+    for (r, sc) in scenes.iter().enumerate() {
+        let mut t = RunTable {
+            name: sc.name.clone(),
+            source: sc.name.clone(),
+            ..RunTable::default()
+        };
+        t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
+        for x in truth.iter().filter(|x| (x.axle as usize - 1) / 4 == r) {
+            if x.dv_mps.abs() < 0.01 {
+                continue;
+            }
+            t.axle.push((x.axle - 1) % 4 + 1);
+            t.time_s.push(0.0);
+            t.v_mps.push(x.v_mps);
+            t.dv_mps.push(x.dv_mps);
+            t.ddv_mps2.push(x.ddv_mps2);
+            t.mu.push(x.mu);
+        }
+        from_truth.push(t);
+    }
+    let mut p = Pipeline::default_uic_z1();
+    p.train.inputs = InputSet::DvDdvV;
+    p.train.support_cells = railgrip::config::default_support_cells(3);
+    for (what, tables) in [("estimates", &estimated), ("truth", &from_truth)] {
+        let fitted = Residual
+            .fit(&FitData {
+                tables,
+                pipeline: &p,
+                provenance: provenance(1),
+                fallback: None,
+                epochs: None,
+                audit: false,
+            })
+            .unwrap();
+        let model = Model::new(fitted.model.unwrap()).unwrap();
+        let mut rows = Vec::new();
+        for (r, sc) in scenes.iter().enumerate() {
+            let t: Vec<Sample> = truth
+                .iter()
+                .filter(|x| (x.axle as usize - 1) / 4 == r)
+                .map(|x| Sample {
+                    axle: (x.axle - 1) % 4 + 1,
+                    ..*x
+                })
+                .collect();
+            let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
+            let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
+            let c = curve(
+                &t,
+                &Grid::default(),
+                v0 / 3.6,
+                t_c,
+                |dv, q, v, tc| model.mu_vt(dv, q, v, tc),
+                |dv, q, v, _| law.mu(dv, q, v),
+            )
+            .unwrap();
+            rows.push(format!(
+                "{} bias {:+.4} rmse {:.4} hysteresis {:?}",
+                sc.name,
+                c.stats.bias,
+                c.stats.rmse,
+                c.hysteresis_ratio(0.002)
+                    .map(|x| (x * 100.0).round() / 100.0)
+            ));
+        }
+        eprintln!(
+            "residual trained on the {what} ({} epochs):\n  {}",
+            fitted.shape.epochs,
+            rows.join("\n  ")
+        );
     }
 }

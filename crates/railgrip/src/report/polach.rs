@@ -18,6 +18,7 @@ pub(super) fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Resul
     fit_curves(h, i, f)?;
     profiles(h, f)?;
     law_chart(h, f)?;
+    speed_chart(h, f)?;
     h.push_str("</div>\n");
     forms_table(h, f);
     Ok(())
@@ -248,6 +249,63 @@ fn law_chart(h: &mut String, f: &PolachReport) -> Result<(), ReportError> {
             false,
         )?);
     }
+    Ok(())
+}
+
+/// The level's speed law when the chosen form has one: μ0(T) × g(v) over the fitted speeds at
+/// the lowest, the reference and the highest fitted temperature (one line without a
+/// temperature law), g(v_ref) = 1 marked.
+fn speed_chart(h: &mut String, f: &PolachReport) -> Result<(), ReportError> {
+    let Some(t) = &f.temperature else {
+        return Ok(());
+    };
+    let Some(law) = &t.speed else {
+        return Ok(());
+    };
+    let (v0, v1) = law.fitted_range_mps;
+    let grid: Vec<f64> = (0..=100)
+        .map(|k| v0 + (v1 - v0) * k as f64 / 100.0)
+        .collect();
+    let (lo, hi) = t.fitted_range_c;
+    let temps: Vec<f64> = if t.mu0.len() > 1 {
+        vec![lo, t.reference_temperature_c, hi]
+    } else {
+        vec![t.reference_temperature_c]
+    };
+    let mut series: Vec<Series> = temps
+        .iter()
+        .enumerate()
+        .map(|(k, &tc)| {
+            let mu0 = horner(&t.mu0, tc);
+            Series {
+                name: if temps.len() > 1 {
+                    format!("μ0 g(v) at {tc:.1} °C")
+                } else {
+                    "μ0 g(v)".into()
+                },
+                color: PALETTE[k % PALETTE.len()],
+                pts: grid
+                    .iter()
+                    .map(|&v| (v * 3.6, mu0 * law.factor(v)))
+                    .collect(),
+                dots: false,
+            }
+        })
+        .collect();
+    let v_ref = law.reference_speed_mps;
+    series.push(Series {
+        name: format!("reference speed {:.0} km/h (g = 1)", v_ref * 3.6),
+        color: RGBColor(60, 60, 60),
+        pts: vec![(v_ref * 3.6, horner(&t.mu0, t.reference_temperature_c))],
+        dots: true,
+    });
+    h.push_str(&chart(
+        &format!("Speed law of the level: {}", t.form()),
+        "speed (km/h)",
+        "μ0 (–)",
+        &series,
+        false,
+    )?);
     Ok(())
 }
 

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# `railgrip run` on the bundled archive, this checkout against an earlier commit, in the same
+# session: both release binaries run in turn (A B A B ...), estimates reused (the training
+# stage and the report dominate), and the median wall and CPU seconds of each with the
+# pair-by-pair ratio. Prints the CPU it ran on.
+#
+#   scripts/vs-commit.sh COMMIT [RUNS]      # RUNS pairs, default 5
+#
+# COMMIT is built in a git worktree with a target directory of its own (target/vs-<commit>:
+# the first call compiles every dependency there; later calls reuse it). Needs GNU time
+# (/usr/bin/time) and python3.
+set -euo pipefail
+base=${1:?usage: scripts/vs-commit.sh COMMIT [RUNS]}
+runs=${2:-5}
+root=$(git rev-parse --show-toplevel)
+cd "$root"
+short=$(git rev-parse --short "$base")
+tree="$root/target/vs-$short-tree"
+[ -d "$tree" ] || git worktree add --detach "$tree" "$base" >/dev/null
+echo "building $short (worktree $tree) and this checkout, release" >&2
+(cd "$tree" && CARGO_TARGET_DIR="$root/target/vs-$short" cargo build --release -q)
+cargo build --release -q
+old="$root/target/vs-$short/release/railgrip"
+new="$root/target/release/railgrip"
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# One warm-up each (writes the estimates both then reuse).
+"$old" run --out "$work/old" >/dev/null 2>&1 || true
+"$new" run --out "$work/new" >/dev/null 2>&1 || true
+for i in $(seq "$runs"); do
+  /usr/bin/time -f "old %e %U %S" -a -o "$work/times" "$old" run --out "$work/old" >/dev/null 2>&1 || true
+  /usr/bin/time -f "new %e %U %S" -a -o "$work/times" "$new" run --out "$work/new" >/dev/null 2>&1 || true
+done
+grep -m1 "model name" /proc/cpuinfo | sed 's/.*: /cpu: /'
+echo "cores: $(nproc); vector width: $(grep -o -m1 'avx512f' /proc/cpuinfo || grep -o -m1 'avx2' /proc/cpuinfo || echo none)"
+python3 - "$work/times" "$short" <<'EOF'
+import statistics, sys
+rows = [l.split() for l in open(sys.argv[1]) if l.split() and l.split()[0] in ("old", "new")]
+old = [(float(r[1]), float(r[2]) + float(r[3])) for r in rows if r[0] == "old"]
+new = [(float(r[1]), float(r[2]) + float(r[3])) for r in rows if r[0] == "new"]
+med = statistics.median
+print(f"{sys.argv[2]}: wall {med(w for w, _ in old):.2f} s, cpu {med(c for _, c in old):.2f} s")
+print(f"this checkout: wall {med(w for w, _ in new):.2f} s, cpu {med(c for _, c in new):.2f} s")
+ratios = sorted(n[0] / o[0] for n, o in zip(new, old))
+print(f"wall ratio this/{sys.argv[2]}, pair by pair: median {med(ratios):.2f} (min {ratios[0]:.2f}, max {ratios[-1]:.2f}, {len(ratios)} pairs)")
+EOF
