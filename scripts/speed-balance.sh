@@ -10,7 +10,7 @@
 #
 # Families: the bundled Polach scenes (pipelines/scenes/*.toml but the multirate one), the foreign-law scenes
 # (pipelines/scenes/foreign/: loss_recovery `lr_*` and table `table_*`) and the top-speed
-# family (pipelines/scenes/top_speed/). Needs a release build and python3 with numpy.
+# family (pipelines/scenes/top_speed/). Needs bash 4, a release build and python3 with numpy.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/speed-balance}"
@@ -31,7 +31,10 @@ for fam in polach loss_recovery table top_speed; do
         "$bin" simulate "$s" --out "$out/$fam/logs" --seed "$seed" --format csv >/dev/null
     done
     for log in "$out/$fam/logs"/*.csv; do
-        "$bin" estimate "$log" --out "$out/$fam/est" --csv >/dev/null
+        # Exit 3: estimated, but some input was lost at ingest (still counted).
+        rc=0
+        "$bin" estimate "$log" --out "$out/$fam/est" --csv >/dev/null || rc=$?
+        [ "$rc" -eq 0 ] || [ "$rc" -eq 3 ] || { echo "estimate $log exited $rc" >&2; exit 1; }
     done
 done
 python3 - "$out" <<'EOF'

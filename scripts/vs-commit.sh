@@ -12,10 +12,12 @@
 set -euo pipefail
 base=${1:?usage: scripts/vs-commit.sh COMMIT [RUNS]}
 runs=${2:-5}
+[ "$runs" -ge 1 ] 2>/dev/null || { echo "RUNS must be a whole number >= 1" >&2; exit 2; }
 root=$(git rev-parse --show-toplevel)
 cd "$root"
 short=$(git rev-parse --short "$base")
 tree="$root/target/vs-$short-tree"
+git worktree prune
 [ -d "$tree" ] || git worktree add --detach "$tree" "$base" >/dev/null
 echo "building $short (worktree $tree) and this checkout, release" >&2
 (cd "$tree" && CARGO_TARGET_DIR="$root/target/vs-$short" cargo build --release -q)
@@ -24,14 +26,25 @@ old="$root/target/vs-$short/release/railgrip"
 new="$root/target/release/railgrip"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-# One warm-up each (writes the estimates both then reuse).
-"$old" run --out "$work/old" >/dev/null 2>&1 || true
-"$new" run --out "$work/new" >/dev/null 2>&1 || true
-for i in $(seq "$runs"); do
-  /usr/bin/time -f "old %e %U %S" -a -o "$work/times" "$old" run --out "$work/old" >/dev/null 2>&1 || true
-  /usr/bin/time -f "new %e %U %S" -a -o "$work/times" "$new" run --out "$work/new" >/dev/null 2>&1 || true
+# One run of BIN into OUT, timed into $work/times as LABEL; exit 0 or 3 (runs failed but
+# models written) is a run, anything else stops the script.
+timed() {
+  local label=$1 bin=$2 out=$3 rc=0
+  /usr/bin/time -f "$label %e %U %S" -a -o "$work/times" "$bin" run --out "$out" >/dev/null 2>"$work/err" || rc=$?
+  if [ "$rc" -ne 0 ] && [ "$rc" -ne 3 ]; then
+    echo "$label: railgrip run exited $rc:" >&2
+    cat "$work/err" >&2
+    exit 1
+  fi
+}
+# One warm-up each (writes the estimates both then reuse), not counted.
+timed warm "$old" "$work/old"
+timed warm "$new" "$work/new"
+for _ in $(seq "$runs"); do
+  timed old "$old" "$work/old"
+  timed new "$new" "$work/new"
 done
-grep -m1 "model name" /proc/cpuinfo | sed 's/.*: /cpu: /'
+grep -m1 "model name" /proc/cpuinfo | sed 's/.*: /cpu: /' || true
 echo "cores: $(nproc); vector width: $(grep -o -m1 'avx512f' /proc/cpuinfo || grep -o -m1 'avx2' /proc/cpuinfo || echo none)"
 python3 - "$work/times" "$short" <<'EOF'
 import statistics, sys

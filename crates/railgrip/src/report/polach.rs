@@ -302,7 +302,7 @@ fn speed_chart(h: &mut String, f: &PolachReport) -> Result<(), ReportError> {
     h.push_str(&chart(
         &format!("Speed law of the level: {}", t.form()),
         "speed (km/h)",
-        "μ0 (–)",
+        "μ0 g(v) (–)",
         &series,
         false,
     )?);

@@ -149,7 +149,8 @@ pub(super) fn mu_only(x: &[f64; 5], s: &Sample) -> f64 {
 /// homogeneous polynomial finite (its denominator grows as the 13th power of the argument).
 const ATAN_ARGUMENT_MAX: f64 = 1e18;
 
-/// [`mu_and_gradient`] on every lane (with `GRAD` false the gradient is left zero): μ0 per
+/// Polach's μ and its gradient (the formulas of `mu_and_gradient` above) on every lane (with
+/// `GRAD` false the gradient is left zero): μ0 per
 /// lane (a speed law makes it vary by sample), (A, B, k_A, ρ) shared, slip `dv` (m/s) and
 /// the patch term `cs` per lane. e^(−Bw) is [`exp_lanes`] and atan y is [`atan_parts`]:
 /// every lane performs the same IEEE operations, so the plain f64 path and the vector paths
@@ -162,21 +163,26 @@ pub(super) fn law_lanes<V: Select, const GRAD: bool>(
     cs: V,
 ) -> (V, [V; 5]) {
     let isa = mu0.isa();
-    let c = |x: f64| V::splat(isa, x);
-    let one = c(1.0);
-    let e = exp_lanes(c(-b).mul(dv));
-    let g = c(1.0 - a).fma(e, c(a));
+    // A macro, not a closure: closures do not inherit the caller's target features.
+    macro_rules! c {
+        ($x:expr) => {
+            V::splat(isa, $x)
+        };
+    }
+    let one = c!(1.0);
+    let e = exp_lanes(c!(-b).mul(dv));
+    let g = c!(1.0 - a).fma(e, c!(a));
     let mu_w = mu0.mul(g);
     let eps = cs.div(mu_w);
-    let xa = c(k_a).mul(eps);
-    let ys = c(k_a * rho).mul(eps);
+    let xa = c!(k_a).mul(eps);
+    let ys = c!(k_a * rho).mul(eps);
     let inv_dxa = one.div(xa.fma(xa, one));
-    let (off, num, den) = atan_parts(ys.min(c(ATAN_ARGUMENT_MAX)), one);
+    let (off, num, den) = atan_parts(ys.min(c!(ATAN_ARGUMENT_MAX)), one);
     let bracket = xa.fma(inv_dxa, off.add(num.div(den)));
-    let two_pi = c(2.0 / std::f64::consts::PI);
+    let two_pi = c!(2.0 / std::f64::consts::PI);
     let f = two_pi.mul(mu_w).mul(bracket);
     if !GRAD {
-        return (f, [c(0.0); 5]);
+        return (f, [c!(0.0); 5]);
     }
     let h1 = xa.fnma(xa, one).mul(inv_dxa.mul(inv_dxa));
     let inv_dys = one.div(ys.fma(ys, one));
@@ -187,9 +193,9 @@ pub(super) fn law_lanes<V: Select, const GRAD: bool>(
         [
             df_dmuw.mul(g),
             df_dmuw.mul(mu0).mul(one.sub(e)),
-            df_dmuw.mul(mu0).mul(c(a - 1.0)).mul(dv).mul(e),
-            scale.mul(c(rho).fma(inv_dys, h1)),
-            scale.mul(c(k_a)).mul(inv_dys),
+            df_dmuw.mul(mu0).mul(c!(a - 1.0)).mul(dv).mul(e),
+            scale.mul(c!(rho).fma(inv_dys, h1)),
+            scale.mul(c!(k_a)).mul(inv_dys),
         ],
     )
 }

@@ -8,7 +8,8 @@
 //!
 //! Parameters are fitted by the same Levenberg–Marquardt solver as the network, on
 //! unconstrained coordinates with bounds by reparametrisation (logistic, `law::LOWER`,
-//! `law::UPPER`), with the analytic Jacobian (`law::mu_and_gradient`). What the data cannot identify
+//! `law::UPPER`), with the analytic Jacobian (`law::law_lanes`, evaluated a block of samples at a
+//! time on vector lanes by `block::LawBlock`). What the data cannot identify
 //! is held and named ([`fit_polach`]); the estimated parameters get Wald standard errors
 //! corrected for the residuals' autocorrelation (n_eff, [`crate::linalg::effective_samples`])
 //! and profile-likelihood intervals ([`Profile`]).

@@ -230,7 +230,7 @@ impl<'a> PolachProblem<'a> {
         for g in &self.groups {
             let (x, _) = self.at_group(g, v);
             for chunk in self.samples[g.range.clone()].chunks(BLOCK) {
-                blk.load(chunk, |s| x[0] * self.speed_factor(v, s).0);
+                blk.load(chunk, x[0], |s| self.speed_factor(v, s));
                 blk.eval(self.isa, [x[1], x[2], x[3], x[4]], false);
                 for (s, f) in chunk.iter().zip(&blk.f) {
                     let r = f - s.mu;
@@ -252,7 +252,7 @@ impl<'a> PolachProblem<'a> {
     ) -> NormalEquations {
         let (v, d) = self.nodes(theta);
         let k = self.free.len();
-        let mut gram = Gram::new(k);
+        let mut gram = Gram::new(k, self.samples.len(), self.isa);
         let mut sse = 0.0;
         // Per coordinate: its parameter and d(parameter)/d(coordinate) at the group.
         let mut row = [0.0; MAX_COORDS];
@@ -277,7 +277,7 @@ impl<'a> PolachProblem<'a> {
             // With k_S held, k_A also moves ρ = k_S/k_A: dρ/dk_A = −k_S/k_A².
             let drho = self.ks_fixed.map(|ks| -ks / (x[3] * x[3]));
             for chunk in self.samples[g.range.clone()].chunks(BLOCK) {
-                blk.load(chunk, |s| x[0] * self.speed_factor(&v, s).0);
+                blk.load(chunk, x[0], |s| self.speed_factor(&v, s));
                 blk.eval(self.isa, [x[1], x[2], x[3], x[4]], true);
                 for (i, s) in chunk.iter().enumerate() {
                     // With a speed law μ0_eff = μ0 g(v): dμ/dμ0 = g ∂μ/∂μ0_eff and
@@ -292,7 +292,7 @@ impl<'a> PolachProblem<'a> {
                         out.push(r);
                     }
                     if self.speed.is_some() {
-                        let (gv, phi, held) = self.speed_factor(&v, s);
+                        let (gv, phi, held) = (blk.gv[i], blk.phi[i], blk.held[i]);
                         let dmu0 = grad[0];
                         for (c, co) in self.free.iter().enumerate() {
                             row[c] = match co.param {

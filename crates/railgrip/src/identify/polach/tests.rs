@@ -194,7 +194,7 @@ fn the_law_on_vector_lanes_has_the_one_sample_laws_bits() {
         for isa in crate::simd::Isa::all_available() {
             for grad in [false, true] {
                 let mut blk = LawBlock::new();
-                blk.load(&samples, |_| x[0]);
+                blk.load(&samples, x[0], |_| (1.0, [0.0; 3], true));
                 blk.eval(isa, [x[1], x[2], x[3], x[4]], grad);
                 for (i, s) in samples.iter().enumerate() {
                     let (f, g) = mu_and_gradient(&x, s);
@@ -205,6 +205,58 @@ fn the_law_on_vector_lanes_has_the_one_sample_laws_bits() {
                         }
                     }
                 }
+            }
+        }
+    }
+}
+
+/// The Gram accumulation over several panels (2 500 samples, one partial panel) against plain
+/// sums, and the same bits on every lane width this CPU has.
+#[test]
+fn the_gram_panels_sum_jtj_and_jtr_and_give_the_same_bits_on_every_cpu_path() {
+    use super::block::Gram;
+    let mut rng = crate::rng::Rng::new(5);
+    let k = 7;
+    let rows: Vec<(Vec<f64>, f64)> = (0..2500)
+        .map(|_| {
+            let row: Vec<f64> = (0..k).map(|_| rng.uniform() * 2.0 - 1.0).collect();
+            (row, rng.uniform() - 0.5)
+        })
+        .collect();
+    let mut naive_jtj = vec![0.0; k * k];
+    let mut naive_jtr = vec![0.0; k];
+    for (row, r) in &rows {
+        for a in 0..k {
+            naive_jtr[a] += row[a] * r;
+            for b in 0..k {
+                naive_jtj[a * k + b] += row[a] * row[b];
+            }
+        }
+    }
+    let mut first: Option<(Vec<f64>, Vec<f64>)> = None;
+    for isa in crate::simd::Isa::all_available() {
+        let mut g = Gram::new(k, rows.len(), isa);
+        for (row, r) in &rows {
+            g.push(row, *r);
+        }
+        let (jtj, jtr) = g.finish();
+        for (x, y) in jtj.iter().zip(&naive_jtj).chain(jtr.iter().zip(&naive_jtr)) {
+            assert!(
+                (x - y).abs() <= 1e-12 * y.abs().max(1.0),
+                "{isa:?}: {x} vs {y}"
+            );
+        }
+        for a in 0..k {
+            for b in 0..k {
+                assert_eq!(jtj[a * k + b].to_bits(), jtj[b * k + a].to_bits());
+            }
+        }
+        match &first {
+            None => first = Some((jtj, jtr)),
+            Some((j0, r0)) => {
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&jtj), bits(j0), "{isa:?}");
+                assert_eq!(bits(&jtr), bits(r0), "{isa:?}");
             }
         }
     }
