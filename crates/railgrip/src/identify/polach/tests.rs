@@ -210,14 +210,21 @@ fn the_law_on_vector_lanes_has_the_one_sample_laws_bits() {
     }
 }
 
-/// The Gram accumulation over several panels (2 500 samples, one partial panel) against plain
-/// sums, and the same bits on every lane width this CPU has.
+/// The Gram accumulation against plain sums, and the same bits on every lane width this CPU
+/// has: over several panels with a last one whose length is not a multiple of four (2 503
+/// samples: its padding must clear the earlier panel's values), and below one vector (3).
 #[test]
 fn the_gram_panels_sum_jtj_and_jtr_and_give_the_same_bits_on_every_cpu_path() {
+    for n in [2503, 3] {
+        gram_against_plain_sums(n);
+    }
+}
+
+fn gram_against_plain_sums(n: usize) {
     use super::block::Gram;
     let mut rng = crate::rng::Rng::new(5);
     let k = 7;
-    let rows: Vec<(Vec<f64>, f64)> = (0..2500)
+    let rows: Vec<(Vec<f64>, f64)> = (0..n)
         .map(|_| {
             let row: Vec<f64> = (0..k).map(|_| rng.uniform() * 2.0 - 1.0).collect();
             (row, rng.uniform() - 0.5)
