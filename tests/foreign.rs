@@ -162,6 +162,36 @@ fn campaign_with(scenes: &[Scene], dir: &Path, p: &Pipeline) -> (Vec<RunTable>, 
     (tables, truth)
 }
 
+/// One run table per scene from the campaign's truth (`campaign`'s axle numbering, four per
+/// scene): true Δv, dΔv/dt, v and μ of every sample with |Δv| ≥ 0.01 m/s, the scene's ambient
+/// temperature — what a network trained on the truth instead of the estimates sees.
+fn truth_tables(scenes: &[Scene], truth: &[Sample]) -> Vec<RunTable> {
+    scenes
+        .iter()
+        .enumerate()
+        .map(|(r, sc)| {
+            let mut t = RunTable {
+                name: sc.name.clone(),
+                source: sc.name.clone(),
+                ..RunTable::default()
+            };
+            t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
+            for x in truth.iter().filter(|x| (x.axle as usize - 1) / 4 == r) {
+                if x.dv_mps.abs() < 0.01 {
+                    continue;
+                }
+                t.axle.push((x.axle - 1) % 4 + 1);
+                t.time_s.push(0.0);
+                t.v_mps.push(x.v_mps);
+                t.dv_mps.push(x.dv_mps);
+                t.ddv_mps2.push(x.ddv_mps2);
+                t.mu.push(x.mu);
+            }
+            t
+        })
+        .collect()
+}
+
 /// `[train] starts` on a law the network does not contain, from several seeds: the kept start
 /// is the best by validation error, stays positive on every supported cell, gets the loss /
 /// recovery order right and fits within the single-start figures measured (docs/simulator.md).
@@ -468,28 +498,7 @@ fn measure_networks_trained_on_the_truth() {
     for law in ["table", "lr", "bundled"] {
         let set = measurement_scenes(law, None);
         let (_, truth) = campaign(&set, dir.path());
-        let mut tables = Vec::new();
-        for (r, sc) in set.iter().enumerate() {
-            let mut t = RunTable {
-                name: sc.name.clone(),
-                source: sc.name.clone(),
-                ..RunTable::default()
-            };
-            t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
-            for x in truth.iter().filter(|x| (x.axle as usize - 1) / 4 == r) {
-                let a = (x.axle - 1) % 4 + 1;
-                if x.dv_mps.abs() < 0.01 {
-                    continue;
-                }
-                t.axle.push(a);
-                t.time_s.push(0.0);
-                t.v_mps.push(x.v_mps);
-                t.dv_mps.push(x.dv_mps);
-                t.ddv_mps2.push(x.ddv_mps2);
-                t.mu.push(x.mu);
-            }
-            tables.push(t);
-        }
+        let tables = truth_tables(&set, &truth);
         let mut cfg = p.train.clone();
         cfg.inputs = InputSet::DvDdvVT;
         cfg.hidden = hidden;
@@ -1037,27 +1046,7 @@ fn measure_the_residual_network_on_the_truth_at_the_top_speeds() {
     for (t, sc) in estimated.iter_mut().zip(&scenes) {
         t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
     }
-    let mut from_truth = Vec::new();
-    for (r, sc) in scenes.iter().enumerate() {
-        let mut t = RunTable {
-            name: sc.name.clone(),
-            source: sc.name.clone(),
-            ..RunTable::default()
-        };
-        t.metadata.ambient_temperature_c = Some(sc.run.ambient_temperature_c);
-        for x in truth.iter().filter(|x| (x.axle as usize - 1) / 4 == r) {
-            if x.dv_mps.abs() < 0.01 {
-                continue;
-            }
-            t.axle.push((x.axle - 1) % 4 + 1);
-            t.time_s.push(0.0);
-            t.v_mps.push(x.v_mps);
-            t.dv_mps.push(x.dv_mps);
-            t.ddv_mps2.push(x.ddv_mps2);
-            t.mu.push(x.mu);
-        }
-        from_truth.push(t);
-    }
+    let from_truth = truth_tables(&scenes, &truth);
     let mut p = Pipeline::default_uic_z1();
     p.train.inputs = InputSet::DvDdvV;
     p.train.support_cells = railgrip::config::default_support_cells(3);
