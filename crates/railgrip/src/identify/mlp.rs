@@ -268,7 +268,9 @@ impl Scratch {
 
 /// One block of `n ≤ BLOCK` samples on lanes `V` (`n` a multiple of `V::N`; the caller pads):
 /// inputs `x[c][s]` (normalised input c of sample s), targets `y[s]`. Writes the residuals
-/// `r[s] = ŷ_s − y_s` and, with `jac`, the Jacobian columns `jac[p · BLOCK + s] = ∂ŷ_s/∂θ_p`.
+/// `r[s] = ŷ_s − y_s` and, with `jac = Some((out, stride))`, the Jacobian rows
+/// `out[p · stride + s] = ∂ŷ_s/∂θ_p` (`stride ≥ n`: [`BLOCK`] for a block of its own, or the
+/// width of a larger matrix the block is a column range of).
 /// Every lane performs the operations of [`forward_grad`] in the same order (fused
 /// multiply-adds, the same tanh), so the results are those of one sample at a time.
 #[allow(clippy::too_many_arguments)]
@@ -281,7 +283,7 @@ pub(crate) fn block<V: Lanes>(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    mut jac: Option<&mut [f64]>,
+    mut jac: Option<(&mut [f64], usize)>,
     scratch: &mut Scratch,
 ) {
     let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
@@ -318,11 +320,12 @@ pub(crate) fn block<V: Lanes>(
             out = w.fma(V::load(isa, &last[g * BLOCK + s..]), out);
         }
         out.sub(V::load(isa, &y[s..])).store(&mut r[s..]);
-        if let Some(jac) = jac.as_deref_mut() {
-            one.store(&mut jac[shape.bo() * BLOCK + s..]);
+        if let Some((jac, stride)) = jac.as_mut() {
+            let stride = *stride;
+            one.store(&mut jac[shape.bo() * stride + s..]);
             for g in 0..n_last {
                 V::load(isa, &last[g * BLOCK + s..])
-                    .store(&mut jac[(shape.wo() + g) * BLOCK + s..]);
+                    .store(&mut jac[(shape.wo() + g) * stride + s..]);
             }
             // δ of the first layer, through the second when there is one.
             if nh2 > 0 {
@@ -330,10 +333,10 @@ pub(crate) fn block<V: Lanes>(
                     let t = V::load(isa, &scratch.t2[g * BLOCK + s..]);
                     let d2 = V::splat(isa, theta[shape.wo() + g]).mul(t.fnma(t, one));
                     d2.store(&mut scratch.d2[g * BLOCK + s..]);
-                    d2.store(&mut jac[(shape.b2() + g) * BLOCK + s..]);
+                    d2.store(&mut jac[(shape.b2() + g) * stride + s..]);
                     for h in 0..nh {
                         d2.mul(V::load(isa, &scratch.t1[h * BLOCK + s..]))
-                            .store(&mut jac[(shape.w2() + g * nh + h) * BLOCK + s..]);
+                            .store(&mut jac[(shape.w2() + g * nh + h) * stride + s..]);
                     }
                 }
             }
@@ -349,10 +352,10 @@ pub(crate) fn block<V: Lanes>(
                 } else {
                     V::splat(isa, theta[shape.wo() + h]).mul(t.fnma(t, one))
                 };
-                d1.store(&mut jac[(shape.b1() + h) * BLOCK + s..]);
+                d1.store(&mut jac[(shape.b1() + h) * stride + s..]);
                 for (i, xi) in x.iter().enumerate().take(ni) {
                     d1.mul(V::load(isa, &xi[s..]))
-                        .store(&mut jac[(h * ni + i) * BLOCK + s..]);
+                        .store(&mut jac[(h * ni + i) * stride + s..]);
                 }
             }
         }
@@ -533,7 +536,7 @@ mod tests {
             let p = shape.n_params();
             let (mut r, mut jac) = (vec![0.0; BLOCK], vec![0.0; p * BLOCK]);
             let mut scratch = Scratch::new(shape);
-            block::<f64>(crate::simd::Portable, shape, &theta, &xs, &y, n, &mut r, Some(&mut jac), &mut scratch);
+            block::<f64>(crate::simd::Portable, shape, &theta, &xs, &y, n, &mut r, Some((&mut jac, BLOCK)), &mut scratch);
             let mut g = vec![0.0; p];
             for s in 0..n {
                 let xi: Vec<f64> = (0..inputs).map(|c| x[c][s]).collect();
@@ -573,7 +576,7 @@ mod tests {
                 &y,
                 BLOCK,
                 &mut r,
-                Some(&mut jac),
+                Some((&mut jac, BLOCK)),
                 &mut sc,
             );
             (r, jac)

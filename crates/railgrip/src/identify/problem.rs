@@ -32,7 +32,7 @@ pub(super) fn block_dispatch(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<&mut [f64]>,
+    jac: Option<(&mut [f64], usize)>,
     scratch: &mut Scratch,
 ) {
     match isa {
@@ -58,7 +58,7 @@ fn block_avx512(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<&mut [f64]>,
+    jac: Option<(&mut [f64], usize)>,
     scratch: &mut Scratch,
 ) {
     mlp::block::<F64x8>(isa, shape, theta, x, y, n, r, jac, scratch)
@@ -76,7 +76,7 @@ fn block_avx2(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<&mut [f64]>,
+    jac: Option<(&mut [f64], usize)>,
     scratch: &mut Scratch,
 ) {
     mlp::block::<F64x4>(isa, shape, theta, x, y, n, r, jac, scratch)
@@ -193,18 +193,24 @@ impl MlpProblem {
     /// A Aᵀ, A = [J; rᵀ] ((P + 1) × (P + 1), row-major) over the samples of `range` (one
     /// chunk), and Σ r² summed in sample order (as [`MlpProblem::sse_of`] sums it, so that the
     /// current and a trial error compare like for like). A holds the whole chunk, so one matrix
-    /// product serves it.
-    fn gram_of_chunk(&self, theta: &[f64], range: std::ops::Range<usize>) -> (Vec<f64>, f64) {
+    /// product serves it; the blocks write their Jacobian rows straight into it, and `buf` is
+    /// reused from chunk to chunk.
+    fn gram_of_chunk(
+        &self,
+        theta: &[f64],
+        range: std::ops::Range<usize>,
+        buf: &mut ChunkBuffers,
+    ) -> (Vec<f64>, f64) {
         let p = self.shape.n_params();
         let cols = &self.train;
         let width = range.len().div_ceil(BLOCK) * BLOCK;
-        let mut scratch = Scratch::new(self.shape);
-        let mut a_mat = vec![0.0; (p + 1) * width];
-        let (mut jac, mut r) = (vec![0.0; p * BLOCK], vec![0.0; BLOCK]);
+        let a_mat = &mut buf.a_mat[..(p + 1) * width];
+        let r = &mut buf.r;
         let mut sse = 0.0;
         for (b, a) in range.clone().step_by(BLOCK).enumerate() {
             let n = BLOCK.min(range.end - a);
             let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
+            let at = b * BLOCK;
             block_dispatch(
                 self.isa,
                 self.shape,
@@ -212,21 +218,20 @@ impl MlpProblem {
                 &xs,
                 &cols.y[a..a + BLOCK],
                 BLOCK,
-                &mut r,
-                Some(&mut jac),
-                &mut scratch,
+                r,
+                Some((&mut a_mat[at..], width)),
+                &mut buf.scratch,
             );
             sse += r[..n].iter().map(|e| e * e).sum::<f64>();
-            // Padding samples stay zero in A: they contribute nothing.
-            for q in 0..p {
-                a_mat[q * width + b * BLOCK..q * width + b * BLOCK + n]
-                    .copy_from_slice(&jac[q * BLOCK..q * BLOCK + n]);
+            a_mat[p * width + at..p * width + at + n].copy_from_slice(&r[..n]);
+            // Padding samples are zero in A: they contribute nothing.
+            for q in 0..=p {
+                a_mat[q * width + at + n..q * width + at + BLOCK].fill(0.0);
             }
-            a_mat[p * width + b * BLOCK..p * width + b * BLOCK + n].copy_from_slice(&r[..n]);
         }
         // The lower triangle of A Aᵀ: a symmetric rank-k update (faer, sequential).
         let mut gram = vec![0.0; (p + 1) * (p + 1)];
-        let am = MatRef::from_row_major_slice(&a_mat, p + 1, width);
+        let am = MatRef::from_row_major_slice(a_mat, p + 1, width);
         matmul(
             MatMut::from_row_major_slice_mut(&mut gram, p + 1, p + 1),
             BlockStructure::TriangularLower,
@@ -239,6 +244,24 @@ impl MlpProblem {
             Par::Seq,
         );
         (gram, sse)
+    }
+}
+
+/// What [`MlpProblem::gram_of_chunk`] works in, allocated once per worker rather than per
+/// chunk and epoch: A for a whole chunk, the block's residuals and its hidden activations.
+struct ChunkBuffers {
+    a_mat: Vec<f64>,
+    r: Vec<f64>,
+    scratch: Scratch,
+}
+
+impl ChunkBuffers {
+    fn new(shape: Shape) -> ChunkBuffers {
+        ChunkBuffers {
+            a_mat: vec![0.0; (shape.n_params() + 1) * CHUNK],
+            r: vec![0.0; BLOCK],
+            scratch: Scratch::new(shape),
+        }
     }
 }
 
@@ -258,7 +281,10 @@ impl LeastSquares for MlpProblem {
             .train
             .chunks()
             .into_par_iter()
-            .map(|range| self.gram_of_chunk(theta, range))
+            .map_init(
+                || ChunkBuffers::new(self.shape),
+                |buf, range| self.gram_of_chunk(theta, range, buf),
+            )
             .collect();
         let mut total = vec![0.0; (p + 1) * (p + 1)];
         let mut sse = 0.0;

@@ -155,16 +155,36 @@ impl Gram {
         }
     }
 
-    /// Adds one sample's Jacobian row (`k` values) and residual.
-    #[inline]
+    /// Adds one sample's Jacobian row (`k` values) and residual (the tests' way in; the
+    /// problem writes whole columns through [`Gram::slots`]).
+    #[cfg(test)]
     pub(super) fn push(&mut self, row: &[f64], r: f64) {
-        let (j, w) = (self.filled, self.width);
         for (c, x) in row[..self.k].iter().enumerate() {
-            self.panel[c * w + j] = *x;
+            self.slots(c, 1)[0] = *x;
         }
-        self.panel[self.k * w + j] = r;
-        self.filled += 1;
-        if self.filled == w {
+        self.slots(self.k, 1)[0] = r;
+        self.advance(1);
+    }
+
+    /// Samples the current panel has room for.
+    #[inline]
+    pub(super) fn room(&self) -> usize {
+        self.width - self.filled
+    }
+
+    /// Row `c` of the panel (a coordinate's Jacobian values; `c = k`: the residuals) for the
+    /// next `n ≤ room()` samples, to be written before [`Gram::advance`].
+    #[inline]
+    pub(super) fn slots(&mut self, c: usize, n: usize) -> &mut [f64] {
+        let at = c * self.width + self.filled;
+        &mut self.panel[at..at + n]
+    }
+
+    /// Counts `n` samples written through [`Gram::slots`]; a full panel is summed.
+    #[inline]
+    pub(super) fn advance(&mut self, n: usize) {
+        self.filled += n;
+        if self.filled == self.width {
             self.flush();
         }
     }

@@ -254,13 +254,8 @@ impl<'a> PolachProblem<'a> {
         let k = self.free.len();
         let mut gram = Gram::new(k, self.samples.len(), self.isa);
         let mut sse = 0.0;
-        // Per coordinate: its parameter and d(parameter)/d(coordinate) at the group.
-        let mut row = [0.0; MAX_COORDS];
+        // Per coordinate: d(parameter)/d(coordinate) at the group.
         let mut m = [0.0; MAX_COORDS];
-        let mut ps = [0usize; MAX_COORDS];
-        for (c, co) in self.free.iter().enumerate() {
-            ps[c] = co.param;
-        }
         let mut blk = LawBlock::new();
         for g in &self.groups {
             let (x, clamped) = self.at_group(g, &v);
@@ -279,40 +274,77 @@ impl<'a> PolachProblem<'a> {
             for chunk in self.samples[g.range.clone()].chunks(BLOCK) {
                 blk.load(chunk, x[0], |s| self.speed_factor(&v, s));
                 blk.eval(self.isa, [x[1], x[2], x[3], x[4]], true);
-                for (i, s) in chunk.iter().enumerate() {
-                    // With a speed law μ0_eff = μ0 g(v): dμ/dμ0 = g ∂μ/∂μ0_eff and
-                    // dμ/dc_j = μ0 φ_j ∂μ/∂μ0_eff (φ_j = 0 where g sits at its floor).
-                    let mut grad: [f64; 5] = std::array::from_fn(|p| blk.grad[p][i]);
-                    if let Some(dr) = drho {
-                        grad[3] += grad[4] * dr;
+                let n = chunk.len();
+                if let Some(dr) = drho {
+                    let [.., g3, g4] = &mut blk.grad;
+                    for (a, b) in g3[..n].iter_mut().zip(&g4[..n]) {
+                        *a += b * dr;
                     }
-                    let r = blk.f[i] - s.mu;
+                }
+                // The residuals replace μ in the block; the SSE sums them in sample order.
+                for (f, s) in blk.f[..n].iter_mut().zip(chunk) {
+                    let r = *f - s.mu;
+                    *f = r;
                     sse += r * r;
-                    if let Some(out) = residuals.as_deref_mut() {
-                        out.push(r);
+                }
+                if let Some(out) = residuals.as_deref_mut() {
+                    out.extend_from_slice(&blk.f[..n]);
+                }
+                // The Jacobian's columns of this chunk, coordinate by coordinate, straight into
+                // the Gram panel (split where a panel fills up).
+                let mut done = 0;
+                while done < n {
+                    let take = (n - done).min(gram.room());
+                    let at = done..done + take;
+                    for (c, co) in self.free.iter().enumerate() {
+                        self.column(&blk, co, m[c], x[0], at.clone(), gram.slots(c, take));
                     }
-                    if self.speed.is_some() {
-                        let (gv, phi, held) = (blk.gv[i], blk.phi[i], blk.held[i]);
-                        let dmu0 = grad[0];
-                        for (c, co) in self.free.iter().enumerate() {
-                            row[c] = match co.param {
-                                SPEED if held => 0.0,
-                                SPEED => dmu0 * x[0] * phi[co.node],
-                                0 => dmu0 * gv * m[c],
-                                p => grad[p] * m[c],
-                            };
-                        }
-                    } else {
-                        for c in 0..k {
-                            row[c] = grad[ps[c]] * m[c];
-                        }
-                    }
-                    gram.push(&row, r);
+                    gram.slots(k, take).copy_from_slice(&blk.f[at]);
+                    gram.advance(take);
+                    done += take;
                 }
             }
         }
         let (jtj, jtr) = gram.finish();
         NormalEquations { jtj, jtr, sse }
+    }
+
+    /// One coordinate's Jacobian column over samples `at` of an evaluated block (its gradient
+    /// with ρ's share already in k_A's), into `out`: with a speed law μ0_eff = μ0 g(v), so
+    /// dμ/dμ0 = g ∂μ/∂μ0_eff and dμ/dc_j = μ0 φ_j ∂μ/∂μ0_eff (0 where g sits at its floor);
+    /// `m` is d(parameter)/d(coordinate) at the group, `mu0` the group's μ0.
+    #[inline]
+    fn column(
+        &self,
+        blk: &LawBlock,
+        co: &Coord,
+        m: f64,
+        mu0: f64,
+        at: std::ops::Range<usize>,
+        out: &mut [f64],
+    ) {
+        let grad = &blk.grad;
+        match co.param {
+            SPEED => {
+                for (o, i) in out.iter_mut().zip(at) {
+                    *o = if blk.held[i] {
+                        0.0
+                    } else {
+                        grad[0][i] * mu0 * blk.phi[i][co.node]
+                    };
+                }
+            }
+            0 if self.speed.is_some() => {
+                for (o, i) in out.iter_mut().zip(at) {
+                    *o = grad[0][i] * blk.gv[i] * m;
+                }
+            }
+            p => {
+                for (o, g) in out.iter_mut().zip(&grad[p][at]) {
+                    *o = g * m;
+                }
+            }
+        }
     }
 
     /// The covariance of the free node values at θ: σ² (JᵀJ)⁻¹ inflated by n/n_eff for the
