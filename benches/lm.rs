@@ -13,10 +13,13 @@
 //! `…/normal_equations` and `…/sse` time one epoch's parts: JᵀJ and Jᵀr (the Jacobian built
 //! block by block, the symmetric rank-k update), and one error evaluation (a trial step).
 //!
-//! For each 15k problem, railgrip's per-epoch time (criterion; throughput in epochs/s) is
-//! printed beside numpy's with one BLAS thread and with all threads (best of 3 trainings), and
-//! the per-epoch training MSEs of the two are compared (relative difference over the first
-//! 20 epochs). Without python3 and numpy the peer is skipped with a message.
+//! For each 15k problem, railgrip's per-epoch time (criterion; throughput in epochs/s, and best
+//! of 3 trainings as the peer times itself) is printed beside numpy's with one BLAS thread and
+//! with all threads (best of 3 trainings) with the ratios, and the per-epoch training MSEs of
+//! the two are compared (relative difference over the first 20 epochs). First it prints what
+//! the ratio depends on: the CPU (model, widest vector extension, cores) and the peer's
+//! numpy version, BLAS and its run-time kernel, numpy's SIMD extensions and np.tanh's ns per
+//! element. Without python3 and numpy the peer is skipped with a message.
 
 use std::path::PathBuf;
 use std::time::Duration;
@@ -153,9 +156,25 @@ fn bench(c: &mut Criterion) {
         let ours = train(&p, &theta0, EPOCHS);
         g.throughput(Throughput::Elements(ours.len() as u64));
         g.bench_function(name, |b| b.iter(|| train(&p, &theta0, EPOCHS)));
-        peers.push((name, shape.n_params(), json, ours));
+        // railgrip's seconds per epoch timed as the peer times itself (best of 3 trainings),
+        // for the ratio printed beside the peer's.
+        let per_epoch = (0..3)
+            .map(|_| {
+                let t = std::time::Instant::now();
+                let n = train(&p, &theta0, EPOCHS).len().max(1);
+                t.elapsed().as_secs_f64() / n as f64
+            })
+            .fold(f64::INFINITY, f64::min);
+        peers.push((name, shape.n_params(), json, ours, per_epoch));
     }
-    for (name, n_params, json, ours) in peers {
+    eprintln!("lm: CPU {}", common::cpu_line());
+    if let Some((_, _, json, _, _)) = peers.first() {
+        match common::numpy_environment(json) {
+            Ok(line) => eprintln!("lm: peer {line}"),
+            Err(e) => eprintln!("SKIPPED numpy peer: {e}"),
+        }
+    }
+    for (name, n_params, json, ours, per_epoch) in peers {
         match (
             common::trainlm_numpy(&json, 3, Some(1), ""),
             common::trainlm_numpy(&json, 3, None, ""),
@@ -168,9 +187,12 @@ fn bench(c: &mut Criterion) {
                     .map(|(a, b)| ((a.train_mse - b) / b).abs())
                     .fold(0.0f64, f64::max);
                 eprintln!(
-                    "lm/{name} (P = {n_params}): numpy trainlm {:.3} ms/epoch on 1 BLAS thread, {:.3} ms/epoch on all; {} vs {} epochs; worst relative difference of the training MSE over the first 20 epochs {worst:.2e}",
+                    "lm/{name} (P = {n_params}): railgrip {:.3} ms/epoch (best of 3 trainings, all cores); numpy trainlm {:.3} ms/epoch on 1 BLAS thread, {:.3} ms/epoch on all: railgrip faster by {:.1}x / {:.1}x; {} vs {} epochs; worst relative difference of the training MSE over the first 20 epochs {worst:.2e}",
+                    per_epoch * 1e3,
                     one * 1e3,
                     all * 1e3,
+                    one / per_epoch,
+                    all / per_epoch,
                     ours.len(),
                     mse.len()
                 );

@@ -14,7 +14,9 @@ MATLAB's order (IW row-major, b1, LW, b2), exactly railgrip's problem.
 Reads the problem railgrip writes (normalised training and validation data, initial weights,
 shape, settings), trains `repeats` times and prints one JSON line: the seconds per epoch of
 the fastest repeat, the epochs run, the training MSE (mu^2 units) after every epoch, and the
-weights trainlm returns ("theta": those of the best validation error).
+weights trainlm returns ("theta": those of the best validation error), and what sets numpy's
+speed here ("environment": numpy's version, its BLAS and the kernel it picked, numpy's SIMD
+extensions, np.tanh's ns per element).
 
 With "bayesian": true in the settings it trains as MATLAB trainbr: F = beta*E_D + alpha*E_W,
 steps -(beta J'J + (mu + alpha) I) \\ (beta J'r + alpha theta) accepted when F falls, then
@@ -43,6 +45,46 @@ def tanh(z):
     if PROBE == "tanh":
         return 1.0 - 2.0 / (np.exp(2.0 * z) + 1.0)
     return np.tanh(z)
+
+
+def environment(n_elements):
+    """What decides numpy's speed on this machine: its version, the BLAS it was built with and
+    the kernel that BLAS picked at run time (OpenBLAS's core name, when it can be read), the
+    SIMD extensions numpy's own loops dispatch to, and np.tanh's cost in ns per element on an
+    array of `n_elements` (best of 20)."""
+    import ctypes
+    import glob
+    info = {"numpy": np.__version__}
+    try:
+        blas = np.show_config(mode="dicts")["Build Dependencies"]["blas"]
+        info["blas"] = f"{blas.get('name', '?')} {blas.get('version', '')}".strip()
+    except Exception:  # an older numpy without mode="dicts"
+        info["blas"] = "unknown"
+    libs = os.path.join(os.path.dirname(np.__file__), "..", "numpy.libs", "*openblas*")
+    for f in glob.glob(libs):
+        for name in ("scipy_openblas_get_corename64_", "scipy_openblas_get_corename",
+                     "openblas_get_corename64_", "openblas_get_corename"):
+            try:
+                fn = getattr(ctypes.CDLL(f), name)
+            except (AttributeError, OSError):
+                continue
+            fn.restype = ctypes.c_char_p
+            info["blas_core"] = fn().decode()
+            break
+    try:
+        from numpy._core._multiarray_umath import __cpu_features__ as feats
+        info["simd"] = [k for k in ("AVX2", "AVX512F", "AVX512_SKX") if feats.get(k)]
+    except ImportError:
+        info["simd"] = []
+    z = np.linspace(-3.0, 3.0, n_elements)
+    out = np.empty_like(z)
+    best = float("inf")
+    for _ in range(20):
+        t0 = time.perf_counter()
+        np.tanh(z, out=out)
+        best = min(best, time.perf_counter() - t0)
+    info["tanh_ns_per_element"] = best / n_elements * 1e9
+    return info
 
 
 def main(path, repeats):
@@ -167,7 +209,8 @@ def main(path, repeats):
         history, gammas, kept = train()
         best = min(best, (time.perf_counter() - t0) / max(len(history), 1))
     print(json.dumps({"seconds_per_epoch": best, "epochs": len(history), "train_mse": history,
-                      "gamma": gammas, "theta": kept.tolist()}))
+                      "gamma": gammas, "theta": kept.tolist(),
+                      "environment": environment(len(y) * h)}))
 
 
 if __name__ == "__main__":

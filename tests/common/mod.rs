@@ -433,6 +433,50 @@ fn numbers(v: &serde_json::Value, key: &str) -> Result<Vec<f64>, String> {
         .collect())
 }
 
+/// What sets the numpy peer's speed on this machine, as its script reports it: numpy's
+/// version, its BLAS (and the kernel OpenBLAS picked at run time), numpy's SIMD extensions and
+/// np.tanh's ns per element; one line.
+pub fn numpy_environment(problem: &Path) -> Result<String, String> {
+    let v = run_numpy_peer(problem, 1, Some(1), "")?;
+    let e = &v["environment"];
+    let simd: Vec<&str> = e["simd"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|x| x.as_str()).collect())
+        .unwrap_or_default();
+    Ok(format!(
+        "numpy {}, BLAS {} (kernel {}), numpy SIMD [{}], np.tanh {:.1} ns per element",
+        e["numpy"].as_str().unwrap_or("?"),
+        e["blas"].as_str().unwrap_or("?"),
+        e["blas_core"].as_str().unwrap_or("unknown"),
+        simd.join(", "),
+        e["tanh_ns_per_element"].as_f64().unwrap_or(f64::NAN)
+    ))
+}
+
+/// This CPU: its model name and widest vector extension (from /proc/cpuinfo where there is
+/// one; railgrip's kernels take AVX-512 or AVX2 paths by them), and its cores.
+pub fn cpu_line() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |key: &str| {
+        info.lines()
+            .find(|l| l.starts_with(key))
+            .and_then(|l| l.split(':').nth(1))
+            .map(|s| s.trim().to_string())
+    };
+    let model = field("model name").unwrap_or_else(|| std::env::consts::ARCH.to_string());
+    let flags = field("flags").unwrap_or_default();
+    let has = |f: &str| flags.split_whitespace().any(|x| x == f);
+    let width = if has("avx512f") {
+        "AVX-512"
+    } else if has("avx2") {
+        "AVX2"
+    } else {
+        "no AVX2"
+    };
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!("{model}, {width}, {cores} cores")
+}
+
 /// Runs the numpy trainlm peer on a problem file: the seconds per epoch of the fastest of
 /// `repeats` trainings and the training MSE after each epoch. `threads`: BLAS threads (None:
 /// all); `probe`: the script's rounding probe ("" for none).
