@@ -2615,3 +2615,39 @@ fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
     // The slips seen are supported at every speed, including the speed cells no run reached.
     assert!(seen > 20, "{seen} supported (Δv, dΔv/dt) cells");
 }
+
+/// A campaign whose pooled valid samples exceed `train.max_pooled_samples` trains on every
+/// m-th sample of each run and axle (m the smallest that fits) and says so in a note; under the
+/// limit nothing is thinned and no note is written.
+#[test]
+fn a_campaign_over_the_pooled_sample_limit_is_thinned_with_a_note() {
+    let tables = common::bundled_tables(|n| n.starts_with("soap_120"));
+    let pooled: usize = tables.iter().map(|t| t.len()).sum();
+    let mut p = Pipeline::default_uic_z1();
+    p.train.model = railgrip::config::ModelChoice::Mlp;
+    p.train.leave_one_run_out = false;
+    p.train.polach_intervals = false;
+    p.train.starts = 1;
+    p.train.max_pooled_samples = pooled / 3;
+    let m = railgrip::identify::pooled_thinning(&tables, p.train.max_pooled_samples);
+    assert!(m >= 3, "factor {m} for {pooled} samples");
+    let thinned = railgrip::campaign::train_models(tables.clone(), &p, None).unwrap();
+    assert!(
+        thinned.samples <= p.train.max_pooled_samples,
+        "{}",
+        thinned.samples
+    );
+    let note = thinned
+        .notes
+        .iter()
+        .find(|n| n.contains("train.max_pooled_samples"))
+        .expect("a note on the thinning");
+    assert!(note.contains(&format!("one sample in {m}")), "{note}");
+    p.train.max_pooled_samples = pooled;
+    let whole = railgrip::campaign::train_models(tables, &p, None).unwrap();
+    assert_eq!(whole.samples, pooled);
+    assert!(!whole
+        .notes
+        .iter()
+        .any(|n| n.contains("train.max_pooled_samples")));
+}

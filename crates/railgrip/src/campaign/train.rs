@@ -12,7 +12,9 @@ use crate::identify::dataset::RunTable;
 use crate::identify::family::{campaign_models, FitData};
 use crate::identify::lm::EpochProgress;
 use crate::identify::polach::PolachReport;
-use crate::identify::{select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp};
+use crate::identify::{
+    pooled_thinning, select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
+};
 use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
 use crate::table::{Cell, CsvText};
 
@@ -51,7 +53,13 @@ pub fn train_models(
     progress: Option<EpochProgress<'_>>,
 ) -> Result<CampaignModels, IdentifyError> {
     let choice = select_condition(tables, pipeline.train.condition.as_deref())?;
-    let tables = choice.used;
+    let mut tables = choice.used;
+    let limit = pipeline.train.max_pooled_samples;
+    let thinning = pooled_thinning(&tables, limit);
+    let pooled: usize = tables.iter().map(|t| t.len()).sum();
+    for t in &mut tables {
+        t.thin(thinning);
+    }
     let samples = tables.iter().map(|t| t.len()).sum();
     let provenance = Provenance {
         inputs: tables
@@ -76,6 +84,16 @@ pub fn train_models(
         epochs: progress,
         audit: true,
     })?;
+    let mut notes = fit.notes;
+    if thinning > 1 {
+        notes.insert(
+            0,
+            format!(
+                "the {pooled} pooled valid samples exceed train.max_pooled_samples = {limit}: one sample in {thinning} of each run and axle trained ({samples} samples; train.decimate = {} thins the networks' data further) — raise the limit where memory allows (docs/benchmarks.md#how-it-grows-with-the-campaign)",
+                pipeline.train.decimate
+            ),
+        );
+    }
     Ok(CampaignModels {
         condition: choice.condition,
         skipped: choice.skipped,
@@ -85,7 +103,7 @@ pub fn train_models(
         mlp: fit.mlp,
         polach_fits: fit.polach_fits,
         polach: fit.polach,
-        notes: fit.notes,
+        notes,
         held_out: fit.held_out,
         others: fit.others,
         choice: fit.choice,

@@ -47,6 +47,7 @@ pub mod raw {
         pub polach_intervals: Option<bool>,
         pub model: Option<String>,
         pub folds: Option<f64>,
+        pub max_pooled_samples: Option<f64>,
     }
 }
 
@@ -170,6 +171,9 @@ pub struct TrainConfig {
     /// Held-out folds of runs for the model choice and leave-one-run-out: one run out at a
     /// time up to this many runs, this many folds of runs beyond.
     pub folds: usize,
+    /// Pooled valid samples (all runs and axles of the training condition) above which every
+    /// run and axle is thinned to every m-th sample before training, with a note.
+    pub max_pooled_samples: usize,
 }
 
 /// MATLAB trainbr's initial μ (reference-values.md, tag trainbr).
@@ -435,6 +439,13 @@ const FOLDS: Key = Key::num(
     8.0,
     "held-out runs of the model choice (`auto`) and of leave-one-run-out: one run out at a time up to this many runs, this many folds of runs beyond (run i in fold i mod K)",
 );
+const MAX_POOLED: Key = Key::num(
+    "train.max_pooled_samples",
+    "",
+    int(1e4, 1e10),
+    20e6,
+    "pooled valid samples (runs × axles of the training condition) the training holds: beyond it every run and axle keeps every m-th sample, m the smallest that fits, with a note in the report (memory: docs/benchmarks.md#how-it-grows-with-the-campaign)",
+);
 const CONDITION: Key = text(
     "train.condition",
     "a run metadata `condition`",
@@ -479,6 +490,7 @@ pub const KEYS: &[&Key] = &[
     &POLACH_INTERVALS,
     &MODEL,
     &FOLDS,
+    &MAX_POOLED,
 ];
 
 impl Checker<'_> {
@@ -560,6 +572,7 @@ impl Checker<'_> {
                 ModelChoice::Auto,
             )?,
             folds: self.value(&FOLDS, t.folds)? as usize,
+            max_pooled_samples: self.value(&MAX_POOLED, t.max_pooled_samples)? as usize,
         })
     }
 

@@ -99,6 +99,38 @@ pub fn select_condition(
     })
 }
 
+/// The thinning that brings the pooled valid samples of `tables` within `limit`: the smallest
+/// m ≥ 1 for which keeping every m-th sample of each run and axle ([`RunTable::thin`]) leaves
+/// Σ ⌈n_(run, axle) / m⌉ ≤ `limit` samples (1 when they are within it already; `limit` ≥ the
+/// number of run-axle pairs, which every limit the pipeline accepts is). The same for any
+/// order of the tables.
+pub fn pooled_thinning(tables: &[RunTable], limit: usize) -> usize {
+    let mut counts = Vec::new();
+    for t in tables {
+        let mut k = 0usize;
+        for i in 0..t.len() {
+            if i > 0 && t.axle[i] != t.axle[i - 1] {
+                counts.push(k);
+                k = 0;
+            }
+            k += 1;
+        }
+        if k > 0 {
+            counts.push(k);
+        }
+    }
+    let limit = limit.max(counts.len()).max(1);
+    let kept = |m: usize| counts.iter().map(|n| n.div_ceil(m)).sum::<usize>();
+    let total = kept(1);
+    // Σ ⌈n/m⌉ ≥ total/m rules out every m below ⌈total/limit⌉; Σ ⌈n/m⌉ < total/m + pairs
+    // puts the answer a few steps past it.
+    let mut m = total.div_ceil(limit).max(1);
+    while kept(m) > limit {
+        m += 1;
+    }
+    m
+}
+
 /// Median vehicle speed over the valid samples of `tables`, m/s (10 m/s when there are none).
 pub fn median_speed(tables: &[RunTable]) -> f64 {
     let mut v: Vec<f64> = tables
@@ -112,4 +144,78 @@ pub fn median_speed(tables: &[RunTable]) -> f64 {
     // The element a sort would put at len/2, in linear time.
     let mid = v.len() / 2;
     *v.select_nth_unstable_by(mid, f64::total_cmp).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A table with `counts[a]` samples on axle a + 1 (sample values: their index).
+    fn table(counts: &[usize]) -> RunTable {
+        let mut t = RunTable::default();
+        for (a, &n) in counts.iter().enumerate() {
+            for i in 0..n {
+                t.axle.push(a as u8 + 1);
+                for col in [&mut t.time_s, &mut t.v_mps, &mut t.dv_mps, &mut t.ddv_mps2] {
+                    col.push(i as f64);
+                }
+                t.mu.push(i as f64);
+            }
+        }
+        t
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// The factor is the smallest that fits, whatever the order of the runs, and thinning
+        /// by it leaves exactly the counted samples, every axle's first among them.
+        #[test]
+        fn pooled_thinning_is_the_smallest_factor_that_fits(
+            runs in proptest::collection::vec(proptest::collection::vec(0usize..400, 1..=4), 1..6),
+            limit in 1usize..3000,
+        ) {
+            let tables: Vec<RunTable> = runs.iter().map(|c| table(c)).collect();
+            let m = pooled_thinning(&tables, limit);
+            let pairs = runs.iter().flatten().filter(|&&n| n > 0).count();
+            let kept = |m: usize| runs.iter().flatten().map(|n| n.div_ceil(m)).sum::<usize>();
+            prop_assert!(kept(m) <= limit.max(pairs).max(1));
+            prop_assert!(m == 1 || kept(m - 1) > limit.max(pairs));
+            let mut reversed = tables.clone();
+            reversed.reverse();
+            prop_assert_eq!(pooled_thinning(&reversed, limit), m);
+            let mut thinned = tables;
+            for t in &mut thinned {
+                t.thin(m);
+            }
+            prop_assert_eq!(thinned.iter().map(RunTable::len).sum::<usize>(), kept(m));
+            for (t, c) in thinned.iter().zip(&runs) {
+                // Per axle: samples 0, m, 2m, … of that axle.
+                let mut at = 0;
+                for (a, &n) in c.iter().enumerate() {
+                    let want: Vec<f64> = (0..n).step_by(m).map(|i| i as f64).collect();
+                    let k = want.len();
+                    prop_assert_eq!(&t.mu[at..at + k], &want[..]);
+                    prop_assert!(t.axle[at..at + k].iter().all(|&x| x == a as u8 + 1));
+                    at += k;
+                }
+            }
+        }
+
+        /// Thinning by a, then b, keeps what thinning by a · b keeps.
+        #[test]
+        fn thinning_composes(
+            counts in proptest::collection::vec(0usize..300, 1..=4),
+            a in 1usize..6,
+            b in 1usize..6,
+        ) {
+            let mut twice = table(&counts);
+            twice.thin(a);
+            twice.thin(b);
+            let mut once = table(&counts);
+            once.thin(a * b);
+            prop_assert_eq!(twice.mu, once.mu);
+            prop_assert_eq!(twice.axle, once.axle);
+        }
+    }
 }

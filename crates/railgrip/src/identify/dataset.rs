@@ -166,6 +166,35 @@ impl RunTable {
         out
     }
 
+    /// Keeps every `m`-th sample of each axle (its first, then every `m`-th after it), in
+    /// place, and gives the memory of the rest back. `thin(a)` then `thin(b)` keeps what
+    /// `thin(a · b)` keeps.
+    pub fn thin(&mut self, m: usize) {
+        if m <= 1 {
+            return;
+        }
+        let mut keep = Vec::with_capacity(self.len() / m + crate::format::AXLES);
+        let mut k = 0;
+        for i in 0..self.len() {
+            if i > 0 && self.axle[i] != self.axle[i - 1] {
+                k = 0;
+            }
+            if k % m == 0 {
+                keep.push(i);
+            }
+            k += 1;
+        }
+        fn pick<T: Copy>(v: &mut Vec<T>, keep: &[usize]) {
+            *v = keep.iter().map(|&i| v[i]).collect();
+        }
+        pick(&mut self.axle, &keep);
+        pick(&mut self.time_s, &keep);
+        pick(&mut self.v_mps, &keep);
+        pick(&mut self.dv_mps, &keep);
+        pick(&mut self.ddv_mps2, &keep);
+        pick(&mut self.mu, &keep);
+    }
+
     pub fn len(&self) -> usize {
         self.mu.len()
     }

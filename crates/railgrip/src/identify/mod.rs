@@ -30,7 +30,8 @@ pub mod train;
 
 pub use crate::model::InputSet;
 pub use campaign::{
-    creep_spec, median_speed, pipeline_patch, run_condition, select_condition, ConditionChoice,
+    creep_spec, median_speed, pipeline_patch, pooled_thinning, run_condition, select_condition,
+    ConditionChoice,
 };
 pub use dataset::{Dataset, MapMinMax, RunTable};
 pub use family::{campaign_models, CampaignFit, FitData, Fitted, ModelFamily, FAMILIES};
