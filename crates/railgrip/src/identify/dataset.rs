@@ -10,7 +10,69 @@ use crate::format::RunMetadata;
 
 use super::{IdentifyError, InputSet};
 
-/// Valid estimates of one run.
+/// One column of a [`RunTable`]: shared between the clones of a table, so that the model
+/// choice's folds and the residual network's tables (a run set without one fold, μ replaced by
+/// a residual) cost no copy of the samples. Reads as a slice; the first change to a column
+/// that another table shares copies it (copy on write).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Column<T>(std::sync::Arc<Vec<T>>);
+
+impl<T: Clone> Column<T> {
+    /// Appends a value (copies the column first when another table shares it).
+    pub fn push(&mut self, x: T) {
+        std::sync::Arc::make_mut(&mut self.0).push(x);
+    }
+}
+
+impl<T> From<Vec<T>> for Column<T> {
+    fn from(v: Vec<T>) -> Self {
+        Column(std::sync::Arc::new(v))
+    }
+}
+
+impl<T> FromIterator<T> for Column<T> {
+    fn from_iter<I: IntoIterator<Item = T>>(it: I) -> Self {
+        Column(std::sync::Arc::new(it.into_iter().collect()))
+    }
+}
+
+impl<T> std::ops::Deref for Column<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        &self.0
+    }
+}
+
+impl<T: Clone> std::ops::DerefMut for Column<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        std::sync::Arc::make_mut(&mut self.0).as_mut_slice()
+    }
+}
+
+impl<'a, T> IntoIterator for &'a Column<T> {
+    type Item = &'a T;
+    type IntoIter = std::slice::Iter<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.0.iter()
+    }
+}
+
+impl<T: serde::Serialize> serde::Serialize for Column<T> {
+    /// As the sequence of its values.
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.0.as_slice().serialize(s)
+    }
+}
+
+impl<'a, T: Clone> IntoIterator for &'a mut Column<T> {
+    type Item = &'a mut T;
+    type IntoIter = std::slice::IterMut<'a, T>;
+    fn into_iter(self) -> Self::IntoIter {
+        std::sync::Arc::make_mut(&mut self.0).iter_mut()
+    }
+}
+
+/// Valid estimates of one run. Cloning a table shares its columns ([`Column`]).
 #[derive(Debug, Clone, Default)]
 pub struct RunTable {
     /// Short name (file stem).
@@ -20,12 +82,12 @@ pub struct RunTable {
     /// SHA-256 of that file, hex.
     pub sha256: String,
     pub metadata: RunMetadata,
-    pub axle: Vec<u8>,
-    pub time_s: Vec<f64>,
-    pub v_mps: Vec<f64>,
-    pub dv_mps: Vec<f64>,
-    pub ddv_mps2: Vec<f64>,
-    pub mu: Vec<f64>,
+    pub axle: Column<u8>,
+    pub time_s: Column<f64>,
+    pub v_mps: Column<f64>,
+    pub dv_mps: Column<f64>,
+    pub ddv_mps2: Column<f64>,
+    pub mu: Column<f64>,
 }
 
 impl RunTable {
@@ -184,7 +246,7 @@ impl RunTable {
             }
             k += 1;
         }
-        fn pick<T: Copy>(v: &mut Vec<T>, keep: &[usize]) {
+        fn pick<T: Copy>(v: &mut Column<T>, keep: &[usize]) {
             *v = keep.iter().map(|&i| v[i]).collect();
         }
         pick(&mut self.axle, &keep);

@@ -448,10 +448,11 @@ impl ModelFamily for Residual {
 /// ambient temperature; unknown: the law's reference).
 fn minus_law(t: &RunTable, base: &Model) -> RunTable {
     let t_c = t.metadata.ambient_temperature_c.unwrap_or(f64::NAN);
+    // The clone shares every column; μ alone is new.
     let mut r = t.clone();
-    for k in 0..r.mu.len() {
-        r.mu[k] -= base.mu_vt(r.dv_mps[k], r.ddv_mps2[k], r.v_mps[k], t_c);
-    }
+    r.mu = (0..t.len())
+        .map(|k| t.mu[k] - base.mu_vt(t.dv_mps[k], t.ddv_mps2[k], t.v_mps[k], t_c))
+        .collect();
     r
 }
 
