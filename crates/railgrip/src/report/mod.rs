@@ -113,9 +113,21 @@ impl<'a> Inputs<'a> {
             }
             None => Vec::new(),
         };
+        // One run at a time: its own section is drawn here, and only what the sections across
+        // runs read is kept (axle 2's valid samples; every axle's for the first run of the
+        // training condition, whose validation axle Fig. 10 draws), so that the report's
+        // memory grows by a run's axle-2 samples, not by its whole table.
+        let in_condition =
+            |r: &RunRecord| camp.condition.is_none() || r.condition == camp.condition;
         let mut data = Vec::new();
+        let mut first_in_condition = true;
         for r in camp.runs.iter().filter(|r| r.ok()) {
-            data.push((r, read_run(&out.run_estimates(&r.run))?));
+            let mut d = read_run(&out.run_estimates(&r.run))?;
+            d.section = run_section(r, &d)?;
+            let keep_all_axles = first_in_condition && in_condition(r);
+            first_in_condition &= !in_condition(r);
+            d.slim(keep_all_axles);
+            data.push((r, d));
         }
         let choice: Option<crate::identify::choice::Choice> = optional_json(&models.choice())?;
         if let Some(c) = &choice {
@@ -441,77 +453,84 @@ fn across_runs(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
     Ok(())
 }
 
-/// Per run: speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7).
+/// Per run: speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7), drawn
+/// when the run was loaded ([`run_section`]).
 fn per_run(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
-    let data = &i.data;
-    for (r, d) in data {
-        let _ = writeln!(
-            *h,
-            "<h3>{} — {} km/h, {} °C, {}</h3>\n<div class=\"figs\">",
-            esc(&r.run),
-            opt(r.initial_speed_kmh, 0),
-            opt(r.ambient_temperature_c, 0),
-            esc(r.condition.as_deref().unwrap_or("condition unknown"))
-        );
-        let mut speeds = vec![Series {
-            name: "vehicle v".into(),
-            color: RGBColor(0, 0, 0),
-            pts: d
-                .time_s
-                .iter()
-                .copied()
-                .zip(d.v_mps.iter().copied())
-                .collect(),
-            dots: false,
-        }];
-        for (a, w) in d.wheel.iter().enumerate() {
-            speeds.push(Series {
-                name: format!("rω axle {}", a + 1),
-                color: PALETTE[a],
-                pts: w.clone(),
-                dots: false,
-            });
-        }
-        h.push_str(&chart(
-            "Vehicle and wheel peripheral speeds (Fig. 3)",
-            "time (s)",
-            "speed (m/s)",
-            &speeds,
-            false,
-        )?);
-        let pressures: Vec<Series> = (0..AXLES)
-            .map(|a| Series {
-                name: format!("axle {}", a + 1),
-                color: PALETTE[a],
-                pts: d.pressure[a].clone(),
-                dots: false,
-            })
-            .collect();
-        h.push_str(&chart(
-            "Brake-cylinder pressures (Fig. 4)",
-            "time (s)",
-            "pressure (bar)",
-            &pressures,
-            false,
-        )?);
-        let mus: Vec<Series> = (0..AXLES)
-            .map(|a| Series {
-                name: format!("axle {}", a + 1),
-                color: PALETTE[a],
-                pts: d.valid[a].iter().map(|v| (v.0, v.2)).collect(),
-                dots: true,
-            })
-            .collect();
-        h.push_str(&chart(
-            "μ against Δv per axle (Fig. 7)",
-            "Δv (m/s)",
-            "μ",
-            &mus,
-            false,
-        )?);
-        h.push_str("</div>\n");
+    for (_, d) in &i.data {
+        h.push_str(&d.section);
     }
     Ok(())
+}
+
+/// A run's section of the report (see [`per_run`]).
+fn run_section(r: &RunRecord, d: &RunData) -> Result<String, ReportError> {
+    let mut h = String::new();
+    let _ = writeln!(
+        h,
+        "<h3>{} — {} km/h, {} °C, {}</h3>\n<div class=\"figs\">",
+        esc(&r.run),
+        opt(r.initial_speed_kmh, 0),
+        opt(r.ambient_temperature_c, 0),
+        esc(r.condition.as_deref().unwrap_or("condition unknown"))
+    );
+    let mut speeds = vec![Series {
+        name: "vehicle v".into(),
+        color: RGBColor(0, 0, 0),
+        pts: d
+            .time_s
+            .iter()
+            .copied()
+            .zip(d.v_mps.iter().copied())
+            .collect(),
+        dots: false,
+    }];
+    for (a, w) in d.wheel.iter().enumerate() {
+        speeds.push(Series {
+            name: format!("rω axle {}", a + 1),
+            color: PALETTE[a],
+            pts: w.clone(),
+            dots: false,
+        });
+    }
+    h.push_str(&chart(
+        "Vehicle and wheel peripheral speeds (Fig. 3)",
+        "time (s)",
+        "speed (m/s)",
+        &speeds,
+        false,
+    )?);
+    let pressures: Vec<Series> = (0..AXLES)
+        .map(|a| Series {
+            name: format!("axle {}", a + 1),
+            color: PALETTE[a],
+            pts: d.pressure[a].clone(),
+            dots: false,
+        })
+        .collect();
+    h.push_str(&chart(
+        "Brake-cylinder pressures (Fig. 4)",
+        "time (s)",
+        "pressure (bar)",
+        &pressures,
+        false,
+    )?);
+    let mus: Vec<Series> = (0..AXLES)
+        .map(|a| Series {
+            name: format!("axle {}", a + 1),
+            color: PALETTE[a],
+            pts: d.valid[a].iter().map(|v| (v.0, v.2)).collect(),
+            dots: true,
+        })
+        .collect();
+    h.push_str(&chart(
+        "μ against Δv per axle (Fig. 7)",
+        "Δv (m/s)",
+        "μ",
+        &mus,
+        false,
+    )?);
+    h.push_str("</div>\n");
+    Ok(h)
 }
 
 /// Where the network came from.
