@@ -17,7 +17,7 @@
 //! of 3 trainings as the peer times itself) is printed beside numpy's with one BLAS thread and
 //! with all threads (best of 3 trainings) with the ratios, and the per-epoch training MSEs of
 //! the two are compared (relative difference over the first 20 epochs). First it prints what
-//! the ratio depends on: the CPU (model, widest vector extension, cores) and the peer's
+//! the ratio depends on: the CPU (model, the vector path railgrip takes, logical CPUs) and the peer's
 //! numpy version, BLAS and its run-time kernel, numpy's SIMD extensions and np.tanh's ns per
 //! element. Without python3 and numpy the peer is skipped with a message.
 
@@ -187,7 +187,7 @@ fn bench(c: &mut Criterion) {
                     .map(|(a, b)| ((a.train_mse - b) / b).abs())
                     .fold(0.0f64, f64::max);
                 eprintln!(
-                    "lm/{name} (P = {n_params}): railgrip {:.3} ms/epoch (best of 3 trainings, all cores); numpy trainlm {:.3} ms/epoch on 1 BLAS thread, {:.3} ms/epoch on all: railgrip faster by {:.1}x / {:.1}x; {} vs {} epochs; worst relative difference of the training MSE over the first 20 epochs {worst:.2e}",
+                    "lm/{name} (P = {n_params}): railgrip {:.3} ms/epoch (best of 3 trainings, every logical CPU); numpy trainlm {:.3} ms/epoch on 1 BLAS thread, {:.3} ms/epoch on all: railgrip faster by {:.1}x / {:.1}x; {} vs {} epochs; worst relative difference of the training MSE over the first 20 epochs {worst:.2e}",
                     per_epoch * 1e3,
                     one * 1e3,
                     all * 1e3,

@@ -6,14 +6,14 @@
 # and prints one row per campaign: runs, wall time per stage (timings.json) and peak RSS
 # (GNU time's maximum resident set size).
 #
-#   scripts/scaling.sh [OUT_DIR] [SIZES]      default: target/scaling "12 36 72"
+#   scripts/scaling.sh [OUT_DIR] [SIZES]      default: target/scaling "8 64 256"
 #
 # Needs a build (RAILGRIP=path, default target/release/railgrip) and /usr/bin/time.
 # PIPELINE=file.toml runs the campaigns with that pipeline.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/scaling}"
-sizes="${2:-12 36 72}"
+sizes="${2:-8 64 256}"
 bin="${RAILGRIP:-target/release/railgrip}"
 [ -x "$bin" ] || { echo "no $bin: run cargo build --release first (or set RAILGRIP)" >&2; exit 2; }
 [ -x /usr/bin/time ] || { echo "no /usr/bin/time (GNU time): apt-get install time" >&2; exit 2; }

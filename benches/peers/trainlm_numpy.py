@@ -73,9 +73,13 @@ def environment(n_elements):
             break
     try:
         from numpy._core._multiarray_umath import __cpu_features__ as feats
-        info["simd"] = [k for k in ("AVX2", "AVX512F", "AVX512_SKX") if feats.get(k)]
-    except ImportError:
-        info["simd"] = []
+    except ImportError:  # numpy 1.x
+        try:
+            from numpy.core._multiarray_umath import __cpu_features__ as feats
+        except ImportError:
+            feats = None
+    info["simd"] = ([k for k in ("AVX2", "AVX512F", "AVX512_SKX") if feats.get(k)]
+                    if feats is not None else ["unknown"])
     z = np.linspace(-3.0, 3.0, n_elements)
     out = np.empty_like(z)
     best = float("inf")

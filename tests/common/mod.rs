@@ -453,8 +453,8 @@ pub fn numpy_environment(problem: &Path) -> Result<String, String> {
     ))
 }
 
-/// This CPU: its model name and widest vector extension (from /proc/cpuinfo where there is
-/// one; railgrip's kernels take AVX-512 or AVX2 paths by them), and its cores.
+/// This CPU: its model name and the widest vector path railgrip's kernels take on it (from
+/// /proc/cpuinfo where there is one), and the logical CPUs this process may use.
 pub fn cpu_line() -> String {
     let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let field = |key: &str| {
@@ -466,15 +466,20 @@ pub fn cpu_line() -> String {
     let model = field("model name").unwrap_or_else(|| std::env::consts::ARCH.to_string());
     let flags = field("flags").unwrap_or_default();
     let has = |f: &str| flags.split_whitespace().any(|x| x == f);
-    let width = if has("avx512f") {
+    // railgrip's kernels take their AVX-512 path with AVX-512F and VL, AVX2 and FMA, and their
+    // AVX2 path with AVX2 and FMA.
+    let width = if ["avx512f", "avx512vl", "avx2", "fma"]
+        .iter()
+        .all(|f| has(f))
+    {
         "AVX-512"
-    } else if has("avx2") {
+    } else if has("avx2") && has("fma") {
         "AVX2"
     } else {
         "no AVX2"
     };
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    format!("{model}, {width}, {cores} cores")
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!("{model}, {width}, {threads} logical CPUs")
 }
 
 /// Runs the numpy trainlm peer on a problem file: the seconds per epoch of the fastest of

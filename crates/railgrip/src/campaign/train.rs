@@ -89,8 +89,11 @@ pub fn train_models(
         notes.insert(
             0,
             format!(
-                "the {pooled} pooled valid samples exceed train.max_pooled_samples = {limit}: one sample in {thinning} of each run and axle trained ({samples} samples; train.decimate = {} thins the networks' data further) — raise the limit where memory allows (docs/benchmarks.md#how-it-grows-with-the-campaign)",
-                pipeline.train.decimate
+                "the {pooled} pooled valid samples exceed train.max_pooled_samples = {limit}: one sample in {thinning} of each run and axle was kept ({samples} samples) for every fit and held-out score{} — raise the limit where memory allows (docs/benchmarks.md#how-it-grows-with-the-campaign)",
+                match pipeline.train.decimate {
+                    1 => String::new(),
+                    d => format!(", which take one in {d} of these (train.decimate)"),
+                }
             ),
         );
     }

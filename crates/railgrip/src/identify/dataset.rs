@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use crate::config::SplitConfig;
-use crate::estimate::Estimates;
+use crate::estimate::{AxleEstimates, Estimates};
 use crate::format::RunMetadata;
 
 use super::{IdentifyError, InputSet};
@@ -18,7 +18,9 @@ use super::{IdentifyError, InputSet};
 pub struct Column<T>(std::sync::Arc<Vec<T>>);
 
 impl<T: Clone> Column<T> {
-    /// Appends a value (copies the column first when another table shares it).
+    /// Appends a value (copies the column first when another table shares it). For tests and
+    /// small tables: every push checks the sharing; the library builds its columns whole
+    /// (`collect`).
     pub fn push(&mut self, x: T) {
         std::sync::Arc::make_mut(&mut self.0).push(x);
     }
@@ -93,24 +95,32 @@ pub struct RunTable {
 impl RunTable {
     /// The valid samples of `e`, axle by axle in time order.
     pub fn from_estimates(name: &str, source: &str, sha256: &str, e: &Estimates) -> RunTable {
-        let mut t = RunTable {
+        // (axle index, sample) of every valid sample, axle by axle in time order.
+        let rows: Vec<(usize, usize)> = e
+            .axles
+            .iter()
+            .enumerate()
+            .flat_map(|(a, ax)| {
+                (0..e.len())
+                    .filter(move |&i| ax.valid[i])
+                    .map(move |i| (a, i))
+            })
+            .collect();
+        let axle = |f: fn(&AxleEstimates) -> &[f64]| -> Column<f64> {
+            rows.iter().map(|&(a, i)| f(&e.axles[a])[i]).collect()
+        };
+        RunTable {
             name: name.to_string(),
             source: source.to_string(),
             sha256: sha256.to_string(),
             metadata: e.metadata.clone(),
-            ..RunTable::default()
-        };
-        for (a, ax) in e.axles.iter().enumerate() {
-            for i in (0..e.len()).filter(|&i| ax.valid[i]) {
-                t.axle.push(a as u8 + 1);
-                t.time_s.push(e.time_s[i]);
-                t.v_mps.push(e.v_mps[i]);
-                t.dv_mps.push(ax.dv_mps[i]);
-                t.ddv_mps2.push(ax.ddv_mps2[i]);
-                t.mu.push(ax.mu[i]);
-            }
+            axle: rows.iter().map(|&(a, _)| a as u8 + 1).collect(),
+            time_s: rows.iter().map(|&(_, i)| e.time_s[i]).collect(),
+            v_mps: rows.iter().map(|&(_, i)| e.v_mps[i]).collect(),
+            dv_mps: axle(|x| &x.dv_mps),
+            ddv_mps2: axle(|x| &x.ddv_mps2),
+            mu: axle(|x| &x.mu),
         }
-        t
     }
 
     /// Reads the valid rows of an estimates table written by `railgrip estimate`.
@@ -170,7 +180,17 @@ impl RunTable {
             f64col("ddv_mps2")?,
             f64col("mu")?,
         );
-        let mut t = RunTable {
+        // Axle-major order like `from_estimates`.
+        let rows: Vec<usize> = {
+            let (valid, axle) = (&valid, &axle);
+            (1..=crate::format::AXLES as u8)
+                .flat_map(|a| {
+                    (0..valid.len()).filter(move |&i| valid[i] && axle[i] == f64::from(a))
+                })
+                .collect()
+        };
+        let col = |c: &[f64]| -> self::Column<f64> { rows.iter().map(|&i| c[i]).collect() };
+        let t = RunTable {
             name: path
                 .file_name()
                 .map(|s| {
@@ -185,21 +205,13 @@ impl RunTable {
                 source,
             })?,
             metadata,
-            ..RunTable::default()
+            axle: rows.iter().map(|&i| axle[i] as u8).collect(),
+            time_s: col(&time),
+            v_mps: col(&v),
+            dv_mps: col(&dv),
+            ddv_mps2: col(&ddv),
+            mu: col(&mu),
         };
-        // Axle-major order like `from_estimates`.
-        for a in 1..=crate::format::AXLES as u8 {
-            for i in 0..valid.len() {
-                if valid[i] && axle[i] == a as f64 {
-                    t.axle.push(a);
-                    t.time_s.push(time[i]);
-                    t.v_mps.push(v[i]);
-                    t.dv_mps.push(dv[i]);
-                    t.ddv_mps2.push(ddv[i]);
-                    t.mu.push(mu[i]);
-                }
-            }
-        }
         Ok(t)
     }
 
@@ -222,8 +234,16 @@ impl RunTable {
             metadata: self.metadata.clone(),
             ..RunTable::default()
         };
-        for i in (0..self.len()).filter(|&i| keep(i)) {
-            out.push_row(self, i);
+        let rows: Vec<usize> = (0..self.len()).filter(|&i| keep(i)).collect();
+        out.axle = rows.iter().map(|&i| self.axle[i]).collect();
+        for (to, from) in [
+            (&mut out.time_s, &self.time_s),
+            (&mut out.v_mps, &self.v_mps),
+            (&mut out.dv_mps, &self.dv_mps),
+            (&mut out.ddv_mps2, &self.ddv_mps2),
+            (&mut out.mu, &self.mu),
+        ] {
+            *to = rows.iter().map(|&i| from[i]).collect();
         }
         out
     }

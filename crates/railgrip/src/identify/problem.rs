@@ -194,7 +194,7 @@ impl MlpProblem {
     /// chunk), and Σ r² summed in sample order (as [`MlpProblem::sse_of`] sums it, so that the
     /// current and a trial error compare like for like). A holds the whole chunk, so one matrix
     /// product serves it; the blocks write their Jacobian rows straight into it, and `buf` is
-    /// reused from chunk to chunk.
+    /// reused from chunk to chunk of a rayon job.
     fn gram_of_chunk(
         &self,
         theta: &[f64],
@@ -247,8 +247,9 @@ impl MlpProblem {
     }
 }
 
-/// What [`MlpProblem::gram_of_chunk`] works in, allocated once per worker rather than per
-/// chunk and epoch: A for a whole chunk, the block's residuals and its hidden activations.
+/// What [`MlpProblem::gram_of_chunk`] works in, allocated once per rayon job of an epoch's
+/// normal equations (each job takes several chunks) rather than once per chunk: A for a whole
+/// chunk, the block's residuals and its hidden activations.
 struct ChunkBuffers {
     a_mat: Vec<f64>,
     r: Vec<f64>,
