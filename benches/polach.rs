@@ -98,8 +98,8 @@ fn bench(c: &mut Criterion) {
                 .map(|a| a.as_f64().unwrap())
                 .collect();
             eprintln!(
-                "scipy least_squares(method='trf'): {s:.3} s (best of 3), {} evaluations, μ0 {:.5} A {:.4} B {:.4} k_A {:.5} k_S {:.5}, RMSE {:.6} ({}); railgrip {:.1}× faster",
-                v["nfev"], x[0], x[1], x[2], x[3], x[4], v["rmse"].as_f64().unwrap(), v["message"], s / secs
+                "scipy least_squares(method='trf'): {s:.3} s (best of 3), {} evaluations, μ0 {:.5} A {:.4} B {:.4} k_A {:.5} k_S {:.5}, RMSE {:.6} ({}; {}); railgrip {:.1}× faster",
+                v["nfev"], x[0], x[1], x[2], x[3], x[4], v["rmse"].as_f64().unwrap(), v["message"], v["versions"].as_str().unwrap_or("versions unknown"), s / secs
             );
         }
         Ok(o) => eprintln!(

@@ -117,8 +117,8 @@ fn bench(c: &mut Criterion) {
             let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
             let (s, val) = (v["seconds"].as_f64().unwrap(), v["val_mse"].as_f64().unwrap());
             eprintln!(
-                "scipy least_squares(method='lm'): {:.3} s, {} evaluations, train MSE {:.4e}, val MSE {:.4e} ({})",
-                s, v["nfev"], v["train_mse"].as_f64().unwrap(), val, v["message"]
+                "scipy least_squares(method='lm'): {:.3} s, {} evaluations, train MSE {:.4e}, val MSE {:.4e} ({}; {})",
+                s, v["nfev"], v["train_mse"].as_f64().unwrap(), val, v["message"], v["versions"].as_str().unwrap_or("versions unknown")
             );
             let reach = trained.history.iter().find(|e| e.val_mse <= val).map(|e| e.elapsed_s);
             eprintln!(

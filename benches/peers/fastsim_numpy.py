@@ -146,10 +146,21 @@ def best_us(f, calls):
     return best * 1e6
 
 
+def versions():
+    """numpy's version, and numba's when it is installed."""
+    v = f"numpy {np.__version__}"
+    try:
+        import numba
+        v += f", numba {numba.__version__}"
+    except ImportError:
+        pass
+    return v
+
+
 def main(path):
     p = json.load(open(path))
     numba_f = make_numba()
-    out = {"numba": numba_f is not None, "grids": {}}
+    out = {"numba": numba_f is not None, "grids": {}, "versions": versions()}
     for n in p["grids"]:
         scale = pressure_scale(n, n, p["elliptic"])
         row = {}

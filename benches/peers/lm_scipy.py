@@ -15,6 +15,7 @@ import sys
 import time
 
 import numpy as np
+import scipy
 from scipy.optimize import least_squares
 
 
@@ -64,6 +65,7 @@ def main(path):
         "val_mse": val_mse,
         "status": int(res.status),
         "message": res.message,
+        "versions": f"scipy {scipy.__version__}, numpy {np.__version__}",
     }))
 
 

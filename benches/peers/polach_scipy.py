@@ -21,6 +21,7 @@ import sys
 import time
 
 import numpy as np
+import scipy
 from scipy.optimize import least_squares
 
 
@@ -92,6 +93,7 @@ def main(path):
                 "params": [mu0, a, b, ka, ka * rho],
                 "rmse": float(np.sqrt(np.mean(res.fun**2))),
                 "message": res.message,
+                "versions": f"scipy {scipy.__version__}, numpy {np.__version__}",
             }
         )
     )
