@@ -12,6 +12,17 @@
 //! - `run/train_named_mlp`: the same with `train.model = "mlp"` (the network and the Polach
 //!   model, no folds; the leave-one-run-out networks instead) — what the choice costs, side by
 //!   side;
+//! - the training stage part by part (`run/train` is these with the fits on all runs and the
+//!   folds side by side, `rayon::join`, on the two cores):
+//!   - `run/train/polach`: Polach's law with the temperature and speed forms BIC chooses and
+//!     its profile-likelihood intervals (pooled, per run, per temperature) — first, alone: the
+//!     other candidates need it as fallback or base; `run/train/polach_no_intervals` the same
+//!     without the intervals;
+//!   - `run/train/all_runs/<candidate>`: each other candidate fitted on all runs (the network of
+//!     `[train]` with its starts, the networks over the other input sets, the residual
+//!     network);
+//!   - `run/train/folds`: every candidate on every held-out fold and scored
+//!     (`choice::score_candidates`: 7 folds × the Polach law and 4 networks);
 //! - `run/report`: the HTML report — `report::write_report`;
 //! - `run/all`: `campaign::run` with `--force`, everything above in one call.
 //!
@@ -53,6 +64,7 @@ fn bench(c: &mut Criterion) {
             m.write(&out.models(), true).unwrap()
         })
     });
+    train_parts(&mut g, &tables, &p);
     let mut named = p.clone();
     named.train.model = railgrip::config::ModelChoice::Mlp;
     g.bench_function("train_named_mlp", |b| {
@@ -69,6 +81,73 @@ fn bench(c: &mut Criterion) {
         b.iter(|| campaign::run(&root, &out, &p, opts(2, true), &Quiet).unwrap())
     });
     g.finish();
+}
+
+/// The training stage's parts, each alone (see the module text).
+fn train_parts(
+    g: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    tables: &[railgrip::identify::RunTable],
+    p: &Pipeline,
+) {
+    use railgrip::identify::choice;
+    use railgrip::identify::family::PolachWithLaws;
+    use railgrip::identify::{select_condition, FitData, ModelFamily};
+    use railgrip::model::{Model, Provenance};
+    let used = select_condition(tables.to_vec(), None).unwrap().used;
+    fn data<'a>(
+        tables: &'a [railgrip::identify::RunTable],
+        pipeline: &'a Pipeline,
+        fallback: Option<&'a Model>,
+    ) -> FitData<'a> {
+        FitData {
+            tables,
+            pipeline,
+            provenance: Provenance {
+                inputs: vec![],
+                pipeline: String::new(),
+                pipeline_sha256: String::new(),
+                seed: pipeline.train.seed,
+                crate_version: String::new(),
+                created: String::new(),
+                generation: None,
+            },
+            fallback,
+            epochs: None,
+            audit: true,
+        }
+    }
+    let polach = |intervals| PolachWithLaws {
+        intervals,
+        law_required: false,
+        pinned: None,
+    };
+    g.bench_function("train/polach", |b| {
+        b.iter(|| polach(true).fit(&data(&used, p, None)).unwrap())
+    });
+    g.bench_function("train/polach_no_intervals", |b| {
+        b.iter(|| polach(false).fit(&data(&used, p, None)).unwrap())
+    });
+    let fitted = polach(true).fit(&data(&used, p, None)).unwrap();
+    let law = Model::named(fitted.model.unwrap(), "Polach model").unwrap();
+    let form = fitted
+        .report
+        .into_polach()
+        .and_then(|r| r.temperature.map(|t| t.form_choice()))
+        .unwrap_or_default();
+    let cands = choice::candidates(p, &used);
+    for c in cands.iter().filter(|c| c.name != "polach") {
+        g.bench_function(format!("train/all_runs/{}", c.name), |b| {
+            b.iter(|| {
+                c.family(None)
+                    .fit(&data(&used, &c.pipeline, Some(&law)))
+                    .unwrap()
+            })
+        });
+    }
+    let t = &p.train;
+    g.bench_function("train/folds", |b| {
+        b.iter(|| choice::score_candidates(&cands, &used, t.folds, t.decimate, form))
+    });
 }
 
 criterion_group!(benches, bench);
