@@ -36,7 +36,7 @@ for ((k = 0; k < largest; k++)); do
     mv "$tmp/$base.meta.toml" "$pool/$name.meta.toml"
     rm -rf "$tmp"
 done
-printf '%6s %10s %10s %10s %10s %12s\n' runs estimate_s train_s report_s total_s peak_rss_MB
+printf '%6s %10s %10s %10s %10s %12s\n' runs estimate_s train_s report_s total_s peak_rss_MiB
 for n in $sizes; do
     camp="$out/campaign$n"
     rm -rf "$camp" && mkdir -p "$camp/archive"
