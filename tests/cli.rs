@@ -620,6 +620,18 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
         "report"
     );
     assert!(html.contains("Fig. 9") && html.contains("k_A(T)") && html.contains("Fig. 11"));
+    // Every run that was estimated has its own section (drawn as the report loads the run),
+    // and Fig. 10 still has the first training run's validation axle.
+    let ok_runs = rows.iter().filter(|r| r.contains(",ok,")).count();
+    assert!(ok_runs >= 2, "{summary}");
+    for title in [
+        "Vehicle and wheel peripheral speeds (Fig. 3)",
+        "Brake-cylinder pressures (Fig. 4)",
+        "per axle (Fig. 7)",
+    ] {
+        assert_eq!(html.matches(title).count(), ok_runs, "{title}");
+    }
+    assert!(html.contains("Fig. 10"));
     assert!(
         !html.contains("<img src=x") && html.contains("&lt;img src=x onerror=alert(1)&gt;.csv"),
         "the report must escape names"
