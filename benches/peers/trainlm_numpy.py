@@ -25,6 +25,7 @@ beta = (N - gamma) / (2 E_D); validation never stops. The output then also holds
 epoch.
 
 Usage: python3 benches/peers/trainlm_numpy.py <problem.json> [repeats]   (needs numpy)
+repeats = 0 prints only "environment", without training.
 Thread count: set OPENBLAS_NUM_THREADS (and OMP_NUM_THREADS) before numpy starts.
 Rounding probes, to measure how much the trajectory amplifies rounding (tests/lm_peer.rs):
 TRAINLM_PROBE=gemm computes J'J by a general product (J.T @ J.copy()) instead of syrk, the same
@@ -103,6 +104,10 @@ def main(path, repeats):
     scale = p["scale"]
     s = p["settings"]
     n_params = h * (k + 2) + 1
+    if repeats == 0:
+        # Only what sets numpy's speed here, without training.
+        print(json.dumps({"environment": environment(len(y) * h)}))
+        return
 
     def unpack(t):
         return t[: h * k].reshape(h, k), t[h * k : h * k + h], t[h * k + h : h * k + 2 * h], t[-1]

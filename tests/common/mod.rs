@@ -437,7 +437,8 @@ fn numbers(v: &serde_json::Value, key: &str) -> Result<Vec<f64>, String> {
 /// version, its BLAS (and the kernel OpenBLAS picked at run time), numpy's SIMD extensions and
 /// np.tanh's ns per element; one line.
 pub fn numpy_environment(problem: &Path) -> Result<String, String> {
-    let v = run_numpy_peer(problem, 1, Some(1), "")?;
+    // Zero repeats: the script reports its environment without training.
+    let v = run_numpy_peer(problem, 0, Some(1), "")?;
     let e = &v["environment"];
     let simd: Vec<&str> = e["simd"]
         .as_array()

@@ -311,6 +311,16 @@ mod tests {
             ("starts = 1 ", "starts = 0 ", "train.starts = 0: must be"),
             (
                 "hidden = 10",
+                "hidden = 10\nmax_pooled_samples = 100",
+                "train.max_pooled_samples = 100: must be",
+            ),
+            (
+                "hidden = 10",
+                "hidden = 10\nmax_pooled_samples = 20000.5",
+                "train.max_pooled_samples = 20000.5: must be a whole number",
+            ),
+            (
+                "hidden = 10",
                 "layers = [32, 32, 32]",
                 "train.layers = [32, 32, 32]: Levenberg–Marquardt trains one or two hidden layers: set train.optimizer = \"adam\"",
             ),

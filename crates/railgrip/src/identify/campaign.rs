@@ -105,20 +105,10 @@ pub fn select_condition(
 /// number of run-axle pairs, which every limit the pipeline accepts is). The same for any
 /// order of the tables.
 pub fn pooled_thinning(tables: &[RunTable], limit: usize) -> usize {
-    let mut counts = Vec::new();
-    for t in tables {
-        let mut k = 0usize;
-        for i in 0..t.len() {
-            if i > 0 && t.axle[i] != t.axle[i - 1] {
-                counts.push(k);
-                k = 0;
-            }
-            k += 1;
-        }
-        if k > 0 {
-            counts.push(k);
-        }
-    }
+    let counts: Vec<usize> = tables
+        .iter()
+        .flat_map(|t| t.axle_ranges().map(|r| r.len()))
+        .collect();
     let limit = limit.max(counts.len()).max(1);
     let kept = |m: usize| counts.iter().map(|n| n.div_ceil(m)).sum::<usize>();
     let total = kept(1);

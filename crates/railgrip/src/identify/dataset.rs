@@ -227,54 +227,51 @@ impl RunTable {
 
     /// The same run with only the samples `keep` accepts (by index).
     pub fn subset(&self, mut keep: impl FnMut(usize) -> bool) -> RunTable {
-        let mut out = RunTable {
+        let rows: Vec<usize> = (0..self.len()).filter(|&i| keep(i)).collect();
+        self.rows(&rows)
+    }
+
+    /// The same run with the samples at `rows` (indices, in the order given).
+    fn rows(&self, rows: &[usize]) -> RunTable {
+        fn pick<T: Copy>(c: &Column<T>, rows: &[usize]) -> Column<T> {
+            rows.iter().map(|&i| c[i]).collect()
+        }
+        RunTable {
             name: self.name.clone(),
             source: self.source.clone(),
             sha256: self.sha256.clone(),
             metadata: self.metadata.clone(),
-            ..RunTable::default()
-        };
-        let rows: Vec<usize> = (0..self.len()).filter(|&i| keep(i)).collect();
-        out.axle = rows.iter().map(|&i| self.axle[i]).collect();
-        for (to, from) in [
-            (&mut out.time_s, &self.time_s),
-            (&mut out.v_mps, &self.v_mps),
-            (&mut out.dv_mps, &self.dv_mps),
-            (&mut out.ddv_mps2, &self.ddv_mps2),
-            (&mut out.mu, &self.mu),
-        ] {
-            *to = rows.iter().map(|&i| from[i]).collect();
+            axle: pick(&self.axle, rows),
+            time_s: pick(&self.time_s, rows),
+            v_mps: pick(&self.v_mps, rows),
+            dv_mps: pick(&self.dv_mps, rows),
+            ddv_mps2: pick(&self.ddv_mps2, rows),
+            mu: pick(&self.mu, rows),
         }
-        out
+    }
+
+    /// The index ranges of the table's axles (samples of one axle are contiguous: the table
+    /// is axle by axle), in order.
+    pub fn axle_ranges(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        let n = self.len();
+        let mut start = 0;
+        (1..=n)
+            .filter(move |&i| i == n || self.axle[i] != self.axle[i - 1])
+            .map(move |end| {
+                let r = start..end;
+                start = end;
+                r
+            })
     }
 
     /// Keeps every `m`-th sample of each axle (its first, then every `m`-th after it), in
     /// place, and gives the memory of the rest back. `thin(a)` then `thin(b)` keeps what
     /// `thin(a · b)` keeps.
     pub fn thin(&mut self, m: usize) {
-        if m <= 1 {
-            return;
+        if m > 1 {
+            let rows: Vec<usize> = self.axle_ranges().flat_map(|r| r.step_by(m)).collect();
+            *self = self.rows(&rows);
         }
-        let mut keep = Vec::with_capacity(self.len() / m + crate::format::AXLES);
-        let mut k = 0;
-        for i in 0..self.len() {
-            if i > 0 && self.axle[i] != self.axle[i - 1] {
-                k = 0;
-            }
-            if k % m == 0 {
-                keep.push(i);
-            }
-            k += 1;
-        }
-        fn pick<T: Copy>(v: &mut Column<T>, keep: &[usize]) {
-            *v = keep.iter().map(|&i| v[i]).collect();
-        }
-        pick(&mut self.axle, &keep);
-        pick(&mut self.time_s, &keep);
-        pick(&mut self.v_mps, &keep);
-        pick(&mut self.dv_mps, &keep);
-        pick(&mut self.ddv_mps2, &keep);
-        pick(&mut self.mu, &keep);
     }
 
     pub fn len(&self) -> usize {

@@ -16,26 +16,13 @@ pub(super) struct RunData {
     pub wheel: [Vec<(f64, f64)>; AXLES],
     pub pressure: [Vec<(f64, f64)>; AXLES],
     pub valid: [Vec<ValidPoint>; AXLES],
-    /// The run's own section of the report, once drawn.
-    pub section: String,
 }
 
-impl RunData {
-    /// Drops what only the run's own section draws: the time series, and the valid samples
-    /// of every axle but axle 2 unless `all_axles`.
-    pub fn slim(&mut self, all_axles: bool) {
-        self.time_s = Vec::new();
-        self.v_mps = Vec::new();
-        self.wheel = Default::default();
-        self.pressure = Default::default();
-        if !all_axles {
-            for (a, v) in self.valid.iter_mut().enumerate() {
-                if a != 1 {
-                    *v = Vec::new();
-                }
-            }
-        }
-    }
+/// What the report keeps of a run once its own section is drawn: that section, and the valid
+/// samples the sections across runs read (the others' axles left empty).
+pub(super) struct KeptRun {
+    pub section: String,
+    pub valid: [Vec<ValidPoint>; AXLES],
 }
 
 pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
@@ -84,7 +71,6 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         wheel: Default::default(),
         pressure: Default::default(),
         valid: Default::default(),
-        section: String::new(),
     };
     for k in 0..t.len() {
         let a = (axle[k] as usize).clamp(1, AXLES) - 1;

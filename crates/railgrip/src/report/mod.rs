@@ -26,7 +26,7 @@ use crate::format::AXLES;
 use crate::identify::polach::PolachReport;
 use crate::model::{Model, ModelError, ModelFile};
 use crate::outdir::{CampaignRecord, OutDir, RecordError, RunRecord};
-use data::{read_run, RunData};
+use data::{read_run, KeptRun, RunData};
 use plot::{chart, Series, PALETTE};
 
 /// Why the report could not be written.
@@ -94,7 +94,7 @@ struct Inputs<'a> {
     choice: Option<crate::identify::choice::Choice>,
     chosen: Option<Model>,
     /// The runs that were estimated, with their tables.
-    data: Vec<(&'a RunRecord, RunData)>,
+    data: Vec<(&'a RunRecord, KeptRun)>,
 }
 
 impl<'a> Inputs<'a> {
@@ -123,11 +123,18 @@ impl<'a> Inputs<'a> {
         let mut first_in_condition = true;
         for r in camp.runs.iter().filter(|r| r.ok()) {
             let mut d = read_run(&out.run_estimates(&r.run))?;
-            d.section = run_section(r, &d)?;
+            let section = run_section(r, &mut d)?;
             let keep_all_axles = first_in_condition && in_condition(r);
             first_in_condition &= !in_condition(r);
-            d.slim(keep_all_axles);
-            data.push((r, d));
+            let mut valid = d.valid;
+            if !keep_all_axles {
+                for (a, v) in valid.iter_mut().enumerate() {
+                    if a != 1 {
+                        *v = Vec::new();
+                    }
+                }
+            }
+            data.push((r, KeptRun { section, valid }));
         }
         let choice: Option<crate::identify::choice::Choice> = optional_json(&models.choice())?;
         if let Some(c) = &choice {
@@ -462,8 +469,9 @@ fn per_run(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
     Ok(())
 }
 
-/// A run's section of the report (see [`per_run`]).
-fn run_section(r: &RunRecord, d: &RunData) -> Result<String, ReportError> {
+/// A run's section of the report (see [`per_run`]); its time series are moved into the
+/// charts, its valid samples left.
+fn run_section(r: &RunRecord, d: &mut RunData) -> Result<String, ReportError> {
     let mut h = String::new();
     let _ = writeln!(
         h,
@@ -473,6 +481,17 @@ fn run_section(r: &RunRecord, d: &RunData) -> Result<String, ReportError> {
         opt(r.ambient_temperature_c, 0),
         esc(r.condition.as_deref().unwrap_or("condition unknown"))
     );
+    // One series per axle, named `{prefix}axle N`.
+    let per_axle = |prefix: &str, pts: &mut dyn FnMut(usize) -> Vec<(f64, f64)>, dots| {
+        (0..AXLES)
+            .map(|a| Series {
+                name: format!("{prefix}axle {}", a + 1),
+                color: PALETTE[a],
+                pts: pts(a),
+                dots,
+            })
+            .collect::<Vec<_>>()
+    };
     let mut speeds = vec![Series {
         name: "vehicle v".into(),
         color: RGBColor(0, 0, 0),
@@ -484,51 +503,34 @@ fn run_section(r: &RunRecord, d: &RunData) -> Result<String, ReportError> {
             .collect(),
         dots: false,
     }];
-    for (a, w) in d.wheel.iter().enumerate() {
-        speeds.push(Series {
-            name: format!("rω axle {}", a + 1),
-            color: PALETTE[a],
-            pts: w.clone(),
-            dots: false,
-        });
+    speeds.extend(per_axle(
+        "rω ",
+        &mut |a| std::mem::take(&mut d.wheel[a]),
+        false,
+    ));
+    let pressures = per_axle("", &mut |a| std::mem::take(&mut d.pressure[a]), false);
+    let mus = per_axle(
+        "",
+        &mut |a| d.valid[a].iter().map(|v| (v.0, v.2)).collect(),
+        true,
+    );
+    for (title, x, y, series) in [
+        (
+            "Vehicle and wheel peripheral speeds (Fig. 3)",
+            "time (s)",
+            "speed (m/s)",
+            &speeds,
+        ),
+        (
+            "Brake-cylinder pressures (Fig. 4)",
+            "time (s)",
+            "pressure (bar)",
+            &pressures,
+        ),
+        ("μ against Δv per axle (Fig. 7)", "Δv (m/s)", "μ", &mus),
+    ] {
+        h.push_str(&chart(title, x, y, series, false)?);
     }
-    h.push_str(&chart(
-        "Vehicle and wheel peripheral speeds (Fig. 3)",
-        "time (s)",
-        "speed (m/s)",
-        &speeds,
-        false,
-    )?);
-    let pressures: Vec<Series> = (0..AXLES)
-        .map(|a| Series {
-            name: format!("axle {}", a + 1),
-            color: PALETTE[a],
-            pts: d.pressure[a].clone(),
-            dots: false,
-        })
-        .collect();
-    h.push_str(&chart(
-        "Brake-cylinder pressures (Fig. 4)",
-        "time (s)",
-        "pressure (bar)",
-        &pressures,
-        false,
-    )?);
-    let mus: Vec<Series> = (0..AXLES)
-        .map(|a| Series {
-            name: format!("axle {}", a + 1),
-            color: PALETTE[a],
-            pts: d.valid[a].iter().map(|v| (v.0, v.2)).collect(),
-            dots: true,
-        })
-        .collect();
-    h.push_str(&chart(
-        "μ against Δv per axle (Fig. 7)",
-        "Δv (m/s)",
-        "μ",
-        &mus,
-        false,
-    )?);
     h.push_str("</div>\n");
     Ok(h)
 }
