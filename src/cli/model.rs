@@ -6,10 +6,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Context};
 use railgrip::campaign::{train_models, CampaignModels, ModelPaths};
 use railgrip::identify::polach::PolachReport;
-use railgrip::identify::RunTable;
-use railgrip::ingest::LogSource;
 use railgrip::model::{c_header, Model, ModelFile};
-use rayon::prelude::*;
 
 use super::{PipelineArg, EXIT_LOSSY, EXIT_OK};
 
@@ -33,56 +30,6 @@ pub struct TrainArgs {
     quiet: bool,
 }
 
-/// One input of `train`: an estimates table or a log.
-enum Input {
-    Table(PathBuf),
-    Log(String, LogSource),
-}
-
-/// Expands folders and archives into their logs (as `railgrip run` finds them).
-fn expand(inputs: &[PathBuf]) -> anyhow::Result<Vec<Input>> {
-    let mut out = Vec::new();
-    for p in inputs {
-        let name = p.display().to_string();
-        if name.ends_with(".parquet") {
-            out.push(Input::Table(p.clone()));
-        } else if p.is_dir() || railgrip::archive::kind_of(p).is_some() {
-            for (run, src) in railgrip::campaign::sources(p, None)? {
-                out.push(Input::Log(run, src));
-            }
-        } else {
-            out.push(Input::Log(
-                super::ingest::stem(p),
-                LogSource::File(p.clone()),
-            ));
-        }
-    }
-    Ok(out)
-}
-
-/// Reads the inputs as run tables, in parallel, in the order given (a folder's or archive's
-/// logs in the order `railgrip run` lists them).
-pub fn load_tables(
-    inputs: &[PathBuf],
-    pipeline: &railgrip::Pipeline,
-) -> anyhow::Result<Vec<RunTable>> {
-    expand(inputs)?
-        .par_iter()
-        .map(|input| -> anyhow::Result<RunTable> {
-            let (run, src) = match input {
-                Input::Table(p) => return Ok(RunTable::read_parquet(p)?),
-                Input::Log(run, src) => (run, src),
-            };
-            let name = src.name().display().to_string();
-            let log = railgrip::ingest::ingest_source(src, pipeline)?;
-            let e = railgrip::estimate::estimate(&log, pipeline)?;
-            let (_, sha) = railgrip::campaign::input_hash(src, pipeline)
-                .with_context(|| format!("{name}: cannot read"))?;
-            Ok(RunTable::from_estimates(run, &name, &sha, &e))
-        })
-        .collect()
-}
-
 pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     if !c_header::valid_prefix(&args.name) {
         bail!(
@@ -91,7 +38,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         );
     }
     let pipeline = args.pipeline.load()?;
-    let tables = load_tables(&args.inputs, &pipeline)?;
+    let tables = railgrip::campaign::load_tables(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
     let progress = |e: &railgrip::model::Epoch| {
         if !quiet {

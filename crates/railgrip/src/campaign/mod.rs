@@ -7,6 +7,7 @@
 
 pub mod runs;
 pub mod summary;
+pub mod tables;
 pub mod train;
 
 use std::path::{Path, PathBuf};
@@ -20,6 +21,7 @@ pub use crate::outdir::{
 };
 pub use runs::{discover, discover_all, input_hash, process_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
+pub use tables::load_tables;
 pub use train::{train_models, CampaignModels};
 
 use crate::config::Pipeline;
@@ -54,6 +56,12 @@ pub enum CampaignError {
     Record(#[from] RecordError),
     #[error(transparent)]
     Archive(#[from] crate::archive::ArchiveError),
+    #[error(transparent)]
+    Ingest(#[from] crate::ingest::IngestError),
+    #[error(transparent)]
+    Estimate(#[from] crate::estimate::EstimateError),
+    #[error(transparent)]
+    Identify(#[from] crate::identify::IdentifyError),
     #[error("cannot start the worker threads: {0}")]
     Threads(#[from] rayon::ThreadPoolBuildError),
 }

@@ -74,6 +74,25 @@ impl<'a, T: Clone> IntoIterator for &'a mut Column<T> {
     }
 }
 
+/// The columns of an estimates table in memory, one row per sample and axle
+/// ([`RunTable::from_columns`]); units as in the table's names.
+#[derive(Debug, Clone, Copy)]
+pub struct EstimateColumns<'a> {
+    /// s
+    pub time_s: &'a [f64],
+    /// 1..=4
+    pub axle: &'a [f64],
+    /// m/s
+    pub v_mps: &'a [f64],
+    /// m/s
+    pub dv_mps: &'a [f64],
+    /// m/s²
+    pub ddv_mps2: &'a [f64],
+    /// –
+    pub mu: &'a [f64],
+    pub valid: &'a [bool],
+}
+
 /// Valid estimates of one run. Cloning a table shares its columns ([`Column`]).
 #[derive(Debug, Clone, Default)]
 pub struct RunTable {
@@ -121,6 +140,77 @@ impl RunTable {
             ddv_mps2: axle(|x| &x.ddv_mps2),
             mu: axle(|x| &x.mu),
         }
+    }
+
+    /// A run's table from columns in memory (one row per sample and axle, as `railgrip
+    /// estimate` writes them; the Python package's tables): the valid rows, axle by axle in the
+    /// rows' order. `name` names the run in errors and in the models' provenance, whose
+    /// SHA-256 is that of the columns' bytes (the same table, the same hash). Errors name the
+    /// row and column of a bad value: columns of unequal length, an axle outside 1..=4, a
+    /// non-finite value in a valid row.
+    pub fn from_columns(
+        name: &str,
+        metadata: RunMetadata,
+        c: &EstimateColumns<'_>,
+    ) -> Result<RunTable, IdentifyError> {
+        let bad = |message: String| {
+            IdentifyError::Input {
+            file: name.to_string(),
+            message,
+            hint: "give the table `railgrip.estimate` returns (columns time_s, axle, v_mps, dv_mps, ddv_mps2, mu, valid), or its rows with invalid samples marked valid = False".into(),
+        }
+        };
+        let n = c.valid.len();
+        let named: [(&str, &[f64]); 6] = [
+            ("time_s", c.time_s),
+            ("axle", c.axle),
+            ("v_mps", c.v_mps),
+            ("dv_mps", c.dv_mps),
+            ("ddv_mps2", c.ddv_mps2),
+            ("mu", c.mu),
+        ];
+        for (col, v) in named {
+            if v.len() != n {
+                return Err(bad(format!(
+                    "column {col:?} has {} rows, \"valid\" {n}",
+                    v.len()
+                )));
+            }
+        }
+        let axles = crate::format::AXLES as u8;
+        for i in (0..n).filter(|&i| c.valid[i]) {
+            let a = c.axle[i];
+            if !(1.0..=f64::from(axles)).contains(&a) || a.fract() != 0.0 {
+                return Err(bad(format!(
+                    "row {i}: axle = {a} is not one of 1..={axles}"
+                )));
+            }
+            if let Some((col, v)) = named.iter().find(|(_, v)| !v[i].is_finite()) {
+                return Err(bad(format!("row {i}: {col} = {} in a valid row", v[i])));
+            }
+        }
+        let rows: Vec<usize> = (1..=axles)
+            .flat_map(|a| (0..n).filter(move |&i| c.valid[i] && c.axle[i] == f64::from(a)))
+            .collect();
+        let mut bytes = Vec::with_capacity(rows.len() * 6 * 8);
+        for &i in &rows {
+            for (_, v) in named {
+                bytes.extend_from_slice(&v[i].to_le_bytes());
+            }
+        }
+        let col = |v: &[f64]| -> Column<f64> { rows.iter().map(|&i| v[i]).collect() };
+        Ok(RunTable {
+            name: name.to_string(),
+            source: format!("{name} (a table in memory)"),
+            sha256: crate::hash::sha256_bytes(&bytes),
+            metadata,
+            axle: rows.iter().map(|&i| c.axle[i] as u8).collect(),
+            time_s: col(c.time_s),
+            v_mps: col(c.v_mps),
+            dv_mps: col(c.dv_mps),
+            ddv_mps2: col(c.ddv_mps2),
+            mu: col(c.mu),
+        })
     }
 
     /// Reads the valid rows of an estimates table written by `railgrip estimate`.

@@ -33,7 +33,7 @@ pub use campaign::{
     creep_spec, median_speed, pipeline_patch, pooled_thinning, run_condition, select_condition,
     ConditionChoice,
 };
-pub use dataset::{Dataset, MapMinMax, RunTable};
+pub use dataset::{Dataset, EstimateColumns, MapMinMax, RunTable};
 pub use family::{campaign_models, CampaignFit, FitData, Fitted, ModelFamily, FAMILIES};
 pub use held_out::{held_out_score, leave_one_run_out, HeldOut, HeldOutFile};
 pub use problem::MlpProblem;

@@ -1,0 +1,460 @@
+//! The native half of the Python package `railgrip` (`railgrip._native`): thin bindings over
+//! the library (logs, estimates, training, campaigns) and the lean model crate (evaluation).
+//! The package's Python half (`python/railgrip/`) turns the column dictionaries returned here
+//! into pandas DataFrames, broadcasts the evaluator's inputs and documents the API
+//! (docs/python.md).
+//!
+//! Every error the library reports becomes a `railgrip.RailgripError` carrying the library's
+//! message (the file, line or channel, and what to do). Long work releases the GIL.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use numpy::{PyArray1, PyReadonlyArray1};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyException, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use railgrip::campaign::{Options, OutDir, Quiet};
+use railgrip::format::{RunMetadata, Signal};
+use railgrip::identify::{EstimateColumns, RunTable};
+use railgrip::ingest::RunLog;
+
+create_exception!(
+    railgrip,
+    RailgripError,
+    PyException,
+    "An error railgrip reported: the message names the file, line or channel and says what to do."
+);
+
+/// Any library error as a `RailgripError` with its message.
+fn err(e: impl std::fmt::Display) -> PyErr {
+    RailgripError::new_err(e.to_string())
+}
+
+/// A checked pipeline file (`railgrip.Pipeline`).
+#[pyclass(name = "Pipeline", module = "railgrip", frozen)]
+struct PyPipeline {
+    inner: railgrip::Pipeline,
+}
+
+#[pymethods]
+impl PyPipeline {
+    /// Reads and checks a pipeline file (TOML).
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        Ok(PyPipeline {
+            inner: railgrip::Pipeline::load(Some(&path)).map_err(err)?,
+        })
+    }
+
+    /// The embedded UIC-Z1 pipeline (what the CLI uses without `--pipeline`).
+    #[staticmethod]
+    fn default() -> PyResult<Self> {
+        Ok(PyPipeline {
+            inner: railgrip::Pipeline::load(None).map_err(err)?,
+        })
+    }
+
+    /// Where the pipeline came from (its path, or the embedded pipeline's name).
+    #[getter]
+    fn source(&self) -> String {
+        self.inner.source.clone()
+    }
+
+    /// The pipeline file's text (TOML).
+    #[getter]
+    fn text(&self) -> String {
+        self.inner.text.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("railgrip.Pipeline({:?})", self.inner.source)
+    }
+}
+
+/// The pipeline to use: the one given, or the embedded default.
+fn pipeline_or_default(p: Option<&PyPipeline>) -> PyResult<railgrip::Pipeline> {
+    match p {
+        Some(p) => Ok(p.inner.clone()),
+        None => railgrip::Pipeline::load(None).map_err(err),
+    }
+}
+
+fn f64_array<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyAny> {
+    PyArray1::from_vec(py, v).into_any()
+}
+
+/// A run log's metadata, warnings and gaps as JSON (the Python half puts them in `attrs`).
+fn log_info(log: &RunLog) -> String {
+    let gaps: Vec<serde_json::Value> = log
+        .gaps
+        .iter()
+        .map(|g| {
+            serde_json::json!({
+                "channel": g.signal.runlog_column(),
+                "from_s": g.from_s,
+                "to_s": g.to_s,
+                "bridged": g.bridged,
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "source": log.source.display().to_string(),
+        "format": log.format.to_string(),
+        "sample_rate_hz": log.sample_rate_hz,
+        "metadata": log.metadata.to_pairs(),
+        "start_log_time_ns": log.start_log_time_ns,
+        "warnings": log.warnings.iter().map(|w| w.message.clone()).collect::<Vec<_>>(),
+        "gaps": gaps,
+    })
+    .to_string()
+}
+
+/// Reads a log onto its uniform time base: (columns, info JSON).
+#[pyfunction]
+#[pyo3(signature = (path, pipeline=None))]
+fn read_log<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    pipeline: Option<&PyPipeline>,
+) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let pipeline = pipeline_or_default(pipeline)?;
+    let log = py
+        .detach(|| railgrip::ingest_file(&path, &pipeline))
+        .map_err(err)?;
+    let info = log_info(&log);
+    let cols = PyDict::new(py);
+    cols.set_item(
+        railgrip::format::RUNLOG_TIME_COLUMN,
+        f64_array(py, log.time_s.clone()),
+    )?;
+    for s in Signal::ALL {
+        cols.set_item(s.runlog_column(), f64_array(py, log.signal(s).to_vec()))?;
+    }
+    cols.set_item(
+        railgrip::format::RUNLOG_VALID_COLUMN,
+        PyArray1::from_vec(py, log.valid.clone()),
+    )?;
+    Ok((cols, info))
+}
+
+/// Estimates a run: (columns of the long table, info JSON).
+#[pyfunction]
+#[pyo3(signature = (path, pipeline=None))]
+fn estimate<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    pipeline: Option<&PyPipeline>,
+) -> PyResult<(Bound<'py, PyDict>, String)> {
+    use polars::prelude::DataType;
+    let pipeline = pipeline_or_default(pipeline)?;
+    let (log, est) = py
+        .detach(|| -> Result<_, String> {
+            let log = railgrip::ingest_file(&path, &pipeline).map_err(|e| e.to_string())?;
+            let est = railgrip::estimate::estimate(&log, &pipeline).map_err(|e| e.to_string())?;
+            Ok((log, est))
+        })
+        .map_err(RailgripError::new_err)?;
+    let df = est.to_dataframe().map_err(err)?;
+    let cols = PyDict::new(py);
+    for c in df.columns() {
+        let name = c.name().as_str();
+        let s = c.as_materialized_series();
+        let array = match s.dtype() {
+            DataType::Float64 => f64_array(py, s.f64().map_err(err)?.into_no_null_iter().collect()),
+            DataType::Int32 => {
+                let v: Vec<i32> = s.i32().map_err(err)?.into_no_null_iter().collect();
+                PyArray1::from_vec(py, v).into_any()
+            }
+            DataType::Boolean => {
+                let v: Vec<bool> = s
+                    .bool()
+                    .map_err(err)?
+                    .downcast_iter()
+                    .flat_map(|arr| arr.values_iter())
+                    .collect();
+                PyArray1::from_vec(py, v).into_any()
+            }
+            other => return Err(err(format!("column {name:?} has type {other}"))),
+        };
+        cols.set_item(name, array)?;
+    }
+    let mut info: serde_json::Value = serde_json::from_str(&log_info(&log)).map_err(err)?;
+    info["filter_mode"] = serde_json::json!(match est.mode {
+        railgrip::config::FilterMode::ZeroPhase => "zero-phase",
+        railgrip::config::FilterMode::Causal => "causal",
+    });
+    info["group_delay_s"] = serde_json::json!({
+        "radar": est.group_delay_s.radar_s,
+        "tachometers": est.group_delay_s.tacho_s,
+        "pressures": est.group_delay_s.pressure_s,
+    });
+    info["despiked"] = serde_json::json!(est.despiked);
+    Ok((cols, info.to_string()))
+}
+
+/// A model file, checked and ready to evaluate (`railgrip.Model`).
+#[pyclass(name = "Model", module = "railgrip", frozen)]
+struct PyModel {
+    inner: railgrip::Model,
+    /// Its path, or the name it was trained under.
+    name: String,
+}
+
+/// A 1-D float64 array's values; the Python half passes contiguous arrays.
+fn slice<'a>(a: &'a PyReadonlyArray1<'_, f64>, what: &str) -> PyResult<&'a [f64]> {
+    a.as_slice()
+        .map_err(|_| PyValueError::new_err(format!("{what}: pass a contiguous float64 array")))
+}
+
+#[pymethods]
+impl PyModel {
+    /// Reads and checks a model file (`.json`, `.polach.json`).
+    #[staticmethod]
+    fn load(path: PathBuf) -> PyResult<Self> {
+        Ok(PyModel {
+            inner: railgrip::Model::load(&path).map_err(err)?,
+            name: path.display().to_string(),
+        })
+    }
+
+    /// μ at every element of the inputs (equal lengths; `v` and `t` may be empty: the
+    /// reference values). The same bits as the Rust evaluator and the C header's networks.
+    fn mu<'py>(
+        &self,
+        py: Python<'py>,
+        dv: PyReadonlyArray1<'py, f64>,
+        ddv: PyReadonlyArray1<'py, f64>,
+        v: PyReadonlyArray1<'py, f64>,
+        t: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (dv, ddv, v, t) = (
+            slice(&dv, "dv")?,
+            slice(&ddv, "ddv")?,
+            slice(&v, "v")?,
+            slice(&t, "t")?,
+        );
+        let n = dv.len();
+        if ddv.len() != n || !(v.is_empty() || v.len() == n) || !(t.is_empty() || t.len() == n) {
+            return Err(PyValueError::new_err(format!(
+                "inputs of unequal length: dv {n}, ddv {}, v {}, t {}",
+                ddv.len(),
+                v.len(),
+                t.len()
+            )));
+        }
+        let mut out = vec![0.0; n];
+        py.detach(|| self.inner.mu_batch_t(dv, ddv, v, t, &mut out));
+        Ok(PyArray1::from_vec(py, out))
+    }
+
+    /// The model file as JSON (the file's own text when loaded, the trained model's otherwise).
+    #[getter]
+    fn json(&self) -> String {
+        self.inner.file.to_json()
+    }
+
+    /// The path it was loaded from, or its name among trained models.
+    #[getter]
+    fn name(&self) -> String {
+        self.name.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "railgrip.Model({:?}, {}, inputs {})",
+            self.name,
+            self.inner.file.architecture(),
+            self.inner
+                .file
+                .inputs
+                .iter()
+                .map(|i| i.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
+}
+
+/// One input of `train`: a path (log, estimates table, folder, archive) or a table in memory
+/// (run name, metadata pairs, columns).
+#[derive(FromPyObject)]
+enum TrainItem {
+    Path(PathBuf),
+    Table(
+        String,
+        BTreeMap<String, String>,
+        BTreeMap<String, PyReadonlyArray1Owned>,
+    ),
+}
+
+/// A column handed over from Python, copied (the tables are read once).
+struct PyReadonlyArray1Owned(Vec<f64>);
+
+impl<'a, 'py> FromPyObject<'a, 'py> for PyReadonlyArray1Owned {
+    type Error = PyErr;
+
+    fn extract(ob: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        let a: PyReadonlyArray1<'py, f64> = ob.extract()?;
+        Ok(PyReadonlyArray1Owned(a.as_array().to_vec()))
+    }
+}
+
+/// The run tables of `items`, in order; consecutive paths are read together (in parallel).
+fn tables_of(
+    py: Python<'_>,
+    items: Vec<TrainItem>,
+    pipeline: &railgrip::Pipeline,
+) -> PyResult<Vec<RunTable>> {
+    let mut out = Vec::new();
+    let mut paths: Vec<PathBuf> = Vec::new();
+    let flush = |paths: &mut Vec<PathBuf>, out: &mut Vec<RunTable>| -> PyResult<()> {
+        if !paths.is_empty() {
+            let p = std::mem::take(paths);
+            out.extend(
+                py.detach(|| railgrip::campaign::load_tables(&p, pipeline))
+                    .map_err(err)?,
+            );
+        }
+        Ok(())
+    };
+    for item in items {
+        match item {
+            TrainItem::Path(p) => paths.push(p),
+            TrainItem::Table(name, meta, cols) => {
+                flush(&mut paths, &mut out)?;
+                out.push(table_of(&name, &meta, &cols)?);
+            }
+        }
+    }
+    flush(&mut paths, &mut out)?;
+    Ok(out)
+}
+
+/// A table in memory as a run table (its metadata from the pairs `estimate` put in `attrs`).
+fn table_of(
+    name: &str,
+    meta: &BTreeMap<String, String>,
+    cols: &BTreeMap<String, PyReadonlyArray1Owned>,
+) -> PyResult<RunTable> {
+    let metadata = RunMetadata::from_pairs(meta).map_err(|e| {
+        err(format!(
+            "{name}: metadata {} = {:?} is not {}. Hint: fix attrs[\"metadata\"] of the table",
+            e.key, e.value, e.expected
+        ))
+    })?;
+    let col = |c: &str| -> PyResult<&[f64]> {
+        cols.get(c).map(|a| a.0.as_slice()).ok_or_else(|| {
+            err(format!(
+                "{name}: no column {c:?}. Hint: give the table railgrip.estimate returns"
+            ))
+        })
+    };
+    let valid: Vec<bool> = col("valid")?.iter().map(|v| *v != 0.0).collect();
+    RunTable::from_columns(
+        name,
+        metadata,
+        &EstimateColumns {
+            time_s: col("time_s")?,
+            axle: col("axle")?,
+            v_mps: col("v_mps")?,
+            dv_mps: col("dv_mps")?,
+            ddv_mps2: col("ddv_mps2")?,
+            mu: col("mu")?,
+            valid: &valid,
+        },
+    )
+    .map_err(err)
+}
+
+/// Trains the campaign's models on the items: ({name: Model}, info JSON).
+#[pyfunction]
+#[pyo3(signature = (items, pipeline=None))]
+fn train<'py>(
+    py: Python<'py>,
+    items: Vec<TrainItem>,
+    pipeline: Option<&PyPipeline>,
+) -> PyResult<(Bound<'py, PyDict>, String)> {
+    let pipeline = pipeline_or_default(pipeline)?;
+    let tables = tables_of(py, items, &pipeline)?;
+    let models = py
+        .detach(|| railgrip::campaign::train_models(tables, &pipeline, None))
+        .map_err(err)?;
+    let out = PyDict::new(py);
+    for (name, file) in models.files() {
+        let model = railgrip::Model::named(file.clone(), name).map_err(err)?;
+        out.set_item(
+            name,
+            PyModel {
+                inner: model,
+                name: name.to_string(),
+            },
+        )?;
+    }
+    let info = serde_json::json!({
+        "condition": models.condition,
+        "runs": models.runs,
+        "samples": models.samples,
+        "skipped": models.skipped,
+        "notes": models.notes,
+        "chosen": models.choice.chosen,
+        "choice": models.choice,
+    });
+    Ok((out, info.to_string()))
+}
+
+/// Runs a campaign as `railgrip run` does (the same files): the outcome as JSON.
+#[pyfunction]
+#[pyo3(signature = (archive, out, pipeline=None, jobs=None, force=false, mcap=false))]
+fn run(
+    py: Python<'_>,
+    archive: PathBuf,
+    out: PathBuf,
+    pipeline: Option<&PyPipeline>,
+    jobs: Option<usize>,
+    force: bool,
+    mcap: bool,
+) -> PyResult<String> {
+    if jobs == Some(0) {
+        return Err(PyValueError::new_err(
+            "jobs = 0: give at least 1 (None: one per core)",
+        ));
+    }
+    let pipeline = pipeline_or_default(pipeline)?;
+    let dir = OutDir::new(&out);
+    let options = Options { jobs, force, mcap };
+    let o = py
+        .detach(|| railgrip::run_campaign(&archive, &dir, &pipeline, options, &Quiet))
+        .map_err(err)?;
+    let path = |p: &PathBuf| p.display().to_string();
+    Ok(serde_json::json!({
+        "archive": path(&o.archive),
+        "records": o.records,
+        "failed": o.failed(),
+        "reused": o.reused(),
+        "condition": o.condition,
+        "models": o.models.iter().map(path).collect::<Vec<_>>(),
+        "model_error": o.model_error,
+        "chosen": o.chosen.as_ref().map(|(p, why)| serde_json::json!({"path": path(p), "why": why})),
+        "notes": o.notes,
+        "report": o.report.as_ref().map(path),
+        "stages": o.stages,
+        "skipped": o.skipped.iter().map(|s| serde_json::json!({"path": s.path.display().to_string(), "why": s.reason})).collect::<Vec<_>>(),
+    })
+    .to_string())
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("RailgripError", m.py().get_type::<RailgripError>())?;
+    m.add_class::<PyPipeline>()?;
+    m.add_class::<PyModel>()?;
+    m.add_function(wrap_pyfunction!(read_log, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate, m)?)?;
+    m.add_function(wrap_pyfunction!(train, m)?)?;
+    m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

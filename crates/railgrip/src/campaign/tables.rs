@@ -1,0 +1,70 @@
+//! The training tables of a mix of inputs — what `railgrip train` and the Python package's
+//! `train` take: estimates tables, run logs (estimated on the fly), campaign folders and
+//! archives (their logs as [`super::run`] finds them).
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+
+use super::CampaignError;
+use crate::config::Pipeline;
+use crate::identify::dataset::RunTable;
+use crate::ingest::LogSource;
+
+/// One input: an estimates table or a log with its run name.
+enum Input {
+    Table(PathBuf),
+    Log(String, LogSource),
+}
+
+/// The run name of a single log: its file stem.
+fn stem(p: &Path) -> String {
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "run".into())
+}
+
+/// Expands folders and archives into their logs (as `railgrip run` lists them).
+fn expand(inputs: &[PathBuf]) -> Result<Vec<Input>, CampaignError> {
+    let mut out = Vec::new();
+    for p in inputs {
+        if p.display().to_string().ends_with(".parquet") {
+            out.push(Input::Table(p.clone()));
+        } else if p.is_dir() || crate::archive::kind_of(p).is_some() {
+            for (run, src) in super::sources(p, None)? {
+                out.push(Input::Log(run, src));
+            }
+        } else {
+            out.push(Input::Log(stem(p), LogSource::File(p.clone())));
+        }
+    }
+    Ok(out)
+}
+
+/// Reads `inputs` as run tables, in parallel, in the order given (a folder's or archive's logs
+/// in the order `railgrip run` lists them): `*.parquet` are estimates tables written by
+/// `railgrip estimate` (their valid rows), anything else a log, folder or archive, estimated
+/// with `pipeline`. The first input that fails is the error (it names the file).
+pub fn load_tables(
+    inputs: &[PathBuf],
+    pipeline: &Pipeline,
+) -> Result<Vec<RunTable>, CampaignError> {
+    expand(inputs)?
+        .par_iter()
+        .map(|input| -> Result<RunTable, CampaignError> {
+            let (run, src) = match input {
+                Input::Table(p) => return Ok(RunTable::read_parquet(p)?),
+                Input::Log(run, src) => (run, src),
+            };
+            let name = src.name().display().to_string();
+            let log = crate::ingest::ingest_source(src, pipeline)?;
+            let e = crate::estimate::estimate(&log, pipeline)?;
+            let (_, sha) =
+                super::input_hash(src, pipeline).map_err(|source| CampaignError::Read {
+                    path: src.name().to_path_buf(),
+                    source,
+                })?;
+            Ok(RunTable::from_estimates(run, &name, &sha, &e))
+        })
+        .collect()
+}
