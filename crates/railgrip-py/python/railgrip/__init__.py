@@ -19,7 +19,7 @@ from __future__ import annotations
 import json
 import os
 from dataclasses import dataclass, field
-from typing import Any, Dict, Iterable, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 import pandas as pd
@@ -66,7 +66,7 @@ def read_log(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFram
 def estimate(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFrame:
     """Estimates a run: the long table ``railgrip estimate`` writes (one row per sample and
     axle, time-major): ``time_s``, ``axle`` (1–4), ``v_mps``, ``omega_radps``, ``p_bar``,
-    ``dv_mps``, ``ddv_mps2``, ``slip_ratio``, ``decel_mps2``, ``normal_n``, ``tangential_n``,
+    ``dv_mps``, ``ddv_mps2``, ``slip_ratio``, ``decel_mps2``, ``normal_N``, ``tangential_N``,
     ``mu`` and ``valid``; the same values as the command. ``attrs`` as :func:`read_log`, plus
     filter_mode, group_delay_s and despiked. The table (with its ``attrs``) can be given to
     :func:`train`.
