@@ -10,8 +10,9 @@ pip_install() {
 }
 pip_install "maturin>=1.9.4,<2" "pytest>=7" "numpy>=1.21" "pandas>=1.3"
 
+target="${CARGO_TARGET_DIR:-$PWD/target}"
 cargo build --quiet   # the binary the tests compare with
-rm -rf target/wheels
-python3 -m maturin build --quiet --profile dev -m crates/railgrip-py/Cargo.toml -o target/wheels
-pip_install --force-reinstall --no-deps target/wheels/railgrip-*.whl
-RAILGRIP_BIN="$PWD/target/debug/railgrip" python3 -m pytest -q crates/railgrip-py/tests
+rm -rf "$target/wheels"
+python3 -m maturin build --quiet --profile dev -m crates/railgrip-py/Cargo.toml -o "$target/wheels"
+pip_install --force-reinstall --no-deps "$target"/wheels/railgrip-*.whl
+RAILGRIP_BIN="$target/debug/railgrip" python3 -m pytest -q crates/railgrip-py/tests
