@@ -43,7 +43,7 @@ fn bench(c: &mut Criterion) {
     let opts = |jobs: usize, force: bool| Options {
         jobs: Some(jobs),
         force,
-        mcap: false,
+        ..Options::default()
     };
     let mut g = c.benchmark_group("run");
     g.sample_size(10).measurement_time(Duration::from_secs(8));

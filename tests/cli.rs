@@ -1228,3 +1228,195 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     let again = run("one", "2", Some(pipeline.to_str().unwrap()));
     assert!(!again.keys().any(|k| other(k)), "{:?}", again.keys());
 }
+
+#[test]
+fn estimate_shards_then_the_models_stage_write_the_bytes_of_one_run() {
+    // A scheduler's job array: each shard a separate process on the shared output folder,
+    // then the models stage. A broken log fails in its shard and stays a failed record.
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    let one = railgrip(&["run", "campaign", "--out", "one"], dir.path());
+    assert_eq!(one.status.code(), Some(3), "{}", text(&one.stderr));
+    for k in 1..=3 {
+        let shard = format!("{k}/3");
+        let o = railgrip(
+            &[
+                "run", "campaign", "--out", "sh", "--stage", "estimate", "--shard", &shard,
+            ],
+            dir.path(),
+        );
+        let out = text(&o.stdout);
+        assert!(
+            o.status.code() == Some(0) || o.status.code() == Some(3),
+            "{out}"
+        );
+        assert!(out.contains(&format!("estimate shard {k}/3")), "{out}");
+        assert!(!dir.path().join("sh/campaign.json").exists());
+    }
+    let m = railgrip(
+        &["run", "campaign", "--out", "sh", "--stage", "models"],
+        dir.path(),
+    );
+    assert_eq!(m.status.code(), Some(3), "{}", text(&m.stdout));
+    let (a, b) = (
+        outputs(&dir.path().join("one")),
+        outputs(&dir.path().join("sh")),
+    );
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (k, v) in &a {
+        assert!(
+            b[k] == *v,
+            "{} differs between one run and the shards",
+            k.display()
+        );
+    }
+    assert!(a.contains_key(Path::new("campaign.json")) && a.len() >= 12);
+}
+
+#[test]
+fn the_models_stage_refuses_missing_and_stale_runs_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    // Only the first of two shards has run.
+    let o = railgrip(
+        &[
+            "run", "campaign", "--out", "sh", "--stage", "estimate", "--shard", "1/2",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let m = railgrip(
+        &["run", "campaign", "--out", "sh", "--stage", "models"],
+        dir.path(),
+    );
+    let err = text(&m.stderr);
+    assert_eq!(m.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("1 of the campaign's 2 runs")
+            && err.contains("soap_120kmh_p20 (not estimated)")
+            && err.contains("--stage estimate --shard"),
+        "{err}"
+    );
+    assert!(!dir.path().join("sh/models/mlp.json").exists());
+    // The second shard, then a log that changes after its shard estimated it: stale.
+    let o = railgrip(
+        &[
+            "run", "campaign", "--out", "sh", "--stage", "estimate", "--shard", "2/2",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let sidecar = camp.join("soap_120kmh_m20.meta.toml");
+    let mut side = std::fs::read_to_string(&sidecar).unwrap();
+    side.push_str("\n# edited\n");
+    std::fs::write(&sidecar, side).unwrap();
+    let m = railgrip(
+        &["run", "campaign", "--out", "sh", "--stage", "models"],
+        dir.path(),
+    );
+    let err = text(&m.stderr);
+    assert_eq!(m.status.code(), Some(1), "{err}");
+    assert!(err.contains("soap_120kmh_m20 (stale"), "{err}");
+    // Usage: a shard needs the estimate stage, K/N must make sense, models does not force.
+    for args in [
+        &["run", "campaign", "--shard", "1/2"][..],
+        &["run", "campaign", "--stage", "estimate", "--shard", "3/2"],
+        &["run", "campaign", "--stage", "estimate", "--shard", "0/2"],
+        &["run", "campaign", "--stage", "estimate", "--shard", "x"],
+        &["run", "campaign", "--stage", "models", "--force"],
+    ] {
+        let o = railgrip(args, dir.path());
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {}", text(&o.stderr));
+        assert!(text(&o.stderr).contains("--"), "{args:?}");
+    }
+}
+
+#[test]
+fn the_slurm_script_runs_the_shards_then_the_models_stage() {
+    // scripts/slurm-campaign.sh against a stand-in for sbatch that runs each job at once
+    // (array tasks one after the other with SLURM_ARRAY_TASK_ID set) and records its options.
+    // The script was also run under a real single-node Slurm 22.05 (docs/cluster.md).
+    let dir = tempfile::tempdir().unwrap();
+    let camp = dir.path().join("campaign");
+    two_run_campaign(&camp);
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+    let fake = dir.path().join("sbatch");
+    std::fs::write(
+        &fake,
+        r#"#!/usr/bin/env bash
+set -euo pipefail
+echo "$*" >> "$(dirname "$0")/submitted.txt"
+array="" wrap=""
+for a in "$@"; do
+    case $a in
+        --array=*) array=${a#--array=} ;;
+        --wrap=*) wrap=${a#--wrap=} ;;
+    esac
+done
+if [ -n "$array" ]; then
+    for k in $(seq "${array%-*}" "${array#*-}"); do
+        SLURM_ARRAY_TASK_ID=$k bash -c "$wrap" > /dev/null || [ $? -eq 3 ]
+    done
+    echo 101
+else
+    bash -c "$wrap" > /dev/null
+    echo 102
+fi
+"#,
+    )
+    .unwrap();
+    std::process::Command::new("chmod")
+        .args(["+x", fake.to_str().unwrap()])
+        .status()
+        .unwrap();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/slurm-campaign.sh");
+    let o = Command::new(&script)
+        .args(["campaign", "sh", "2"])
+        .current_dir(dir.path())
+        .env("SBATCH", &fake)
+        .env("RAILGRIP", env!("CARGO_BIN_EXE_railgrip"))
+        .env("SBATCH_MODELS_OPTS", "--cpus-per-task=2")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    assert!(text(&o.stdout).contains("job 101 (array 1-2); models: job 102"));
+    let submitted = std::fs::read_to_string(dir.path().join("submitted.txt")).unwrap();
+    assert!(
+        submitted.contains("--dependency=afterany:101"),
+        "{submitted}"
+    );
+    assert!(
+        submitted.contains("--cpus-per-task=2 --job-name=railgrip-models"),
+        "{submitted}"
+    );
+    let one = railgrip(&["run", "campaign", "--out", "one"], dir.path());
+    assert_eq!(one.status.code(), Some(0), "{}", text(&one.stderr));
+    let (a, b) = (
+        outputs(&dir.path().join("one")),
+        outputs(&dir.path().join("sh")),
+    );
+    assert!(a.contains_key(Path::new("campaign.json")));
+    for (k, v) in &a {
+        assert!(b.get(k) == Some(v), "{} differs", k.display());
+    }
+    // Usage errors exit 2 before anything is submitted.
+    let o = Command::new(&script)
+        .args(["campaign", "sh", "0"])
+        .current_dir(dir.path())
+        .env("SBATCH", &fake)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+}

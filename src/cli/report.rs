@@ -8,35 +8,7 @@ use super::EXIT_OK;
 
 /// The table of runs, failures, notes, files written and stage times.
 pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
-    println!(
-        "\nrun                              status   peak μ (axles 1–4)          max Δv m/s (axles 1–4)"
-    );
-    let f = |v: &[Option<f64>; 4], d: usize| -> String {
-        v.iter()
-            .map(|x| x.map_or("–".to_string(), |x| format!("{x:.d$}")))
-            .collect::<Vec<_>>()
-            .join(" ")
-    };
-    for r in &o.records {
-        let status = match (r.ok(), r.reused) {
-            (true, true) => "reused",
-            (true, false) => "ok",
-            _ => "FAILED",
-        };
-        println!(
-            "{:<32} {:<8} {:<27} {}",
-            r.run,
-            status,
-            f(&r.peak_mu, 3),
-            f(&r.max_dv_mps, 2)
-        );
-    }
-    for r in o.records.iter().filter(|r| !r.ok()) {
-        println!("failed     {}: {}", r.run, r.error.as_deref().unwrap_or(""));
-    }
-    for s in &o.skipped {
-        println!("skipped    {}: {}", s.path.display(), s.reason);
-    }
+    print_runs(o);
     if let Some(c) = &o.condition {
         println!("\nmodels     trained on {c} rail");
     }
@@ -72,6 +44,60 @@ pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     } else if failed > 0 {
         println!(
             "\n{failed} of {} run(s) failed (listed above and in summary.csv); the rest completed. Exit code 3.",
+            o.records.len()
+        );
+    }
+}
+
+/// The runs' table, their failures and the campaign's files that are not logs.
+fn print_runs(o: &campaign::Outcome) {
+    println!(
+        "\nrun                              status   peak μ (axles 1–4)          max Δv m/s (axles 1–4)"
+    );
+    let f = |v: &[Option<f64>; 4], d: usize| -> String {
+        v.iter()
+            .map(|x| x.map_or("–".to_string(), |x| format!("{x:.d$}")))
+            .collect::<Vec<_>>()
+            .join(" ")
+    };
+    for r in &o.records {
+        let status = match (r.ok(), r.reused) {
+            (true, true) => "reused",
+            (true, false) => "ok",
+            _ => "FAILED",
+        };
+        println!(
+            "{:<32} {:<8} {:<27} {}",
+            r.run,
+            status,
+            f(&r.peak_mu, 3),
+            f(&r.max_dv_mps, 2)
+        );
+    }
+    for r in o.records.iter().filter(|r| !r.ok()) {
+        println!("failed     {}: {}", r.run, r.error.as_deref().unwrap_or(""));
+    }
+    for s in &o.skipped {
+        println!("skipped    {}: {}", s.path.display(), s.reason);
+    }
+}
+
+/// What an estimate shard did: its runs, notes and time.
+pub(super) fn print_shard(o: &campaign::Outcome) {
+    print_runs(o);
+    for n in &o.notes {
+        println!("note       {n}");
+    }
+    let st: Vec<String> = o
+        .stages
+        .iter()
+        .map(|(s, t)| format!("{s} {t:.2} s"))
+        .collect();
+    println!("time       {}", st.join(", "));
+    let failed = o.failed();
+    if failed > 0 {
+        println!(
+            "\n{failed} of {} run(s) failed (listed above); the rest completed. Exit code 3.",
             o.records.len()
         );
     }

@@ -35,6 +35,16 @@ pub struct Args {
     /// log times, to open beside the original log in Foxglove.
     #[arg(long)]
     mcap: bool,
+    /// The part of the job to do, for schedulers (a Slurm job array, docs/cluster.md): `all`;
+    /// `estimate` (with --shard K/N: that shard's runs into --out, no models or report);
+    /// `models` (train and report from what every shard wrote; refuses missing or stale runs
+    /// by name). The shards and then `models` write the same files as one `all`.
+    #[arg(long, value_name = "PART", default_value = "all", value_parser = ["all", "estimate", "models"])]
+    stage: String,
+    /// With --stage estimate: shard K of N (1 ≤ K ≤ N); the runs at positions K−1, K−1+N, …
+    /// of the campaign's order.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
 }
 
 #[derive(Serialize)]
@@ -73,10 +83,23 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         }
     };
     let out = OutDir::new(&args.out);
+    let part = match (args.stage.as_str(), &args.shard) {
+        ("estimate", Some(s)) => campaign::Part::Estimate(
+            campaign::Shard::parse(s).map_err(anyhow::Error::msg)?,
+        ),
+        ("estimate", None) => campaign::Part::Estimate(campaign::Shard { k: 1, n: 1 }),
+        (_, Some(_)) => bail!("--shard K/N goes with --stage estimate"),
+        ("models", None) if args.force => bail!(
+            "--force goes with the estimate part (--stage estimate or all): --stage models uses what the shards wrote"
+        ),
+        ("models", None) => campaign::Part::Models,
+        _ => campaign::Part::All,
+    };
     let options = campaign::Options {
         jobs: args.jobs,
         force: args.force,
         mcap: args.mcap,
+        part,
     };
     let o = campaign::run(
         &root,
@@ -115,6 +138,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         };
         println!("{}", serde_json::to_string_pretty(&s)?);
         return Ok(code);
+    }
+    if matches!(part, campaign::Part::Estimate(_)) {
+        super::report::print_shard(&o);
+        return Ok(if failed > 0 { EXIT_LOSSY } else { EXIT_OK });
     }
     super::report::print_outcome(&o, &out);
     Ok(code)

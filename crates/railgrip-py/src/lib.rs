@@ -424,7 +424,12 @@ fn run(
     }
     let pipeline = pipeline_or_default(pipeline)?;
     let dir = OutDir::new(&out);
-    let options = Options { jobs, force, mcap };
+    let options = Options {
+        jobs,
+        force,
+        mcap,
+        ..Options::default()
+    };
     let o = py
         .detach(|| railgrip::run_campaign(&archive, &dir, &pipeline, options, &Quiet))
         .map_err(err)?;

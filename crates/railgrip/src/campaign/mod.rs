@@ -19,7 +19,7 @@ pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
 };
-pub use runs::{discover, discover_all, input_hash, process_run, run_name};
+pub use runs::{discover, discover_all, input_hash, process_run, recall_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use tables::load_tables;
 pub use train::{train_models, CampaignModels};
@@ -76,6 +76,53 @@ pub struct Options {
     /// Write `runs/<run>/<run>.railgrip.mcap` per run: estimates and the network's μ replayed.
     /// Without it such files of an earlier run are removed.
     pub mcap: bool,
+    /// The whole job, or the part a scheduler's job does ([`Part`]).
+    pub part: Part,
+}
+
+/// Which part of a campaign one call does. A scheduler (a Slurm job array, any cluster) runs
+/// the estimate shards as separate jobs on a shared output folder, then the models part once
+/// they are all done; the result is the same files as one [`run`] (but `timings.json`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum Part {
+    /// Everything: estimate, train, report.
+    #[default]
+    All,
+    /// Estimate one shard of the runs into the output folder (each run's folder as [`run`]
+    /// writes it); no models, no summary, no report.
+    Estimate(Shard),
+    /// Train and report from the runs the shards estimated: every run of the campaign must be
+    /// there for its current inputs (a missing or stale run is an error naming it).
+    Models,
+}
+
+/// Shard `k` of `n` (1-based): the runs whose position in the campaign's order (0-based) is
+/// k − 1 modulo n.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub k: usize,
+    pub n: usize,
+}
+
+impl Shard {
+    /// Parses `K/N` with 1 ≤ K ≤ N.
+    pub fn parse(text: &str) -> Result<Shard, String> {
+        let bad = || format!("--shard {text:?}: write K/N with 1 ≤ K ≤ N, e.g. 3/16");
+        let (k, n) = text.split_once('/').ok_or_else(bad)?;
+        let (k, n): (usize, usize) = (
+            k.trim().parse().map_err(|_| bad())?,
+            n.trim().parse().map_err(|_| bad())?,
+        );
+        if k == 0 || k > n {
+            return Err(bad());
+        }
+        Ok(Shard { k, n })
+    }
+
+    /// Whether the run at `index` (0-based, in the campaign's order) is this shard's.
+    pub fn has(&self, index: usize) -> bool {
+        index % self.n == self.k - 1
+    }
 }
 
 /// The stages of a campaign, in order.
@@ -256,11 +303,17 @@ pub fn run(
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
     let (logs, skipped) = sources_all(root, Some(out.root()))?;
+    if let Part::Estimate(shard) = options.part {
+        return estimate_shard(root, logs, skipped, out, pipeline, options, shard, progress);
+    }
     prepare_output(out)?;
     let mut stages = Vec::new();
 
     let t = Instant::now();
-    let (records, tables) = estimate_runs(root, &logs, out, pipeline, options, progress)?;
+    let (records, tables) = match options.part {
+        Part::Models => recall_runs(root, &logs, out, pipeline, options, progress)?,
+        _ => estimate_runs(root, &logs, out, pipeline, options, progress)?,
+    };
     stages.push((
         Stage::Estimate.name().to_string(),
         t.elapsed().as_secs_f64(),
@@ -346,6 +399,105 @@ pub fn run(
     })
 }
 
+/// One estimate shard ([`Part::Estimate`]): this shard's runs into `out`, as [`run`]'s first
+/// stage writes them (reused when current unless `force`). The campaign's record and report
+/// are removed (they no longer describe the runs); the other shards' files are left alone.
+#[allow(clippy::too_many_arguments)]
+fn estimate_shard(
+    root: &Path,
+    logs: Vec<(String, LogSource)>,
+    skipped: Vec<Skipped>,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    shard: Shard,
+    progress: CampaignProgress<'_>,
+) -> Result<Outcome, CampaignError> {
+    let t = Instant::now();
+    let mine: Vec<(String, LogSource)> = logs
+        .into_iter()
+        .enumerate()
+        .filter(|(i, _)| shard.has(*i))
+        .map(|(_, l)| l)
+        .collect();
+    make_output_folders(out)?;
+    remove_campaign_results(out)?;
+    let (records, _) = estimate_runs(root, &mine, out, pipeline, options, progress)?;
+    progress.event(Event::StageDone(Stage::Estimate));
+    let elapsed = t.elapsed().as_secs_f64();
+    Ok(Outcome {
+        archive: root.to_path_buf(),
+        records,
+        condition: None,
+        models: vec![],
+        model_error: None,
+        chosen: None,
+        audit: None,
+        notes: vec![format!(
+            "estimate shard {}/{}: {} of the campaign's runs; train and report with --stage models once every shard is done",
+            shard.k,
+            shard.n,
+            mine.len()
+        )],
+        report: None,
+        stages: vec![
+            (Stage::Estimate.name().to_string(), elapsed),
+            ("total".to_string(), elapsed),
+        ],
+        skipped,
+    })
+}
+
+/// The runs the estimate shards wrote ([`Part::Models`]), each checked against its current
+/// inputs. Records in the order of `logs`; an error names every run that is missing or stale.
+fn recall_runs(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.jobs.unwrap_or(0))
+        .build()?;
+    progress.event(Event::EstimateStarts {
+        runs: logs.len(),
+        source: root,
+        threads: pool.current_num_threads(),
+    });
+    let found: Vec<Result<(RunRecord, Option<RunTable>), String>> = pool.install(|| {
+        logs.par_iter()
+            .map(|(name, src)| {
+                let r = runs::recall_run(src, name, out, pipeline);
+                if let Ok((rec, _)) = &r {
+                    progress.event(Event::RunDone(rec));
+                }
+                r.map_err(|why| format!("{name} ({why})"))
+            })
+            .collect()
+    });
+    let missing: Vec<String> = found
+        .iter()
+        .filter_map(|r| r.as_ref().err().cloned())
+        .collect();
+    if !missing.is_empty() {
+        return Err(CampaignError::Input {
+            path: out.runs(),
+            message: format!(
+                "{} of the campaign's {} runs are not estimated for their current inputs: {}",
+                missing.len(),
+                logs.len(),
+                missing.join(", ")
+            ),
+            hint: "run `railgrip run --stage estimate --shard K/N` for every shard K of N (the same archive, pipeline and --out) before --stage models".into(),
+        });
+    }
+    let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) =
+        found.into_iter().flatten().unzip();
+    Ok((records, tables.into_iter().flatten().collect()))
+}
+
 /// Stage 1: every run, in parallel on a pool of `options.jobs` threads, each on its own.
 /// Records in the order of `logs`; tables of the runs that could be estimated.
 pub fn estimate_runs(
@@ -384,6 +536,14 @@ pub fn estimate_runs(
 /// record and the report, which the end of this run writes again — so a run that does not
 /// finish leaves no report that looks current.
 pub fn prepare_output(out: &OutDir) -> Result<(), CampaignError> {
+    make_output_folders(out)?;
+    crate::atomic::remove_stale_temporaries(out.root(), 3);
+    remove_campaign_results(out)
+}
+
+/// Creates the output's folders and writes a probe file in each (the error names the folder
+/// and the OS cause).
+fn make_output_folders(out: &OutDir) -> Result<(), CampaignError> {
     let models = out.models();
     for dir in [
         out.root().to_path_buf(),
@@ -397,7 +557,11 @@ pub fn prepare_output(out: &OutDir) -> Result<(), CampaignError> {
             .and_then(|_| std::fs::remove_file(&probe))
             .map_err(|source| CampaignError::Write { path: dir, source })?;
     }
-    crate::atomic::remove_stale_temporaries(out.root(), 3);
+    Ok(())
+}
+
+/// Removes the campaign record and the report, which only a finished campaign writes.
+fn remove_campaign_results(out: &OutDir) -> Result<(), CampaignError> {
     for f in [out.campaign_record(), out.report_html()] {
         match std::fs::remove_file(&f) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {

@@ -232,6 +232,45 @@ pub fn process_run(
     (rec, table)
 }
 
+/// What an estimate shard wrote for run `name` ([`super::Part::Models`]): its record and
+/// (for a run that succeeded) its table, when the record is for the run's current inputs —
+/// the log, its sidecar and the pipeline, by hash. A run that failed in its shard is its
+/// failed record, as [`process_run`] would make it. Else why not: missing or stale.
+pub fn recall_run(
+    src: &LogSource,
+    name: &str,
+    out: &OutDir,
+    pipeline: &Pipeline,
+) -> Result<(RunRecord, Option<RunTable>), String> {
+    let (hash, log_sha) = input_hash(src, pipeline)
+        .map_err(|e| format!("{}: cannot read: {e}", src.name().display()))?;
+    let path = out.run_record(name);
+    let text = std::fs::read_to_string(&path).map_err(|_| "not estimated".to_string())?;
+    let mut old: RunRecord = serde_json::from_str(&text)
+        .map_err(|e| format!("{}: unreadable record: {e}", path.display()))?;
+    if old.input_sha256 != hash {
+        return Err(
+            "stale: its log, sidecar or the pipeline changed since it was estimated".into(),
+        );
+    }
+    let now = RunRecord {
+        input_sha256: hash,
+        source: src.name().display().to_string(),
+        ..old.clone()
+    };
+    if !old.ok() {
+        old.source = now.source;
+        old.reused = true;
+        return Ok((old, None));
+    }
+    reuse(&now, name, out, &log_sha).ok_or_else(|| {
+        format!(
+            "{}: its estimates table does not read back",
+            out.run_estimates(name).display()
+        )
+    })
+}
+
 /// The earlier outputs of run `name` when its record says ok for the same input hash and its
 /// estimates table reads back. The table's provenance is the log's SHA-256 `log_sha` (not the
 /// estimates table's own hash, which a reused run once carried).

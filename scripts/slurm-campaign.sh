@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# Runs a railgrip campaign on a Slurm cluster: a job array of N estimate shards, then the models
+# stage once every shard has finished (docs/cluster.md). The output folder must be on a file
+# system every node sees. Extra sbatch options (partition, account, time) go in SBATCH_OPTS,
+# the models job's own (cores, memory) in SBATCH_MODELS_OPTS.
+#
+#   scripts/slurm-campaign.sh ARCHIVE OUT N [PIPELINE]
+#
+# Prints the two job ids. RAILGRIP (default: railgrip on PATH) is the binary the jobs run.
+set -euo pipefail
+if [ $# -lt 3 ] || [ $# -gt 4 ]; then
+    echo "usage: $0 ARCHIVE OUT N [PIPELINE]" >&2
+    exit 2
+fi
+archive=$1 out=$2 n=$3
+pipeline=()
+[ $# -eq 4 ] && pipeline=(--pipeline "$4")
+case $n in
+    '' | *[!0-9]* | 0) echo "$0: N = '$n': give the number of shards (≥ 1)" >&2; exit 2 ;;
+esac
+railgrip=${RAILGRIP:-railgrip}
+sbatch=${SBATCH:-sbatch}
+read -r -a opts <<< "${SBATCH_OPTS:-}"
+read -r -a models_opts <<< "${SBATCH_MODELS_OPTS:-}"
+mkdir -p "$out/slurm"
+
+# One task per shard; each estimates every N-th run into the shared folder, one core each.
+shards=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-estimate --array="1-$n" \
+    --cpus-per-task=1 --output="$out/slurm/estimate-%a.log" \
+    --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" --jobs 1 "${pipeline[@]}" \
+        --stage estimate --shard)\"\$SLURM_ARRAY_TASK_ID/$n\"")
+shards=${shards%%;*}
+# Training and the report, once every shard succeeded (exit 3, some runs failed, counts as done).
+models=$("$sbatch" --parsable "${opts[@]}" "${models_opts[@]}" --job-name=railgrip-models \
+    --dependency="afterany:$shards" --output="$out/slurm/models.log" \
+    --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage models)")
+echo "estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"
