@@ -1,8 +1,6 @@
 //! `railgrip run`: the whole job over a campaign folder (its progress in `progress.rs`, the
 //! table it prints in `report.rs`).
 
-use std::path::PathBuf;
-
 use anyhow::bail;
 use railgrip::campaign::{self, OutDir, RunRecord};
 use serde::Serialize;
@@ -13,14 +11,17 @@ use super::{PipelineArg, EXIT_ERROR, EXIT_LOSSY, EXIT_OK};
 pub struct Args {
     /// Campaign folder (searched recursively for .csv + .meta.toml and .mcap logs) or archive
     /// (.zip, .tar, .tar.gz, .tar.zst; read in place); default: the bundled archive
-    /// (fixtures/archive of this source tree).
+    /// (fixtures/archive of this source tree). Also file://PATH, or s3://BUCKET/PREFIX (a prefix
+    /// of logs or one archive object; credentials and endpoint from the AWS_* environment
+    /// variables, docs/cluster.md).
     #[arg(value_name = "ARCHIVE")]
-    archive: Option<PathBuf>,
+    archive: Option<String>,
     #[command(flatten)]
     pipeline: PipelineArg,
-    /// Output folder.
+    /// Output folder: a path, file://PATH or s3://BUCKET/PREFIX (staged locally, written back
+    /// object by object with campaign.json and the report last).
     #[arg(long, value_name = "DIR", default_value = "out")]
-    out: PathBuf,
+    out: String,
     /// Runs processed in parallel (default: one per core).
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
@@ -79,7 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                     b.display()
                 );
             }
-            b
+            b.display().to_string()
         }
     };
     let out = OutDir::new(&args.out);
@@ -101,9 +102,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         mcap: args.mcap,
         part,
     };
-    let o = campaign::run(
+    let o = campaign::run_at(
         &root,
-        &out,
+        &args.out,
         &pipeline,
         options,
         &super::progress::Bars::new(),
@@ -121,8 +122,8 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     };
     if args.json {
         let s = JsonSummary {
-            archive: root.display().to_string(),
-            out: args.out.display().to_string(),
+            archive: root.clone(),
+            out: args.out.clone(),
             runs: &o.records,
             failed,
             reused: o.reused(),

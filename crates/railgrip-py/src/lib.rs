@@ -16,7 +16,7 @@ use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use railgrip::campaign::{Options, OutDir, Quiet};
+use railgrip::campaign::{Options, Quiet};
 use railgrip::format::{RunMetadata, Signal};
 use railgrip::identify::{EstimateColumns, RunTable};
 use railgrip::ingest::RunLog;
@@ -405,13 +405,14 @@ fn train<'py>(
     Ok((out, info.to_string()))
 }
 
-/// Runs a campaign as `railgrip run` does (the same files): the outcome as JSON.
+/// Runs a campaign as `railgrip run` does (the same files; paths, file:// or s3:// locations):
+/// the outcome as JSON.
 #[pyfunction]
 #[pyo3(signature = (archive, out, pipeline=None, jobs=None, force=false, mcap=false))]
 fn run(
     py: Python<'_>,
-    archive: PathBuf,
-    out: PathBuf,
+    archive: String,
+    out: String,
     pipeline: Option<&PyPipeline>,
     jobs: Option<usize>,
     force: bool,
@@ -423,7 +424,6 @@ fn run(
         ));
     }
     let pipeline = pipeline_or_default(pipeline)?;
-    let dir = OutDir::new(&out);
     let options = Options {
         jobs,
         force,
@@ -431,7 +431,7 @@ fn run(
         ..Options::default()
     };
     let o = py
-        .detach(|| railgrip::run_campaign(&archive, &dir, &pipeline, options, &Quiet))
+        .detach(|| railgrip::campaign::run_at(&archive, &out, &pipeline, options, &Quiet))
         .map_err(err)?;
     let path = |p: &PathBuf| p.display().to_string();
     Ok(serde_json::json!({

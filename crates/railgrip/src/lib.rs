@@ -54,6 +54,7 @@ pub(crate) mod rng;
 pub mod score;
 pub mod signal;
 pub mod sim;
+pub mod store;
 pub mod study;
 pub(crate) mod table;
 pub(crate) mod units;

@@ -303,15 +303,16 @@ class Campaign:
 
 
 def run(
-    archive: PathLike,
-    out: PathLike,
+    archive: Union[PathLike, str],
+    out: Union[PathLike, str],
     pipeline: Optional[Pipeline] = None,
     jobs: Optional[int] = None,
     force: bool = False,
     mcap: bool = False,
 ) -> Campaign:
     """Runs a campaign (a folder of logs or an archive of one) as ``railgrip run`` does, into
-    ``out`` — the same files, the same bytes: estimates per run (reused when unchanged, unless
+    ``out`` — the same files, the same bytes. Both may be local paths, ``file://PATH`` or
+    ``s3://BUCKET/PREFIX`` (credentials and endpoint from the ``AWS_*`` environment variables): estimates per run (reused when unchanged, unless
     ``force``), the models, ``campaign.json`` and the report. ``jobs``: runs estimated in
     parallel (None: one per core). A run that fails is a record, not an exception.
     """

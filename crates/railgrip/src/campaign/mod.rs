@@ -5,6 +5,7 @@
 //! [`OutDir`] (module `outdir`, shared with the report) owns every output path. Progress goes to a [`Progress`] the caller supplies (the
 //! CLI draws bars from it); the library never prints.
 
+mod remote;
 pub mod runs;
 pub mod summary;
 pub mod tables;
@@ -19,6 +20,7 @@ pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
 };
+pub use remote::run_at;
 pub use runs::{discover, discover_all, input_hash, process_run, recall_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use tables::load_tables;
@@ -56,6 +58,8 @@ pub enum CampaignError {
     Record(#[from] RecordError),
     #[error(transparent)]
     Archive(#[from] crate::archive::ArchiveError),
+    #[error(transparent)]
+    Store(#[from] crate::store::StoreError),
     #[error(transparent)]
     Ingest(#[from] crate::ingest::IngestError),
     #[error(transparent)]
@@ -301,8 +305,22 @@ pub fn run(
     options: Options,
     progress: CampaignProgress<'_>,
 ) -> Result<Outcome, CampaignError> {
-    let t_all = Instant::now();
     let (logs, skipped) = sources_all(root, Some(out.root()))?;
+    run_sources(root, logs, skipped, out, pipeline, options, progress)
+}
+
+/// [`run`] on the logs of the campaign `root` as found ([`sources_all`], or the objects below
+/// an `s3://` prefix).
+fn run_sources(
+    root: &Path,
+    logs: Vec<(String, LogSource)>,
+    skipped: Vec<Skipped>,
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+) -> Result<Outcome, CampaignError> {
+    let t_all = Instant::now();
     if let Part::Estimate(shard) = options.part {
         return estimate_shard(root, logs, skipped, out, pipeline, options, shard, progress);
     }

@@ -44,8 +44,7 @@ pub fn discover_all(
         });
     }
     let skip = skip.and_then(|s| s.canonicalize().ok());
-    let mut found = Vec::new();
-    let mut others = Vec::new();
+    let mut files = Vec::new();
     let mut stack = vec![root.to_path_buf()];
     while let Some(dir) = stack.pop() {
         if skip
@@ -63,16 +62,22 @@ pub fn discover_all(
             let ft = entry.file_type().map_err(|e| bad(&path, e))?;
             if ft.is_dir() {
                 stack.push(path);
-            } else if path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("mcap"))
-            {
-                found.push(path);
             } else {
-                others.push(path);
+                files.push(path);
             }
         }
     }
+    Ok(classify(root, files))
+}
+
+/// Splits a campaign's files (hidden entries already left out) into its logs (`.csv`,
+/// `.mcap`, in path order) and the files that are not logs with why; a metadata sidecar
+/// beside its log and a simulated run's truth table beside its log belong to the run.
+pub(crate) fn classify(root: &Path, files: Vec<PathBuf>) -> (Vec<PathBuf>, Vec<super::Skipped>) {
+    let (mut found, mut others): (Vec<PathBuf>, Vec<PathBuf>) = files.into_iter().partition(|p| {
+        p.extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv") || e.eq_ignore_ascii_case("mcap"))
+    });
     found.sort();
     others.sort();
     let is_log = |p: &Path| found.binary_search(&p.to_path_buf()).is_ok();
@@ -115,7 +120,7 @@ pub fn discover_all(
             })
         })
         .collect();
-    Ok((found, skipped))
+    (found, skipped)
 }
 
 /// The run name of `path` below `root`: the relative path without extension, `/` → `__`,
@@ -192,13 +197,20 @@ pub fn process_run(
         input_sha256: String::new(),
         start_log_time_ns: None,
     };
-    let (hash, log_sha) = match input_hash(src, pipeline) {
+    // A log in a bucket is fetched once, here, for the hash and the estimation.
+    let fetched = src.fetched();
+    let (hash, log_sha) = match fetched
+        .as_ref()
+        .map_err(|e| std::io::Error::new(e.kind(), e.to_string()))
+        .and_then(|s| input_hash(s, pipeline))
+    {
         Ok(h) => h,
         Err(e) => {
             rec.error = Some(format!("{}: cannot read: {e}", src.name().display()));
             return (rec, None);
         }
     };
+    let src = fetched.as_ref().unwrap_or(src);
     rec.input_sha256 = hash;
     if !force {
         if let Some(reused) = reuse(&rec, name, out, &log_sha) {

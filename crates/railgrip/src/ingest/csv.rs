@@ -217,6 +217,10 @@ fn read_frame(
         LogSource::Memory { bytes, .. } => options
             .into_reader_with_file_handle(std::io::Cursor::new(Arc::clone(bytes)))
             .finish(),
+        // `ingest_source` fetches an object before it parses it.
+        LogSource::Object { .. } => Err(polars::prelude::PolarsError::ComputeError(
+            "a log in a bucket is parsed after it is fetched".into(),
+        )),
     }));
     let df = match read {
         Ok(Ok(df)) => df,

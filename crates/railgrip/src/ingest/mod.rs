@@ -446,6 +446,12 @@ pub enum LogSource {
         /// The `<stem>.meta.toml` member beside a CSV log, if the archive has one.
         sidecar: Option<Arc<[u8]>>,
     },
+    /// An object in a bucket (named `s3://bucket/key`), fetched when read:
+    /// [`LogSource::fetched`] reads it and its sidecar once into memory.
+    Object {
+        name: PathBuf,
+        object: crate::store::ObjectLog,
+    },
 }
 
 impl LogSource {
@@ -453,8 +459,31 @@ impl LogSource {
     pub fn name(&self) -> &Path {
         match self {
             LogSource::File(p) => p,
-            LogSource::Memory { name, .. } => name,
+            LogSource::Memory { name, .. } | LogSource::Object { name, .. } => name,
         }
+    }
+
+    /// The same log with its bytes at hand: an object in a bucket fetched into memory (the log
+    /// and its sidecar, one GET each), any other source as it is.
+    pub fn fetched(&self) -> std::io::Result<LogSource> {
+        let LogSource::Object { name, object } = self else {
+            return Ok(self.clone());
+        };
+        let bytes = object.bucket.get(&object.key, MAX_OBJECT_LOG_BYTES)?;
+        let sidecar = match &object.sidecar {
+            Some(k) => Some(
+                object
+                    .bucket
+                    .get(k, crate::input::MAX_SIDECAR_BYTES)?
+                    .into(),
+            ),
+            None => None,
+        };
+        Ok(LogSource::Memory {
+            name: name.clone(),
+            bytes: bytes.into(),
+            sidecar,
+        })
     }
 
     /// A reader over the log's bytes from the start.
@@ -462,6 +491,9 @@ impl LogSource {
         Ok(match self {
             LogSource::File(p) => Box::new(crate::input::open_regular(p)?),
             LogSource::Memory { bytes, .. } => Box::new(std::io::Cursor::new(Arc::clone(bytes))),
+            LogSource::Object { object, .. } => Box::new(std::io::Cursor::new(
+                object.bucket.get(&object.key, MAX_OBJECT_LOG_BYTES)?,
+            )),
         })
     }
 
@@ -470,6 +502,7 @@ impl LogSource {
         Ok(match self {
             LogSource::File(p) => crate::input::check_regular(p)?.len(),
             LogSource::Memory { bytes, .. } => bytes.len() as u64,
+            LogSource::Object { object, .. } => object.size,
         })
     }
 
@@ -491,6 +524,13 @@ impl LogSource {
                 Ok(b) => Ok((side, Some(b))),
                 Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok((side, None)),
                 Err(e) => Err(e),
+            },
+            LogSource::Object { object, .. } => match &object.sidecar {
+                Some(k) => Ok((
+                    side,
+                    Some(object.bucket.get(k, crate::input::MAX_SIDECAR_BYTES)?),
+                )),
+                None => Ok((side, None)),
             },
             LogSource::Memory { sidecar, .. } => match sidecar {
                 Some(b) if b.len() as u64 > crate::input::MAX_SIDECAR_BYTES => {
@@ -515,9 +555,19 @@ pub fn ingest_file(path: &Path, pipeline: &Pipeline) -> Result<RunLog, IngestErr
     ingest_source(&LogSource::File(path.to_path_buf()), pipeline)
 }
 
-/// Reads a log from a file or from memory (an archive member) with the pipeline's ingest
-/// settings.
+/// Largest log railgrip fetches from a bucket, bytes (as an archive member: 2 GiB).
+pub const MAX_OBJECT_LOG_BYTES: u64 = 2 << 30;
+
+/// Reads a log from a file, from memory (an archive member) or from a bucket with the
+/// pipeline's ingest settings.
 pub fn ingest_source(src: &LogSource, pipeline: &Pipeline) -> Result<RunLog, IngestError> {
+    if let LogSource::Object { .. } = src {
+        let fetched = src.fetched().map_err(|e| IngestError::Io {
+            path: src.name().to_path_buf(),
+            source: e,
+        })?;
+        return ingest_source(&fetched, pipeline);
+    }
     let path = src.name();
     let cfg = &pipeline.ingest;
     let format = sniff(src)?;

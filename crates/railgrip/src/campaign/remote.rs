@@ -1,0 +1,337 @@
+//! Campaigns in buckets: the logs of an `s3://bucket/prefix` (a "folder" of logs, or one
+//! archive object), and output folders in a bucket, staged in a local folder and written back
+//! object by object ([`run_at`]).
+//!
+//! An output prefix is written so that a reader never takes a half-written campaign for a
+//! finished one: `campaign.json` and the report are removed first and written last, every
+//! other object in between, each by one atomic PUT; objects of an earlier campaign that this
+//! one no longer writes (a replay MCAP without `--mcap`) are removed.
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use super::{
+    run_sources, sources_all, CampaignError, CampaignProgress, Options, OutDir, Outcome, Part,
+    Skipped, Sources,
+};
+use crate::config::Pipeline;
+use crate::ingest::LogSource;
+use crate::store::{join, Bucket, Location, ObjectLog};
+
+/// [`super::run`] with the campaign and the output folder given as locations: local paths,
+/// `file://PATH` or `s3://BUCKET/PREFIX` (credentials and endpoint from the AWS environment
+/// variables, see [`crate::store`]). The same inputs give the same files wherever they live;
+/// the outcome names output files by their URIs.
+pub fn run_at(
+    archive: &str,
+    out: &str,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+) -> Result<Outcome, CampaignError> {
+    let out_at = Location::parse(out)?;
+    let (root, (logs, skipped)) = match Location::parse(archive)? {
+        Location::Local(root) => {
+            let skip = match &out_at {
+                Location::Local(p) => Some(p.as_path()),
+                Location::S3 { .. } => None,
+            };
+            let sources = sources_all(&root, skip)?;
+            (root, sources)
+        }
+        Location::S3 { bucket, prefix } => {
+            let b = Bucket::connect(&bucket)?;
+            let skip = match &out_at {
+                Location::S3 {
+                    bucket: ob,
+                    prefix: op,
+                } if *ob == bucket => Some(op.as_str()),
+                _ => None,
+            };
+            let sources = bucket_sources(&b, &prefix, skip)?;
+            (PathBuf::from(b.uri(&prefix).trim_end_matches('/')), sources)
+        }
+    };
+    match out_at {
+        Location::Local(dir) => run_sources(
+            &root,
+            logs,
+            skipped,
+            &OutDir::new(&dir),
+            pipeline,
+            options,
+            progress,
+        ),
+        Location::S3 { bucket, prefix } => {
+            let b = Bucket::connect(&bucket)?;
+            let staged = Staged::pull(Arc::clone(&b), &prefix)?;
+            let result = run_sources(
+                &root,
+                logs,
+                skipped,
+                &OutDir::new(&staged.dir),
+                pipeline,
+                options,
+                progress,
+            )
+            .and_then(|o| {
+                staged.push(&o, options.part)?;
+                Ok(staged.rename(o, &b.uri(&prefix)))
+            });
+            let _ = std::fs::remove_dir_all(&staged.dir);
+            result
+        }
+    }
+}
+
+/// The logs below `prefix` in `bucket` (or the archive object `prefix` names: `.zip`, `.tar`,
+/// `.tar.gz`, `.tgz`, `.tar.zst`), with the run
+/// names and skipped files a local folder of the same layout would give; keys below `skip`
+/// (an output prefix inside the campaign's) and hidden keys are left out.
+fn bucket_sources(
+    bucket: &Arc<Bucket>,
+    prefix: &str,
+    skip: Option<&str>,
+) -> Result<Sources, CampaignError> {
+    let uri = bucket.uri(prefix);
+    // An archive object by its name (a local archive is recognised by its first bytes; a
+    // key is not fetched to find out).
+    let lower = prefix.to_ascii_lowercase();
+    if [".zip", ".tar", ".tar.gz", ".tgz", ".tar.zst"]
+        .iter()
+        .any(|e| lower.ends_with(e))
+    {
+        return archive_object(bucket, prefix);
+    }
+    let objects = bucket.list(prefix)?;
+    let root = PathBuf::from(&uri);
+    let mut sizes = std::collections::BTreeMap::new();
+    let files: Vec<PathBuf> = objects
+        .into_iter()
+        .filter(|o| {
+            let rel = o.key.strip_prefix(prefix).unwrap_or(&o.key);
+            !rel.split('/').any(|c| c.starts_with('.'))
+                && !skip.is_some_and(|s| {
+                    !s.is_empty() && (o.key == s || o.key.starts_with(&format!("{s}/")))
+                })
+        })
+        .map(|o| {
+            let p = PathBuf::from(bucket.uri(&o.key));
+            sizes.insert(p.clone(), (o.key, o.size));
+            p
+        })
+        .collect();
+    if files.is_empty() {
+        return Err(CampaignError::Input {
+            path: root,
+            message: "no objects below this prefix".into(),
+            hint: "give the prefix that holds the campaign's logs (aws s3 ls s3://BUCKET/PREFIX/ lists them)".into(),
+        });
+    }
+    let (logs, skipped) = super::runs::classify(&root, files);
+    let logs = logs
+        .into_iter()
+        .map(|p| {
+            let (key, size) = sizes[&p].clone();
+            let side = p.with_extension("").display().to_string() + crate::format::SIDECAR_SUFFIX;
+            let sidecar = (p.extension().is_some_and(|e| e.eq_ignore_ascii_case("csv")))
+                .then(|| sizes.get(Path::new(&side)).map(|(k, _)| k.clone()))
+                .flatten();
+            let name = super::run_name(&root, &p);
+            (
+                name,
+                LogSource::Object {
+                    name: p,
+                    object: ObjectLog {
+                        bucket: Arc::clone(bucket),
+                        key,
+                        size,
+                        sidecar,
+                    },
+                },
+            )
+        })
+        .collect();
+    Ok((logs, skipped))
+}
+
+/// A campaign archive stored as one object: fetched to a temporary file, read in place like a
+/// local archive, its members named below the object's URI.
+fn archive_object(bucket: &Arc<Bucket>, key: &str) -> Result<Sources, CampaignError> {
+    let uri = PathBuf::from(bucket.uri(key));
+    let limits = crate::archive::Limits::default();
+    let bytes = bucket.get(key, limits.max_total_bytes)?;
+    let name = Path::new(key).file_name().unwrap_or_default();
+    let tmp = std::env::temp_dir().join(format!(
+        "railgrip-{}-{}",
+        std::process::id(),
+        name.to_string_lossy()
+    ));
+    std::fs::write(&tmp, bytes).map_err(|source| CampaignError::Write {
+        path: tmp.clone(),
+        source,
+    })?;
+    let listing = sources_all(&tmp, None);
+    let _ = std::fs::remove_file(&tmp);
+    let (logs, skipped) = listing?;
+    let rename = |p: &Path| uri.join(p.strip_prefix(&tmp).unwrap_or(p));
+    let logs = logs
+        .into_iter()
+        .map(|(run, src)| match src {
+            LogSource::Memory {
+                name,
+                bytes,
+                sidecar,
+            } => (
+                run,
+                LogSource::Memory {
+                    name: rename(&name),
+                    bytes,
+                    sidecar,
+                },
+            ),
+            other => (run, other),
+        })
+        .collect();
+    let skipped = skipped
+        .into_iter()
+        .map(|s| Skipped {
+            path: s.path,
+            reason: s.reason,
+        })
+        .collect();
+    Ok((logs, skipped))
+}
+
+/// An output prefix staged in a local folder: what reuse needs (each run's record and
+/// estimates table) is fetched before the campaign, everything it writes pushed after.
+struct Staged {
+    bucket: Arc<Bucket>,
+    prefix: String,
+    dir: PathBuf,
+}
+
+/// The files a finished campaign writes last (and a new one removes first).
+const LAST: [&str; 2] = ["campaign.json", "report/index.html"];
+
+impl Staged {
+    fn pull(bucket: Arc<Bucket>, prefix: &str) -> Result<Staged, CampaignError> {
+        let dir = std::env::temp_dir().join(format!(
+            "railgrip-out-{}-{}",
+            std::process::id(),
+            crate::hash::sha256_bytes(bucket.uri(prefix).as_bytes())
+                .get(..12)
+                .unwrap_or_default()
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+        let staged = Staged {
+            bucket,
+            prefix: prefix.to_string(),
+            dir,
+        };
+        let runs = join(prefix, "runs/");
+        for o in staged.bucket.list(&runs)? {
+            let rel = o
+                .key
+                .strip_prefix(&join(prefix, ""))
+                .unwrap_or(&o.key)
+                .trim_start_matches('/');
+            if rel.ends_with(".railgrip.mcap") {
+                continue; // rewritten or removed by every campaign
+            }
+            let bytes = staged
+                .bucket
+                .get(&o.key, crate::ingest::MAX_OBJECT_LOG_BYTES)?;
+            let path = staged.dir.join(rel);
+            std::fs::create_dir_all(path.parent().unwrap_or(&staged.dir))
+                .and_then(|_| std::fs::write(&path, bytes))
+                .map_err(|source| CampaignError::Write { path, source })?;
+        }
+        Ok(staged)
+    }
+
+    /// Writes the staged outputs back: an estimate shard its runs' folders only; a campaign
+    /// everything, `campaign.json` and the report last, and removes what it no longer writes.
+    fn push(&self, o: &Outcome, part: Part) -> Result<(), CampaignError> {
+        let files = files_below(&self.dir)?;
+        let key = |rel: &str| join(&self.prefix, rel);
+        if let Part::Estimate(_) = part {
+            for rel in files.iter().filter(|rel| {
+                o.records
+                    .iter()
+                    .any(|r| rel.starts_with(&format!("runs/{}/", r.run)))
+            }) {
+                self.upload(rel)?;
+            }
+            for f in LAST {
+                self.bucket.delete(&key(f))?;
+            }
+            return Ok(());
+        }
+        let before = self.bucket.list(&self.prefix)?;
+        for f in LAST {
+            self.bucket.delete(&key(f))?;
+        }
+        for rel in files.iter().filter(|r| !LAST.contains(&r.as_str())) {
+            self.upload(rel)?;
+        }
+        for old in before {
+            let rel = old
+                .key
+                .strip_prefix(&join(&self.prefix, ""))
+                .unwrap_or(&old.key)
+                .trim_start_matches('/');
+            if !files.iter().any(|f| f == rel) {
+                self.bucket.delete(&old.key)?;
+            }
+        }
+        for rel in files.iter().filter(|r| LAST.contains(&r.as_str())) {
+            self.upload(rel)?;
+        }
+        Ok(())
+    }
+
+    fn upload(&self, rel: &str) -> Result<(), CampaignError> {
+        let path = self.dir.join(rel);
+        let bytes = std::fs::read(&path).map_err(|source| CampaignError::Read { path, source })?;
+        Ok(self.bucket.put(&join(&self.prefix, rel), bytes)?)
+    }
+
+    /// The outcome with the staged paths replaced by the prefix's URIs.
+    fn rename(&self, mut o: Outcome, uri: &str) -> Outcome {
+        let to_uri = |p: &Path| match p.strip_prefix(&self.dir) {
+            Ok(rel) => PathBuf::from(uri).join(rel),
+            Err(_) => p.to_path_buf(),
+        };
+        o.models = o.models.iter().map(|p| to_uri(p)).collect();
+        o.report = o.report.as_deref().map(to_uri);
+        o.chosen = o.chosen.map(|(p, why)| (to_uri(&p), why));
+        o
+    }
+}
+
+/// Every file below `dir`, as `/`-separated relative paths, sorted.
+fn files_below(dir: &Path) -> Result<Vec<String>, CampaignError> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        let entries = std::fs::read_dir(&d).map_err(|source| CampaignError::Read {
+            path: d.clone(),
+            source,
+        })?;
+        for e in entries.flatten() {
+            let p = e.path();
+            if p.is_dir() {
+                stack.push(p);
+            } else if let Ok(rel) = p.strip_prefix(dir) {
+                let rel = rel.to_string_lossy().replace('\\', "/");
+                // Temporary files of atomic writes are not outputs.
+                if !rel.rsplit('/').next().unwrap_or("").starts_with('.') {
+                    out.push(rel);
+                }
+            }
+        }
+    }
+    out.sort();
+    Ok(out)
+}
