@@ -351,3 +351,39 @@ fn bucket_errors_name_the_uri_and_a_damaged_object_fails_its_run_alone() {
     assert!(t.elapsed() < Duration::from_secs(60), "{:?}", t.elapsed());
     assert!(!dir.path().join("o4/campaign.json").exists());
 }
+
+#[test]
+fn single_logs_in_a_bucket_are_estimated_and_trained_on_by_uri() {
+    let Some(moto) = Moto::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    upload_campaign(&moto, "logs", "r");
+    let o = moto.railgrip(
+        &["estimate", "s3://logs/r/soap_120kmh_p20.csv", "--out", "remote", "--csv"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let here = fixture("soap_120kmh_p20.csv");
+    let o = moto.railgrip(
+        &["estimate", here.to_str().unwrap(), "--out", "local", "--csv"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let table = "soap_120kmh_p20.estimates.csv";
+    assert!(
+        std::fs::read(dir.path().join("remote").join(table)).unwrap()
+            == std::fs::read(dir.path().join("local").join(table)).unwrap(),
+        "the estimates of the bucket's log (and its sidecar) differ from the local file's"
+    );
+    // `train` takes a log and a campaign prefix by URI.
+    let o = moto.railgrip(
+        &["train", "s3://logs/r/soap_160kmh_0c.mcap", "s3://logs/r", "--out", "m", "--quiet"],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let mlp = std::fs::read_to_string(dir.path().join("m/mlp.json")).unwrap();
+    assert!(mlp.contains("s3://logs/r/soap_120kmh_m20.csv"), "provenance names the URIs");
+    let o = moto.railgrip(&["ingest", "s3://logs/r/missing.csv"], dir.path());
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("s3://logs/r/missing.csv: no such object"), "{err}");
+}

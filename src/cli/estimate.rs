@@ -10,9 +10,10 @@ use super::{PipelineArg, EXIT_LOSSY, EXIT_OK};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The log to estimate: .csv (with optional <stem>.meta.toml sidecar) or .mcap.
+    /// The log to estimate: .csv (with optional <stem>.meta.toml sidecar) or .mcap; a path,
+    /// file://PATH or s3://BUCKET/KEY (AWS_* environment variables: docs/cluster.md).
     #[arg(value_name = "RUN")]
-    run: PathBuf,
+    run: String,
     #[command(flatten)]
     pipeline: PipelineArg,
     /// Directory for <stem>.estimates.parquet (created if missing).
@@ -37,9 +38,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         Some(p) => Some(railgrip::model::Model::load(p)?),
         None => None,
     };
-    let log = railgrip::ingest_file(&args.run, &pipeline)?;
+    let log =
+        railgrip::ingest::ingest_source(&railgrip::ingest::LogSource::at(&args.run)?, &pipeline)?;
     let est = estimate(&log, &pipeline)?;
-    let stem = super::ingest::stem(&args.run);
+    let stem = super::ingest::stem(std::path::Path::new(&args.run));
     let mut written = est.write(&args.out, &stem, args.csv)?;
     if args.mcap {
         let path = args.out.join(format!("{stem}.railgrip.mcap"));

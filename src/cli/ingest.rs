@@ -10,9 +10,10 @@ use super::{PipelineArg, EXIT_LOSSY, EXIT_OK};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The log to read: .csv (with optional <stem>.meta.toml sidecar) or .mcap.
+    /// The log to read: .csv (with optional <stem>.meta.toml sidecar) or .mcap; a path,
+    /// file://PATH or s3://BUCKET/KEY (AWS_* environment variables: docs/cluster.md).
     #[arg(value_name = "FILE")]
-    file: PathBuf,
+    file: String,
     #[command(flatten)]
     pipeline: PipelineArg,
     /// Write the resampled log to <DIR>/<stem>.runlog.parquet (the directory is created).
@@ -22,12 +23,16 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
-    let log = railgrip::ingest_file(&args.file, &pipeline)?;
+    let log =
+        railgrip::ingest::ingest_source(&railgrip::ingest::LogSource::at(&args.file)?, &pipeline)?;
     print!("{}", summary(&log));
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create the output directory", dir.display()))?;
-        let out = dir.join(format!("{}.runlog.parquet", stem(&args.file)));
+        let out = dir.join(format!(
+            "{}.runlog.parquet",
+            stem(std::path::Path::new(&args.file))
+        ));
         write_runlog_parquet(&log, &out)?;
         let size = std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0);
         println!(

@@ -117,13 +117,16 @@ fn log_info(log: &RunLog) -> String {
 #[pyo3(signature = (path, pipeline=None))]
 fn read_log<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: String,
     pipeline: Option<&PyPipeline>,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
     let pipeline = pipeline_or_default(pipeline)?;
     let log = py
-        .detach(|| railgrip::ingest_file(&path, &pipeline))
-        .map_err(err)?;
+        .detach(|| -> Result<_, String> {
+            let src = railgrip::ingest::LogSource::at(&path).map_err(|e| e.to_string())?;
+            railgrip::ingest::ingest_source(&src, &pipeline).map_err(|e| e.to_string())
+        })
+        .map_err(RailgripError::new_err)?;
     let info = log_info(&log);
     let cols = PyDict::new(py);
     cols.set_item(
@@ -145,14 +148,16 @@ fn read_log<'py>(
 #[pyo3(signature = (path, pipeline=None))]
 fn estimate<'py>(
     py: Python<'py>,
-    path: PathBuf,
+    path: String,
     pipeline: Option<&PyPipeline>,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
     use polars::prelude::DataType;
     let pipeline = pipeline_or_default(pipeline)?;
     let (log, est) = py
         .detach(|| -> Result<_, String> {
-            let log = railgrip::ingest_file(&path, &pipeline).map_err(|e| e.to_string())?;
+            let src = railgrip::ingest::LogSource::at(&path).map_err(|e| e.to_string())?;
+            let log =
+                railgrip::ingest::ingest_source(&src, &pipeline).map_err(|e| e.to_string())?;
             let est = railgrip::estimate::estimate(&log, &pipeline).map_err(|e| e.to_string())?;
             Ok((log, est))
         })

@@ -224,6 +224,16 @@ impl Bucket {
         }
     }
 
+    /// The size of `key`, or None when there is no such object.
+    pub fn head(&self, key: &str) -> Result<Option<u64>, StoreError> {
+        let uri = self.uri(key);
+        match self.runtime.block_on(self.store.head(&Key::from(key))) {
+            Ok(m) => Ok(Some(m.size)),
+            Err(object_store::Error::NotFound { .. }) => Ok(None),
+            Err(e) => Err(StoreError::from_store(&uri, &e)),
+        }
+    }
+
     /// Writes `bytes` to `key` in one PUT (atomic: the whole object or nothing).
     pub fn put(&self, key: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
         let uri = self.uri(key);
@@ -268,6 +278,35 @@ pub struct ObjectLog {
     pub size: u64,
     /// The `<stem>.meta.toml` beside a CSV log, when the listing has one.
     pub sidecar: Option<String>,
+}
+
+impl ObjectLog {
+    /// The log at `s3://bucket/key` with the `<stem>.meta.toml` beside a CSV log when the bucket
+    /// has one; an error names the URI when there is no such object.
+    pub fn at(bucket: &str, key: &str) -> Result<ObjectLog, StoreError> {
+        let b = Bucket::connect(bucket)?;
+        let size = b.head(key)?.ok_or_else(|| {
+            StoreError::new(
+                &b.uri(key),
+                "no such object",
+                "check the bucket and key (aws s3 ls shows what is there)",
+            )
+        })?;
+        let lower = key.to_ascii_lowercase();
+        let sidecar = match lower.strip_suffix(".csv") {
+            Some(_) => {
+                let side = format!("{}.meta.toml", &key[..key.len() - 4]);
+                b.head(&side)?.map(|_| side)
+            }
+            None => None,
+        };
+        Ok(ObjectLog {
+            bucket: b,
+            key: key.to_string(),
+            size,
+            sidecar,
+        })
+    }
 }
 
 #[cfg(test)]

@@ -51,8 +51,8 @@ def _frame(columns: Dict[str, np.ndarray], info: str) -> pd.DataFrame:
 
 
 def read_log(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFrame:
-    """Reads a braking-run log (.csv with its .meta.toml sidecar, or .mcap) onto its uniform
-    time base, in canonical units: ``time_s``, ``v_radar_mps``, ``omega1_radps`` …
+    """Reads a braking-run log (.csv with its .meta.toml sidecar, or .mcap; a path,
+    ``file://PATH`` or ``s3://BUCKET/KEY``) onto its uniform time base, in canonical units: ``time_s``, ``v_radar_mps``, ``omega1_radps`` …
     ``omega4_radps``, ``p1_bar`` … ``p4_bar`` (NaN in gaps) and ``valid`` — the columns of
     ``railgrip ingest --out``. ``attrs``: source, format, sample_rate_hz, metadata (the run's
     key/value pairs as text), start_log_time_ns, warnings, gaps.

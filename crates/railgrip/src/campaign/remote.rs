@@ -88,7 +88,7 @@ pub fn run_at(
 /// `.tar.gz`, `.tgz`, `.tar.zst`), with the run
 /// names and skipped files a local folder of the same layout would give; keys below `skip`
 /// (an output prefix inside the campaign's) and hidden keys are left out.
-fn bucket_sources(
+pub(super) fn bucket_sources(
     bucket: &Arc<Bucket>,
     prefix: &str,
     skip: Option<&str>,

@@ -1,6 +1,7 @@
 //! The training tables of a mix of inputs — what `railgrip train` and the Python package's
 //! `train` take: estimates tables, run logs (estimated on the fly), campaign folders and
-//! archives (their logs as [`super::run`] finds them).
+//! archives (their logs as [`super::run`] finds them); logs and campaigns also as
+//! `s3://BUCKET/KEY` or `s3://BUCKET/PREFIX`.
 
 use std::path::{Path, PathBuf};
 
@@ -28,7 +29,23 @@ fn stem(p: &Path) -> String {
 fn expand(inputs: &[PathBuf]) -> Result<Vec<Input>, CampaignError> {
     let mut out = Vec::new();
     for p in inputs {
-        if p.display().to_string().ends_with(".parquet") {
+        let text = p.display().to_string();
+        if let Some(rest) = text.strip_prefix("s3://") {
+            // A log in a bucket, or a campaign there (a prefix of logs or an archive object).
+            let lower = text.to_ascii_lowercase();
+            if lower.ends_with(".csv") || lower.ends_with(".mcap") {
+                let src = LogSource::at(&text)?;
+                out.push(Input::Log(stem(p), src));
+            } else {
+                let (bucket, prefix) = rest.split_once('/').unwrap_or((rest, ""));
+                let b = crate::store::Bucket::connect(bucket)?;
+                for (run, src) in
+                    super::remote::bucket_sources(&b, prefix.trim_matches('/'), None)?.0
+                {
+                    out.push(Input::Log(run, src));
+                }
+            }
+        } else if text.ends_with(".parquet") {
             out.push(Input::Table(p.clone()));
         } else if p.is_dir() || crate::archive::kind_of(p).is_some() {
             for (run, src) in super::sources(p, None)? {
@@ -56,6 +73,11 @@ pub fn load_tables(
                 Input::Table(p) => return Ok(RunTable::read_parquet(p)?),
                 Input::Log(run, src) => (run, src),
             };
+            // A log in a bucket is fetched once for the estimation and the hash.
+            let src = &src.fetched().map_err(|source| CampaignError::Read {
+                path: src.name().to_path_buf(),
+                source,
+            })?;
             let name = src.name().display().to_string();
             let log = crate::ingest::ingest_source(src, pipeline)?;
             let e = crate::estimate::estimate(&log, pipeline)?;

@@ -463,6 +463,22 @@ impl LogSource {
         }
     }
 
+    /// The log at a location: a path, `file://PATH` or `s3://BUCKET/KEY` (with the
+    /// `<stem>.meta.toml` beside a CSV log when the bucket has one).
+    pub fn at(text: &str) -> Result<LogSource, crate::store::StoreError> {
+        use crate::store::{Location, ObjectLog};
+        Ok(match Location::parse(text)? {
+            Location::Local(p) => LogSource::File(p),
+            Location::S3 { bucket, prefix } => {
+                let object = ObjectLog::at(&bucket, &prefix)?;
+                LogSource::Object {
+                    name: PathBuf::from(object.bucket.uri(&prefix)),
+                    object,
+                }
+            }
+        })
+    }
+
     /// The same log with its bytes at hand: an object in a bucket fetched into memory (the log
     /// and its sidecar, one GET each), any other source as it is.
     pub fn fetched(&self) -> std::io::Result<LogSource> {
