@@ -358,13 +358,25 @@ fn single_logs_in_a_bucket_are_estimated_and_trained_on_by_uri() {
     let dir = tempfile::tempdir().unwrap();
     upload_campaign(&moto, "logs", "r");
     let o = moto.railgrip(
-        &["estimate", "s3://logs/r/soap_120kmh_p20.csv", "--out", "remote", "--csv"],
+        &[
+            "estimate",
+            "s3://logs/r/soap_120kmh_p20.csv",
+            "--out",
+            "remote",
+            "--csv",
+        ],
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     let here = fixture("soap_120kmh_p20.csv");
     let o = moto.railgrip(
-        &["estimate", here.to_str().unwrap(), "--out", "local", "--csv"],
+        &[
+            "estimate",
+            here.to_str().unwrap(),
+            "--out",
+            "local",
+            "--csv",
+        ],
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
@@ -376,14 +388,27 @@ fn single_logs_in_a_bucket_are_estimated_and_trained_on_by_uri() {
     );
     // `train` takes a log and a campaign prefix by URI.
     let o = moto.railgrip(
-        &["train", "s3://logs/r/soap_160kmh_0c.mcap", "s3://logs/r", "--out", "m", "--quiet"],
+        &[
+            "train",
+            "s3://logs/r/soap_160kmh_0c.mcap",
+            "s3://logs/r",
+            "--out",
+            "m",
+            "--quiet",
+        ],
         dir.path(),
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     let mlp = std::fs::read_to_string(dir.path().join("m/mlp.json")).unwrap();
-    assert!(mlp.contains("s3://logs/r/soap_120kmh_m20.csv"), "provenance names the URIs");
+    assert!(
+        mlp.contains("s3://logs/r/soap_120kmh_m20.csv"),
+        "provenance names the URIs"
+    );
     let o = moto.railgrip(&["ingest", "s3://logs/r/missing.csv"], dir.path());
     let err = text(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("s3://logs/r/missing.csv: no such object"), "{err}");
+    assert!(
+        err.contains("s3://logs/r/missing.csv: no such object"),
+        "{err}"
+    );
 }

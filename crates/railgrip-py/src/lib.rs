@@ -16,7 +16,7 @@ use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use railgrip::campaign::{Options, Quiet};
+use railgrip::campaign::{Options, Part, Quiet, Shard};
 use railgrip::format::{RunMetadata, Signal};
 use railgrip::identify::{EstimateColumns, RunTable};
 use railgrip::ingest::RunLog;
@@ -55,6 +55,21 @@ impl PyPipeline {
         Ok(PyPipeline {
             inner: railgrip::Pipeline::load(None).map_err(err)?,
         })
+    }
+
+    /// A pipeline from its TOML text; `source` names it in errors and in the outputs'
+    /// provenance (its path, for the same bytes as the file).
+    #[staticmethod]
+    fn from_toml(text: &str, source: &str) -> PyResult<Self> {
+        Ok(PyPipeline {
+            inner: railgrip::Pipeline::from_toml(text, source).map_err(err)?,
+        })
+    }
+
+    /// Pickled as its text and source (Ray and multiprocessing send pipelines to workers).
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String, String))> {
+        let ctor = py.get_type::<PyPipeline>().getattr("from_toml")?;
+        Ok((ctor, (self.inner.text.clone(), self.inner.source.clone())))
     }
 
     /// Where the pipeline came from (its path, or the embedded pipeline's name).
@@ -413,7 +428,8 @@ fn train<'py>(
 /// Runs a campaign as `railgrip run` does (the same files; paths, file:// or s3:// locations):
 /// the outcome as JSON.
 #[pyfunction]
-#[pyo3(signature = (archive, out, pipeline=None, jobs=None, force=false, mcap=false))]
+#[pyo3(signature = (archive, out, pipeline=None, jobs=None, force=false, mcap=false, stage="all", shard=None))]
+#[allow(clippy::too_many_arguments)]
 fn run(
     py: Python<'_>,
     archive: String,
@@ -422,18 +438,31 @@ fn run(
     jobs: Option<usize>,
     force: bool,
     mcap: bool,
+    stage: &str,
+    shard: Option<(usize, usize)>,
 ) -> PyResult<String> {
     if jobs == Some(0) {
         return Err(PyValueError::new_err(
             "jobs = 0: give at least 1 (None: one per core)",
         ));
     }
+    let part = match (stage, shard) {
+        ("all", None) => Part::All,
+        ("models", None) => Part::Models,
+        ("estimate", Some((k, n))) if k >= 1 && k <= n => Part::Estimate(Shard { k, n }),
+        ("estimate", None) => Part::Estimate(Shard { k: 1, n: 1 }),
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "stage = {stage:?}, shard = {shard:?}: give stage \"all\", \"models\", or \"estimate\" with shard = (k, n), 1 ≤ k ≤ n"
+            )))
+        }
+    };
     let pipeline = pipeline_or_default(pipeline)?;
     let options = Options {
         jobs,
         force,
         mcap,
-        ..Options::default()
+        part,
     };
     let o = py
         .detach(|| railgrip::campaign::run_at(&archive, &out, &pipeline, options, &Quiet))
@@ -456,6 +485,28 @@ fn run(
     .to_string())
 }
 
+/// The runs of a campaign (a path, file:// or s3:// location) in its order, as `run` finds
+/// them with its output at `out`: (run name, log).
+#[pyfunction]
+#[pyo3(signature = (archive, out=None))]
+fn campaign_runs(
+    py: Python<'_>,
+    archive: String,
+    out: Option<String>,
+) -> PyResult<Vec<(String, String)>> {
+    let out = match out {
+        Some(o) => Some(railgrip::store::Location::parse(&o).map_err(err)?),
+        None => None,
+    };
+    let (_, (logs, _)) = py
+        .detach(|| railgrip::campaign::sources_at(&archive, out.as_ref()))
+        .map_err(err)?;
+    Ok(logs
+        .into_iter()
+        .map(|(run, src)| (run, src.name().display().to_string()))
+        .collect())
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RailgripError", m.py().get_type::<RailgripError>())?;
@@ -465,6 +516,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(estimate, m)?)?;
     m.add_function(wrap_pyfunction!(train, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
+    m.add_function(wrap_pyfunction!(campaign_runs, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -21,6 +21,9 @@ class Pipeline:
     @staticmethod
     def default() -> "Pipeline":
         """The embedded UIC-Z1 pipeline (the command's default)."""
+    @staticmethod
+    def from_toml(text: str, source: str) -> "Pipeline":
+        """A pipeline from its TOML text; ``source`` names it in errors and provenance."""
     @property
     def source(self) -> str: ...
     @property
@@ -56,4 +59,7 @@ def run(
     jobs: Optional[int] = None,
     force: bool = False,
     mcap: bool = False,
+    stage: str = "all",
+    shard: Optional[Tuple[int, int]] = None,
 ) -> str: ...
+def campaign_runs(archive: str, out: Optional[str] = None) -> List[Tuple[str, str]]: ...

@@ -20,7 +20,7 @@ pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
 };
-pub use remote::run_at;
+pub use remote::{run_at, sources_at};
 pub use runs::{discover, discover_all, input_hash, process_run, recall_run, run_name};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use tables::load_tables;

@@ -30,28 +30,7 @@ pub fn run_at(
     progress: CampaignProgress<'_>,
 ) -> Result<Outcome, CampaignError> {
     let out_at = Location::parse(out)?;
-    let (root, (logs, skipped)) = match Location::parse(archive)? {
-        Location::Local(root) => {
-            let skip = match &out_at {
-                Location::Local(p) => Some(p.as_path()),
-                Location::S3 { .. } => None,
-            };
-            let sources = sources_all(&root, skip)?;
-            (root, sources)
-        }
-        Location::S3 { bucket, prefix } => {
-            let b = Bucket::connect(&bucket)?;
-            let skip = match &out_at {
-                Location::S3 {
-                    bucket: ob,
-                    prefix: op,
-                } if *ob == bucket => Some(op.as_str()),
-                _ => None,
-            };
-            let sources = bucket_sources(&b, &prefix, skip)?;
-            (PathBuf::from(b.uri(&prefix).trim_end_matches('/')), sources)
-        }
-    };
+    let (root, (logs, skipped)) = sources_at(archive, Some(&out_at))?;
     match out_at {
         Location::Local(dir) => run_sources(
             &root,
@@ -64,7 +43,18 @@ pub fn run_at(
         ),
         Location::S3 { bucket, prefix } => {
             let b = Bucket::connect(&bucket)?;
-            let staged = Staged::pull(Arc::clone(&b), &prefix)?;
+            // A shard fetches what its own runs need, a campaign every run's.
+            let only: Option<Vec<&str>> = match options.part {
+                Part::Estimate(shard) => Some(
+                    logs.iter()
+                        .enumerate()
+                        .filter(|(i, _)| shard.has(*i))
+                        .map(|(_, (run, _))| run.as_str())
+                        .collect(),
+                ),
+                _ => None,
+            };
+            let staged = Staged::pull(Arc::clone(&b), &prefix, only.as_deref())?;
             let result = run_sources(
                 &root,
                 logs,
@@ -82,6 +72,37 @@ pub fn run_at(
             result
         }
     }
+}
+
+/// The campaign at `archive` (a path, `file://` or `s3://` location): its root as outputs
+/// name it, its logs with their run names and the files that are not logs. `out`, when it lies
+/// inside the campaign, is left out of the search.
+pub fn sources_at(
+    archive: &str,
+    out: Option<&Location>,
+) -> Result<(PathBuf, Sources), CampaignError> {
+    Ok(match Location::parse(archive)? {
+        Location::Local(root) => {
+            let skip = match out {
+                Some(Location::Local(p)) => Some(p.as_path()),
+                _ => None,
+            };
+            let sources = sources_all(&root, skip)?;
+            (root, sources)
+        }
+        Location::S3 { bucket, prefix } => {
+            let b = Bucket::connect(&bucket)?;
+            let skip = match out {
+                Some(Location::S3 {
+                    bucket: ob,
+                    prefix: op,
+                }) if *ob == bucket => Some(op.as_str()),
+                _ => None,
+            };
+            let sources = bucket_sources(&b, &prefix, skip)?;
+            (PathBuf::from(b.uri(&prefix).trim_end_matches('/')), sources)
+        }
+    })
 }
 
 /// The logs below `prefix` in `bucket` (or the archive object `prefix` names: `.zip`, `.tar`,
@@ -215,7 +236,12 @@ struct Staged {
 const LAST: [&str; 2] = ["campaign.json", "report/index.html"];
 
 impl Staged {
-    fn pull(bucket: Arc<Bucket>, prefix: &str) -> Result<Staged, CampaignError> {
+    /// Fetches the records and tables of the runs in `only` (every run's when None).
+    fn pull(
+        bucket: Arc<Bucket>,
+        prefix: &str,
+        only: Option<&[&str]>,
+    ) -> Result<Staged, CampaignError> {
         let dir = std::env::temp_dir().join(format!(
             "railgrip-out-{}-{}",
             std::process::id(),
@@ -238,6 +264,14 @@ impl Staged {
                 .trim_start_matches('/');
             if rel.ends_with(".railgrip.mcap") {
                 continue; // rewritten or removed by every campaign
+            }
+            let run = rel
+                .trim_start_matches("runs/")
+                .split('/')
+                .next()
+                .unwrap_or("");
+            if only.is_some_and(|runs| !runs.contains(&run)) {
+                continue;
             }
             let bytes = staged
                 .bucket
