@@ -6,7 +6,9 @@
 #
 #   scripts/slurm-campaign.sh ARCHIVE OUT N [PIPELINE]
 #
-# Prints the two job ids. RAILGRIP (default: railgrip on PATH) is the binary the jobs run.
+# OUT may be s3://BUCKET/PREFIX (the AWS_* variables reach the jobs through sbatch's default
+# --export=ALL). Prints the two job ids. RAILGRIP (default: railgrip on PATH) is the binary the
+# jobs run; SLURM_LOGS the folder of the jobs' logs (default OUT/slurm, ./railgrip-slurm for s3://).
 set -euo pipefail
 if [ $# -lt 3 ] || [ $# -gt 4 ]; then
     echo "usage: $0 ARCHIVE OUT N [PIPELINE]" >&2
@@ -22,16 +24,21 @@ railgrip=${RAILGRIP:-railgrip}
 sbatch=${SBATCH:-sbatch}
 read -r -a opts <<< "${SBATCH_OPTS:-}"
 read -r -a models_opts <<< "${SBATCH_MODELS_OPTS:-}"
-mkdir -p "$out/slurm"
+# Job logs beside the outputs, or (for an s3:// output) in SLURM_LOGS, default ./railgrip-slurm.
+case $out in
+    *://*) logs=${SLURM_LOGS:-$PWD/railgrip-slurm} ;;
+    *) logs=${SLURM_LOGS:-$out/slurm} ;;
+esac
+mkdir -p "$logs"
 
 # One task per shard; each estimates every N-th run into the shared folder, one core each.
 shards=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-estimate --array="1-$n" \
-    --cpus-per-task=1 --output="$out/slurm/estimate-%a.log" \
+    --cpus-per-task=1 --output="$logs/estimate-%a.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" --jobs 1 "${pipeline[@]}" \
         --stage estimate --shard)\"\$SLURM_ARRAY_TASK_ID/$n\"")
 shards=${shards%%;*}
 # Training and the report, once every shard succeeded (exit 3, some runs failed, counts as done).
 models=$("$sbatch" --parsable "${opts[@]}" "${models_opts[@]}" --job-name=railgrip-models \
-    --dependency="afterany:$shards" --output="$out/slurm/models.log" \
+    --dependency="afterany:$shards" --output="$logs/models.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage models)")
 echo "estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"

@@ -174,6 +174,8 @@ fn a_campaign_in_a_bucket_runs_into_a_bucket_with_the_bytes_of_a_local_output() 
     let Some(moto) = Moto::start() else { return };
     let dir = tempfile::tempdir().unwrap();
     upload_campaign(&moto, "camp", "2026/a");
+    // Someone else's object below the output prefix: railgrip never removes it.
+    moto.put_bytes("camp", "2026/out/notes/keep.txt", b"mine");
     let o = moto.railgrip(
         &["run", "s3://camp/2026/a", "--out", "s3://camp/2026/out"],
         dir.path(),
@@ -186,7 +188,11 @@ fn a_campaign_in_a_bucket_runs_into_a_bucket_with_the_bytes_of_a_local_output() 
     );
     let local = moto.railgrip(&["run", "s3://camp/2026/a", "--out", "local"], dir.path());
     assert_eq!(local.status.code(), Some(0), "{}", text(&local.stderr));
-    let remote = moto.download("camp", "2026/out");
+    let mut remote = moto.download("camp", "2026/out");
+    assert_eq!(
+        remote.remove("notes/keep.txt").as_deref(),
+        Some(&b"mine"[..])
+    );
     let here = files_below(&dir.path().join("local"));
     assert!(here.contains_key("campaign.json") && here.len() >= 12);
     assert_same(&here, &remote, "the bucket's output against the local one");
@@ -204,11 +210,28 @@ fn a_campaign_in_a_bucket_runs_into_a_bucket_with_the_bytes_of_a_local_output() 
     let stderr = text(&again.stderr);
     assert_eq!(again.status.code(), Some(0), "{stderr}");
     assert_eq!(stderr.matches("unchanged, reused").count(), 3, "{stderr}");
-    assert_same(
-        &remote,
-        &moto.download("camp", "2026/out"),
-        "a reused re-run",
+    let mut again_remote = moto.download("camp", "2026/out");
+    again_remote.remove("notes/keep.txt");
+    assert_same(&remote, &again_remote, "a reused re-run");
+    // Replay MCAPs written with --mcap are removed by a run without it, like local ones.
+    let out_uri = "s3://camp/2026/out";
+    let o = moto.railgrip(
+        &["run", "s3://camp/2026/a", "--out", out_uri, "--mcap"],
+        dir.path(),
     );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let with = moto.download("camp", "2026/out");
+    assert_eq!(
+        with.keys()
+            .filter(|k| k.ends_with(".railgrip.mcap"))
+            .count(),
+        3
+    );
+    let o = moto.railgrip(&["run", "s3://camp/2026/a", "--out", out_uri], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let mut without = moto.download("camp", "2026/out");
+    assert!(without.remove("notes/keep.txt").is_some());
+    assert_same(&remote, &without, "after a run with --mcap and one without");
     // In parts: two shards and the models stage on the bucket give the same bytes.
     for k in ["1/2", "2/2"] {
         let o = moto.railgrip(

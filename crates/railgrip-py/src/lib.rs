@@ -372,7 +372,8 @@ fn table_of(
             ))
         })
     };
-    let valid: Vec<bool> = col("valid")?.iter().map(|v| *v != 0.0).collect();
+    // NaN (a missing cell) is not valid.
+    let valid: Vec<bool> = col("valid")?.iter().map(|v| *v == 1.0).collect();
     RunTable::from_columns(
         name,
         metadata,

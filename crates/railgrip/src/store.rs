@@ -188,14 +188,17 @@ impl Bucket {
     /// Every object below `prefix` (a folder: `prefix/…`; empty: the whole bucket), by key.
     pub fn list(&self, prefix: &str) -> Result<Vec<Object>, StoreError> {
         let uri = self.uri(prefix);
-        let p = (!prefix.is_empty()).then(|| Key::from(prefix));
+        let p = match prefix.is_empty() {
+            true => None,
+            false => Some(key(&uri, prefix)?),
+        };
         let mut objects: Vec<Object> = self
             .runtime
             .block_on(self.store.list(p.as_ref()).try_collect::<Vec<_>>())
             .map_err(|e| StoreError::from_store(&uri, &e))?
             .into_iter()
             .map(|m| Object {
-                key: m.location.to_string(),
+                key: m.location.as_ref().to_string(),
                 size: m.size,
             })
             .collect();
@@ -205,12 +208,13 @@ impl Bucket {
 
     /// The bytes of `key`, refused past `limit` bytes (the size the object claims, then the
     /// bytes received).
-    pub fn get(&self, key: &str, limit: u64) -> Result<Vec<u8>, StoreError> {
-        let uri = self.uri(key);
+    pub fn get(&self, k: &str, limit: u64) -> Result<Vec<u8>, StoreError> {
+        let uri = self.uri(k);
+        let k = key(&uri, k)?;
         let bytes = self
             .runtime
             .block_on(async {
-                let r = self.store.get(&Key::from(key)).await?;
+                let r = self.store.get(&k).await?;
                 if r.meta.size > limit {
                     return Ok(Err(r.meta.size));
                 }
@@ -225,9 +229,10 @@ impl Bucket {
     }
 
     /// The size of `key`, or None when there is no such object.
-    pub fn head(&self, key: &str) -> Result<Option<u64>, StoreError> {
-        let uri = self.uri(key);
-        match self.runtime.block_on(self.store.head(&Key::from(key))) {
+    pub fn head(&self, k: &str) -> Result<Option<u64>, StoreError> {
+        let uri = self.uri(k);
+        let k = key(&uri, k)?;
+        match self.runtime.block_on(self.store.head(&k)) {
             Ok(m) => Ok(Some(m.size)),
             Err(object_store::Error::NotFound { .. }) => Ok(None),
             Err(e) => Err(StoreError::from_store(&uri, &e)),
@@ -235,18 +240,20 @@ impl Bucket {
     }
 
     /// Writes `bytes` to `key` in one PUT (atomic: the whole object or nothing).
-    pub fn put(&self, key: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
-        let uri = self.uri(key);
+    pub fn put(&self, k: &str, bytes: Vec<u8>) -> Result<(), StoreError> {
+        let uri = self.uri(k);
+        let k = key(&uri, k)?;
         self.runtime
-            .block_on(self.store.put(&Key::from(key), bytes.into()))
+            .block_on(self.store.put(&k, bytes.into()))
             .map(|_| ())
             .map_err(|e| StoreError::from_store(&uri, &e))
     }
 
     /// Removes `key` (no error when it is not there).
-    pub fn delete(&self, key: &str) -> Result<(), StoreError> {
-        let uri = self.uri(key);
-        match self.runtime.block_on(self.store.delete(&Key::from(key))) {
+    pub fn delete(&self, k: &str) -> Result<(), StoreError> {
+        let uri = self.uri(k);
+        let k = key(&uri, k)?;
+        match self.runtime.block_on(self.store.delete(&k)) {
             Ok(()) | Err(object_store::Error::NotFound { .. }) => Ok(()),
             Err(e) => Err(StoreError::from_store(&uri, &e)),
         }
@@ -259,6 +266,17 @@ fn too_large(uri: &str, size: u64, limit: u64) -> StoreError {
         &format!("{size} bytes, over the {limit}-byte limit for this kind of file"),
         "check that the key names a braking-run log (docs/limits.md)",
     )
+}
+
+/// The object_store path of a key as S3 spells it (no percent-encoding of `#`, `%`, `~`, …).
+fn key(uri: &str, k: &str) -> Result<Key, StoreError> {
+    Key::parse(k).map_err(|e| {
+        StoreError::new(
+            uri,
+            &format!("not a key railgrip can address: {e}"),
+            "use keys without empty segments, `.` or `..`",
+        )
+    })
 }
 
 /// `prefix/rest`, or `rest` for an empty prefix.

@@ -241,7 +241,14 @@ def _train_item(item: TableOrPath, k: int) -> Any:
             c: np.ascontiguousarray(item[c].to_numpy(dtype=np.float64))
             for c in ("time_s", "axle", "v_mps", "dv_mps", "ddv_mps2", "mu", "valid")
         }
-        metadata = {str(k): str(v) for k, v in dict(item.attrs.get("metadata", {})).items()}
+        if "metadata" not in item.attrs:
+            raise RailgripError(
+                f"{name}: the table has no attrs['metadata'] (the run's rail condition and "
+                "ambient temperature the fits use; operations such as pd.concat may drop attrs). "
+                "Hint: give tables from railgrip.estimate, or set table.attrs['metadata'] = "
+                "{'condition': 'soap', 'ambient_temperature_c': '20'}"
+            )
+        metadata = {str(k): str(v) for k, v in dict(item.attrs["metadata"]).items()}
         return (name, metadata, columns)
     if isinstance(item, (str, os.PathLike)):
         return os.fspath(item)

@@ -1,7 +1,10 @@
 """Type stubs of railgrip's native module (crates/railgrip-py/src/lib.rs). Use the package
 ``railgrip``; this module is its implementation."""
 
+import os
 from typing import Dict, List, Optional, Tuple, Union
+
+PathLike = Union[str, "os.PathLike[str]"]
 
 import numpy as np
 import numpy.typing as npt
@@ -16,7 +19,7 @@ class Pipeline:
     """A checked pipeline file (TOML): channel mapping, conditioning, estimation, training."""
 
     @staticmethod
-    def load(path: str) -> "Pipeline":
+    def load(path: PathLike) -> "Pipeline":
         """Reads and checks a pipeline file; RailgripError names the line and key."""
     @staticmethod
     def default() -> "Pipeline":
@@ -31,7 +34,7 @@ class Pipeline:
 
 class Model:
     @staticmethod
-    def load(path: str) -> "Model": ...
+    def load(path: PathLike) -> "Model": ...
     def mu(
         self,
         dv: npt.NDArray[np.float64],
@@ -45,7 +48,7 @@ class Model:
     def name(self) -> str: ...
 
 Columns = Dict[str, npt.NDArray[np.generic]]
-TrainItem = Union[str, Tuple[str, Dict[str, str], Dict[str, npt.NDArray[np.float64]]]]
+TrainItem = Union[PathLike, Tuple[str, Dict[str, str], Dict[str, npt.NDArray[np.float64]]]]
 
 def read_log(path: str, pipeline: Optional[Pipeline] = None) -> Tuple[Columns, str]: ...
 def estimate(path: str, pipeline: Optional[Pipeline] = None) -> Tuple[Columns, str]: ...

@@ -30,7 +30,7 @@ __all__ = ["run"]
 
 
 def _estimate(archive: str, out: str, pipeline: Optional[Pipeline], k: int, n: int) -> Dict[str, Any]:
-    # The tests' way to kill a worker mid-task once (a marker file records that it happened).
+    # The tests' way to kill a worker once, at the start of a task (a marker file records it).
     marker = os.environ.get("RAILGRIP_TEST_KILL_WORKER_ONCE")
     if marker and k == 1 and not os.path.exists(marker):
         open(marker, "w").close()
@@ -38,17 +38,31 @@ def _estimate(archive: str, out: str, pipeline: Optional[Pipeline], k: int, n: i
     facts = json.loads(
         _native.run(archive, out, pipeline, 1, False, False, "estimate", (k, n))
     )
-    return facts["records"][0] if facts["records"] else {}
+    seconds = dict(facts["stages"]).get("estimate", 0.0)
+    record = facts["records"][0] if facts["records"] else {}
+    return {"record": record, "reused": facts["reused"] > 0, "seconds": seconds}
 
 
 def _models(archive: str, out: str, pipeline: Optional[Pipeline], jobs: Optional[int]) -> str:
     return _native.run(archive, out, pipeline, jobs, False, False, "models", None)
 
 
-def _line(record: Dict[str, Any], seconds: float) -> str:
+def _line(done: Dict[str, Any]) -> str:
+    """A finished run as `railgrip run` prints it."""
+    record = done["record"]
+    if done["reused"] and record.get("status") == "ok":
+        return f"run        {record['run']}: unchanged, reused"
     if record.get("status") == "ok":
-        return f"run        {record['run']}: ok ({seconds:.2f} s)"
+        return f"run        {record['run']}: ok ({done['seconds']:.2f} s)"
     return f"run        {record.get('run', '?')}: FAILED: {record.get('error', '')}"
+
+
+def _absolute(location: str) -> str:
+    """A local location as an absolute path (tasks may run elsewhere); URIs as they are."""
+    if "://" in location and not location.startswith("file://"):
+        return location
+    path = location[len("file://"):] if location.startswith("file://") else location
+    return os.path.abspath(path)
 
 
 def run(
@@ -66,10 +80,12 @@ def run(
     prints them); ``models_cpus`` are the CPUs the training task asks Ray for (its threads).
     ``env``: environment variables for the tasks; by default, when a location is ``s3://``,
     the driver's ``AWS_*`` variables (credentials, region, endpoint), so that workers reach the
-    bucket as the driver does (pass ``{}`` where the workers have their own credentials)."""
+    bucket as the driver does. They travel in the tasks' runtime environment, which Ray's
+    dashboard and state API show, and a session token may expire during a long campaign: pass
+    ``{}`` where the workers have credentials of their own (an instance role)."""
     import ray
 
-    archive, out = os.fspath(archive), os.fspath(out)
+    archive, out = _absolute(os.fspath(archive)), _absolute(os.fspath(out))
     say = progress or (lambda line: print(line, file=sys.stderr, flush=True))
     if not ray.is_initialized():
         ray.init()
@@ -83,20 +99,23 @@ def run(
     estimate = ray.remote(num_cpus=1, max_retries=max_retries)(_estimate).options(**options)
     start = time.monotonic()
     pending = {estimate.remote(archive, out, pipeline, k + 1, n): k for k in range(n)}
-    records: List[Dict[str, Any]] = []
+    reused = 0
     while pending:
         done, _ = ray.wait(list(pending), num_returns=1)
         for ref in done:
             k = pending.pop(ref)
             try:
-                record = ray.get(ref)
-            except Exception as e:  # a worker that died after its retries: that run only
-                say(f"run        {runs[k][0]}: FAILED: the Ray task did not finish: {e}")
+                result = ray.get(ref)
+            except Exception as e:  # a task that failed after its retries: that run only
+                say(f"run        {runs[k][0]}: FAILED: {runs[k][1]}: the Ray task did not finish: {e}")
                 continue
-            records.append(record)
-            say(_line(record, time.monotonic() - start))
+            reused += result["reused"]
+            say(_line(result))
     say("train      network and Polach fits on the pooled estimates (one Ray task)")
     models = ray.remote(num_cpus=models_cpus, max_retries=max_retries)(_models).options(**options)
     facts = json.loads(ray.get(models.remote(archive, out, pipeline, models_cpus)))
     facts["stages"] = [tuple(s) for s in facts["stages"]]
+    # The models task finds every run done by the tasks; reused are the runs the tasks kept.
+    facts["reused"] = reused
+    say(f"time       estimate and train {time.monotonic() - start:.2f} s")
     return Campaign(**facts)

@@ -60,6 +60,10 @@ pub enum CampaignError {
     Archive(#[from] crate::archive::ArchiveError),
     #[error(transparent)]
     Store(#[from] crate::store::StoreError),
+    /// An error of a campaign whose output folder is in a bucket, its message naming the
+    /// output's URI (not the local staging folder).
+    #[error("{0}")]
+    Remote(String),
     #[error(transparent)]
     Ingest(#[from] crate::ingest::IngestError),
     #[error(transparent)]
@@ -265,7 +269,7 @@ pub fn sources_all(root: &Path, skip: Option<&Path>) -> Result<Sources, Campaign
 /// where they still collide (names that sanitise alike, `a b.csv` and `a_b.csv`), a counter in
 /// the order of the logs' paths (`a_b_csv`, `a_b_csv_2`): the same names on every run, for a
 /// folder and for an archive of it.
-fn unique_names(mut logs: Vec<(String, LogSource)>) -> Vec<(String, LogSource)> {
+pub(super) fn unique_names(mut logs: Vec<(String, LogSource)>) -> Vec<(String, LogSource)> {
     let count = |logs: &[(String, LogSource)], n: &str| logs.iter().filter(|(m, _)| m == n).count();
     let collided: Vec<bool> = logs.iter().map(|(n, _)| count(&logs, n) > 1).collect();
     for ((name, src), hit) in logs.iter_mut().zip(collided) {
@@ -569,7 +573,11 @@ fn make_output_folders(out: &OutDir) -> Result<(), CampaignError> {
         models.dir.clone(),
         out.report_dir(),
     ] {
-        let probe = dir.join(format!(".railgrip-probe-{}", std::process::id()));
+        // Unique across the nodes of a shared file system (shards on several machines).
+        let nanos = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.subsec_nanos());
+        let probe = dir.join(format!(".railgrip-probe-{}-{nanos}", std::process::id()));
         std::fs::create_dir_all(&dir)
             .and_then(|_| std::fs::write(&probe, b"probe"))
             .and_then(|_| std::fs::remove_file(&probe))

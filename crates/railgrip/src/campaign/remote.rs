@@ -64,12 +64,20 @@ pub fn run_at(
                 options,
                 progress,
             )
-            .and_then(|o| {
-                staged.push(&o, options.part)?;
-                Ok(staged.rename(o, &b.uri(&prefix)))
-            });
+            .map_err(|e| staged.remote_error(&e, &b.uri(&prefix), false));
+            let o = match result {
+                Ok(o) => o,
+                Err(e) => {
+                    let _ = std::fs::remove_dir_all(&staged.dir);
+                    return Err(e);
+                }
+            };
+            // A failed upload keeps the staged outputs and says where they are.
+            staged
+                .push(&o, options.part)
+                .map_err(|e| staged.remote_error(&e, &b.uri(&prefix), true))?;
             let _ = std::fs::remove_dir_all(&staged.dir);
-            result
+            Ok(staged.rename(o, &b.uri(&prefix)))
         }
     }
 }
@@ -150,6 +158,13 @@ pub(super) fn bucket_sources(
         });
     }
     let (logs, skipped) = super::runs::classify(&root, files);
+    if logs.is_empty() {
+        return Err(CampaignError::Input {
+            path: root,
+            message: "no .csv or .mcap logs below this prefix".into(),
+            hint: "give the prefix that holds the campaign's logs (aws s3 ls s3://BUCKET/PREFIX/ lists them)".into(),
+        });
+    }
     let logs = logs
         .into_iter()
         .map(|p| {
@@ -173,7 +188,7 @@ pub(super) fn bucket_sources(
             )
         })
         .collect();
-    Ok((logs, skipped))
+    Ok((super::unique_names(logs), skipped))
 }
 
 /// A campaign archive stored as one object: fetched to a temporary file, read in place like a
@@ -234,6 +249,13 @@ struct Staged {
 
 /// The files a finished campaign writes last (and a new one removes first).
 const LAST: [&str; 2] = ["campaign.json", "report/index.html"];
+/// The files railgrip writes at the top of an output folder.
+const OWNED_TOP: [&str; 4] = [
+    "campaign.json",
+    "summary.csv",
+    "summary.parquet",
+    "timings.json",
+];
 
 impl Staged {
     /// Fetches the records and tables of the runs in `only` (every run's when None).
@@ -255,6 +277,15 @@ impl Staged {
             prefix: prefix.to_string(),
             dir,
         };
+        if let Err(e) = staged.fetch_runs(only) {
+            let _ = std::fs::remove_dir_all(&staged.dir);
+            return Err(e);
+        }
+        Ok(staged)
+    }
+
+    fn fetch_runs(&self, only: Option<&[&str]>) -> Result<(), CampaignError> {
+        let (staged, prefix) = (self, self.prefix.as_str());
         let runs = join(prefix, "runs/");
         for o in staged.bucket.list(&runs)? {
             let rel = o
@@ -281,46 +312,63 @@ impl Staged {
                 .and_then(|_| std::fs::write(&path, bytes))
                 .map_err(|source| CampaignError::Write { path, source })?;
         }
-        Ok(staged)
+        Ok(())
     }
 
     /// Writes the staged outputs back: an estimate shard its runs' folders only; a campaign
-    /// everything, `campaign.json` and the report last, and removes what it no longer writes.
+    /// everything, `campaign.json` and the report last. Objects railgrip wrote before and no
+    /// longer writes are removed — only below the names railgrip owns in an output folder
+    /// (`runs/<run>/` of the runs written, `models/`, `report/` and the top-level files), never
+    /// anything else below the prefix.
     fn push(&self, o: &Outcome, part: Part) -> Result<(), CampaignError> {
         let files = files_below(&self.dir)?;
         let key = |rel: &str| join(&self.prefix, rel);
-        if let Part::Estimate(_) = part {
-            for rel in files.iter().filter(|rel| {
-                o.records
-                    .iter()
-                    .any(|r| rel.starts_with(&format!("runs/{}/", r.run)))
-            }) {
-                self.upload(rel)?;
-            }
-            for f in LAST {
-                self.bucket.delete(&key(f))?;
-            }
-            return Ok(());
-        }
-        let before = self.bucket.list(&self.prefix)?;
+        let rel_of = |k: &str| -> String {
+            k.strip_prefix(&join(&self.prefix, ""))
+                .unwrap_or(k)
+                .trim_start_matches('/')
+                .to_string()
+        };
+        let before: Vec<String> = self
+            .bucket
+            .list(&self.prefix)?
+            .into_iter()
+            .map(|o| rel_of(&o.key))
+            .collect();
+        let run_dirs: Vec<String> = o
+            .records
+            .iter()
+            .map(|r| format!("runs/{}/", r.run))
+            .collect();
+        let in_runs = |rel: &str| run_dirs.iter().any(|d| rel.starts_with(d.as_str()));
+        // The finished campaign's files go first: from here on the prefix is not finished.
         for f in LAST {
             self.bucket.delete(&key(f))?;
         }
-        for rel in files.iter().filter(|r| !LAST.contains(&r.as_str())) {
+        let shard = matches!(part, Part::Estimate(_));
+        for rel in files
+            .iter()
+            .filter(|r| !LAST.contains(&r.as_str()) && (!shard || in_runs(r)))
+        {
             self.upload(rel)?;
         }
-        for old in before {
-            let rel = old
-                .key
-                .strip_prefix(&join(&self.prefix, ""))
-                .unwrap_or(&old.key)
-                .trim_start_matches('/');
-            if !files.iter().any(|f| f == rel) {
-                self.bucket.delete(&old.key)?;
+        let owned = |rel: &str| {
+            if shard {
+                in_runs(rel)
+            } else {
+                in_runs(rel)
+                    || rel.starts_with("models/")
+                    || rel.starts_with("report/")
+                    || OWNED_TOP.contains(&rel)
             }
+        };
+        for rel in before.iter().filter(|r| owned(r) && !files.contains(r)) {
+            self.bucket.delete(&key(rel))?;
         }
-        for rel in files.iter().filter(|r| LAST.contains(&r.as_str())) {
-            self.upload(rel)?;
+        if !shard {
+            for rel in files.iter().filter(|r| LAST.contains(&r.as_str())) {
+                self.upload(rel)?;
+            }
         }
         Ok(())
     }
@@ -329,6 +377,19 @@ impl Staged {
         let path = self.dir.join(rel);
         let bytes = std::fs::read(&path).map_err(|source| CampaignError::Read { path, source })?;
         Ok(self.bucket.put(&join(&self.prefix, rel), bytes)?)
+    }
+
+    /// `e` with the staging folder's paths replaced by the output's URI (and, when `kept`,
+    /// where the staged outputs wait).
+    fn remote_error(&self, e: &CampaignError, uri: &str, kept: bool) -> CampaignError {
+        let mut text = e.to_string().replace(&self.dir.display().to_string(), uri);
+        if kept {
+            text.push_str(&format!(
+                " (the outputs are kept in {}; run again to write them)",
+                self.dir.display()
+            ));
+        }
+        CampaignError::Remote(text)
     }
 
     /// The outcome with the staged paths replaced by the prefix's URIs.
@@ -340,6 +401,10 @@ impl Staged {
         o.models = o.models.iter().map(|p| to_uri(p)).collect();
         o.report = o.report.as_deref().map(to_uri);
         o.chosen = o.chosen.map(|(p, why)| (to_uri(&p), why));
+        let dir = self.dir.display().to_string();
+        for n in &mut o.notes {
+            *n = n.replace(&dir, uri);
+        }
         o
     }
 }

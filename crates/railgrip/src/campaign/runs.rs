@@ -181,22 +181,7 @@ pub fn process_run(
     force: bool,
 ) -> (RunRecord, Option<RunTable>) {
     let t0 = Instant::now();
-    let mut rec = RunRecord {
-        run: name.to_string(),
-        source: src.name().display().to_string(),
-        status: RunStatus::Failed,
-        error: None,
-        reused: false,
-        duration_s: 0.0,
-        initial_speed_kmh: None,
-        ambient_temperature_c: None,
-        condition: None,
-        peak_mu: [None; AXLES],
-        max_dv_mps: [None; AXLES],
-        warnings: vec![],
-        input_sha256: String::new(),
-        start_log_time_ns: None,
-    };
+    let mut rec = new_record(src, name);
     // A log in a bucket is fetched once, here, for the hash and the estimation.
     let fetched = src.fetched();
     let (hash, log_sha) = match fetched
@@ -244,6 +229,26 @@ pub fn process_run(
     (rec, table)
 }
 
+/// A run's record before anything is known: failed, no figures.
+fn new_record(src: &LogSource, name: &str) -> RunRecord {
+    RunRecord {
+        run: name.to_string(),
+        source: src.name().display().to_string(),
+        status: RunStatus::Failed,
+        error: None,
+        reused: false,
+        duration_s: 0.0,
+        initial_speed_kmh: None,
+        ambient_temperature_c: None,
+        condition: None,
+        peak_mu: [None; AXLES],
+        max_dv_mps: [None; AXLES],
+        warnings: vec![],
+        input_sha256: String::new(),
+        start_log_time_ns: None,
+    }
+}
+
 /// What an estimate shard wrote for run `name` ([`super::Part::Models`]): its record and
 /// (for a run that succeeded) its table, when the record is for the run's current inputs —
 /// the log, its sidecar and the pipeline, by hash. A run that failed in its shard is its
@@ -254,8 +259,16 @@ pub fn recall_run(
     out: &OutDir,
     pipeline: &Pipeline,
 ) -> Result<(RunRecord, Option<RunTable>), String> {
-    let (hash, log_sha) = input_hash(src, pipeline)
-        .map_err(|e| format!("{}: cannot read: {e}", src.name().display()))?;
+    let (hash, log_sha) = match src.fetched().and_then(|s| input_hash(&s, pipeline)) {
+        Ok(h) => h,
+        // As in one run: a log that cannot be read is its run's failed record (one run writes
+        // no record for it either).
+        Err(e) => {
+            let mut rec = new_record(src, name);
+            rec.error = Some(format!("{}: cannot read: {e}", src.name().display()));
+            return Ok((rec, None));
+        }
+    };
     let path = out.run_record(name);
     let text = std::fs::read_to_string(&path).map_err(|_| "not estimated".to_string())?;
     let mut old: RunRecord = serde_json::from_str(&text)

@@ -28,31 +28,39 @@ fn stem(p: &Path) -> String {
 /// Expands folders and archives into their logs (as `railgrip run` lists them).
 fn expand(inputs: &[PathBuf]) -> Result<Vec<Input>, CampaignError> {
     let mut out = Vec::new();
-    for p in inputs {
-        let text = p.display().to_string();
-        if let Some(rest) = text.strip_prefix("s3://") {
-            // A log in a bucket, or a campaign there (a prefix of logs or an archive object).
-            let lower = text.to_ascii_lowercase();
-            if lower.ends_with(".csv") || lower.ends_with(".mcap") {
-                let src = LogSource::at(&text)?;
-                out.push(Input::Log(stem(p), src));
-            } else {
-                let (bucket, prefix) = rest.split_once('/').unwrap_or((rest, ""));
-                let b = crate::store::Bucket::connect(bucket)?;
-                for (run, src) in
-                    super::remote::bucket_sources(&b, prefix.trim_matches('/'), None)?.0
-                {
-                    out.push(Input::Log(run, src));
+    for given in inputs {
+        let text = given.display().to_string();
+        let p = match crate::store::Location::parse(&text)? {
+            crate::store::Location::Local(p) => p,
+            crate::store::Location::S3 { bucket, prefix } => {
+                // A log in a bucket, or a campaign there (a prefix of logs or an archive object).
+                let lower = prefix.to_ascii_lowercase();
+                if lower.ends_with(".parquet") {
+                    return Err(CampaignError::Input {
+                        path: given.clone(),
+                        message: "an estimates table in a bucket".into(),
+                        hint: "give the run's log (s3://…/run.csv or .mcap), or copy the table to a local path".into(),
+                    });
                 }
+                if lower.ends_with(".csv") || lower.ends_with(".mcap") {
+                    out.push(Input::Log(stem(given), LogSource::at(&text)?));
+                } else {
+                    let b = crate::store::Bucket::connect(&bucket)?;
+                    for (run, src) in super::remote::bucket_sources(&b, &prefix, None)?.0 {
+                        out.push(Input::Log(run, src));
+                    }
+                }
+                continue;
             }
-        } else if text.ends_with(".parquet") {
-            out.push(Input::Table(p.clone()));
-        } else if p.is_dir() || crate::archive::kind_of(p).is_some() {
-            for (run, src) in super::sources(p, None)? {
+        };
+        if text.ends_with(".parquet") {
+            out.push(Input::Table(p));
+        } else if p.is_dir() || crate::archive::kind_of(&p).is_some() {
+            for (run, src) in super::sources(&p, None)? {
                 out.push(Input::Log(run, src));
             }
         } else {
-            out.push(Input::Log(stem(p), LogSource::File(p.clone())));
+            out.push(Input::Log(stem(&p), LogSource::File(p)));
         }
     }
     Ok(out)
