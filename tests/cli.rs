@@ -838,6 +838,16 @@ fn eval_of_a_four_input_network_needs_and_uses_the_temperature() {
     assert!(h.contains("railgrip_mu_batch_t(") && h.contains("#define RAILGRIP_N_INPUTS 4"));
 }
 
+/// The two soap CSV runs of [`two_run_campaign`] and an MCAP run at 160 km/h.
+fn three_run_campaign(camp: &Path) {
+    two_run_campaign(camp);
+    std::fs::copy(
+        archive("soap_160kmh_0c.mcap"),
+        camp.join("soap_160kmh_0c.mcap"),
+    )
+    .unwrap();
+}
+
 /// Every file below `dir` (relative path → bytes), leaving out `timings.json`.
 fn outputs(dir: &Path) -> std::collections::BTreeMap<PathBuf, Vec<u8>> {
     files_below(dir)
@@ -858,12 +868,7 @@ fn run_outputs_are_the_same_bytes_for_any_jobs_and_on_a_rerun() {
     // identical runs only in timing and clock fields. Now those are in timings.json alone.
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
-    two_run_campaign(&camp);
-    std::fs::copy(
-        archive("soap_160kmh_0c.mcap"),
-        camp.join("soap_160kmh_0c.mcap"),
-    )
-    .unwrap();
+    three_run_campaign(&camp);
     let run = |out: &str, jobs: &str, force: bool| {
         let mut args = vec!["run", "campaign", "--out", out, "--jobs", jobs];
         if force {
@@ -1118,12 +1123,7 @@ fn train_a_deeper_network_through_burn_end_to_end() {
 fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
-    two_run_campaign(&camp);
-    std::fs::copy(
-        archive("soap_160kmh_0c.mcap"),
-        camp.join("soap_160kmh_0c.mcap"),
-    )
-    .unwrap();
+    three_run_campaign(&camp);
     let run = |out: &str, threads: &str, pipeline: Option<&str>| {
         let mut args = vec!["run", "campaign", "--out", out, "--mcap"];
         if let Some(p) = pipeline {
@@ -1235,12 +1235,7 @@ fn estimate_shards_then_the_models_stage_write_the_bytes_of_one_run() {
     // then the models stage. A broken log fails in its shard and stays a failed record.
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
-    two_run_campaign(&camp);
-    std::fs::copy(
-        archive("soap_160kmh_0c.mcap"),
-        camp.join("soap_160kmh_0c.mcap"),
-    )
-    .unwrap();
+    three_run_campaign(&camp);
     std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
     let one = railgrip(&["run", "campaign", "--out", "one"], dir.path());
     assert_eq!(one.status.code(), Some(3), "{}", text(&one.stderr));
@@ -1346,12 +1341,7 @@ fn the_slurm_script_runs_the_shards_then_the_models_stage() {
     // The script was also run under a real single-node Slurm 22.05 (docs/cluster.md).
     let dir = tempfile::tempdir().unwrap();
     let camp = dir.path().join("campaign");
-    two_run_campaign(&camp);
-    std::fs::copy(
-        archive("soap_160kmh_0c.mcap"),
-        camp.join("soap_160kmh_0c.mcap"),
-    )
-    .unwrap();
+    three_run_campaign(&camp);
     let fake = dir.path().join("sbatch");
     std::fs::write(
         &fake,

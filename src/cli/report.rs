@@ -29,12 +29,7 @@ pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     if let Some(r) = &o.report {
         println!("report     {}", r.display());
     }
-    let st: Vec<String> = o
-        .stages
-        .iter()
-        .map(|(s, t)| format!("{s} {t:.2} s"))
-        .collect();
-    println!("time       {}", st.join(", "));
+    print_stages(o);
     let failed = o.failed();
     if let Some(a) = &o.audit {
         super::model::print_audit(a);
@@ -82,18 +77,23 @@ fn print_runs(o: &campaign::Outcome) {
     }
 }
 
-/// What an estimate shard did: its runs, notes and time.
-pub(super) fn print_shard(o: &campaign::Outcome) {
-    print_runs(o);
-    for n in &o.notes {
-        println!("note       {n}");
-    }
+/// The wall time of each stage.
+fn print_stages(o: &campaign::Outcome) {
     let st: Vec<String> = o
         .stages
         .iter()
         .map(|(s, t)| format!("{s} {t:.2} s"))
         .collect();
     println!("time       {}", st.join(", "));
+}
+
+/// What an estimate shard did: its runs, notes and time.
+pub(super) fn print_shard(o: &campaign::Outcome) {
+    print_runs(o);
+    for n in &o.notes {
+        println!("note       {n}");
+    }
+    print_stages(o);
     let failed = o.failed();
     if failed > 0 {
         println!(

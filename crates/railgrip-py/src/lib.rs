@@ -101,8 +101,15 @@ fn f64_array<'py>(py: Python<'py>, v: Vec<f64>) -> Bound<'py, PyAny> {
     PyArray1::from_vec(py, v).into_any()
 }
 
+/// The log at `path` (a path, file:// or s3:// location), read with `pipeline`; the error as
+/// its message.
+fn ingest_at(path: &str, pipeline: &railgrip::Pipeline) -> Result<RunLog, String> {
+    let src = railgrip::ingest::LogSource::at(path).map_err(|e| e.to_string())?;
+    railgrip::ingest::ingest_source(&src, pipeline).map_err(|e| e.to_string())
+}
+
 /// A run log's metadata, warnings and gaps as JSON (the Python half puts them in `attrs`).
-fn log_info(log: &RunLog) -> String {
+fn log_info(log: &RunLog) -> serde_json::Value {
     let gaps: Vec<serde_json::Value> = log
         .gaps
         .iter()
@@ -124,7 +131,6 @@ fn log_info(log: &RunLog) -> String {
         "warnings": log.warnings.iter().map(|w| w.message.clone()).collect::<Vec<_>>(),
         "gaps": gaps,
     })
-    .to_string()
 }
 
 /// Reads a log onto its uniform time base: (columns, info JSON).
@@ -137,12 +143,9 @@ fn read_log<'py>(
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
     let pipeline = pipeline_or_default(pipeline)?;
     let log = py
-        .detach(|| -> Result<_, String> {
-            let src = railgrip::ingest::LogSource::at(&path).map_err(|e| e.to_string())?;
-            railgrip::ingest::ingest_source(&src, &pipeline).map_err(|e| e.to_string())
-        })
+        .detach(|| ingest_at(&path, &pipeline))
         .map_err(RailgripError::new_err)?;
-    let info = log_info(&log);
+    let info = log_info(&log).to_string();
     let cols = PyDict::new(py);
     cols.set_item(
         railgrip::format::RUNLOG_TIME_COLUMN,
@@ -170,9 +173,7 @@ fn estimate<'py>(
     let pipeline = pipeline_or_default(pipeline)?;
     let (log, est) = py
         .detach(|| -> Result<_, String> {
-            let src = railgrip::ingest::LogSource::at(&path).map_err(|e| e.to_string())?;
-            let log =
-                railgrip::ingest::ingest_source(&src, &pipeline).map_err(|e| e.to_string())?;
+            let log = ingest_at(&path, &pipeline)?;
             let est = railgrip::estimate::estimate(&log, &pipeline).map_err(|e| e.to_string())?;
             Ok((log, est))
         })
@@ -201,7 +202,7 @@ fn estimate<'py>(
         };
         cols.set_item(name, array)?;
     }
-    let mut info: serde_json::Value = serde_json::from_str(&log_info(&log)).map_err(err)?;
+    let mut info = log_info(&log);
     info["filter_mode"] = serde_json::json!(match est.mode {
         railgrip::config::FilterMode::ZeroPhase => "zero-phase",
         railgrip::config::FilterMode::Causal => "causal",

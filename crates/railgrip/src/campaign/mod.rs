@@ -470,6 +470,37 @@ fn estimate_shard(
     })
 }
 
+/// `work` on every run, in parallel on a pool of `options.jobs` threads, in the order of
+/// `logs`; the progress sees the stage start and each run's record as `record` finds it.
+fn each_run<T: Send>(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    options: Options,
+    progress: CampaignProgress<'_>,
+    work: impl Fn(&str, &LogSource) -> T + Sync,
+    record: impl Fn(&T) -> Option<&RunRecord> + Sync,
+) -> Result<Vec<T>, CampaignError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.jobs.unwrap_or(0))
+        .build()?;
+    progress.event(Event::EstimateStarts {
+        runs: logs.len(),
+        source: root,
+        threads: pool.current_num_threads(),
+    });
+    Ok(pool.install(|| {
+        logs.par_iter()
+            .map(|(name, src)| {
+                let done = work(name, src);
+                if let Some(rec) = record(&done) {
+                    progress.event(Event::RunDone(rec));
+                }
+                done
+            })
+            .collect()
+    }))
+}
+
 /// The runs the estimate shards wrote ([`Part::Models`]), each checked against its current
 /// inputs. Records in the order of `logs`; an error names every run that is missing or stale.
 fn recall_runs(
@@ -480,25 +511,16 @@ fn recall_runs(
     options: Options,
     progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.unwrap_or(0))
-        .build()?;
-    progress.event(Event::EstimateStarts {
-        runs: logs.len(),
-        source: root,
-        threads: pool.current_num_threads(),
-    });
-    let found: Vec<Result<(RunRecord, Option<RunTable>), String>> = pool.install(|| {
-        logs.par_iter()
-            .map(|(name, src)| {
-                let r = runs::recall_run(src, name, out, pipeline);
-                if let Ok((rec, _)) = &r {
-                    progress.event(Event::RunDone(rec));
-                }
-                r.map_err(|why| format!("{name} ({why})"))
-            })
-            .collect()
-    });
+    let found = each_run(
+        root,
+        logs,
+        options,
+        progress,
+        |name, src| {
+            runs::recall_run(src, name, out, pipeline).map_err(|why| format!("{name} ({why})"))
+        },
+        |r| r.as_ref().ok().map(|(rec, _)| rec),
+    )?;
     let missing: Vec<String> = found
         .iter()
         .filter_map(|r| r.as_ref().err().cloned())
@@ -530,23 +552,14 @@ pub fn estimate_runs(
     options: Options,
     progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.unwrap_or(0))
-        .build()?;
-    progress.event(Event::EstimateStarts {
-        runs: logs.len(),
-        source: root,
-        threads: pool.current_num_threads(),
-    });
-    let results: Vec<(RunRecord, Option<RunTable>)> = pool.install(|| {
-        logs.par_iter()
-            .map(|(name, src)| {
-                let (rec, table) = process_run(src, name, out, pipeline, options.force);
-                progress.event(Event::RunDone(&rec));
-                (rec, table)
-            })
-            .collect()
-    });
+    let results = each_run(
+        root,
+        logs,
+        options,
+        progress,
+        |name, src| process_run(src, name, out, pipeline, options.force),
+        |(rec, _)| Some(rec),
+    )?;
     let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) = results.into_iter().unzip();
     Ok((records, tables.into_iter().flatten().collect()))
 }

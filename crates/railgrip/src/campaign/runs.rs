@@ -183,19 +183,17 @@ pub fn process_run(
     let t0 = Instant::now();
     let mut rec = new_record(src, name);
     // A log in a bucket is fetched once, here, for the hash and the estimation.
-    let fetched = src.fetched();
-    let (hash, log_sha) = match fetched
-        .as_ref()
-        .map_err(|e| std::io::Error::new(e.kind(), e.to_string()))
-        .and_then(|s| input_hash(s, pipeline))
-    {
-        Ok(h) => h,
+    let hashed = src
+        .fetched()
+        .and_then(|s| input_hash(&s, pipeline).map(|h| (s, h)));
+    let (src, (hash, log_sha)) = match hashed {
+        Ok(x) => x,
         Err(e) => {
             rec.error = Some(format!("{}: cannot read: {e}", src.name().display()));
             return (rec, None);
         }
     };
-    let src = fetched.as_ref().unwrap_or(src);
+    let src = &src;
     rec.input_sha256 = hash;
     if !force {
         if let Some(reused) = reuse(&rec, name, out, &log_sha) {
