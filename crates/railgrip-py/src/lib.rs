@@ -307,19 +307,19 @@ enum TrainItem {
     Table(
         String,
         BTreeMap<String, String>,
-        BTreeMap<String, PyReadonlyArray1Owned>,
+        BTreeMap<String, Owned<f64>>,
     ),
 }
 
 /// A column handed over from Python, copied (the tables are read once).
-struct PyReadonlyArray1Owned(Vec<f64>);
+struct Owned<T>(Vec<T>);
 
-impl<'a, 'py> FromPyObject<'a, 'py> for PyReadonlyArray1Owned {
+impl<'a, 'py, T: numpy::Element + Copy> FromPyObject<'a, 'py> for Owned<T> {
     type Error = PyErr;
 
     fn extract(ob: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
-        let a: PyReadonlyArray1<'py, f64> = ob.extract()?;
-        Ok(PyReadonlyArray1Owned(a.as_array().to_vec()))
+        let a: PyReadonlyArray1<'py, T> = ob.extract()?;
+        Ok(Owned(a.as_array().to_vec()))
     }
 }
 
@@ -358,7 +358,7 @@ fn tables_of(
 fn table_of(
     name: &str,
     meta: &BTreeMap<String, String>,
-    cols: &BTreeMap<String, PyReadonlyArray1Owned>,
+    cols: &BTreeMap<String, Owned<f64>>,
 ) -> PyResult<RunTable> {
     let metadata = RunMetadata::from_pairs(meta).map_err(|e| {
         err(format!(
@@ -469,8 +469,13 @@ fn run(
     let o = py
         .detach(|| railgrip::campaign::run_at(&archive, &out, &pipeline, options, &Quiet))
         .map_err(err)?;
+    Ok(outcome_json(&o).to_string())
+}
+
+/// A campaign's outcome as the JSON the Python half turns into a `Campaign`.
+fn outcome_json(o: &railgrip::campaign::Outcome) -> serde_json::Value {
     let path = |p: &PathBuf| p.display().to_string();
-    Ok(serde_json::json!({
+    serde_json::json!({
         "archive": path(&o.archive),
         "records": o.records,
         "failed": o.failed(),
@@ -484,29 +489,223 @@ fn run(
         "stages": o.stages,
         "skipped": o.skipped.iter().map(|s| serde_json::json!({"path": s.path.display().to_string(), "why": s.reason})).collect::<Vec<_>>(),
     })
-    .to_string())
 }
 
 /// The runs of a campaign (a path, file:// or s3:// location) in its order, as `run` finds
-/// them with its output at `out`: (run name, log).
+/// them with its output at `out`: (run name, its log's name, its log's location — None for a
+/// member of an archive).
 #[pyfunction]
 #[pyo3(signature = (archive, out=None))]
 fn campaign_runs(
     py: Python<'_>,
     archive: String,
     out: Option<String>,
-) -> PyResult<Vec<(String, String)>> {
-    let out = match out {
-        Some(o) => Some(railgrip::store::Location::parse(&o).map_err(err)?),
-        None => None,
+) -> PyResult<Vec<(String, String, Option<String>)>> {
+    py.detach(|| railgrip::campaign::campaign_logs_at(&archive, out.as_deref()))
+        .map_err(err)
+}
+
+/// A run table handed across: (run name, source, the log's SHA-256, metadata pairs, axle,
+/// time_s, v_mps, dv_mps, ddv_mps2, mu) — the valid samples, axle by axle in time order.
+type TableParts<'py> = (
+    String,
+    String,
+    String,
+    BTreeMap<String, String>,
+    Bound<'py, PyArray1<u8>>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+    Bound<'py, PyAny>,
+);
+
+/// A run table as its parts (no copy on the way out but the one into numpy arrays).
+fn table_parts<'py>(py: Python<'py>, t: &RunTable) -> TableParts<'py> {
+    let f = |c: &[f64]| f64_array(py, c.to_vec());
+    (
+        t.name.clone(),
+        t.source.clone(),
+        t.sha256.clone(),
+        t.metadata.to_pairs(),
+        PyArray1::from_slice(py, &t.axle),
+        f(&t.time_s),
+        f(&t.v_mps),
+        f(&t.dv_mps),
+        f(&t.ddv_mps2),
+        f(&t.mu),
+    )
+}
+
+/// The parts of a run table from Python (as `table_parts` made them), checked: equal lengths,
+/// axles 1–4, metadata that parses.
+#[derive(FromPyObject)]
+struct GivenTable(
+    String,
+    String,
+    String,
+    BTreeMap<String, String>,
+    Owned<u8>,
+    Owned<f64>,
+    Owned<f64>,
+    Owned<f64>,
+    Owned<f64>,
+    Owned<f64>,
+);
+
+impl GivenTable {
+    fn table(self) -> PyResult<RunTable> {
+        let GivenTable(name, source, sha256, meta, axle, time_s, v, dv, ddv, mu) = self;
+        let axle = axle.0;
+        let n = axle.len();
+        if [&time_s, &v, &dv, &ddv, &mu].iter().any(|c| c.0.len() != n) {
+            return Err(err(format!(
+                "{name}: the run table's columns differ in length. Hint: hand over the table the run's estimate task returned, unchanged"
+            )));
+        }
+        if let Some(a) = axle.iter().find(|a| !(1..=4).contains(*a)) {
+            return Err(err(format!(
+                "{name}: axle {a} in the run table (axles are 1–4). Hint: hand over the table the run's estimate task returned, unchanged"
+            )));
+        }
+        let metadata = RunMetadata::from_pairs(&meta).map_err(|e| {
+            err(format!(
+                "{name}: metadata {} = {:?} is not {}",
+                e.key, e.value, e.expected
+            ))
+        })?;
+        Ok(RunTable {
+            name,
+            source,
+            sha256,
+            metadata,
+            axle: axle.into(),
+            time_s: time_s.0.into(),
+            v_mps: v.0.into(),
+            dv_mps: dv.0.into(),
+            ddv_mps2: ddv.0.into(),
+            mu: mu.0.into(),
+        })
+    }
+}
+
+/// One run of a campaign into `out`, as an estimate shard of that run alone (`log`: its
+/// location, which spares listing the campaign; None reads the archive to find it). Returns
+/// (JSON {record, reused, seconds}, the run's table as parts or None for a failed run).
+#[pyfunction]
+#[pyo3(signature = (archive, run, log, out, pipeline=None, force=false))]
+fn estimate_run<'py>(
+    py: Python<'py>,
+    archive: String,
+    run: String,
+    log: Option<String>,
+    out: String,
+    pipeline: Option<&PyPipeline>,
+    force: bool,
+) -> PyResult<(String, Option<TableParts<'py>>)> {
+    let pipeline = pipeline_or_default(pipeline)?;
+    let options = Options {
+        jobs: Some(1),
+        force,
+        mcap: false,
+        part: Part::Estimate(Shard { k: 1, n: 1 }),
     };
-    let (_, (logs, _)) = py
-        .detach(|| railgrip::campaign::sources_at(&archive, out.as_ref()))
+    let o = py
+        .detach(|| {
+            railgrip::campaign::estimate_run_at(
+                &archive,
+                &run,
+                log.as_deref(),
+                &out,
+                &pipeline,
+                options,
+                &Quiet,
+            )
+        })
         .map_err(err)?;
-    Ok(logs
-        .into_iter()
-        .map(|(run, src)| (run, src.name().display().to_string()))
-        .collect())
+    let Some(record) = o.records.first() else {
+        return Err(err(format!("{run}: no record came back for this run")));
+    };
+    let seconds = o
+        .stages
+        .iter()
+        .find(|(s, _)| s == "estimate")
+        .map_or(0.0, |(_, t)| *t);
+    let facts = serde_json::json!({"record": record, "reused": record.reused, "seconds": seconds});
+    let table = o.tables.first().map(|t| table_parts(py, t));
+    Ok((facts.to_string(), table))
+}
+
+/// The record JSON of run `run` (log `source`) that failed for `error` before anything was
+/// known of it (a task that never finished).
+#[pyfunction]
+fn failed_record(run: &str, source: &str, error: String) -> String {
+    serde_json::to_string(&railgrip::campaign::failed_record(run, source, Some(error)))
+        .unwrap_or_default()
+}
+
+/// The runs a models part trains on, gathered one by one as their estimate tasks return them
+/// (`railgrip._native.RunSet`): each table is copied in when added, so the caller can let go
+/// of its own (an Arrow table in Ray's object store) before the next one arrives.
+#[pyclass(name = "RunSet", module = "railgrip")]
+#[derive(Default)]
+struct RunSet {
+    runs: Vec<(railgrip::campaign::RunRecord, Option<RunTable>)>,
+}
+
+#[pymethods]
+impl RunSet {
+    #[new]
+    fn new() -> Self {
+        RunSet::default()
+    }
+
+    /// Adds a run: its record (JSON, as `estimate_run` or `failed_record` gave it) and its
+    /// table's parts (None for a run without one).
+    #[pyo3(signature = (record, table=None))]
+    fn add(&mut self, record: &str, table: Option<GivenTable>) -> PyResult<()> {
+        let rec: railgrip::campaign::RunRecord = serde_json::from_str(record)
+            .map_err(|e| err(format!("a run record does not parse: {e}. Hint: hand over the record the run's estimate task returned, unchanged")))?;
+        let table = table.map(GivenTable::table).transpose()?;
+        self.runs.push((rec, table));
+        Ok(())
+    }
+
+    fn __len__(&self) -> usize {
+        self.runs.len()
+    }
+}
+
+/// The models part of a campaign trained on `runs` as their estimate tasks returned them
+/// (every run of the campaign; the set is emptied). The outcome as JSON.
+#[pyfunction]
+#[pyo3(signature = (archive, out, runs, pipeline=None, jobs=None, mcap=false))]
+fn run_models(
+    py: Python<'_>,
+    archive: String,
+    out: String,
+    runs: &Bound<'_, RunSet>,
+    pipeline: Option<&PyPipeline>,
+    jobs: Option<usize>,
+    mcap: bool,
+) -> PyResult<String> {
+    if jobs == Some(0) {
+        return Err(PyValueError::new_err(
+            "jobs = 0: give at least 1 (None: one per core)",
+        ));
+    }
+    let pipeline = pipeline_or_default(pipeline)?;
+    let given = std::mem::take(&mut runs.borrow_mut().runs);
+    let options = Options {
+        jobs,
+        force: false,
+        mcap,
+        part: Part::Models,
+    };
+    let o = py
+        .detach(|| railgrip::campaign::models_at(&archive, &out, &pipeline, options, &Quiet, given))
+        .map_err(err)?;
+    Ok(outcome_json(&o).to_string())
 }
 
 #[pymodule]
@@ -514,11 +713,15 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("RailgripError", m.py().get_type::<RailgripError>())?;
     m.add_class::<PyPipeline>()?;
     m.add_class::<PyModel>()?;
+    m.add_class::<RunSet>()?;
     m.add_function(wrap_pyfunction!(read_log, m)?)?;
     m.add_function(wrap_pyfunction!(estimate, m)?)?;
     m.add_function(wrap_pyfunction!(train, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(campaign_runs, m)?)?;
+    m.add_function(wrap_pyfunction!(estimate_run, m)?)?;
+    m.add_function(wrap_pyfunction!(failed_record, m)?)?;
+    m.add_function(wrap_pyfunction!(run_models, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -5,6 +5,7 @@ worker killed mid-task, and from and to an S3 API server (moto's server mode).""
 from __future__ import annotations
 
 import filecmp
+import json
 import os
 import shutil
 import socket
@@ -107,3 +108,72 @@ def test_ray_run_from_and_to_object_storage(local_ray, moto_server, tmp_path):
     download(s3, "campaigns", "2026/ray", tmp_path / "ray")
     download(s3, "campaigns", "2026/cli", tmp_path / "cli")
     assert_same_tree(tmp_path / "ray", tmp_path / "cli")
+
+
+def test_a_run_whose_task_never_finishes_fails_alone(local_ray, tmp_path):
+    camp = campaign(tmp_path / "camp", broken=False)
+    victim = railgrip._native.campaign_runs(str(camp))[1][0]
+    lines = []
+    result = railgrip.ray.run(
+        camp,
+        tmp_path / "ray",
+        progress=lines.append,
+        max_retries=1,
+        env={"RAILGRIP_TEST_KILL_WORKER": victim},
+    )
+    # Killed at both attempts: that run is failed, the others are trained on and reported.
+    failed = [r for r in result.records if r["status"] != "ok"]
+    assert [r["run"] for r in failed] == [victim], lines
+    assert "the Ray task did not finish" in failed[0]["error"]
+    assert any(f"{victim}: FAILED" in line for line in lines), lines
+    assert result.report is not None and len(result.models) >= 2
+    record = json.loads((tmp_path / "ray" / "campaign.json").read_text())
+    assert [r["status"] for r in record["runs"] if r["run"] == victim] == ["failed"]
+    # Nothing of that run is in the output folder.
+    assert not (tmp_path / "ray" / "runs" / victim).exists()
+
+
+def test_a_task_reads_its_own_log_without_listing_the_campaign(tmp_path):
+    # The campaign folder is not there at all: the task is handed its log and never lists it.
+    log = ARCHIVE / (SMALL[0] + ".mcap")
+    if not log.exists():
+        log = next(ARCHIVE.glob(SMALL[0] + ".*"))
+    facts, parts = railgrip._native.estimate_run(
+        str(tmp_path / "nowhere"), "one", str(log), str(tmp_path / "out")
+    )
+    facts = json.loads(facts)
+    assert facts["record"]["status"] == "ok" and facts["record"]["source"] == str(log)
+    table = railgrip.ray.to_arrow(parts)
+    assert table.column_names == list(railgrip.ray.COLUMNS) and table.num_rows > 1000
+    assert table.schema.field("axle").type == "uint8"
+    back = railgrip.ray.from_arrow(table)
+    assert back[:4] == parts[:4] and all((a == b).all() for a, b in zip(back[4:], parts[4:]))
+    # The same valid samples as railgrip.estimate gives for the log.
+    df = railgrip.estimate(log)
+    valid = df[df["valid"]]
+    assert len(valid) == table.num_rows
+    assert sorted(valid["mu"].to_numpy()) == sorted(table.column("mu").to_numpy())
+
+
+def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
+    camp = campaign(tmp_path / "camp", broken=False)
+    runs = railgrip._native.campaign_runs(str(camp))
+    name, _, log = runs[0]
+    facts, parts = railgrip._native.estimate_run(str(camp), name, log, str(tmp_path / "out"))
+    record = json.dumps(json.loads(facts)["record"])
+    one = railgrip._native.RunSet()
+    one.add(record, parts)
+    assert len(one) == 1
+    with pytest.raises(railgrip.RailgripError, match=r"2 of the campaign's 3 runs were not given: .*" + runs[1][0]):
+        railgrip._native.run_models(str(camp), str(tmp_path / "out"), one)
+    import pyarrow as pa
+
+    with pytest.raises(railgrip.RailgripError, match="schema metadata"):
+        railgrip.ray.from_arrow(pa.table({"mu": [0.1]}))
+    bad = list(parts)
+    bad[4] = bad[4].copy()
+    bad[4][0] = 7
+    with pytest.raises(railgrip.RailgripError, match="axle 7"):
+        railgrip._native.RunSet().add(record, tuple(bad))
+    with pytest.raises(railgrip.RailgripError, match="record does not parse"):
+        railgrip._native.RunSet().add("{}", None)

@@ -2,7 +2,7 @@
 ``railgrip``; this module is its implementation."""
 
 import os
-from typing import Dict, List, Optional, Tuple, Union
+from typing import Any, Dict, List, Optional, Tuple, Union
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -65,4 +65,33 @@ def run(
     stage: str = "all",
     shard: Optional[Tuple[int, int]] = None,
 ) -> str: ...
-def campaign_runs(archive: str, out: Optional[str] = None) -> List[Tuple[str, str]]: ...
+def campaign_runs(
+    archive: str, out: Optional[str] = None
+) -> List[Tuple[str, str, Optional[str]]]: ...
+
+# A run table's parts: (run, source, log SHA-256, metadata pairs, axle uint8, time_s, v_mps,
+# dv_mps, ddv_mps2, mu float64) — the valid samples, axle by axle in time order.
+TableParts = Tuple[str, str, str, Dict[str, str], Any, Any, Any, Any, Any, Any]
+
+def estimate_run(
+    archive: str,
+    run: str,
+    log: Optional[str],
+    out: str,
+    pipeline: Optional[Pipeline] = None,
+    force: bool = False,
+) -> Tuple[str, Optional[TableParts]]: ...
+def failed_record(run: str, source: str, error: str) -> str: ...
+class RunSet:
+    def __init__(self) -> None: ...
+    def add(self, record: str, table: Optional[TableParts] = None) -> None: ...
+    def __len__(self) -> int: ...
+
+def run_models(
+    archive: str,
+    out: str,
+    runs: RunSet,
+    pipeline: Optional[Pipeline] = None,
+    jobs: Optional[int] = None,
+    mcap: bool = False,
+) -> str: ...

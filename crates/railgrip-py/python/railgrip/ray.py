@@ -4,16 +4,21 @@
 >>> ray.init(address="auto")                  # or ray.init(num_cpus=2) on one machine
 >>> result = railgrip.ray.run("s3://tests/2026/campaign", "s3://tests/2026/out")
 
-Each run is estimated by its own task into the output folder (local paths must be on a file
-system every node sees; ``s3://`` works anywhere), exactly as ``railgrip run --stage estimate``
-does for a shard of one run: unchanged runs are reused, a run whose log is broken becomes a
-failed record. When every run task is done, one task trains the models and writes the summary,
-``campaign.json`` and the report (``railgrip run --stage models``). The files are the same
-bytes as ``railgrip run`` on the same inputs, but ``timings.json``.
+The driver lists the campaign once and hands each task its run's name and log (a file's path
+or an object's URI; a member of an archive has none, and its task reads the archive to find
+it). Each task estimates its run into the output folder (local paths must be on a file system
+every node sees; ``s3://`` works anywhere), exactly as ``railgrip run --stage estimate`` does
+for a shard of one run: an unchanged run is reused, a run whose log is broken becomes a failed
+record. It returns the run's record and its estimates as an Arrow table (``pyarrow``; the valid
+samples the models train on: ``axle``, ``time_s``, ``v_mps``, ``dv_mps``, ``ddv_mps2``, ``mu``,
+with the run's name, source, log SHA-256 and metadata in the schema's metadata), which stays in
+Ray's object store. When every run task is done, one task takes those tables, trains the models
+and writes the summary, ``campaign.json`` and the report (the models part of ``railgrip run``).
+The files are the same bytes as ``railgrip run`` on the same inputs, but ``timings.json``.
 
-A task whose worker dies is retried (``max_retries``); a run that still has no result is named
-by the models task's error (it refuses missing runs), and nothing half-written is left as a
-finished campaign (``campaign.json`` and the report are written last).
+A task whose worker dies is retried (``max_retries``); a run whose task still does not finish
+is a failed run (its record says why) and the campaign goes on without it. Nothing half-written
+is left as a finished campaign (``campaign.json`` and the report are written last).
 """
 
 from __future__ import annotations
@@ -22,29 +27,97 @@ import json
 import os
 import sys
 import time
-from typing import Any, Callable, Dict, List, Optional, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 from . import Campaign, Pipeline, _native
 
-__all__ = ["run"]
+__all__ = ["run", "to_arrow", "from_arrow"]
+
+#: The columns of a run's Arrow table, in order.
+COLUMNS = ("axle", "time_s", "v_mps", "dv_mps", "ddv_mps2", "mu")
 
 
-def _estimate(archive: str, out: str, pipeline: Optional[Pipeline], k: int, n: int) -> Dict[str, Any]:
-    # The tests' way to kill a worker once, at the start of a task (a marker file records it).
+def to_arrow(parts: Tuple[Any, ...]) -> Any:
+    """A run table (the parts ``_native.estimate_run`` returns) as a ``pyarrow.Table``: the
+    columns of :data:`COLUMNS` (``axle`` uint8, the others float64, SI units as their names
+    say) and the run's name, source, log SHA-256 and metadata (JSON) in the schema metadata."""
+    import pyarrow as pa
+
+    name, source, sha256, metadata, *columns = parts
+    return pa.table(
+        dict(zip(COLUMNS, columns)),
+        metadata={
+            "railgrip.run": name,
+            "railgrip.source": source,
+            "railgrip.sha256": sha256,
+            "railgrip.metadata": json.dumps(metadata, sort_keys=True),
+        },
+    )
+
+
+def from_arrow(table: Any) -> Tuple[Any, ...]:
+    """The parts of a run table from :func:`to_arrow`'s ``pyarrow.Table``."""
+    meta = {k.decode(): v.decode() for k, v in (table.schema.metadata or {}).items()}
+    missing = [k for k in ("railgrip.run", "railgrip.source", "railgrip.sha256", "railgrip.metadata") if k not in meta]
+    if missing:
+        raise _native.RailgripError(
+            f"a run table without {', '.join(missing)} in its schema metadata. "
+            "Hint: hand over the table the run's estimate task returned, unchanged"
+        )
+    import numpy as np
+
+    def column(name: str, dtype: Any) -> Any:
+        if name not in table.column_names:
+            raise _native.RailgripError(
+                f"{meta['railgrip.run']}: the run table has no column {name!r}. "
+                "Hint: hand over the table the run's estimate task returned, unchanged"
+            )
+        return np.ascontiguousarray(table.column(name).to_numpy(), dtype=dtype)
+
+    return (
+        meta["railgrip.run"],
+        meta["railgrip.source"],
+        meta["railgrip.sha256"],
+        json.loads(meta["railgrip.metadata"]),
+        column("axle", np.uint8),
+        *(column(c, np.float64) for c in COLUMNS[1:]),
+    )
+
+
+def _estimate(
+    archive: str, run: str, log: Optional[str], out: str, pipeline: Optional[Pipeline], first: bool
+) -> Tuple[Dict[str, Any], Any]:
+    # The tests' ways to kill a worker: once, at the start of the first run's task (a marker
+    # file records it), or at every attempt of one run.
     marker = os.environ.get("RAILGRIP_TEST_KILL_WORKER_ONCE")
-    if marker and k == 1 and not os.path.exists(marker):
+    if marker and first and not os.path.exists(marker):
         open(marker, "w").close()
         os._exit(1)
-    facts = json.loads(
-        _native.run(archive, out, pipeline, 1, False, False, "estimate", (k, n))
-    )
-    seconds = dict(facts["stages"]).get("estimate", 0.0)
-    record = facts["records"][0] if facts["records"] else {}
-    return {"record": record, "reused": facts["reused"] > 0, "seconds": seconds}
+    if os.environ.get("RAILGRIP_TEST_KILL_WORKER") == run:
+        os._exit(1)
+    facts, parts = _native.estimate_run(archive, run, log, out, pipeline, False)
+    return json.loads(facts), (None if parts is None else to_arrow(parts))
 
 
-def _models(archive: str, out: str, pipeline: Optional[Pipeline], jobs: Optional[int]) -> str:
-    return _native.run(archive, out, pipeline, jobs, False, False, "models", None)
+def _models(
+    archive: str,
+    out: str,
+    pipeline: Optional[Pipeline],
+    jobs: Optional[int],
+    records: List[str],
+    tables: List[Any],
+) -> str:
+    import ray
+
+    # The tables stay in the object store until here (references nested in a list are not
+    # resolved by Ray on the way in); None for a run that has no table.
+    runs = _native.RunSet()
+    for rec, ref in zip(records, tables):
+        # One table at a time: it is copied in, and the object store's copy let go.
+        table = ray.get(ref) if ref is not None else None
+        runs.add(rec, None if table is None else from_arrow(table))
+        del table
+    return _native.run_models(archive, out, runs, pipeline, jobs)
 
 
 def _line(done: Dict[str, Any]) -> str:
@@ -96,26 +169,38 @@ def run(
     if env is None and any(x.startswith("s3://") for x in (archive, out)):
         env = {k: v for k, v in os.environ.items() if k.startswith("AWS_")}
     options: Dict[str, Any] = {"runtime_env": {"env_vars": env}} if env else {}
-    estimate = ray.remote(num_cpus=1, max_retries=max_retries)(_estimate).options(**options)
+    estimate = ray.remote(num_cpus=1, max_retries=max_retries, num_returns=2)(_estimate).options(**options)
     start = time.monotonic()
-    pending = {estimate.remote(archive, out, pipeline, k + 1, n): k for k in range(n)}
+    records: List[Optional[str]] = [None] * n
+    tables: List[Any] = [None] * n
+    pending = {}
+    for k, (name, _, log) in enumerate(runs):
+        info, table = estimate.remote(archive, name, log, out, pipeline, k == 0)
+        pending[info] = k
+        tables[k] = table
     reused = 0
     while pending:
         done, _ = ray.wait(list(pending), num_returns=1)
         for ref in done:
             k = pending.pop(ref)
+            name, source, _ = runs[k]
             try:
                 result = ray.get(ref)
             except Exception as e:  # a task that failed after its retries: that run only
-                say(f"run        {runs[k][0]}: FAILED: {runs[k][1]}: the Ray task did not finish: {e}")
+                why = f"{source}: the Ray task did not finish: {type(e).__name__}: {e}"
+                records[k] = _native.failed_record(name, source, why)
+                tables[k] = None
+                say(f"run        {name}: FAILED: {why}")
                 continue
+            records[k] = json.dumps(result["record"])
+            if result["record"].get("status") != "ok":
+                tables[k] = None
             reused += result["reused"]
             say(_line(result))
     say("train      network and Polach fits on the pooled estimates (one Ray task)")
     models = ray.remote(num_cpus=models_cpus, max_retries=max_retries)(_models).options(**options)
-    facts = json.loads(ray.get(models.remote(archive, out, pipeline, models_cpus)))
+    facts = json.loads(ray.get(models.remote(archive, out, pipeline, models_cpus, records, tables)))
     facts["stages"] = [tuple(s) for s in facts["stages"]]
-    # The models task finds every run done by the tasks; reused are the runs the tasks kept.
     facts["reused"] = reused
     say(f"time       estimate and train {time.monotonic() - start:.2f} s")
     return Campaign(**facts)

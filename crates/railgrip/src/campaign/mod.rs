@@ -20,8 +20,10 @@ pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
 };
-pub use remote::{run_at, sources_at};
-pub use runs::{discover, discover_all, input_hash, process_run, recall_run, run_name};
+pub use remote::{campaign_logs_at, estimate_run_at, models_at, run_at, sources_at};
+pub use runs::{
+    discover, discover_all, failed_record, input_hash, process_run, recall_run, run_name,
+};
 pub use summary::{write_summary, SUMMARY_COLUMNS};
 pub use tables::load_tables;
 pub use train::{train_models, CampaignModels};
@@ -200,7 +202,16 @@ pub struct Outcome {
     pub stages: Vec<(String, f64)>,
     /// Files that are not logs, with why.
     pub skipped: Vec<Skipped>,
+    /// An estimate shard's run tables (its runs that could be estimated, reused ones read
+    /// back), in the order of its records; empty for a whole campaign, whose tables go to the
+    /// training stage.
+    pub tables: Vec<RunTable>,
 }
+
+/// The runs of a campaign as estimate shards returned them ([`Outcome::records`] and
+/// [`Outcome::tables`]): what the models part trains on instead of reading the runs back from
+/// the output folder ([`models_at`]).
+pub type Given = Vec<(RunRecord, Option<RunTable>)>;
 
 impl Outcome {
     pub fn failed(&self) -> usize {
@@ -310,11 +321,13 @@ pub fn run(
     progress: CampaignProgress<'_>,
 ) -> Result<Outcome, CampaignError> {
     let (logs, skipped) = sources_all(root, Some(out.root()))?;
-    run_sources(root, logs, skipped, out, pipeline, options, progress)
+    run_sources(root, logs, skipped, out, pipeline, options, progress, None)
 }
 
 /// [`run`] on the logs of the campaign `root` as found ([`sources_all`], or the objects below
-/// an `s3://` prefix).
+/// an `s3://` prefix). The models part trains on the `given` runs when there are some (every
+/// run of `logs` must be among them), else on the runs read back from `out`.
+#[allow(clippy::too_many_arguments)]
 fn run_sources(
     root: &Path,
     logs: Vec<(String, LogSource)>,
@@ -323,6 +336,7 @@ fn run_sources(
     pipeline: &Pipeline,
     options: Options,
     progress: CampaignProgress<'_>,
+    given: Option<Given>,
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
     if let Part::Estimate(shard) = options.part {
@@ -332,8 +346,9 @@ fn run_sources(
     let mut stages = Vec::new();
 
     let t = Instant::now();
-    let (records, tables) = match options.part {
-        Part::Models => recall_runs(root, &logs, out, pipeline, options, progress)?,
+    let (records, tables) = match (options.part, given) {
+        (Part::Models, Some(given)) => given_runs(&logs, out, given)?,
+        (Part::Models, None) => recall_runs(root, &logs, out, pipeline, options, progress)?,
         _ => estimate_runs(root, &logs, out, pipeline, options, progress)?,
     };
     stages.push((
@@ -418,6 +433,7 @@ fn run_sources(
         report,
         stages,
         skipped,
+        tables: vec![],
     })
 }
 
@@ -444,7 +460,7 @@ fn estimate_shard(
         .collect();
     make_output_folders(out)?;
     remove_campaign_results(out)?;
-    let (records, _) = estimate_runs(root, &mine, out, pipeline, options, progress)?;
+    let (records, tables) = estimate_runs(root, &mine, out, pipeline, options, progress)?;
     progress.event(Event::StageDone(Stage::Estimate));
     let elapsed = t.elapsed().as_secs_f64();
     Ok(Outcome {
@@ -467,6 +483,7 @@ fn estimate_shard(
             ("total".to_string(), elapsed),
         ],
         skipped,
+        tables,
     })
 }
 
@@ -540,6 +557,45 @@ fn recall_runs(
     let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) =
         found.into_iter().flatten().unzip();
     Ok((records, tables.into_iter().flatten().collect()))
+}
+
+/// The `given` runs in the order of `logs` (records and tables as the estimate shards returned
+/// them); an error names every run of `logs` that is not among them.
+fn given_runs(
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    given: Given,
+) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
+    let mut by_name: std::collections::HashMap<String, (RunRecord, Option<RunTable>)> = given
+        .into_iter()
+        .map(|(rec, table)| (rec.run.clone(), (rec, table)))
+        .collect();
+    let mut missing = Vec::new();
+    let (mut records, mut tables) = (Vec::new(), Vec::new());
+    for (name, _) in logs {
+        match by_name.remove(name) {
+            Some((rec, table)) => {
+                records.push(rec);
+                tables.extend(table);
+            }
+            None => missing.push(name.clone()),
+        }
+    }
+    if !missing.is_empty() {
+        return Err(CampaignError::Input {
+            path: out.runs(),
+            message: format!(
+                "{} of the campaign's {} runs were not given: {}",
+                missing.len(),
+                logs.len(),
+                missing.join(", ")
+            ),
+            hint:
+                "give a result for every run the campaign lists (estimate the missing runs first)"
+                    .into(),
+        });
+    }
+    Ok((records, tables))
 }
 
 /// Stage 1: every run, in parallel on a pool of `options.jobs` threads, each on its own.

@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::{
-    run_sources, sources_all, CampaignError, CampaignProgress, Options, OutDir, Outcome, Part,
-    Skipped, Sources,
+    run_sources, sources_all, CampaignError, CampaignProgress, Given, Options, OutDir, Outcome,
+    Part, Skipped, Sources,
 };
 use crate::config::Pipeline;
 use crate::ingest::LogSource;
@@ -31,15 +31,135 @@ pub fn run_at(
 ) -> Result<Outcome, CampaignError> {
     let out_at = Location::parse(out)?;
     let (root, (logs, skipped)) = sources_at(archive, Some(&out_at))?;
+    run_logs_at(
+        &root, logs, skipped, out_at, pipeline, options, progress, None,
+    )
+}
+
+/// One run of the campaign at `archive` into `out` (locations as [`run_at`] takes them), as an
+/// estimate shard of that run alone writes it, without listing the campaign when the run's
+/// `log` location is given (a file or an object, as [`campaign_logs_at`] names it; a member of
+/// an archive has none, and the archive is read to find it). The outcome's record and table
+/// are what [`models_at`] takes. This is the work of one task on a cluster (one Ray task per
+/// run): each task reads its own log and its own run's outputs only.
+pub fn estimate_run_at(
+    archive: &str,
+    run: &str,
+    log: Option<&str>,
+    out: &str,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+) -> Result<Outcome, CampaignError> {
+    let out_at = Location::parse(out)?;
+    let (root, logs, skipped) = match log {
+        Some(l) => {
+            let root = match Location::parse(archive)? {
+                Location::Local(p) => p,
+                Location::S3 { bucket, prefix } => {
+                    PathBuf::from(format!("s3://{bucket}/{prefix}").trim_end_matches('/'))
+                }
+            };
+            (root, vec![(run.to_string(), LogSource::at(l)?)], vec![])
+        }
+        None => {
+            let (root, (logs, skipped)) = sources_at(archive, Some(&out_at))?;
+            let mine: Vec<(String, LogSource)> =
+                logs.into_iter().filter(|(name, _)| name == run).collect();
+            if mine.is_empty() {
+                return Err(CampaignError::Input {
+                    path: root,
+                    message: format!("the campaign has no run named {run:?}"),
+                    hint: "give a run name as the campaign's listing gives it (railgrip.ray lists them with _native.campaign_runs)".into(),
+                });
+            }
+            (root, mine, skipped)
+        }
+    };
+    let options = Options {
+        part: Part::Estimate(super::Shard { k: 1, n: 1 }),
+        ..options
+    };
+    run_logs_at(
+        &root, logs, skipped, out_at, pipeline, options, progress, None,
+    )
+}
+
+/// The models part of the campaign at `archive` ([`Part::Models`]) trained on the runs as
+/// their estimate tasks returned them (`given`: every run of the campaign, records and
+/// tables), instead of reading them back from `out`; the summary, `campaign.json` and the
+/// report are written as [`run_at`] writes them, from `out`'s run folders.
+pub fn models_at(
+    archive: &str,
+    out: &str,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+    given: Given,
+) -> Result<Outcome, CampaignError> {
+    let out_at = Location::parse(out)?;
+    let (root, (logs, skipped)) = sources_at(archive, Some(&out_at))?;
+    let options = Options {
+        part: Part::Models,
+        ..options
+    };
+    run_logs_at(
+        &root,
+        logs,
+        skipped,
+        out_at,
+        pipeline,
+        options,
+        progress,
+        Some(given),
+    )
+}
+
+/// The campaign's logs in the campaign's order, as [`run_at`] finds them with its output at
+/// `out`: (run name, the log's name as records give it, its location — a file's path or an
+/// object's URI; a member of an archive has none).
+pub fn campaign_logs_at(
+    archive: &str,
+    out: Option<&str>,
+) -> Result<Vec<(String, String, Option<String>)>, CampaignError> {
+    let out = out.map(Location::parse).transpose()?;
+    let (_, (logs, _)) = sources_at(archive, out.as_ref())?;
+    Ok(logs
+        .into_iter()
+        .map(|(run, src)| {
+            let name = src.name().display().to_string();
+            let at = match &src {
+                LogSource::File(_) | LogSource::Object { .. } => Some(name.clone()),
+                LogSource::Memory { .. } => None,
+            };
+            (run, name, at)
+        })
+        .collect())
+}
+
+/// [`run_sources`] into the output location `out_at`: a local folder as it is, a bucket's
+/// prefix staged in a local folder (pulled before, pushed after).
+#[allow(clippy::too_many_arguments)]
+fn run_logs_at(
+    root: &Path,
+    logs: Vec<(String, LogSource)>,
+    skipped: Vec<Skipped>,
+    out_at: Location,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+    given: Option<Given>,
+) -> Result<Outcome, CampaignError> {
     match out_at {
         Location::Local(dir) => run_sources(
-            &root,
+            root,
             logs,
             skipped,
             &OutDir::new(&dir),
             pipeline,
             options,
             progress,
+            given,
         ),
         Location::S3 { bucket, prefix } => {
             let b = Bucket::connect(&bucket)?;
@@ -56,13 +176,14 @@ pub fn run_at(
             };
             let staged = Staged::pull(Arc::clone(&b), &prefix, only.as_deref())?;
             let result = run_sources(
-                &root,
+                root,
                 logs,
                 skipped,
                 &OutDir::new(&staged.dir),
                 pipeline,
                 options,
                 progress,
+                given,
             )
             .map_err(|e| staged.remote_error(&e, &b.uri(&prefix), false));
             let o = match result {
@@ -286,8 +407,18 @@ impl Staged {
 
     fn fetch_runs(&self, only: Option<&[&str]>) -> Result<(), CampaignError> {
         let (staged, prefix) = (self, self.prefix.as_str());
-        let runs = join(prefix, "runs/");
-        for o in staged.bucket.list(&runs)? {
+        // A shard lists its own runs' folders only (a task per run must not list them all).
+        let listed = match only {
+            Some(runs) => {
+                let mut all = Vec::new();
+                for run in runs {
+                    all.extend(staged.bucket.list(&join(prefix, &format!("runs/{run}/")))?);
+                }
+                all
+            }
+            None => staged.bucket.list(&join(prefix, "runs/"))?,
+        };
+        for o in listed {
             let rel = o
                 .key
                 .strip_prefix(&join(prefix, ""))
@@ -329,23 +460,27 @@ impl Staged {
                 .trim_start_matches('/')
                 .to_string()
         };
-        let before: Vec<String> = self
-            .bucket
-            .list(&self.prefix)?
-            .into_iter()
-            .map(|o| rel_of(&o.key))
-            .collect();
         let run_dirs: Vec<String> = o
             .records
             .iter()
             .map(|r| format!("runs/{}/", r.run))
             .collect();
+        let shard = matches!(part, Part::Estimate(_));
+        // What is there now: a shard looks at its own runs' folders only.
+        let mut listed = Vec::new();
+        if shard {
+            for d in &run_dirs {
+                listed.extend(self.bucket.list(&key(d))?);
+            }
+        } else {
+            listed = self.bucket.list(&self.prefix)?;
+        }
+        let before: Vec<String> = listed.into_iter().map(|o| rel_of(&o.key)).collect();
         let in_runs = |rel: &str| run_dirs.iter().any(|d| rel.starts_with(d.as_str()));
         // The finished campaign's files go first: from here on the prefix is not finished.
         for f in LAST {
             self.bucket.delete(&key(f))?;
         }
-        let shard = matches!(part, Part::Estimate(_));
         for rel in files
             .iter()
             .filter(|r| !LAST.contains(&r.as_str()) && (!shard || in_runs(r)))

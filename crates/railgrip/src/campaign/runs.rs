@@ -229,11 +229,17 @@ pub fn process_run(
 
 /// A run's record before anything is known: failed, no figures.
 fn new_record(src: &LogSource, name: &str) -> RunRecord {
+    failed_record(name, &src.name().display().to_string(), None)
+}
+
+/// The record of run `name` (log `source`) that failed for `error` before anything was known
+/// of it: no figures. A scheduler's own failure (a task that never finished) is such a run.
+pub fn failed_record(name: &str, source: &str, error: Option<String>) -> RunRecord {
     RunRecord {
         run: name.to_string(),
-        source: src.name().display().to_string(),
+        source: source.to_string(),
         status: RunStatus::Failed,
-        error: None,
+        error,
         reused: false,
         duration_s: 0.0,
         initial_speed_kmh: None,
