@@ -435,3 +435,59 @@ fn single_logs_in_a_bucket_are_estimated_and_trained_on_by_uri() {
         "{err}"
     );
 }
+
+#[test]
+fn estimate_ingest_and_train_write_their_files_into_a_bucket() {
+    let Some(moto) = Moto::start() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    upload_campaign(&moto, "logs", "r");
+    moto.make_bucket("out");
+    let log = fixture("soap_120kmh_p20.csv");
+    let log = log.to_str().unwrap();
+    for (args, prefix) in [
+        (vec!["estimate", log, "--csv", "--mcap"], "e"),
+        (vec!["ingest", log], "i"),
+        (vec!["train", "s3://logs/r", "--quiet"], "m"),
+    ] {
+        let remote = format!("s3://out/{prefix}");
+        let local = format!("local-{prefix}");
+        let mut to_bucket = args.clone();
+        to_bucket.extend(["--out", remote.as_str()]);
+        let o = moto.railgrip(&to_bucket, dir.path());
+        let out = text(&o.stdout);
+        assert!(
+            matches!(o.status.code(), Some(0) | Some(3)),
+            "{}",
+            text(&o.stderr)
+        );
+        assert!(out.contains(&format!("wrote      {remote}/")), "{out}");
+        let mut here = args.clone();
+        here.extend(["--out", local.as_str()]);
+        let o = moto.railgrip(&here, dir.path());
+        assert!(matches!(o.status.code(), Some(0) | Some(3)));
+        let got = moto.download("out", prefix);
+        let want = files_below(&dir.path().join(&local));
+        assert!(want.len() >= 2 || prefix == "i", "{:?}", want.keys());
+        if prefix == "m" {
+            // The model files name their inputs and the time they were made: compare names.
+            assert_eq!(
+                got.keys().collect::<Vec<_>>(),
+                want.keys().collect::<Vec<_>>()
+            );
+        } else {
+            assert_same(&got, &want, args[0]);
+        }
+    }
+    // A missing output bucket is found before the work, named by its URI.
+    let o = moto.railgrip(
+        &["estimate", log, "--out", "s3://no-such-bucket/e"],
+        dir.path(),
+    );
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("s3://no-such-bucket/"), "{err}");
+    assert!(
+        !text(&o.stdout).contains("file "),
+        "no work before the error"
+    );
+}

@@ -16,9 +16,10 @@ pub struct Args {
     run: String,
     #[command(flatten)]
     pipeline: PipelineArg,
-    /// Directory for <stem>.estimates.parquet (created if missing).
+    /// Directory for <stem>.estimates.parquet (created if missing): a path, file://PATH or
+    /// s3://BUCKET/PREFIX (each file written by one PUT).
     #[arg(long, value_name = "DIR")]
-    out: PathBuf,
+    out: String,
     /// Also write <stem>.estimates.csv.
     #[arg(long)]
     csv: bool,
@@ -33,6 +34,7 @@ pub struct Args {
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
+    let folder = railgrip::store::OutFolder::at(&args.out)?;
     // A model that does not load is found before the run is estimated.
     let model = match &args.model {
         Some(p) => Some(railgrip::model::Model::load(p)?),
@@ -42,9 +44,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         railgrip::ingest::ingest_source(&railgrip::ingest::LogSource::at(&args.run)?, &pipeline)?;
     let est = estimate(&log, &pipeline)?;
     let stem = super::ingest::stem(std::path::Path::new(&args.run));
-    let mut written = est.write(&args.out, &stem, args.csv)?;
+    let mut written = est.write(folder.dir(), &stem, args.csv)?;
     if args.mcap {
-        let path = args.out.join(format!("{stem}.railgrip.mcap"));
+        let path = folder.dir().join(format!("{stem}.railgrip.mcap"));
         railgrip::replay::write_replay(
             &path,
             &railgrip::replay::ReplayRun::from_estimates(&est),
@@ -57,9 +59,14 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     for w in &log.warnings {
         println!("warning    {}", w.message);
     }
+    folder.finish(&written)?;
     for p in written {
         let size = std::fs::metadata(&p).map(|m| m.len()).unwrap_or(0);
-        println!("wrote      {} ({:.1} MB)", p.display(), size as f64 / 1e6);
+        println!(
+            "wrote      {} ({:.1} MB)",
+            folder.name_of(&p),
+            size as f64 / 1e6
+        );
     }
     Ok(if log.lost_data() { EXIT_LOSSY } else { EXIT_OK })
 }

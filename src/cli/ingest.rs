@@ -1,7 +1,7 @@
 //! `railgrip ingest`: read one log, print its summary, optionally write the resampled table.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::Context;
 use railgrip::ingest::{write_runlog_parquet, RunLog};
@@ -16,17 +16,24 @@ pub struct Args {
     file: String,
     #[command(flatten)]
     pipeline: PipelineArg,
-    /// Write the resampled log to <DIR>/<stem>.runlog.parquet (the directory is created).
+    /// Write the resampled log to <DIR>/<stem>.runlog.parquet (the directory is created): a
+    /// path, file://PATH or s3://BUCKET/PREFIX.
     #[arg(long, value_name = "DIR")]
-    out: Option<PathBuf>,
+    out: Option<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
+    let folder = args
+        .out
+        .as_deref()
+        .map(railgrip::store::OutFolder::at)
+        .transpose()?;
     let log =
         railgrip::ingest::ingest_source(&railgrip::ingest::LogSource::at(&args.file)?, &pipeline)?;
     print!("{}", summary(&log));
-    if let Some(dir) = &args.out {
+    if let Some(folder) = &folder {
+        let dir = folder.dir();
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create the output directory", dir.display()))?;
         let out = dir.join(format!(
@@ -34,10 +41,11 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             stem(std::path::Path::new(&args.file))
         ));
         write_runlog_parquet(&log, &out)?;
+        folder.finish(std::slice::from_ref(&out))?;
         let size = std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0);
         println!(
             "wrote      {} ({:.1} MB, {} rows)",
-            out.display(),
+            folder.name_of(&out),
             size as f64 / 1e6,
             log.len()
         );

@@ -19,9 +19,10 @@ pub struct TrainArgs {
     inputs: Vec<PathBuf>,
     #[command(flatten)]
     pipeline: PipelineArg,
-    /// Output directory for <name>.json, .history.csv, .polach.json and .polach-fits.json.
+    /// Output directory for <name>.json, .history.csv, .polach.json and .polach-fits.json: a
+    /// path, file://PATH or s3://BUCKET/PREFIX (each file written by one PUT).
     #[arg(long, value_name = "DIR")]
-    out: PathBuf,
+    out: String,
     /// Model name (file stem).
     #[arg(long, default_value = "mlp")]
     name: String,
@@ -38,6 +39,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         );
     }
     let pipeline = args.pipeline.load()?;
+    let folder = railgrip::store::OutFolder::at(&args.out)?;
     let tables = railgrip::campaign::load_tables(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
     let progress = |e: &railgrip::model::Epoch| {
@@ -62,7 +64,8 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
         );
     }
-    let written = models.write(&ModelPaths::new(&args.out, &args.name), false)?;
+    let written = models.write(&ModelPaths::new(folder.dir(), &args.name), false)?;
+    folder.finish(&written)?;
     print_network(&models);
     print_polach(&models.polach_fits);
     print_temperature_law(&models.polach_fits);
@@ -72,7 +75,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
         println!("warning    {n}");
     }
     for p in written {
-        println!("wrote      {}", p.display());
+        println!("wrote      {}", folder.name_of(&p));
     }
     Ok(match &models.mlp.audit {
         Some(a) => {

@@ -365,3 +365,95 @@ mod tests {
         assert_eq!(join("p/q", "a.csv"), "p/q/a.csv");
     }
 }
+
+/// An output folder at a location, for the commands that write a few files into one
+/// (`estimate`, `ingest`, `train`): a local folder is written in place; for a bucket's prefix
+/// the files are written into a local staging folder first and then put one by one, each in
+/// one atomic PUT, by [`OutFolder::finish`]. The staging folder is removed when the value is
+/// dropped.
+#[derive(Debug)]
+pub struct OutFolder {
+    dir: PathBuf,
+    remote: Option<(Arc<Bucket>, String)>,
+}
+
+impl OutFolder {
+    /// The output folder at `text` (a path, `file://PATH` or `s3://BUCKET/PREFIX`). A bucket is
+    /// reached here, so a missing bucket or a dead endpoint is found before any work is done.
+    pub fn at(text: &str) -> Result<OutFolder, StoreError> {
+        match Location::parse(text)? {
+            Location::Local(dir) => Ok(OutFolder { dir, remote: None }),
+            Location::S3 { bucket, prefix } => {
+                let b = Bucket::connect(&bucket)?;
+                // A listing of a key nothing has: an error for a missing bucket or a dead
+                // endpoint, without listing what the prefix holds.
+                b.list(&join(&prefix, ".railgrip-probe"))?;
+                let dir = std::env::temp_dir().join(format!(
+                    "railgrip-out-{}-{}",
+                    std::process::id(),
+                    crate::hash::sha256_bytes(b.uri(&prefix).as_bytes())
+                        .get(..12)
+                        .unwrap_or_default()
+                ));
+                let _ = std::fs::remove_dir_all(&dir);
+                Ok(OutFolder {
+                    dir,
+                    remote: Some((b, prefix)),
+                })
+            }
+        }
+    }
+
+    /// Where to write the files.
+    pub fn dir(&self) -> &std::path::Path {
+        &self.dir
+    }
+
+    /// The name a user sees for a file written below [`OutFolder::dir`]: its path, or its URI.
+    pub fn name_of(&self, file: &std::path::Path) -> String {
+        match (&self.remote, file.strip_prefix(&self.dir)) {
+            (Some((b, prefix)), Ok(rel)) => {
+                b.uri(&join(prefix, &rel.to_string_lossy().replace('\\', "/")))
+            }
+            _ => file.display().to_string(),
+        }
+    }
+
+    /// Writes `files` (written below [`OutFolder::dir`]) back to the bucket, one PUT each, in
+    /// their order; nothing to do for a local folder.
+    pub fn finish(&self, files: &[PathBuf]) -> Result<(), StoreError> {
+        let Some((b, prefix)) = &self.remote else {
+            return Ok(());
+        };
+        for f in files {
+            let uri = self.name_of(f);
+            let rel = f.strip_prefix(&self.dir).map_err(|_| {
+                StoreError::new(
+                    &uri,
+                    "a file outside the output folder",
+                    "report this as a railgrip bug",
+                )
+            })?;
+            let bytes = std::fs::read(f).map_err(|e| {
+                StoreError::new(
+                    &uri,
+                    &format!("cannot read the staged file: {e}"),
+                    "check the temporary folder's disk space",
+                )
+            })?;
+            b.put(
+                &join(prefix, &rel.to_string_lossy().replace('\\', "/")),
+                bytes,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for OutFolder {
+    fn drop(&mut self) {
+        if self.remote.is_some() {
+            let _ = std::fs::remove_dir_all(&self.dir);
+        }
+    }
+}
