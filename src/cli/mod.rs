@@ -100,7 +100,10 @@ Inputs are estimates tables (railgrip estimate) or run logs (estimated on the fl
         long_about = "Simulate each SCENE (once per --seeds value, default the scene's seed) and score MODEL against the scene's true adhesion on the cells its data support (railgrip::score): cells every 0.1 m/s of slip, at ±{0.25, 0.5, 1, 2, 4, 8} m/s² of slip rate and every 10 km/h, with at least --min-samples true samples of one axle. Prints per scene and for all scenes together: supported cells, RMSE and largest error of μ, cells where the model predicts μ < 0, and the loss-minus-recovery difference (mean μ(Δv,+q) − μ(Δv,−q) over 0.5–3 m/s), predicted against true.\n\nExit codes: 0 ok, 1 error, 2 usage, 3 the model predicts μ < 0 on a supported cell."
     )]
     Score(score::Args),
-    /// Write a header-only C99 evaluator of a model file.
+    /// Export a model file: a header-only C99 evaluator, an FMI 2.0 FMU, or both.
+    #[command(
+        long_about = "Export a model file for simulators and rigs: --c-header FILE writes a header-only C99 evaluator (<prefix>_mu, _mu_v, _mu_vt, _mu_batch, _mu_batch_t; the Rust evaluator's results, bit for bit with exact FMA); --fmu OUT.fmu writes an FMI 2.0 Functional Mock-up Unit with Model Exchange and Co-Simulation (inputs dv_mps, ddv_mps2 for networks, v_mps, ambient_temperature_c where the model has a temperature input or law; output mu), its binary compiled for this host with the system C compiler ($CC, else cc) and its sources for every other platform; --fmu-sources-only writes a source FMU without a compiler. Either or both.\n\nExit codes: 0 ok, 1 error (nothing written for the failing output), 2 usage."
+    )]
     Export(model::ExportArgs),
     /// Creep curves of the contact laws (linear, saturated, Polach, FASTSIM) for one patch, and flash temperatures, as CSV.
     #[command(

@@ -317,11 +317,19 @@ pub struct ExportArgs {
     #[arg(value_name = "MODEL")]
     model: PathBuf,
     /// Write a header-only C99 evaluator here.
-    #[arg(long, value_name = "FILE")]
-    c_header: PathBuf,
-    /// Prefix of the C symbols (`<prefix>_mu`, `<prefix>_mu_v`).
+    #[arg(long, value_name = "FILE", required_unless_present = "fmu")]
+    c_header: Option<PathBuf>,
+    /// Prefix of the C header's symbols (`<prefix>_mu`, `<prefix>_mu_v`).
     #[arg(long, default_value = "railgrip")]
     prefix: String,
+    /// Write an FMI 2.0 FMU here (Model Exchange and Co-Simulation; the model identifier is
+    /// the file's stem): binaries for this host compiled with the system C compiler ($CC, else
+    /// cc), sources for other platforms (docs/fmu.md).
+    #[arg(long, value_name = "OUT.fmu")]
+    fmu: Option<PathBuf>,
+    /// Write a source FMU (no binaries, no compiler needed; the importing tool compiles it).
+    #[arg(long, requires = "fmu")]
+    fmu_sources_only: bool,
 }
 
 pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
@@ -332,9 +340,40 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
         );
     }
     let m = ModelFile::read(&args.model)?;
-    let text = c_header::c_header(&m, &args.prefix, &args.model.display().to_string());
-    railgrip_io::atomic::write_atomically(&args.c_header, |w| w.write_all(text.as_bytes()))
-        .with_context(|| format!("{}: cannot write", args.c_header.display()))?;
+    if let Some(path) = &args.c_header {
+        export_c_header(&m, &args, path)?;
+    }
+    if let Some(out) = &args.fmu {
+        let options = railgrip::fmu::FmuOptions {
+            sources_only: args.fmu_sources_only,
+            compiler: None,
+        };
+        let f = railgrip::fmu::export_fmu(&args.model, out, &options)?;
+        let vars: Vec<String> = f
+            .variables
+            .iter()
+            .map(|v| format!("{} [{}]", v.name, v.unit))
+            .collect();
+        println!(
+            "wrote      {} (FMI 2.0 ME + CS, model identifier {}, {}; {}; {:.1} kB)",
+            f.path.display(),
+            f.model_identifier,
+            match f.platform {
+                Some(p) => format!("binaries/{p} and sources"),
+                None => "sources only".into(),
+            },
+            vars.join(", "),
+            f.size as f64 / 1e3
+        );
+    }
+    Ok(EXIT_OK)
+}
+
+/// `railgrip export --c-header`.
+fn export_c_header(m: &ModelFile, args: &ExportArgs, path: &std::path::Path) -> anyhow::Result<()> {
+    let text = c_header::c_header(m, &args.prefix, &args.model.display().to_string());
+    railgrip_io::atomic::write_atomically(path, |w| w.write_all(text.as_bytes()))
+        .with_context(|| format!("{}: cannot write", path.display()))?;
     let what = match m.kind {
         railgrip::model::ModelKind::Mlp => format!(
             "network {} ({} inputs, {} weights)",
@@ -354,9 +393,9 @@ pub fn export(args: ExportArgs) -> anyhow::Result<u8> {
     let p = &args.prefix;
     println!(
         "wrote      {} ({p}_mu, {p}_mu_v, {p}_mu_vt, {p}_mu_batch, {p}_mu_batch_t; {what})",
-        args.c_header.display(),
+        path.display(),
     );
-    Ok(EXIT_OK)
+    Ok(())
 }
 
 #[derive(clap::Args)]

@@ -13,7 +13,7 @@ use super::{CreepSpec, Layer, ModelFile, Scaling, SupportSpec, MAX_INPUTS};
 /// literal this way. A checked model file has no non-finite constant, but should one reach
 /// here it is written as the C99 macro (`HUGE_VAL`, `NAN` from <math.h>), never as a bare
 /// `inf` that does not compile.
-fn lit(x: f64) -> String {
+pub(crate) fn lit(x: f64) -> String {
     if x.is_nan() {
         return "NAN".into();
     }
@@ -31,7 +31,7 @@ fn lit(x: f64) -> String {
 /// `s` made safe inside a C block comment (a model path holding
 /// `*/ int injected_symbol = 1; /*` once compiled into the header): `*/` and `/*` broken
 /// apart, control characters and backslashes (a line continuation) replaced by `?`.
-fn comment_text(s: &str) -> String {
+pub(crate) fn comment_text(s: &str) -> String {
     let mut out: String = s
         .chars()
         .map(|c| if c.is_control() || c == '\\' { '?' } else { c })
@@ -89,7 +89,7 @@ pub fn c_header(m: &ModelFile, prefix: &str, source: &str) -> String {
 
 /// `template` with every `@name@` replaced by its value in `values` (a name missing from
 /// `values` is a bug: the templates and this module change together; tested).
-fn fill(template: &str, values: &[(&str, String)]) -> String {
+pub(crate) fn fill(template: &str, values: &[(&str, String)]) -> String {
     let mut out = String::with_capacity(template.len() * 2);
     let mut rest = template;
     while let Some(a) = rest.find('@') {

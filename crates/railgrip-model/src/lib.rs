@@ -49,6 +49,7 @@
 //! The C header of the same model ([`c_header`]) computes the same operations in C99.
 
 pub mod c_header;
+pub mod fmu;
 mod file;
 mod net;
 pub mod polach;

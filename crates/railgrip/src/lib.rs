@@ -39,6 +39,7 @@ pub mod archive;
 pub mod campaign;
 pub mod config;
 pub mod estimate;
+pub mod fmu;
 pub mod format;
 #[cfg(feature = "fuzzing")]
 pub mod fuzzing;

@@ -1,0 +1,333 @@
+//! `railgrip export --fmu`: FMI 2.0 FMUs of every model kind, checked with FMPy (PyPI `fmpy`;
+//! .ci/run installs it): FMPy's validation finds no problem, and co-simulating the FMU (and
+//! running it as Model Exchange) on a braking run's inputs gives the μ of `railgrip eval` on
+//! the same inputs — networks bit for bit, Polach and residual models within 1e-12 — with
+//! co-simulation's one-step output lag accounted for; bad inputs are error statuses. And the
+//! command's own errors: a model file that fails its checks, an unwritable path, no compiler.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use common::*;
+
+fn railgrip(args: &[&str], cwd: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .unwrap()
+}
+
+fn text(b: &[u8]) -> String {
+    String::from_utf8_lossy(b).into_owned()
+}
+
+fn ok(o: &Output) -> String {
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    text(&o.stdout)
+}
+
+/// The model files of every kind the issue names, trained on three bundled runs: the 2-input
+/// network (one hidden layer), the 4-input network, the residual network, the Polach model
+/// with its temperature law and a speed law, and a network with two hidden layers.
+fn models(dir: &Path) -> Vec<(&'static str, PathBuf)> {
+    let camp = dir.join("camp");
+    std::fs::create_dir_all(&camp).unwrap();
+    for f in [
+        "soap_120kmh_0c.csv",
+        "soap_120kmh_0c.meta.toml",
+        "soap_120kmh_p20.csv",
+        "soap_120kmh_p20.meta.toml",
+        "soap_160kmh_m20.mcap",
+    ] {
+        std::fs::copy(fixture(f), camp.join(f)).unwrap();
+    }
+    ok(&railgrip(&["run", "camp", "--out", "out"], dir));
+    // The campaign's Polach model with a Curtius–Kniffler speed law added (its temperature law
+    // is the campaign's own).
+    let polach = dir.join("out/models/mlp.polach.json");
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&polach).unwrap()).unwrap();
+    assert!(
+        v["polach"]["temperature"].is_object(),
+        "the campaign's Polach model has a temperature law"
+    );
+    if !v["polach"]["speed"].is_object() {
+        v["polach"]["speed"] = serde_json::json!({
+            "form": "curtius_kniffler",
+            "coefficients": [0.6],
+            "fitted_range_mps": [1.0, 44.0]
+        });
+    }
+    let polach_tv = dir.join("polach_tv.json");
+    std::fs::write(&polach_tv, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+    let pipeline = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"),
+    )
+    .unwrap()
+    .replace(
+        "hidden = 10",
+        "layers = [6, 5]\noptimizer = \"adamw\"\nlearning_rate = 0.005\nbatch = 128",
+    )
+    .replace("epochs = 1000", "epochs = 8")
+    .replace("polach_intervals = true", "polach_intervals = false")
+    .replace("leave_one_run_out = true", "leave_one_run_out = false");
+    std::fs::write(dir.join("deep.toml"), pipeline).unwrap();
+    ok(&railgrip(
+        &[
+            "train",
+            "camp/soap_120kmh_p20.csv",
+            "--pipeline",
+            "deep.toml",
+            "--out",
+            "deep",
+            "--quiet",
+        ],
+        dir,
+    ));
+    vec![
+        ("2-input network", dir.join("out/models/mlp.json")),
+        ("deep network", dir.join("deep/mlp.json")),
+        ("4-input network", dir.join("out/models/mlp.4in.json")),
+        ("residual network", dir.join("out/models/mlp.residual.json")),
+        ("Polach, temperature and speed laws", polach_tv),
+    ]
+}
+
+/// A braking run's inputs (axle 2, every 8th valid sample of `soap_160kmh_m20`: Δv, dΔv/dt,
+/// v and the run's ambient temperature), as a CSV with a header.
+fn braking_inputs(dir: &Path) -> PathBuf {
+    ok(&railgrip(
+        &[
+            "estimate",
+            "camp/soap_160kmh_m20.mcap",
+            "--out",
+            "est",
+            "--csv",
+        ],
+        dir,
+    ));
+    let csv = std::fs::read_to_string(dir.join("est/soap_160kmh_m20.estimates.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let (axle, dv, ddv, v, valid) = (
+        col("axle"),
+        col("dv_mps"),
+        col("ddv_mps2"),
+        col("v_mps"),
+        col("valid"),
+    );
+    let mut out = String::from("dv_mps,ddv_mps2,v_mps,ambient_temperature_c\n");
+    let mut n = 0;
+    for (i, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        if f[axle] == "2" && f[valid] == "true" && i % 8 == 0 {
+            out.push_str(&format!("{},{},{},-20.0\n", f[dv], f[ddv], f[v]));
+            n += 1;
+        }
+    }
+    assert!(n > 500, "{n} rows");
+    let path = dir.join("inputs.csv");
+    std::fs::write(&path, out).unwrap();
+    path
+}
+
+/// The `mu` column of a CSV.
+fn mu_column(path: &Path) -> Vec<f64> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let k = header.iter().position(|h| *h == "mu").unwrap();
+    lines
+        .map(|l| l.split(',').nth(k).unwrap().parse::<f64>().unwrap())
+        .collect()
+}
+
+#[test]
+fn fmus_of_every_model_kind_pass_fmpy_and_give_the_mu_of_eval() {
+    if !python_has("fmpy", "fmpy") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let models = models(d);
+    let inputs = braking_inputs(d);
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fmpy_check.py");
+    for (k, (what, model)) in models.iter().enumerate() {
+        let fmu = d.join(format!("m{k}.fmu"));
+        let s = ok(&railgrip(
+            &[
+                "export",
+                model.to_str().unwrap(),
+                "--fmu",
+                fmu.to_str().unwrap(),
+            ],
+            d,
+        ));
+        assert!(s.contains("binaries/linux64") || !cfg!(target_os = "linux"), "{s}");
+        let want_out = d.join(format!("eval{k}.csv"));
+        ok(&railgrip(
+            &[
+                "eval",
+                model.to_str().unwrap(),
+                "--input",
+                inputs.to_str().unwrap(),
+                "--output",
+                want_out.to_str().unwrap(),
+            ],
+            d,
+        ));
+        let want = mu_column(&want_out);
+        let prefix = d.join(format!("fmpy{k}"));
+        let o = Command::new("python3")
+            .arg(&script)
+            .args([&fmu, &inputs, &prefix])
+            .output()
+            .unwrap();
+        let report = text(&o.stdout);
+        assert!(o.status.success(), "{what}: {report}{}", text(&o.stderr));
+        assert!(!report.contains("problem:"), "{what}: FMPy: {report}");
+        let cs = mu_column(&prefix.with_extension("cs.csv"));
+        let me = mu_column(&prefix.with_extension("me.csv"));
+        assert_eq!(cs.len(), want.len(), "{what}");
+        assert_eq!(me.len(), want.len(), "{what}");
+        // Co-simulation: the output at communication point k comes from the inputs set at
+        // k − 1 (set, fmi2DoStep, read); at the start, from the first row. Model Exchange: no lag.
+        let lagged: Vec<f64> = std::iter::once(want[0])
+            .chain(want[..want.len() - 1].iter().copied())
+            .collect();
+        let tol = if what.contains("network") && !what.contains("residual") {
+            0.0
+        } else {
+            1e-12
+        };
+        for (name, got, want) in [("CS", &cs, &lagged), ("ME", &me, &want)] {
+            let worst = got
+                .iter()
+                .zip(want.iter())
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            eprintln!("{what}: {name} vs railgrip eval, max |Δμ| = {worst:.1e}");
+            assert!(
+                worst <= tol && got.iter().all(|m| m.is_finite()),
+                "{what} {name}: {worst}"
+            );
+        }
+        // A NaN or infinite slip or slip rate: an error status, not a crash; NaN speed: the
+        // reference speed, which is the speed's start value.
+        if report.contains("nan_dv") {
+            assert!(report.contains("nan_dv: doStep error"), "{what}: {report}");
+            assert!(report.contains("nan_dv: getReal error"), "{what}: {report}");
+        }
+        if what.contains("network") {
+            assert!(report.contains("inf_ddv: doStep error"), "{what}: {report}");
+        }
+        let line = report.lines().find(|l| l.starts_with("nan_v:")).unwrap();
+        let v: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(v[1], v[2], "{what}: {line}");
+    }
+}
+
+#[test]
+fn an_fmu_says_what_it_holds_and_is_the_same_for_the_same_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp_4inputs.json");
+    let m = model.to_str().unwrap();
+    ok(&railgrip(&["export", m, "--fmu", "a.fmu", "--fmu-sources-only"], d));
+    ok(&railgrip(&["export", m, "--fmu", "b.fmu", "--fmu-sources-only"], d));
+    // The same model: the same bytes (but the identifier, which is the file's name).
+    let read = |p: &str| {
+        let mut z = zip::ZipArchive::new(std::fs::File::open(d.join(p)).unwrap()).unwrap();
+        let names: Vec<String> = (0..z.len())
+            .map(|i| z.by_index(i).unwrap().name().to_string())
+            .collect();
+        let mut xml = String::new();
+        std::io::Read::read_to_string(&mut z.by_name("modelDescription.xml").unwrap(), &mut xml)
+            .unwrap();
+        (names, xml)
+    };
+    let (names, xml) = read("a.fmu");
+    let (_, xml_b) = read("b.fmu");
+    assert_eq!(
+        names,
+        [
+            "modelDescription.xml",
+            "sources/fmu.c",
+            "sources/model.h",
+            "resources/model.json"
+        ]
+    );
+    assert_eq!(xml.replace("\"a\"", "\"b\""), xml_b);
+    for needle in [
+        "fmiVersion=\"2.0\"",
+        "name=\"dv_mps\"",
+        "name=\"ddv_mps2\"",
+        "name=\"v_mps\"",
+        "name=\"ambient_temperature_c\"",
+        "unit=\"degC\"",
+        "name=\"mu\"",
+        "causality=\"output\"",
+        "training domain",
+        "generation",
+        "<CoSimulation modelIdentifier=\"a\"",
+        "<ModelExchange modelIdentifier=\"a\"",
+    ] {
+        assert!(xml.contains(needle), "{needle} missing:\n{xml}");
+    }
+    // No min/max an importer would enforce.
+    assert!(!xml.contains(" min=") && !xml.contains(" max="), "{xml}");
+}
+
+#[test]
+fn export_errors_name_the_file_and_say_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let good = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp.json");
+    let g = good.to_str().unwrap();
+    // A model file that fails its checks.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&good).unwrap()).unwrap();
+    v["layers"][0]["biases"][0] = serde_json::json!("x");
+    std::fs::write(d.join("bad.json"), v.to_string()).unwrap();
+    let o = railgrip(&["export", "bad.json", "--fmu", "bad.fmu"], d);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(text(&o.stderr).contains("bad.json"), "{}", text(&o.stderr));
+    assert!(!d.join("bad.fmu").exists());
+    // An unwritable path.
+    let o = railgrip(
+        &["export", g, "--fmu", "no/such/folder/m.fmu", "--fmu-sources-only"],
+        d,
+    );
+    let e = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains("no/such/folder/m.fmu: cannot write"), "{e}");
+    // No compiler: a clear error, and a source FMU still works.
+    let o = Command::new(env!("CARGO_BIN_EXE_railgrip"))
+        .args(["export", g, "--fmu", "m.fmu"])
+        .current_dir(d)
+        .env("CC", "/nonexistent/cc")
+        .output()
+        .unwrap();
+    let e = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(
+        e.contains("/nonexistent/cc: no C compiler found") && e.contains("--fmu-sources-only"),
+        "{e}"
+    );
+    assert!(!d.join("m.fmu").exists());
+    // Not an .fmu name; neither output asked for.
+    let o = railgrip(&["export", g, "--fmu", "m.zip"], d);
+    assert!(text(&o.stderr).contains("ends in .fmu"), "{}", text(&o.stderr));
+    let o = railgrip(&["export", g], d);
+    assert_eq!(o.status.code(), Some(2));
+}
