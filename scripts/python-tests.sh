@@ -10,7 +10,7 @@ pip_install() {
     python3 -m pip install --quiet "$@" || python3 -m pip install --quiet --break-system-packages "$@"
 }
 pip_install "maturin>=1.9.4,<2" "pytest>=7" "numpy>=1.21" "pandas>=1.3" "ray>=2.60,<3" "pyarrow>=12" \
-    "moto[server]>=5.2,<5.3" "matplotlib>=3.5"
+    "moto[server]>=5.2,<5.3" "matplotlib>=3.5" "fmpy>=0.3.20"
 
 target="${CARGO_TARGET_DIR:-$PWD/target}"
 # The binary the tests compare with: the one `cargo test` built (a plain `cargo build` would

@@ -35,40 +35,33 @@ fn ok(o: &Output) -> String {
     text(&o.stdout)
 }
 
-/// The model files of every kind the issue names, trained on three bundled runs: the 2-input
+/// The model files of every kind, trained on the bundled archive's soap runs: the 2-input
 /// network (one hidden layer), the 4-input network, the residual network, the Polach model
-/// with its temperature law and a speed law, and a network with two hidden layers.
+/// with its temperature and speed laws, and a network with two hidden layers.
 fn models(dir: &Path) -> Vec<(&'static str, PathBuf)> {
+    // Every soap run of the bundled archive: enough temperatures for the campaign's Polach
+    // model to carry a temperature law, and speeds for its speed law.
     let camp = dir.join("camp");
     std::fs::create_dir_all(&camp).unwrap();
-    for f in [
-        "soap_120kmh_0c.csv",
-        "soap_120kmh_0c.meta.toml",
-        "soap_120kmh_p20.csv",
-        "soap_120kmh_p20.meta.toml",
-        "soap_160kmh_m20.mcap",
-    ] {
-        std::fs::copy(fixture(f), camp.join(f)).unwrap();
+    let archive = fixture("soap_120kmh_0c.csv")
+        .parent()
+        .unwrap()
+        .to_path_buf();
+    for e in std::fs::read_dir(&archive).unwrap().flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.starts_with("soap_") && !name.ends_with(".truth.parquet") {
+            std::fs::copy(e.path(), camp.join(&name)).unwrap();
+        }
     }
     ok(&railgrip(&["run", "camp", "--out", "out"], dir));
-    // The campaign's Polach model with a Curtius–Kniffler speed law added (its temperature law
-    // is the campaign's own).
     let polach = dir.join("out/models/mlp.polach.json");
-    let mut v: serde_json::Value =
+    let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&polach).unwrap()).unwrap();
     assert!(
-        v["polach"]["temperature"].is_object(),
-        "the campaign's Polach model has a temperature law"
+        v["polach"]["temperature"].is_object() && v["polach"]["speed"].is_object(),
+        "the campaign's Polach model has a temperature law and a speed law: {}",
+        v["polach"]
     );
-    if !v["polach"]["speed"].is_object() {
-        v["polach"]["speed"] = serde_json::json!({
-            "form": "curtius_kniffler",
-            "coefficients": [0.6],
-            "fitted_range_mps": [1.0, 44.0]
-        });
-    }
-    let polach_tv = dir.join("polach_tv.json");
-    std::fs::write(&polach_tv, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     let pipeline = std::fs::read_to_string(
         Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"),
     )
@@ -98,7 +91,7 @@ fn models(dir: &Path) -> Vec<(&'static str, PathBuf)> {
         ("deep network", dir.join("deep/mlp.json")),
         ("4-input network", dir.join("out/models/mlp.4in.json")),
         ("residual network", dir.join("out/models/mlp.residual.json")),
-        ("Polach, temperature and speed laws", polach_tv),
+        ("Polach, temperature and speed laws", polach),
     ]
 }
 
@@ -128,12 +121,12 @@ fn braking_inputs(dir: &Path) -> PathBuf {
     );
     let mut out = String::from("dv_mps,ddv_mps2,v_mps,ambient_temperature_c\n");
     let mut n = 0;
-    for (i, line) in lines.enumerate() {
-        let f: Vec<&str> = line.split(',').collect();
-        if f[axle] == "2" && f[valid] == "true" && i % 8 == 0 {
-            out.push_str(&format!("{},{},{},-20.0\n", f[dv], f[ddv], f[v]));
-            n += 1;
-        }
+    let rows = lines
+        .map(|l| l.split(',').collect::<Vec<&str>>())
+        .filter(|f| f[axle] == "2" && f[valid] == "true");
+    for f in rows.step_by(8) {
+        out.push_str(&format!("{},{},{},-20.0\n", f[dv], f[ddv], f[v]));
+        n += 1;
     }
     assert!(n > 500, "{n} rows");
     let path = dir.join("inputs.csv");
@@ -173,7 +166,10 @@ fn fmus_of_every_model_kind_pass_fmpy_and_give_the_mu_of_eval() {
             ],
             d,
         ));
-        assert!(s.contains("binaries/linux64") || !cfg!(target_os = "linux"), "{s}");
+        assert!(
+            s.contains("binaries/linux64") || !cfg!(target_os = "linux"),
+            "{s}"
+        );
         let want_out = d.join(format!("eval{k}.csv"));
         ok(&railgrip(
             &[
@@ -205,6 +201,11 @@ fn fmus_of_every_model_kind_pass_fmpy_and_give_the_mu_of_eval() {
         let lagged: Vec<f64> = std::iter::once(want[0])
             .chain(want[..want.len() - 1].iter().copied())
             .collect();
+        // The signals move from step to step: a missing or extra lag would show.
+        assert!(
+            lagged.iter().zip(&want).filter(|(a, b)| a != b).count() > want.len() / 2,
+            "{what}: the inputs hardly change"
+        );
         let tol = if what.contains("network") && !what.contains("residual") {
             0.0
         } else {
@@ -241,16 +242,21 @@ fn fmus_of_every_model_kind_pass_fmpy_and_give_the_mu_of_eval() {
 fn an_fmu_says_what_it_holds_and_is_the_same_for_the_same_model() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp_4inputs.json");
+    let model =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("models/golden/synthetic_mlp_4inputs.json");
     let m = model.to_str().unwrap();
-    ok(&railgrip(&["export", m, "--fmu", "a.fmu", "--fmu-sources-only"], d));
-    ok(&railgrip(&["export", m, "--fmu", "b.fmu", "--fmu-sources-only"], d));
+    ok(&railgrip(
+        &["export", m, "--fmu", "a.fmu", "--fmu-sources-only"],
+        d,
+    ));
+    ok(&railgrip(
+        &["export", m, "--fmu", "b.fmu", "--fmu-sources-only"],
+        d,
+    ));
     // The same model: the same bytes (but the identifier, which is the file's name).
     let read = |p: &str| {
         let mut z = zip::ZipArchive::new(std::fs::File::open(d.join(p)).unwrap()).unwrap();
-        let names: Vec<String> = (0..z.len())
-            .map(|i| z.by_index(i).unwrap().name().to_string())
-            .collect();
+        let names: Vec<String> = z.file_names().map(|n| n.unwrap().into_owned()).collect();
         let mut xml = String::new();
         std::io::Read::read_to_string(&mut z.by_name("modelDescription.xml").unwrap(), &mut xml)
             .unwrap();
@@ -305,7 +311,13 @@ fn export_errors_name_the_file_and_say_what_to_do() {
     assert!(!d.join("bad.fmu").exists());
     // An unwritable path.
     let o = railgrip(
-        &["export", g, "--fmu", "no/such/folder/m.fmu", "--fmu-sources-only"],
+        &[
+            "export",
+            g,
+            "--fmu",
+            "no/such/folder/m.fmu",
+            "--fmu-sources-only",
+        ],
         d,
     );
     let e = text(&o.stderr);
@@ -327,7 +339,11 @@ fn export_errors_name_the_file_and_say_what_to_do() {
     assert!(!d.join("m.fmu").exists());
     // Not an .fmu name; neither output asked for.
     let o = railgrip(&["export", g, "--fmu", "m.zip"], d);
-    assert!(text(&o.stderr).contains("ends in .fmu"), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("ends in .fmu"),
+        "{}",
+        text(&o.stderr)
+    );
     let o = railgrip(&["export", g], d);
     assert_eq!(o.status.code(), Some(2));
 }

@@ -163,10 +163,9 @@ fn attr(s: &str) -> String {
 /// What the model is, in one line: kind, shape, training data, generation.
 pub fn describe(m: &ModelFile) -> String {
     let what = match m.kind {
-        ModelKind::Mlp if m.base.is_some() => format!(
-            "residual network {} over a Polach law",
-            m.architecture()
-        ),
+        ModelKind::Mlp if m.base.is_some() => {
+            format!("residual network {} over a Polach law", m.architecture())
+        }
         ModelKind::Mlp => format!("tanh network {}", m.architecture()),
         ModelKind::Polach => {
             let p = m.polach.as_ref();
@@ -260,10 +259,7 @@ pub fn fmu_text(
         attr(&mu.description)
     ));
     xml.push_str("  </ModelVariables>\n");
-    let deps = (1..=n)
-        .map(|i| i.to_string())
-        .collect::<Vec<_>>()
-        .join(" ");
+    let deps = (1..=n).map(|i| i.to_string()).collect::<Vec<_>>().join(" ");
     xml.push_str(&format!(
         "  <ModelStructure>\n    <Outputs><Unknown index=\"{o}\" dependencies=\"{deps}\"/></Outputs>\n    <InitialUnknowns><Unknown index=\"{o}\" dependencies=\"{deps}\"/></InitialUnknowns>\n  </ModelStructure>\n</fmiModelDescription>\n",
         o = n + 1
@@ -275,9 +271,8 @@ pub fn fmu_text(
         .map(|v| format!("{} {} [{}]", v.value_reference, v.name, v.unit))
         .collect::<Vec<_>>()
         .join(", ");
-    let join = |f: &dyn Fn(&FmuVariable) -> String| {
-        inputs.iter().map(f).collect::<Vec<_>>().join(", ")
-    };
+    let join =
+        |f: &dyn Fn(&FmuVariable) -> String| inputs.iter().map(f).collect::<Vec<_>>().join(", ");
     let mut names: Vec<String> = inputs.iter().map(|v| format!("\"{}\"", v.name)).collect();
     names.push("\"mu\"".into());
     let fmu_c = fill(

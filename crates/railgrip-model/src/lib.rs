@@ -49,8 +49,8 @@
 //! The C header of the same model ([`c_header`]) computes the same operations in C99.
 
 pub mod c_header;
-pub mod fmu;
 mod file;
+pub mod fmu;
 mod net;
 pub mod polach;
 mod support;

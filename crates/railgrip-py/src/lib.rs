@@ -283,6 +283,37 @@ impl PyModel {
         self.name.clone()
     }
 
+    /// Writes the model as an FMI 2.0 FMU at `path` (`railgrip export --fmu`): what was written,
+    /// as JSON (path, model identifier, GUID, platform, variables).
+    #[pyo3(signature = (path, sources_only=false))]
+    fn export_fmu(&self, py: Python<'_>, path: PathBuf, sources_only: bool) -> PyResult<String> {
+        let json = self.inner.file.to_json();
+        let options = railgrip::fmu::FmuOptions {
+            sources_only,
+            compiler: None,
+        };
+        let f = py
+            .detach(|| {
+                railgrip::fmu::export_fmu_bytes(json.as_bytes(), &self.name, &path, &options)
+            })
+            .map_err(err)?;
+        Ok(serde_json::json!({
+            "path": f.path.display().to_string(),
+            "model_identifier": f.model_identifier,
+            "guid": f.guid,
+            "platform": f.platform,
+            "size": f.size,
+            "variables": f.variables.iter().map(|v| serde_json::json!({
+                "name": v.name,
+                "value_reference": v.value_reference,
+                "unit": v.unit,
+                "start": v.start,
+                "description": v.description,
+            })).collect::<Vec<_>>(),
+        })
+        .to_string())
+    }
+
     fn __repr__(&self) -> String {
         format!(
             "railgrip.Model({:?}, {}, inputs {})",

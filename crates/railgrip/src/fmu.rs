@@ -102,6 +102,22 @@ fn guid_of(bytes: &[u8]) -> String {
 /// The model is checked first (a file that fails its checks is refused, naming it); the
 /// binary is compiled for this host unless `options.sources_only`.
 pub fn export_fmu(model: &Path, out: &Path, options: &FmuOptions) -> Result<Fmu, FmuError> {
+    let bytes = std::fs::read(model).map_err(|e| {
+        FmuError::Model(ModelError::Read {
+            file: model.display().to_string(),
+            source: e,
+        })
+    })?;
+    export_fmu_bytes(&bytes, &model.display().to_string(), out, options)
+}
+
+/// [`export_fmu`] of a model file's bytes (JSON) named `name` in messages.
+pub fn export_fmu_bytes(
+    bytes: &[u8],
+    name: &str,
+    out: &Path,
+    options: &FmuOptions,
+) -> Result<Fmu, FmuError> {
     if !out
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("fmu"))
@@ -110,15 +126,13 @@ pub fn export_fmu(model: &Path, out: &Path, options: &FmuOptions) -> Result<Fmu,
             path: out.to_path_buf(),
         });
     }
-    let checked = Model::load(model)?;
-    let bytes = std::fs::read(model).map_err(|source| FmuError::Write {
-        path: model.to_path_buf(),
-        source,
-    })?;
+    let text = String::from_utf8_lossy(bytes);
+    let checked = Model::named(railgrip_model::ModelFile::from_json(&text, name)?, name)?;
+    let bytes = bytes.to_vec();
     let id = model_identifier(out);
     let guid = guid_of(&bytes);
     let tool = format!("railgrip {}", env!("CARGO_PKG_VERSION"));
-    let source = model
+    let source = Path::new(name)
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();

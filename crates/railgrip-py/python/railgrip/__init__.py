@@ -199,6 +199,14 @@ class Model:
         with open(os.fspath(path), "w", encoding="utf-8") as f:
             f.write(self._native.json)
 
+    def export_fmu(self, path: PathLike, sources_only: bool = False) -> Dict[str, Any]:
+        """Writes the model as an FMI 2.0 FMU (Model Exchange and Co-Simulation) at ``path``,
+        as ``railgrip export --fmu`` does: the binary for this host compiled with the system C
+        compiler (``$CC``, else ``cc``) and the sources, or the sources only. Returns what was
+        written: ``path``, ``model_identifier`` (the file's stem), ``guid``, ``platform`` and
+        ``variables`` (name, value reference, unit, start, description). docs/fmu.md."""
+        return json.loads(self._native.export_fmu(os.fspath(path), sources_only))
+
     def __repr__(self) -> str:
         return repr(self._native)
 
