@@ -17,6 +17,24 @@ import tempfile
 import time
 
 
+def compare(a: str, b: str):
+    """The files (but timings.json) that differ between two output folders, and how many."""
+    import filecmp
+
+    def files(root: str):
+        return sorted(
+            os.path.relpath(os.path.join(d, f), root)
+            for d, _, fs in os.walk(root)
+            for f in fs
+            if f != "timings.json"
+        )
+
+    fa, fb = files(a), files(b)
+    differ = sorted(set(fa) ^ set(fb))
+    differ += [f for f in fa if f in set(fb) and not filecmp.cmp(os.path.join(a, f), os.path.join(b, f), shallow=False)]
+    return differ, len(fa)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("campaign")
@@ -24,6 +42,8 @@ def main() -> None:
     ap.add_argument("--bin", default="target/release/railgrip")
     ap.add_argument("--work", default=None)
     a = ap.parse_args()
+    if "://" not in a.campaign:
+        a.campaign = os.path.abspath(a.campaign)  # Ray makes local paths absolute: so does the CLI run
     work = a.work or tempfile.mkdtemp(prefix="railgrip-ray-vs-run-")
     os.makedirs(work, exist_ok=True)
     cli_out, ray_out = os.path.join(work, "cli"), os.path.join(work, "ray")
@@ -58,6 +78,9 @@ def main() -> None:
         + ", ".join(f"{name} {s:.1f} s" for name, s in result.stages)
     )
     print(f"ratio Ray / run: {ray_s / cli_s:.2f} (with Ray's start-up {(ray_s + start_s) / cli_s:.2f})")
+    if "://" not in ray_out:
+        differ, files = compare(cli_out, ray_out)
+        print(f"outputs: {files} files; " + ("identical but timings.json" if not differ else f"DIFFER: {differ[:5]}"))
     print(f"railgrip {railgrip.__version__}, ray {ray.__version__}; outputs in {work}")
 
 

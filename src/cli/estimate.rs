@@ -44,7 +44,11 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         railgrip::ingest::ingest_source(&railgrip::ingest::LogSource::at(&args.run)?, &pipeline)?;
     let est = estimate(&log, &pipeline)?;
     let stem = super::ingest::stem(std::path::Path::new(&args.run));
-    let mut written = est.write(folder.dir(), &stem, args.csv)?;
+    // Errors name the output's URI, not a staging folder.
+    let staged = |e: anyhow::Error| anyhow::anyhow!(folder.explain(&format!("{e:#}")));
+    let mut written = est
+        .write(folder.dir(), &stem, args.csv)
+        .map_err(|e| staged(e.into()))?;
     if args.mcap {
         let path = folder.dir().join(format!("{stem}.railgrip.mcap"));
         railgrip::replay::write_replay(
@@ -52,7 +56,8 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             &railgrip::replay::ReplayRun::from_estimates(&est),
             model.as_ref(),
             log.start_log_time_ns.unwrap_or(0),
-        )?;
+        )
+        .map_err(|e| staged(e.into()))?;
         written.push(path);
     }
     print!("{}", summary(&est));

@@ -34,13 +34,15 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     print!("{}", summary(&log));
     if let Some(folder) = &folder {
         let dir = folder.dir();
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("{}: cannot create the output directory", dir.display()))?;
         let out = dir.join(format!(
             "{}.runlog.parquet",
             stem(std::path::Path::new(&args.file))
         ));
-        write_runlog_parquet(&log, &out)?;
+        // Errors name the output's URI, not a staging folder.
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create the output directory", dir.display()))
+            .and_then(|_| write_runlog_parquet(&log, &out).map_err(anyhow::Error::from))
+            .map_err(|e| anyhow::anyhow!(folder.explain(&format!("{e:#}"))))?;
         folder.finish(std::slice::from_ref(&out))?;
         let size = std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0);
         println!(

@@ -64,7 +64,9 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             "skipped    {run}: condition {condition} (train.condition selects one rail condition)"
         );
     }
-    let written = models.write(&ModelPaths::new(folder.dir(), &args.name), false)?;
+    let written = models
+        .write(&ModelPaths::new(folder.dir(), &args.name), false)
+        .map_err(|e| anyhow::anyhow!(folder.explain(&e.to_string())))?;
     folder.finish(&written)?;
     print_network(&models);
     print_polach(&models.polach_fits);

@@ -9,8 +9,9 @@
 //! only), `v_mps` (speed, m/s: every kind uses it, networks for the creep slope and as the
 //! third input, Polach models for the creepage), `ambient_temperature_c` (°C, when the model
 //! has a temperature input or law), then the output `mu`. The inputs' start values are the
-//! file's own: Δv and dΔv/dt 0, the reference speed, the reference temperature (NaN where the
-//! file has none: NaN means the file's base values). The training domain is stated in each
+//! file's own: Δv and dΔv/dt 0, the reference speed, the reference temperature (for a law
+//! without one, the middle of its fitted range; NaN, the law's base values, is accepted as an
+//! input but not written as a start). The training domain is stated in each
 //! input's description as a nominal range, not as `min`/`max` an importer would enforce (μ is
 //! odd in Δv, and outside the domain the file's rule applies).
 
@@ -46,9 +47,11 @@ pub struct FmuText {
     pub model_h: String,
     /// The inputs in value-reference order, then the output.
     pub variables: Vec<FmuVariable>,
-    /// The macro that makes the evaluator use C99 `fma()` (bit-identical to Rust).
-    pub exact_fma_macro: String,
 }
+
+/// The FMI wrapper's C text with its placeholders (part of what an FMU's GUID is made from:
+/// another wrapper, another GUID).
+pub const WRAPPER_TEMPLATE: &str = include_str!("c/fmi2.c.in");
 
 /// A `[lo, hi]` range as text, or nothing when unknown.
 fn range(r: Option<(f64, f64)>, unit: &str) -> String {
@@ -121,19 +124,28 @@ pub fn fmu_inputs(m: &ModelFile) -> Vec<FmuVariable> {
         arg: 2,
     });
     if has_t {
-        let what = if t_ref.is_nan() {
-            "NaN means the law's base values (no temperature)".to_string()
-        } else {
-            format!("NaN means the reference temperature {t_ref:.6} C")
-        };
         let r = domain("ambient_temperature_c")
             .or_else(|| law_t.map(|t| (t.fitted_range_c[0], t.fitted_range_c[1])));
+        // A finite start (tools that write Modelica wrappers have no NaN literal): the
+        // reference temperature, or for a law without one the middle of its fitted range.
+        let (what, start) = if t_ref.is_nan() {
+            let mid = r.map_or(20.0, |(lo, hi)| 0.5 * (lo + hi));
+            (
+                format!("NaN means the law's base values (no temperature); start {mid:.6} C, the middle of the fitted range"),
+                mid,
+            )
+        } else {
+            (
+                format!("NaN means the reference temperature {t_ref:.6} C, the start value"),
+                t_ref,
+            )
+        };
         out.push(FmuVariable {
             name: "ambient_temperature_c",
             value_reference: 0,
             unit: "degC",
             description: format!("ambient temperature (C); {what}{}", range(r, "C")),
-            start: Some(t_ref),
+            start: Some(start),
             arg: 3,
         });
     }
@@ -276,7 +288,7 @@ pub fn fmu_text(
     let mut names: Vec<String> = inputs.iter().map(|v| format!("\"{}\"", v.name)).collect();
     names.push("\"mu\"".into());
     let fmu_c = fill(
-        include_str!("c/fmi2.c.in"),
+        WRAPPER_TEMPLATE,
         &[
             ("id", comment_text(model_identifier)),
             ("version", comment_text(tool)),
@@ -299,7 +311,6 @@ pub fn fmu_text(
         fmu_c,
         model_h: c_header(m, HEADER_PREFIX, source),
         variables: inputs.into_iter().chain(std::iter::once(mu)).collect(),
-        exact_fma_macro: format!("{}_EXACT_FMA", HEADER_PREFIX.to_uppercase()),
     }
 }
 

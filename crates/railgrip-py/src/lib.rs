@@ -222,6 +222,8 @@ struct PyModel {
     inner: railgrip::Model,
     /// Its path, or the name it was trained under.
     name: String,
+    /// The file's own text, for a model loaded from a file (an FMU carries the file as it is).
+    text: Option<String>,
 }
 
 /// A 1-D float64 array's values; the Python half passes contiguous arrays.
@@ -235,9 +237,11 @@ impl PyModel {
     /// Reads and checks a model file (`.json`, `.polach.json`).
     #[staticmethod]
     fn load(path: PathBuf) -> PyResult<Self> {
+        let inner = railgrip::Model::load(&path).map_err(err)?;
         Ok(PyModel {
-            inner: railgrip::Model::load(&path).map_err(err)?,
+            inner,
             name: path.display().to_string(),
+            text: std::fs::read_to_string(&path).ok(),
         })
     }
 
@@ -287,7 +291,10 @@ impl PyModel {
     /// as JSON (path, model identifier, GUID, platform, variables).
     #[pyo3(signature = (path, sources_only=false))]
     fn export_fmu(&self, py: Python<'_>, path: PathBuf, sources_only: bool) -> PyResult<String> {
-        let json = self.inner.file.to_json();
+        let json = self
+            .text
+            .clone()
+            .unwrap_or_else(|| self.inner.file.to_json());
         let options = railgrip::fmu::FmuOptions {
             sources_only,
             compiler: None,
@@ -443,6 +450,7 @@ fn train<'py>(
             PyModel {
                 inner: model,
                 name: name.to_string(),
+                text: None,
             },
         )?;
     }
@@ -655,7 +663,10 @@ fn estimate_run<'py>(
         })
         .map_err(err)?;
     let Some(record) = o.records.first() else {
-        return Err(err(format!("{run}: no record came back for this run")));
+        return Err(err(format!(
+            "{run} (log {}, campaign {archive}, output {out}): no record came back for this run. Hint: check that the run's name is the campaign's (railgrip.ray lists them with _native.campaign_runs)",
+            log.as_deref().unwrap_or("in the archive")
+        )));
     };
     let seconds = o
         .stages
@@ -691,12 +702,21 @@ impl RunSet {
         RunSet::default()
     }
 
-    /// Adds a run: its record (JSON, as `estimate_run` or `failed_record` gave it) and its
-    /// table's parts (None for a run without one).
-    #[pyo3(signature = (record, table=None))]
-    fn add(&mut self, record: &str, table: Option<GivenTable>) -> PyResult<()> {
-        let rec: railgrip::campaign::RunRecord = serde_json::from_str(record)
+    /// Adds a run: its record (JSON, as `estimate_run` or `failed_record` gave it), its
+    /// table's parts (None for a run without one), and how its task got it (`reused`, and the
+    /// seconds it took: `timings.json` has them; the record's JSON does not).
+    #[pyo3(signature = (record, table=None, reused=false, seconds=0.0))]
+    fn add(
+        &mut self,
+        record: &str,
+        table: Option<GivenTable>,
+        reused: bool,
+        seconds: f64,
+    ) -> PyResult<()> {
+        let mut rec: railgrip::campaign::RunRecord = serde_json::from_str(record)
             .map_err(|e| err(format!("a run record does not parse: {e}. Hint: hand over the record the run's estimate task returned, unchanged")))?;
+        rec.reused = reused;
+        rec.duration_s = seconds;
         let table = table.map(GivenTable::table).transpose()?;
         self.runs.push((rec, table));
         Ok(())
@@ -708,7 +728,7 @@ impl RunSet {
 }
 
 /// The models part of a campaign trained on `runs` as their estimate tasks returned them
-/// (every run of the campaign; the set is emptied). The outcome as JSON.
+/// (every run of the campaign; the set is used up, also when this fails). The outcome as JSON.
 #[pyfunction]
 #[pyo3(signature = (archive, out, runs, pipeline=None, jobs=None, mcap=false))]
 fn run_models(

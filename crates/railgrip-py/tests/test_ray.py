@@ -78,12 +78,18 @@ def test_ray_run_writes_the_bytes_of_railgrip_run(local_ray, tmp_path):
     assert sum(": ok (" in line for line in lines) == 3, lines
     assert railgrip_cli("run", str(camp), "--out", str(tmp_path / "cli")) == 3
     assert_same_tree(tmp_path / "ray", tmp_path / "cli")
+    # timings.json says what the tasks did: every ok run computed, in some time.
+    timings = json.loads((tmp_path / "ray" / "timings.json").read_text())
+    ok_runs = [r for r in timings["runs"] if r["run"] != "broken"]
+    assert len(ok_runs) == 3 and all(not r["reused"] and r["duration_s"] > 0 for r in ok_runs), timings
     # Run again: every run is reused, the bytes stay.
     lines = []
     again = railgrip.ray.run(camp, tmp_path / "ray", progress=lines.append)
     assert again.reused == 3, lines  # the broken log is estimated (and fails) again
     assert sum(": unchanged, reused" in line for line in lines) == 3, lines
     assert_same_tree(tmp_path / "ray", tmp_path / "cli")
+    timings = json.loads((tmp_path / "ray" / "timings.json").read_text())
+    assert sum(r["reused"] for r in timings["runs"]) == 3, timings
 
 
 def download(s3, bucket: str, prefix: str, dest: Path):
@@ -177,3 +183,21 @@ def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
         railgrip._native.RunSet().add(record, tuple(bad))
     with pytest.raises(railgrip.RailgripError, match="record does not parse"):
         railgrip._native.RunSet().add("{}", None)
+    # Every run, but one twice, one the campaign does not have, and a table under another
+    # run's record: each named.
+    results = [railgrip._native.estimate_run(str(camp), n, l, str(tmp_path / "out")) for n, _, l in runs]
+    recs = [json.dumps(json.loads(f)["record"]) for f, _ in results]
+    bad = railgrip._native.RunSet()
+    bad.add(recs[0], results[0][1])
+    bad.add(recs[1], results[2][1])  # run 2's record, run 3's table
+    bad.add(recs[2], results[2][1])
+    bad.add(recs[2], results[2][1])
+    foreign = json.loads(recs[0])
+    foreign["run"] = "elsewhere"
+    bad.add(json.dumps(foreign), None)
+    with pytest.raises(railgrip.RailgripError) as e:
+        railgrip._native.run_models(str(camp), str(tmp_path / "out"), bad)
+    text = str(e.value)
+    assert f"{runs[1][0]}: the table of run {runs[2][0]!r}" in text.replace('"', "'"), text
+    assert f"{runs[2][0]}: given twice" in text, text
+    assert "elsewhere: not a run of this campaign" in text, text

@@ -41,12 +41,21 @@ pub struct Fmu {
 pub enum FmuError {
     #[error(transparent)]
     Model(#[from] ModelError),
-    #[error("{compiler}: no C compiler found ({why}). Hint: install gcc or clang, or name one in CC; or write a source FMU with --fmu-sources-only (the importing tool compiles it)")]
-    NoCompiler { compiler: String, why: String },
-    #[error("{compiler} could not compile the FMU's sources:\n{stderr}Hint: check the compiler (a C99 compiler for this platform), or write a source FMU with --fmu-sources-only")]
-    Compile { compiler: String, stderr: String },
-    #[error("{platform}: railgrip builds FMU binaries for x86-64 Linux (binaries/linux64) and macOS (binaries/darwin64) only. Hint: write a source FMU with --fmu-sources-only and let the importing tool compile it")]
-    Platform { platform: String },
+    #[error("{}: {compiler}: no C compiler found ({why}). Hint: install gcc or clang, or name one in CC; or write a source FMU with --fmu-sources-only (the importing tool compiles it)", out.display())]
+    NoCompiler {
+        out: PathBuf,
+        compiler: String,
+        why: String,
+    },
+    #[error("{}: {compiler} could not compile the FMU's sources (kept in {} for a look):\n{stderr}Hint: check the compiler (a C99 compiler for this platform), or write a source FMU with --fmu-sources-only", out.display(), kept.display())]
+    Compile {
+        out: PathBuf,
+        compiler: String,
+        kept: PathBuf,
+        stderr: String,
+    },
+    #[error("{}: railgrip builds FMU binaries on x86-64 Linux (binaries/linux64) and x86-64 macOS (binaries/darwin64) only, not on {platform}. Hint: write a source FMU with --fmu-sources-only and let the importing tool compile it", out.display())]
+    Platform { out: PathBuf, platform: String },
     #[error("{}: cannot write: {source}. Hint: check that the folder exists and is writable", path.display())]
     Write {
         path: PathBuf,
@@ -56,12 +65,14 @@ pub enum FmuError {
     Name { path: PathBuf },
 }
 
-/// The FMI 2.0 platform folder and library extension of this host, if railgrip builds there.
-fn host_platform() -> Result<(&'static str, &'static str), FmuError> {
+/// The FMI 2.0 platform folder and library extension of this host, if railgrip builds there
+/// (FMI 2.0 names no folder for ARM Linux, and `darwin64` is taken to be x86-64 by tools).
+fn host_platform(out: &Path) -> Result<(&'static str, &'static str), FmuError> {
     match (std::env::consts::OS, std::env::consts::ARCH) {
         ("linux", "x86_64") => Ok(("linux64", "so")),
-        ("macos", _) => Ok(("darwin64", "dylib")),
+        ("macos", "x86_64") => Ok(("darwin64", "dylib")),
         (os, arch) => Err(FmuError::Platform {
+            out: out.to_path_buf(),
             platform: format!("{os} {arch}"),
         }),
     }
@@ -84,10 +95,16 @@ pub fn model_identifier(out: &Path) -> String {
     id
 }
 
-/// A GUID from the model file's bytes (`{8-4-4-4-12}` hex digits of their SHA-256): the same
-/// model, the same GUID; another model, another.
-fn guid_of(bytes: &[u8]) -> String {
-    let h = crate::hash::sha256_bytes(bytes);
+/// A GUID (`{8-4-4-4-12}` hex digits of a SHA-256) from the model file's bytes, railgrip's
+/// version and the FMI wrapper's text: the same model from the same railgrip, the same GUID;
+/// another model, or a wrapper that changed, another.
+fn guid_of(bytes: &[u8], tool: &str) -> String {
+    let mut all = bytes.to_vec();
+    all.extend_from_slice(b"\0tool\0");
+    all.extend_from_slice(tool.as_bytes());
+    all.extend_from_slice(b"\0wrapper\0");
+    all.extend_from_slice(railgrip_model::fmu::WRAPPER_TEMPLATE.as_bytes());
+    let h = crate::hash::sha256_bytes(&all);
     format!(
         "{{{}-{}-{}-{}-{}}}",
         &h[0..8],
@@ -130,8 +147,8 @@ pub fn export_fmu_bytes(
     let checked = Model::named(railgrip_model::ModelFile::from_json(&text, name)?, name)?;
     let bytes = bytes.to_vec();
     let id = model_identifier(out);
-    let guid = guid_of(&bytes);
     let tool = format!("railgrip {}", env!("CARGO_PKG_VERSION"));
+    let guid = guid_of(&bytes, &tool);
     let source = Path::new(name)
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -140,8 +157,8 @@ pub fn export_fmu_bytes(
     let binary = if options.sources_only {
         None
     } else {
-        let (platform, ext) = host_platform()?;
-        let lib = compile(&text.fmu_c, &text.model_h, &text.exact_fma_macro, options)?;
+        let (platform, ext) = host_platform(out)?;
+        let lib = compile(&text.fmu_c, &text.model_h, out, options)?;
         Some((format!("binaries/{platform}/{id}.{ext}"), lib, platform))
     };
     let mut files: Vec<(String, Vec<u8>, u32)> = vec![(
@@ -191,13 +208,14 @@ fn zip_files(files: &[(String, Vec<u8>, u32)]) -> zip::result::ZipResult<Vec<u8>
 }
 
 /// The shared library of `fmu_c` (with `model_h` beside it), compiled by the C compiler into a
-/// temporary folder: C99, -O2, no contraction of products into FMAs but the evaluator's own
-/// (`exact_fma`: C99 `fma()`, so networks give the Rust evaluator's bits), only the FMI
-/// functions exported.
+/// temporary folder (kept, and named in the error, when compiling fails): C99, -O2, only the
+/// FMI functions exported; `fmu_c` itself makes the evaluator use C99 `fma()` and keeps other
+/// products from being contracted, so networks give the Rust evaluator's bits. The compiler
+/// is `options.compiler`, else `$CC`, else `cc`; it may carry arguments (`ccache gcc`).
 fn compile(
     fmu_c: &str,
     model_h: &str,
-    exact_fma: &str,
+    out: &Path,
     options: &FmuOptions,
 ) -> Result<Vec<u8>, FmuError> {
     let cc = options
@@ -205,6 +223,9 @@ fn compile(
         .clone()
         .or_else(|| std::env::var("CC").ok().filter(|c| !c.trim().is_empty()))
         .unwrap_or_else(|| "cc".into());
+    let mut words = cc.split_whitespace();
+    let program = words.next().unwrap_or("cc").to_string();
+    let extra: Vec<String> = words.map(str::to_string).collect();
     static SEQ: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let dir = std::env::temp_dir().join(format!(
         "railgrip-fmu-{}-{}",
@@ -214,6 +235,7 @@ fn compile(
     let write = |path: PathBuf, text: &str| {
         std::fs::write(&path, text).map_err(|source| FmuError::Write { path, source })
     };
+    let mut keep = false;
     let result = (|| {
         std::fs::create_dir_all(&dir).map_err(|source| FmuError::Write {
             path: dir.clone(),
@@ -222,33 +244,40 @@ fn compile(
         write(dir.join("fmu.c"), fmu_c)?;
         write(dir.join("model.h"), model_h)?;
         let lib = dir.join("fmu.so");
-        let mut cmd = Command::new(&cc);
-        cmd.args([
-            "-std=c99",
-            "-O2",
-            "-fPIC",
-            "-shared",
-            "-fvisibility=hidden",
-            "-ffp-contract=off",
-        ])
-        .arg(format!("-D{exact_fma}"))
-        .arg("-o")
-        .arg(&lib)
-        .arg(dir.join("fmu.c"))
-        .arg("-lm");
-        let out = cmd.output().map_err(|e| FmuError::NoCompiler {
-            compiler: cc.clone(),
-            why: e.to_string(),
-        })?;
-        if !out.status.success() {
-            return Err(FmuError::Compile {
+        let output = Command::new(&program)
+            .args(&extra)
+            .args([
+                "-std=c99",
+                "-O2",
+                "-fPIC",
+                "-shared",
+                "-fvisibility=hidden",
+                "-ffp-contract=off",
+            ])
+            .arg("-o")
+            .arg(&lib)
+            .arg(dir.join("fmu.c"))
+            .arg("-lm")
+            .output()
+            .map_err(|e| FmuError::NoCompiler {
+                out: out.to_path_buf(),
                 compiler: cc.clone(),
-                stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+                why: e.to_string(),
+            })?;
+        if !output.status.success() {
+            keep = true;
+            return Err(FmuError::Compile {
+                out: out.to_path_buf(),
+                compiler: cc.clone(),
+                kept: dir.clone(),
+                stderr: String::from_utf8_lossy(&output.stderr).into_owned(),
             });
         }
         std::fs::read(&lib).map_err(|source| FmuError::Write { path: lib, source })
     })();
-    let _ = std::fs::remove_dir_all(&dir);
+    if !keep {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
     result
 }
 
@@ -264,11 +293,12 @@ mod tests {
     }
 
     #[test]
-    fn guids_are_braced_and_follow_the_bytes() {
-        let g = guid_of(b"a");
+    fn guids_are_braced_and_follow_the_bytes_and_the_tool() {
+        let g = guid_of(b"a", "railgrip 1");
         assert_eq!(g.len(), 38);
         assert!(g.starts_with('{') && g.ends_with('}'));
-        assert_ne!(g, guid_of(b"b"));
-        assert_eq!(g, guid_of(b"a"));
+        assert_ne!(g, guid_of(b"b", "railgrip 1"));
+        assert_ne!(g, guid_of(b"a", "railgrip 2"));
+        assert_eq!(g, guid_of(b"a", "railgrip 1"));
     }
 }

@@ -366,6 +366,23 @@ mod tests {
     }
 }
 
+/// A fresh local folder for staging the outputs bound for `uri`: unique per process and call
+/// (two stagings of the same output in one process do not share it), removed first if a
+/// crashed process of the same id left it.
+pub(crate) fn staging_dir(uri: &str) -> PathBuf {
+    static SEQ: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let dir = std::env::temp_dir().join(format!(
+        "railgrip-out-{}-{}-{}",
+        std::process::id(),
+        SEQ.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        crate::hash::sha256_bytes(uri.as_bytes())
+            .get(..12)
+            .unwrap_or_default()
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
 /// An output folder at a location, for the commands that write a few files into one
 /// (`estimate`, `ingest`, `train`): a local folder is written in place; for a bucket's prefix
 /// the files are written into a local staging folder first and then put one by one, each in
@@ -386,16 +403,14 @@ impl OutFolder {
             Location::S3 { bucket, prefix } => {
                 let b = Bucket::connect(&bucket)?;
                 // A listing of a key nothing has: an error for a missing bucket or a dead
-                // endpoint, without listing what the prefix holds.
-                b.list(&join(&prefix, ".railgrip-probe"))?;
-                let dir = std::env::temp_dir().join(format!(
-                    "railgrip-out-{}-{}",
-                    std::process::id(),
-                    crate::hash::sha256_bytes(b.uri(&prefix).as_bytes())
-                        .get(..12)
-                        .unwrap_or_default()
-                ));
-                let _ = std::fs::remove_dir_all(&dir);
+                // endpoint, without listing what the prefix holds (credentials must allow
+                // listing the bucket, as reading a campaign from it does).
+                b.list(&join(&prefix, ".railgrip-probe")).map_err(|e| StoreError {
+                    uri: b.uri(&prefix),
+                    message: e.message,
+                    hint: format!("{} (railgrip lists the output prefix before writing: the credentials need s3:ListBucket as well as s3:PutObject)", e.hint),
+                })?;
+                let dir = staging_dir(&b.uri(&prefix));
                 Ok(OutFolder {
                     dir,
                     remote: Some((b, prefix)),
@@ -407,6 +422,14 @@ impl OutFolder {
     /// Where to write the files.
     pub fn dir(&self) -> &std::path::Path {
         &self.dir
+    }
+
+    /// `text` (an error message) with the staging folder named by the output's URI.
+    pub fn explain(&self, text: &str) -> String {
+        match &self.remote {
+            Some((b, prefix)) => text.replace(&self.dir.display().to_string(), &b.uri(prefix)),
+            None => text.to_string(),
+        }
     }
 
     /// The name a user sees for a file written below [`OutFolder::dir`]: its path, or its URI.

@@ -16,9 +16,12 @@ Ray's object store. When every run task is done, one task takes those tables, tr
 and writes the summary, ``campaign.json`` and the report (the models part of ``railgrip run``).
 The files are the same bytes as ``railgrip run`` on the same inputs, but ``timings.json``.
 
-A task whose worker dies is retried (``max_retries``); a run whose task still does not finish
-is a failed run (its record says why) and the campaign goes on without it. Nothing half-written
-is left as a finished campaign (``campaign.json`` and the report are written last).
+A task whose worker dies is retried (``max_retries``); a run whose task still does not finish,
+or fails (an error railgrip raised in it), is a failed run (its record says why) and the
+campaign goes on without it; so is a run whose table Ray lost. Files such a task wrote before
+it died may remain in the run's folder (the next campaign reuses or rewrites them).
+``campaign.json`` and the report are written last, so nothing half-written is left as a
+finished campaign. A task that hangs is waited for.
 """
 
 from __future__ import annotations
@@ -104,20 +107,40 @@ def _models(
     out: str,
     pipeline: Optional[Pipeline],
     jobs: Optional[int],
-    records: List[str],
+    runs: List[Tuple[str, str, str, bool, float]],
     tables: List[Any],
 ) -> str:
     import ray
 
     # The tables stay in the object store until here (references nested in a list are not
-    # resolved by Ray on the way in); None for a run that has no table.
-    runs = _native.RunSet()
-    for rec, ref in zip(records, tables):
-        # One table at a time: it is copied in, and the object store's copy let go.
-        table = ray.get(ref) if ref is not None else None
-        runs.add(rec, None if table is None else from_arrow(table))
+    # resolved by Ray on the way in); None for a run that has no table. `runs`: (name, source,
+    # record JSON, reused, seconds) per run.
+    given = _native.RunSet()
+    for (name, source, rec, reused, seconds), ref in zip(runs, tables):
+        table = None
+        if ref is not None:
+            # One table at a time: it is copied in, and the object store's copy let go. A
+            # table Ray lost (its node died and it could not be made again) fails its run.
+            try:
+                table = ray.get(ref)
+            except Exception as e:
+                why = f"{source}: its estimates were lost in Ray's object store: {type(e).__name__}: {e}"
+                given.add(_native.failed_record(name, source, why), None)
+                continue
+        given.add(rec, None if table is None else from_arrow(table), reused, seconds)
         del table
-    return _native.run_models(archive, out, runs, pipeline, jobs)
+    return _native.run_models(archive, out, given, pipeline, jobs)
+
+
+def _why(source: str, e: Exception) -> str:
+    """Why a run's task gave no result: an error railgrip raised in it (a bucket it could not
+    reach), or a task Ray could not finish (its worker died at every attempt)."""
+    import ray.exceptions as rex
+
+    if isinstance(e, rex.RayTaskError):
+        cause = e.cause if getattr(e, "cause", None) is not None else e
+        return f"{source}: the run's task failed: {type(cause).__name__}: {cause}"
+    return f"{source}: the Ray task did not finish: {type(e).__name__}: {e}"
 
 
 def _line(done: Dict[str, Any]) -> str:
@@ -171,7 +194,8 @@ def run(
     options: Dict[str, Any] = {"runtime_env": {"env_vars": env}} if env else {}
     estimate = ray.remote(num_cpus=1, max_retries=max_retries, num_returns=2)(_estimate).options(**options)
     start = time.monotonic()
-    records: List[Optional[str]] = [None] * n
+    # Per run: (name, source, record JSON, reused, seconds) once its task is done.
+    done_runs: List[Any] = [None] * n
     tables: List[Any] = [None] * n
     pending = {}
     for k, (name, _, log) in enumerate(runs):
@@ -180,26 +204,27 @@ def run(
         tables[k] = table
     reused = 0
     while pending:
-        done, _ = ray.wait(list(pending), num_returns=1)
-        for ref in done:
+        ready, _ = ray.wait(list(pending), num_returns=min(len(pending), 64), timeout=1.0)
+        for ref in ready:
             k = pending.pop(ref)
             name, source, _ = runs[k]
             try:
                 result = ray.get(ref)
-            except Exception as e:  # a task that failed after its retries: that run only
-                why = f"{source}: the Ray task did not finish: {type(e).__name__}: {e}"
-                records[k] = _native.failed_record(name, source, why)
+            except Exception as e:  # that run only
+                why = _why(source, e)
+                done_runs[k] = (name, source, _native.failed_record(name, source, why), False, 0.0)
                 tables[k] = None
                 say(f"run        {name}: FAILED: {why}")
                 continue
-            records[k] = json.dumps(result["record"])
-            if result["record"].get("status") != "ok":
+            record = result["record"]
+            done_runs[k] = (name, source, json.dumps(record), result["reused"], result["seconds"])
+            if record.get("status") != "ok":
                 tables[k] = None
             reused += result["reused"]
             say(_line(result))
     say("train      network and Polach fits on the pooled estimates (one Ray task)")
     models = ray.remote(num_cpus=models_cpus, max_retries=max_retries)(_models).options(**options)
-    facts = json.loads(ray.get(models.remote(archive, out, pipeline, models_cpus, records, tables)))
+    facts = json.loads(ray.get(models.remote(archive, out, pipeline, models_cpus, done_runs, tables)))
     facts["stages"] = [tuple(s) for s in facts["stages"]]
     facts["reused"] = reused
     say(f"time       estimate and train {time.monotonic() - start:.2f} s")

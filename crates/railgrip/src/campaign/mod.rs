@@ -560,16 +560,33 @@ fn recall_runs(
 }
 
 /// The `given` runs in the order of `logs` (records and tables as the estimate shards returned
-/// them); an error names every run of `logs` that is not among them.
+/// them). Refused, naming the runs: a run of `logs` that is not given, one given twice, one
+/// the campaign does not have, a table beside a failed record or under another run's name.
 fn given_runs(
     logs: &[(String, LogSource)],
     out: &OutDir,
     given: Given,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
-    let mut by_name: std::collections::HashMap<String, (RunRecord, Option<RunTable>)> = given
-        .into_iter()
-        .map(|(rec, table)| (rec.run.clone(), (rec, table)))
-        .collect();
+    let mut by_name: std::collections::HashMap<String, (RunRecord, Option<RunTable>)> =
+        std::collections::HashMap::new();
+    let mut wrong = Vec::new();
+    for (rec, table) in given {
+        match &table {
+            Some(_) if !rec.ok() => {
+                wrong.push(format!("{}: a table beside a failed record", rec.run))
+            }
+            Some(t) if t.name != rec.run => wrong.push(format!(
+                "{}: the table of run {:?} beside its record",
+                rec.run, t.name
+            )),
+            None if rec.ok() => wrong.push(format!("{}: an ok record without its table", rec.run)),
+            _ => {}
+        }
+        let name = rec.run.clone();
+        if by_name.insert(name.clone(), (rec, table)).is_some() {
+            wrong.push(format!("{name}: given twice"));
+        }
+    }
     let mut missing = Vec::new();
     let (mut records, mut tables) = (Vec::new(), Vec::new());
     for (name, _) in logs {
@@ -581,18 +598,29 @@ fn given_runs(
             None => missing.push(name.clone()),
         }
     }
+    let mut foreign: Vec<String> = by_name.into_keys().collect();
+    foreign.sort();
+    wrong.extend(
+        foreign
+            .into_iter()
+            .map(|n| format!("{n}: not a run of this campaign")),
+    );
     if !missing.is_empty() {
-        return Err(CampaignError::Input {
-            path: out.runs(),
-            message: format!(
+        wrong.insert(
+            0,
+            format!(
                 "{} of the campaign's {} runs were not given: {}",
                 missing.len(),
                 logs.len(),
                 missing.join(", ")
             ),
-            hint:
-                "give a result for every run the campaign lists (estimate the missing runs first)"
-                    .into(),
+        );
+    }
+    if !wrong.is_empty() {
+        return Err(CampaignError::Input {
+            path: out.runs(),
+            message: wrong.join("; "),
+            hint: "give every run of the campaign once, each with the record and table its estimate task returned".into(),
         });
     }
     Ok((records, tables))

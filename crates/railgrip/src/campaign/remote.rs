@@ -366,6 +366,9 @@ struct Staged {
     bucket: Arc<Bucket>,
     prefix: String,
     dir: PathBuf,
+    /// What was fetched: relative path → SHA-256 of its bytes (an unchanged file is not put
+    /// back).
+    pulled: std::sync::Mutex<std::collections::HashMap<String, String>>,
 }
 
 /// The files a finished campaign writes last (and a new one removes first).
@@ -385,18 +388,12 @@ impl Staged {
         prefix: &str,
         only: Option<&[&str]>,
     ) -> Result<Staged, CampaignError> {
-        let dir = std::env::temp_dir().join(format!(
-            "railgrip-out-{}-{}",
-            std::process::id(),
-            crate::hash::sha256_bytes(bucket.uri(prefix).as_bytes())
-                .get(..12)
-                .unwrap_or_default()
-        ));
-        let _ = std::fs::remove_dir_all(&dir);
+        let dir = crate::store::staging_dir(&bucket.uri(prefix));
         let staged = Staged {
             bucket,
             prefix: prefix.to_string(),
             dir,
+            pulled: Default::default(),
         };
         if let Err(e) = staged.fetch_runs(only) {
             let _ = std::fs::remove_dir_all(&staged.dir);
@@ -439,9 +436,13 @@ impl Staged {
                 .bucket
                 .get(&o.key, crate::ingest::MAX_OBJECT_LOG_BYTES)?;
             let path = staged.dir.join(rel);
+            let sha = crate::hash::sha256_bytes(&bytes);
             std::fs::create_dir_all(path.parent().unwrap_or(&staged.dir))
                 .and_then(|_| std::fs::write(&path, bytes))
                 .map_err(|source| CampaignError::Write { path, source })?;
+            if let Ok(mut p) = staged.pulled.lock() {
+                p.insert(rel.to_string(), sha);
+            }
         }
         Ok(())
     }
@@ -508,9 +509,17 @@ impl Staged {
         Ok(())
     }
 
+    /// Puts one staged file, unless it is the object that was fetched, unchanged.
     fn upload(&self, rel: &str) -> Result<(), CampaignError> {
         let path = self.dir.join(rel);
         let bytes = std::fs::read(&path).map_err(|source| CampaignError::Read { path, source })?;
+        let unchanged = self.pulled.lock().is_ok_and(|p| {
+            p.get(rel)
+                .is_some_and(|sha| *sha == crate::hash::sha256_bytes(&bytes))
+        });
+        if unchanged {
+            return Ok(());
+        }
         Ok(self.bucket.put(&join(&self.prefix, rel), bytes)?)
     }
 
