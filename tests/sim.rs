@@ -113,7 +113,12 @@ fn effects_not_listed_cost_nothing() {
             "{e} ran in a scene that did not list it"
         );
     }
-    let full = sim::simulate(&scene(ALL_EFFECTS), None).unwrap();
+    // Every effect, the calibration mismatches too.
+    let every = ALL_EFFECTS.replace(
+        "\"thermal\"]",
+        "\"thermal\", \"brake_scatter\", \"pad_friction\", \"radar_error\"]",
+    );
+    let full = sim::simulate(&scene(&every), None).unwrap();
     for e in Effect::ALL {
         assert!(full.counters.get(e) > 0, "{e} listed but never evaluated");
     }
@@ -124,6 +129,133 @@ fn effects_not_listed_cost_nothing() {
     // Per-step effects run once per step (and axle): the count is the work done.
     assert_eq!(full.counters.get(Effect::RunningResistance), full.steps);
     assert_eq!(full.counters.get(Effect::FallingFriction), 4 * full.steps);
+}
+
+/// The calibration mismatches do what they say, measured from the output alone: the radar reads
+/// `radar_scale` × the speed of `radar_latency_s` ago; each axle's brake torque over its
+/// pressure, from the wheel's balance J ω̇ = T r − α p, is its own α_i, off the pipeline's by
+/// the drawn scatter and rising as the train slows by `pad_friction_rise`; the truth table's
+/// metadata holds those values, and the log does not.
+#[test]
+fn mismatch_effects_do_what_they_say() {
+    let sc = scene(
+        "effects = [\"brake_scatter\", \"pad_friction\", \"radar_error\"]\n[brake]\nalpha_scatter = 0.02\npad_friction_rise = 0.05\n[sensors]\nradar_scale = 1.003\nradar_latency_s = 0.03",
+    );
+    let out = sim::simulate(&sc, None).unwrap();
+    let m = out.mismatch.clone().expect("a mismatch");
+    let nominal = sc.vehicle.brake_torque_nm_per_bar;
+    let rel: Vec<f64> = (0..4)
+        .map(|a| m.brake_torque_nm_per_bar[a] / nominal[a] - 1.0)
+        .collect();
+    assert!(
+        rel.iter().all(|r| r.abs() < 0.1) && rel.iter().any(|r| r.abs() > 1e-3),
+        "{rel:?}"
+    );
+    assert_eq!(
+        sim::simulate(&sc, None).unwrap().mismatch,
+        Some(m.clone()),
+        "the seed decides"
+    );
+    assert_ne!(
+        sim::simulate(&sc, Some(4)).unwrap().mismatch,
+        Some(m.clone())
+    );
+    assert_eq!(
+        (m.radar_scale, m.radar_latency_s, m.pad_friction_rise),
+        (1.003, 0.03, 0.05)
+    );
+
+    // Radar: the least-squares scale at each candidate delay (the truth linear between its
+    // instants); the best delay and its scale.
+    let tr = &out.truth;
+    let radar = &out.channels[0];
+    let v_at = |t: f64| -> f64 {
+        let dt = tr.time_s[1] - tr.time_s[0];
+        let x = ((t - tr.time_s[0]) / dt).clamp(0.0, (tr.time_s.len() - 1) as f64);
+        let i = (x.floor() as usize).min(tr.time_s.len() - 2);
+        let f = x - i as f64;
+        tr.v_mps[i] * (1.0 - f) + tr.v_mps[i + 1] * f
+    };
+    let mut best = (f64::INFINITY, 0.0, 0.0);
+    for ms in 0..=60 {
+        let tau = ms as f64 * 1e-3;
+        let pts: Vec<(f64, f64)> = radar
+            .time_s
+            .iter()
+            .zip(&radar.values)
+            .filter(|(t, _)| **t > 1.0)
+            .map(|(t, y)| (v_at(t - tau), *y))
+            .collect();
+        let scale = pts.iter().map(|(x, y)| x * y).sum::<f64>()
+            / pts.iter().map(|(x, _)| x * x).sum::<f64>();
+        let sse: f64 = pts.iter().map(|(x, y)| (y - scale * x).powi(2)).sum();
+        if sse < best.0 {
+            best = (sse, tau, scale);
+        }
+    }
+    assert!((best.1 - 0.03).abs() <= 0.002, "delay {} s", best.1);
+    assert!((best.2 - 1.003).abs() <= 2e-4, "scale {}", best.2);
+
+    // Brakes: α(t) = (T r − J ω̇)/p while the pressure is up; against α_i (1 + rise (1 − v/v0)).
+    let (r, j) = (sc.vehicle.wheel_radius_m, sc.vehicle.axle_inertia_kgm2);
+    let dt = tr.time_s[1] - tr.time_s[0];
+    let v0 = m.pad_friction_v0_mps;
+    for a in 0..4 {
+        let mut worst: f64 = 0.0;
+        let mut n = 0;
+        for i in 1..tr.time_s.len() - 1 {
+            let p = tr.p_bar[a][i];
+            let (w0, w1, w2) = (
+                tr.omega_radps[a][i - 1],
+                tr.omega_radps[a][i],
+                tr.omega_radps[a][i + 1],
+            );
+            // Turning wheels on smooth stretches only (a locked wheel's brake holds it with
+            // less than α p; a lock or release kinks ω̇ within one output step).
+            if p < 1.0 || tr.v_mps[i] < 2.0 || w0 == 0.0 || w1 == 0.0 || w2 == 0.0 {
+                continue;
+            }
+            if ((w2 - 2.0 * w1 + w0) / (dt * dt)).abs() > 50.0 {
+                continue;
+            }
+            let omega_dot = (w2 - w0) / (2.0 * dt);
+            let alpha = (tr.tangential_n[a][i] * r - j * omega_dot) / p;
+            let want = m.brake_torque_nm_per_bar[a] * (1.0 + 0.05 * (1.0 - tr.v_mps[i] / v0));
+            worst = worst.max((alpha / want - 1.0).abs());
+            n += 1;
+        }
+        assert!(
+            n > 500 && worst < 0.005,
+            "axle {}: {n} samples, worst {worst}",
+            a + 1
+        );
+    }
+
+    // The truth is in the truth table, not in the log.
+    let dir = tempfile::tempdir().unwrap();
+    out.write(dir.path(), "run", OutputFormat::Both).unwrap();
+    let meta = std::fs::read_to_string(dir.path().join("run.meta.toml")).unwrap();
+    let alpha1 = format!("{}", m.brake_torque_nm_per_bar[0]);
+    assert!(
+        !meta.contains("1.003") && !meta.contains("radar_scale") && !meta.contains(&alpha1[..6]),
+        "{meta}"
+    );
+    let f = std::fs::File::open(dir.path().join("run.truth.parquet")).unwrap();
+    let mut reader = <polars::prelude::ParquetReader<_> as polars::prelude::SerReader<_>>::new(f);
+    let md = reader.get_metadata().unwrap().clone();
+    let kv = md.key_value_metadata().clone().unwrap_or_default();
+    let json = kv
+        .iter()
+        .find(|k| k.key == sim::TRUTH_MISMATCH_KEY)
+        .and_then(|k| k.value.clone())
+        .expect("railgrip.truth in the truth table");
+    let back: serde_json::Value = serde_json::from_str(&json).unwrap();
+    assert_eq!(back["radar_latency_s"], 0.03);
+    // A scene without them writes no such key (the bundled archive's bytes stay).
+    assert!(sim::simulate(&scene("effects = []"), None)
+        .unwrap()
+        .mismatch
+        .is_none());
 }
 
 #[test]

@@ -52,9 +52,10 @@ use crate::model::Model;
 use crate::simd::{Avx2, Avx512, F64x4};
 use crate::simd::{Isa, Portable, Select};
 use foreign::ScalarLaw;
-pub use output::{read_truth_samples, truth_f32, OutputFormat, TRUTH_COLUMNS};
+pub use output::{read_truth_samples, truth_f32, OutputFormat, TRUTH_COLUMNS, TRUTH_MISMATCH_KEY};
 pub use scene::{AdhesionLaw, Effect, Effects, Scene};
 use sensors::Logger;
+pub use state::brake_coefficients;
 use state::Setup;
 
 /// The simulator's random numbers (SplitMix64; sensor noise and spikes come from it, seeded by
@@ -89,7 +90,7 @@ pub enum SimError {
 
 /// How many times each effect's stage ran.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct EffectCounters(pub [u64; 13]);
+pub struct EffectCounters(pub [u64; Effect::ALL.len()]);
 
 impl EffectCounters {
     #[inline]
@@ -158,6 +159,11 @@ pub struct SimOutput {
     pub truth: Truth,
     pub metadata: RunMetadata,
     pub counters: EffectCounters,
+    /// The mismatch the scene put between the vehicle and what an estimator's pipeline says
+    /// (with `brake_scatter`, `pad_friction` or `radar_error`): the truth a calibration is
+    /// scored against, written into the truth table's metadata (`railgrip.truth`), never into
+    /// the log.
+    pub mismatch: Option<Mismatch>,
     pub steps: u64,
     /// Simulated time, s.
     pub duration_s: f64,
@@ -356,9 +362,59 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
         truth,
         metadata,
         counters,
+        mismatch: Mismatch::of(sc, seed),
         steps: n,
         duration_s: n as f64 * sc.run.step_s,
     })
+}
+
+/// The true values behind the calibration effects of a run ([`SimOutput::mismatch`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Mismatch {
+    /// Each axle's brake coefficient at the initial speed, N m/bar (`brake_scatter`; else the
+    /// pipeline's).
+    pub brake_torque_nm_per_bar: [f64; AXLES],
+    /// α_i(v) = α_i (1 + rise (1 − v/v0)) (`pad_friction`; else 0).
+    pub pad_friction_rise: f64,
+    /// The initial speed v0 of that law, m/s.
+    pub pad_friction_v0_mps: f64,
+    /// Radar reading / true speed (`radar_error`; else 1).
+    pub radar_scale: f64,
+    /// The radar's delay, s (`radar_error`; else 0).
+    pub radar_latency_s: f64,
+}
+
+impl Mismatch {
+    /// The mismatch of scene `sc` run with `seed`, None when it asks for no calibration effect.
+    pub fn of(sc: &Scene, seed: u64) -> Option<Mismatch> {
+        let fx = sc.effects;
+        if ![
+            Effect::BrakeScatter,
+            Effect::PadFriction,
+            Effect::RadarError,
+        ]
+        .iter()
+        .any(|e| fx.has(*e))
+        {
+            return None;
+        }
+        let radar = fx.has(Effect::RadarError);
+        Some(Mismatch {
+            brake_torque_nm_per_bar: state::brake_coefficients(sc, seed),
+            pad_friction_rise: if fx.has(Effect::PadFriction) {
+                sc.brake.pad_friction_rise
+            } else {
+                0.0
+            },
+            pad_friction_v0_mps: sc.run.initial_speed_kmh / 3.6,
+            radar_scale: if radar { sc.sensors.radar_scale } else { 1.0 },
+            radar_latency_s: if radar {
+                sc.sensors.radar_latency_s
+            } else {
+                0.0
+            },
+        })
+    }
 }
 
 /// What the step loop produced: channels, truth, counters, steps.
@@ -420,7 +476,7 @@ fn run<V: Select>(
     seed: u64,
 ) -> Result<RunResult, SimError> {
     let mut counters = EffectCounters::default();
-    let setup = Setup::new(sc, &mut counters)?;
+    let setup = Setup::new(sc, seed, &mut counters)?;
     let mut st = setup.initial_state::<V>(isa, &mut counters);
     let mut log = Logger::new(sc, seed);
     let max_steps = (sc.run.max_duration_s / setup.h).ceil() as u64;

@@ -157,9 +157,19 @@ impl SimOutput {
             }));
         }
         let mut df = crate::table::frame(n * AXLES, cols, path)?;
-        Ok(crate::table::write_parquet(&mut df, path, None)?)
+        let mismatch = self.mismatch.as_ref().map(|m| {
+            (
+                TRUTH_MISMATCH_KEY,
+                serde_json::to_string(m).expect("numbers serialise"),
+            )
+        });
+        Ok(crate::table::write_parquet(&mut df, path, mismatch)?)
     }
 }
+
+/// The truth table's metadata key of a run's [`super::Mismatch`] (JSON), when the scene asked
+/// for a calibration effect.
+pub const TRUTH_MISMATCH_KEY: &str = "railgrip.truth";
 
 /// Reads a truth table (`<stem>.truth.parquet`, [`TRUTH_COLUMNS`]) as scoring samples at the
 /// run's ambient temperature `t_c` (°C; NaN when unknown). Errors name the file and column.

@@ -52,6 +52,9 @@ pub(super) struct Logger<'a> {
     pulse_angle: f64,
     window: usize,
     theta_hist: Vec<[f64; AXLES]>,
+    /// `radar_error`: the true speed at the last radar instants (a ring as long as the
+    /// latency), empty without it.
+    radar_hist: Vec<f64>,
     /// Measured channels in [`crate::format::Signal::ALL`] order.
     pub channels: Vec<Series>,
     pub truth: Truth,
@@ -117,6 +120,11 @@ impl<'a> Logger<'a> {
             pulse_angle: std::f64::consts::TAU / s.tacho_pulses_per_rev,
             window,
             theta_hist: vec![[0.0; AXLES]; window + 1],
+            radar_hist: if sc.effects.has(Effect::RadarError) {
+                vec![0.0; (s.radar_latency_s * s.radar_rate_hz).floor() as usize + 2]
+            } else {
+                Vec::new()
+            },
             channels,
             truth: Truth {
                 time_s: column(),
@@ -176,6 +184,20 @@ impl<'a> Logger<'a> {
     fn radar(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
         let (fx, s) = (self.sc.effects, &self.sc.sensors);
         let mut m = st.v;
+        if fx.has(Effect::RadarError) {
+            // The true speed at the radar's instants, kept as long as the latency; the reading
+            // is the speed `radar_latency_s` ago (linear between two instants), scaled. Before
+            // the first instant it is the first one's (the run starts at constant speed).
+            counters.hit(Effect::RadarError);
+            let k = self.next_k[RADAR] as usize;
+            let len = self.radar_hist.len();
+            self.radar_hist[k % len] = st.v;
+            let lag = s.radar_latency_s * self.rates[RADAR];
+            let n = lag.floor() as usize;
+            let frac = lag - n as f64;
+            let at = |j: usize| self.radar_hist[k.saturating_sub(j) % len];
+            m = s.radar_scale * ((1.0 - frac) * at(n) + frac * at(n + 1));
+        }
         if fx.has(Effect::RadarNoise) {
             counters.hit(Effect::RadarNoise);
             m += s.radar_noise_mps * self.normals.next(&mut self.rng);

@@ -44,6 +44,10 @@ pub(super) struct Setup<'a> {
     k_cyl: f64,
     k_hyst: f64,
     inv_ddv0: f64,
+    /// Each axle's brake coefficient α_i (N m/bar): the pipeline's, off by `brake_scatter`.
+    alpha: [f64; AXLES],
+    /// `pad_friction`: (rise, 1/v0): α_i (1 + rise (1 − v/v0)).
+    pad: Option<(f64, f64)>,
     /// The `thermal` effect's constants, if listed.
     thermal: Option<Thermal>,
 }
@@ -210,6 +214,20 @@ fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64, patch: f64) -> (f64,
     )
 }
 
+/// The brake coefficients α_i (N m/bar) the simulated vehicle has: the pipeline's, each off by
+/// a relative scatter drawn from `seed` with `brake_scatter` (1σ = `brake.alpha_scatter`, from a
+/// generator of its own, so the sensors' noise is the same with and without it).
+pub fn brake_coefficients(sc: &Scene, seed: u64) -> [f64; AXLES] {
+    let mut alpha = sc.vehicle.brake_torque_nm_per_bar;
+    if sc.effects.has(Effect::BrakeScatter) {
+        let mut rng = crate::rng::Rng::new(seed ^ 0x6272_616b_655f_7363);
+        for a in alpha.iter_mut() {
+            *a *= 1.0 + sc.brake.alpha_scatter * rng.normal();
+        }
+    }
+    alpha
+}
+
 impl<'a> Setup<'a> {
     /// The run's constants; the effects that act once (temperature, cleaning, gradient) are
     /// applied and counted here. (`Setup::new`, `initial_state` and `Logger::new` are inlined
@@ -217,7 +235,11 @@ impl<'a> Setup<'a> {
     /// local whose address escapes into a call is kept in memory, which cost the full scene
     /// ~10 % more instructions.)
     #[inline(always)]
-    pub(super) fn new(sc: &'a Scene, counters: &mut EffectCounters) -> Result<Setup<'a>, SimError> {
+    pub(super) fn new(
+        sc: &'a Scene,
+        seed: u64,
+        counters: &mut EffectCounters,
+    ) -> Result<Setup<'a>, SimError> {
         let fx = sc.effects;
         let veh = &sc.vehicle;
         let ad = &sc.adhesion;
@@ -255,6 +277,16 @@ impl<'a> Setup<'a> {
         } else {
             0.0
         };
+        if fx.has(Effect::BrakeScatter) {
+            counters.add(Effect::BrakeScatter, AXLES as u64);
+        }
+        let alpha = brake_coefficients(sc, seed);
+        let pad = fx.has(Effect::PadFriction).then(|| {
+            (
+                sc.brake.pad_friction_rise,
+                1.0 / (sc.run.initial_speed_kmh / 3.6).max(1e-3),
+            )
+        });
         let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);
         // Without load transfer the loads stay static: N = N0 + d · 0, the same operations.
         let per_decel = if fx.has(Effect::LoadTransfer) {
@@ -290,6 +322,8 @@ impl<'a> Setup<'a> {
             k_cyl: 1.0 - (-h / sc.brake.cylinder_time_constant_s).exp(),
             k_hyst: 1.0 - (-h / ad.hysteresis_time_constant_s).exp(),
             inv_ddv0: 1.0 / ad.hysteresis_ddv_mps2,
+            alpha,
+            pad,
             thermal: if fx.has(Effect::Thermal) {
                 Some(Thermal::new(sc).map_err(contact_err)?)
             } else {
@@ -389,11 +423,15 @@ impl<'a> Setup<'a> {
             counters.add(Effect::Wsp, AXLES as u64);
         }
         let (r, h, k_cyl, v, decel) = (self.r, self.h, self.k_cyl, st.v, st.decel);
-        let (demand_bar, alpha, wsp_keys) = (
-            &sc.brake.demand_bar,
-            &sc.vehicle.brake_torque_nm_per_bar,
-            &sc.wsp,
-        );
+        let (demand_bar, wsp_keys) = (&sc.brake.demand_bar, &sc.wsp);
+        // Pad friction: one factor for the four axles at this speed.
+        let pad = match self.pad {
+            Some((rise, inv_v0)) => {
+                counters.add(Effect::PadFriction, AXLES as u64);
+                1.0 + rise * (1.0 - v * inv_v0).max(0.0)
+            }
+            None => 1.0,
+        };
         for a in 0..AXLES {
             let demand = demand_at(&demand_bar[a], t, &mut st.cursor[a]);
             let w = (-r).mul_add(st.ax.omega[a], v);
@@ -413,7 +451,11 @@ impl<'a> Setup<'a> {
             };
             let p = p + (cmd - p) * k_cyl;
             st.p[a] = p;
-            st.ax.brake[a] = alpha[a] * p;
+            st.ax.brake[a] = if self.pad.is_some() {
+                self.alpha[a] * pad * p
+            } else {
+                self.alpha[a] * p
+            };
         }
     }
 

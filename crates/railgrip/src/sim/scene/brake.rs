@@ -13,6 +13,8 @@ pub mod raw {
         pub demand_bar: Option<Vec<[f64; 2]>>,
         pub demand_bar_per_axle: Option<Vec<Vec<[f64; 2]>>>,
         pub cylinder_time_constant_s: Option<f64>,
+        pub alpha_scatter: Option<f64>,
+        pub pad_friction_rise: Option<f64>,
     }
 }
 
@@ -23,6 +25,11 @@ pub struct BrakeSection {
     /// last point.
     pub demand_bar: [Vec<(f64, f64)>; 4],
     pub cylinder_time_constant_s: f64,
+    /// `brake_scatter`: 1σ relative scatter of each axle's brake coefficient.
+    pub alpha_scatter: f64,
+    /// `pad_friction`: the brake coefficient's relative rise from the initial speed to
+    /// standstill.
+    pub pad_friction_rise: f64,
 }
 
 pub(super) const DEMAND: Key = text(
@@ -47,8 +54,23 @@ pub(super) const CYLINDER: Key = Key::num(
     "first-order cylinder",
 );
 
+pub(super) const SCATTER: Key = Key::num(
+    "brake.alpha_scatter",
+    "–",
+    closed(0.0, 0.2),
+    0.02,
+    "`brake_scatter`: 1σ relative scatter of each axle's brake coefficient α_i from the pipeline's, drawn from the run's seed",
+);
+pub(super) const PAD_RISE: Key = Key::num(
+    "brake.pad_friction_rise",
+    "–",
+    closed(-0.5, 0.5),
+    0.05,
+    "`pad_friction`: α_i(v) = α_i (1 + rise (1 − v/v0)), the rise from the initial speed v0 to standstill",
+);
+
 /// The keys of `[brake]`, in the order of the documented table.
-pub const KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER];
+pub const KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER, &SCATTER, &PAD_RISE];
 
 impl Checker<'_> {
     /// `[brake]` checked.
@@ -98,6 +120,8 @@ impl Checker<'_> {
         Ok(BrakeSection {
             demand_bar,
             cylinder_time_constant_s: self.value(&CYLINDER, b.cylinder_time_constant_s)?,
+            alpha_scatter: self.value(&SCATTER, b.alpha_scatter)?,
+            pad_friction_rise: self.value(&PAD_RISE, b.pad_friction_rise)?,
         })
     }
 }

@@ -62,10 +62,18 @@ pub enum Effect {
     /// Contact temperature per axle from the slip power (tread heating + flash temperature),
     /// friction lowered with it by f(σ, θ) (seed 000 in spirit; [`ThermalParams`]).
     Thermal,
+    /// Each axle's brake coefficient α_i off the pipeline's by a relative scatter drawn from
+    /// the run's seed (`brake.alpha_scatter`, 1σ): the brake rig an estimator does not know.
+    BrakeScatter,
+    /// Pad friction rising as the train slows: α_i(v) = α_i (1 + rise (1 − v/v0)), v0 the run's
+    /// initial speed (`brake.pad_friction_rise` at standstill).
+    PadFriction,
+    /// A radar that reads `sensors.radar_scale` × the speed of `sensors.radar_latency_s` ago.
+    RadarError,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 13] = [
+    pub const ALL: [Effect; 16] = [
         Effect::LoadTransfer,
         Effect::Wsp,
         Effect::Hysteresis,
@@ -79,6 +87,9 @@ impl Effect {
         Effect::TachoQuantization,
         Effect::PressureNoise,
         Effect::Thermal,
+        Effect::BrakeScatter,
+        Effect::PadFriction,
+        Effect::RadarError,
     ];
 
     pub fn name(self) -> &'static str {
@@ -96,6 +107,9 @@ impl Effect {
             Effect::TachoQuantization => "tacho_quantization",
             Effect::PressureNoise => "pressure_noise",
             Effect::Thermal => "thermal",
+            Effect::BrakeScatter => "brake_scatter",
+            Effect::PadFriction => "pad_friction",
+            Effect::RadarError => "radar_error",
         }
     }
 

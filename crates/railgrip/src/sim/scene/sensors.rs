@@ -18,6 +18,8 @@ pub mod raw {
         pub radar_rate_hz: Option<f64>,
         pub tacho_rate_hz: Option<f64>,
         pub pressure_rate_hz: Option<f64>,
+        pub radar_scale: Option<f64>,
+        pub radar_latency_s: Option<f64>,
     }
 }
 
@@ -33,6 +35,10 @@ pub struct SensorsSection {
     pub radar_rate_hz: f64,
     pub tacho_rate_hz: f64,
     pub pressure_rate_hz: f64,
+    /// `radar_error`: the radar reads this × the true speed …
+    pub radar_scale: f64,
+    /// … of this long ago, s.
+    pub radar_latency_s: f64,
 }
 
 pub(super) const RADAR_NOISE: Key = Key::num(
@@ -93,6 +99,21 @@ pub(super) const RADAR_RATE: Key = rate(
 pub(super) const TACHO_RATE: Key = rate("sensors.tacho_rate_hz", "tachometer logger rate");
 pub(super) const PRESSURE_RATE: Key = rate("sensors.pressure_rate_hz", "pressure logger rate");
 
+pub(super) const RADAR_SCALE: Key = Key::num(
+    "sensors.radar_scale",
+    "–",
+    closed(0.9, 1.1),
+    1.003,
+    "`radar_error`: the radar reads this × the true speed (a scale error, e.g. of the mounting angle)",
+);
+pub(super) const RADAR_LATENCY: Key = Key::num(
+    "sensors.radar_latency_s",
+    "s",
+    closed(0.0, 0.5),
+    0.03,
+    "`radar_error`: … of this long ago (the radar's processing delay against the tachometers)",
+);
+
 /// The keys of `[sensors]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &RADAR_NOISE,
@@ -104,6 +125,8 @@ pub const KEYS: &[&Key] = &[
     &RADAR_RATE,
     &TACHO_RATE,
     &PRESSURE_RATE,
+    &RADAR_SCALE,
+    &RADAR_LATENCY,
 ];
 
 impl Checker<'_> {
@@ -123,6 +146,8 @@ impl Checker<'_> {
             radar_rate_hz: self.value_or(&RADAR_RATE, s.radar_rate_hz, output_rate_hz)?,
             tacho_rate_hz: self.value_or(&TACHO_RATE, s.tacho_rate_hz, output_rate_hz)?,
             pressure_rate_hz: self.value_or(&PRESSURE_RATE, s.pressure_rate_hz, output_rate_hz)?,
+            radar_scale: self.value(&RADAR_SCALE, s.radar_scale)?,
+            radar_latency_s: self.value(&RADAR_LATENCY, s.radar_latency_s)?,
         })
     }
 }
