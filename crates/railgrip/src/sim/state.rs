@@ -432,8 +432,8 @@ impl<'a> Setup<'a> {
             }
             None => 1.0,
         };
-        for a in 0..AXLES {
-            let demand = demand_at(&demand_bar[a], t, &mut st.cursor[a]);
+        for (a, profile) in demand_bar.iter().enumerate() {
+            let demand = demand_at(profile, t, &mut st.cursor[a]);
             let w = (-r).mul_add(st.ax.omega[a], v);
             st.slip[a] = w;
             let p = st.p[a];
