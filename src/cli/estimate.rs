@@ -207,6 +207,14 @@ pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<u8> {
             c.rms_residual_n
         ),
     }
+    // The radar against the wheels (information: the estimates take the radar as it reads).
+    match railgrip::estimate::radar::calibrate_radar(&log, &pipeline) {
+        Ok(r) => println!(
+            "radar      reads {:.5} ± {:.5} × r ω while every brake is released ({} samples; r from the pipeline)",
+            r.scale, r.scale_se, r.scale_samples
+        ),
+        Err(e) => println!("radar      scale not fitted: {e}"),
+    }
     let current = pipeline.vehicle.brake_torque_nm_per_bar;
     println!("pipeline   {} has {:?}", pipeline.source, current);
     println!("\n# put this line into [vehicle] of your pipeline file:");
