@@ -47,7 +47,14 @@ fn the_radars_scale_comes_out_of_braking_runs() {
                     "{kmh} km/h seed {seed}: scale {} against {scale}",
                     c.scale
                 );
+                // The standard error is honest: the error within three of them.
                 assert!(c.scale_se > 0.0 && c.scale_se < 5e-4, "{}", c.scale_se);
+                assert!(
+                    (c.scale - scale).abs() <= 3.0 * c.scale_se,
+                    "{kmh} km/h seed {seed}: error {} against se {}",
+                    c.scale - scale,
+                    c.scale_se
+                );
             }
         }
     }

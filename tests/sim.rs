@@ -129,6 +129,32 @@ fn effects_not_listed_cost_nothing() {
     // Per-step effects run once per step (and axle): the count is the work done.
     assert_eq!(full.counters.get(Effect::RunningResistance), full.steps);
     assert_eq!(full.counters.get(Effect::FallingFriction), 4 * full.steps);
+    assert_eq!(full.counters.get(Effect::PadFriction), 4 * full.steps);
+    assert_eq!(
+        full.counters.get(Effect::BrakeScatter),
+        4,
+        "drawn once per axle"
+    );
+    assert_eq!(
+        full.counters.get(Effect::RadarError),
+        full.channels[0].time_s.len() as u64
+    );
+    // The brake scatter leaves the sensors' noise alone: the radar reads the same until the
+    // brake (whose coefficients differ) acts.
+    let noisy = |extra: &str| {
+        sim::simulate(
+            &scene(&format!("effects = [\"radar_noise\"{extra}]\n[brake]\ndemand_bar = [[0.0, 0.0], [1.0, 0.0], [2.5, 3.8]]")),
+            None,
+        )
+        .unwrap()
+    };
+    let (a, b) = (noisy(""), noisy(", \"brake_scatter\""));
+    let before = a.channels[0].time_s.iter().filter(|t| **t < 1.0).count();
+    assert!(before > 100);
+    assert_eq!(
+        a.channels[0].values[..before],
+        b.channels[0].values[..before]
+    );
 }
 
 /// The calibration mismatches do what they say, measured from the output alone: the radar reads
@@ -151,15 +177,31 @@ fn mismatch_effects_do_what_they_say() {
         rel.iter().all(|r| r.abs() < 0.1) && rel.iter().any(|r| r.abs() > 1e-3),
         "{rel:?}"
     );
+    // The vehicle's scatter seed decides, not the run's noise seed.
     assert_eq!(
-        sim::simulate(&sc, None).unwrap().mismatch,
-        Some(m.clone()),
-        "the seed decides"
-    );
-    assert_ne!(
         sim::simulate(&sc, Some(4)).unwrap().mismatch,
-        Some(m.clone())
+        Some(m.clone()),
+        "one vehicle"
     );
+    let other =
+        scene("effects = [\"brake_scatter\"]\n[brake]\nalpha_scatter = 0.02\nscatter_seed = 7");
+    assert_ne!(
+        sim::brake_coefficients(&other),
+        m.brake_torque_nm_per_bar,
+        "another vehicle"
+    );
+    // The draw's spread is the scatter asked for (2 % over 4 × 300 vehicles).
+    let rels: Vec<f64> = (0..300)
+        .flat_map(|k| {
+            let v = scene(&format!(
+                "effects = [\"brake_scatter\"]\n[brake]\nalpha_scatter = 0.02\nscatter_seed = {k}"
+            ));
+            let a = sim::brake_coefficients(&v);
+            (0..4).map(move |i| a[i] / nominal[i] - 1.0)
+        })
+        .collect();
+    let sd = (rels.iter().map(|r| r * r).sum::<f64>() / rels.len() as f64).sqrt();
+    assert!((sd - 0.02).abs() < 0.002, "spread {sd}");
     assert_eq!(
         (m.radar_scale, m.radar_latency_s, m.pad_friction_rise),
         (1.003, 0.03, 0.05)
@@ -251,11 +293,52 @@ fn mismatch_effects_do_what_they_say() {
         .expect("railgrip.truth in the truth table");
     let back: serde_json::Value = serde_json::from_str(&json).unwrap();
     assert_eq!(back["radar_latency_s"], 0.03);
+    // The log's effects list leaves them out too.
+    assert!(
+        !meta.contains("brake_scatter") && !meta.contains("radar_error"),
+        "{meta}"
+    );
     // A scene without them writes no such key (the bundled archive's bytes stay).
-    assert!(sim::simulate(&scene("effects = []"), None)
+    let plain = sim::simulate(&scene("effects = []"), None).unwrap();
+    assert!(plain.mismatch.is_none());
+    plain.write(dir.path(), "plain", OutputFormat::Csv).unwrap();
+    let f = std::fs::File::open(dir.path().join("plain.truth.parquet")).unwrap();
+    let mut reader = <polars::prelude::ParquetReader<_> as polars::prelude::SerReader<_>>::new(f);
+    let kv = reader
+        .get_metadata()
         .unwrap()
-        .mismatch
-        .is_none());
+        .key_value_metadata()
+        .clone()
+        .unwrap_or_default();
+    assert!(kv.iter().all(|k| k.key != sim::TRUTH_MISMATCH_KEY));
+    // The radar's delay from the start and at another rate: a 100 Hz radar 25 ms late (two and
+    // a half of its samples) reads the initial speed × scale until the speed changes.
+    let slow = scene(
+        "effects = [\"radar_error\"]\n[sensors]\nradar_rate_hz = 100.0\nradar_scale = 1.01\nradar_latency_s = 0.025",
+    );
+    let o = sim::simulate(&slow, None).unwrap();
+    let v0: f64 = 60.0 / 3.6;
+    for (t, y) in o.channels[0]
+        .time_s
+        .iter()
+        .zip(&o.channels[0].values)
+        .take(5)
+    {
+        assert!(
+            (y - (1.01 * v0 * 1000.0).round() / 1000.0).abs() < 1.5e-3,
+            "t {t}: {y}"
+        );
+    }
+    let radar_t = &o.channels[0].time_s;
+    assert!(
+        (radar_t[1] - radar_t[0] - 0.01).abs() < 1e-9,
+        "the radar at 100 Hz"
+    );
+    assert_eq!(
+        o.counters.get(Effect::RadarError),
+        radar_t.len() as u64,
+        "one delayed reading per radar sample"
+    );
 }
 
 #[test]

@@ -210,7 +210,7 @@ pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<u8> {
     // The radar against the wheels (information: the estimates take the radar as it reads).
     match railgrip::estimate::radar::calibrate_radar(&log, &pipeline) {
         Ok(r) => println!(
-            "radar      reads {:.5} ± {:.5} × r ω while every brake is released ({} samples; r from the pipeline)",
+            "radar      reads {:.5} ± {:.5} × r ω in the coast before the brake ({} samples; r from the pipeline)",
             r.scale, r.scale_se, r.scale_samples
         ),
         Err(e) => println!("radar      scale not fitted: {e}"),

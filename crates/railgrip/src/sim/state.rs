@@ -215,12 +215,13 @@ fn scalar_adhesion(m: &ScalarLaw, w: f64, ddv: f64, v: f64, patch: f64) -> (f64,
 }
 
 /// The brake coefficients α_i (N m/bar) the simulated vehicle has: the pipeline's, each off by
-/// a relative scatter drawn from `seed` with `brake_scatter` (1σ = `brake.alpha_scatter`, from a
-/// generator of its own, so the sensors' noise is the same with and without it).
-pub fn brake_coefficients(sc: &Scene, seed: u64) -> [f64; AXLES] {
+/// a relative scatter with `brake_scatter` (1σ = `brake.alpha_scatter`), drawn from
+/// `brake.scatter_seed` — the vehicle's, not the run's noise seed (which the log carries): the
+/// same vehicle in every run of a campaign, and the sensors' noise the same with and without.
+pub fn brake_coefficients(sc: &Scene) -> [f64; AXLES] {
     let mut alpha = sc.vehicle.brake_torque_nm_per_bar;
     if sc.effects.has(Effect::BrakeScatter) {
-        let mut rng = crate::rng::Rng::new(seed ^ 0x6272_616b_655f_7363);
+        let mut rng = crate::rng::Rng::new(sc.brake.scatter_seed ^ 0x6272_616b_655f_7363);
         for a in alpha.iter_mut() {
             *a *= 1.0 + sc.brake.alpha_scatter * rng.normal();
         }
@@ -235,11 +236,7 @@ impl<'a> Setup<'a> {
     /// local whose address escapes into a call is kept in memory, which cost the full scene
     /// ~10 % more instructions.)
     #[inline(always)]
-    pub(super) fn new(
-        sc: &'a Scene,
-        seed: u64,
-        counters: &mut EffectCounters,
-    ) -> Result<Setup<'a>, SimError> {
+    pub(super) fn new(sc: &'a Scene, counters: &mut EffectCounters) -> Result<Setup<'a>, SimError> {
         let fx = sc.effects;
         let veh = &sc.vehicle;
         let ad = &sc.adhesion;
@@ -280,7 +277,7 @@ impl<'a> Setup<'a> {
         if fx.has(Effect::BrakeScatter) {
             counters.add(Effect::BrakeScatter, AXLES as u64);
         }
-        let alpha = brake_coefficients(sc, seed);
+        let alpha = brake_coefficients(sc);
         let pad = fx.has(Effect::PadFriction).then(|| {
             (
                 sc.brake.pad_friction_rise,
@@ -451,11 +448,8 @@ impl<'a> Setup<'a> {
             };
             let p = p + (cmd - p) * k_cyl;
             st.p[a] = p;
-            st.ax.brake[a] = if self.pad.is_some() {
-                self.alpha[a] * pad * p
-            } else {
-                self.alpha[a] * p
-            };
+            // Without pad friction `pad` is 1 and α × 1 is α: the same bits as before it.
+            st.ax.brake[a] = (self.alpha[a] * pad) * p;
         }
     }
 

@@ -1,7 +1,7 @@
 //! `[brake]`: the demanded cylinder pressures and the cylinders.
 
 use super::text;
-use crate::config::rule::{closed, Checker, Key};
+use crate::config::rule::{closed, int, Checker, Key};
 use crate::config::ConfigError;
 
 pub mod raw {
@@ -14,6 +14,7 @@ pub mod raw {
         pub demand_bar_per_axle: Option<Vec<Vec<[f64; 2]>>>,
         pub cylinder_time_constant_s: Option<f64>,
         pub alpha_scatter: Option<f64>,
+        pub scatter_seed: Option<f64>,
         pub pad_friction_rise: Option<f64>,
     }
 }
@@ -27,6 +28,9 @@ pub struct BrakeSection {
     pub cylinder_time_constant_s: f64,
     /// `brake_scatter`: 1σ relative scatter of each axle's brake coefficient.
     pub alpha_scatter: f64,
+    /// `brake_scatter`: the seed of the draw — the vehicle's identity, the same for every run
+    /// of a campaign that shares it (not the run's noise seed, and not written to the log).
+    pub scatter_seed: u64,
     /// `pad_friction`: the brake coefficient's relative rise from the initial speed to
     /// standstill.
     pub pad_friction_rise: f64,
@@ -59,18 +63,32 @@ pub(super) const SCATTER: Key = Key::num(
     "–",
     closed(0.0, 0.2),
     0.02,
-    "`brake_scatter`: 1σ relative scatter of each axle's brake coefficient α_i from the pipeline's, drawn from the run's seed",
+    "`brake_scatter`: 1σ relative scatter of each axle's brake coefficient α_i from the pipeline's, drawn from `brake.scatter_seed`",
+);
+pub(super) const SCATTER_SEED: Key = Key::num(
+    "brake.scatter_seed",
+    "",
+    int(0.0, 1e9),
+    1.0,
+    "`brake_scatter`: the seed of the draw, the vehicle's identity (runs of one vehicle share it; not the noise seed, not in the log)",
 );
 pub(super) const PAD_RISE: Key = Key::num(
     "brake.pad_friction_rise",
     "–",
     closed(-0.5, 0.5),
     0.05,
-    "`pad_friction`: α_i(v) = α_i (1 + rise (1 − v/v0)), the rise from the initial speed v0 to standstill",
+    "`pad_friction`: α_i(v) = α_i (1 + rise max(0, 1 − v/v0)), v the train's speed, the rise from the initial speed v0 to standstill",
 );
 
 /// The keys of `[brake]`, in the order of the documented table.
-pub const KEYS: &[&Key] = &[&DEMAND, &DEMAND_PER_AXLE, &CYLINDER, &SCATTER, &PAD_RISE];
+pub const KEYS: &[&Key] = &[
+    &DEMAND,
+    &DEMAND_PER_AXLE,
+    &CYLINDER,
+    &SCATTER,
+    &SCATTER_SEED,
+    &PAD_RISE,
+];
 
 impl Checker<'_> {
     /// `[brake]` checked.
@@ -121,6 +139,7 @@ impl Checker<'_> {
             demand_bar,
             cylinder_time_constant_s: self.value(&CYLINDER, b.cylinder_time_constant_s)?,
             alpha_scatter: self.value(&SCATTER, b.alpha_scatter)?,
+            scatter_seed: self.value(&SCATTER_SEED, b.scatter_seed)? as u64,
             pad_friction_rise: self.value(&PAD_RISE, b.pad_friction_rise)?,
         })
     }
