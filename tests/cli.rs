@@ -1072,17 +1072,7 @@ fn contact_writes_creep_curves_and_temperatures_and_refuses_bad_values() {
 #[test]
 fn train_a_deeper_network_through_burn_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
-    let pipeline = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"),
-    )
-    .unwrap()
-    .replace(
-        "hidden = 10",
-        "layers = [6, 5]\noptimizer = \"adamw\"\nlearning_rate = 0.005\nbatch = 128",
-    )
-    .replace("epochs = 1000", "epochs = 8")
-    .replace("polach_intervals = true", "polach_intervals = false")
-    .replace("leave_one_run_out = true", "leave_one_run_out = false");
+    let pipeline = deep_pipeline_text();
     std::fs::write(dir.path().join("deep.toml"), pipeline).unwrap();
     let a = archive("soap_120kmh_p20.csv");
     let o = railgrip(

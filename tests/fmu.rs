@@ -62,17 +62,7 @@ fn models(dir: &Path) -> Vec<(&'static str, PathBuf)> {
         "the campaign's Polach model has a temperature law and a speed law: {}",
         v["polach"]
     );
-    let pipeline = std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"),
-    )
-    .unwrap()
-    .replace(
-        "hidden = 10",
-        "layers = [6, 5]\noptimizer = \"adamw\"\nlearning_rate = 0.005\nbatch = 128",
-    )
-    .replace("epochs = 1000", "epochs = 8")
-    .replace("polach_intervals = true", "polach_intervals = false")
-    .replace("leave_one_run_out = true", "leave_one_run_out = false");
+    let pipeline = deep_pipeline_text();
     std::fs::write(dir.join("deep.toml"), pipeline).unwrap();
     ok(&railgrip(
         &[

@@ -483,6 +483,22 @@ fn scene_errors_name_the_key_and_the_fix() {
         e.contains("brake.demand_bar") && e.contains("strictly increasing"),
         "{e}"
     );
+    // The calibration mismatches' keys: out of range, or not a whole seed.
+    let e = err("[brake]\nalpha_scatter = 0.5");
+    assert!(
+        e.starts_with("s.toml: brake.alpha_scatter = 0.5: must be"),
+        "{e}"
+    );
+    let e = err("[brake]\nscatter_seed = 1.5");
+    assert!(
+        e.contains("brake.scatter_seed = 1.5: must be a whole number"),
+        "{e}"
+    );
+    let e = err("[sensors]\nradar_latency_s = 2.0");
+    assert!(
+        e.starts_with("s.toml: sensors.radar_latency_s = 2: must be"),
+        "{e}"
+    );
     let e = err("[wsp]\nreapply_slip_mps = 2.0\ndump_slip_mps = 1.0");
     assert!(
         e.contains("wsp.reapply_slip_mps = 2: must be below wsp.dump_slip_mps = 1"),

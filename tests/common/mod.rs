@@ -607,3 +607,18 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     Ok(sha256_hex(&std::fs::read(path)?))
 }
+
+/// The default pipeline with a quick deeper network: two hidden layers (6, 5) trained by AdamW
+/// for 8 epochs, without Polach intervals or leave-one-run-out (tests that need a deep model
+/// file, not a good one).
+pub fn deep_pipeline_text() -> String {
+    std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/uic_z1.toml"))
+        .unwrap()
+        .replace(
+            "hidden = 10",
+            "layers = [6, 5]\noptimizer = \"adamw\"\nlearning_rate = 0.005\nbatch = 128",
+        )
+        .replace("epochs = 1000", "epochs = 8")
+        .replace("polach_intervals = true", "polach_intervals = false")
+        .replace("leave_one_run_out = true", "leave_one_run_out = false")
+}

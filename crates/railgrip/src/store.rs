@@ -65,6 +65,17 @@ impl Location {
         }
         Ok(Location::Local(PathBuf::from(text)))
     }
+
+    /// The name outputs give a campaign at this location: its path, or `s3://BUCKET/PREFIX`
+    /// without a trailing `/`.
+    pub fn root(&self) -> PathBuf {
+        match self {
+            Location::Local(p) => p.clone(),
+            Location::S3 { bucket, prefix } => {
+                PathBuf::from(format!("s3://{bucket}/{prefix}").trim_end_matches('/'))
+            }
+        }
+    }
 }
 
 /// An object-storage error: the URI, what went wrong and what to do.

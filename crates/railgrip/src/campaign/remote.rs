@@ -54,12 +54,7 @@ pub fn estimate_run_at(
     let out_at = Location::parse(out)?;
     let (root, logs, skipped) = match log {
         Some(l) => {
-            let root = match Location::parse(archive)? {
-                Location::Local(p) => p,
-                Location::S3 { bucket, prefix } => {
-                    PathBuf::from(format!("s3://{bucket}/{prefix}").trim_end_matches('/'))
-                }
-            };
+            let root = Location::parse(archive)?.root();
             (root, vec![(run.to_string(), LogSource::at(l)?)], vec![])
         }
         None => {
@@ -229,7 +224,7 @@ pub fn sources_at(
                 _ => None,
             };
             let sources = bucket_sources(&b, &prefix, skip)?;
-            (PathBuf::from(b.uri(&prefix).trim_end_matches('/')), sources)
+            (Location::S3 { bucket, prefix }.root(), sources)
         }
     })
 }
@@ -368,7 +363,7 @@ struct Staged {
     dir: PathBuf,
     /// What was fetched: relative path → SHA-256 of its bytes (an unchanged file is not put
     /// back).
-    pulled: std::sync::Mutex<std::collections::HashMap<String, String>>,
+    pulled: std::collections::HashMap<String, String>,
 }
 
 /// The files a finished campaign writes last (and a new one removes first).
@@ -389,7 +384,7 @@ impl Staged {
         only: Option<&[&str]>,
     ) -> Result<Staged, CampaignError> {
         let dir = crate::store::staging_dir(&bucket.uri(prefix));
-        let staged = Staged {
+        let mut staged = Staged {
             bucket,
             prefix: prefix.to_string(),
             dir,
@@ -402,47 +397,43 @@ impl Staged {
         Ok(staged)
     }
 
-    fn fetch_runs(&self, only: Option<&[&str]>) -> Result<(), CampaignError> {
-        let (staged, prefix) = (self, self.prefix.as_str());
-        // A shard lists its own runs' folders only (a task per run must not list them all).
+    /// The objects below `runs/<run>/` of each of `runs` (a shard's own folders: a task per
+    /// run must not list them all).
+    fn list_runs(&self, runs: &[&str]) -> Result<Vec<crate::store::Object>, CampaignError> {
+        let mut all = Vec::new();
+        for run in runs {
+            all.extend(
+                self.bucket
+                    .list(&join(&self.prefix, &format!("runs/{run}/")))?,
+            );
+        }
+        Ok(all)
+    }
+
+    fn fetch_runs(&mut self, only: Option<&[&str]>) -> Result<(), CampaignError> {
         let listed = match only {
-            Some(runs) => {
-                let mut all = Vec::new();
-                for run in runs {
-                    all.extend(staged.bucket.list(&join(prefix, &format!("runs/{run}/")))?);
-                }
-                all
-            }
-            None => staged.bucket.list(&join(prefix, "runs/"))?,
+            Some(runs) => self.list_runs(runs)?,
+            None => self.bucket.list(&join(&self.prefix, "runs/"))?,
         };
+        let top = join(&self.prefix, "");
         for o in listed {
             let rel = o
                 .key
-                .strip_prefix(&join(prefix, ""))
+                .strip_prefix(&top)
                 .unwrap_or(&o.key)
                 .trim_start_matches('/');
             if rel.ends_with(".railgrip.mcap") {
                 continue; // rewritten or removed by every campaign
             }
-            let run = rel
-                .trim_start_matches("runs/")
-                .split('/')
-                .next()
-                .unwrap_or("");
-            if only.is_some_and(|runs| !runs.contains(&run)) {
-                continue;
-            }
-            let bytes = staged
+            let bytes = self
                 .bucket
                 .get(&o.key, crate::ingest::MAX_OBJECT_LOG_BYTES)?;
-            let path = staged.dir.join(rel);
+            let path = self.dir.join(rel);
             let sha = crate::hash::sha256_bytes(&bytes);
-            std::fs::create_dir_all(path.parent().unwrap_or(&staged.dir))
+            std::fs::create_dir_all(path.parent().unwrap_or(&self.dir))
                 .and_then(|_| std::fs::write(&path, bytes))
                 .map_err(|source| CampaignError::Write { path, source })?;
-            if let Ok(mut p) = staged.pulled.lock() {
-                p.insert(rel.to_string(), sha);
-            }
+            self.pulled.insert(rel.to_string(), sha);
         }
         Ok(())
     }
@@ -468,14 +459,12 @@ impl Staged {
             .collect();
         let shard = matches!(part, Part::Estimate(_));
         // What is there now: a shard looks at its own runs' folders only.
-        let mut listed = Vec::new();
-        if shard {
-            for d in &run_dirs {
-                listed.extend(self.bucket.list(&key(d))?);
-            }
+        let listed = if shard {
+            let runs: Vec<&str> = o.records.iter().map(|r| r.run.as_str()).collect();
+            self.list_runs(&runs)?
         } else {
-            listed = self.bucket.list(&self.prefix)?;
-        }
+            self.bucket.list(&self.prefix)?
+        };
         let before: Vec<String> = listed.into_iter().map(|o| rel_of(&o.key)).collect();
         let in_runs = |rel: &str| run_dirs.iter().any(|d| rel.starts_with(d.as_str()));
         // The finished campaign's files go first: from here on the prefix is not finished.
@@ -513,11 +502,11 @@ impl Staged {
     fn upload(&self, rel: &str) -> Result<(), CampaignError> {
         let path = self.dir.join(rel);
         let bytes = std::fs::read(&path).map_err(|source| CampaignError::Read { path, source })?;
-        let unchanged = self.pulled.lock().is_ok_and(|p| {
-            p.get(rel)
-                .is_some_and(|sha| *sha == crate::hash::sha256_bytes(&bytes))
-        });
-        if unchanged {
+        if self
+            .pulled
+            .get(rel)
+            .is_some_and(|sha| *sha == crate::hash::sha256_bytes(&bytes))
+        {
             return Ok(());
         }
         Ok(self.bucket.put(&join(&self.prefix, rel), bytes)?)
