@@ -76,3 +76,100 @@ fn a_run_that_never_coasts_is_refused_with_what_it_lacks() {
         "{e}"
     );
 }
+
+/// The mismatch campaign (pipelines/scenes/mismatch, 12 scenes) simulated with noise seed
+/// `seed`: each run's log, its truth and the mismatch behind it.
+fn mismatch_campaign(
+    seed: u64,
+    dir: &Path,
+) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput, f64)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    scenes.sort();
+    scenes
+        .iter()
+        .map(|path| {
+            let mut sc = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+            if let Ok(x) = std::env::var("RG_NOQUIET") {
+                for name in x.split(',') {
+                    let e = railgrip::sim::Effect::ALL.iter().find(|e| e.name() == name).unwrap();
+                    let keep = railgrip::sim::Effect::ALL.iter().filter(|f| sc.effects.has(**f) && *f != e);
+                    sc.effects = keep.fold(railgrip::sim::Effects::none(), |m, f| m.with(*f));
+                }
+            }
+            let out = sim::simulate(&sc, Some(seed)).unwrap();
+            let stem = format!("{}_{seed}", sc.name);
+            out.write(dir, &stem, OutputFormat::Csv).unwrap();
+            let log = ingest_file(
+                &dir.join(format!("{stem}.csv")),
+                &Pipeline::default_uic_z1(),
+            )
+            .unwrap();
+            (log, out, sc.run.ambient_temperature_c)
+        })
+        .collect()
+}
+
+/// Per-axle (RMSE, bias) of μ against the truth over valid samples with true Δv > 0.2 m/s.
+fn mu_error(e: &railgrip::estimate::Estimates, tr: &sim::Truth) -> [(f64, f64); 4] {
+    let fs = 1.0 / (tr.time_s[1] - tr.time_s[0]);
+    std::array::from_fn(|a| {
+        let (mut sum, mut sq, mut k) = (0.0, 0.0, 0usize);
+        for (i, &t) in e.time_s.iter().enumerate() {
+            let j = ((t - tr.time_s[0]) * fs).round();
+            if j < 0.0 || j as usize >= tr.mu[a].len() {
+                continue;
+            }
+            let j = j as usize;
+            if e.axles[a].valid[i] && tr.dv_mps[a][j] > 0.2 {
+                let d = e.axles[a].mu[i] - tr.mu[a][j];
+                sum += d;
+                sq += d * d;
+                k += 1;
+            }
+        }
+        let k = k.max(1) as f64;
+        ((sq / k).sqrt(), sum / k)
+    })
+}
+
+#[test]
+fn the_campaign_calibrates_itself_on_mismatch_scenes() {
+    use railgrip::estimate::selfcal::CampaignCalibrator;
+    use railgrip::estimate::{estimate, estimate_corrected};
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = Pipeline::default_uic_z1();
+    for seed in [1, 2, 3] {
+        let runs = mismatch_campaign(seed, dir.path());
+        let mut cal = CampaignCalibrator::new(&pipeline);
+        for (log, ..) in &runs {
+            cal.add(log).unwrap();
+        }
+        let t = std::time::Instant::now();
+        let c = cal.finish(dir.path()).unwrap();
+        eprintln!("seed {seed}: fit in {:?}\n{c:#?}", t.elapsed());
+        let m = runs[0].1.mismatch.clone().unwrap();
+        eprintln!("truth {m:?}");
+        for a in 0..4 {
+            // α_i(v) truth against the fit over the speed range.
+            let mut worst = 0.0f64;
+            for v in [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, c.pad.v_ref_mps] {
+                let tr = m.brake_torque_nm_per_bar[a]
+                    * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
+                let fit = c.alpha_nm_per_bar[a] * c.pad.factor(v);
+                worst = worst.max((fit / tr - 1.0).abs());
+            }
+            eprintln!("axle {}: worst α(v) error {:.4} %", a + 1, worst * 100.0);
+        }
+        let corr = c.corrections();
+        for (log, out, _) in &runs {
+            let before = mu_error(&estimate(log, &pipeline).unwrap(), &out.truth);
+            let after = mu_error(&estimate_corrected(log, &pipeline, &corr).unwrap(), &out.truth);
+            let f = |x: [(f64, f64); 4]| x.iter().map(|(r, b)| format!("{r:.4}/{b:+.4}")).collect::<Vec<_>>().join(" ");
+            eprintln!("{}: before {} | after {}", log.source.file_name().unwrap().to_string_lossy(), f(before), f(after));
+        }
+    }
+}

@@ -27,6 +27,7 @@
 
 pub mod calibrate;
 pub mod radar;
+pub mod selfcal;
 
 use std::path::{Path, PathBuf};
 
@@ -188,9 +189,76 @@ pub fn estimate(log: &RunLog, pipeline: &Pipeline) -> Result<Estimates, Estimate
     Ok(estimate_conditioned(log, cond, pipeline))
 }
 
+/// Conditions and estimates a run with a campaign's self-calibration applied
+/// ([`selfcal::Corrections`]): the radar's reading divided by its scale and moved back by its
+/// latency, v(t) = v_radar(t + τ)/s, the tachometers moved back by their delay, ω(t) =
+/// ω_tacho(t + τ_w) (linear interpolation between samples; a sample whose shifted reading
+/// falls outside the log or into a gap has no data), each axle's brake coefficient α_i, and
+/// the pad friction's factor 1 + γ φ(v) on it.
+pub fn estimate_corrected(
+    log: &RunLog,
+    pipeline: &Pipeline,
+    corr: &selfcal::Corrections,
+) -> Result<Estimates, EstimateError> {
+    let shifted = corrected_log(log, corr);
+    let mut p = pipeline.clone();
+    p.vehicle.brake_torque_nm_per_bar = corr.alpha_nm_per_bar;
+    let cond =
+        signal::condition(&shifted, &p.filters).map_err(|source| EstimateError::Filter {
+            file: log.source.clone(),
+            source,
+        })?;
+    Ok(estimate_with(&shifted, cond, &p, Some(&corr.pad)))
+}
+
+/// `log` with its radar corrected by scale and latency and its tachometers by their delay
+/// (see [`estimate_corrected`]).
+fn corrected_log(log: &RunLog, corr: &selfcal::Corrections) -> RunLog {
+    let mut out = log.clone();
+    let n = log.len();
+    // The reading at k + shift (linear between samples), None outside the log or in a gap.
+    let at = |x: &[f64], k: usize, shift: f64| -> Option<f64> {
+        let pos = k as f64 + shift;
+        let i = pos.floor();
+        if !(i >= 0.0) || i as usize + 1 >= n {
+            return None;
+        }
+        let i = i as usize;
+        (log.valid[i] && log.valid[i + 1]).then(|| x[i] + (pos - i as f64) * (x[i + 1] - x[i]))
+    };
+    let radar_shift = corr.radar_latency_s * log.sample_rate_hz;
+    let tacho_shift = corr.tacho_delay_s * log.sample_rate_hz;
+    let inv_s = 1.0 / corr.radar_scale;
+    for k in 0..n {
+        let v = at(&log.v_radar_mps, k, radar_shift);
+        let w: [Option<f64>; AXLES] =
+            std::array::from_fn(|a| at(&log.omega_radps[a], k, tacho_shift));
+        match (v, w.iter().all(Option::is_some)) {
+            (Some(v), true) => {
+                out.v_radar_mps[k] = v * inv_s;
+                for (o, x) in out.omega_radps.iter_mut().zip(w) {
+                    o[k] = x.unwrap_or(f64::NAN);
+                }
+            }
+            _ => out.valid[k] = false,
+        }
+    }
+    out
+}
+
 /// The estimation step on already conditioned signals (consumed: the filtered ω and p move
 /// into the result).
 pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -> Estimates {
+    estimate_with(log, c, pipeline, None)
+}
+
+/// [`estimate_conditioned`] with the pad friction's speed law on α, when given.
+fn estimate_with(
+    log: &RunLog,
+    c: Conditioned,
+    pipeline: &Pipeline,
+    pad: Option<&selfcal::PadLaw>,
+) -> Estimates {
     let veh = &pipeline.vehicle;
     let cfg = &pipeline.estimate;
     let r = veh.wheel_radius_m;
@@ -229,6 +297,7 @@ pub fn estimate_conditioned(log: &RunLog, c: Conditioned, pipeline: &Pipeline) -
         inv_r: 1.0 / r,
         j: veh.axle_inertia_kgm2,
         cfg,
+        pad,
     };
     let mut omega_radps = omega_radps.into_iter();
     let mut p_bar = p_bar.into_iter();
@@ -280,6 +349,8 @@ struct Run<'a> {
     inv_r: f64,
     j: f64,
     cfg: &'a EstimateConfig,
+    /// The pad friction's speed law on α (campaign self-calibration), if any.
+    pad: Option<&'a selfcal::PadLaw>,
 }
 
 impl Run<'_> {
@@ -303,11 +374,19 @@ impl Run<'_> {
             v_mps.iter().zip(&omega).map(|(v, w)| r * w - v).collect()
         };
         let normal_n: Vec<f64> = acc.iter().map(|x| n0 - dn * x).collect();
-        let tangential_n: Vec<f64> = wd
-            .iter()
-            .zip(&p)
-            .map(|(w, p)| (j * w + alpha * p) * inv_r)
-            .collect();
+        let tangential_n: Vec<f64> = match self.pad {
+            None => wd
+                .iter()
+                .zip(&p)
+                .map(|(w, p)| (j * w + alpha * p) * inv_r)
+                .collect(),
+            Some(law) => wd
+                .iter()
+                .zip(&p)
+                .zip(v_mps)
+                .map(|((w, p), v)| (j * w + alpha * law.factor(*v) * p) * inv_r)
+                .collect(),
+        };
         // dΔv/dt = v̇ − r ω̇ (braking), written over ω̇, which is not needed after T.
         let sign = if self.braking { 1.0 } else { -1.0 };
         for (w, a) in wd.iter_mut().zip(acc) {

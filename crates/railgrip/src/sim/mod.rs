@@ -386,7 +386,7 @@ pub struct Mismatch {
     pub brake_torque_nm_per_bar: [f64; AXLES],
     /// α_i(v) = α_i (1 + rise (1 − v/v0)) (`pad_friction`; else 0).
     pub pad_friction_rise: f64,
-    /// The initial speed v0 of that law, m/s.
+    /// The speed v0 of that law, m/s (`brake.pad_friction_v0_kmh`, or the initial speed).
     pub pad_friction_v0_mps: f64,
     /// Radar reading / true speed (`radar_error`; else 1).
     pub radar_scale: f64,
@@ -416,7 +416,7 @@ impl Mismatch {
             } else {
                 0.0
             },
-            pad_friction_v0_mps: sc.run.initial_speed_kmh / 3.6,
+            pad_friction_v0_mps: state::pad_friction_v0_mps(sc),
             radar_scale: if radar { sc.sensors.radar_scale } else { 1.0 },
             radar_latency_s: if radar {
                 sc.sensors.radar_latency_s

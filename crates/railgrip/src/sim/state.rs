@@ -229,6 +229,17 @@ pub fn brake_coefficients(sc: &Scene) -> [f64; AXLES] {
     alpha
 }
 
+/// The speed v0 of the `pad_friction` law, m/s: `brake.pad_friction_v0_kmh`, or the run's
+/// initial speed when that is 0.
+pub fn pad_friction_v0_mps(sc: &Scene) -> f64 {
+    let kmh = if sc.brake.pad_friction_v0_kmh > 0.0 {
+        sc.brake.pad_friction_v0_kmh
+    } else {
+        sc.run.initial_speed_kmh
+    };
+    kmh / 3.6
+}
+
 impl<'a> Setup<'a> {
     /// The run's constants; the effects that act once (temperature, cleaning, gradient) are
     /// applied and counted here. (`Setup::new`, `initial_state` and `Logger::new` are inlined
@@ -281,7 +292,7 @@ impl<'a> Setup<'a> {
         let pad = fx.has(Effect::PadFriction).then(|| {
             (
                 sc.brake.pad_friction_rise,
-                1.0 / (sc.run.initial_speed_kmh / 3.6).max(1e-3),
+                1.0 / pad_friction_v0_mps(sc).max(1e-3),
             )
         });
         let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);

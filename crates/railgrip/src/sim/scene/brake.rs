@@ -16,6 +16,7 @@ pub mod raw {
         pub alpha_scatter: Option<f64>,
         pub scatter_seed: Option<f64>,
         pub pad_friction_rise: Option<f64>,
+        pub pad_friction_v0_kmh: Option<f64>,
     }
 }
 
@@ -34,6 +35,10 @@ pub struct BrakeSection {
     /// `pad_friction`: the brake coefficient's relative rise from the initial speed to
     /// standstill.
     pub pad_friction_rise: f64,
+    /// `pad_friction`: the speed v0 above which the brake coefficient is α_i, km/h; 0 for the
+    /// run's initial speed. Give the campaign's top speed for one vehicle's pads in every run
+    /// (pad friction depends on the speed, not on where the brake began).
+    pub pad_friction_v0_kmh: f64,
 }
 
 pub(super) const DEMAND: Key = text(
@@ -77,7 +82,14 @@ pub(super) const PAD_RISE: Key = Key::num(
     "–",
     closed(-0.5, 0.5),
     0.05,
-    "`pad_friction`: α_i(v) = α_i (1 + rise max(0, 1 − v/v0)), v the train's speed, the rise from the initial speed v0 to standstill",
+    "`pad_friction`: α_i(v) = α_i (1 + rise max(0, 1 − v/v0)), v the train's speed, the rise from v0 to standstill",
+);
+pub(super) const PAD_V0: Key = Key::num(
+    "brake.pad_friction_v0_kmh",
+    "km/h",
+    closed(0.0, 600.0),
+    0.0,
+    "`pad_friction`: v0 of that law; 0 for the run's initial speed (give the campaign's top speed for one vehicle's pads in every run)",
 );
 
 /// The keys of `[brake]`, in the order of the documented table.
@@ -88,6 +100,7 @@ pub const KEYS: &[&Key] = &[
     &SCATTER,
     &SCATTER_SEED,
     &PAD_RISE,
+    &PAD_V0,
 ];
 
 impl Checker<'_> {
@@ -141,6 +154,7 @@ impl Checker<'_> {
             alpha_scatter: self.value(&SCATTER, b.alpha_scatter)?,
             scatter_seed: self.value(&SCATTER_SEED, b.scatter_seed)? as u64,
             pad_friction_rise: self.value(&PAD_RISE, b.pad_friction_rise)?,
+            pad_friction_v0_kmh: self.value(&PAD_V0, b.pad_friction_v0_kmh)?,
         })
     }
 }

@@ -1,0 +1,930 @@
+//! Self-calibration from a campaign's own data: per-axle brake coefficients α_i, a speed law
+//! for the pad friction, the running resistance, the radar's scale and its latency, pooled
+//! over the runs, with standard errors; and the corrections that re-estimate a run with them.
+//!
+//! **The balance.** The vehicle's longitudinal balance with the wheels' torque balance (seed
+//! 002 002_8d8769283f5e9cb6.txt eq. 9–10) substituted for the contact forces,
+//! M v̇ = −Σ_i T_i − R, T_i = (J ω̇_i + α_i(v) p_i)/r, holds at every sample — sliding or
+//! not, since both sides are forces on the same bodies — and gives
+//!
+//! y = −(M v̇ + (J/r) Σ_i ω̇_i) = Σ_i α_i (1 + γ φ(v)) p_i / r + c_run + c1 v + c2 v²   [N]
+//!
+//! with M the translating mass (kg), v the vehicle speed (m/s), ω̇_i (rad/s²), p_i (bar),
+//! r (m), J (kg·m²); c_run (N) one constant per run (running resistance and that run's
+//! gradient), c1 (N·s/m) and c2 (N·s²/m²) the speed-dependent resistance of the Davis form.
+//! Where the axles' pressures differ — a wheel-slide protection at work, a brake applied
+//! axle by axle — the four α_i separate; where two axles' pressures never differ, only
+//! their sum is identifiable and the pair is fitted with one α (named in
+//! [`CampaignCalibration::shared`]).
+//!
+//! **The pad friction** α_i(v) = α_i (1 + γ φ(v)), φ(v_ref) = 0 at the campaign's top speed
+//! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
+//! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (organic and sintered disc pads,
+//! whose friction rises steadily as the sliding speed falls); Karwatzki's, φ = k(v)/k(v_ref) −
+//! 1 with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
+//! formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
+//! Teubner 2003, ch. 6). The form is chosen by BIC = n_eff ln(RSS/n) + k ln(n_eff) with n_eff
+//! the residuals' effective number of samples, as the Polach temperature forms are.
+//!
+//! **The radar.** It reads v_radar(t) = s v(t − τ). The scale s comes from the coasts before
+//! each run's first brake application, where the wheels roll without creep: the
+//! least-squares slope of v_radar(t + τ) on r ω̄ through the origin, pooled over the runs
+//! (the wheel radius of the pipeline taken as known). The latency τ comes from the balance
+//! itself: the radar's deceleration shifted by τ against the wheels' brake torques, which
+//! carry no delay, minimises the balance's residual at the true τ. (Matching the radar's
+//! deceleration with the wheels' instead is biased by the creep, which grows with the brake
+//! force; see [`super::radar`].) The two are iterated: s at τ = 0, τ, s at τ.
+//!
+//! **Filters.** Every channel is low-passed with the radar's cut-off here (the same 4th-order
+//! zero-phase filter on both sides of a linear balance keeps it exact), so that the pressures'
+//! faster content has no counterpart missing in the radar's deceleration.
+//!
+//! Standard errors: σ²(XᵀX)⁻¹ inflated by √(n/n_eff); for γ and τ, from the curvature of
+//! the profiled residual sum of squares, se² = 2 σ² n/n_eff / RSS''.
+
+// `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
+use crate::config::Pipeline;
+use crate::format::AXLES;
+use crate::ingest::RunLog;
+use crate::linalg::{cho_solve, cholesky, effective_samples};
+use crate::signal;
+use crate::vehicle::total_mass_kg;
+
+use super::EstimateError;
+
+/// Every `DECIMATE`-th sample enters the balance (52 Hz at 417 Hz, well above the 1.5 Hz the
+/// signals are filtered to).
+const DECIMATE: usize = 8;
+/// The latencies searched, s.
+pub const LATENCY_RANGE_S: (f64, f64) = (-0.05, 0.2);
+/// The tachometers' delays searched, s.
+pub const TACHO_DELAY_RANGE_S: (f64, f64) = (-0.05, 0.1);
+/// The pad friction's γ searched (relative to α at the top speed).
+const GAMMA_RANGE: (f64, f64) = (-0.5, 0.5);
+/// An axle whose α has a relative standard error above this is fitted together with the axle
+/// its estimate is most negatively correlated with.
+pub const MAX_ALPHA_REL_SE: f64 = 0.05;
+
+/// The speed form of the pad friction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PadForm {
+    Constant,
+    Linear,
+    Karwatzki,
+}
+
+impl PadForm {
+    pub const ALL: [PadForm; 3] = [PadForm::Constant, PadForm::Linear, PadForm::Karwatzki];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PadForm::Constant => "constant",
+            PadForm::Linear => "linear",
+            PadForm::Karwatzki => "karwatzki",
+        }
+    }
+
+    /// φ(v), zero at `v_ref` (m/s).
+    pub fn phi(self, v_mps: f64, v_ref_mps: f64) -> f64 {
+        match self {
+            PadForm::Constant => 0.0,
+            PadForm::Linear => 1.0 - v_mps / v_ref_mps,
+            PadForm::Karwatzki => {
+                let k = |v: f64| {
+                    let kmh = 3.6 * v.max(0.0);
+                    (kmh + 100.0) / (5.0 * kmh + 100.0)
+                };
+                k(v_mps) / k(v_ref_mps) - 1.0
+            }
+        }
+    }
+}
+
+/// α_i(v) = α_i (1 + γ φ(v)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PadLaw {
+    pub form: PadForm,
+    /// γ (–).
+    pub gamma: f64,
+    /// One standard error of γ (0 for the constant form).
+    pub gamma_se: f64,
+    /// The speed where α_i(v) = α_i, m/s.
+    pub v_ref_mps: f64,
+}
+
+impl PadLaw {
+    /// No speed dependence.
+    pub fn constant() -> PadLaw {
+        PadLaw {
+            form: PadForm::Constant,
+            gamma: 0.0,
+            gamma_se: 0.0,
+            v_ref_mps: 1.0,
+        }
+    }
+
+    /// 1 + γ φ(v).
+    pub fn factor(&self, v_mps: f64) -> f64 {
+        1.0 + self.gamma * self.form.phi(v_mps, self.v_ref_mps)
+    }
+
+    /// The relative rise from the top speed to standstill, γ φ(0).
+    pub fn rise_to_standstill(&self) -> f64 {
+        self.factor(0.0) - 1.0
+    }
+}
+
+/// One pad-friction form as fitted.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PadCandidate {
+    pub form: PadForm,
+    pub gamma: f64,
+    pub rss: f64,
+    pub bic: f64,
+    /// Why the form was refused, when it was (besides a higher BIC).
+    pub refused: Option<String>,
+}
+
+/// What a campaign's self-calibration found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CampaignCalibration {
+    /// α_i at the top speed, N·m/bar.
+    pub alpha_nm_per_bar: [f64; AXLES],
+    /// One standard error of each α_i, N·m/bar.
+    pub alpha_se: [f64; AXLES],
+    /// Groups of axles (0-based) whose pressures never differ enough to tell their α apart:
+    /// each fitted with one α.
+    pub shared: Vec<Vec<usize>>,
+    pub pad: PadLaw,
+    pub pad_candidates: Vec<PadCandidate>,
+    /// c1, N·s/m.
+    pub resistance_c1_n_s_per_m: f64,
+    /// c2, N·s²/m².
+    pub resistance_c2_n_s2_per_m2: f64,
+    /// Radar reading / true speed (1 when no run coasts before its brake).
+    pub radar_scale: f64,
+    pub radar_scale_se: f64,
+    /// Runs whose coast the scale rests on.
+    pub radar_scale_runs: usize,
+    /// The radar's delay, s.
+    pub radar_latency_s: f64,
+    pub radar_latency_se: f64,
+    /// The tachometers' delay (a counting window's half, for pulse counters), s.
+    pub tacho_delay_s: f64,
+    pub tacho_delay_se: f64,
+    /// Runs in the balance.
+    pub runs: usize,
+    /// Samples in the balance (after decimation).
+    pub samples: usize,
+    pub effective_samples: f64,
+    /// RMS of the balance's residual, N.
+    pub rms_residual_n: f64,
+    /// What could not be calibrated and what was done instead, in plain words.
+    pub notes: Vec<String>,
+}
+
+/// What the estimation applies: per-axle α at the top speed, the pad law, and the radar's
+/// scale and latency.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corrections {
+    pub alpha_nm_per_bar: [f64; AXLES],
+    pub pad: PadLaw,
+    pub radar_scale: f64,
+    pub radar_latency_s: f64,
+    pub tacho_delay_s: f64,
+}
+
+impl CampaignCalibration {
+    pub fn corrections(&self) -> Corrections {
+        Corrections {
+            alpha_nm_per_bar: self.alpha_nm_per_bar,
+            pad: self.pad,
+            radar_scale: self.radar_scale,
+            radar_latency_s: self.radar_latency_s,
+            tacho_delay_s: self.tacho_delay_s,
+        }
+    }
+}
+
+/// One run's signals as the balance needs them (matched filters).
+struct RunSignals {
+    fs: f64,
+    /// Radar speed and its rate at every sample, m/s and m/s² (shifted by τ when used).
+    v_radar: Vec<f64>,
+    a_radar: Vec<f64>,
+    ok: Vec<bool>,
+    /// r ω̄ (m/s) and Σ_i ω̇_i (rad/s²) at every sample (shifted by the tachometers' delay
+    /// when used).
+    w_mean: Vec<f64>,
+    wd_sum: Vec<f64>,
+    /// Samples of the balance: index, pressures (bar).
+    rows: Vec<(usize, [f64; AXLES])>,
+    /// Samples of the coast before the first brake.
+    coast: Vec<usize>,
+}
+
+/// Collects a campaign's runs one at a time (each log can be dropped after [`Self::add`]),
+/// then fits ([`Self::finish`]).
+pub struct CampaignCalibrator<'p> {
+    pipeline: &'p Pipeline,
+    runs: Vec<RunSignals>,
+    notes: Vec<String>,
+}
+
+impl<'p> CampaignCalibrator<'p> {
+    pub fn new(pipeline: &'p Pipeline) -> Self {
+        CampaignCalibrator {
+            pipeline,
+            runs: Vec::new(),
+            notes: Vec::new(),
+        }
+    }
+
+    /// Conditions `log` with matched filters and keeps what the balance needs. A run without
+    /// a usable sample is noted and left out.
+    pub fn add(&mut self, log: &RunLog) -> Result<(), EstimateError> {
+        let mut filters = self.pipeline.filters.clone();
+        if let Ok(x) = std::env::var("RG_CUT") {
+            filters.radar_cutoff_hz = x.parse().unwrap();
+        }
+        filters.tacho_cutoff_hz = filters.radar_cutoff_hz;
+        filters.pressure_cutoff_hz = filters.radar_cutoff_hz;
+        let c = signal::condition(log, &filters).map_err(|source| EstimateError::Filter {
+            file: log.source.clone(),
+            source,
+        })?;
+        let est = &self.pipeline.estimate;
+        let r = self.pipeline.vehicle.wheel_radius_m;
+        let n = c.v_mps.len();
+        let first_brake = (0..n)
+            .find(|&k| (0..AXLES).any(|a| c.p_bar[a][k] >= est.min_pressure_bar))
+            .unwrap_or(n);
+        let mut rows = Vec::new();
+        let mut coast = Vec::new();
+        for k in (0..n).step_by(DECIMATE) {
+            let v = c.v_mps[k];
+            if !c.settled[k] || !(v >= est.min_speed_mps) {
+                continue;
+            }
+            let rolling = (0..AXLES).all(|a| r * c.omega_radps[a][k] >= est.locked_wheel_speed_mps);
+            if !rolling {
+                continue;
+            }
+            let p: [f64; AXLES] = std::array::from_fn(|a| c.p_bar[a][k]);
+            if p.iter().all(|x| x.is_finite()) {
+                rows.push((k, p));
+            }
+            let w = r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64;
+            if k < first_brake && w >= est.min_speed_mps {
+                coast.push(k);
+            }
+        }
+        if rows.is_empty() {
+            self.notes.push(format!(
+                "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
+                log.source.display(),
+                est.min_speed_mps
+            ));
+            return Ok(());
+        }
+        let w_mean = (0..n)
+            .map(|k| r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64)
+            .collect();
+        let wd_sum = (0..n)
+            .map(|k| (0..AXLES).map(|a| c.omega_dot_radps2[a][k]).sum())
+            .collect();
+        // A sample enters the balance only where every signal is finite.
+        let ok = (0..n)
+            .map(|k| {
+                c.settled[k]
+                    && c.v_mps[k].is_finite()
+                    && c.accel_mps2[k].is_finite()
+                    && (0..AXLES).all(|a| c.omega_dot_radps2[a][k].is_finite())
+            })
+            .collect();
+        self.runs.push(RunSignals {
+            fs: c.sample_rate_hz,
+            v_radar: c.v_mps,
+            a_radar: c.accel_mps2,
+            ok,
+            w_mean,
+            wd_sum,
+            rows,
+            coast,
+        });
+        Ok(())
+    }
+
+    /// Fits the campaign (see the module's documentation). `what` names the campaign in
+    /// errors.
+    pub fn finish(self, what: &std::path::Path) -> Result<CampaignCalibration, EstimateError> {
+        let fail = |what_failed: String, hint: &str| EstimateError::Calibration {
+            file: what.to_path_buf(),
+            what: what_failed,
+            hint: hint.to_string(),
+        };
+        let mut notes = self.notes;
+        if self.runs.is_empty() {
+            return Err(fail(
+                "no run has a usable sample for the calibration".into(),
+                "check that the logs hold braking runs above estimate.min_speed_mps",
+            ));
+        }
+        let veh = &self.pipeline.vehicle;
+        let b = Balance {
+            runs: &self.runs,
+            r: veh.wheel_radius_m,
+            inv_r: 1.0 / veh.wheel_radius_m,
+            mass: total_mass_kg(veh),
+            j_r: veh.axle_inertia_kgm2 / veh.wheel_radius_m,
+            v_ref: 0.0,
+        };
+        let v_ref = self
+            .runs
+            .iter()
+            .flat_map(|run| run.rows.iter().map(|(k, ..)| run.v_radar[*k]))
+            .fold(0.0f64, f64::max);
+        let b = Balance { v_ref, ..b };
+        let samples: usize = self.runs.iter().map(|r| r.rows.len()).sum();
+        if samples < 200 {
+            return Err(fail(
+                format!("only {samples} samples for the balance"),
+                "calibrate on braking runs of several seconds each",
+            ));
+        }
+
+        // The scale without delays; the two delays at that scale (coordinate descent); the
+        // scale at those delays.
+        let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted); log a second or more of coasting before the brake";
+        let mut at = At {
+            radar_s: 0.0,
+            tacho_s: 0.0,
+            scale: 1.0,
+        };
+        match b.radar_scale(&at) {
+            Some((s, _, _)) => at.scale = s,
+            None => notes.push(coast_note.into()),
+        }
+        let all_axles: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
+        let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
+        let (mut radar_d2, mut tacho_d2) = (f64::NAN, f64::NAN);
+        for _ in 0..3 {
+            (at.radar_s, radar_d2) = profile_delay(LATENCY_RANGE_S, |t| {
+                free(&At { radar_s: t, ..at })
+            });
+            (at.tacho_s, tacho_d2) = profile_delay(TACHO_DELAY_RANGE_S, |t| {
+                free(&At { tacho_s: t, ..at })
+            });
+        }
+        let (scale_se, scale_runs) = match b.radar_scale(&at) {
+            Some((s, se, runs)) => {
+                at.scale = s;
+                (se, runs)
+            }
+            None => (0.0, 0),
+        };
+        for (name, t, (lo, hi)) in [
+            ("radar's latency", at.radar_s, LATENCY_RANGE_S),
+            ("tachometers' delay", at.tacho_s, TACHO_DELAY_RANGE_S),
+        ] {
+            if t <= lo + 1e-3 || t >= hi - 1e-3 {
+                notes.push(format!(
+                    "the {name} is at the end of the searched range ({:.0}…{:.0} ms): {:.0} ms is not a fit; check the logger's time stamps",
+                    lo * 1e3,
+                    hi * 1e3,
+                    t * 1e3
+                ));
+            }
+        }
+        let tau = at.radar_s;
+
+        // The pad forms at that latency and scale, with the axles that separate.
+        let mut groups = all_axles;
+        // The residuals' autocorrelation, from the constant form with every axle apart, scales
+        // the standard errors that decide which axles separate.
+        // The forms are compared with this n_eff too (each form's own would move the BIC by
+        // more than the fits differ).
+        let (inflate, n_eff_common) = {
+            let g0 = b.gram(&at, PadForm::Constant);
+            g0.rss_at(&groups, PadForm::Constant, 0.0)
+                .map_or((1.0, g0.n as f64), |f0| {
+                    let ne = b.n_eff(&at, PadForm::Constant, &f0);
+                    (g0.n as f64 / ne, ne)
+                })
+        };
+        let mut candidates = Vec::new();
+        let mut best: Option<(Fit, f64)> = None;
+        for form in PadForm::ALL {
+            let g = b.gram(&at, form);
+            let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
+            let Some(fit) = fit else {
+                candidates.push(PadCandidate {
+                    form,
+                    gamma: f64::NAN,
+                    rss: f64::NAN,
+                    bic: f64::NAN,
+                    refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
+                });
+                continue;
+            };
+            let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant);
+            let n = g.n as f64;
+            let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
+            candidates.push(PadCandidate {
+                form,
+                gamma: fit.gamma,
+                rss: fit.rss,
+                bic,
+                refused: refused.clone(),
+            });
+            if refused.is_none() && best.as_ref().is_none_or(|(_, b0)| bic < *b0) {
+                best = Some((fit, bic));
+            }
+        }
+        let Some((fit, _)) = best else {
+            return Err(fail(
+                "no form of the pad friction could be fitted".into(),
+                "the pressures do not vary enough; calibrate on runs with brake applications",
+            ));
+        };
+        groups = fit.groups.clone();
+        let g = b.gram(&at, fit.form);
+        let n = g.n as f64;
+        let n_eff = b.n_eff(&at, fit.form, &fit);
+        let runs = self.runs.len() as f64;
+        let dof = (n - runs - fit.beta.len() as f64 - 1.0).max(1.0);
+        let sigma2 = fit.rss / dof * n / n_eff;
+        let mut alpha = [f64::NAN; AXLES];
+        let mut alpha_se = [f64::NAN; AXLES];
+        for (gi, grp) in groups.iter().enumerate() {
+            for &a in grp {
+                alpha[a] = fit.beta[gi];
+                alpha_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
+            }
+        }
+        let shared: Vec<Vec<usize>> = groups.iter().filter(|g| g.len() > 1).cloned().collect();
+        for grp in &shared {
+            let names: Vec<String> = grp.iter().map(|a| format!("{}", a + 1)).collect();
+            notes.push(format!(
+                "the pressures of axles {} never differ enough to tell their brake coefficients apart: fitted with one α",
+                names.join(" and ")
+            ));
+        }
+        if alpha.iter().any(|a| !(*a > 0.0)) {
+            return Err(fail(
+                format!("the balance gives a non-positive brake coefficient {alpha:?}"),
+                "check the pressure channels' mapping to the axles and the vehicle's mass",
+            ));
+        }
+        let gamma_se = if fit.form == PadForm::Constant {
+            0.0
+        } else {
+            let h = 1e-3;
+            let f = |gm: f64| g.rss_at(&groups, fit.form, gm).map_or(f64::NAN, |x| x.rss);
+            let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
+            (2.0 * sigma2 / d2).sqrt()
+        };
+        let tau_se = (2.0 * sigma2 / radar_d2).sqrt();
+        let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt();
+        Ok(CampaignCalibration {
+            alpha_nm_per_bar: alpha,
+            alpha_se,
+            shared,
+            pad: PadLaw {
+                form: fit.form,
+                gamma: fit.gamma,
+                gamma_se,
+                v_ref_mps: v_ref,
+            },
+            pad_candidates: candidates,
+            resistance_c1_n_s_per_m: fit.beta[groups.len()],
+            resistance_c2_n_s2_per_m2: fit.beta[groups.len() + 1],
+            radar_scale: at.scale,
+            radar_scale_se: scale_se,
+            radar_scale_runs: scale_runs,
+            radar_latency_s: tau,
+            radar_latency_se: tau_se,
+            tacho_delay_s: at.tacho_s,
+            tacho_delay_se: tacho_se,
+            runs: self.runs.len(),
+            samples: g.n,
+            effective_samples: n_eff,
+            rms_residual_n: (fit.rss / n).sqrt(),
+            notes,
+        })
+    }
+}
+
+/// The runs with the vehicle's constants.
+struct Balance<'a> {
+    runs: &'a [RunSignals],
+    r: f64,
+    inv_r: f64,
+    mass: f64,
+    j_r: f64,
+    v_ref: f64,
+}
+
+/// Where the balance is evaluated: the radar's latency and the tachometers' delay (s), and the
+/// radar's scale.
+#[derive(Debug, Clone, Copy)]
+struct At {
+    radar_s: f64,
+    tacho_s: f64,
+    scale: f64,
+}
+
+/// Columns of the balance's Gram matrix: p_i/r (4), φ p_i/r (4), v, v², y.
+const Z: usize = 2 * AXLES + 3;
+const Y: usize = Z - 1;
+
+/// The radar at sample `k` shifted by `shift` samples (linear interpolation), None outside
+/// the run or where a neighbour is not settled.
+fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
+    let pos = k as f64 + shift;
+    if !(pos >= 0.0) {
+        return None;
+    }
+    let i = pos.floor() as usize;
+    let f = pos - i as f64;
+    if i + 1 >= x.len() || !ok[i] || !ok[i + 1] {
+        return None;
+    }
+    Some(x[i] + f * (x[i + 1] - x[i]))
+}
+
+impl Balance<'_> {
+    /// One row's z (see [`Z`]) at `at`; None where a shifted signal is not available.
+    fn z_row(&self, run: &RunSignals, row: &(usize, [f64; AXLES]), at: &At, form: PadForm) -> Option<[f64; Z]> {
+        let (k, p) = *row;
+        let shift = at.radar_s * run.fs;
+        let v = shifted(&run.v_radar, &run.ok, k, shift)? / at.scale;
+        let a = shifted(&run.a_radar, &run.ok, k, shift)? / at.scale;
+        let wd = shifted(&run.wd_sum, &run.ok, k, at.tacho_s * run.fs)?;
+        let phi = form.phi(v, self.v_ref);
+        let mut z = [0.0; Z];
+        for i in 0..AXLES {
+            z[i] = p[i] * self.inv_r;
+            z[AXLES + i] = phi * z[i];
+        }
+        z[2 * AXLES] = v;
+        z[2 * AXLES + 1] = v * v;
+        z[Y] = -(self.mass * a + self.j_r * wd);
+        Some(z)
+    }
+
+    /// The within-run (run constants eliminated) Gram matrix of z.
+    fn gram(&self, at: &At, form: PadForm) -> Gram {
+        let mut g = vec![0.0; Z * Z];
+        let mut n = 0;
+        for run in self.runs {
+            let mut gr = vec![0.0; Z * Z];
+            let mut sr = [0.0; Z];
+            let mut nr = 0usize;
+            for row in &run.rows {
+                let Some(z) = self.z_row(run, row, at, form) else {
+                    continue;
+                };
+                nr += 1;
+                for p in 0..Z {
+                    sr[p] += z[p];
+                    for q in 0..=p {
+                        gr[p * Z + q] += z[p] * z[q];
+                    }
+                }
+            }
+            if nr < 2 {
+                continue;
+            }
+            n += nr;
+            for p in 0..Z {
+                for q in 0..=p {
+                    g[p * Z + q] += gr[p * Z + q] - sr[p] * sr[q] / nr as f64;
+                }
+            }
+        }
+        for p in 0..Z {
+            for q in 0..p {
+                g[q * Z + p] = g[p * Z + q];
+            }
+        }
+        Gram { g, n }
+    }
+
+    /// The radar's scale from the coasts at latency τ, with its standard error and the runs it
+    /// rests on; None without a coast.
+    ///
+    /// A coasting wheelset is slowed by the rail: the contact force that decelerates its
+    /// inertia is a driving one, so it turns slightly faster than it rolls, r ω = v (1 + c d)
+    /// with d = −r ω̇ the wheels' deceleration (running resistance; ~1e-4 of the speed at
+    /// 200 km/h in the simulator). Pooled over runs whose coasts decelerate differently, the
+    /// radar is fitted as v_radar(t + τ) = s r ω̄ − q r ω̄ d (q = s c); with every coast
+    /// alike (or one run), as s r ω̄ alone, and the creep stays in s.
+    fn radar_scale(&self, at: &At) -> Option<(f64, f64, usize)> {
+        let mut used: Vec<Vec<(f64, f64, f64)>> = Vec::new();
+        for run in self.runs {
+            let rows: Vec<(f64, f64, f64)> = run
+                .coast
+                .iter()
+                .filter_map(|&k| {
+                    let v = shifted(&run.v_radar, &run.ok, k, at.radar_s * run.fs)?;
+                    let tk = at.tacho_s * run.fs;
+                    let w = shifted(&run.w_mean, &run.ok, k, tk)?;
+                    let d = -self.r * shifted(&run.wd_sum, &run.ok, k, tk)? / AXLES as f64;
+                    Some((w, w * d, v))
+                })
+                .collect();
+            if rows.len() >= 100 / DECIMATE {
+                used.push(rows);
+            }
+        }
+        if used.is_empty() {
+            return None;
+        }
+        // Normal equations of v = s x1 − q x2 (x1 = r ω̄, x2 = r ω̄ d).
+        let (mut s11, mut s12, mut s22, mut s1y, mut s2y) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for (x1, x2, y) in used.iter().flatten() {
+            s11 += x1 * x1;
+            s12 += x1 * x2;
+            s22 += x2 * x2;
+            s1y += x1 * y;
+            s2y += x2 * y;
+        }
+        let det = s11 * s22 - s12 * s12;
+        // The creep term is fitted when the coasts' decelerations differ: the two regressors
+        // then correlate below 0.9999.
+        let two = used.len() >= 3 && det > 0.0 && s12 * s12 / (s11 * s22) < 0.9999;
+        let (s, q, var_unit) = if two {
+            (
+                (s22 * s1y - s12 * s2y) / det,
+                (s11 * s2y - s12 * s1y) / det,
+                s22 / det,
+            )
+        } else {
+            (s1y / s11, 0.0, 1.0 / s11)
+        };
+        let (mut rss, mut n, mut n_eff) = (0.0, 0usize, 0.0);
+        for rows in &used {
+            let e: Vec<f64> = rows.iter().map(|(x1, x2, y)| y - s * x1 - q * x2).collect();
+            rss += e.iter().map(|x| x * x).sum::<f64>();
+            n += e.len();
+            n_eff += effective_samples(&e);
+        }
+        let k = if two { 2.0 } else { 1.0 };
+        let se = (rss / (n as f64 - k).max(1.0) * var_unit * n as f64 / n_eff).sqrt();
+        Some((s, se, used.len()))
+    }
+
+    /// Effective samples of the balance's residuals at a fit.
+    fn n_eff(&self, at: &At, form: PadForm, fit: &Fit) -> f64 {
+        let mut total = 0.0;
+        for run in self.runs {
+            let e: Vec<f64> = run
+                .rows
+                .iter()
+                .filter_map(|row| self.z_row(run, row, at, form))
+                .map(|z| z[Y] - fit.predict(&z))
+                .collect();
+            if e.len() < 2 {
+                continue;
+            }
+            let mean = e.iter().sum::<f64>() / e.len() as f64;
+            let e: Vec<f64> = e.iter().map(|x| x - mean).collect();
+            total += effective_samples(&e);
+        }
+        total.max(1.0)
+    }
+}
+
+/// The delay minimising `rss(τ)` over `(lo, hi)`: a grid of 5 ms, then golden section within
+/// the best cell's neighbours; with the curvature RSS'' there.
+fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
+    let step = 0.005;
+    let grid: Vec<f64> = (0..=((hi - lo) / step).round() as usize)
+        .map(|i| lo + i as f64 * step)
+        .collect();
+    let vals: Vec<f64> = grid.iter().map(|&t| rss(t)).collect();
+    let ib = vals
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.is_finite())
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0, |(i, _)| i);
+    let a = grid[ib.saturating_sub(1)];
+    let b = grid[(ib + 1).min(grid.len() - 1)];
+    let t = golden(&rss, a, b, 1e-5);
+    let h = 0.004;
+    let d2 = (rss(t + h) - 2.0 * rss(t) + rss(t - h)) / (h * h);
+    (t, d2)
+}
+
+/// Golden-section minimum of `f` on [a, b].
+fn golden(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, tol: f64) -> f64 {
+    let r = (5f64.sqrt() - 1.0) / 2.0;
+    let mut c = b - r * (b - a);
+    let mut d = a + r * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    while (b - a).abs() > tol {
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - r * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + r * (b - a);
+            fd = f(d);
+        }
+    }
+    (a + b) / 2.0
+}
+
+/// Within-run Gram matrix of the z columns and its sample count.
+struct Gram {
+    g: Vec<f64>,
+    n: usize,
+}
+
+/// A fit of the balance: coefficients (one α per group, c1, c2), γ, RSS and the unscaled
+/// variances (diagonal of (XᵀX)⁻¹).
+#[derive(Debug, Clone)]
+struct Fit {
+    form: PadForm,
+    groups: Vec<Vec<usize>>,
+    gamma: f64,
+    beta: Vec<f64>,
+    cov_unit: Vec<f64>,
+    /// Correlations between the groups' α estimates (groups × groups).
+    corr: Vec<f64>,
+    rss: f64,
+}
+
+impl Fit {
+    /// x·β for a z row (the run constant excluded).
+    fn predict(&self, z: &[f64; Z]) -> f64 {
+        let mut s = 0.0;
+        for (gi, grp) in self.groups.iter().enumerate() {
+            let x: f64 = grp.iter().map(|&a| z[a] + self.gamma * z[AXLES + a]).sum();
+            s += self.beta[gi] * x;
+        }
+        let k = self.groups.len();
+        s + self.beta[k] * z[2 * AXLES] + self.beta[k + 1] * z[2 * AXLES + 1]
+    }
+}
+
+impl Gram {
+    /// Least squares with every z column free (α_i and α_i γ_i separately): the latency's
+    /// profile, which does not depend on the pad form.
+    fn rss_free(&self) -> f64 {
+        let k = Y;
+        let cols: Vec<Vec<(usize, f64)>> = (0..k).map(|c| vec![(c, 1.0)]).collect();
+        self.solve(&cols).map_or(f64::NAN, |(_, _, rss)| rss)
+    }
+
+    /// Solves for columns x_c = Σ w z_j (`cols`); returns β, (XᵀX)⁻¹ and the RSS. None when
+    /// XᵀX is not positive definite.
+    fn solve(&self, cols: &[Vec<(usize, f64)>]) -> Option<(Vec<f64>, Vec<f64>, f64)> {
+        let k = cols.len();
+        let gz = |p: usize, q: usize| self.g[p * Z + q];
+        let mut a = vec![0.0; k * k];
+        let mut rhs = vec![0.0; k];
+        for (c, cc) in cols.iter().enumerate() {
+            for (&(p, wp), _) in cc.iter().zip(0..) {
+                rhs[c] += wp * gz(p, Y);
+            }
+            for (d, cd) in cols.iter().enumerate() {
+                let mut s = 0.0;
+                for &(p, wp) in cc {
+                    for &(q, wq) in cd {
+                        s += wp * wq * gz(p, q);
+                    }
+                }
+                a[c * k + d] = s;
+            }
+        }
+        // Standardise so the pivots measure conditioning, not units.
+        let sc: Vec<f64> = (0..k).map(|c| a[c * k + c].sqrt().max(f64::MIN_POSITIVE)).collect();
+        let mut an = a.clone();
+        for p in 0..k {
+            for q in 0..k {
+                an[p * k + q] /= sc[p] * sc[q];
+            }
+        }
+        let l = cholesky(&an, k)?;
+        let (dmin, dmax) = (0..k)
+            .map(|p| l[p * k + p])
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(d), hi.max(d)));
+        if !((dmax / dmin).powi(2) < 1e12) {
+            return None;
+        }
+        let rn: Vec<f64> = (0..k).map(|c| rhs[c] / sc[c]).collect();
+        let bn = cho_solve(&l, k, &rn);
+        let beta: Vec<f64> = (0..k).map(|c| bn[c] / sc[c]).collect();
+        let rss = gz(Y, Y) - beta.iter().zip(&rhs).map(|(b, r)| b * r).sum::<f64>();
+        let mut inv = vec![0.0; k * k];
+        for c in 0..k {
+            let mut e = vec![0.0; k];
+            e[c] = 1.0;
+            let col = cho_solve(&l, k, &e);
+            for d in 0..k {
+                inv[d * k + c] = col[d] / (sc[d] * sc[c]);
+            }
+        }
+        Some((beta, inv, rss.max(0.0)))
+    }
+
+    /// The fit at a given γ.
+    fn rss_at(&self, groups: &[Vec<usize>], form: PadForm, gamma: f64) -> Option<Fit> {
+        let mut cols: Vec<Vec<(usize, f64)>> = groups
+            .iter()
+            .map(|grp| {
+                grp.iter()
+                    .flat_map(|&a| [(a, 1.0), (AXLES + a, gamma)])
+                    .collect()
+            })
+            .collect();
+        cols.push(vec![(2 * AXLES, 1.0)]);
+        cols.push(vec![(2 * AXLES + 1, 1.0)]);
+        let (beta, inv, rss) = self.solve(&cols)?;
+        let k = cols.len();
+        let ng = groups.len();
+        let mut corr = vec![0.0; ng * ng];
+        for p in 0..ng {
+            for q in 0..ng {
+                corr[p * ng + q] = inv[p * k + q] / (inv[p * k + p] * inv[q * k + q]).sqrt();
+            }
+        }
+        Some(Fit {
+            form,
+            groups: groups.to_vec(),
+            gamma,
+            cov_unit: (0..k).map(|c| inv[c * k + c]).collect(),
+            beta,
+            corr,
+            rss,
+        })
+    }
+
+    /// The best γ for `form` (0 for the constant form), merging axles whose α cannot be told
+    /// apart ([`MAX_ALPHA_REL_SE`]); the second value says why the form is refused, if it is.
+    fn fit_form(
+        &self,
+        groups: &mut Vec<Vec<usize>>,
+        form: PadForm,
+        inflate: f64,
+    ) -> (Option<Fit>, Option<String>) {
+        loop {
+            let fit = if form == PadForm::Constant {
+                self.rss_at(groups, form, 0.0)
+            } else {
+                let f = |g: f64| self.rss_at(groups, form, g).map_or(f64::INFINITY, |x| x.rss);
+                let gamma = golden(&f, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
+                self.rss_at(groups, form, gamma)
+            };
+            let Some(fit) = fit else {
+                if groups.len() > 1 {
+                    merge_first(groups, None);
+                    continue;
+                }
+                return (None, Some("the balance's normal matrix is singular".into()));
+            };
+            // Relative standard error of each group's α.
+            let sigma2 = fit.rss / (self.n as f64).max(1.0) * inflate;
+            let worst = (0..groups.len())
+                .map(|gi| ((sigma2 * fit.cov_unit[gi]).sqrt() / fit.beta[gi].abs(), gi))
+                .fold((0.0f64, 0usize), |m, x| if x.0 > m.0 || x.0.is_nan() { x } else { m });
+            if groups.len() > 1 && (worst.0 > MAX_ALPHA_REL_SE || worst.0.is_nan()) {
+                merge_first(groups, Some((worst.1, fit.corr_partner(worst.1))));
+                continue;
+            }
+            let refused = (form != PadForm::Constant
+                && (fit.gamma - GAMMA_RANGE.0).abs().min((fit.gamma - GAMMA_RANGE.1).abs()) < 1e-3)
+                .then(|| format!("γ = {:.3} is at the end of the searched range", fit.gamma));
+            return (Some(fit), refused);
+        }
+    }
+}
+
+impl Fit {
+    fn corr_partner(&self, gi: usize) -> usize {
+        let ng = self.groups.len();
+        (0..ng)
+            .filter(|&q| q != gi)
+            .min_by(|&p, &q| self.corr[gi * ng + p].total_cmp(&self.corr[gi * ng + q]))
+            .unwrap_or(0)
+    }
+}
+
+/// Merges two groups (the given pair, or the first two).
+fn merge_first(groups: &mut Vec<Vec<usize>>, pair: Option<(usize, usize)>) {
+    let (a, b) = pair.unwrap_or((0, 1));
+    let (lo, hi) = (a.min(b), a.max(b));
+    let moved = groups.remove(hi);
+    groups[lo].extend(moved);
+    groups[lo].sort_unstable();
+}
