@@ -80,6 +80,7 @@ fn model(layers: &str) -> Model {
         crate_version: String::new(),
         created: String::new(),
         generation: None,
+        calibration: None,
     };
     let file = railgrip::identify::export::mlp_file(&t, creep, provenance, None).unwrap();
     Model::new(file).unwrap()

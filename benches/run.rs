@@ -110,6 +110,7 @@ fn train_parts(
                 crate_version: String::new(),
                 created: String::new(),
                 generation: None,
+                calibration: None,
             },
             fallback,
             epochs: None,

@@ -153,6 +153,7 @@ fn bench(c: &mut Criterion) {
             crate_version: env!("CARGO_PKG_VERSION").into(),
             created: "2026-01-01T00:00:00Z".into(),
             generation: None,
+            calibration: None,
         },
         None,
     )

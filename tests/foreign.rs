@@ -342,6 +342,7 @@ fn provenance(seed: u64) -> Provenance {
         crate_version: String::new(),
         created: String::new(),
         generation: None,
+        calibration: None,
     }
 }
 

@@ -360,6 +360,7 @@ fn synthetic_model() -> ModelFile {
             crate_version: "golden".into(),
             created: "2026-01-01T00:00:00Z".into(),
             generation: None,
+            calibration: None,
         },
         None,
     )
@@ -723,6 +724,7 @@ fn four_input_model() -> ModelFile {
         crate_version: "test".into(),
         created: "2026-01-01T00:00:00Z".into(),
         generation: None,
+        calibration: None,
     };
     railgrip::identify::export::mlp_file(&t, creep, provenance, None).unwrap()
 }
@@ -861,6 +863,7 @@ fn polach_provenance() -> railgrip::model::Provenance {
         crate_version: "0.1.0".into(),
         created: "2026-01-01T00:00:00Z".into(),
         generation: None,
+        calibration: None,
     }
 }
 
@@ -1494,6 +1497,7 @@ fn seed002_figures_on_simulated_runs() {
             crate_version: "test".into(),
             created: "2026-01-01T00:00:00Z".into(),
             generation: None,
+            calibration: None,
         },
         None,
     )

@@ -95,8 +95,13 @@ fn mismatch_campaign(
             let mut sc = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
             if let Ok(x) = std::env::var("RG_NOQUIET") {
                 for name in x.split(',') {
-                    let e = railgrip::sim::Effect::ALL.iter().find(|e| e.name() == name).unwrap();
-                    let keep = railgrip::sim::Effect::ALL.iter().filter(|f| sc.effects.has(**f) && *f != e);
+                    let e = railgrip::sim::Effect::ALL
+                        .iter()
+                        .find(|e| e.name() == name)
+                        .unwrap();
+                    let keep = railgrip::sim::Effect::ALL
+                        .iter()
+                        .filter(|f| sc.effects.has(**f) && *f != e);
                     sc.effects = keep.fold(railgrip::sim::Effects::none(), |m, f| m.with(*f));
                 }
             }
@@ -167,9 +172,22 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
         let corr = c.corrections();
         for (log, out, _) in &runs {
             let before = mu_error(&estimate(log, &pipeline).unwrap(), &out.truth);
-            let after = mu_error(&estimate_corrected(log, &pipeline, &corr).unwrap(), &out.truth);
-            let f = |x: [(f64, f64); 4]| x.iter().map(|(r, b)| format!("{r:.4}/{b:+.4}")).collect::<Vec<_>>().join(" ");
-            eprintln!("{}: before {} | after {}", log.source.file_name().unwrap().to_string_lossy(), f(before), f(after));
+            let after = mu_error(
+                &estimate_corrected(log, &pipeline, &corr).unwrap(),
+                &out.truth,
+            );
+            let f = |x: [(f64, f64); 4]| {
+                x.iter()
+                    .map(|(r, b)| format!("{r:.4}/{b:+.4}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            };
+            eprintln!(
+                "{}: before {} | after {}",
+                log.source.file_name().unwrap().to_string_lossy(),
+                f(before),
+                f(after)
+            );
         }
     }
 }

@@ -31,6 +31,7 @@ fn provenance() -> Provenance {
         crate_version: String::new(),
         created: String::new(),
         generation: None,
+        calibration: None,
     }
 }
 

@@ -1,7 +1,7 @@
 //! `railgrip estimate` and `railgrip calibrate`.
 
 use std::fmt::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use railgrip::estimate::calibrate::{calibrate, AlphaFit, Resistance};
 use railgrip::estimate::{estimate, Estimates};
@@ -138,8 +138,24 @@ pub fn summary(e: &Estimates) -> String {
 #[derive(clap::Args)]
 pub struct CalibrateArgs {
     /// A full-adhesion (dry) braking run: .csv or .mcap.
-    #[arg(value_name = "RUN")]
-    run: PathBuf,
+    #[arg(
+        value_name = "RUN",
+        required_unless_present = "campaign",
+        conflicts_with = "campaign"
+    )]
+    run: Option<PathBuf>,
+    /// Calibrate from a whole campaign instead (a folder, an archive, file:// or s3://): per-axle
+    /// α, the pad friction's speed law, the running resistance, the radar's scale and latency
+    /// and the tachometers' delay, pooled over its runs (docs/calibration.md).
+    #[arg(long, value_name = "ARCHIVE")]
+    campaign: Option<String>,
+    /// With --campaign: write DIR/calibration.json (what `railgrip run --calibration` and a
+    /// pipeline with estimate.calibration = "campaign" take).
+    #[arg(long, value_name = "DIR", requires = "campaign")]
+    out: Option<PathBuf>,
+    /// With --campaign: runs conditioned in parallel (default: one per core).
+    #[arg(long, value_name = "N", requires = "campaign")]
+    jobs: Option<usize>,
     #[command(flatten)]
     pipeline: PipelineArg,
     /// Fit one α per axle instead of a common one (needs pressures that differ between axles).
@@ -158,7 +174,14 @@ pub struct CalibrateArgs {
 
 pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<u8> {
     let pipeline = args.pipeline.load()?;
-    let log = railgrip::ingest_file(&args.run, &pipeline)?;
+    if let Some(archive) = &args.campaign {
+        if args.per_axle || args.davis.is_some() {
+            anyhow::bail!("--per-axle and --davis go with one dry RUN; --campaign fits per-axle α and the resistance itself");
+        }
+        return calibrate_campaign(archive, args.out.as_deref(), args.jobs, pipeline);
+    }
+    let run = args.run.expect("clap requires RUN without --campaign");
+    let log = railgrip::ingest_file(&run, &pipeline)?;
     let fit = if args.per_axle {
         AlphaFit::PerAxle
     } else {
@@ -220,4 +243,101 @@ pub fn calibrate_run(args: CalibrateArgs) -> anyhow::Result<u8> {
     println!("\n# put this line into [vehicle] of your pipeline file:");
     println!("{}", c.toml_line());
     Ok(if log.lost_data() { EXIT_LOSSY } else { EXIT_OK })
+}
+
+/// `railgrip calibrate --campaign`: the campaign's self-calibration, printed, and written to
+/// `out/calibration.json` when asked.
+fn calibrate_campaign(
+    archive: &str,
+    out: Option<&Path>,
+    jobs: Option<usize>,
+    mut pipeline: railgrip::Pipeline,
+) -> anyhow::Result<u8> {
+    use railgrip::campaign::calibration::{calibrate_campaign, write_calibration};
+    use railgrip::config::CalibrationSource;
+    // The command asks for the campaign's fit whatever the file's default.
+    if pipeline.estimate.calibration != CalibrationSource::Campaign {
+        pipeline.estimate.calibration = CalibrationSource::Campaign;
+    }
+    let (root, (logs, _)) = railgrip::campaign::sources_at(archive, None)?;
+    let options = railgrip::campaign::Options {
+        jobs,
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let record = calibrate_campaign(&logs, &pipeline, options, &root)?;
+    let seconds = t.elapsed().as_secs_f64();
+    let f = record.campaign.as_ref().expect("a campaign fit");
+    println!(
+        "campaign   {} ({} runs in the balance)",
+        root.display(),
+        f.runs
+    );
+    println!(
+        "samples    {} ({:.0} effective after autocorrelation), residual RMS {:.0} N",
+        f.samples, f.effective_samples, f.rms_residual_n
+    );
+    for a in 0..railgrip::format::AXLES {
+        println!(
+            "α{}         {:.1} ± {:.1} N·m/bar (1σ) at {:.0} km/h",
+            a + 1,
+            f.alpha_nm_per_bar[a],
+            f.alpha_se[a],
+            f.pad.v_ref_mps * 3.6
+        );
+    }
+    for g in &f.shared {
+        let names: Vec<String> = g.iter().map(|a| (a + 1).to_string()).collect();
+        println!("shared     axles {} fitted with one α", names.join(", "));
+    }
+    println!("pad        form   γ          BIC");
+    for c in &f.pad_candidates {
+        let mark = if c.form == f.pad.form { "chosen" } else { "" };
+        println!(
+            "           {:<9} {:+.4}  {:>10.1}  {mark}{}",
+            c.form.name(),
+            c.gamma,
+            c.bic,
+            c.refused
+                .as_deref()
+                .map(|r| format!(" refused: {r}"))
+                .unwrap_or_default()
+        );
+    }
+    println!(
+        "pad        {} law: α_i(v) = α_i (1 {:+.4} ± {:.4} φ(v)), {:+.2} % from {:.0} km/h to standstill",
+        f.pad.form.name(),
+        f.pad.gamma,
+        f.pad.gamma_se,
+        f.pad.rise_to_standstill() * 100.0,
+        f.pad.v_ref_mps * 3.6
+    );
+    println!(
+        "resistance per-run constants + {:.2} N·s/m · v + {:.3} N·s²/m² · v²",
+        f.resistance_c1_n_s_per_m, f.resistance_c2_n_s2_per_m2
+    );
+    println!(
+        "radar      scale {:.5} ± {:.5} (coasts of {} runs), latency {:.1} ± {:.1} ms",
+        f.radar_scale,
+        f.radar_scale_se,
+        f.radar_scale_runs,
+        f.radar_latency_s * 1e3,
+        f.radar_latency_se * 1e3
+    );
+    println!(
+        "tachos     delay {:.1} ± {:.1} ms",
+        f.tacho_delay_s * 1e3,
+        f.tacho_delay_se * 1e3
+    );
+    for n in &record.notes {
+        println!("note       {n}");
+    }
+    println!("time       {seconds:.2} s");
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
+        let path = write_calibration(dir, &record)?;
+        println!("written    {}", path.display());
+    }
+    Ok(EXIT_OK)
 }

@@ -46,6 +46,13 @@ pub struct Args {
     /// of the campaign's order.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
+    /// The campaign's calibration (the calibration.json that `railgrip calibrate --campaign`
+    /// or an earlier `railgrip run` wrote), for a pipeline with estimate.calibration =
+    /// "campaign" or "dry-run": every part of a scheduled campaign is given the same one
+    /// (refused when fitted on other runs or with another pipeline file). Without it, `all`
+    /// fits it first.
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<std::path::PathBuf>,
 }
 
 #[derive(Serialize)]
@@ -69,7 +76,10 @@ struct JsonSummary<'a> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
-    let pipeline = args.pipeline.load()?;
+    let mut pipeline = args.pipeline.load()?;
+    if let Some(f) = &args.calibration {
+        pipeline.calibrated = Some(campaign::calibration::read_calibration(f)?);
+    }
     let root = match &args.archive {
         Some(a) => a.clone(),
         None => {

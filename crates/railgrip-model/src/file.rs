@@ -311,6 +311,10 @@ pub struct Provenance {
     /// The campaign generation that wrote the file (see `CampaignRecord::generation`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub generation: Option<String>,
+    /// The calibration the estimates were made with, in one line (a campaign's or a dry
+    /// run's; absent when `[vehicle]`'s α and the radar were taken as given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -274,6 +274,10 @@ pub struct CampaignRecord {
     /// model was trained and in files of older versions).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub chosen_model: Option<String>,
+    /// The calibration the runs were estimated with (`estimate.calibration` "campaign" or
+    /// "dry-run"; absent for "pipeline").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<crate::config::calibrated::Calibrated>,
 }
 
 /// The generation id of a campaign with `pipeline_text` and these runs (see

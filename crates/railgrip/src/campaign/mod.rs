@@ -5,6 +5,7 @@
 //! [`OutDir`] (module `outdir`, shared with the report) owns every output path. Progress goes to a [`Progress`] the caller supplies (the
 //! CLI draws bars from it); the library never prints.
 
+pub mod calibration;
 mod remote;
 pub mod runs;
 pub mod summary;
@@ -339,11 +340,42 @@ fn run_sources(
     given: Option<Given>,
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
+    // The calibration first: every run's estimate depends on it.
+    let t = Instant::now();
+    let (calibrated, cal_record) = calibration::calibrated_pipeline(
+        &logs,
+        pipeline,
+        options,
+        options.part == Part::All,
+        root,
+    )?;
+    let cal_s = t.elapsed().as_secs_f64();
+    let pipeline = &calibrated;
     if let Part::Estimate(shard) = options.part {
         return estimate_shard(root, logs, skipped, out, pipeline, options, shard, progress);
     }
     prepare_output(out)?;
     let mut stages = Vec::new();
+    match &cal_record {
+        Some(record) => {
+            calibration::write_calibration(out.root(), record)?;
+            stages.push(("calibrate".to_string(), cal_s));
+        }
+        None if options.part == Part::All && pipeline.calibrated.is_none() => {
+            // An earlier campaign's calibration would describe runs estimated without it.
+            let stale = out.root().join(calibration::CALIBRATION_FILE);
+            match std::fs::remove_file(&stale) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(CampaignError::Write {
+                        path: stale,
+                        source: e,
+                    })
+                }
+                _ => {}
+            }
+        }
+        None => {}
+    }
 
     let t = Instant::now();
     let (records, tables) = match (options.part, given) {
@@ -382,6 +414,7 @@ fn run_sources(
         },
         skipped: skipped.clone(),
         generation: Some(generation.clone()),
+        calibration: pipeline.calibrated.clone(),
         chosen_model: trained.chosen.as_ref().map(|p| {
             format!(
                 "models/{}",
@@ -392,6 +425,12 @@ fn run_sources(
     .write(out)?;
     let mut notes = trained.notes;
     notes.append(&mut replay_notes);
+    if let Some(c) = &pipeline.calibrated {
+        notes.insert(0, c.summary());
+    }
+    if let Some(r) = &cal_record {
+        notes.extend(r.notes.iter().map(|n| format!("calibration: {n}")));
+    }
     let report = match crate::report::write_report(out) {
         Ok(p) => Some(p),
         Err(e) => {

@@ -146,8 +146,8 @@ pub fn run_name(root: &Path, path: &Path) -> String {
     parts.join("__")
 }
 
-/// SHA-256 (hex) over the log's bytes, its metadata sidecar's (when there is one) and the
-/// pipeline text: what decides whether a run's outputs are still current. Also returns the
+/// SHA-256 (hex) over the log's bytes, its metadata sidecar's (when there is one), the
+/// pipeline text and the calibration it carries (if any): what decides whether a run's outputs are still current. Also returns the
 /// SHA-256 of the log alone (the model files' provenance). One streaming pass over the log.
 pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(String, String)> {
     let mut h = Sha256::new();
@@ -158,6 +158,14 @@ pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(Stri
     }
     h.update(b"\0pipeline\0");
     h.update(pipeline.text.as_bytes());
+    if let Some(c) = &pipeline.calibrated {
+        h.update(b"\0calibration\0");
+        h.update(
+            serde_json::to_string(&c.corrections)
+                .expect("a calibration serialises")
+                .as_bytes(),
+        );
+    }
     Ok((crate::hash::hex(&h.finalize()), log))
 }
 

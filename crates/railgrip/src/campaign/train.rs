@@ -75,6 +75,7 @@ pub fn train_models(
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: String::new(),
         generation: None,
+        calibration: pipeline.calibrated.as_ref().map(|c| c.summary()),
     };
     let fit = campaign_models(FitData {
         tables: &tables,

@@ -14,6 +14,30 @@ pub mod raw {
         pub min_pressure_bar: Option<f64>,
         pub locked_wheel_speed_mps: Option<f64>,
         pub sliding_threshold_mps: Option<f64>,
+        pub calibration: Option<String>,
+    }
+}
+
+/// Where the brake coefficients and the radar's corrections come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CalibrationSource {
+    /// `[vehicle]`'s α as given, the radar trusted.
+    Pipeline,
+    /// Fitted from the campaign's own runs (per-axle α, pad friction's speed law, radar scale
+    /// and latency, tachometers' delay), then every run estimated with them.
+    Campaign,
+    /// One α for all axles from the full-adhesion samples of the campaign's runs (seed 002,
+    /// after eq. 10), the radar trusted.
+    DryRun,
+}
+
+impl CalibrationSource {
+    pub fn name(self) -> &'static str {
+        match self {
+            CalibrationSource::Pipeline => "pipeline",
+            CalibrationSource::Campaign => "campaign",
+            CalibrationSource::DryRun => "dry-run",
+        }
     }
 }
 
@@ -40,6 +64,7 @@ pub struct EstimateConfig {
     pub locked_wheel_speed_mps: f64,
     /// Slip velocity above which an axle counts as sliding in summaries, m/s.
     pub sliding_threshold_mps: f64,
+    pub calibration: CalibrationSource,
 }
 
 const PHASE: Key = Key {
@@ -78,8 +103,23 @@ const SLIDING: Key = Key::num(
     "Δv above this counts as sliding in summaries",
 );
 
+const CALIBRATION: Key = Key {
+    name: "estimate.calibration",
+    unit: "",
+    range: Range::Choice(&["pipeline", "campaign", "dry-run"]),
+    default: Default::Text("\"pipeline\""),
+    meaning: "α and the radar as `[vehicle]` gives them; fitted from the campaign's own runs (per-axle α, pad friction, radar scale and latency, tachometer delay; docs/calibration.md); or one α from the runs' full-adhesion samples",
+};
+
 /// The keys of `[estimate]`, in the order of the documented table.
-pub const KEYS: &[&Key] = &[&PHASE, &MIN_SPEED, &MIN_PRESSURE, &LOCKED, &SLIDING];
+pub const KEYS: &[&Key] = &[
+    &PHASE,
+    &MIN_SPEED,
+    &MIN_PRESSURE,
+    &LOCKED,
+    &SLIDING,
+    &CALIBRATION,
+];
 
 impl Checker<'_> {
     pub(crate) fn estimate(&self, e: raw::Estimate) -> Result<EstimateConfig, ConfigError> {
@@ -94,6 +134,16 @@ impl Checker<'_> {
             min_pressure_bar: self.value(&MIN_PRESSURE, e.min_pressure_bar)?,
             locked_wheel_speed_mps: self.value(&LOCKED, e.locked_wheel_speed_mps)?,
             sliding_threshold_mps: self.value(&SLIDING, e.sliding_threshold_mps)?,
+            calibration: self.choice(
+                &CALIBRATION,
+                e.calibration,
+                &[
+                    ("pipeline", CalibrationSource::Pipeline),
+                    ("campaign", CalibrationSource::Campaign),
+                    ("dry-run", CalibrationSource::DryRun),
+                ],
+                CalibrationSource::Pipeline,
+            )?,
         })
     }
 }

@@ -9,6 +9,7 @@
 //! The options are documented in docs/pipeline.md, rendered from the key tables
 //! (a test keeps the two equal).
 
+pub mod calibrated;
 pub mod contact;
 pub mod estimate;
 pub mod filters;
@@ -20,7 +21,7 @@ pub mod vehicle;
 use std::path::Path;
 
 pub use contact::ContactConfig;
-pub use estimate::{EstimateConfig, Phase};
+pub use estimate::{CalibrationSource, EstimateConfig, Phase};
 pub use filters::{DespikeConfig, FilterConfig, FilterMode};
 pub use ingest::{CsvColumn, IngestConfig, McapField, Plausibility, PlausibilityAction};
 pub(crate) use rule::Checker;
@@ -118,6 +119,10 @@ pub struct Pipeline {
     pub estimate: EstimateConfig,
     pub contact: ContactConfig,
     pub train: TrainConfig,
+    /// A calibration fitted from data (`estimate.calibration` = "campaign" or "dry-run"),
+    /// set by the campaign before its runs are estimated, never by the file; every estimate
+    /// made with this pipeline applies it, and a run's reuse key includes it.
+    pub calibrated: Option<calibrated::Calibrated>,
 }
 
 impl Pipeline {
@@ -169,6 +174,7 @@ impl Pipeline {
             estimate,
             contact,
             train,
+            calibrated: None,
         })
     }
 }

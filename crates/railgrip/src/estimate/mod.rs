@@ -179,8 +179,12 @@ fn slip_ratio(braking: bool, dv: f64, v: f64, rw: f64) -> f64 {
     }
 }
 
-/// Conditions and estimates a run with a pipeline's settings.
+/// Conditions and estimates a run with a pipeline's settings (and its calibration, when it
+/// carries one: [`estimate_corrected`]).
 pub fn estimate(log: &RunLog, pipeline: &Pipeline) -> Result<Estimates, EstimateError> {
+    if let Some(cal) = &pipeline.calibrated {
+        return estimate_corrected(log, pipeline, &cal.corrections);
+    }
     let cond =
         signal::condition(log, &pipeline.filters).map_err(|source| EstimateError::Filter {
             file: log.source.clone(),
@@ -203,11 +207,11 @@ pub fn estimate_corrected(
     let shifted = corrected_log(log, corr);
     let mut p = pipeline.clone();
     p.vehicle.brake_torque_nm_per_bar = corr.alpha_nm_per_bar;
-    let cond =
-        signal::condition(&shifted, &p.filters).map_err(|source| EstimateError::Filter {
-            file: log.source.clone(),
-            source,
-        })?;
+    p.calibrated = None;
+    let cond = signal::condition(&shifted, &p.filters).map_err(|source| EstimateError::Filter {
+        file: log.source.clone(),
+        source,
+    })?;
     Ok(estimate_with(&shifted, cond, &p, Some(&corr.pad)))
 }
 

@@ -53,6 +53,7 @@ use crate::signal;
 use crate::vehicle::total_mass_kg;
 
 use super::EstimateError;
+pub use crate::config::calibrated::{Corrections, PadForm, PadLaw};
 
 /// Every `DECIMATE`-th sample enters the balance (52 Hz at 417 Hz, well above the 1.5 Hz the
 /// signals are filtered to).
@@ -67,77 +68,8 @@ const GAMMA_RANGE: (f64, f64) = (-0.5, 0.5);
 /// its estimate is most negatively correlated with.
 pub const MAX_ALPHA_REL_SE: f64 = 0.05;
 
-/// The speed form of the pad friction.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum PadForm {
-    Constant,
-    Linear,
-    Karwatzki,
-}
-
-impl PadForm {
-    pub const ALL: [PadForm; 3] = [PadForm::Constant, PadForm::Linear, PadForm::Karwatzki];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            PadForm::Constant => "constant",
-            PadForm::Linear => "linear",
-            PadForm::Karwatzki => "karwatzki",
-        }
-    }
-
-    /// φ(v), zero at `v_ref` (m/s).
-    pub fn phi(self, v_mps: f64, v_ref_mps: f64) -> f64 {
-        match self {
-            PadForm::Constant => 0.0,
-            PadForm::Linear => 1.0 - v_mps / v_ref_mps,
-            PadForm::Karwatzki => {
-                let k = |v: f64| {
-                    let kmh = 3.6 * v.max(0.0);
-                    (kmh + 100.0) / (5.0 * kmh + 100.0)
-                };
-                k(v_mps) / k(v_ref_mps) - 1.0
-            }
-        }
-    }
-}
-
-/// α_i(v) = α_i (1 + γ φ(v)).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct PadLaw {
-    pub form: PadForm,
-    /// γ (–).
-    pub gamma: f64,
-    /// One standard error of γ (0 for the constant form).
-    pub gamma_se: f64,
-    /// The speed where α_i(v) = α_i, m/s.
-    pub v_ref_mps: f64,
-}
-
-impl PadLaw {
-    /// No speed dependence.
-    pub fn constant() -> PadLaw {
-        PadLaw {
-            form: PadForm::Constant,
-            gamma: 0.0,
-            gamma_se: 0.0,
-            v_ref_mps: 1.0,
-        }
-    }
-
-    /// 1 + γ φ(v).
-    pub fn factor(&self, v_mps: f64) -> f64 {
-        1.0 + self.gamma * self.form.phi(v_mps, self.v_ref_mps)
-    }
-
-    /// The relative rise from the top speed to standstill, γ φ(0).
-    pub fn rise_to_standstill(&self) -> f64 {
-        self.factor(0.0) - 1.0
-    }
-}
-
 /// One pad-friction form as fitted.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PadCandidate {
     pub form: PadForm,
     pub gamma: f64,
@@ -148,7 +80,7 @@ pub struct PadCandidate {
 }
 
 /// What a campaign's self-calibration found.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CampaignCalibration {
     /// α_i at the top speed, N·m/bar.
     pub alpha_nm_per_bar: [f64; AXLES],
@@ -185,17 +117,6 @@ pub struct CampaignCalibration {
     pub notes: Vec<String>,
 }
 
-/// What the estimation applies: per-axle α at the top speed, the pad law, and the radar's
-/// scale and latency.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Corrections {
-    pub alpha_nm_per_bar: [f64; AXLES],
-    pub pad: PadLaw,
-    pub radar_scale: f64,
-    pub radar_latency_s: f64,
-    pub tacho_delay_s: f64,
-}
-
 impl CampaignCalibration {
     pub fn corrections(&self) -> Corrections {
         Corrections {
@@ -225,6 +146,9 @@ struct RunSignals {
     coast: Vec<usize>,
 }
 
+/// One run as the calibration keeps it (or the note why it is left out).
+pub struct PreparedRun(Result<RunSignals, String>);
+
 /// Collects a campaign's runs one at a time (each log can be dropped after [`Self::add`]),
 /// then fits ([`Self::finish`]).
 pub struct CampaignCalibrator<'p> {
@@ -242,9 +166,27 @@ impl<'p> CampaignCalibrator<'p> {
         }
     }
 
-    /// Conditions `log` with matched filters and keeps what the balance needs. A run without
-    /// a usable sample is noted and left out.
+    /// Conditions `log` and keeps what the balance needs ([`Self::prepare`], then
+    /// [`Self::add_prepared`]).
     pub fn add(&mut self, log: &RunLog) -> Result<(), EstimateError> {
+        let p = self.prepare(log)?;
+        self.add_prepared(p);
+        Ok(())
+    }
+
+    /// Adds a prepared run (in the campaign's order: the fit sums over the runs in the order
+    /// they were added).
+    pub fn add_prepared(&mut self, p: PreparedRun) {
+        match p.0 {
+            Ok(signals) => self.runs.push(signals),
+            Err(note) => self.notes.push(note),
+        }
+    }
+
+    /// Conditions `log` with matched filters and keeps what the balance needs; a run without
+    /// a usable sample becomes a note and is left out. Needs only `&self`: runs can be
+    /// prepared in parallel.
+    pub fn prepare(&self, log: &RunLog) -> Result<PreparedRun, EstimateError> {
         let mut filters = self.pipeline.filters.clone();
         if let Ok(x) = std::env::var("RG_CUT") {
             filters.radar_cutoff_hz = x.parse().unwrap();
@@ -282,12 +224,11 @@ impl<'p> CampaignCalibrator<'p> {
             }
         }
         if rows.is_empty() {
-            self.notes.push(format!(
+            return Ok(PreparedRun(Err(format!(
                 "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
                 log.source.display(),
                 est.min_speed_mps
-            ));
-            return Ok(());
+            ))));
         }
         let w_mean = (0..n)
             .map(|k| r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64)
@@ -304,7 +245,7 @@ impl<'p> CampaignCalibrator<'p> {
                     && (0..AXLES).all(|a| c.omega_dot_radps2[a][k].is_finite())
             })
             .collect();
-        self.runs.push(RunSignals {
+        Ok(PreparedRun(Ok(RunSignals {
             fs: c.sample_rate_hz,
             v_radar: c.v_mps,
             a_radar: c.accel_mps2,
@@ -313,8 +254,7 @@ impl<'p> CampaignCalibrator<'p> {
             wd_sum,
             rows,
             coast,
-        });
-        Ok(())
+        })))
     }
 
     /// Fits the campaign (see the module's documentation). `what` names the campaign in
@@ -371,12 +311,10 @@ impl<'p> CampaignCalibrator<'p> {
         let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
         let (mut radar_d2, mut tacho_d2) = (f64::NAN, f64::NAN);
         for _ in 0..3 {
-            (at.radar_s, radar_d2) = profile_delay(LATENCY_RANGE_S, |t| {
-                free(&At { radar_s: t, ..at })
-            });
-            (at.tacho_s, tacho_d2) = profile_delay(TACHO_DELAY_RANGE_S, |t| {
-                free(&At { tacho_s: t, ..at })
-            });
+            (at.radar_s, radar_d2) =
+                profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
+            (at.tacho_s, tacho_d2) =
+                profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
         }
         let (scale_se, scale_runs) = match b.radar_scale(&at) {
             Some((s, se, runs)) => {
@@ -557,7 +495,13 @@ fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
 
 impl Balance<'_> {
     /// One row's z (see [`Z`]) at `at`; None where a shifted signal is not available.
-    fn z_row(&self, run: &RunSignals, row: &(usize, [f64; AXLES]), at: &At, form: PadForm) -> Option<[f64; Z]> {
+    fn z_row(
+        &self,
+        run: &RunSignals,
+        row: &(usize, [f64; AXLES]),
+        at: &At,
+        form: PadForm,
+    ) -> Option<[f64; Z]> {
         let (k, p) = *row;
         let shift = at.radar_s * run.fs;
         let v = shifted(&run.v_radar, &run.ok, k, shift)? / at.scale;
@@ -808,7 +752,9 @@ impl Gram {
             }
         }
         // Standardise so the pivots measure conditioning, not units.
-        let sc: Vec<f64> = (0..k).map(|c| a[c * k + c].sqrt().max(f64::MIN_POSITIVE)).collect();
+        let sc: Vec<f64> = (0..k)
+            .map(|c| a[c * k + c].sqrt().max(f64::MIN_POSITIVE))
+            .collect();
         let mut an = a.clone();
         for p in 0..k {
             for q in 0..k {
@@ -818,7 +764,9 @@ impl Gram {
         let l = cholesky(&an, k)?;
         let (dmin, dmax) = (0..k)
             .map(|p| l[p * k + p])
-            .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| (lo.min(d), hi.max(d)));
+            .fold((f64::INFINITY, 0.0f64), |(lo, hi), d| {
+                (lo.min(d), hi.max(d))
+            });
         if !((dmax / dmin).powi(2) < 1e12) {
             return None;
         }
@@ -882,7 +830,10 @@ impl Gram {
             let fit = if form == PadForm::Constant {
                 self.rss_at(groups, form, 0.0)
             } else {
-                let f = |g: f64| self.rss_at(groups, form, g).map_or(f64::INFINITY, |x| x.rss);
+                let f = |g: f64| {
+                    self.rss_at(groups, form, g)
+                        .map_or(f64::INFINITY, |x| x.rss)
+                };
                 let gamma = golden(&f, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
                 self.rss_at(groups, form, gamma)
             };
@@ -897,13 +848,22 @@ impl Gram {
             let sigma2 = fit.rss / (self.n as f64).max(1.0) * inflate;
             let worst = (0..groups.len())
                 .map(|gi| ((sigma2 * fit.cov_unit[gi]).sqrt() / fit.beta[gi].abs(), gi))
-                .fold((0.0f64, 0usize), |m, x| if x.0 > m.0 || x.0.is_nan() { x } else { m });
+                .fold((0.0f64, 0usize), |m, x| {
+                    if x.0 > m.0 || x.0.is_nan() {
+                        x
+                    } else {
+                        m
+                    }
+                });
             if groups.len() > 1 && (worst.0 > MAX_ALPHA_REL_SE || worst.0.is_nan()) {
                 merge_first(groups, Some((worst.1, fit.corr_partner(worst.1))));
                 continue;
             }
             let refused = (form != PadForm::Constant
-                && (fit.gamma - GAMMA_RANGE.0).abs().min((fit.gamma - GAMMA_RANGE.1).abs()) < 1e-3)
+                && (fit.gamma - GAMMA_RANGE.0)
+                    .abs()
+                    .min((fit.gamma - GAMMA_RANGE.1).abs())
+                    < 1e-3)
                 .then(|| format!("γ = {:.3} is at the end of the searched range", fit.gamma));
             return (Some(fit), refused);
         }

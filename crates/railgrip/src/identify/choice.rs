@@ -257,6 +257,7 @@ fn fold(
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: String::new(),
         generation: None,
+        calibration: None,
     };
     let fit = |c: &Candidate, fallback: Option<&Model>| -> Result<Model, String> {
         let p = fold_pipeline(&c.pipeline);

@@ -48,6 +48,7 @@ pub fn leave_one_run_out(
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: String::new(),
         generation: None,
+        calibration: None,
     };
     let n = tables.len();
     let folds = n.min(pipeline.train.folds.max(2));

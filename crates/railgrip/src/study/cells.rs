@@ -208,6 +208,7 @@ fn fit(spec: &CellSpec, train: &[RunTable], r: &mut CellResult) -> Result<ModelF
         crate_version: env!("CARGO_PKG_VERSION").into(),
         created: String::new(),
         generation: None,
+        calibration: None,
     };
     let fitted = spec
         .family

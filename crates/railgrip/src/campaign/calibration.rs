@@ -1,0 +1,295 @@
+//! The campaign's calibration stage, before its runs are estimated, when the pipeline asks
+//! for one (`estimate.calibration`):
+//! - "campaign": every run is conditioned once more for the pooled balance of
+//!   [`crate::estimate::selfcal`] (per-axle α, the pad friction's speed law, the running
+//!   resistance, the radar's scale and latency, the tachometers' delay);
+//! - "dry-run": one α for all axles from each run's full-adhesion samples
+//!   ([`crate::estimate::calibrate`]), pooled over the runs where that fit succeeds
+//!   (inverse-variance weights), the radar trusted.
+//!
+//! The estimates then depend on the whole campaign: the flow is calibrate → estimate, and a
+//! run's reuse key includes the calibration. The result is written as `calibration.json` in
+//! the output folder; a scheduler's estimate shards and models part are given that file
+//! (`--calibration`), and refuse one fitted on other runs or with another pipeline file.
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+
+use super::{CampaignError, Options};
+use crate::config::calibrated::{Calibrated, Corrections, PadLaw};
+use crate::config::{CalibrationSource, Pipeline};
+use crate::estimate::calibrate::{calibrate, AlphaFit, Resistance};
+use crate::estimate::selfcal::{CampaignCalibration, CampaignCalibrator};
+use crate::format::AXLES;
+use crate::ingest::LogSource;
+
+/// The calibration file's name in the output folder.
+pub const CALIBRATION_FILE: &str = "calibration.json";
+
+/// `calibration.json`: what the estimation applies, and the fit behind it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct CalibrationRecord {
+    pub calibrated: Calibrated,
+    /// The campaign's self-calibration ("campaign").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub campaign: Option<CampaignCalibration>,
+    /// The pooled full-adhesion fit ("dry-run").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dry_run: Option<DryRunFit>,
+    /// What could not be calibrated, runs left out and why.
+    pub notes: Vec<String>,
+}
+
+/// One α from the runs' full-adhesion samples.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct DryRunFit {
+    /// Pooled α, N·m/bar, and its standard error.
+    pub alpha_nm_per_bar: f64,
+    pub alpha_se: f64,
+    /// (run, α, se) of each run the fit succeeded on.
+    pub runs: Vec<(String, f64, f64)>,
+}
+
+/// SHA-256 (hex) of the pipeline file's text.
+pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
+    crate::hash::hex(&Sha256::digest(pipeline.text.as_bytes()))
+}
+
+/// The pipeline the campaign's runs are estimated with: `pipeline` as it is when it asks for
+/// no calibration; with a given calibration checked against the campaign; else, for a whole
+/// campaign (`compute`), with the calibration fitted here (and its record). A part of a
+/// scheduled campaign (`compute` false) must be given it.
+pub fn calibrated_pipeline(
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    options: Options,
+    compute: bool,
+    where_: &Path,
+) -> Result<(Pipeline, Option<CalibrationRecord>), CampaignError> {
+    let mode = pipeline.estimate.calibration;
+    if mode == CalibrationSource::Pipeline {
+        if pipeline.calibrated.is_some() {
+            return Err(CampaignError::Input {
+                path: where_.to_path_buf(),
+                message: "a calibration was given, but the pipeline's estimate.calibration is \"pipeline\"".into(),
+                hint: "set estimate.calibration to the calibration's source, or leave --calibration out".into(),
+            });
+        }
+        return Ok((pipeline.clone(), None));
+    }
+    if let Some(given) = &pipeline.calibrated {
+        check_given(given, logs, pipeline, where_)?;
+        return Ok((pipeline.clone(), None));
+    }
+    if !compute {
+        return Err(CampaignError::Input {
+            path: where_.to_path_buf(),
+            message: format!(
+                "estimate.calibration = \"{}\": the runs are estimated with the campaign's calibration, which was not given",
+                mode.name()
+            ),
+            hint: "fit it once with `railgrip calibrate --campaign ARCHIVE --out OUT` (it writes OUT/calibration.json) and give it to every part with --calibration OUT/calibration.json".into(),
+        });
+    }
+    let record = calibrate_campaign(logs, pipeline, options, where_)?;
+    let mut p = pipeline.clone();
+    p.calibrated = Some(record.calibrated.clone());
+    Ok((p, Some(record)))
+}
+
+/// Refuses a calibration fitted on other runs or with another pipeline file.
+fn check_given(
+    given: &Calibrated,
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    where_: &Path,
+) -> Result<(), CampaignError> {
+    let names: Vec<&str> = logs.iter().map(|(n, _)| n.as_str()).collect();
+    let fitted: Vec<&str> = given.runs.iter().map(String::as_str).collect();
+    let why = if given.source != pipeline.estimate.calibration.name() {
+        Some(format!(
+            "it is a \"{}\" calibration and the pipeline asks for \"{}\"",
+            given.source,
+            pipeline.estimate.calibration.name()
+        ))
+    } else if given.pipeline_sha256 != pipeline_sha256(pipeline) {
+        Some("it was fitted with another pipeline file".into())
+    } else if fitted != names {
+        let missing: Vec<&str> = names
+            .iter()
+            .filter(|n| !fitted.contains(n))
+            .copied()
+            .collect();
+        let extra: Vec<&str> = fitted
+            .iter()
+            .filter(|n| !names.contains(n))
+            .copied()
+            .collect();
+        Some(format!(
+            "it was fitted on other runs (not fitted: {}; not in the campaign: {})",
+            if missing.is_empty() {
+                "none".into()
+            } else {
+                missing.join(", ")
+            },
+            if extra.is_empty() {
+                "none".into()
+            } else {
+                extra.join(", ")
+            }
+        ))
+    } else {
+        None
+    };
+    match why {
+        None => Ok(()),
+        Some(why) => Err(CampaignError::Input {
+            path: where_.to_path_buf(),
+            message: format!("the given calibration does not belong to this campaign: {why}"),
+            hint: "fit it again with `railgrip calibrate --campaign ARCHIVE --out OUT` for this archive and pipeline".into(),
+        }),
+    }
+}
+
+/// Fits the campaign's calibration (`estimate.calibration` of `pipeline`, not "pipeline") on
+/// its runs, conditioned in parallel on `options.jobs` threads; a run that cannot be read is
+/// left out with a note (its estimate fails on its own).
+pub fn calibrate_campaign(
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    options: Options,
+    where_: &Path,
+) -> Result<CalibrationRecord, CampaignError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(options.jobs.unwrap_or(0))
+        .build()?;
+    let mode = pipeline.estimate.calibration;
+    let mut raw = pipeline.clone();
+    raw.calibrated = None;
+    let calibrated = |corrections| Calibrated {
+        source: mode.name().to_string(),
+        corrections,
+        runs: logs.iter().map(|(n, _)| n.clone()).collect(),
+        pipeline_sha256: pipeline_sha256(pipeline),
+    };
+    let read = |src: &LogSource| crate::ingest::ingest_source(src, &raw);
+    match mode {
+        CalibrationSource::Campaign => {
+            let mut cal = CampaignCalibrator::new(&raw);
+            let prepared: Vec<Result<_, String>> = pool.install(|| {
+                logs.par_iter()
+                    .map(|(name, src)| {
+                        let log = read(src).map_err(|e| format!("{name}: {e}"))?;
+                        cal.prepare(&log).map_err(|e| format!("{name}: {e}"))
+                    })
+                    .collect()
+            });
+            let mut notes = Vec::new();
+            for p in prepared {
+                match p {
+                    Ok(p) => cal.add_prepared(p),
+                    Err(e) => notes.push(format!("left out of the calibration: {e}")),
+                }
+            }
+            let fit = cal.finish(where_)?;
+            notes.extend(fit.notes.iter().cloned());
+            Ok(CalibrationRecord {
+                calibrated: calibrated(fit.corrections()),
+                campaign: Some(fit),
+                dry_run: None,
+                notes,
+            })
+        }
+        CalibrationSource::DryRun => {
+            let fits: Vec<(String, Result<(f64, f64), String>)> = pool.install(|| {
+                logs.par_iter()
+                    .map(|(name, src)| {
+                        let fit = read(src)
+                            .map_err(|e| e.to_string())
+                            .and_then(|log| {
+                                calibrate(&log, &raw, AlphaFit::Common, Resistance::Fit)
+                                    .map_err(|e| e.to_string())
+                            })
+                            .map(|c| (c.alpha_nm_per_bar[0], c.alpha_se[0]));
+                        (name.clone(), fit)
+                    })
+                    .collect()
+            });
+            let ok: Vec<(String, f64, f64)> = fits
+                .iter()
+                .filter_map(|(n, f)| f.as_ref().ok().map(|(a, se)| (n.clone(), *a, *se)))
+                .collect();
+            if ok.is_empty() {
+                return Err(CampaignError::Input {
+                    path: where_.to_path_buf(),
+                    message: "estimate.calibration = \"dry-run\": no run of the campaign has the full-adhesion samples one α needs".into(),
+                    hint: "add a dry run braked without sliding (e.g. fixtures/archive/dry_120kmh_p20.csv), or use estimate.calibration = \"campaign\"".into(),
+                });
+            }
+            let w: f64 = ok.iter().map(|(_, _, se)| 1.0 / (se * se)).sum();
+            let alpha = ok.iter().map(|(_, a, se)| a / (se * se)).sum::<f64>() / w;
+            let notes = fits
+                .iter()
+                .filter_map(|(n, f)| {
+                    f.as_ref()
+                        .err()
+                        .map(|e| format!("{n}: no α from this run: {e}"))
+                })
+                .collect();
+            Ok(CalibrationRecord {
+                calibrated: calibrated(Corrections {
+                    alpha_nm_per_bar: [alpha; AXLES],
+                    pad: PadLaw::constant(),
+                    radar_scale: 1.0,
+                    radar_latency_s: 0.0,
+                    tacho_delay_s: 0.0,
+                }),
+                campaign: None,
+                dry_run: Some(DryRunFit {
+                    alpha_nm_per_bar: alpha,
+                    alpha_se: w.sqrt().recip(),
+                    runs: ok,
+                }),
+                notes,
+            })
+        }
+        CalibrationSource::Pipeline => unreachable!("no calibration asked for"),
+    }
+}
+
+/// Reads a calibration file (`calibration.json` as [`calibrate_campaign`]'s record, or the
+/// bare [`Calibrated`] part).
+pub fn read_calibration(path: &Path) -> Result<Calibrated, CampaignError> {
+    let bad = |message: String| CampaignError::Input {
+        path: path.to_path_buf(),
+        message,
+        hint:
+            "give the calibration.json that `railgrip calibrate --campaign` or `railgrip run` wrote"
+                .into(),
+    };
+    let text = std::fs::read_to_string(path).map_err(|source| CampaignError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    match serde_json::from_str::<CalibrationRecord>(&text) {
+        Ok(r) => Ok(r.calibrated),
+        Err(e) => serde_json::from_str::<Calibrated>(&text)
+            .map_err(|_| bad(format!("not a calibration file: {e}"))),
+    }
+}
+
+/// Writes `record` as `dir/calibration.json` (atomically).
+pub fn write_calibration(dir: &Path, record: &CalibrationRecord) -> Result<PathBuf, CampaignError> {
+    use std::io::Write as _;
+    let path = dir.join(CALIBRATION_FILE);
+    let text = serde_json::to_string_pretty(record).expect("a calibration serialises") + "\n";
+    crate::atomic::write_atomically(&path, |w| w.write_all(text.as_bytes())).map_err(|source| {
+        CampaignError::Write {
+            path: path.clone(),
+            source,
+        }
+    })?;
+    Ok(path)
+}

@@ -1,0 +1,130 @@
+//! A calibration as the estimation applies it: per-axle brake coefficients, the pad
+//! friction's speed law, the radar's scale and latency and the tachometers' delay — fitted
+//! from a campaign's runs ([`crate::estimate::selfcal`]) and carried with the pipeline
+//! ([`super::Pipeline::calibrated`]), so that every way of estimating a run applies the same.
+
+use crate::format::AXLES;
+
+/// The speed form of the pad friction: constant; linear, φ = 1 − v/v_ref (disc pads whose
+/// friction rises steadily as the sliding speed falls); or Karwatzki's, φ = k(v)/k(v_ref) − 1
+/// with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
+/// formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
+/// Teubner 2003).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PadForm {
+    Constant,
+    Linear,
+    Karwatzki,
+}
+
+impl PadForm {
+    pub const ALL: [PadForm; 3] = [PadForm::Constant, PadForm::Linear, PadForm::Karwatzki];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PadForm::Constant => "constant",
+            PadForm::Linear => "linear",
+            PadForm::Karwatzki => "karwatzki",
+        }
+    }
+
+    /// φ(v), zero at `v_ref` (m/s).
+    pub fn phi(self, v_mps: f64, v_ref_mps: f64) -> f64 {
+        match self {
+            PadForm::Constant => 0.0,
+            PadForm::Linear => 1.0 - v_mps / v_ref_mps,
+            PadForm::Karwatzki => {
+                let k = |v: f64| {
+                    let kmh = 3.6 * v.max(0.0);
+                    (kmh + 100.0) / (5.0 * kmh + 100.0)
+                };
+                k(v_mps) / k(v_ref_mps) - 1.0
+            }
+        }
+    }
+}
+
+/// α_i(v) = α_i (1 + γ φ(v)).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct PadLaw {
+    pub form: PadForm,
+    /// γ (–).
+    pub gamma: f64,
+    /// One standard error of γ (0 for the constant form).
+    pub gamma_se: f64,
+    /// The speed where α_i(v) = α_i, m/s.
+    pub v_ref_mps: f64,
+}
+
+impl PadLaw {
+    /// No speed dependence.
+    pub fn constant() -> PadLaw {
+        PadLaw {
+            form: PadForm::Constant,
+            gamma: 0.0,
+            gamma_se: 0.0,
+            v_ref_mps: 1.0,
+        }
+    }
+
+    /// 1 + γ φ(v).
+    pub fn factor(&self, v_mps: f64) -> f64 {
+        1.0 + self.gamma * self.form.phi(v_mps, self.v_ref_mps)
+    }
+
+    /// The relative rise from the top speed to standstill, γ φ(0).
+    pub fn rise_to_standstill(&self) -> f64 {
+        self.factor(0.0) - 1.0
+    }
+}
+
+/// What the estimation applies: per-axle α at the top speed, the pad law, and the radar's
+/// scale and latency, the tachometers' delay. The identity (α as `[vehicle]` gives them,
+/// constant pad friction, scale 1, no delays) changes nothing.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Corrections {
+    pub alpha_nm_per_bar: [f64; AXLES],
+    pub pad: PadLaw,
+    pub radar_scale: f64,
+    pub radar_latency_s: f64,
+    pub tacho_delay_s: f64,
+}
+
+/// A calibration with what it was fitted on: the pipeline carries it
+/// ([`super::Pipeline::calibrated`]); a campaign refuses one fitted on other runs or with
+/// another pipeline file.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Calibrated {
+    /// "campaign" or "dry-run" (`estimate.calibration`).
+    pub source: String,
+    pub corrections: Corrections,
+    /// The campaign's runs (names, in the campaign's order) it was fitted on.
+    pub runs: Vec<String>,
+    /// SHA-256 of the pipeline file's text it was fitted with.
+    pub pipeline_sha256: String,
+}
+
+impl Calibrated {
+    /// One line for notes and the model files' provenance.
+    pub fn summary(&self) -> String {
+        let c = &self.corrections;
+        let alpha: Vec<String> = c
+            .alpha_nm_per_bar
+            .iter()
+            .map(|a| format!("{a:.1}"))
+            .collect();
+        format!(
+            "{} calibration over {} runs: α = [{}] N·m/bar at {:.0} km/h, pad friction {} ({:+.1} % to standstill), radar ×{:.5} and {:.1} ms late, tachometers {:.1} ms late",
+            self.source,
+            self.runs.len(),
+            alpha.join(", "),
+            c.pad.v_ref_mps * 3.6,
+            c.pad.form.name(),
+            c.pad.rise_to_standstill() * 100.0,
+            c.radar_scale,
+            c.radar_latency_s * 1e3,
+            c.tacho_delay_s * 1e3
+        )
+    }
+}
