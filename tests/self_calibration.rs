@@ -8,8 +8,11 @@
 use std::path::Path;
 
 use railgrip::estimate::radar::calibrate_radar;
+use railgrip::estimate::selfcal::{CampaignCalibration, CampaignCalibrator, PadForm};
+use railgrip::estimate::{estimate, estimate_corrected, Estimates};
 use railgrip::ingest::ingest_file;
 use railgrip::sim::{self, OutputFormat, Scene};
+use railgrip::sim::{Effect, Effects};
 use railgrip::Pipeline;
 
 /// A soap run from `kmh` with three seconds of coasting before the brake, the effects of the
@@ -78,11 +81,12 @@ fn a_run_that_never_coasts_is_refused_with_what_it_lacks() {
 }
 
 /// The mismatch campaign (pipelines/scenes/mismatch, 12 scenes) simulated with noise seed
-/// `seed`: each run's log, its truth and the mismatch behind it.
+/// `seed`, without the effects named in `without`: each run's log and simulator output.
 fn mismatch_campaign(
     seed: u64,
+    without: &[&str],
     dir: &Path,
-) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput, f64)> {
+) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
         .unwrap()
@@ -93,18 +97,10 @@ fn mismatch_campaign(
         .iter()
         .map(|path| {
             let mut sc = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-            if let Ok(x) = std::env::var("RG_NOQUIET") {
-                for name in x.split(',') {
-                    let e = railgrip::sim::Effect::ALL
-                        .iter()
-                        .find(|e| e.name() == name)
-                        .unwrap();
-                    let keep = railgrip::sim::Effect::ALL
-                        .iter()
-                        .filter(|f| sc.effects.has(**f) && *f != e);
-                    sc.effects = keep.fold(railgrip::sim::Effects::none(), |m, f| m.with(*f));
-                }
-            }
+            let keep = Effect::ALL
+                .iter()
+                .filter(|e| sc.effects.has(**e) && !without.contains(&e.name()));
+            sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
             let out = sim::simulate(&sc, Some(seed)).unwrap();
             let stem = format!("{}_{seed}", sc.name);
             out.write(dir, &stem, OutputFormat::Csv).unwrap();
@@ -113,15 +109,17 @@ fn mismatch_campaign(
                 &Pipeline::default_uic_z1(),
             )
             .unwrap();
-            (log, out, sc.run.ambient_temperature_c)
+            (log, out)
         })
         .collect()
 }
 
-/// Per-axle (RMSE, bias) of μ against the truth over valid samples with true Δv > 0.2 m/s.
-fn mu_error(e: &railgrip::estimate::Estimates, tr: &sim::Truth) -> [(f64, f64); 4] {
+/// (RMSE, bias) of μ against the truth per axle, and the RMSE over all axles, over valid
+/// samples with true Δv > 0.2 m/s (the estimator's measure).
+fn mu_error(e: &Estimates, tr: &sim::Truth) -> ([(f64, f64); 4], f64) {
     let fs = 1.0 / (tr.time_s[1] - tr.time_s[0]);
-    std::array::from_fn(|a| {
+    let (mut all_sq, mut all_k) = (0.0, 0usize);
+    let per = std::array::from_fn(|a| {
         let (mut sum, mut sq, mut k) = (0.0, 0.0, 0usize);
         for (i, &t) in e.time_s.iter().enumerate() {
             let j = ((t - tr.time_s[0]) * fs).round();
@@ -136,58 +134,353 @@ fn mu_error(e: &railgrip::estimate::Estimates, tr: &sim::Truth) -> [(f64, f64); 
                 k += 1;
             }
         }
+        all_sq += sq;
+        all_k += k;
         let k = k.max(1) as f64;
         ((sq / k).sqrt(), sum / k)
-    })
+    });
+    (per, (all_sq / all_k.max(1) as f64).sqrt())
 }
 
-#[test]
-fn the_campaign_calibrates_itself_on_mismatch_scenes() {
-    use railgrip::estimate::selfcal::CampaignCalibrator;
-    use railgrip::estimate::{estimate, estimate_corrected};
-    let dir = tempfile::tempdir().unwrap();
+/// The campaign's calibration of `runs`.
+fn calibrate(
+    runs: &[(railgrip::ingest::RunLog, sim::SimOutput)],
+    dir: &Path,
+) -> CampaignCalibration {
     let pipeline = Pipeline::default_uic_z1();
-    for seed in [1, 2, 3] {
-        let runs = mismatch_campaign(seed, dir.path());
-        let mut cal = CampaignCalibrator::new(&pipeline);
-        for (log, ..) in &runs {
-            cal.add(log).unwrap();
-        }
-        let t = std::time::Instant::now();
-        let c = cal.finish(dir.path()).unwrap();
-        eprintln!("seed {seed}: fit in {:?}\n{c:#?}", t.elapsed());
-        let m = runs[0].1.mismatch.clone().unwrap();
-        eprintln!("truth {m:?}");
-        for a in 0..4 {
-            // α_i(v) truth against the fit over the speed range.
-            let mut worst = 0.0f64;
-            for v in [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, c.pad.v_ref_mps] {
-                let tr = m.brake_torque_nm_per_bar[a]
-                    * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
-                let fit = c.alpha_nm_per_bar[a] * c.pad.factor(v);
-                worst = worst.max((fit / tr - 1.0).abs());
-            }
-            eprintln!("axle {}: worst α(v) error {:.4} %", a + 1, worst * 100.0);
-        }
-        let corr = c.corrections();
-        for (log, out, _) in &runs {
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    for (log, _) in runs {
+        cal.add(log).unwrap();
+    }
+    cal.finish(dir).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Per run: the estimates' μ error without and with the calibration.
+fn before_after(
+    runs: &[(railgrip::ingest::RunLog, sim::SimOutput)],
+    c: &CampaignCalibration,
+) -> Vec<(String, ([(f64, f64); 4], f64), ([(f64, f64); 4], f64))> {
+    let pipeline = Pipeline::default_uic_z1();
+    let corr = c.corrections();
+    runs.iter()
+        .map(|(log, out)| {
             let before = mu_error(&estimate(log, &pipeline).unwrap(), &out.truth);
             let after = mu_error(
                 &estimate_corrected(log, &pipeline, &corr).unwrap(),
                 &out.truth,
             );
-            let f = |x: [(f64, f64); 4]| {
-                x.iter()
+            let name = log
+                .source
+                .file_stem()
+                .unwrap()
+                .to_string_lossy()
+                .to_string();
+            let f = |x: &([(f64, f64); 4], f64)| {
+                x.0.iter()
                     .map(|(r, b)| format!("{r:.4}/{b:+.4}"))
                     .collect::<Vec<_>>()
                     .join(" ")
             };
             eprintln!(
-                "{}: before {} | after {}",
-                log.source.file_name().unwrap().to_string_lossy(),
-                f(before),
-                f(after)
+                "{name}: RMSE/bias before {} | after {}",
+                f(&before),
+                f(&after)
+            );
+            (name, before, after)
+        })
+        .collect()
+}
+
+/// The mismatch scenes at the sizes (α scatter 2 %, pad friction +5 % from 200 km/h,
+/// radar +0.3 % and 30 ms late, tachometers counting over 20 ms, so 10 ms late), three noise
+/// seeds, each a campaign of 12 runs over 80–200 km/h and three temperatures. What is
+/// asserted is what the method reaches (docs/calibration.md has the figures): the radar's
+/// scale within 0.05 %, its latency and the tachometers' delay within 5 ms, α_i(v) within
+/// 2.5 % and 3 standard errors, the pad law's rise within 3 standard errors, per-run μ RMSE
+/// at most 0.6 × the uncalibrated one and every axle's bias within ±0.003 (measured: up to
+/// 0.0023; the ±0.001 aimed for is not reached: the per-axle α rest on the wheel-slide
+/// protection's pressure differences against the radar's noise, ~0.75 % one standard error
+/// over 12 runs).
+#[test]
+fn the_campaign_calibrates_itself_on_mismatch_scenes() {
+    let dir = tempfile::tempdir().unwrap();
+    for seed in [1, 2, 3] {
+        let runs = mismatch_campaign(seed, &[], dir.path());
+        let c = calibrate(&runs, dir.path());
+        let m = runs[0].1.mismatch.clone().unwrap();
+        eprintln!(
+            "seed {seed}: α {:?} ± {:?}, pad {:?}, radar {:.5} ± {:.5}, latency {:.1} ± {:.1} ms, tachos {:.1} ± {:.1} ms",
+            c.alpha_nm_per_bar, c.alpha_se, c.pad, c.radar_scale, c.radar_scale_se,
+            c.radar_latency_s * 1e3, c.radar_latency_se * 1e3, c.tacho_delay_s * 1e3, c.tacho_delay_se * 1e3
+        );
+        assert!(c.shared.is_empty(), "{:?}", c.shared);
+        assert!(
+            (c.radar_scale / m.radar_scale - 1.0).abs() <= 5e-4,
+            "{}",
+            c.radar_scale
+        );
+        assert!(
+            (c.radar_latency_s - m.radar_latency_s).abs() <= 0.005,
+            "{}",
+            c.radar_latency_s
+        );
+        assert!(
+            (c.tacho_delay_s - 0.010).abs() <= 0.005,
+            "{}",
+            c.tacho_delay_s
+        );
+        assert_eq!(c.pad.form, PadForm::Linear, "{:?}", c.pad_candidates);
+        let rise = c.pad.rise_to_standstill() / (1.0 - 0.0);
+        let true_rise = m.pad_friction_rise * (c.pad.v_ref_mps / m.pad_friction_v0_mps);
+        assert!(
+            (rise - true_rise).abs() <= 3.0 * c.pad.gamma_se + 0.005,
+            "rise {rise} against {true_rise} (se {})",
+            c.pad.gamma_se
+        );
+        for a in 0..4 {
+            let mut worst = 0.0f64;
+            for v in [5.0, 15.0, 25.0, 35.0, 45.0, c.pad.v_ref_mps] {
+                let tr = m.brake_torque_nm_per_bar[a]
+                    * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
+                worst = worst.max((c.alpha_nm_per_bar[a] * c.pad.factor(v) / tr - 1.0).abs());
+            }
+            let at_top = m.brake_torque_nm_per_bar[a]
+                * (1.0
+                    + m.pad_friction_rise
+                        * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
+            eprintln!("  axle {}: α(v) within {:.2} %", a + 1, worst * 100.0);
+            assert!(worst <= 0.025, "axle {}: {worst}", a + 1);
+            assert!(
+                (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
+                "axle {}: α {} against {at_top} (se {})",
+                a + 1,
+                c.alpha_nm_per_bar[a],
+                c.alpha_se[a]
+            );
+        }
+        for (name, before, after) in before_after(&runs, &c) {
+            assert!(
+                after.1 <= 0.6 * before.1,
+                "{name}: RMSE {} against {}",
+                after.1,
+                before.1
+            );
+            for (a, (_, bias)) in after.0.iter().enumerate() {
+                assert!(bias.abs() <= 0.003, "{name} axle {}: bias {bias}", a + 1);
+            }
+        }
+    }
+}
+
+/// Without a mismatch (the same scenes, the brake rig and the radar as the pipeline says),
+/// the calibration finds the identity within its errors; the per-sample μ RMSE mostly
+/// improves (the tachometers' counting delay, which the uncalibrated estimate ignores, is
+/// taken out) and is never worse by more than 0.0001 — but on the runs with the smallest
+/// errors it is worse by more than 2 % (the per-axle α's residual error; measured: 4 of 24
+/// runs, ratio up to 1.19, +0.00006), which is why "pipeline" stays the default.
+#[test]
+fn calibration_changes_little_on_clean_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut worse, mut total) = (0, 0);
+    for seed in [1, 2] {
+        let runs = mismatch_campaign(
+            seed,
+            &["brake_scatter", "pad_friction", "radar_error"],
+            dir.path(),
+        );
+        let c = calibrate(&runs, dir.path());
+        eprintln!(
+            "seed {seed}: α {:?} ± {:?}, pad {:?}, radar {:.5} ± {:.5}, latency {:.1} ms, tachos {:.1} ms",
+            c.alpha_nm_per_bar, c.alpha_se, c.pad, c.radar_scale, c.radar_scale_se,
+            c.radar_latency_s * 1e3, c.tacho_delay_s * 1e3
+        );
+        assert!((c.radar_scale - 1.0).abs() <= 5e-4, "{}", c.radar_scale);
+        assert!(c.radar_latency_s.abs() <= 0.006, "{}", c.radar_latency_s);
+        assert_eq!(c.pad.form, PadForm::Constant, "{:?}", c.pad_candidates);
+        for a in 0..4 {
+            assert!(
+                (c.alpha_nm_per_bar[a] / 1600.0 - 1.0).abs() <= 0.005,
+                "{:?}",
+                c.alpha_nm_per_bar
+            );
+        }
+        for (name, before, after) in before_after(&runs, &c) {
+            eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
+            assert!(
+                after.1 <= before.1 + 1e-4,
+                "{name}: RMSE {} against {}",
+                after.1,
+                before.1
+            );
+            worse += usize::from(after.1 > before.1);
+            total += 1;
+        }
+    }
+    assert!(worse * 4 <= total, "{worse} of {total} runs worse");
+}
+
+/// Hard case: no run coasts before its brake (the brake applied from the first sample), so
+/// nothing gives the radar's scale. The calibration says so, takes the radar as it reads
+/// (scale 1) and still fits the brake coefficients, less well: the radar's unknown 0.3 %
+/// scales the deceleration, and with a pressure that barely changes within a run the pad
+/// friction's speed law and the resistance's speed term are hard to tell apart (measured:
+/// the axles' mean α 2.6 % high, against 0.1–0.6 % with the coasts).
+#[test]
+fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    scenes.sort();
+    let pipeline = Pipeline::default_uic_z1();
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    let mut truth = None;
+    for path in &scenes {
+        let mut sc = Scene::load(path).unwrap();
+        for d in sc.brake.demand_bar.iter_mut() {
+            let p = d.last().unwrap().1;
+            *d = vec![(0.0, p)];
+        }
+        let out = sim::simulate(&sc, Some(1)).unwrap();
+        out.write(dir.path(), &sc.name, OutputFormat::Csv).unwrap();
+        let log = ingest_file(&dir.path().join(format!("{}.csv", sc.name)), &pipeline).unwrap();
+        cal.add(&log).unwrap();
+        truth = out.mismatch;
+    }
+    let c = cal.finish(dir.path()).unwrap();
+    let m = truth.unwrap();
+    assert_eq!(c.radar_scale, 1.0);
+    assert_eq!(c.radar_scale_runs, 0);
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("no run coasts") && n.contains("taken as 1")),
+        "{:?}",
+        c.notes
+    );
+    let mean = |x: &[f64; 4]| x.iter().sum::<f64>() / 4.0;
+    let at_top = m.brake_torque_nm_per_bar.map(|a| {
+        a * (1.0 + m.pad_friction_rise * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0))
+    });
+    let rel = mean(&c.alpha_nm_per_bar) / mean(&at_top) - 1.0;
+    eprintln!(
+        "α {:?} against {at_top:?}: mean off by {:.2} %",
+        c.alpha_nm_per_bar,
+        rel * 100.0
+    );
+    assert!(rel.abs() <= 0.03, "{rel}");
+}
+
+/// A dry campaign without wheel-slide protection whose axles 1 and 2 always get the same
+/// pressure (axles 3 and 4 their own profiles), per-axle α off by 2 %.
+fn pair_campaign(dir: &Path) -> Vec<railgrip::ingest::RunLog> {
+    let mut logs = Vec::new();
+    for (i, kmh) in [80.0, 120.0, 160.0, 200.0].iter().enumerate() {
+        for seed in [1u64, 2] {
+            let p = 3.0 + 0.3 * i as f64;
+            let text = format!(
+                "name = \"pair\"\nseed = {seed}\neffects = [\"load_transfer\", \"running_resistance\", \"radar_noise\", \"tacho_quantization\", \"pressure_noise\", \"brake_scatter\"]\n[run]\ninitial_speed_kmh = {kmh}\ncondition = \"dry\"\n[brake]\nscatter_seed = 5\ndemand_bar_per_axle = [[[0.0, 0.0], [3.0, 0.0], [4.5, {p}]], [[0.0, 0.0], [3.0, 0.0], [4.5, {p}]], [[0.0, 0.0], [3.0, 0.0], [6.0, {a}], [12.0, {p}]], [[0.0, 0.0], [3.5, 0.0], [5.0, {b}], [14.0, {c}]]]\n",
+                a = 0.7 * p,
+                b = 1.1 * p,
+                c = 0.6 * p
+            );
+            let sc = Scene::from_toml(&text, "pair.toml", None).unwrap_or_else(|e| panic!("{e}"));
+            let out = sim::simulate(&sc, None).unwrap();
+            let stem = format!("pair_{kmh}_{seed}");
+            out.write(dir, &stem, OutputFormat::Csv).unwrap();
+            logs.push(
+                ingest_file(
+                    &dir.join(format!("{stem}.csv")),
+                    &Pipeline::default_uic_z1(),
+                )
+                .unwrap(),
             );
         }
     }
+    logs
+}
+
+/// Hard case: two axles whose pressures never differ cannot have their α told apart. The
+/// calibration says so by name, fits the pair with one α, and the others on their own.
+#[test]
+fn axles_with_the_same_pressure_share_one_alpha() {
+    let dir = tempfile::tempdir().unwrap();
+    let pipeline = Pipeline::default_uic_z1();
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    for log in pair_campaign(dir.path()) {
+        cal.add(&log).unwrap();
+    }
+    let c = cal.finish(dir.path()).unwrap();
+    eprintln!(
+        "{:?} ± {:?}, shared {:?}, notes {:?}",
+        c.alpha_nm_per_bar, c.alpha_se, c.shared, c.notes
+    );
+    assert_eq!(c.shared, vec![vec![0, 1]]);
+    assert_eq!(c.alpha_nm_per_bar[0], c.alpha_nm_per_bar[1]);
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("axles 1 and 2") && n.contains("one α")),
+        "{:?}",
+        c.notes
+    );
+}
+
+/// Hard case: a radar dropout (two seconds of a run's log missing: a CSV logger drops whole
+/// rows, so the tachometers and pressures go with the radar). Its
+/// samples and the filters' settling around them are left out, with a note naming the file;
+/// the calibration of the campaign stays within what the full campaign reaches.
+#[test]
+fn a_radar_dropout_leaves_its_samples_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = mismatch_campaign(1, &[], dir.path());
+    // Drop the first run's rows between 6 and 8 s.
+    let first = runs[0].0.source.clone();
+    let text = std::fs::read_to_string(&first).unwrap();
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let t: f64 = if i > 0 {
+            line.split(',').next().unwrap().parse().unwrap()
+        } else {
+            0.0
+        };
+        if !(6.0..8.0).contains(&t) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    std::fs::write(&first, out).unwrap();
+    let pipeline = Pipeline::default_uic_z1();
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    for (i, (log, _)) in runs.iter().enumerate() {
+        if i == 0 {
+            let gapped = ingest_file(&first, &pipeline).unwrap();
+            assert!(gapped.invalid_samples() > 0);
+            cal.add(&gapped).unwrap();
+        } else {
+            cal.add(log).unwrap();
+        }
+    }
+    let c = cal.finish(dir.path()).unwrap();
+    let m = runs[0].1.mismatch.clone().unwrap();
+    assert!(
+        c.notes.iter().any(
+            |n| n.contains(&*first.file_name().unwrap().to_string_lossy()) && n.contains("dropout")
+        ),
+        "{:?}",
+        c.notes
+    );
+    assert!(
+        (c.radar_scale / m.radar_scale - 1.0).abs() <= 5e-4,
+        "{}",
+        c.radar_scale
+    );
+    assert!(
+        (c.radar_latency_s - m.radar_latency_s).abs() <= 0.005,
+        "{}",
+        c.radar_latency_s
+    );
+    assert_eq!(c.runs, 12);
 }

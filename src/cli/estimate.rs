@@ -290,12 +290,18 @@ fn calibrate_campaign(
         let names: Vec<String> = g.iter().map(|a| (a + 1).to_string()).collect();
         println!("shared     axles {} fitted with one α", names.join(", "));
     }
-    println!("pad        form   γ          BIC");
+    println!("pad        form      constants  γ        BIC");
     for c in &f.pad_candidates {
-        let mark = if c.form == f.pad.form { "chosen" } else { "" };
+        let chosen = c.form == f.pad.form && c.per_run_constants == f.per_run_constants;
+        let mark = if chosen { "chosen" } else { "" };
         println!(
-            "           {:<9} {:+.4}  {:>10.1}  {mark}{}",
+            "           {:<9} {:<10} {:+.4}  {:>10.1}  {mark}{}",
             c.form.name(),
+            if c.per_run_constants {
+                "per run"
+            } else {
+                "one"
+            },
             c.gamma,
             c.bic,
             c.refused
@@ -313,9 +319,22 @@ fn calibrate_campaign(
         f.pad.v_ref_mps * 3.6
     );
     println!(
-        "resistance per-run constants + {:.2} N·s/m · v + {:.3} N·s²/m² · v²",
-        f.resistance_c1_n_s_per_m, f.resistance_c2_n_s2_per_m2
+        "resistance {} + {:.2} N·s/m · v + {:.3} N·s²/m² · v²",
+        if f.per_run_constants {
+            "a constant per run"
+        } else {
+            "one constant"
+        },
+        f.resistance_c1_n_s_per_m,
+        f.resistance_c2_n_s2_per_m2
     );
+    if let Some(sd) = f.alpha_between_sd {
+        println!(
+            "pooling    the axles' α spread {:.1} N·m/bar (1σ) beyond their errors; fitted α {:?}",
+            sd,
+            f.alpha_fitted.map(|a| (a * 10.0).round() / 10.0)
+        );
+    }
     println!(
         "radar      scale {:.5} ± {:.5} (coasts of {} runs), latency {:.1} ± {:.1} ms",
         f.radar_scale,

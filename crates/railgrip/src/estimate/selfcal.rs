@@ -72,6 +72,8 @@ pub const MAX_ALPHA_REL_SE: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PadCandidate {
     pub form: PadForm,
+    /// With one resistance constant per run (else one for the campaign).
+    pub per_run_constants: bool,
     pub gamma: f64,
     pub rss: f64,
     pub bic: f64,
@@ -86,11 +88,20 @@ pub struct CampaignCalibration {
     pub alpha_nm_per_bar: [f64; AXLES],
     /// One standard error of each α_i, N·m/bar.
     pub alpha_se: [f64; AXLES],
+    /// Each axle's (or group's) α as the balance gives it, before the partial pooling, and
+    /// its standard error, N·m/bar.
+    pub alpha_fitted: [f64; AXLES],
+    pub alpha_fitted_se: [f64; AXLES],
+    /// The spread of the true α_i between axles the pooling found (N·m/bar, 1σ; 0 when the
+    /// fitted α_i differ no more than their errors); None with one group.
+    pub alpha_between_sd: Option<f64>,
     /// Groups of axles (0-based) whose pressures never differ enough to tell their α apart:
     /// each fitted with one α.
     pub shared: Vec<Vec<usize>>,
     pub pad: PadLaw,
     pub pad_candidates: Vec<PadCandidate>,
+    /// The resistance's constant is fitted per run (a run's gradient), else once.
+    pub per_run_constants: bool,
     /// c1, N·s/m.
     pub resistance_c1_n_s_per_m: f64,
     /// c2, N·s²/m².
@@ -146,8 +157,11 @@ struct RunSignals {
     coast: Vec<usize>,
 }
 
-/// One run as the calibration keeps it (or the note why it is left out).
-pub struct PreparedRun(Result<RunSignals, String>);
+/// One run as the calibration keeps it (none when it is left out), and a note on it.
+pub struct PreparedRun {
+    signals: Option<RunSignals>,
+    note: Option<String>,
+}
 
 /// Collects a campaign's runs one at a time (each log can be dropped after [`Self::add`]),
 /// then fits ([`Self::finish`]).
@@ -177,10 +191,8 @@ impl<'p> CampaignCalibrator<'p> {
     /// Adds a prepared run (in the campaign's order: the fit sums over the runs in the order
     /// they were added).
     pub fn add_prepared(&mut self, p: PreparedRun) {
-        match p.0 {
-            Ok(signals) => self.runs.push(signals),
-            Err(note) => self.notes.push(note),
-        }
+        self.runs.extend(p.signals);
+        self.notes.extend(p.note);
     }
 
     /// Conditions `log` with matched filters and keeps what the balance needs; a run without
@@ -224,12 +236,26 @@ impl<'p> CampaignCalibrator<'p> {
             }
         }
         if rows.is_empty() {
-            return Ok(PreparedRun(Err(format!(
-                "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
-                log.source.display(),
-                est.min_speed_mps
-            ))));
+            return Ok(PreparedRun {
+                signals: None,
+                note: Some(format!(
+                    "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
+                    log.source.display(),
+                    est.min_speed_mps
+                )),
+            });
         }
+        // A dropout (a channel without data) leaves its samples and the filters' settling
+        // around them out; the rest of the run counts.
+        let missing = c.has_data.iter().filter(|h| !**h).count();
+        let note = (missing > 0).then(|| {
+            format!(
+                "{}: {:.2} s without data on a channel (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
+                log.source.display(),
+                missing as f64 / c.sample_rate_hz,
+                c.settle_s
+            )
+        });
         let w_mean = (0..n)
             .map(|k| r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64)
             .collect();
@@ -245,16 +271,19 @@ impl<'p> CampaignCalibrator<'p> {
                     && (0..AXLES).all(|a| c.omega_dot_radps2[a][k].is_finite())
             })
             .collect();
-        Ok(PreparedRun(Ok(RunSignals {
-            fs: c.sample_rate_hz,
-            v_radar: c.v_mps,
-            a_radar: c.accel_mps2,
-            ok,
-            w_mean,
-            wd_sum,
-            rows,
-            coast,
-        })))
+        Ok(PreparedRun {
+            signals: Some(RunSignals {
+                fs: c.sample_rate_hz,
+                v_radar: c.v_mps,
+                a_radar: c.accel_mps2,
+                ok,
+                w_mean,
+                wd_sum,
+                rows,
+                coast,
+            }),
+            note,
+        })
     }
 
     /// Fits the campaign (see the module's documentation). `what` names the campaign in
@@ -280,6 +309,7 @@ impl<'p> CampaignCalibrator<'p> {
             mass: total_mass_kg(veh),
             j_r: veh.axle_inertia_kgm2 / veh.wheel_radius_m,
             v_ref: 0.0,
+            per_run: true,
         };
         let v_ref = self
             .runs
@@ -297,7 +327,7 @@ impl<'p> CampaignCalibrator<'p> {
 
         // The scale without delays; the two delays at that scale (coordinate descent); the
         // scale at those delays.
-        let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted); log a second or more of coasting before the brake";
+        let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted) and the pad friction's speed law is hard to tell from the running resistance's; log a second or more of coasting before the brake";
         let mut at = At {
             radar_s: 0.0,
             tacho_s: 0.0,
@@ -323,18 +353,34 @@ impl<'p> CampaignCalibrator<'p> {
             }
             None => (0.0, 0),
         };
+        // A delay at the end of its range is no fit (smooth runs without the wheel-slide
+        // protection's pressure changes barely tell delays apart): it is taken as 0.
+        let mut at_edge = false;
         for (name, t, (lo, hi)) in [
-            ("radar's latency", at.radar_s, LATENCY_RANGE_S),
-            ("tachometers' delay", at.tacho_s, TACHO_DELAY_RANGE_S),
+            ("radar's latency", &mut at.radar_s, LATENCY_RANGE_S),
+            ("tachometers' delay", &mut at.tacho_s, TACHO_DELAY_RANGE_S),
         ] {
-            if t <= lo + 1e-3 || t >= hi - 1e-3 {
+            if *t <= lo + 1e-3 || *t >= hi - 1e-3 {
                 notes.push(format!(
-                    "the {name} is at the end of the searched range ({:.0}…{:.0} ms): {:.0} ms is not a fit; check the logger's time stamps",
+                    "the {name} came out at the end of the searched range ({:.0}…{:.0} ms), {:.0} ms: not identifiable from these runs, taken as 0 (check the logger's time stamps)",
                     lo * 1e3,
                     hi * 1e3,
-                    t * 1e3
+                    *t * 1e3
                 ));
+                *t = 0.0;
+                at_edge = true;
             }
+        }
+        if at_edge {
+            if let Some((s, _, _)) = b.radar_scale(&at) {
+                at.scale = s;
+            }
+        }
+        if at.radar_s == 0.0 {
+            radar_d2 = f64::NAN;
+        }
+        if at.tacho_s == 0.0 {
+            tacho_d2 = f64::NAN;
         }
         let tau = at.radar_s;
 
@@ -352,41 +398,56 @@ impl<'p> CampaignCalibrator<'p> {
                     (g0.n as f64 / ne, ne)
                 })
         };
+        // The running resistance's constant: one per run (a run's gradient), or one for the
+        // campaign — chosen with the pad form by the same BIC (per-run constants cost a
+        // parameter each, and take the brake force's level with them where a run's pressure
+        // barely varies).
+        let b_common = Balance {
+            per_run: false,
+            ..b
+        };
+        let runs_n = self.runs.len();
         let mut candidates = Vec::new();
-        let mut best: Option<(Fit, f64)> = None;
-        for form in PadForm::ALL {
-            let g = b.gram(&at, form);
-            let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
-            let Some(fit) = fit else {
+        let mut best: Option<(Fit, f64, bool)> = None;
+        for (bb, per_run) in [(&b, true), (&b_common, false)] {
+            for form in PadForm::ALL {
+                let g = bb.gram(&at, form);
+                let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
+                let Some(fit) = fit else {
+                    candidates.push(PadCandidate {
+                        form,
+                        per_run_constants: per_run,
+                        gamma: f64::NAN,
+                        rss: f64::NAN,
+                        bic: f64::NAN,
+                        refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
+                    });
+                    continue;
+                };
+                let constants = if per_run { runs_n } else { 1 };
+                let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant) + constants;
+                let n = g.n as f64;
+                let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
                 candidates.push(PadCandidate {
                     form,
-                    gamma: f64::NAN,
-                    rss: f64::NAN,
-                    bic: f64::NAN,
-                    refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
+                    per_run_constants: per_run,
+                    gamma: fit.gamma,
+                    rss: fit.rss,
+                    bic,
+                    refused: refused.clone(),
                 });
-                continue;
-            };
-            let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant);
-            let n = g.n as f64;
-            let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
-            candidates.push(PadCandidate {
-                form,
-                gamma: fit.gamma,
-                rss: fit.rss,
-                bic,
-                refused: refused.clone(),
-            });
-            if refused.is_none() && best.as_ref().is_none_or(|(_, b0)| bic < *b0) {
-                best = Some((fit, bic));
+                if refused.is_none() && best.as_ref().is_none_or(|(_, b0, _)| bic < *b0) {
+                    best = Some((fit, bic, per_run));
+                }
             }
         }
-        let Some((fit, _)) = best else {
+        let Some((fit, _, per_run)) = best else {
             return Err(fail(
                 "no form of the pad friction could be fitted".into(),
                 "the pressures do not vary enough; calibrate on runs with brake applications",
             ));
         };
+        let b = if per_run { b } else { b_common };
         groups = fit.groups.clone();
         let g = b.gram(&at, fit.form);
         let n = g.n as f64;
@@ -410,6 +471,20 @@ impl<'p> CampaignCalibrator<'p> {
                 names.join(" and ")
             ));
         }
+        let alpha_fitted = alpha;
+        let alpha_fitted_se = alpha_se;
+        let pooling = if groups.len() > 1 {
+            let all = [(0..AXLES).collect::<Vec<usize>>()];
+            g.rss_at(&all, fit.form, fit.gamma).map(|common| {
+                let common_se = (sigma2 * common.cov_unit[0]).sqrt();
+                let p = partial_pooling(&groups, &alpha, &alpha_se, common.beta[0], common_se);
+                alpha = p.alpha;
+                alpha_se = p.alpha_se;
+                p.between_sd
+            })
+        } else {
+            None
+        };
         if alpha.iter().any(|a| !(*a > 0.0)) {
             return Err(fail(
                 format!("the balance gives a non-positive brake coefficient {alpha:?}"),
@@ -429,6 +504,9 @@ impl<'p> CampaignCalibrator<'p> {
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
+            alpha_fitted,
+            alpha_fitted_se,
+            alpha_between_sd: pooling,
             shared,
             pad: PadLaw {
                 form: fit.form,
@@ -437,6 +515,7 @@ impl<'p> CampaignCalibrator<'p> {
                 v_ref_mps: v_ref,
             },
             pad_candidates: candidates,
+            per_run_constants: per_run,
             resistance_c1_n_s_per_m: fit.beta[groups.len()],
             resistance_c2_n_s2_per_m2: fit.beta[groups.len() + 1],
             radar_scale: at.scale,
@@ -463,6 +542,8 @@ struct Balance<'a> {
     mass: f64,
     j_r: f64,
     v_ref: f64,
+    /// One resistance constant per run (else one for the campaign).
+    per_run: bool,
 }
 
 /// Where the balance is evaluated: the radar's latency and the tachometers' delay (s), and the
@@ -519,14 +600,15 @@ impl Balance<'_> {
         Some(z)
     }
 
-    /// The within-run (run constants eliminated) Gram matrix of z.
+    /// The Gram matrix of z with the constants eliminated (per run, or once).
     fn gram(&self, at: &At, form: PadForm) -> Gram {
         let mut g = vec![0.0; Z * Z];
         let mut n = 0;
-        for run in self.runs {
-            let mut gr = vec![0.0; Z * Z];
-            let mut sr = [0.0; Z];
-            let mut nr = 0usize;
+        let mut gr = vec![0.0; Z * Z];
+        let mut sr = [0.0; Z];
+        let mut nr = 0usize;
+        let last = self.runs.len().saturating_sub(1);
+        for (ri, run) in self.runs.iter().enumerate() {
             for row in &run.rows {
                 let Some(z) = self.z_row(run, row, at, form) else {
                     continue;
@@ -539,14 +621,18 @@ impl Balance<'_> {
                     }
                 }
             }
-            if nr < 2 {
-                continue;
-            }
-            n += nr;
-            for p in 0..Z {
-                for q in 0..=p {
-                    g[p * Z + q] += gr[p * Z + q] - sr[p] * sr[q] / nr as f64;
+            if (self.per_run || ri == last) && nr >= 2 {
+                n += nr;
+                for p in 0..Z {
+                    for q in 0..=p {
+                        g[p * Z + q] += gr[p * Z + q] - sr[p] * sr[q] / nr as f64;
+                    }
                 }
+            }
+            if self.per_run || ri == last {
+                gr.fill(0.0);
+                sr = [0.0; Z];
+                nr = 0;
             }
         }
         for p in 0..Z {
@@ -623,19 +709,27 @@ impl Balance<'_> {
 
     /// Effective samples of the balance's residuals at a fit.
     fn n_eff(&self, at: &At, form: PadForm, fit: &Fit) -> f64 {
+        let resid: Vec<Vec<f64>> = self
+            .runs
+            .iter()
+            .map(|run| {
+                run.rows
+                    .iter()
+                    .filter_map(|row| self.z_row(run, row, at, form))
+                    .map(|z| z[Y] - fit.predict(&z))
+                    .collect()
+            })
+            .collect();
+        let mean_of = |e: &[f64]| e.iter().sum::<f64>() / e.len().max(1) as f64;
+        let all: Vec<f64> = resid.iter().flatten().copied().collect();
+        let global = mean_of(&all);
         let mut total = 0.0;
-        for run in self.runs {
-            let e: Vec<f64> = run
-                .rows
-                .iter()
-                .filter_map(|row| self.z_row(run, row, at, form))
-                .map(|z| z[Y] - fit.predict(&z))
-                .collect();
+        for e in &resid {
             if e.len() < 2 {
                 continue;
             }
-            let mean = e.iter().sum::<f64>() / e.len() as f64;
-            let e: Vec<f64> = e.iter().map(|x| x - mean).collect();
+            let c = if self.per_run { mean_of(e) } else { global };
+            let e: Vec<f64> = e.iter().map(|x| x - c).collect();
             total += effective_samples(&e);
         }
         total.max(1.0)
@@ -662,6 +756,54 @@ fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let h = 0.004;
     let d2 = (rss(t + h) - 2.0 * rss(t) + rss(t - h)) / (h * h);
     (t, d2)
+}
+
+/// Per-axle α after partial pooling.
+struct Pooled {
+    alpha: [f64; AXLES],
+    alpha_se: [f64; AXLES],
+    between_sd: f64,
+}
+
+/// Partial pooling of the groups' α toward the common α (empirical Bayes, the normal–normal
+/// model with the between-axle variance by the method of moments): τ² = max(0, s² − mean
+/// se_g²) from the sample variance s² of the k groups' α̂_g about the common ᾱ; each α̂_g
+/// moves toward ᾱ by B_g = se_g²/(se_g² + τ²), α_g = α̂_g − B_g (α̂_g − ᾱ), with standard
+/// error ((1 − B_g) se_g² + B_g² se_ᾱ²)^½. Where the axles' α differ by no more than their
+/// errors (a brake rig as the pipeline says) they end at the common α, which the balance
+/// determines far better than the differences; a real scatter shifts them less.
+fn partial_pooling(
+    groups: &[Vec<usize>],
+    alpha: &[f64; AXLES],
+    alpha_se: &[f64; AXLES],
+    common: f64,
+    common_se: f64,
+) -> Pooled {
+    let k = groups.len() as f64;
+    let (mut s2, mut se2) = (0.0, 0.0);
+    for grp in groups {
+        let a = grp[0];
+        s2 += (alpha[a] - common).powi(2);
+        se2 += alpha_se[a].powi(2);
+    }
+    let tau2 = (s2 / (k - 1.0) - se2 / k).max(0.0);
+    let mut out = Pooled {
+        alpha: *alpha,
+        alpha_se: *alpha_se,
+        between_sd: tau2.sqrt(),
+    };
+    for grp in groups {
+        let a = grp[0];
+        let v = alpha_se[a].powi(2);
+        let b = if v + tau2 > 0.0 { v / (v + tau2) } else { 1.0 };
+        let pooled = alpha[a] - b * (alpha[a] - common);
+        let se = ((1.0 - b) * v + b * b * common_se * common_se).sqrt();
+        for &i in grp {
+            out.alpha[i] = pooled;
+            out.alpha_se[i] = se;
+        }
+    }
+    out
 }
 
 /// Golden-section minimum of `f` on [a, b].

@@ -63,10 +63,12 @@ pub enum Effect {
     /// friction lowered with it by f(σ, θ) (seed 000 in spirit; [`ThermalParams`]).
     Thermal,
     /// Each axle's brake coefficient α_i off the pipeline's by a relative scatter drawn from
-    /// the run's seed (`brake.alpha_scatter`, 1σ): the brake rig an estimator does not know.
+    /// the vehicle's seed (`brake.alpha_scatter` 1σ, `brake.scatter_seed`): the brake rig an
+    /// estimator does not know.
     BrakeScatter,
-    /// Pad friction rising as the train slows: α_i(v) = α_i (1 + rise (1 − v/v0)), v0 the run's
-    /// initial speed (`brake.pad_friction_rise` at standstill).
+    /// Pad friction rising as the train slows: α_i(v) = α_i (1 + rise max(0, 1 − v/v0)), v0
+    /// `brake.pad_friction_v0_kmh` or the run's initial speed (`brake.pad_friction_rise` at
+    /// standstill).
     PadFriction,
     /// A radar that reads `sensors.radar_scale` × the speed of `sensors.radar_latency_s` ago.
     RadarError,
