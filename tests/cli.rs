@@ -166,6 +166,10 @@ fn eval_grid(dir: &Path, model: &str, rows: &str) -> Vec<f64> {
         .collect()
 }
 
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
 fn archive(name: &str) -> String {
     format!("{}/fixtures/archive/{name}", env!("CARGO_MANIFEST_DIR"))
 }
@@ -1399,4 +1403,267 @@ fi
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
+}
+
+/// The bundled pipeline with `estimate.calibration` set, written into `dir`.
+fn calibrated_pipeline(dir: &Path, source: &str) -> PathBuf {
+    let text = std::fs::read_to_string(root().join("pipelines/uic_z1.toml")).unwrap();
+    let text = text.replacen(
+        "[estimate]\n",
+        &format!("[estimate]\ncalibration = \"{source}\"\n"),
+        1,
+    );
+    let path = dir.join(format!("{source}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = root().join("fixtures/archive");
+    let camp = camp.to_str().unwrap();
+    let pipe = calibrated_pipeline(d, "campaign");
+    let pipe = pipe.to_str().unwrap();
+    let o = railgrip(&["calibrate", "--campaign", camp, "--out", "cal"], d);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("estimate.calibration is \"pipeline\""),
+        "{}",
+        text(&o.stderr)
+    );
+    let o = railgrip(
+        &[
+            "calibrate",
+            "--campaign",
+            camp,
+            "--pipeline",
+            pipe,
+            "--out",
+            "cal",
+        ],
+        d,
+    );
+    let s = text(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
+    for want in [
+        "α1 ",
+        "α4 ",
+        "pad ",
+        "radar      scale",
+        "tachos     delay",
+        "written",
+    ] {
+        assert!(s.contains(want), "{want}: {s}");
+    }
+    let cal = d.join("cal/calibration.json");
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&cal).unwrap()).unwrap();
+    assert_eq!(record["calibrated"]["source"], "campaign");
+    assert_eq!(record["calibrated"]["runs"].as_array().unwrap().len(), 8);
+    let cal = cal.to_str().unwrap();
+
+    // A shard of a campaign whose pipeline asks for the calibration needs it given.
+    let shard = [
+        "run",
+        camp,
+        "--pipeline",
+        pipe,
+        "--out",
+        "o",
+        "--stage",
+        "estimate",
+        "--shard",
+        "1/2",
+    ];
+    let o = railgrip(&shard, d);
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("--calibration") && e.contains("railgrip calibrate --campaign"),
+        "{e}"
+    );
+    let mut given = shard.to_vec();
+    given.extend(["--calibration", cal]);
+    let o = railgrip(&given, d);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+
+    // A run estimated alone needs it too.
+    let o = railgrip(
+        &[
+            "estimate",
+            &archive("soap_120kmh_0c.csv"),
+            "--pipeline",
+            pipe,
+            "--out",
+            "one",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+    assert!(text(&o.stderr).contains("--calibration FILE"));
+    let o = railgrip(
+        &[
+            "estimate",
+            &archive("soap_120kmh_0c.csv"),
+            "--pipeline",
+            pipe,
+            "--out",
+            "one",
+            "--calibration",
+            cal,
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let mu = |p: &Path| common::parquet_columns(p, &["mu"]).remove(0);
+    let plain = railgrip(
+        &["estimate", &archive("soap_120kmh_0c.csv"), "--out", "plain"],
+        d,
+    );
+    assert_eq!(plain.status.code(), Some(0));
+    let calibrated = mu(&d.join("one/soap_120kmh_0c.estimates.parquet"));
+    assert_ne!(
+        calibrated,
+        mu(&d.join("plain/soap_120kmh_0c.estimates.parquet"))
+    );
+    // Shard 1/2 holds the campaign's first run: alone or in its shard, the same μ.
+    let o = railgrip(
+        &[
+            "estimate",
+            &archive("dry_120kmh_p20.csv"),
+            "--pipeline",
+            pipe,
+            "--out",
+            "one",
+            "--calibration",
+            cal,
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert_eq!(
+        mu(&d.join("one/dry_120kmh_p20.estimates.parquet")),
+        mu(&d.join("o/runs/dry_120kmh_p20/estimates.parquet"))
+    );
+
+    // Another pipeline file, or another campaign's runs: refused, saying why.
+    let o = railgrip(
+        &[
+            "run",
+            camp,
+            "--out",
+            "p",
+            "--stage",
+            "models",
+            "--calibration",
+            cal,
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("estimate.calibration is \"pipeline\""),
+        "{}",
+        text(&o.stderr)
+    );
+    let other = d.join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    for f in ["soap_120kmh_0c.csv", "soap_120kmh_0c.meta.toml"] {
+        std::fs::copy(root().join("fixtures/archive").join(f), other.join(f)).unwrap();
+    }
+    let o = railgrip(
+        &[
+            "run",
+            other.to_str().unwrap(),
+            "--pipeline",
+            pipe,
+            "--out",
+            "q",
+            "--stage",
+            "estimate",
+            "--calibration",
+            cal,
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let e = text(&o.stderr);
+    assert!(
+        e.contains("does not belong") && e.contains("not in the campaign: dry_120kmh_p20"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = root().join("fixtures/archive");
+    let pipe = calibrated_pipeline(d, "dry-run");
+    let o = railgrip(
+        &[
+            "run",
+            camp.to_str().unwrap(),
+            "--pipeline",
+            pipe.to_str().unwrap(),
+            "--out",
+            "o",
+        ],
+        d,
+    );
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}{}",
+        text(&o.stdout),
+        text(&o.stderr)
+    );
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/calibration.json")).unwrap())
+            .unwrap();
+    let runs: Vec<&str> = record["dry_run"]["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r[0].as_str().unwrap())
+        .collect();
+    assert!(runs.contains(&"dry_120kmh_p20"), "{runs:?}");
+    let alpha = record["dry_run"]["alpha_nm_per_bar"].as_f64().unwrap();
+    assert!((alpha / 1600.0 - 1.0).abs() < 0.02, "{alpha}");
+    let campaign: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/campaign.json")).unwrap()).unwrap();
+    assert_eq!(campaign["calibration"]["source"], "dry-run");
+    let model: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o/models/mlp.json")).unwrap())
+            .unwrap();
+    let prov = model["provenance"]["calibration"].as_str().unwrap();
+    assert!(
+        prov.starts_with("dry-run calibration over 8 runs"),
+        "{prov}"
+    );
+    // A rerun reuses every run (the calibration is the same, so are the runs' keys); the
+    // same archive with the pipeline's own α leaves no calibration file behind.
+    let o = railgrip(
+        &[
+            "run",
+            camp.to_str().unwrap(),
+            "--pipeline",
+            pipe.to_str().unwrap(),
+            "--out",
+            "o",
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0));
+    assert_eq!(
+        text(&o.stderr).matches("unchanged, reused").count(),
+        8,
+        "{}",
+        text(&o.stderr)
+    );
+    let o = railgrip(&["run", camp.to_str().unwrap(), "--out", "o"], d);
+    assert_eq!(o.status.code(), Some(0));
+    assert!(!d.join("o/calibration.json").exists());
 }

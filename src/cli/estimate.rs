@@ -30,10 +30,28 @@ pub struct Args {
     /// A model file whose μ is replayed on the run into the MCAP (/railgrip/axle<i>/mu_model).
     #[arg(long, value_name = "MODEL", requires = "mcap")]
     model: Option<PathBuf>,
+    /// A campaign's calibration (calibration.json of `railgrip calibrate --campaign` or
+    /// `railgrip run`) to estimate the run with: per-axle α, the pad friction's speed law, the
+    /// radar's scale and latency, the tachometers' delay.
+    #[arg(long, value_name = "FILE")]
+    calibration: Option<PathBuf>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
-    let pipeline = args.pipeline.load()?;
+    let mut pipeline = args.pipeline.load()?;
+    match &args.calibration {
+        Some(f) => {
+            pipeline.calibrated = Some(railgrip::campaign::calibration::read_calibration(f)?)
+        }
+        None if pipeline.estimate.calibration != railgrip::config::CalibrationSource::Pipeline => {
+            anyhow::bail!(
+                "{}: estimate.calibration = \"{}\" needs the campaign's calibration. Hint: give it with --calibration FILE (railgrip calibrate --campaign ARCHIVE --out DIR writes DIR/calibration.json)",
+                pipeline.source,
+                pipeline.estimate.calibration.name()
+            )
+        }
+        None => {}
+    }
     let folder = railgrip::store::OutFolder::at(&args.out)?;
     // A model that does not load is found before the run is estimated.
     let model = match &args.model {
@@ -255,8 +273,16 @@ fn calibrate_campaign(
 ) -> anyhow::Result<u8> {
     use railgrip::campaign::calibration::{calibrate_campaign, write_calibration};
     use railgrip::config::CalibrationSource;
-    // The command asks for the campaign's fit whatever the file's default.
+    // The file written is for runs whose pipeline says "campaign" (it names that file's
+    // hash); printed only, the fit is shown whatever the file says.
     if pipeline.estimate.calibration != CalibrationSource::Campaign {
+        if out.is_some() {
+            anyhow::bail!(
+                "{}: estimate.calibration is \"{}\", so the runs would not use a campaign calibration written with --out. Hint: give the pipeline the campaign runs with (estimate.calibration = \"campaign\") with --pipeline",
+                pipeline.source,
+                pipeline.estimate.calibration.name()
+            );
+        }
         pipeline.estimate.calibration = CalibrationSource::Campaign;
     }
     let (root, (logs, _)) = railgrip::campaign::sources_at(archive, None)?;
