@@ -1588,7 +1588,7 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
             "--out",
             "q",
             "--stage",
-            "estimate",
+            "models",
             "--calibration",
             cal,
         ],

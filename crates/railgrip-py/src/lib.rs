@@ -66,10 +66,44 @@ impl PyPipeline {
         })
     }
 
-    /// Pickled as its text and source (Ray and multiprocessing send pipelines to workers).
-    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, (String, String))> {
-        let ctor = py.get_type::<PyPipeline>().getattr("from_toml")?;
-        Ok((ctor, (self.inner.text.clone(), self.inner.source.clone())))
+    /// Pickled as its text, source and the campaign calibration it carries (Ray and
+    /// multiprocessing send pipelines to workers).
+    fn __reduce__<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<(Bound<'py, PyAny>, (String, String, Option<String>))> {
+        let ctor = py.get_type::<PyPipeline>().getattr("_restore")?;
+        let cal = self
+            .inner
+            .calibrated
+            .as_ref()
+            .map(|c| serde_json::to_string(c).expect("a calibration serialises"));
+        Ok((ctor, (self.inner.text.clone(), self.inner.source.clone(), cal)))
+    }
+
+    /// The pipeline of `__reduce__`.
+    #[staticmethod]
+    fn _restore(text: &str, source: &str, calibration: Option<&str>) -> PyResult<Self> {
+        let mut inner = railgrip::Pipeline::from_toml(text, source).map_err(err)?;
+        if let Some(c) = calibration {
+            inner.calibrated = Some(serde_json::from_str(c).map_err(err)?);
+        }
+        Ok(PyPipeline { inner })
+    }
+
+    /// `estimate.calibration`: "pipeline", "campaign" or "dry-run".
+    #[getter]
+    fn calibration_source(&self) -> &'static str {
+        self.inner.estimate.calibration.name()
+    }
+
+    /// The campaign calibration this pipeline carries (JSON), if any.
+    #[getter]
+    fn calibration(&self) -> Option<String> {
+        self.inner
+            .calibrated
+            .as_ref()
+            .map(|c| serde_json::to_string(c).expect("a calibration serialises"))
     }
 
     /// Where the pipeline came from (its path, or the embedded pipeline's name).
@@ -544,6 +578,45 @@ fn campaign_runs(
         .map_err(err)
 }
 
+/// The campaign's calibration (`estimate.calibration` "campaign" or "dry-run" of `pipeline`)
+/// fitted over the runs of `archive`, written as `calibration.json` into `out` (a path,
+/// file:// or s3://), and the pipeline carrying it — what every estimate task is then given.
+/// A pipeline with "pipeline" comes back as it is.
+#[pyfunction]
+#[pyo3(signature = (archive, out, pipeline, jobs=None))]
+fn calibrate_campaign(
+    py: Python<'_>,
+    archive: String,
+    out: String,
+    pipeline: &PyPipeline,
+    jobs: Option<usize>,
+) -> PyResult<PyPipeline> {
+    let p = pipeline.inner.clone();
+    if p.estimate.calibration == railgrip::config::CalibrationSource::Pipeline {
+        return Ok(PyPipeline { inner: p });
+    }
+    py.detach(|| -> Result<PyPipeline, String> {
+        let s = |e: &dyn std::fmt::Display| e.to_string();
+        let out_at = railgrip::store::Location::parse(&out).map_err(|e| s(&e))?;
+        let (root, (logs, _)) =
+            railgrip::campaign::sources_at(&archive, Some(&out_at)).map_err(|e| s(&e))?;
+        let options = railgrip::campaign::Options {
+            jobs,
+            ..Default::default()
+        };
+        let record = railgrip::campaign::calibration::calibrate_campaign(&logs, &p, options, &root)
+            .map_err(|e| s(&e))?;
+        let folder = railgrip::store::OutFolder::at(&out).map_err(|e| s(&e))?;
+        let path = railgrip::campaign::calibration::write_calibration(folder.dir(), &record)
+            .map_err(|e| s(&e))?;
+        folder.finish(&[path]).map_err(|e| s(&e))?;
+        let mut inner = p;
+        inner.calibrated = Some(record.calibrated);
+        Ok(PyPipeline { inner })
+    })
+    .map_err(err)
+}
+
 /// A run table handed across: (run name, source, the log's SHA-256, metadata pairs, axle,
 /// time_s, v_mps, dv_mps, ddv_mps2, mu) — the valid samples, axle by axle in time order.
 type TableParts<'py> = (
@@ -770,6 +843,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(train, m)?)?;
     m.add_function(wrap_pyfunction!(run, m)?)?;
     m.add_function(wrap_pyfunction!(campaign_runs, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate_campaign, m)?)?;
     m.add_function(wrap_pyfunction!(estimate_run, m)?)?;
     m.add_function(wrap_pyfunction!(failed_record, m)?)?;
     m.add_function(wrap_pyfunction!(run_models, m)?)?;

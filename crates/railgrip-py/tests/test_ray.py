@@ -201,3 +201,24 @@ def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
     assert f"{runs[1][0]}: the table of run {runs[2][0]!r}" in text.replace('"', "'"), text
     assert f"{runs[2][0]}: given twice" in text, text
     assert "elsewhere: not a run of this campaign" in text, text
+
+
+def test_a_self_calibrating_campaign_on_ray_writes_the_bytes_of_railgrip_run(local_ray, tmp_path):
+    """estimate.calibration = "campaign": the driver fits the calibration once over every run
+    (calibration.json in the output), each task estimates its run with it, and the files are
+    those of `railgrip run` with the same pipeline."""
+    camp = campaign(tmp_path / "camp", broken=False)
+    text = (ARCHIVE.parent.parent / "pipelines" / "uic_z1.toml").read_text()
+    pipe = tmp_path / "campaign.toml"
+    pipe.write_text(text.replace("[estimate]\n", '[estimate]\ncalibration = "campaign"\n', 1))
+    pipeline = railgrip.Pipeline.load(pipe)
+    assert pipeline.calibration_source == "campaign" and pipeline.calibration is None
+    lines = []
+    result = railgrip.ray.run(camp, tmp_path / "ray", pipeline=pipeline, progress=lines.append)
+    assert result.failed == 0, lines
+    assert any(line.startswith("calibrate ") for line in lines), lines
+    assert railgrip_cli("run", str(camp), "--pipeline", str(pipe), "--out", str(tmp_path / "cli")) == 0
+    assert (tmp_path / "ray" / "calibration.json").exists()
+    assert_same_tree(tmp_path / "ray", tmp_path / "cli")
+    record = json.loads((tmp_path / "ray" / "campaign.json").read_text())
+    assert record["calibration"]["source"] == "campaign"

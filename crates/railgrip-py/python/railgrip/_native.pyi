@@ -31,6 +31,12 @@ class Pipeline:
     def source(self) -> str: ...
     @property
     def text(self) -> str: ...
+    @property
+    def calibration_source(self) -> str:
+        """``estimate.calibration``: "pipeline", "campaign" or "dry-run"."""
+    @property
+    def calibration(self) -> Optional[str]:
+        """The campaign calibration this pipeline carries (JSON), if any."""
 
 class Model:
     @staticmethod
@@ -66,6 +72,12 @@ def run(
     stage: str = "all",
     shard: Optional[Tuple[int, int]] = None,
 ) -> str: ...
+def calibrate_campaign(
+    archive: str, out: str, pipeline: Pipeline, jobs: Optional[int] = None
+) -> Pipeline:
+    """Fits the campaign's calibration (the pipeline's estimate.calibration), writes
+    calibration.json into ``out`` and returns the pipeline carrying it."""
+
 def campaign_runs(
     archive: str, out: Optional[str] = None
 ) -> List[Tuple[str, str, Optional[str]]]: ...

@@ -187,6 +187,11 @@ def run(
         ray.init()
     runs = _native.campaign_runs(archive, out)
     n = len(runs)
+    # A campaign that calibrates itself is calibrated here, once, over every run; each task is
+    # then given the pipeline that carries the calibration (the two passes of `railgrip run`).
+    if pipeline is not None and pipeline.calibration_source != "pipeline":
+        say(f"calibrate  {n} run(s) from {archive} ({pipeline.calibration_source})")
+        pipeline = _native.calibrate_campaign(archive, out, pipeline)
     say(f"estimate   {n} run(s) from {archive} as {n} Ray task(s)")
     # Tasks reach a bucket with the driver's AWS_* settings unless told otherwise.
     if env is None and any(x.startswith("s3://") for x in (archive, out)):

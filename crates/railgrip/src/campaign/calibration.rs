@@ -60,12 +60,14 @@ pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
 /// The pipeline the campaign's runs are estimated with: `pipeline` as it is when it asks for
 /// no calibration; with a given calibration checked against the campaign; else, for a whole
 /// campaign (`compute`), with the calibration fitted here (and its record). A part of a
-/// scheduled campaign (`compute` false) must be given it.
+/// scheduled campaign (`compute` false) must be given it; `whole`: `logs` are every run of the
+/// campaign (not one task's run alone).
 pub fn calibrated_pipeline(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
     options: Options,
     compute: bool,
+    whole: bool,
     where_: &Path,
 ) -> Result<(Pipeline, Option<CalibrationRecord>), CampaignError> {
     let mode = pipeline.estimate.calibration;
@@ -80,7 +82,7 @@ pub fn calibrated_pipeline(
         return Ok((pipeline.clone(), None));
     }
     if let Some(given) = &pipeline.calibrated {
-        check_given(given, logs, pipeline, where_)?;
+        check_given(given, logs, pipeline, where_, whole)?;
         return Ok((pipeline.clone(), None));
     }
     if !compute {
@@ -99,12 +101,14 @@ pub fn calibrated_pipeline(
     Ok((p, Some(record)))
 }
 
-/// Refuses a calibration fitted on other runs or with another pipeline file.
+/// Refuses a calibration fitted on other runs or with another pipeline file. `whole`: `logs`
+/// are the whole campaign (else some of its runs, as one run's task on a cluster sees them).
 fn check_given(
     given: &Calibrated,
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
     where_: &Path,
+    whole: bool,
 ) -> Result<(), CampaignError> {
     let names: Vec<&str> = logs.iter().map(|(n, _)| n.as_str()).collect();
     let fitted: Vec<&str> = given.runs.iter().map(String::as_str).collect();
@@ -116,7 +120,7 @@ fn check_given(
         ))
     } else if given.pipeline_sha256 != pipeline_sha256(pipeline) {
         Some("it was fitted with another pipeline file".into())
-    } else if fitted != names {
+    } else if names.iter().any(|n| !fitted.contains(n)) || (whole && fitted != names) {
         let missing: Vec<&str> = names
             .iter()
             .filter(|n| !fitted.contains(n))

@@ -347,6 +347,9 @@ fn run_sources(
         pipeline,
         options,
         options.part == Part::All,
+        // An estimate part may see one run alone (a task on a cluster): its runs must be among
+        // the calibration's; the models part sees them all.
+        !matches!(options.part, Part::Estimate(_)),
         root,
     )?;
     let cal_s = t.elapsed().as_secs_f64();
