@@ -607,6 +607,8 @@ fn calibrate_campaign(
         let record = railgrip::campaign::calibration::calibrate_campaign(&logs, &p, options, &root)
             .map_err(|e| s(&e))?;
         let folder = railgrip::store::OutFolder::at(&out).map_err(|e| s(&e))?;
+        std::fs::create_dir_all(folder.dir())
+            .map_err(|e| format!("{}: cannot create the folder: {e}", folder.dir().display()))?;
         let path = railgrip::campaign::calibration::write_calibration(folder.dir(), &record)
             .map_err(|e| s(&e))?;
         folder.finish(&[path]).map_err(|e| s(&e))?;
