@@ -1649,6 +1649,12 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
         prov.starts_with("dry-run calibration over 8 runs"),
         "{prov}"
     );
+    let report = std::fs::read_to_string(d.join("o/report/index.html")).unwrap();
+    assert!(
+        report.contains("<h2>Calibration</h2>")
+            && report.contains("<b>dry-run</b> calibration fitted on 8 runs"),
+        "no calibration section"
+    );
     // A rerun reuses every run (the calibration is the same, so are the runs' keys); the
     // same archive with the pipeline's own α leaves no calibration file behind.
     let o = railgrip(

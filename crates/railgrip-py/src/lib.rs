@@ -78,7 +78,10 @@ impl PyPipeline {
             .calibrated
             .as_ref()
             .map(|c| serde_json::to_string(c).expect("a calibration serialises"));
-        Ok((ctor, (self.inner.text.clone(), self.inner.source.clone(), cal)))
+        Ok((
+            ctor,
+            (self.inner.text.clone(), self.inner.source.clone(), cal),
+        ))
     }
 
     /// The pipeline of `__reduce__`.

@@ -32,6 +32,9 @@ pub const CALIBRATION_FILE: &str = "calibration.json";
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct CalibrationRecord {
     pub calibrated: Calibrated,
+    /// `[vehicle]`'s α, N·m/bar: what the calibrated α replace (their ratio is the calibration's
+    /// effect on each axle's brake force, so on μ).
+    pub pipeline_alpha_nm_per_bar: [f64; AXLES],
     /// The campaign's self-calibration ("campaign").
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub campaign: Option<CampaignCalibration>,
@@ -201,6 +204,7 @@ pub fn calibrate_campaign(
             notes.extend(fit.notes.iter().cloned());
             Ok(CalibrationRecord {
                 calibrated: calibrated(fit.corrections()),
+                pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 campaign: Some(fit),
                 dry_run: None,
                 notes,
@@ -243,6 +247,7 @@ pub fn calibrate_campaign(
                 })
                 .collect();
             Ok(CalibrationRecord {
+                pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 calibrated: calibrated(Corrections {
                     alpha_nm_per_bar: [alpha; AXLES],
                     pad: PadLaw::constant(),

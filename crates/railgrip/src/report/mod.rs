@@ -237,6 +237,7 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
     if let Some(c) = &i.choice {
         choice::campaign_model(&mut h, &i, c, i.chosen.as_ref());
     }
+    calibration(&mut h, out, i.camp);
     runs(&mut h, &i);
     across_runs(&mut h, &i)?;
     if let Some(m) = &i.mlp {
@@ -536,6 +537,102 @@ fn run_section(r: &RunRecord, d: &mut RunData) -> Result<String, ReportError> {
 }
 
 /// Where the network came from.
+/// The campaign's calibration, when its runs were estimated with one (`calibration.json`, read
+/// as plain JSON: the report does not depend on the campaign module that writes it): what was
+/// fitted, its standard errors, the pad-friction forms compared, what it does to each axle's
+/// brake force (so to μ) and to the slip, and its notes.
+fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
+    let Some(cal) = &camp.calibration else {
+        return;
+    };
+    let c = &cal.corrections;
+    let rec: serde_json::Value = std::fs::read_to_string(out.root().join("calibration.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str(&t).ok())
+        .unwrap_or(serde_json::Value::Null);
+    let fit = &rec["campaign"];
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    // A dry-run calibration has one α with one standard error and no radar fit.
+    let alpha_se = |a: usize| match fit.is_null() {
+        true => num(&rec["dry_run"]["alpha_se"]),
+        false => num(&fit["alpha_se"][a]),
+    };
+    let se = |x: f64, digits: usize| {
+        if x.is_finite() {
+            format!("{x:.digits$}")
+        } else {
+            "–".to_string()
+        }
+    };
+    let _ = writeln!(
+        *h,
+        "<h2>Calibration</h2>\n<p>The runs were estimated with a <b>{}</b> calibration fitted on {} runs (<code>calibration.json</code>; see docs/calibration.md).</p>\n<table><tr><th class=\"l\">axle</th><th>α at {:.0} km/h, N·m/bar</th><th>± 1σ</th><th>pipeline's</th><th>brake force at {:.0} km/h</th><th>at 10 km/h</th></tr>",
+        esc(&cal.source),
+        cal.runs.len(),
+        c.pad.v_ref_mps * 3.6,
+        c.pad.v_ref_mps * 3.6
+    );
+    for a in 0..crate::format::AXLES {
+        let base = num(&rec["pipeline_alpha_nm_per_bar"][a]);
+        let at = |v: f64| (c.alpha_nm_per_bar[a] * c.pad.factor(v) / base - 1.0) * 100.0;
+        let _ = writeln!(
+            *h,
+            "<tr><td class=\"l\">{}</td><td>{:.1}</td><td>{}</td><td>{:.1}</td><td>{:+.2} %</td><td>{:+.2} %</td></tr>",
+            a + 1,
+            c.alpha_nm_per_bar[a],
+            se(alpha_se(a), 1),
+            base,
+            at(c.pad.v_ref_mps),
+            at(10.0 / 3.6)
+        );
+    }
+    h.push_str("</table>\n");
+    let _ = writeln!(
+        *h,
+        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} ± {} ms. μ of an axle moves with its brake force (the columns above).</p>",
+        c.pad.form.name(),
+        c.pad.gamma,
+        c.pad.gamma_se,
+        c.pad.rise_to_standstill() * 100.0,
+        c.pad.v_ref_mps * 3.6,
+        c.radar_scale,
+        se(num(&fit["radar_scale_se"]), 5),
+        c.radar_latency_s * 1e3,
+        se(num(&fit["radar_latency_se"]) * 1e3, 1),
+        -(100.0 / 3.6) * (1.0 - 1.0 / c.radar_scale),
+        c.tacho_delay_s * 1e3,
+        se(num(&fit["tacho_delay_se"]) * 1e3, 1)
+    );
+    if let Some(cands) = fit["pad_candidates"].as_array() {
+        h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
+        for cand in cands {
+            let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
+            let chosen = cand["form"].as_str() == Some(c.pad.form.name())
+                && fit["per_run_constants"].as_bool() == Some(per_run);
+            let _ = writeln!(
+                *h,
+                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
+                esc(cand["form"].as_str().unwrap_or("?")),
+                if per_run { "one per run" } else { "one" },
+                num(&cand["gamma"]),
+                num(&cand["bic"]),
+                if chosen { "chosen" } else { "" },
+                esc(cand["refused"].as_str().unwrap_or(""))
+            );
+        }
+        h.push_str("</table>\n");
+    }
+    if let Some(notes) = rec["notes"].as_array() {
+        for n in notes {
+            let _ = writeln!(
+                *h,
+                "<p class=\"note\">{}</p>",
+                esc(n.as_str().unwrap_or(""))
+            );
+        }
+    }
+}
+
 fn provenance(h: &mut String, m: &Model) {
     let p = &m.file.provenance;
     h.push_str("<h2>Provenance</h2>\n<table>");
