@@ -72,7 +72,14 @@ pub fn axle_loads(v: &Vehicle, decel_mps2: f64) -> [f64; AXLES] {
         mc * decel_mps2 * (v.body_cog_height_m - v.pivot_height_m) / v.bogie_pivot_distance_m;
     let nb1 = mc * G_MPS2 / 2.0 + pitch;
     let nb2 = mc * G_MPS2 / 2.0 - pitch;
-    let bogie = mb * decel_mps2 * v.bogie_cog_height_m / v.bogie_wheelbase_m;
+    // The bogie's own inertia at its centre of gravity, and with `pivot_force_load_transfer`
+    // the body's inertia force each bogie takes at the pivot height, (m_c/2) d h_b.
+    let pivot = if v.pivot_force_load_transfer {
+        mc / 2.0 * decel_mps2 * v.pivot_height_m
+    } else {
+        0.0
+    };
+    let bogie = (mb * decel_mps2 * v.bogie_cog_height_m + pivot) / v.bogie_wheelbase_m;
     [
         (nb1 + mb * G_MPS2) / 2.0 + bogie,
         (nb1 + mb * G_MPS2) / 2.0 - bogie,
@@ -87,7 +94,12 @@ pub fn axle_loads(v: &Vehicle, decel_mps2: f64) -> [f64; AXLES] {
 pub fn axle_load_coefficients(v: &Vehicle) -> ([f64; AXLES], [f64; AXLES]) {
     let pitch =
         v.body_mass_kg * (v.body_cog_height_m - v.pivot_height_m) / v.bogie_pivot_distance_m / 2.0;
-    let bogie = v.bogie_mass_kg * v.bogie_cog_height_m / v.bogie_wheelbase_m;
+    let pivot = if v.pivot_force_load_transfer {
+        v.body_mass_kg / 2.0 * v.pivot_height_m
+    } else {
+        0.0
+    };
+    let bogie = (v.bogie_mass_kg * v.bogie_cog_height_m + pivot) / v.bogie_wheelbase_m;
     (
         axle_loads(v, 0.0),
         [pitch + bogie, pitch - bogie, -pitch + bogie, -pitch - bogie],

@@ -24,6 +24,7 @@ pub mod raw {
         pub bogie_cog_height_m: Option<f64>,
         pub brake_torque_nm_per_bar: Option<Vec<f64>>,
         pub max_brake_pressure_bar: Option<f64>,
+        pub pivot_force_load_transfer: Option<bool>,
     }
 }
 
@@ -53,6 +54,8 @@ pub struct Vehicle {
     pub brake_torque_nm_per_bar: [f64; AXLES],
     /// Highest brake-cylinder pressure the brake can apply, bar.
     pub max_brake_pressure_bar: f64,
+    /// Include the pivot force's share of the load transfer ([`crate::vehicle::axle_loads`]).
+    pub pivot_force_load_transfer: bool,
 }
 
 const fn required(
@@ -157,6 +160,14 @@ const MAX_PRESSURE: Key = required(
     "highest cylinder pressure [assumed]",
 );
 
+const PIVOT_FORCE: Key = Key {
+    name: "vehicle.pivot_force_load_transfer",
+    unit: "",
+    range: Range::Text("true, false"),
+    default: Default::Text("false"),
+    meaning: "add the pivot force's share of the load transfer within each bogie, (m_c/2) h_b d / l2, which eq. 12–13 leave out (true for bogies that take the body's braking force at the pivot height)",
+};
+
 /// The keys of `[vehicle]`, in the order of the documented table.
 pub const KEYS: &[&Key] = &[
     &NAME,
@@ -171,6 +182,7 @@ pub const KEYS: &[&Key] = &[
     &BOGIE_COG,
     &ALPHA,
     &MAX_PRESSURE,
+    &PIVOT_FORCE,
 ];
 
 impl Checker<'_> {
@@ -221,6 +233,7 @@ impl Checker<'_> {
             bogie_cog_height_m: self.value(&BOGIE_COG, v.bogie_cog_height_m)?,
             brake_torque_nm_per_bar: self.alpha(v.brake_torque_nm_per_bar)?,
             max_brake_pressure_bar: self.value(&MAX_PRESSURE, v.max_brake_pressure_bar)?,
+            pivot_force_load_transfer: v.pivot_force_load_transfer.unwrap_or(false),
         })
     }
 

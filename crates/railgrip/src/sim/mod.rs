@@ -355,7 +355,7 @@ pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
                 sc.effects
                     .names()
                     .into_iter()
-                    .filter(|n| !["brake_scatter", "pad_friction", "radar_error"].contains(n))
+                    .filter(|n| !MISMATCH_EFFECTS.iter().any(|e| e.name() == *n))
                     .collect::<Vec<_>>()
                     .join(","),
             ),
@@ -392,20 +392,27 @@ pub struct Mismatch {
     pub radar_scale: f64,
     /// The radar's delay, s (`radar_error`; else 0).
     pub radar_latency_s: f64,
+    /// Relative rms of the axle loads' fluctuation (`load_fluctuation`; else 0).
+    pub load_fluctuation_rms: f64,
+    /// The pivot force's share of the load transfer is in the loads (`pivot_force`).
+    pub pivot_force: bool,
 }
 
+/// The effects that put the simulated vehicle off what the pipeline says (left out of the
+/// log's `effects` list; their truth is in [`Mismatch`]).
+pub const MISMATCH_EFFECTS: [Effect; 5] = [
+    Effect::BrakeScatter,
+    Effect::PadFriction,
+    Effect::RadarError,
+    Effect::LoadFluctuation,
+    Effect::PivotForce,
+];
+
 impl Mismatch {
-    /// The mismatch of scene `sc`, None when it asks for no calibration effect.
+    /// The mismatch of scene `sc`, None when it asks for no mismatch effect.
     pub fn of(sc: &Scene) -> Option<Mismatch> {
         let fx = sc.effects;
-        if ![
-            Effect::BrakeScatter,
-            Effect::PadFriction,
-            Effect::RadarError,
-        ]
-        .iter()
-        .any(|e| fx.has(*e))
-        {
+        if !MISMATCH_EFFECTS.iter().any(|e| fx.has(*e)) {
             return None;
         }
         let radar = fx.has(Effect::RadarError);
@@ -423,6 +430,12 @@ impl Mismatch {
             } else {
                 0.0
             },
+            load_fluctuation_rms: if fx.has(Effect::LoadFluctuation) {
+                sc.run.load_fluctuation_rms
+            } else {
+                0.0
+            },
+            pivot_force: fx.has(Effect::PivotForce),
         })
     }
 }
@@ -488,6 +501,9 @@ fn run<V: Select>(
     let mut counters = EffectCounters::default();
     let setup = Setup::new(sc, &mut counters)?;
     let mut st = setup.initial_state::<V>(isa, &mut counters);
+    // The load fluctuation's own stream of the run's seed (the sensors' noise stays the same
+    // with and without it).
+    st.fluct_rng = crate::rng::Rng::new(seed ^ 0x6c6f_6164_5f66_6c75);
     let mut log = Logger::new(sc, seed);
     let max_steps = (sc.run.max_duration_s / setup.h).ceil() as u64;
     let mut n: u64 = 0;
@@ -506,6 +522,7 @@ fn run<V: Select>(
         let total_t = setup.contact_and_wheels::<V>(isa, model, &mut st);
         setup.thermal::<V>(isa, &mut st, &mut counters);
         setup.hysteresis::<V>(isa, &mut st, &mut counters);
+        setup.fluctuate(&mut st, &mut counters);
         setup.prepare::<V>(isa, speed_factor, &mut st, &mut counters);
         setup.advance(&mut st, &omega, total_t, v_resisted);
         n += 1;

@@ -48,6 +48,8 @@ pub(super) struct Setup<'a> {
     alpha: [f64; AXLES],
     /// `pad_friction`: (rise, 1/v0): α_i (1 + rise (1 − v/v0)).
     pad: Option<(f64, f64)>,
+    /// `load_fluctuation`'s filter, if the effect is on.
+    fluctuation: Option<LoadFluctuation>,
     /// The `thermal` effect's constants, if listed.
     thermal: Option<Thermal>,
 }
@@ -176,6 +178,46 @@ pub(super) struct SimState {
     /// `thermal`: Σ |T Δv| over the steps since the last update (W), and their count.
     pub thermal_power: [f64; AXLES],
     pub thermal_steps: u32,
+    /// `load_fluctuation`: each axle's load factor 1 + ε (1 without the effect), the band
+    /// filter's two states, and its noise source.
+    pub load_factor: [f64; AXLES],
+    pub fluct_lp: [f64; AXLES],
+    pub fluct_hp: [f64; AXLES],
+    pub fluct_rng: crate::rng::Rng,
+}
+
+/// The `load_fluctuation` effect: per axle, white noise through a first-order low-pass at the
+/// band's top and a first-order high-pass at its bottom (both discretised exactly for the step
+/// h: k = 1 − e^(−2π f h)), scaled so that ε has the rms `run.load_fluctuation_rms` — the
+/// gain from the filter's impulse response, Σ g_k² = 1 for the unit-variance input.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LoadFluctuation {
+    k_lp: f64,
+    k_hp: f64,
+    gain: f64,
+}
+
+impl LoadFluctuation {
+    fn new(sc: &Scene, h: f64) -> LoadFluctuation {
+        let [lo, hi] = sc.run.load_fluctuation_band_hz;
+        let k = |f: f64| 1.0 - (-std::f64::consts::TAU * f * h).exp();
+        let (k_lp, k_hp) = (k(hi), k(lo));
+        // Energy of the impulse response (until it has decayed: ten time constants of the
+        // high-pass).
+        let steps = (10.0 / (std::f64::consts::TAU * lo * h)).ceil() as usize + 10;
+        let (mut lp, mut hp, mut energy) = (0.0f64, 0.0f64, 0.0f64);
+        for n in 0..steps {
+            let w = if n == 0 { 1.0 } else { 0.0 };
+            lp += (w - lp) * k_lp;
+            hp += (lp - hp) * k_hp;
+            energy += (lp - hp) * (lp - hp);
+        }
+        LoadFluctuation {
+            k_lp,
+            k_hp,
+            gain: sc.run.load_fluctuation_rms / energy.sqrt(),
+        }
+    }
 }
 
 /// Hysteresis branch factor for the slip rate `ddv`: the recovery branch (dΔv/dt < 0) lower
@@ -295,7 +337,15 @@ impl<'a> Setup<'a> {
                 1.0 / pad_friction_v0_mps(sc).max(1e-3),
             )
         });
-        let (load, per_decel) = crate::vehicle::axle_load_coefficients(veh);
+        // The simulated vehicle's load transfer: with `pivot_force`, the body's inertia force
+        // on each bogie at the pivot height too ((m_c/2) h_b / l2 per unit deceleration);
+        // without, eq. 12–13 alone — whatever the pipeline's vehicle says.
+        let mut physical = veh.clone();
+        physical.pivot_force_load_transfer = fx.has(Effect::PivotForce);
+        if fx.has(Effect::PivotForce) {
+            counters.add(Effect::PivotForce, AXLES as u64);
+        }
+        let (load, per_decel) = crate::vehicle::axle_load_coefficients(&physical);
         // Without load transfer the loads stay static: N = N0 + d · 0, the same operations.
         let per_decel = if fx.has(Effect::LoadTransfer) {
             per_decel
@@ -332,6 +382,9 @@ impl<'a> Setup<'a> {
             inv_ddv0: 1.0 / ad.hysteresis_ddv_mps2,
             alpha,
             pad,
+            fluctuation: fx
+                .has(Effect::LoadFluctuation)
+                .then(|| LoadFluctuation::new(sc, h)),
             thermal: if fx.has(Effect::Thermal) {
                 Some(Thermal::new(sc).map_err(contact_err)?)
             } else {
@@ -382,6 +435,11 @@ impl<'a> Setup<'a> {
             thermal_factor: [1.0; AXLES],
             thermal_power: [0.0; AXLES],
             thermal_steps: 0,
+            load_factor: [1.0; AXLES],
+            fluct_lp: [0.0; AXLES],
+            fluct_hp: [0.0; AXLES],
+            // Seeded from the run's noise seed by the step loop.
+            fluct_rng: crate::rng::Rng::new(0),
         };
         let speed = self.speed_factor(v);
         self.prepare::<V>(isa, speed, &mut st, counters);
@@ -567,6 +625,12 @@ impl<'a> Setup<'a> {
             if self.thermal.is_some() {
                 mu = mu.mul(V::load(isa, &st.thermal_factor[i..]));
             }
+            // With `load_fluctuation`, × (1 + ε); without, N as it is (the same bits).
+            let n = if self.fluctuation.is_some() {
+                n.mul(V::load(isa, &st.load_factor[i..]))
+            } else {
+                n
+            };
             n.store(&mut st.normal_next[i..]);
             n.mul(V::load(isa, &st.half_inv_k[i..]))
                 .mul(mu)
@@ -576,6 +640,22 @@ impl<'a> Setup<'a> {
                 .mul(n)
                 .store(&mut st.ax.pn[i..]);
             i += V::N;
+        }
+    }
+
+    /// The `load_fluctuation` effect's stage: each axle's load factor 1 + ε for the next step
+    /// (see [`LoadFluctuation`]).
+    #[inline(always)]
+    pub(super) fn fluctuate(&self, st: &mut SimState, counters: &mut EffectCounters) {
+        let Some(f) = &self.fluctuation else {
+            return;
+        };
+        counters.add(Effect::LoadFluctuation, AXLES as u64);
+        for a in 0..AXLES {
+            let w = st.fluct_rng.normal();
+            st.fluct_lp[a] += (w - st.fluct_lp[a]) * f.k_lp;
+            st.fluct_hp[a] += (st.fluct_lp[a] - st.fluct_hp[a]) * f.k_hp;
+            st.load_factor[a] = 1.0 + f.gain * (st.fluct_lp[a] - st.fluct_hp[a]);
         }
     }
 

@@ -72,10 +72,17 @@ pub enum Effect {
     PadFriction,
     /// A radar that reads `sensors.radar_scale` × the speed of `sensors.radar_latency_s` ago.
     RadarError,
+    /// Each axle's load fluctuates about its eq. 12–13 value (track irregularities, the
+    /// suspension): relative band-limited noise, `run.load_fluctuation_rms` in
+    /// `run.load_fluctuation_band_hz`.
+    LoadFluctuation,
+    /// The body's inertia force acts on each bogie at the pivot height and shifts load within
+    /// the bogie, (m_c/2) h_b d / l2 per axle — a share eq. 12–13 leave out.
+    PivotForce,
 }
 
 impl Effect {
-    pub const ALL: [Effect; 16] = [
+    pub const ALL: [Effect; 18] = [
         Effect::LoadTransfer,
         Effect::Wsp,
         Effect::Hysteresis,
@@ -92,6 +99,8 @@ impl Effect {
         Effect::BrakeScatter,
         Effect::PadFriction,
         Effect::RadarError,
+        Effect::LoadFluctuation,
+        Effect::PivotForce,
     ];
 
     pub fn name(self) -> &'static str {
@@ -112,6 +121,8 @@ impl Effect {
             Effect::BrakeScatter => "brake_scatter",
             Effect::PadFriction => "pad_friction",
             Effect::RadarError => "radar_error",
+            Effect::LoadFluctuation => "load_fluctuation",
+            Effect::PivotForce => "pivot_force",
         }
     }
 

@@ -17,6 +17,8 @@ pub mod raw {
         pub output_rate_hz: Option<f64>,
         pub ambient_temperature_c: Option<f64>,
         pub gradient_permille: Option<f64>,
+        pub load_fluctuation_rms: Option<f64>,
+        pub load_fluctuation_band_hz: Option<[f64; 2]>,
         pub condition: Option<String>,
         pub direction: Option<String>,
     }
@@ -39,6 +41,9 @@ pub struct RunSection {
     pub ambient_temperature_c: f64,
     /// Track gradient, ‰ (positive uphill).
     pub gradient_permille: f64,
+    /// `load_fluctuation`: relative rms of each wheel load's fluctuation, and its band (Hz).
+    pub load_fluctuation_rms: f64,
+    pub load_fluctuation_band_hz: [f64; 2],
     pub condition: String,
     pub direction: String,
 }
@@ -92,6 +97,20 @@ pub(super) const GRADIENT: Key = Key::num(
     0.0,
     "for `gradient` (positive uphill)",
 );
+pub(super) const LOAD_FLUCT: Key = Key::num(
+    "run.load_fluctuation_rms",
+    "–",
+    closed(0.0, 0.2),
+    0.015,
+    "`load_fluctuation`: relative rms of each axle's load fluctuation (track irregularity, suspension)",
+);
+pub(super) const LOAD_BAND: Key = text(
+    "run.load_fluctuation_band_hz",
+    "[Hz, Hz]",
+    "0 < low < high ≤ 100",
+    "[2, 10]",
+    "`load_fluctuation`: its band (a first-order high-pass at low, low-pass at high)",
+);
 pub(super) const CONDITION: Key = text("run.condition", "", "text", "\"soap\"", "metadata");
 pub(super) const DIRECTION: Key = text("run.direction", "", "text", "\"forward\"", "metadata");
 
@@ -104,6 +123,8 @@ pub const KEYS: &[&Key] = &[
     &OUTPUT_RATE,
     &AMBIENT,
     &GRADIENT,
+    &LOAD_FLUCT,
+    &LOAD_BAND,
     &CONDITION,
     &DIRECTION,
 ];
@@ -134,6 +155,18 @@ impl Checker<'_> {
             output_rate_hz,
             ambient_temperature_c: self.value(&AMBIENT, r.ambient_temperature_c)?,
             gradient_permille: self.value(&GRADIENT, r.gradient_permille)?,
+            load_fluctuation_rms: self.value(&LOAD_FLUCT, r.load_fluctuation_rms)?,
+            load_fluctuation_band_hz: match r.load_fluctuation_band_hz {
+                None => [2.0, 10.0],
+                Some([lo, hi]) if lo > 0.0 && lo < hi && hi <= 100.0 => [lo, hi],
+                Some(b) => {
+                    return Err(self.invalid(
+                        LOAD_BAND.name,
+                        format!("{b:?}"),
+                        "must be [low, high] with 0 < low < high <= 100 Hz",
+                    ))
+                }
+            },
             condition: r.condition.clone().unwrap_or_else(|| "soap".into()),
             direction: r.direction.clone().unwrap_or_else(|| "forward".into()),
         })
