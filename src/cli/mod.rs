@@ -65,7 +65,7 @@ Exit codes: 0 ok, 1 error (nothing written), 2 usage, 3 read but some input was 
         long_about = "Run a scene file (pipelines/scenes/*.toml): a 4-axle vehicle braking on the \
 adhesion law the scene sets, with only the effects it lists (load_transfer, wsp, hysteresis, \
 falling_friction, temperature, cleaning, running_resistance, gradient, radar_noise, radar_spikes, \
-tacho_quantization, pressure_noise, thermal; and the mismatches a self-calibration is to find: brake_scatter, pad_friction, radar_error, whose true values go into the truth table's metadata, not the log).\n\n\
+tacho_quantization, pressure_noise, thermal; and the mismatches a self-calibration is to find or live with: brake_scatter, pad_friction, radar_error, load_fluctuation, pivot_force, whose true values go into the truth table's metadata, not the log).\n\n\
 Writes <DIR>/<name>.csv + <name>.meta.toml (when all sensors share one rate), <name>.mcap, and \
 <name>.truth.parquet (per sample and axle: time_s, axle, v_mps, omega_radps, p_bar, normal_N, \
 tangential_N, mu, dv_mps, ddv_mps2, and with the thermal effect contact_temperature_c). The same scene and seed give identical bytes."
