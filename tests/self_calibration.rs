@@ -114,9 +114,12 @@ fn mismatch_campaign(
         .collect()
 }
 
+/// Per axle (RMSE, bias) of μ, and the RMSE over all axles.
+type MuError = ([(f64, f64); 4], f64);
+
 /// (RMSE, bias) of μ against the truth per axle, and the RMSE over all axles, over valid
 /// samples with true Δv > 0.2 m/s (the estimator's measure).
-fn mu_error(e: &Estimates, tr: &sim::Truth) -> ([(f64, f64); 4], f64) {
+fn mu_error(e: &Estimates, tr: &sim::Truth) -> MuError {
     let fs = 1.0 / (tr.time_s[1] - tr.time_s[0]);
     let (mut all_sq, mut all_k) = (0.0, 0usize);
     let per = std::array::from_fn(|a| {
@@ -159,7 +162,7 @@ fn calibrate(
 fn before_after(
     runs: &[(railgrip::ingest::RunLog, sim::SimOutput)],
     c: &CampaignCalibration,
-) -> Vec<(String, ([(f64, f64); 4], f64), ([(f64, f64); 4], f64))> {
+) -> Vec<(String, MuError, MuError)> {
     // The vehicle as its owner describes it: with the pivot force's share of the load
     // transfer when the simulated vehicle has it (a known geometry, not a calibration).
     let pivot = runs[0].1.mismatch.as_ref().is_some_and(|m| m.pivot_force);
@@ -191,7 +194,7 @@ fn before_after(
                 .unwrap()
                 .to_string_lossy()
                 .to_string();
-            let f = |x: &([(f64, f64); 4], f64)| {
+            let f = |x: &MuError| {
                 x.0.iter()
                     .map(|(r, b)| format!("{r:.4}/{b:+.4}"))
                     .collect::<Vec<_>>()

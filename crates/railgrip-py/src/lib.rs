@@ -34,6 +34,9 @@ fn err(e: impl std::fmt::Display) -> PyErr {
 }
 
 /// A checked pipeline file (`railgrip.Pipeline`).
+/// A pipeline as it pickles: its text, source and the calibration it carries (JSON).
+type PipelineState = (String, String, Option<String>);
+
 #[pyclass(name = "Pipeline", module = "railgrip", frozen)]
 struct PyPipeline {
     inner: railgrip::Pipeline,
@@ -68,10 +71,7 @@ impl PyPipeline {
 
     /// Pickled as its text, source and the campaign calibration it carries (Ray and
     /// multiprocessing send pipelines to workers).
-    fn __reduce__<'py>(
-        &self,
-        py: Python<'py>,
-    ) -> PyResult<(Bound<'py, PyAny>, (String, String, Option<String>))> {
+    fn __reduce__<'py>(&self, py: Python<'py>) -> PyResult<(Bound<'py, PyAny>, PipelineState)> {
         let ctor = py.get_type::<PyPipeline>().getattr("_restore")?;
         let cal = self
             .inner

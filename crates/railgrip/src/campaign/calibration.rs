@@ -25,6 +25,9 @@ use crate::estimate::selfcal::{CampaignCalibration, CampaignCalibrator};
 use crate::format::AXLES;
 use crate::ingest::LogSource;
 
+/// One run's α and its standard error (N·m/bar), or why the run gives none.
+type RunAlpha = Result<(f64, f64), String>;
+
 /// The calibration file's name in the output folder.
 pub const CALIBRATION_FILE: &str = "calibration.json";
 
@@ -211,7 +214,7 @@ pub fn calibrate_campaign(
             })
         }
         CalibrationSource::DryRun => {
-            let fits: Vec<(String, Result<(f64, f64), String>)> = pool.install(|| {
+            let fits: Vec<(String, RunAlpha)> = pool.install(|| {
                 logs.par_iter()
                     .map(|(name, src)| {
                         let fit = read(src)

@@ -359,25 +359,8 @@ fn run_sources(
     }
     prepare_output(out)?;
     let mut stages = Vec::new();
-    match &cal_record {
-        Some(record) => {
-            calibration::write_calibration(out.root(), record)?;
-            stages.push(("calibrate".to_string(), cal_s));
-        }
-        None if options.part == Part::All && pipeline.calibrated.is_none() => {
-            // An earlier campaign's calibration would describe runs estimated without it.
-            let stale = out.root().join(calibration::CALIBRATION_FILE);
-            match std::fs::remove_file(&stale) {
-                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
-                    return Err(CampaignError::Write {
-                        path: stale,
-                        source: e,
-                    })
-                }
-                _ => {}
-            }
-        }
-        None => {}
+    if write_calibration_file(out, cal_record.as_ref(), pipeline, options.part)? {
+        stages.push(("calibrate".to_string(), cal_s));
     }
 
     let t = Instant::now();
@@ -477,6 +460,34 @@ fn run_sources(
         skipped,
         tables: vec![],
     })
+}
+
+/// Writes the calibration this campaign fitted as `calibration.json` (true), or removes an
+/// earlier campaign's from a whole campaign estimated without one — it would describe runs
+/// estimated otherwise.
+fn write_calibration_file(
+    out: &OutDir,
+    record: Option<&calibration::CalibrationRecord>,
+    pipeline: &Pipeline,
+    part: Part,
+) -> Result<bool, CampaignError> {
+    if let Some(record) = record {
+        calibration::write_calibration(out.root(), record)?;
+        return Ok(true);
+    }
+    if part == Part::All && pipeline.calibrated.is_none() {
+        let stale = out.root().join(calibration::CALIBRATION_FILE);
+        match std::fs::remove_file(&stale) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(CampaignError::Write {
+                    path: stale,
+                    source: e,
+                })
+            }
+            _ => {}
+        }
+    }
+    Ok(false)
 }
 
 /// One estimate shard ([`Part::Estimate`]): this shard's runs into `out`, as [`run`]'s first

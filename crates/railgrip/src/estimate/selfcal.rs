@@ -325,122 +325,10 @@ impl<'p> CampaignCalibrator<'p> {
             ));
         }
 
-        // The scale without delays; the two delays at that scale (coordinate descent); the
-        // scale at those delays.
-        let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted) and the pad friction's speed law is hard to tell from the running resistance's; log a second or more of coasting before the brake";
-        let mut at = At {
-            radar_s: 0.0,
-            tacho_s: 0.0,
-            scale: 1.0,
-        };
-        match b.radar_scale(&at) {
-            Some((s, _, _)) => at.scale = s,
-            None => notes.push(coast_note.into()),
-        }
-        let all_axles: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
-        let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
-        let (mut radar_d2, mut tacho_d2) = (f64::NAN, f64::NAN);
-        for _ in 0..3 {
-            (at.radar_s, radar_d2) =
-                profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
-            (at.tacho_s, tacho_d2) =
-                profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
-        }
-        let (scale_se, scale_runs) = match b.radar_scale(&at) {
-            Some((s, se, runs)) => {
-                at.scale = s;
-                (se, runs)
-            }
-            None => (0.0, 0),
-        };
-        // A delay at the end of its range is no fit (smooth runs without the wheel-slide
-        // protection's pressure changes barely tell delays apart): it is taken as 0.
-        let mut at_edge = false;
-        for (name, t, (lo, hi)) in [
-            ("radar's latency", &mut at.radar_s, LATENCY_RANGE_S),
-            ("tachometers' delay", &mut at.tacho_s, TACHO_DELAY_RANGE_S),
-        ] {
-            if *t <= lo + 1e-3 || *t >= hi - 1e-3 {
-                notes.push(format!(
-                    "the {name} came out at the end of the searched range ({:.0}…{:.0} ms), {:.0} ms: not identifiable from these runs, taken as 0 (check the logger's time stamps)",
-                    lo * 1e3,
-                    hi * 1e3,
-                    *t * 1e3
-                ));
-                *t = 0.0;
-                at_edge = true;
-            }
-        }
-        if at_edge {
-            if let Some((s, _, _)) = b.radar_scale(&at) {
-                at.scale = s;
-            }
-        }
-        if at.radar_s == 0.0 {
-            radar_d2 = f64::NAN;
-        }
-        if at.tacho_s == 0.0 {
-            tacho_d2 = f64::NAN;
-        }
+        let (at, d) = fit_radar_and_delays(&b, &mut notes);
         let tau = at.radar_s;
-
-        // The pad forms at that latency and scale, with the axles that separate.
-        let mut groups = all_axles;
-        // The residuals' autocorrelation, from the constant form with every axle apart, scales
-        // the standard errors that decide which axles separate.
-        // The forms are compared with this n_eff too (each form's own would move the BIC by
-        // more than the fits differ).
-        let (inflate, n_eff_common) = {
-            let g0 = b.gram(&at, PadForm::Constant);
-            g0.rss_at(&groups, PadForm::Constant, 0.0)
-                .map_or((1.0, g0.n as f64), |f0| {
-                    let ne = b.n_eff(&at, PadForm::Constant, &f0);
-                    (g0.n as f64 / ne, ne)
-                })
-        };
-        // The running resistance's constant: one per run (a run's gradient), or one for the
-        // campaign — chosen with the pad form by the same BIC (per-run constants cost a
-        // parameter each, and take the brake force's level with them where a run's pressure
-        // barely varies).
-        let b_common = Balance {
-            per_run: false,
-            ..b
-        };
         let runs_n = self.runs.len();
-        let mut candidates = Vec::new();
-        let mut best: Option<(Fit, f64, bool)> = None;
-        for (bb, per_run) in [(&b, true), (&b_common, false)] {
-            for form in PadForm::ALL {
-                let g = bb.gram(&at, form);
-                let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
-                let Some(fit) = fit else {
-                    candidates.push(PadCandidate {
-                        form,
-                        per_run_constants: per_run,
-                        gamma: f64::NAN,
-                        rss: f64::NAN,
-                        bic: f64::NAN,
-                        refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
-                    });
-                    continue;
-                };
-                let constants = if per_run { runs_n } else { 1 };
-                let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant) + constants;
-                let n = g.n as f64;
-                let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
-                candidates.push(PadCandidate {
-                    form,
-                    per_run_constants: per_run,
-                    gamma: fit.gamma,
-                    rss: fit.rss,
-                    bic,
-                    refused: refused.clone(),
-                });
-                if refused.is_none() && best.as_ref().is_none_or(|(_, b0, _)| bic < *b0) {
-                    best = Some((fit, bic, per_run));
-                }
-            }
-        }
+        let (best, candidates, b_common) = select_model(&b, &at, runs_n);
         let Some((fit, _, per_run)) = best else {
             return Err(fail(
                 "no form of the pad friction could be fitted".into(),
@@ -448,21 +336,13 @@ impl<'p> CampaignCalibrator<'p> {
             ));
         };
         let b = if per_run { b } else { b_common };
-        groups = fit.groups.clone();
+        let groups = fit.groups.clone();
         let g = b.gram(&at, fit.form);
         let n = g.n as f64;
         let n_eff = b.n_eff(&at, fit.form, &fit);
         let runs = self.runs.len() as f64;
         let dof = (n - runs - fit.beta.len() as f64 - 1.0).max(1.0);
         let sigma2 = fit.rss / dof * n / n_eff;
-        let mut alpha = [f64::NAN; AXLES];
-        let mut alpha_se = [f64::NAN; AXLES];
-        for (gi, grp) in groups.iter().enumerate() {
-            for &a in grp {
-                alpha[a] = fit.beta[gi];
-                alpha_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
-            }
-        }
         let shared: Vec<Vec<usize>> = groups.iter().filter(|g| g.len() > 1).cloned().collect();
         for grp in &shared {
             let names: Vec<String> = grp.iter().map(|a| format!("{}", a + 1)).collect();
@@ -471,20 +351,13 @@ impl<'p> CampaignCalibrator<'p> {
                 names.join(" and ")
             ));
         }
-        let alpha_fitted = alpha;
-        let alpha_fitted_se = alpha_se;
-        let pooling = if groups.len() > 1 {
-            let all = [(0..AXLES).collect::<Vec<usize>>()];
-            g.rss_at(&all, fit.form, fit.gamma).map(|common| {
-                let common_se = (sigma2 * common.cov_unit[0]).sqrt();
-                let p = partial_pooling(&groups, &alpha, &alpha_se, common.beta[0], common_se);
-                alpha = p.alpha;
-                alpha_se = p.alpha_se;
-                p.between_sd
-            })
-        } else {
-            None
-        };
+        let A {
+            alpha,
+            alpha_se,
+            fitted: alpha_fitted,
+            fitted_se: alpha_fitted_se,
+            between_sd: pooling,
+        } = axle_alphas(&g, &fit, sigma2);
         if alpha.iter().any(|a| !(*a > 0.0)) {
             return Err(fail(
                 format!("the balance gives a non-positive brake coefficient {alpha:?}"),
@@ -499,8 +372,8 @@ impl<'p> CampaignCalibrator<'p> {
             let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
             (2.0 * sigma2 / d2).sqrt()
         };
-        let tau_se = (2.0 * sigma2 / radar_d2).sqrt();
-        let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt();
+        let tau_se = (2.0 * sigma2 / d.radar_d2).sqrt();
+        let tacho_se = (2.0 * sigma2 / d.tacho_d2).sqrt();
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
@@ -519,8 +392,8 @@ impl<'p> CampaignCalibrator<'p> {
             resistance_c1_n_s_per_m: fit.beta[groups.len()],
             resistance_c2_n_s2_per_m2: fit.beta[groups.len() + 1],
             radar_scale: at.scale,
-            radar_scale_se: scale_se,
-            radar_scale_runs: scale_runs,
+            radar_scale_se: d.scale_se,
+            radar_scale_runs: d.scale_runs,
             radar_latency_s: tau,
             radar_latency_se: tau_se,
             tacho_delay_s: at.tacho_s,
@@ -532,6 +405,153 @@ impl<'p> CampaignCalibrator<'p> {
             notes,
         })
     }
+}
+
+/// What the delays' profiles give: the curvatures of the residual sum of squares at the
+/// radar's latency and the tachometers' delay (NaN where a delay was taken as 0), and the radar
+/// scale's standard error and the runs it rests on.
+struct Delays {
+    radar_d2: f64,
+    tacho_d2: f64,
+    scale_se: f64,
+    scale_runs: usize,
+}
+
+/// The radar's scale without delays, the two delays at that scale (coordinate descent, three
+/// rounds), the scale at those delays; notes for what could not be fitted.
+fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
+    // The scale without delays; the two delays at that scale (coordinate descent); the
+    // scale at those delays.
+    let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted) and the pad friction's speed law is hard to tell from the running resistance's; log a second or more of coasting before the brake";
+    let mut at = At {
+        radar_s: 0.0,
+        tacho_s: 0.0,
+        scale: 1.0,
+    };
+    match b.radar_scale(&at) {
+        Some((s, _, _)) => at.scale = s,
+        None => notes.push(coast_note.into()),
+    }
+    let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
+    let (mut radar_d2, mut tacho_d2) = (f64::NAN, f64::NAN);
+    for _ in 0..3 {
+        (at.radar_s, radar_d2) = profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
+        (at.tacho_s, tacho_d2) =
+            profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
+    }
+    let (scale_se, scale_runs) = match b.radar_scale(&at) {
+        Some((s, se, runs)) => {
+            at.scale = s;
+            (se, runs)
+        }
+        None => (0.0, 0),
+    };
+    // A delay at the end of its range is no fit (smooth runs without the wheel-slide
+    // protection's pressure changes barely tell delays apart): it is taken as 0.
+    let mut at_edge = false;
+    for (name, t, (lo, hi)) in [
+        ("radar's latency", &mut at.radar_s, LATENCY_RANGE_S),
+        ("tachometers' delay", &mut at.tacho_s, TACHO_DELAY_RANGE_S),
+    ] {
+        if *t <= lo + 1e-3 || *t >= hi - 1e-3 {
+            notes.push(format!(
+                    "the {name} came out at the end of the searched range ({:.0}…{:.0} ms), {:.0} ms: not identifiable from these runs, taken as 0 (check the logger's time stamps)",
+                    lo * 1e3,
+                    hi * 1e3,
+                    *t * 1e3
+                ));
+            *t = 0.0;
+            at_edge = true;
+        }
+    }
+    if at_edge {
+        if let Some((s, _, _)) = b.radar_scale(&at) {
+            at.scale = s;
+        }
+    }
+    if at.radar_s == 0.0 {
+        radar_d2 = f64::NAN;
+    }
+    if at.tacho_s == 0.0 {
+        tacho_d2 = f64::NAN;
+    }
+
+    (
+        at,
+        Delays {
+            radar_d2,
+            tacho_d2,
+            scale_se,
+            scale_runs,
+        },
+    )
+}
+
+/// The candidate fits at `at` — each pad form with one resistance constant per run or one for
+/// the campaign, the axles that separate — and the best by BIC (with a common n_eff: each
+/// form's own would move the BIC by more than the fits differ); with the one-constant balance.
+fn select_model<'a>(
+    b: &Balance<'a>,
+    at: &At,
+    runs_n: usize,
+) -> (Option<(Fit, f64, bool)>, Vec<PadCandidate>, Balance<'a>) {
+    // The pad forms at that latency and scale, with the axles that separate.
+    let groups: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
+    // The residuals' autocorrelation, from the constant form with every axle apart, scales
+    // the standard errors that decide which axles separate.
+    // The forms are compared with this n_eff too (each form's own would move the BIC by
+    // more than the fits differ).
+    let (inflate, n_eff_common) = {
+        let g0 = b.gram(at, PadForm::Constant);
+        g0.rss_at(&groups, PadForm::Constant, 0.0)
+            .map_or((1.0, g0.n as f64), |f0| {
+                let ne = b.n_eff(at, PadForm::Constant, &f0);
+                (g0.n as f64 / ne, ne)
+            })
+    };
+    // The running resistance's constant: one per run (a run's gradient), or one for the
+    // campaign — chosen with the pad form by the same BIC (per-run constants cost a
+    // parameter each, and take the brake force's level with them where a run's pressure
+    // barely varies).
+    let b_common = Balance {
+        per_run: false,
+        ..*b
+    };
+    let mut candidates = Vec::new();
+    let mut best: Option<(Fit, f64, bool)> = None;
+    for (bb, per_run) in [(b, true), (&b_common, false)] {
+        for form in PadForm::ALL {
+            let g = bb.gram(at, form);
+            let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
+            let Some(fit) = fit else {
+                candidates.push(PadCandidate {
+                    form,
+                    per_run_constants: per_run,
+                    gamma: f64::NAN,
+                    rss: f64::NAN,
+                    bic: f64::NAN,
+                    refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
+                });
+                continue;
+            };
+            let constants = if per_run { runs_n } else { 1 };
+            let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant) + constants;
+            let n = g.n as f64;
+            let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
+            candidates.push(PadCandidate {
+                form,
+                per_run_constants: per_run,
+                gamma: fit.gamma,
+                rss: fit.rss,
+                bic,
+                refused: refused.clone(),
+            });
+            if refused.is_none() && best.as_ref().is_none_or(|(_, b0, _)| bic < *b0) {
+                best = Some((fit, bic, per_run));
+            }
+        }
+    }
+    (best, candidates, b_common)
 }
 
 /// The runs with the vehicle's constants.
@@ -756,6 +776,49 @@ fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let h = 0.004;
     let d2 = (rss(t + h) - 2.0 * rss(t) + rss(t - h)) / (h * h);
     (t, d2)
+}
+
+/// The axles' α from a fit: each group's, with its standard error (σ² the residual variance,
+/// inflated), then partially pooled ([`partial_pooling`]) when there are several groups.
+struct A {
+    alpha: [f64; AXLES],
+    alpha_se: [f64; AXLES],
+    fitted: [f64; AXLES],
+    fitted_se: [f64; AXLES],
+    between_sd: Option<f64>,
+}
+
+fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64) -> A {
+    let groups = &fit.groups;
+    let mut alpha = [f64::NAN; AXLES];
+    let mut alpha_se = [f64::NAN; AXLES];
+    for (gi, grp) in groups.iter().enumerate() {
+        for &a in grp {
+            alpha[a] = fit.beta[gi];
+            alpha_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
+        }
+    }
+    let alpha_fitted = alpha;
+    let alpha_fitted_se = alpha_se;
+    let pooling = if groups.len() > 1 {
+        let all = [(0..AXLES).collect::<Vec<usize>>()];
+        g.rss_at(&all, fit.form, fit.gamma).map(|common| {
+            let common_se = (sigma2 * common.cov_unit[0]).sqrt();
+            let p = partial_pooling(groups, &alpha, &alpha_se, common.beta[0], common_se);
+            alpha = p.alpha;
+            alpha_se = p.alpha_se;
+            p.between_sd
+        })
+    } else {
+        None
+    };
+    A {
+        alpha,
+        alpha_se,
+        fitted: alpha_fitted,
+        fitted_se: alpha_fitted_se,
+        between_sd: pooling,
+    }
 }
 
 /// Per-axle α after partial pooling.
