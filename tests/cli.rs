@@ -1581,6 +1581,49 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
         "{}",
         text(&o.stderr)
     );
+    // The same settings in another file (one more comment line): another pipeline file.
+    let edited = d.join("edited.toml");
+    std::fs::write(
+        &edited,
+        std::fs::read_to_string(pipe).unwrap() + "# edited\n",
+    )
+    .unwrap();
+    let edited = edited.to_str().unwrap();
+    let o = railgrip(
+        &[
+            "run",
+            camp,
+            "--pipeline",
+            edited,
+            "--out",
+            "p",
+            "--stage",
+            "models",
+            "--calibration",
+            cal,
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        text(&o.stderr).contains("fitted with another pipeline file"),
+        "{}",
+        text(&o.stderr)
+    );
+    // One run estimated alone: the same checks of the pipeline.
+    for (p, why) in [
+        (None, "estimate.calibration is \"pipeline\""),
+        (Some(edited), "another pipeline file"),
+    ] {
+        let mut args = vec!["estimate", camp, "--out", "e", "--calibration", cal];
+        args[1] = &*Box::leak(archive("soap_120kmh_0c.csv").into_boxed_str());
+        if let Some(p) = p {
+            args.extend(["--pipeline", p]);
+        }
+        let o = railgrip(&args, d);
+        assert_eq!(o.status.code(), Some(1));
+        assert!(text(&o.stderr).contains(why), "{}", text(&o.stderr));
+    }
     let other = d.join("other");
     std::fs::create_dir_all(&other).unwrap();
     for f in ["soap_120kmh_0c.csv", "soap_120kmh_0c.meta.toml"] {

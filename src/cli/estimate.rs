@@ -41,7 +41,13 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let mut pipeline = args.pipeline.load()?;
     match &args.calibration {
         Some(f) => {
-            pipeline.calibrated = Some(railgrip::campaign::calibration::read_calibration(f)?)
+            let given = railgrip::campaign::calibration::read_calibration(f)?;
+            railgrip::campaign::calibration::check_for_run(
+                &given,
+                &pipeline,
+                std::path::Path::new(&args.run),
+            )?;
+            pipeline.calibrated = Some(given);
         }
         None if pipeline.estimate.calibration != railgrip::config::CalibrationSource::Pipeline => {
             anyhow::bail!(

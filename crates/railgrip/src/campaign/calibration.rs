@@ -107,6 +107,31 @@ pub fn calibrated_pipeline(
     Ok((p, Some(record)))
 }
 
+/// Refuses a calibration for another kind of calibration or fitted with another pipeline file
+/// (one run estimated alone: which runs it was fitted on is not checked).
+pub fn check_for_run(
+    given: &Calibrated,
+    pipeline: &Pipeline,
+    run: &Path,
+) -> Result<(), CampaignError> {
+    let why = if given.source != pipeline.estimate.calibration.name() {
+        format!(
+            "it is a \"{}\" calibration and the pipeline's estimate.calibration is \"{}\"",
+            given.source,
+            pipeline.estimate.calibration.name()
+        )
+    } else if given.pipeline_sha256 != pipeline_sha256(pipeline) {
+        "it was fitted with another pipeline file".into()
+    } else {
+        return Ok(());
+    };
+    Err(CampaignError::Input {
+        path: run.to_path_buf(),
+        message: format!("the given calibration does not fit this pipeline: {why}"),
+        hint: "give the pipeline the calibration was fitted with (--pipeline), the one with estimate.calibration = \"campaign\"".into(),
+    })
+}
+
 /// Refuses a calibration fitted on other runs or with another pipeline file. `whole`: `logs`
 /// are the whole campaign (else some of its runs, as one run's task on a cluster sees them).
 fn check_given(

@@ -359,7 +359,7 @@ fn run_sources(
     }
     prepare_output(out)?;
     let mut stages = Vec::new();
-    if write_calibration_file(out, cal_record.as_ref(), pipeline, options.part)? {
+    if write_calibration_file(out, cal_record.as_ref(), options.part)? {
         stages.push(("calibrate".to_string(), cal_s));
     }
 
@@ -462,20 +462,19 @@ fn run_sources(
     })
 }
 
-/// Writes the calibration this campaign fitted as `calibration.json` (true), or removes an
-/// earlier campaign's from a whole campaign estimated without one — it would describe runs
-/// estimated otherwise.
+/// Writes the calibration this campaign fitted as `calibration.json` (true), or, for a whole
+/// campaign that fitted none (no calibration, or one given), removes an earlier campaign's:
+/// it would describe runs estimated otherwise.
 fn write_calibration_file(
     out: &OutDir,
     record: Option<&calibration::CalibrationRecord>,
-    pipeline: &Pipeline,
     part: Part,
 ) -> Result<bool, CampaignError> {
     if let Some(record) = record {
         calibration::write_calibration(out.root(), record)?;
         return Ok(true);
     }
-    if part == Part::All && pipeline.calibrated.is_none() {
+    if part == Part::All {
         let stale = out.root().join(calibration::CALIBRATION_FILE);
         match std::fs::remove_file(&stale) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {

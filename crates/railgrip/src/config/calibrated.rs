@@ -51,7 +51,8 @@ pub struct PadLaw {
     pub form: PadForm,
     /// γ (–).
     pub gamma: f64,
-    /// One standard error of γ (0 for the constant form).
+    /// One standard error of γ (0 for the constant form; NaN where it could not be computed).
+    #[serde(with = "nan_as_null")]
     pub gamma_se: f64,
     /// The speed where α_i(v) = α_i, m/s.
     pub v_ref_mps: f64,
@@ -126,5 +127,37 @@ impl Calibrated {
             c.radar_latency_s * 1e3,
             c.tacho_delay_s * 1e3
         )
+    }
+}
+
+/// Serde for an f64 that may not be a number (a standard error that could not be computed):
+/// written as `null`, read back as NaN — JSON has no NaN, and serde_json would write `null`
+/// and then refuse to read it.
+pub mod nan_as_null {
+    pub fn serialize<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if x.is_finite() {
+            s.serialize_f64(*x)
+        } else {
+            s.serialize_none()
+        }
+    }
+
+    pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(<Option<f64> as serde::Deserialize>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+}
+
+/// [`nan_as_null`] for the four axles' values.
+pub mod nan_as_null_axles {
+    use crate::format::AXLES;
+
+    pub fn serialize<S: serde::Serializer>(x: &[f64; AXLES], s: S) -> Result<S::Ok, S::Error> {
+        let v: Vec<Option<f64>> = x.iter().map(|v| v.is_finite().then_some(*v)).collect();
+        serde::Serialize::serialize(&v, s)
+    }
+
+    pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; AXLES], D::Error> {
+        let v = <[Option<f64>; AXLES] as serde::Deserialize>::deserialize(d)?;
+        Ok(v.map(|x| x.unwrap_or(f64::NAN)))
     }
 }

@@ -74,8 +74,11 @@ pub struct PadCandidate {
     pub form: PadForm,
     /// With one resistance constant per run (else one for the campaign).
     pub per_run_constants: bool,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub gamma: f64,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rss: f64,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub bic: f64,
     /// Why the form was refused, when it was (besides a higher BIC).
     pub refused: Option<String>,
@@ -87,10 +90,13 @@ pub struct CampaignCalibration {
     /// α_i at the top speed, N·m/bar.
     pub alpha_nm_per_bar: [f64; AXLES],
     /// One standard error of each α_i, N·m/bar.
+    #[serde(with = "crate::config::calibrated::nan_as_null_axles")]
     pub alpha_se: [f64; AXLES],
     /// Each axle's (or group's) α as the balance gives it, before the partial pooling, and
     /// its standard error, N·m/bar.
+    #[serde(with = "crate::config::calibrated::nan_as_null_axles")]
     pub alpha_fitted: [f64; AXLES],
+    #[serde(with = "crate::config::calibrated::nan_as_null_axles")]
     pub alpha_fitted_se: [f64; AXLES],
     /// The spread of the true α_i between axles the pooling found (N·m/bar, 1σ; 0 when the
     /// fitted α_i differ no more than their errors); None with one group.
@@ -103,26 +109,33 @@ pub struct CampaignCalibration {
     /// The resistance's constant is fitted per run (a run's gradient), else once.
     pub per_run_constants: bool,
     /// c1, N·s/m.
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub resistance_c1_n_s_per_m: f64,
     /// c2, N·s²/m².
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub resistance_c2_n_s2_per_m2: f64,
     /// Radar reading / true speed (1 when no run coasts before its brake).
     pub radar_scale: f64,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub radar_scale_se: f64,
     /// Runs whose coast the scale rests on.
     pub radar_scale_runs: usize,
     /// The radar's delay, s.
     pub radar_latency_s: f64,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub radar_latency_se: f64,
     /// The tachometers' delay (a counting window's half, for pulse counters), s.
     pub tacho_delay_s: f64,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub tacho_delay_se: f64,
     /// Runs in the balance.
     pub runs: usize,
     /// Samples in the balance (after decimation).
     pub samples: usize,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub effective_samples: f64,
     /// RMS of the balance's residual, N.
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rms_residual_n: f64,
     /// What could not be calibrated and what was done instead, in plain words.
     pub notes: Vec<String>,
@@ -200,9 +213,6 @@ impl<'p> CampaignCalibrator<'p> {
     /// prepared in parallel.
     pub fn prepare(&self, log: &RunLog) -> Result<PreparedRun, EstimateError> {
         let mut filters = self.pipeline.filters.clone();
-        if let Ok(x) = std::env::var("RG_CUT") {
-            filters.radar_cutoff_hz = x.parse().unwrap();
-        }
         filters.tacho_cutoff_hz = filters.radar_cutoff_hz;
         filters.pressure_cutoff_hz = filters.radar_cutoff_hz;
         let c = signal::condition(log, &filters).map_err(|source| EstimateError::Filter {
@@ -372,8 +382,36 @@ impl<'p> CampaignCalibrator<'p> {
             let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
             (2.0 * sigma2 / d2).sqrt()
         };
-        let tau_se = (2.0 * sigma2 / d.radar_d2).sqrt();
-        let tacho_se = (2.0 * sigma2 / d.tacho_d2).sqrt();
+        // The delays' standard errors from the chosen model's residual sum of squares, its
+        // curvature at each fitted delay (NaN for a delay taken as 0: not fitted).
+        let curvature = |shifted: &dyn Fn(f64) -> At, fitted: bool| {
+            if !fitted {
+                return f64::NAN;
+            }
+            let h = 0.004;
+            let rss = |x: f64| {
+                b.gram(&shifted(x), fit.form)
+                    .rss_at(&groups, fit.form, fit.gamma)
+                    .map_or(f64::NAN, |f| f.rss)
+            };
+            (rss(h) - 2.0 * fit.rss + rss(-h)) / (h * h)
+        };
+        let radar_d2 = curvature(
+            &|x| At {
+                radar_s: at.radar_s + x,
+                ..at
+            },
+            d.radar_d2.is_finite(),
+        );
+        let tacho_d2 = curvature(
+            &|x| At {
+                tacho_s: at.tacho_s + x,
+                ..at
+            },
+            d.tacho_d2.is_finite(),
+        );
+        let tau_se = (2.0 * sigma2 / radar_d2).sqrt();
+        let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt();
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
@@ -465,6 +503,15 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
         }
     }
     if at_edge {
+        // The other delay again with this one at 0, then the scale.
+        if at.radar_s != 0.0 {
+            (at.radar_s, radar_d2) =
+                profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
+        }
+        if at.tacho_s != 0.0 {
+            (at.tacho_s, tacho_d2) =
+                profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
+        }
         if let Some((s, _, _)) = b.radar_scale(&at) {
             at.scale = s;
         }
@@ -588,6 +635,10 @@ fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
     }
     let i = pos.floor() as usize;
     let f = pos - i as f64;
+    if f == 0.0 {
+        // On a sample: that sample alone (no neighbour needed).
+        return (i < x.len() && ok[i]).then(|| x[i]);
+    }
     if i + 1 >= x.len() || !ok[i] || !ok[i + 1] {
         return None;
     }

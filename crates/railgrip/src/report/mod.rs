@@ -577,13 +577,13 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         let at = |v: f64| (c.alpha_nm_per_bar[a] * c.pad.factor(v) / base - 1.0) * 100.0;
         let _ = writeln!(
             *h,
-            "<tr><td class=\"l\">{}</td><td>{:.1}</td><td>{}</td><td>{:.1}</td><td>{:+.2} %</td><td>{:+.2} %</td></tr>",
+            "<tr><td class=\"l\">{}</td><td>{:.1}</td><td>{}</td><td>{}</td><td>{} %</td><td>{} %</td></tr>",
             a + 1,
             c.alpha_nm_per_bar[a],
             se(alpha_se(a), 1),
-            base,
-            at(c.pad.v_ref_mps),
-            at(10.0 / 3.6)
+            se(base, 1),
+            se(at(c.pad.v_ref_mps), 2),
+            se(at(10.0 / 3.6), 2)
         );
     }
     h.push_str("</table>\n");
