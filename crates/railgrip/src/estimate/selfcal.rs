@@ -374,44 +374,7 @@ impl<'p> CampaignCalibrator<'p> {
                 "check the pressure channels' mapping to the axles and the vehicle's mass",
             ));
         }
-        let gamma_se = if fit.form == PadForm::Constant {
-            0.0
-        } else {
-            let h = 1e-3;
-            let f = |gm: f64| g.rss_at(&groups, fit.form, gm).map_or(f64::NAN, |x| x.rss);
-            let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
-            (2.0 * sigma2 / d2).sqrt()
-        };
-        // The delays' standard errors from the chosen model's residual sum of squares, its
-        // curvature at each fitted delay (NaN for a delay taken as 0: not fitted).
-        let curvature = |shifted: &dyn Fn(f64) -> At, fitted: bool| {
-            if !fitted {
-                return f64::NAN;
-            }
-            let h = 0.004;
-            let rss = |x: f64| {
-                b.gram(&shifted(x), fit.form)
-                    .rss_at(&groups, fit.form, fit.gamma)
-                    .map_or(f64::NAN, |f| f.rss)
-            };
-            (rss(h) - 2.0 * fit.rss + rss(-h)) / (h * h)
-        };
-        let radar_d2 = curvature(
-            &|x| At {
-                radar_s: at.radar_s + x,
-                ..at
-            },
-            d.radar_d2.is_finite(),
-        );
-        let tacho_d2 = curvature(
-            &|x| At {
-                tacho_s: at.tacho_s + x,
-                ..at
-            },
-            d.tacho_d2.is_finite(),
-        );
-        let tau_se = (2.0 * sigma2 / radar_d2).sqrt();
-        let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt();
+        let (gamma_se, tau_se, tacho_se) = parameter_errors(&b, &at, &g, &fit, sigma2, &d);
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
@@ -827,6 +790,60 @@ fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let h = 0.004;
     let d2 = (rss(t + h) - 2.0 * rss(t) + rss(t - h)) / (h * h);
     (t, d2)
+}
+
+/// One standard error of γ and of the two delays, from the chosen model's residual sum of
+/// squares: se² = 2 σ² / RSS'' at the fit (NaN for a delay taken as 0: not fitted).
+fn parameter_errors(
+    b: &Balance,
+    at: &At,
+    g: &Gram,
+    fit: &Fit,
+    sigma2: f64,
+    d: &Delays,
+) -> (f64, f64, f64) {
+    let gamma_se = if fit.form == PadForm::Constant {
+        0.0
+    } else {
+        let h = 1e-3;
+        let f = |gm: f64| {
+            g.rss_at(&fit.groups, fit.form, gm)
+                .map_or(f64::NAN, |x| x.rss)
+        };
+        let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
+        (2.0 * sigma2 / d2).sqrt()
+    };
+    // The delays' standard errors from the chosen model's residual sum of squares, its
+    // curvature at each fitted delay (NaN for a delay taken as 0: not fitted).
+    let curvature = |shifted: &dyn Fn(f64) -> At, fitted: bool| {
+        if !fitted {
+            return f64::NAN;
+        }
+        let h = 0.004;
+        let rss = |x: f64| {
+            b.gram(&shifted(x), fit.form)
+                .rss_at(&fit.groups, fit.form, fit.gamma)
+                .map_or(f64::NAN, |f| f.rss)
+        };
+        (rss(h) - 2.0 * fit.rss + rss(-h)) / (h * h)
+    };
+    let radar_d2 = curvature(
+        &|x| At {
+            radar_s: at.radar_s + x,
+            ..*at
+        },
+        d.radar_d2.is_finite(),
+    );
+    let tacho_d2 = curvature(
+        &|x| At {
+            tacho_s: at.tacho_s + x,
+            ..*at
+        },
+        d.tacho_d2.is_finite(),
+    );
+    let tau_se = (2.0 * sigma2 / radar_d2).sqrt();
+    let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt();
+    (gamma_se, tau_se, tacho_se)
 }
 
 /// The axles' α from a fit: each group's, with its standard error (σ² the residual variance,
