@@ -5,8 +5,8 @@
 
 use crate::format::AXLES;
 
-/// The speed form of the pad friction: constant; linear, φ = 1 − v/v_ref (disc pads whose
-/// friction rises steadily as the sliding speed falls); or Karwatzki's, φ = k(v)/k(v_ref) − 1
+/// The speed form of the pad friction: constant; linear, φ = 1 − v/v_ref (the first-order form of a
+/// friction that rises as the sliding speed falls [assumed]); or Karwatzki's, φ = k(v)/k(v_ref) − 1
 /// with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 /// formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
 /// Teubner 2003).

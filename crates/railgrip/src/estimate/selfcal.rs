@@ -19,11 +19,12 @@
 //!
 //! **The pad friction** α_i(v) = α_i (1 + γ φ(v)), φ(v_ref) = 0 at the campaign's top speed
 //! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
-//! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (organic and sintered disc pads,
-//! whose friction rises steadily as the sliding speed falls); Karwatzki's, φ = k(v)/k(v_ref) −
+//! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (the first-order form of a friction
+//! that rises as the sliding speed falls, as disc pads' does [assumed: no source fixes its
+//! shape]); Karwatzki's, φ = k(v)/k(v_ref) −
 //! 1 with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 //! formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
-//! Teubner 2003, ch. 6). The form is chosen by BIC = n_eff ln(RSS/n) + k ln(n_eff) with n_eff
+//! Teubner 2003). The form is chosen by BIC = n_eff ln(RSS/n) + k ln(n_eff) with n_eff
 //! the residuals' effective number of samples, as the Polach temperature forms are.
 //!
 //! **The radar.** It reads v_radar(t) = s v(t − τ). The scale s comes from the coasts before
