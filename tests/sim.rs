@@ -1085,7 +1085,8 @@ fastsim_beta = 0.5"#,
 
 /// `load_fluctuation`: before the brake (the deceleration the same with and without it), each
 /// axle's true load is the load without it × (1 + ε), ε of the asked rms (within the sampling
-/// error of 3 s of a 2–10 Hz process) and nothing of it below the band. `pivot_force`: under a
+/// error of 3 s of a 2–10 Hz process) and a mean near 0 (the high-pass takes out the slow
+/// part). `pivot_force`: under a
 /// steady brake the load moves from each bogie's trailing to its leading axle by
 /// (m_c/2) h_b d / l2 more than eq. 12–13 say. Neither is in the log's effects list; both are in
 /// the truth's mismatch.
