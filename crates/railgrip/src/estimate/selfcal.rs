@@ -171,6 +171,15 @@ struct RunSignals {
     coast: Vec<usize>,
 }
 
+/// A log's file name for notes (not its whole path: a campaign's calibration must not depend
+/// on how the archive's path was spelled).
+fn log_name(log: &RunLog) -> String {
+    log.source.file_name().map_or_else(
+        || log.source.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
 /// One run as the calibration keeps it (none when it is left out), and a note on it.
 pub struct PreparedRun {
     signals: Option<RunSignals>,
@@ -251,7 +260,7 @@ impl<'p> CampaignCalibrator<'p> {
                 signals: None,
                 note: Some(format!(
                     "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
-                    log.source.display(),
+                    log_name(log),
                     est.min_speed_mps
                 )),
             });
@@ -262,7 +271,7 @@ impl<'p> CampaignCalibrator<'p> {
         let note = (missing > 0).then(|| {
             format!(
                 "{}: {:.2} s without data on a channel (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
-                log.source.display(),
+                log_name(log),
                 missing as f64 / c.sample_rate_hz,
                 c.settle_s
             )
