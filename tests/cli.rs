@@ -1561,25 +1561,22 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
     let d = dir.path();
     let (camp, pipe, cal) = bundled_calibration(d);
     let (camp, pipe, cal) = (camp.as_str(), pipe.as_str(), cal.as_str());
-    // Another pipeline file, or another campaign's runs: refused, saying why.
-    let o = railgrip(
-        &[
-            "run",
-            camp,
-            "--out",
-            "p",
-            "--stage",
-            "models",
-            "--calibration",
-            cal,
-        ],
-        d,
-    );
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        text(&o.stderr).contains("estimate.calibration is \"pipeline\""),
-        "{}",
-        text(&o.stderr)
+    // Exit 1, the message saying `why`.
+    let refused = |args: &[&str], why: &str| {
+        let o = railgrip(args, d);
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        assert!(text(&o.stderr).contains(why), "{}", text(&o.stderr));
+    };
+    fn models<'a>(archive: &'a str, pipeline: Option<&'a str>, cal: &'a str) -> Vec<&'a str> {
+        let mut args = vec!["run", archive, "--out", "p", "--stage", "models"];
+        args.extend(pipeline.map(|p| ["--pipeline", p]).into_iter().flatten());
+        args.extend(["--calibration", cal]);
+        args
+    }
+    // A pipeline that does not ask for a calibration.
+    refused(
+        &models(camp, None, cal),
+        "estimate.calibration is \"pipeline\"",
     );
     // The same settings in another file (one more comment line): another pipeline file.
     let edited = d.join("edited.toml");
@@ -1589,66 +1586,27 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
     )
     .unwrap();
     let edited = edited.to_str().unwrap();
-    let o = railgrip(
-        &[
-            "run",
-            camp,
-            "--pipeline",
-            edited,
-            "--out",
-            "p",
-            "--stage",
-            "models",
-            "--calibration",
-            cal,
-        ],
-        d,
-    );
-    assert_eq!(o.status.code(), Some(1));
-    assert!(
-        text(&o.stderr).contains("fitted with another pipeline file"),
-        "{}",
-        text(&o.stderr)
+    refused(
+        &models(camp, Some(edited), cal),
+        "fitted with another pipeline file",
     );
     // One run estimated alone: the same checks of the pipeline.
-    for (p, why) in [
-        (None, "estimate.calibration is \"pipeline\""),
-        (Some(edited), "another pipeline file"),
-    ] {
-        let mut args = vec!["estimate", camp, "--out", "e", "--calibration", cal];
-        args[1] = &*Box::leak(archive("soap_120kmh_0c.csv").into_boxed_str());
-        if let Some(p) = p {
-            args.extend(["--pipeline", p]);
-        }
-        let o = railgrip(&args, d);
-        assert_eq!(o.status.code(), Some(1));
-        assert!(text(&o.stderr).contains(why), "{}", text(&o.stderr));
-    }
+    let run = archive("soap_120kmh_0c.csv");
+    let alone = ["estimate", run.as_str(), "--out", "e", "--calibration", cal];
+    refused(&alone, "estimate.calibration is \"pipeline\"");
+    refused(
+        &[&alone[..], &["--pipeline", edited]].concat(),
+        "another pipeline file",
+    );
+    // Another campaign's runs.
     let other = d.join("other");
     std::fs::create_dir_all(&other).unwrap();
     for f in ["soap_120kmh_0c.csv", "soap_120kmh_0c.meta.toml"] {
         std::fs::copy(root().join("fixtures/archive").join(f), other.join(f)).unwrap();
     }
-    let o = railgrip(
-        &[
-            "run",
-            other.to_str().unwrap(),
-            "--pipeline",
-            pipe,
-            "--out",
-            "q",
-            "--stage",
-            "models",
-            "--calibration",
-            cal,
-        ],
-        d,
-    );
-    assert_eq!(o.status.code(), Some(1));
-    let e = text(&o.stderr);
-    assert!(
-        e.contains("does not belong") && e.contains("not in the campaign: dry_120kmh_p20"),
-        "{e}"
+    refused(
+        &models(other.to_str().unwrap(), Some(pipe), cal),
+        "does not belong to this campaign: it was fitted on other runs (not fitted: none; not in the campaign: dry_120kmh_p20",
     );
 }
 

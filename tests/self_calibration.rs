@@ -80,12 +80,12 @@ fn a_run_that_never_coasts_is_refused_with_what_it_lacks() {
     );
 }
 
-/// The mismatch campaign (pipelines/scenes/mismatch, 12 scenes) simulated with noise seed
-/// `seed`, without the effects named in `without`: each run's log and simulator output.
+/// The mismatch campaign (pipelines/scenes/mismatch, 12 scenes), each scene changed by
+/// `edit`, simulated with noise seed `seed`: each run's log and simulator output.
 fn mismatch_campaign(
     seed: u64,
-    without: &[&str],
     dir: &Path,
+    edit: impl Fn(&mut Scene),
 ) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
@@ -97,10 +97,7 @@ fn mismatch_campaign(
         .iter()
         .map(|path| {
             let mut sc = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
-            let keep = Effect::ALL
-                .iter()
-                .filter(|e| sc.effects.has(**e) && !without.contains(&e.name()));
-            sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
+            edit(&mut sc);
             let out = sim::simulate(&sc, Some(seed)).unwrap();
             let stem = format!("{}_{seed}", sc.name);
             out.write(dir, &stem, OutputFormat::Csv).unwrap();
@@ -112,6 +109,16 @@ fn mismatch_campaign(
             (log, out)
         })
         .collect()
+}
+
+/// A scene edit that drops the effects named in `without`.
+fn without<'a>(names: &'a [&'a str]) -> impl Fn(&mut Scene) + 'a {
+    move |sc| {
+        let keep = Effect::ALL
+            .iter()
+            .filter(|e| sc.effects.has(**e) && !names.contains(&e.name()));
+        sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
+    }
 }
 
 /// Per axle (RMSE, bias) of μ, and the RMSE over all axles.
@@ -225,7 +232,7 @@ fn before_after(
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();
     for seed in [1, 2, 3] {
-        let runs = mismatch_campaign(seed, &[], dir.path());
+        let runs = mismatch_campaign(seed, dir.path(), |_| {});
         let c = calibrate(&runs, dir.path());
         let m = runs[0].1.mismatch.clone().unwrap();
         eprintln!(
@@ -303,17 +310,14 @@ fn calibration_changes_little_on_clean_data() {
     let dir = tempfile::tempdir().unwrap();
     let (mut worse, mut total) = (0, 0);
     for seed in [1, 2] {
-        let runs = mismatch_campaign(
-            seed,
-            &[
-                "brake_scatter",
-                "pad_friction",
-                "radar_error",
-                "load_fluctuation",
-                "pivot_force",
-            ],
-            dir.path(),
-        );
+        let clean = without(&[
+            "brake_scatter",
+            "pad_friction",
+            "radar_error",
+            "load_fluctuation",
+            "pivot_force",
+        ]);
+        let runs = mismatch_campaign(seed, dir.path(), clean);
         let c = calibrate(&runs, dir.path());
         eprintln!(
             "seed {seed}: α {:?} ± {:?}, pad {:?}, radar {:.5} ± {:.5}, latency {:.1} ms, tachos {:.1} ms",
@@ -354,29 +358,14 @@ fn calibration_changes_little_on_clean_data() {
 #[test]
 fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
     let dir = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    scenes.sort();
-    let pipeline = Pipeline::default_uic_z1();
-    let mut cal = CampaignCalibrator::new(&pipeline);
-    let mut truth = None;
-    for path in &scenes {
-        let mut sc = Scene::load(path).unwrap();
+    let runs = mismatch_campaign(1, dir.path(), |sc| {
         for d in sc.brake.demand_bar.iter_mut() {
             let p = d.last().unwrap().1;
             *d = vec![(0.0, p)];
         }
-        let out = sim::simulate(&sc, Some(1)).unwrap();
-        out.write(dir.path(), &sc.name, OutputFormat::Csv).unwrap();
-        let log = ingest_file(&dir.path().join(format!("{}.csv", sc.name)), &pipeline).unwrap();
-        cal.add(&log).unwrap();
-        truth = out.mismatch;
-    }
-    let c = cal.finish(dir.path()).unwrap();
-    let m = truth.unwrap();
+    });
+    let c = calibrate(&runs, dir.path());
+    let m = runs[0].1.mismatch.clone().unwrap();
     assert_eq!(c.radar_scale, 1.0);
     assert_eq!(c.radar_scale_runs, 0);
     assert!(
@@ -477,7 +466,7 @@ fn axles_with_the_same_pressure_share_one_alpha() {
 #[test]
 fn a_radar_dropout_leaves_its_samples_out() {
     let dir = tempfile::tempdir().unwrap();
-    let runs = mismatch_campaign(1, &[], dir.path());
+    let runs = mismatch_campaign(1, dir.path(), |_| {});
     // Drop the first run's rows between 6 and 8 s.
     let first = runs[0].0.source.clone();
     let text = std::fs::read_to_string(&first).unwrap();
