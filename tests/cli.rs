@@ -1598,6 +1598,32 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
         &[&alone[..], &["--pipeline", edited]].concat(),
         "another pipeline file",
     );
+    // A file that is not a calibration: named, with what to give instead.
+    std::fs::write(d.join("bad.json"), "{\"alpha\": 1}").unwrap();
+    refused(
+        &[
+            "estimate",
+            run.as_str(),
+            "--out",
+            "e",
+            "--calibration",
+            "bad.json",
+        ],
+        "bad.json: not a calibration file",
+    );
+    refused(
+        &[
+            "run",
+            camp,
+            "--out",
+            "p",
+            "--stage",
+            "models",
+            "--calibration",
+            "missing.json",
+        ],
+        "missing.json: cannot read the file",
+    );
     // Another campaign's runs.
     let other = d.join("other");
     std::fs::create_dir_all(&other).unwrap();

@@ -501,6 +501,21 @@ fn scene_errors_name_the_key_and_the_fix() {
         e.starts_with("s.toml: sensors.radar_latency_s = 2: must be"),
         "{e}"
     );
+    let e = err("[brake]\npad_friction_v0_kmh = 900.0");
+    assert!(
+        e.starts_with("s.toml: brake.pad_friction_v0_kmh = 900: must be"),
+        "{e}"
+    );
+    let e = err("[run]\nload_fluctuation_band_hz = [10.0, 2.0]");
+    assert!(
+        e.contains("run.load_fluctuation_band_hz") && e.contains("0 < low < high <= 100 Hz"),
+        "{e}"
+    );
+    let e = err("[run]\nload_fluctuation_rms = 0.5");
+    assert!(
+        e.starts_with("s.toml: run.load_fluctuation_rms = 0.5: must be"),
+        "{e}"
+    );
     let e = err("[wsp]\nreapply_slip_mps = 2.0\ndump_slip_mps = 1.0");
     assert!(
         e.contains("wsp.reapply_slip_mps = 2: must be below wsp.dump_slip_mps = 1"),

@@ -306,10 +306,8 @@ pub fn read_calibration(path: &Path) -> Result<Calibrated, CampaignError> {
             "give the calibration.json that `railgrip calibrate --campaign` or `railgrip run` wrote"
                 .into(),
     };
-    let text = std::fs::read_to_string(path).map_err(|source| CampaignError::Read {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text =
+        std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read the file: {e}")))?;
     match serde_json::from_str::<CalibrationRecord>(&text) {
         Ok(r) => Ok(r.calibrated),
         Err(e) => serde_json::from_str::<Calibrated>(&text)
