@@ -221,23 +221,7 @@ fn corrected_log(log: &RunLog, corr: &selfcal::Corrections) -> RunLog {
     let mut out = log.clone();
     let n = log.len();
     // The reading at k + shift (linear between samples), None outside the log or in a gap.
-    let at = |x: &[f64], k: usize, shift: f64| -> Option<f64> {
-        let pos = k as f64 + shift;
-        let i = pos.floor();
-        if !(i >= 0.0) || i as usize >= n {
-            return None;
-        }
-        let i = i as usize;
-        let f = pos - i as f64;
-        if f == 0.0 {
-            // On a sample (a zero delay): that sample as it is.
-            return log.valid[i].then(|| x[i]);
-        }
-        if i + 1 >= n {
-            return None;
-        }
-        (log.valid[i] && log.valid[i + 1]).then(|| x[i] + f * (x[i + 1] - x[i]))
-    };
+    let at = |x: &[f64], k: usize, shift: f64| selfcal::shifted(x, &log.valid, k, shift);
     let radar_shift = corr.radar_latency_s * log.sample_rate_hz;
     let tacho_shift = corr.tacho_delay_s * log.sample_rate_hz;
     let inv_s = 1.0 / corr.radar_scale;

@@ -599,9 +599,10 @@ struct At {
 const Z: usize = 2 * AXLES + 3;
 const Y: usize = Z - 1;
 
-/// The radar at sample `k` shifted by `shift` samples (linear interpolation), None outside
-/// the run or where a neighbour is not settled.
-fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
+/// Series `x` at sample `k` shifted by `shift` samples (linear interpolation; exactly sample
+/// k + shift when that is whole), None outside the series or where a sample it reads is not
+/// `ok`. Shared by the calibration and the estimation it corrects.
+pub(crate) fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
     let pos = k as f64 + shift;
     if !(pos >= 0.0) {
         return None;
