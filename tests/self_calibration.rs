@@ -87,25 +87,39 @@ fn mismatch_campaign(
     dir: &Path,
     edit: impl Fn(&mut Scene),
 ) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput)> {
+    campaign("pipelines/scenes/mismatch", Some(seed), dir, edit)
+}
+
+/// The scenes (`*.toml`) of the folder `scenes`, each changed by `edit` and simulated with
+/// noise seed `seed` (None: the scene's own), written as CSV (MCAP where the sensors run at
+/// different rates) and read back: each run's log and simulator output.
+fn campaign(
+    scenes: &str,
+    seed: Option<u64>,
+    dir: &Path,
+    edit: impl Fn(&mut Scene),
+) -> Vec<(railgrip::ingest::RunLog, sim::SimOutput)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let mut scenes: Vec<_> = std::fs::read_dir(root.join("pipelines/scenes/mismatch"))
+    let mut paths: Vec<_> = std::fs::read_dir(root.join(scenes))
         .unwrap()
         .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
         .collect();
-    scenes.sort();
-    scenes
+    paths.sort();
+    paths
         .iter()
         .map(|path| {
             let mut sc = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
             edit(&mut sc);
-            let out = sim::simulate(&sc, Some(seed)).unwrap();
-            let stem = format!("{}_{seed}", sc.name);
-            out.write(dir, &stem, OutputFormat::Csv).unwrap();
-            let log = ingest_file(
-                &dir.join(format!("{stem}.csv")),
-                &Pipeline::default_uic_z1(),
-            )
-            .unwrap();
+            let out = sim::simulate(&sc, seed).unwrap();
+            let stem = format!("{}_{}", sc.name, seed.unwrap_or(sc.seed));
+            let file = if out.write(dir, &stem, OutputFormat::Csv).is_ok() {
+                format!("{stem}.csv")
+            } else {
+                out.write(dir, &stem, OutputFormat::Mcap).unwrap();
+                format!("{stem}.mcap")
+            };
+            let log = ingest_file(&dir.join(file), &Pipeline::default_uic_z1()).unwrap();
             (log, out)
         })
         .collect()
@@ -227,12 +241,19 @@ fn before_after(
 /// most 0.6 × the uncalibrated one, every axle's bias within ±0.001 (measured: up to 0.0009),
 /// and α_i(v) within 2.5 % and 3 standard errors — not the 0.5 % aimed for (measured: 0.27–0.98
 /// %): the per-axle α rest on the wheel-slide protection's pressure differences against the
-/// radar's noise, ~0.75 % one standard error over 12 runs.
+/// radar's noise, ~0.75 % one standard error over 12 runs. The three campaigns pooled (one
+/// vehicle, 36 runs) bring it to ~0.47 % (measured: −0.40 … +0.59 %), as 1/√runs says: the
+/// limit is the data's, not the fit's.
 #[test]
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();
+    let mut all = Vec::new();
     for seed in [1, 2, 3] {
         let runs = mismatch_campaign(seed, dir.path(), |_| {});
+        all.extend(
+            runs.iter()
+                .map(|(log, out)| (log.clone(), out.mismatch.clone())),
+        );
         let c = calibrate(&runs, dir.path());
         let m = runs[0].1.mismatch.clone().unwrap();
         eprintln!(
@@ -275,7 +296,13 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
                 * (1.0
                     + m.pad_friction_rise
                         * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
-            eprintln!("  axle {}: α(v) within {:.2} %", a + 1, worst * 100.0);
+            eprintln!(
+                "  axle {}: α(v) within {:.2} %; α at the top {:+.2} % (se {:.2} %)",
+                a + 1,
+                worst * 100.0,
+                (c.alpha_nm_per_bar[a] / at_top - 1.0) * 100.0,
+                c.alpha_se[a] / at_top * 100.0
+            );
             assert!(worst <= 0.025, "axle {}: {worst}", a + 1);
             assert!(
                 (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
@@ -297,18 +324,50 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             }
         }
     }
+    // The three campaigns are one vehicle (its brake scatter has its own seed): as one
+    // campaign of 36 runs the α_i rest on three times the data.
+    let pipeline = Pipeline::default_uic_z1();
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    for (log, _) in &all {
+        cal.add(log).unwrap();
+    }
+    let c = cal.finish(dir.path()).unwrap();
+    let m = all[0].1.clone().unwrap();
+    for a in 0..4 {
+        let at_top = m.brake_torque_nm_per_bar[a]
+            * (1.0
+                + m.pad_friction_rise * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
+        eprintln!(
+            "36 runs, axle {}: α at the top {:+.2} % (se {:.2} %)",
+            a + 1,
+            (c.alpha_nm_per_bar[a] / at_top - 1.0) * 100.0,
+            c.alpha_se[a] / at_top * 100.0
+        );
+        assert!(
+            c.alpha_se[a] / at_top < 0.006,
+            "axle {}: se {}",
+            a + 1,
+            c.alpha_se[a]
+        );
+        assert!(
+            (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
+            "axle {}: α {} against {at_top} (se {})",
+            a + 1,
+            c.alpha_nm_per_bar[a],
+            c.alpha_se[a]
+        );
+    }
 }
 
 /// Without a mismatch (the same scenes, the brake rig and the radar as the pipeline says),
-/// the calibration finds the identity within its errors; the per-sample μ RMSE mostly
-/// improves (the tachometers' counting delay, which the uncalibrated estimate ignores, is
-/// taken out) and is never worse by more than 0.0001 — but on the runs with the smallest
-/// errors it is worse by more than 2 % (the per-axle α's residual error; measured: 4 of 24
-/// runs, ratio up to 1.19, +0.00006), which is why "pipeline" stays the default.
+/// the calibration finds the identity within its errors and keeps the pipeline's α (one ratio
+/// to it for all axles, within its errors of 1: a change the data do not call for would only
+/// add the fit's noise); the per-sample μ RMSE is never worse by more than 2 % on any run
+/// (measured: ratios 0.70–0.996 over 24 runs; the gain is the tachometers' counting delay,
+/// which the simulated sensors have and the uncalibrated estimate ignores).
 #[test]
 fn calibration_changes_little_on_clean_data() {
     let dir = tempfile::tempdir().unwrap();
-    let (mut worse, mut total) = (0, 0);
     for seed in [1, 2] {
         let clean = without(&[
             "brake_scatter",
@@ -329,24 +388,51 @@ fn calibration_changes_little_on_clean_data() {
         assert_eq!(c.pad.form, PadForm::Constant, "{:?}", c.pad_candidates);
         for a in 0..4 {
             assert!(
-                (c.alpha_nm_per_bar[a] / 1600.0 - 1.0).abs() <= 0.005,
+                (c.alpha_fitted[a] / 1600.0 - 1.0).abs() <= 0.02,
                 "{:?}",
-                c.alpha_nm_per_bar
+                c.alpha_fitted
             );
         }
+        assert_eq!(c.alpha_nm_per_bar, [1600.0; 4]);
+        assert!(
+            c.notes.iter().any(|n| n.contains("the pipeline's α kept")),
+            "{:?}",
+            c.notes
+        );
         for (name, before, after) in before_after(&runs, &c) {
             eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
             assert!(
-                after.1 <= before.1 + 1e-4,
+                after.1 <= 1.02 * before.1,
                 "{name}: RMSE {} against {}",
                 after.1,
                 before.1
             );
-            worse += usize::from(after.1 > before.1);
-            total += 1;
         }
     }
-    assert!(worse * 4 <= total, "{worse} of {total} runs worse");
+}
+
+/// The bundled archive's scenes (Polach's law with its effects, no mismatch, one run logged
+/// with the radar at 100 Hz and the pressures at 200 Hz): the calibration keeps the pipeline's
+/// α and improves every soap run (measured: 0.84–0.86×, the tachometers' counting delay). Each
+/// run is weighted by its residual variance: unweighted, the 100 Hz radar's larger noise read
+/// as a 1.8 % scatter between the axles and made every run 3–8 % worse.
+#[test]
+fn the_bundled_scenes_keep_the_pipelines_alpha() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = campaign("pipelines/scenes", None, dir.path(), |_| {});
+    assert_eq!(runs.len(), 8);
+    let c = calibrate(&runs, dir.path());
+    eprintln!("fitted α {:?} ± {:?}", c.alpha_fitted, c.alpha_fitted_se);
+    assert_eq!(c.alpha_nm_per_bar, [1600.0; 4]);
+    for (name, before, after) in before_after(&runs, &c) {
+        eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
+        assert!(
+            after.1 <= 1.02 * before.1,
+            "{name}: RMSE {} against {}",
+            after.1,
+            before.1
+        );
+    }
 }
 
 /// Hard case: no run coasts before its brake (the brake applied from the first sample), so
@@ -354,7 +440,7 @@ fn calibration_changes_little_on_clean_data() {
 /// (scale 1) and still fits the brake coefficients, less well: the radar's unknown 0.3 %
 /// scales the deceleration, and with a pressure that barely changes within a run the pad
 /// friction's speed law and the resistance's speed term are hard to tell apart (measured:
-/// the axles' mean α 3.1 % high, against 0.1–0.6 % with the coasts).
+/// the axles' mean α 3.0 % high, against 0.1–0.6 % with the coasts).
 #[test]
 fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
     let dir = tempfile::tempdir().unwrap();
@@ -419,7 +505,7 @@ fn pair_campaign(dir: &Path) -> Vec<railgrip::ingest::RunLog> {
 
 /// Hard cases: two axles whose pressures never differ cannot have their α told apart (the
 /// calibration says so by name, fits the pair with one α, and the others on their own); a
-/// delay the runs cannot tell is taken as 0, with a note.
+/// delay the runs cannot tell is taken as 0, with a note; locked wheels are left out.
 #[test]
 fn axles_with_the_same_pressure_share_one_alpha() {
     let dir = tempfile::tempdir().unwrap();
@@ -434,6 +520,17 @@ fn axles_with_the_same_pressure_share_one_alpha() {
         c.alpha_nm_per_bar, c.alpha_se, c.shared, c.notes
     );
     assert_eq!(c.shared, vec![vec![0, 1]]);
+    // Without the wheel-slide protection the dry runs lock wheels: a locked wheel's brake
+    // holds it with less than α p, so those samples (and the filters' settling around them)
+    // are left out, each run's note saying how long.
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("8 of 8 runs have a wheel locked")
+                && n.contains("the longest in pair_200_")),
+        "{:?}",
+        c.notes
+    );
     // Smooth runs without the wheel-slide protection barely tell the tachometers' delay: it
     // comes out at the end of its range and is taken as 0, said so, its standard error not a
     // number — which the calibration's JSON carries as null and reads back.

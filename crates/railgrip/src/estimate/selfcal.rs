@@ -12,10 +12,13 @@
 //! with M the translating mass (kg), v the vehicle speed (m/s), ω̇_i (rad/s²), p_i (bar),
 //! r (m), J (kg·m²); c_run (N) one constant per run (running resistance and that run's
 //! gradient), c1 (N·s/m) and c2 (N·s²/m²) the speed-dependent resistance of the Davis form.
-//! Where the axles' pressures differ — a wheel-slide protection at work, a brake applied
-//! axle by axle — the four α_i separate; where two axles' pressures never differ, only
-//! their sum is identifiable and the pair is fitted with one α (named in
-//! [`CampaignCalibration::shared`]).
+//! The fit's unknowns are the ratios α_i / α_i,pipeline. Where the axles' pressures differ —
+//! a wheel-slide protection at work, a brake applied axle by axle — the four separate; where
+//! two axles' pressures never differ, only their sum is identifiable and the pair is fitted
+//! with one ratio (named in [`CampaignCalibration::shared`]). The separated ratios are pooled
+//! partially (empirical Bayes, see `partial_pooling`); one ratio within its errors of 1, with
+//! a constant pad friction, keeps the pipeline's α. Samples near a locked wheel are left out:
+//! its brake holds it with less than α p.
 //!
 //! **The pad friction** α_i(v) = α_i (1 + γ φ(v)), φ(v_ref) = 0 at the campaign's top speed
 //! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
@@ -40,7 +43,11 @@
 //! zero-phase filter on both sides of a linear balance keeps it exact), so that the pressures'
 //! faster content has no counterpart missing in the radar's deceleration.
 //!
-//! Standard errors: σ²(XᵀX)⁻¹ inflated by √(n/n_eff); for γ and τ, from the curvature of
+//! **Weights.** Each run enters the least squares with the weight 1/σ_r² (its residual
+//! variance from a first fit, relative to the runs' mean, clamped to 0.1–10): runs logged
+//! with other rates or noisier sensors would otherwise read as a scatter between the axles.
+//!
+//! Standard errors: σ²(XᵀWX)⁻¹ inflated by √(n/n_eff); for γ and τ, from the curvature of
 //! the profiled residual sum of squares, se² = 2 σ² n/n_eff / RSS''.
 
 // `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
@@ -180,10 +187,42 @@ fn log_name(log: &RunLog) -> String {
     )
 }
 
+/// Samples within `settle_s` (s) of a wheel locked above the lowest speed the estimates use
+/// (r ω < `locked_mps` on the raw tachometer while the radar reads more): a locked wheel's
+/// brake holds it with less than α p, so the balance does not hold there, nor in the filtered
+/// signals around it. Returns the mask and the number of locked samples.
+fn near_locked_wheel(log: &RunLog, r: f64, locked_mps: f64, settle_s: f64) -> (Vec<bool>, usize) {
+    let n = log.len();
+    let reach = (settle_s * log.sample_rate_hz).ceil() as usize;
+    // +1 at the first sample a lock reaches, −1 after the last: the running sum is positive
+    // near a lock.
+    let mut edges = vec![0i64; n + 1];
+    let mut locked = 0usize;
+    for k in 0..n {
+        let moving = log.v_radar_mps[k] > locked_mps;
+        if moving && (0..AXLES).any(|a| r * log.omega_radps[a][k] < locked_mps) {
+            locked += 1;
+            edges[k.saturating_sub(reach)] += 1;
+            edges[(k + reach + 1).min(n)] -= 1;
+        }
+    }
+    let mut depth = 0i64;
+    let mask = edges[..n]
+        .iter()
+        .map(|e| {
+            depth += e;
+            depth > 0
+        })
+        .collect();
+    (mask, locked)
+}
+
 /// One run as the calibration keeps it (none when it is left out), and a note on it.
 pub struct PreparedRun {
     signals: Option<RunSignals>,
     note: Option<String>,
+    /// The log's name and how long it has a wheel locked (s), when it has.
+    locked: Option<(String, f64)>,
 }
 
 /// Collects a campaign's runs one at a time (each log can be dropped after [`Self::add`]),
@@ -192,6 +231,8 @@ pub struct CampaignCalibrator<'p> {
     pipeline: &'p Pipeline,
     runs: Vec<RunSignals>,
     notes: Vec<String>,
+    /// Runs with a locked wheel: the log's name and how long (s).
+    locked: Vec<(String, f64)>,
 }
 
 impl<'p> CampaignCalibrator<'p> {
@@ -200,6 +241,7 @@ impl<'p> CampaignCalibrator<'p> {
             pipeline,
             runs: Vec::new(),
             notes: Vec::new(),
+            locked: Vec::new(),
         }
     }
 
@@ -216,6 +258,7 @@ impl<'p> CampaignCalibrator<'p> {
     pub fn add_prepared(&mut self, p: PreparedRun) {
         self.runs.extend(p.signals);
         self.notes.extend(p.note);
+        self.locked.extend(p.locked);
     }
 
     /// Conditions `log` with matched filters and keeps what the balance needs; a run without
@@ -235,11 +278,13 @@ impl<'p> CampaignCalibrator<'p> {
         let first_brake = (0..n)
             .find(|&k| (0..AXLES).any(|a| c.p_bar[a][k] >= est.min_pressure_bar))
             .unwrap_or(n);
+        let (near_lock, locked_samples) =
+            near_locked_wheel(log, r, est.locked_wheel_speed_mps, c.settle_s);
         let mut rows = Vec::new();
         let mut coast = Vec::new();
         for k in (0..n).step_by(DECIMATE) {
             let v = c.v_mps[k];
-            if !c.settled[k] || !(v >= est.min_speed_mps) {
+            if !c.settled[k] || !(v >= est.min_speed_mps) || near_lock[k] {
                 continue;
             }
             let rolling = (0..AXLES).all(|a| r * c.omega_radps[a][k] >= est.locked_wheel_speed_mps);
@@ -258,6 +303,7 @@ impl<'p> CampaignCalibrator<'p> {
         if rows.is_empty() {
             return Ok(PreparedRun {
                 signals: None,
+                locked: None,
                 note: Some(format!(
                     "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
                     log_name(log),
@@ -268,14 +314,18 @@ impl<'p> CampaignCalibrator<'p> {
         // A dropout (a channel without data) leaves its samples and the filters' settling
         // around them out; the rest of the run counts.
         let missing = c.has_data.iter().filter(|h| !**h).count();
-        let note = (missing > 0).then(|| {
-            format!(
+        let mut notes = Vec::new();
+        if missing > 0 {
+            notes.push(format!(
                 "{}: {:.2} s without data on a channel (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
                 log_name(log),
                 missing as f64 / c.sample_rate_hz,
                 c.settle_s
-            )
-        });
+            ));
+        }
+        let locked =
+            (locked_samples > 0).then(|| (log_name(log), locked_samples as f64 / c.sample_rate_hz));
+        let note = (!notes.is_empty()).then(|| notes.join("; "));
         let w_mean = (0..n)
             .map(|k| r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64)
             .collect();
@@ -292,6 +342,7 @@ impl<'p> CampaignCalibrator<'p> {
             })
             .collect();
         Ok(PreparedRun {
+            locked,
             signals: Some(RunSignals {
                 fs: c.sample_rate_hz,
                 v_radar: c.v_mps,
@@ -306,6 +357,26 @@ impl<'p> CampaignCalibrator<'p> {
         })
     }
 
+    /// One note for the runs with a locked wheel, if any.
+    fn locked_note(&self) -> Option<String> {
+        let longest = self.locked.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let shortest = self
+            .locked
+            .iter()
+            .map(|l| l.1)
+            .fold(f64::INFINITY, f64::min);
+        let est = &self.pipeline.estimate;
+        Some(format!(
+            "{} of {} runs have a wheel locked while the train moves ({:.2}–{:.2} s each, the longest in {}): a locked wheel's brake holds it with less than α p, so those samples and the filters' settling on each side are left out of the calibration (locked: r ω below estimate.locked_wheel_speed_mps = {} m/s)",
+            self.locked.len(),
+            self.runs.len(),
+            shortest,
+            longest.1,
+            longest.0,
+            est.locked_wheel_speed_mps
+        ))
+    }
+
     /// Fits the campaign (see the module's documentation). `what` names the campaign in
     /// errors.
     pub fn finish(self, what: &std::path::Path) -> Result<CampaignCalibration, EstimateError> {
@@ -314,7 +385,9 @@ impl<'p> CampaignCalibrator<'p> {
             what: what_failed,
             hint: hint.to_string(),
         };
+        let locked = self.locked_note();
         let mut notes = self.notes;
+        notes.extend(locked);
         if self.runs.is_empty() {
             return Err(fail(
                 "no run has a usable sample for the calibration".into(),
@@ -330,6 +403,8 @@ impl<'p> CampaignCalibrator<'p> {
             j_r: veh.axle_inertia_kgm2 / veh.wheel_radius_m,
             v_ref: 0.0,
             per_run: true,
+            alpha_pipeline: veh.brake_torque_nm_per_bar,
+            weights: &[],
         };
         let v_ref = self
             .runs
@@ -346,6 +421,11 @@ impl<'p> CampaignCalibrator<'p> {
         }
 
         let (at, d) = fit_radar_and_delays(&b, &mut notes);
+        let weights = b.run_weights(&at);
+        let b = Balance {
+            weights: &weights,
+            ..b
+        };
         let tau = at.radar_s;
         let runs_n = self.runs.len();
         let (best, candidates, b_common) = select_model(&b, &at, runs_n);
@@ -377,7 +457,9 @@ impl<'p> CampaignCalibrator<'p> {
             fitted: alpha_fitted,
             fitted_se: alpha_fitted_se,
             between_sd: pooling,
-        } = axle_alphas(&g, &fit, sigma2);
+            kept,
+        } = axle_alphas(&g, &fit, sigma2, &veh.brake_torque_nm_per_bar);
+        notes.extend(kept);
         if alpha.iter().any(|a| !(*a > 0.0)) {
             return Err(fail(
                 format!("the balance gives a non-positive brake coefficient {alpha:?}"),
@@ -459,10 +541,22 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     };
     // A delay at the end of its range is no fit (smooth runs without the wheel-slide
     // protection's pressure changes barely tell delays apart): it is taken as 0.
+    // So is one where the balance's residual has no minimum (a curvature that is not
+    // positive: runs without pressure changes to time).
     let mut at_edge = false;
-    for (name, t, (lo, hi)) in [
-        ("radar's latency", &mut at.radar_s, LATENCY_RANGE_S),
-        ("tachometers' delay", &mut at.tacho_s, TACHO_DELAY_RANGE_S),
+    for (name, t, d2, (lo, hi)) in [
+        (
+            "radar's latency",
+            &mut at.radar_s,
+            radar_d2,
+            LATENCY_RANGE_S,
+        ),
+        (
+            "tachometers' delay",
+            &mut at.tacho_s,
+            tacho_d2,
+            TACHO_DELAY_RANGE_S,
+        ),
     ] {
         if *t <= lo + 1e-3 || *t >= hi - 1e-3 {
             notes.push(format!(
@@ -471,9 +565,16 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
                     hi * 1e3,
                     *t * 1e3
                 ));
-            *t = 0.0;
-            at_edge = true;
+        } else if !(d2 > 0.0) {
+            notes.push(format!(
+                    "the {name} came out at {:.0} ms where the balance's residual has no minimum (the runs' pressures barely change): not identifiable from these runs, taken as 0",
+                    *t * 1e3
+                ));
+        } else {
+            continue;
         }
+        *t = 0.0;
+        at_edge = true;
     }
     if at_edge {
         // The other delay again with this one at 0, then the scale.
@@ -584,6 +685,11 @@ struct Balance<'a> {
     v_ref: f64,
     /// One resistance constant per run (else one for the campaign).
     per_run: bool,
+    /// The pipeline's α_i, N·m/bar: the balance fits each axle's ratio to it.
+    alpha_pipeline: [f64; AXLES],
+    /// Each run's weight in the least squares (1/its residual variance, relative), or empty
+    /// for equal weights.
+    weights: &'a [f64],
 }
 
 /// Where the balance is evaluated: the radar's latency and the tachometers' delay (s), and the
@@ -636,7 +742,7 @@ impl Balance<'_> {
         let phi = form.phi(v, self.v_ref);
         let mut z = [0.0; Z];
         for i in 0..AXLES {
-            z[i] = p[i] * self.inv_r;
+            z[i] = self.alpha_pipeline[i] * p[i] * self.inv_r;
             z[AXLES + i] = phi * z[i];
         }
         z[2 * AXLES] = v;
@@ -652,17 +758,21 @@ impl Balance<'_> {
         let mut gr = vec![0.0; Z * Z];
         let mut sr = [0.0; Z];
         let mut nr = 0usize;
+        // The weights' sum over the rows (a run's rows share its weight).
+        let mut wr = 0.0;
         let last = self.runs.len().saturating_sub(1);
         for (ri, run) in self.runs.iter().enumerate() {
+            let w = self.weights.get(ri).copied().unwrap_or(1.0);
             for row in &run.rows {
                 let Some(z) = self.z_row(run, row, at, form) else {
                     continue;
                 };
                 nr += 1;
+                wr += w;
                 for p in 0..Z {
-                    sr[p] += z[p];
+                    sr[p] += w * z[p];
                     for q in 0..=p {
-                        gr[p * Z + q] += z[p] * z[q];
+                        gr[p * Z + q] += w * z[p] * z[q];
                     }
                 }
             }
@@ -670,7 +780,7 @@ impl Balance<'_> {
                 n += nr;
                 for p in 0..Z {
                     for q in 0..=p {
-                        g[p * Z + q] += gr[p * Z + q] - sr[p] * sr[q] / nr as f64;
+                        g[p * Z + q] += gr[p * Z + q] - sr[p] * sr[q] / wr;
                     }
                 }
             }
@@ -678,6 +788,7 @@ impl Balance<'_> {
                 gr.fill(0.0);
                 sr = [0.0; Z];
                 nr = 0;
+                wr = 0.0;
             }
         }
         for p in 0..Z {
@@ -779,6 +890,47 @@ impl Balance<'_> {
         }
         total.max(1.0)
     }
+
+    /// Each run's weight for the least squares: the mean over the runs of the residual
+    /// variance at `fit` (about the run's own mean) over the run's own, clamped to [0.1, 10].
+    /// Runs logged differently (a radar at 100 Hz is four times as noisy after the filter as
+    /// one at 417 Hz) would otherwise weigh as much as the rest, and their larger residuals
+    /// would read as a scatter between the axles.
+    /// The first fit is the constant pad law with every axle apart.
+    fn run_weights(&self, at: &At) -> Vec<f64> {
+        let apart: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
+        let form = PadForm::Constant;
+        let Some(fit) = self.gram(at, form).rss_at(&apart, form, 0.0) else {
+            return vec![1.0; self.runs.len()];
+        };
+        let var: Vec<Option<f64>> = self
+            .runs
+            .iter()
+            .map(|run| {
+                let e: Vec<f64> = run
+                    .rows
+                    .iter()
+                    .filter_map(|row| self.z_row(run, row, at, form))
+                    .map(|z| z[Y] - fit.predict(&z))
+                    .collect();
+                (e.len() >= 2).then(|| {
+                    let m = e.iter().sum::<f64>() / e.len() as f64;
+                    e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (e.len() - 1) as f64
+                })
+            })
+            .collect();
+        let known: Vec<f64> = var.iter().flatten().copied().filter(|v| *v > 0.0).collect();
+        if known.is_empty() {
+            return vec![1.0; self.runs.len()];
+        }
+        let mean = known.iter().sum::<f64>() / known.len() as f64;
+        var.iter()
+            .map(|v| match v {
+                Some(v) if *v > 0.0 => (mean / v).clamp(0.1, 10.0),
+                _ => 1.0,
+            })
+            .collect()
+    }
 }
 
 /// The delay minimising `rss(τ)` over `(lo, hi)`: a grid of 5 ms, then golden section within
@@ -857,48 +1009,74 @@ fn parameter_errors(
     (gamma_se, tau_se, tacho_se)
 }
 
-/// The axles' α from a fit: each group's, with its standard error (σ² the residual variance,
-/// inflated), then partially pooled ([`partial_pooling`]) when there are several groups.
+/// The axles' α from a fit: each group's ratio to the pipeline's α with its standard error
+/// (σ² the residual variance, inflated), partially pooled ([`partial_pooling`]) when there
+/// are several groups, times the pipeline's α_i.
 struct A {
     alpha: [f64; AXLES],
     alpha_se: [f64; AXLES],
     fitted: [f64; AXLES],
     fitted_se: [f64; AXLES],
+    /// Between-axle spread of the α (1σ, N·m/bar: the ratios' times the pipeline's mean α).
     between_sd: Option<f64>,
+    /// The note when the ratios agreed with 1 and the pipeline's α were kept.
+    kept: Option<String>,
 }
 
-fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64) -> A {
+fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) -> A {
     let groups = &fit.groups;
-    let mut alpha = [f64::NAN; AXLES];
-    let mut alpha_se = [f64::NAN; AXLES];
+    let mut ratio = [f64::NAN; AXLES];
+    let mut ratio_se = [f64::NAN; AXLES];
     for (gi, grp) in groups.iter().enumerate() {
         for &a in grp {
-            alpha[a] = fit.beta[gi];
-            alpha_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
+            ratio[a] = fit.beta[gi];
+            ratio_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
         }
     }
-    let alpha_fitted = alpha;
-    let alpha_fitted_se = alpha_se;
-    let pooling = if groups.len() > 1 {
-        let all = [(0..AXLES).collect::<Vec<usize>>()];
-        g.rss_at(&all, fit.form, fit.gamma).map(|common| {
+    let times = |r: &[f64; AXLES]| std::array::from_fn(|a| r[a] * alpha_pipeline[a]);
+    let (fitted, fitted_se) = (times(&ratio), times(&ratio_se));
+    let all = [(0..AXLES).collect::<Vec<usize>>()];
+    let common = g.rss_at(&all, fit.form, fit.gamma);
+    let mut between_sd = None;
+    if groups.len() > 1 {
+        if let Some(common) = &common {
             let common_se = (sigma2 * common.cov_unit[0]).sqrt();
-            let p = partial_pooling(groups, &alpha, &alpha_se, common.beta[0], common_se);
-            alpha = p.alpha;
-            alpha_se = p.alpha_se;
-            p.between_sd
-        })
-    } else {
-        None
-    };
+            let p = partial_pooling(groups, &ratio, &ratio_se, common.beta[0], common_se);
+            ratio = p.alpha;
+            ratio_se = p.alpha_se;
+            between_sd = Some(p.between_sd);
+        }
+    }
+    // One ratio for all axles that does not differ from 1 by more than its errors, with the
+    // pad friction constant: the pipeline's α stands (a change the data do not call for only
+    // adds the fit's noise to every estimate).
+    let one_ratio = between_sd.is_none_or(|sd| sd == 0.0);
+    let kept = fit.form == PadForm::Constant
+        && one_ratio
+        && common.as_ref().is_some_and(|c| {
+            let se = (sigma2 * c.cov_unit[0]).sqrt();
+            (c.beta[0] - 1.0).abs() <= Z95 * se
+        });
+    if kept {
+        ratio = [1.0; AXLES];
+    }
+    let mean_pipeline = alpha_pipeline.iter().sum::<f64>() / AXLES as f64;
     A {
-        alpha,
-        alpha_se,
-        fitted: alpha_fitted,
-        fitted_se: alpha_fitted_se,
-        between_sd: pooling,
+        alpha: times(&ratio),
+        alpha_se: times(&ratio_se),
+        fitted,
+        fitted_se,
+        between_sd: between_sd.map(|sd| sd * mean_pipeline),
+        kept: kept.then(|| {
+            format!(
+                "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, within {Z95:.2} standard errors of 1, pad friction constant): the pipeline's α kept"
+            )
+        }),
     }
 }
+
+/// The two-sided 95 % quantile of the standard normal distribution.
+const Z95: f64 = 1.959_964;
 
 /// Per-axle α after partial pooling.
 struct Pooled {
@@ -914,6 +1092,12 @@ struct Pooled {
 /// error ((1 − B_g) se_g² + B_g² se_ᾱ²)^½. Where the axles' α differ by no more than their
 /// errors (a brake rig as the pipeline says) they end at the common α, which the balance
 /// determines far better than the differences; a real scatter shifts them less.
+///
+/// τ² is taken as 0 unless the groups differ significantly: Cochran's heterogeneity
+/// statistic Q = Σ_g (α̂_g − ᾱ)²/se_g² above the 95 % quantile of χ² with k − 1 degrees of
+/// freedom (Cochran, *Biometrics* 10, 1954). Without the test, the moments' τ² comes out
+/// positive for about half of all brake rigs without any scatter (s² exceeds the mean se²
+/// by chance), and each axle then keeps its α̂'s noise.
 fn partial_pooling(
     groups: &[Vec<usize>],
     alpha: &[f64; AXLES],
@@ -928,7 +1112,15 @@ fn partial_pooling(
         s2 += (alpha[a] - common).powi(2);
         se2 += alpha_se[a].powi(2);
     }
-    let tau2 = (s2 / (k - 1.0) - se2 / k).max(0.0);
+    let q: f64 = groups
+        .iter()
+        .map(|grp| ((alpha[grp[0]] - common) / alpha_se[grp[0]]).powi(2))
+        .sum();
+    let tau2 = if q > chi2_95(groups.len() - 1) {
+        (s2 / (k - 1.0) - se2 / k).max(0.0)
+    } else {
+        0.0
+    };
     let mut out = Pooled {
         alpha: *alpha,
         alpha_se: *alpha_se,
@@ -946,6 +1138,13 @@ fn partial_pooling(
         }
     }
     out
+}
+
+/// The 95 % quantile of χ² with `dof` degrees of freedom (1 ≤ dof ≤ AXLES − 1; standard
+/// tables, e.g. Abramowitz & Stegun 1964, table 26.8).
+fn chi2_95(dof: usize) -> f64 {
+    const Q: [f64; 3] = [3.841_459, 5.991_465, 7.814_728];
+    Q[dof.clamp(1, Q.len()) - 1]
 }
 
 /// Golden-section minimum of `f` on [a, b].
@@ -1171,4 +1370,45 @@ fn merge_first(groups: &mut Vec<Vec<usize>>, pair: Option<(usize, usize)>) {
     let moved = groups.remove(hi);
     groups[lo].extend(moved);
     groups[lo].sort_unstable();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn groups() -> Vec<Vec<usize>> {
+        (0..AXLES).map(|a| vec![a]).collect()
+    }
+
+    #[test]
+    fn ratios_that_differ_by_no_more_than_their_errors_pool_to_the_common_one() {
+        // Q = (0.5² + 0.5² + 1² + 1²) = 2.5 < 7.81: no scatter between the axles.
+        let r = [1.005, 0.995, 1.01, 0.99];
+        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005);
+        assert_eq!(p.between_sd, 0.0);
+        assert_eq!(p.alpha, [1.0; AXLES]);
+        assert!(p.alpha_se.iter().all(|se| (*se - 0.005).abs() < 1e-15));
+    }
+
+    #[test]
+    fn ratios_that_scatter_beyond_their_errors_keep_most_of_it() {
+        // Q = 3² + 3² + 1² + 1² = 20 > 7.81: τ² = (20e-4/3 − 1e-4) = 5.67e-4, B = 0.15.
+        let r = [1.03, 0.97, 1.01, 0.99];
+        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005);
+        let tau2: f64 = 20e-4 / 3.0 - 1e-4;
+        assert!((p.between_sd - tau2.sqrt()).abs() < 1e-12);
+        let b = 1e-4 / (1e-4 + tau2);
+        for ((pooled, se), fitted) in p.alpha.iter().zip(&p.alpha_se).zip(&r) {
+            assert!((pooled - (fitted - b * (fitted - 1.0))).abs() < 1e-12);
+            assert!(*se < 0.01);
+        }
+    }
+
+    #[test]
+    fn the_chi_squared_quantiles_are_the_tables() {
+        // χ²(0.95) with 1, 2, 3 degrees of freedom; 2 has the closed form −2 ln 0.05.
+        assert!((chi2_95(2) + 2.0 * 0.05f64.ln()).abs() < 1e-6);
+        assert!((chi2_95(1) - Z95 * Z95).abs() < 1e-5);
+        assert!(chi2_95(3) > chi2_95(2));
+    }
 }
