@@ -43,9 +43,11 @@
 //! zero-phase filter on both sides of a linear balance keeps it exact), so that the pressures'
 //! faster content has no counterpart missing in the radar's deceleration.
 //!
-//! **Weights.** Each run enters the least squares with the weight 1/σ_r² (its residual
-//! variance from a first fit, relative to the runs' mean, clamped to 0.1–10): runs logged
-//! with other rates or noisier sensors would otherwise read as a scatter between the axles.
+//! **Weights.** Each run enters the least squares of α, the pad law and the resistance with
+//! the weight 1/σ_r² (its residual variance from a first fit, relative to the runs' mean,
+//! clamped to 0.1–10): runs logged with other rates or noisier sensors would otherwise read as
+//! a scatter between the axles. The delays and the radar's scale are profiled before, with
+//! equal weights.
 //!
 //! Standard errors: σ²(XᵀWX)⁻¹ inflated by √(n/n_eff); for γ and τ, from the curvature of
 //! the profiled residual sum of squares, se² = 2 σ² n/n_eff / RSS''.
@@ -142,7 +144,8 @@ pub struct CampaignCalibration {
     pub samples: usize,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub effective_samples: f64,
-    /// RMS of the balance's residual, N.
+    /// RMS of the balance's residual, N, each run's squares weighted as in the fit (the runs'
+    /// weights average about 1: close to the plain RMS when the runs are alike).
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rms_residual_n: f64,
     /// What could not be calibrated and what was done instead, in plain words.
@@ -188,10 +191,18 @@ fn log_name(log: &RunLog) -> String {
 }
 
 /// Samples within `settle_s` (s) of a wheel locked above the lowest speed the estimates use
-/// (r ω < `locked_mps` on the raw tachometer while the radar reads more): a locked wheel's
-/// brake holds it with less than α p, so the balance does not hold there, nor in the filtered
-/// signals around it. Returns the mask and the number of locked samples.
-fn near_locked_wheel(log: &RunLog, r: f64, locked_mps: f64, settle_s: f64) -> (Vec<bool>, usize) {
+/// (r ω < `est.locked_wheel_speed_mps` on a valid raw tachometer sample while the radar
+/// reads more than `est.min_speed_mps`; pulse counting and the radar's noise make a rolling
+/// wheel read 0 only well below that): a locked wheel's brake holds it with less than α p,
+/// so the balance does not hold there, nor in the filtered signals around it. Returns the
+/// mask and the number of locked samples.
+fn near_locked_wheel(
+    log: &RunLog,
+    r: f64,
+    est: &crate::config::EstimateConfig,
+    settle_s: f64,
+) -> (Vec<bool>, usize) {
+    let (locked_mps, min_mps) = (est.locked_wheel_speed_mps, est.min_speed_mps);
     let n = log.len();
     let reach = (settle_s * log.sample_rate_hz).ceil() as usize;
     // +1 at the first sample a lock reaches, −1 after the last: the running sum is positive
@@ -199,7 +210,7 @@ fn near_locked_wheel(log: &RunLog, r: f64, locked_mps: f64, settle_s: f64) -> (V
     let mut edges = vec![0i64; n + 1];
     let mut locked = 0usize;
     for k in 0..n {
-        let moving = log.v_radar_mps[k] > locked_mps;
+        let moving = log.valid[k] && log.v_radar_mps[k] > min_mps;
         if moving && (0..AXLES).any(|a| r * log.omega_radps[a][k] < locked_mps) {
             locked += 1;
             edges[k.saturating_sub(reach)] += 1;
@@ -278,8 +289,7 @@ impl<'p> CampaignCalibrator<'p> {
         let first_brake = (0..n)
             .find(|&k| (0..AXLES).any(|a| c.p_bar[a][k] >= est.min_pressure_bar))
             .unwrap_or(n);
-        let (near_lock, locked_samples) =
-            near_locked_wheel(log, r, est.locked_wheel_speed_mps, c.settle_s);
+        let (near_lock, locked_samples) = near_locked_wheel(log, r, est, c.settle_s);
         let mut rows = Vec::new();
         let mut coast = Vec::new();
         for k in (0..n).step_by(DECIMATE) {
@@ -314,18 +324,16 @@ impl<'p> CampaignCalibrator<'p> {
         // A dropout (a channel without data) leaves its samples and the filters' settling
         // around them out; the rest of the run counts.
         let missing = c.has_data.iter().filter(|h| !**h).count();
-        let mut notes = Vec::new();
-        if missing > 0 {
-            notes.push(format!(
+        let note = (missing > 0).then(|| {
+            format!(
                 "{}: {:.2} s without data on a channel (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
                 log_name(log),
                 missing as f64 / c.sample_rate_hz,
                 c.settle_s
-            ));
-        }
+            )
+        });
         let locked =
             (locked_samples > 0).then(|| (log_name(log), locked_samples as f64 / c.sample_rate_hz));
-        let note = (!notes.is_empty()).then(|| notes.join("; "));
         let w_mean = (0..n)
             .map(|k| r * (0..AXLES).map(|a| c.omega_radps[a][k]).sum::<f64>() / AXLES as f64)
             .collect();
@@ -366,14 +374,20 @@ impl<'p> CampaignCalibrator<'p> {
             .map(|l| l.1)
             .fold(f64::INFINITY, f64::min);
         let est = &self.pipeline.estimate;
+        let how_long = if self.locked.len() == 1 {
+            format!("{:.2} s, in {}", longest.1, longest.0)
+        } else {
+            format!(
+                "{shortest:.2}–{:.2} s each, the longest in {}",
+                longest.1, longest.0
+            )
+        };
         Some(format!(
-            "{} of {} runs have a wheel locked while the train moves ({:.2}–{:.2} s each, the longest in {}): a locked wheel's brake holds it with less than α p, so those samples and the filters' settling on each side are left out of the calibration (locked: r ω below estimate.locked_wheel_speed_mps = {} m/s)",
+            "{} of {} runs have a wheel locked while the train moves ({how_long}): a locked wheel's brake holds it with less than α p, so those samples and the filters' settling on each side are left out of the calibration (locked: r ω below estimate.locked_wheel_speed_mps = {} m/s with the radar above estimate.min_speed_mps = {} m/s)",
             self.locked.len(),
             self.runs.len(),
-            shortest,
-            longest.1,
-            longest.0,
-            est.locked_wheel_speed_mps
+            est.locked_wheel_speed_mps,
+            est.min_speed_mps
         ))
     }
 
@@ -421,7 +435,13 @@ impl<'p> CampaignCalibrator<'p> {
         }
 
         let (at, d) = fit_radar_and_delays(&b, &mut notes);
-        let weights = b.run_weights(&at);
+        let weights = b.run_weights(&at).unwrap_or_else(|| {
+            notes.push(
+                "no first fit of the balance to weigh the runs by: every run weighs the same"
+                    .into(),
+            );
+            vec![1.0; self.runs.len()]
+        });
         let b = Balance {
             weights: &weights,
             ..b
@@ -444,13 +464,7 @@ impl<'p> CampaignCalibrator<'p> {
         let dof = (n - runs - fit.beta.len() as f64 - 1.0).max(1.0);
         let sigma2 = fit.rss / dof * n / n_eff;
         let shared: Vec<Vec<usize>> = groups.iter().filter(|g| g.len() > 1).cloned().collect();
-        for grp in &shared {
-            let names: Vec<String> = grp.iter().map(|a| format!("{}", a + 1)).collect();
-            notes.push(format!(
-                "the pressures of axles {} never differ enough to tell their brake coefficients apart: fitted with one α",
-                names.join(" and ")
-            ));
-        }
+        notes.extend(shared.iter().map(|grp| shared_note(grp)));
         let A {
             alpha,
             alpha_se,
@@ -544,47 +558,34 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     // So is one where the balance's residual has no minimum (a curvature that is not
     // positive: runs without pressure changes to time).
     let mut at_edge = false;
-    for (name, t, d2, (lo, hi)) in [
-        (
-            "radar's latency",
-            &mut at.radar_s,
-            radar_d2,
-            LATENCY_RANGE_S,
-        ),
-        (
-            "tachometers' delay",
-            &mut at.tacho_s,
-            tacho_d2,
-            TACHO_DELAY_RANGE_S,
-        ),
+    for (name, t, d2, range) in [
+        (RADAR_DELAY, &mut at.radar_s, radar_d2, LATENCY_RANGE_S),
+        (TACHO_DELAY, &mut at.tacho_s, tacho_d2, TACHO_DELAY_RANGE_S),
     ] {
-        if *t <= lo + 1e-3 || *t >= hi - 1e-3 {
-            notes.push(format!(
-                    "the {name} came out at the end of the searched range ({:.0}…{:.0} ms), {:.0} ms: not identifiable from these runs, taken as 0 (check the logger's time stamps)",
-                    lo * 1e3,
-                    hi * 1e3,
-                    *t * 1e3
-                ));
-        } else if !(d2 > 0.0) {
-            notes.push(format!(
-                    "the {name} came out at {:.0} ms where the balance's residual has no minimum (the runs' pressures barely change): not identifiable from these runs, taken as 0",
-                    *t * 1e3
-                ));
-        } else {
-            continue;
+        if let Some(note) = unidentified(name, *t, d2, range) {
+            notes.push(note);
+            *t = 0.0;
+            at_edge = true;
         }
-        *t = 0.0;
-        at_edge = true;
     }
     if at_edge {
-        // The other delay again with this one at 0, then the scale.
+        // The other delay again with this one at 0 (and checked again), then the scale.
         if at.radar_s != 0.0 {
             (at.radar_s, radar_d2) =
                 profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
+            if let Some(note) = unidentified(RADAR_DELAY, at.radar_s, radar_d2, LATENCY_RANGE_S) {
+                notes.push(note);
+                at.radar_s = 0.0;
+            }
         }
         if at.tacho_s != 0.0 {
             (at.tacho_s, tacho_d2) =
                 profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
+            let range = TACHO_DELAY_RANGE_S;
+            if let Some(note) = unidentified(TACHO_DELAY, at.tacho_s, tacho_d2, range) {
+                notes.push(note);
+                at.tacho_s = 0.0;
+            }
         }
         if let Some((s, _, _)) = b.radar_scale(&at) {
             at.scale = s;
@@ -606,6 +607,39 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
             scale_runs,
         },
     )
+}
+
+/// The note for a group of axles fitted with one α.
+fn shared_note(group: &[usize]) -> String {
+    let names: Vec<String> = group.iter().map(|a| format!("{}", a + 1)).collect();
+    let (last, rest) = names.split_last().expect("a shared group has two axles");
+    format!(
+        "the pressures of axles {} and {last} never differ enough to tell their brake coefficients apart: fitted with one α",
+        rest.join(", ")
+    )
+}
+
+const RADAR_DELAY: &str = "radar's latency";
+const TACHO_DELAY: &str = "tachometers' delay";
+
+/// The note for a delay `t` (s) that the runs do not determine — at the end of its searched
+/// `range`, or where the profiled residual's curvature `d2` is not positive — else None.
+fn unidentified(name: &str, t: f64, d2: f64, (lo, hi): (f64, f64)) -> Option<String> {
+    if t <= lo + 1e-3 || t >= hi - 1e-3 {
+        Some(format!(
+            "the {name} came out at the end of the searched range ({:.0}…{:.0} ms), {:.0} ms: not identifiable from these runs, taken as 0 (check the logger's time stamps)",
+            lo * 1e3,
+            hi * 1e3,
+            t * 1e3
+        ))
+    } else if !(d2 > 0.0) {
+        Some(format!(
+            "the {name} came out at {:.0} ms where the balance's residual has no minimum (the runs' pressures barely change): not identifiable from these runs, taken as 0",
+            t * 1e3
+        ))
+    } else {
+        None
+    }
 }
 
 /// The candidate fits at `at` — each pad form with one resistance constant per run or one for
@@ -701,7 +735,8 @@ struct At {
     scale: f64,
 }
 
-/// Columns of the balance's Gram matrix: p_i/r (4), φ p_i/r (4), v, v², y.
+/// Columns of the balance's Gram matrix: α_i,pipeline p_i/r (4), φ α_i,pipeline p_i/r (4), v,
+/// v², y.
 const Z: usize = 2 * AXLES + 3;
 const Y: usize = Z - 1;
 
@@ -896,13 +931,16 @@ impl Balance<'_> {
     /// Runs logged differently (a radar at 100 Hz is four times as noisy after the filter as
     /// one at 417 Hz) would otherwise weigh as much as the rest, and their larger residuals
     /// would read as a scatter between the axles.
-    /// The first fit is the constant pad law with every axle apart.
-    fn run_weights(&self, at: &At) -> Vec<f64> {
+    /// The first fit is the constant pad law with every axle apart (one α for all where
+    /// that is singular: two axles with one pressure); None when neither can be fitted.
+    fn run_weights(&self, at: &At) -> Option<Vec<f64>> {
         let apart: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
+        let together = [(0..AXLES).collect::<Vec<usize>>()];
         let form = PadForm::Constant;
-        let Some(fit) = self.gram(at, form).rss_at(&apart, form, 0.0) else {
-            return vec![1.0; self.runs.len()];
-        };
+        let g = self.gram(at, form);
+        let fit = g
+            .rss_at(&apart, form, 0.0)
+            .or_else(|| g.rss_at(&together, form, 0.0))?;
         let var: Vec<Option<f64>> = self
             .runs
             .iter()
@@ -921,15 +959,17 @@ impl Balance<'_> {
             .collect();
         let known: Vec<f64> = var.iter().flatten().copied().filter(|v| *v > 0.0).collect();
         if known.is_empty() {
-            return vec![1.0; self.runs.len()];
+            return None;
         }
         let mean = known.iter().sum::<f64>() / known.len() as f64;
-        var.iter()
-            .map(|v| match v {
-                Some(v) if *v > 0.0 => (mean / v).clamp(0.1, 10.0),
-                _ => 1.0,
-            })
-            .collect()
+        Some(
+            var.iter()
+                .map(|v| match v {
+                    Some(v) if *v > 0.0 => (mean / v).clamp(0.1, 10.0),
+                    _ => 1.0,
+                })
+                .collect(),
+        )
     }
 }
 
@@ -1041,7 +1081,12 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
     if groups.len() > 1 {
         if let Some(common) = &common {
             let common_se = (sigma2 * common.cov_unit[0]).sqrt();
-            let p = partial_pooling(groups, &ratio, &ratio_se, common.beta[0], common_se);
+            // The groups differ when one common ratio fits significantly worse: the
+            // likelihood ratio (RSS_common − RSS)/σ² against χ² with groups − 1 degrees of
+            // freedom (it takes the ratios' correlations into account, which a sum of squared
+            // z-scores would not: their sum is determined far better than their differences).
+            let differ = (common.rss - fit.rss) / sigma2 > chi2_95(groups.len() - 1);
+            let p = partial_pooling(groups, &ratio, &ratio_se, common.beta[0], common_se, differ);
             ratio = p.alpha;
             ratio_se = p.alpha_se;
             between_sd = Some(p.between_sd);
@@ -1093,17 +1138,19 @@ struct Pooled {
 /// errors (a brake rig as the pipeline says) they end at the common α, which the balance
 /// determines far better than the differences; a real scatter shifts them less.
 ///
-/// τ² is taken as 0 unless the groups differ significantly: Cochran's heterogeneity
-/// statistic Q = Σ_g (α̂_g − ᾱ)²/se_g² above the 95 % quantile of χ² with k − 1 degrees of
-/// freedom (Cochran, *Biometrics* 10, 1954). Without the test, the moments' τ² comes out
-/// positive for about half of all brake rigs without any scatter (s² exceeds the mean se²
-/// by chance), and each axle then keeps its α̂'s noise.
+/// τ² is taken as 0 unless the groups `differ` significantly (the caller's test: the
+/// balance's likelihood ratio of one common α against the groups', at 95 % — the role of
+/// Cochran's heterogeneity test, *Biometrics* 10, 1954, with the estimates' correlations
+/// taken into account). Without the test, the moments' τ² comes out positive for about half
+/// of all brake rigs without any scatter (s² exceeds the mean se² by chance), and each axle
+/// then keeps its α̂'s noise.
 fn partial_pooling(
     groups: &[Vec<usize>],
     alpha: &[f64; AXLES],
     alpha_se: &[f64; AXLES],
     common: f64,
     common_se: f64,
+    differ: bool,
 ) -> Pooled {
     let k = groups.len() as f64;
     let (mut s2, mut se2) = (0.0, 0.0);
@@ -1112,11 +1159,7 @@ fn partial_pooling(
         s2 += (alpha[a] - common).powi(2);
         se2 += alpha_se[a].powi(2);
     }
-    let q: f64 = groups
-        .iter()
-        .map(|grp| ((alpha[grp[0]] - common) / alpha_se[grp[0]]).powi(2))
-        .sum();
-    let tau2 = if q > chi2_95(groups.len() - 1) {
+    let tau2 = if differ {
         (s2 / (k - 1.0) - se2 / k).max(0.0)
     } else {
         0.0
@@ -1177,8 +1220,8 @@ struct Gram {
     n: usize,
 }
 
-/// A fit of the balance: coefficients (one α per group, c1, c2), γ, RSS and the unscaled
-/// variances (diagonal of (XᵀX)⁻¹).
+/// A fit of the balance: coefficients (one ratio to the pipeline's α per group, c1, c2), γ,
+/// the weighted RSS and the unscaled variances (diagonal of (XᵀWX)⁻¹).
 #[derive(Debug, Clone)]
 struct Fit {
     form: PadForm,
@@ -1382,9 +1425,9 @@ mod tests {
 
     #[test]
     fn ratios_that_differ_by_no_more_than_their_errors_pool_to_the_common_one() {
-        // Q = (0.5² + 0.5² + 1² + 1²) = 2.5 < 7.81: no scatter between the axles.
+        // Groups that do not differ significantly: no scatter between the axles.
         let r = [1.005, 0.995, 1.01, 0.99];
-        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005);
+        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005, false);
         assert_eq!(p.between_sd, 0.0);
         assert_eq!(p.alpha, [1.0; AXLES]);
         assert!(p.alpha_se.iter().all(|se| (*se - 0.005).abs() < 1e-15));
@@ -1392,9 +1435,9 @@ mod tests {
 
     #[test]
     fn ratios_that_scatter_beyond_their_errors_keep_most_of_it() {
-        // Q = 3² + 3² + 1² + 1² = 20 > 7.81: τ² = (20e-4/3 − 1e-4) = 5.67e-4, B = 0.15.
+        // Groups that differ: τ² = (20e-4/3 − 1e-4) = 5.67e-4, B = 0.15.
         let r = [1.03, 0.97, 1.01, 0.99];
-        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005);
+        let p = partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005, true);
         let tau2: f64 = 20e-4 / 3.0 - 1e-4;
         assert!((p.between_sd - tau2.sqrt()).abs() < 1e-12);
         let b = 1e-4 / (1e-4 + tau2);
