@@ -238,7 +238,7 @@ fn before_after(
 /// campaign of 12 runs over 80–200 km/h and three temperatures. Asserted (docs/calibration.md
 /// has the figures): the radar's scale within 0.05 %, its latency and the tachometers' delay
 /// within 5 ms, the linear pad law with its rise within 3 standard errors, per-run μ RMSE at
-/// most 0.6 × the uncalibrated one, every axle's bias within ±0.001 (measured: up to 0.0009),
+/// most 0.6 × the uncalibrated one, every axle's bias within ±0.001 (measured: up to 0.0010),
 /// and α_i(v) within 2.5 % and 3 standard errors — not the 0.5 % aimed for (measured: 0.20–1.01
 /// %): the per-axle α rest on the wheel-slide protection's pressure differences against the
 /// radar's noise, ~0.75 % one standard error over 12 runs. The three campaigns pooled (one
