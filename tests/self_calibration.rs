@@ -231,6 +231,30 @@ fn before_after(
         .collect()
 }
 
+/// Asserts that one of `notes` contains every one of `parts`.
+fn assert_note(notes: &[String], parts: &[&str]) {
+    assert!(
+        notes.iter().any(|n| parts.iter().all(|p| n.contains(p))),
+        "no note with {parts:?}: {notes:?}"
+    );
+}
+
+/// Asserts that the calibration leaves no run's per-sample μ RMSE worse by more than 2 %.
+fn assert_no_run_worse(
+    runs: &[(railgrip::ingest::RunLog, sim::SimOutput)],
+    c: &CampaignCalibration,
+) {
+    for (name, before, after) in before_after(runs, c) {
+        eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
+        assert!(
+            after.1 <= 1.02 * before.1,
+            "{name}: RMSE {} against {}",
+            after.1,
+            before.1
+        );
+    }
+}
+
 /// The mismatch scenes at the sizes (α scatter 2 %, pad friction +5 % from 200 km/h,
 /// radar +0.3 % and 30 ms late, tachometers counting over 20 ms, so 10 ms late, wheel loads
 /// fluctuating 1.5 % rms at 2–10 Hz, the pivot force's share of the load transfer — which the
@@ -394,20 +418,8 @@ fn calibration_changes_little_on_clean_data() {
             );
         }
         assert_eq!(c.alpha_nm_per_bar, [1600.0; 4]);
-        assert!(
-            c.notes.iter().any(|n| n.contains("the pipeline's α kept")),
-            "{:?}",
-            c.notes
-        );
-        for (name, before, after) in before_after(&runs, &c) {
-            eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
-            assert!(
-                after.1 <= 1.02 * before.1,
-                "{name}: RMSE {} against {}",
-                after.1,
-                before.1
-            );
-        }
+        assert_note(&c.notes, &["the pipeline's α kept"]);
+        assert_no_run_worse(&runs, &c);
     }
 }
 
@@ -424,15 +436,7 @@ fn the_bundled_scenes_keep_the_pipelines_alpha() {
     let c = calibrate(&runs, dir.path());
     eprintln!("fitted α {:?} ± {:?}", c.alpha_fitted, c.alpha_fitted_se);
     assert_eq!(c.alpha_nm_per_bar, [1600.0; 4]);
-    for (name, before, after) in before_after(&runs, &c) {
-        eprintln!("{name}: RMSE ratio {:.3}", after.1 / before.1);
-        assert!(
-            after.1 <= 1.02 * before.1,
-            "{name}: RMSE {} against {}",
-            after.1,
-            before.1
-        );
-    }
+    assert_no_run_worse(&runs, &c);
 }
 
 /// Hard case: a campaign without the wheel-slide protection and without sensor noise (the
@@ -440,9 +444,8 @@ fn the_bundled_scenes_keep_the_pipelines_alpha() {
 /// only when the brake is applied, so the balance's residual has no minimum in either delay:
 /// both are taken as 0, said so; wheels lock, and those samples are left out; the α stay
 /// within 0.1 % of the truth and no run's estimate is worse by more than 2 % (before the locks
-/// were left out,
-/// the fit chose a false pad law, −3.9 % by Karwatzki's factor, and made runs up to 8×
-/// worse).
+/// were left out, the fit chose a false pad law, −3.9 % by Karwatzki's factor, and made runs up
+/// to 8× worse).
 #[test]
 fn a_campaign_without_pressure_changes_takes_its_delays_as_0() {
     let dir = tempfile::tempdir().unwrap();
@@ -465,33 +468,16 @@ fn a_campaign_without_pressure_changes_takes_its_delays_as_0() {
     let c = calibrate(&runs, dir.path());
     eprintln!("{:?}", c.notes);
     for name in ["radar's latency", "tachometers' delay"] {
-        assert!(
-            c.notes.iter().any(|n| n.contains(name)
-                && n.contains("has no minimum")
-                && n.contains("taken as 0")),
-            "{name}: {:?}",
-            c.notes
-        );
+        assert_note(&c.notes, &[name, "has no minimum", "taken as 0"]);
     }
     assert_eq!((c.radar_latency_s, c.tacho_delay_s), (0.0, 0.0));
-    assert!(
-        c.notes.iter().any(|n| n.contains("have a wheel locked")),
-        "{:?}",
-        c.notes
-    );
+    assert_note(&c.notes, &["have a wheel locked"]);
     assert_eq!(c.pad.form, PadForm::Constant, "{:?}", c.pad_candidates);
     // Without noise, even 0.01 % is significant: the α stay within 0.1 % of the truth.
     for a in c.alpha_nm_per_bar {
         assert!((a / 1600.0 - 1.0).abs() <= 1e-3, "{:?}", c.alpha_nm_per_bar);
     }
-    for (name, before, after) in before_after(&runs, &c) {
-        assert!(
-            after.1 <= 1.02 * before.1,
-            "{name}: RMSE {} against {}",
-            after.1,
-            before.1
-        );
-    }
+    assert_no_run_worse(&runs, &c);
 }
 
 /// Hard case: no run coasts before its brake (the brake applied from the first sample), so
@@ -513,13 +499,7 @@ fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
     let m = runs[0].1.mismatch.clone().unwrap();
     assert_eq!(c.radar_scale, 1.0);
     assert_eq!(c.radar_scale_runs, 0);
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("no run coasts") && n.contains("taken as 1")),
-        "{:?}",
-        c.notes
-    );
+    assert_note(&c.notes, &["no run coasts", "taken as 1"]);
     let mean = |x: &[f64; 4]| x.iter().sum::<f64>() / 4.0;
     let at_top = m.brake_torque_nm_per_bar.map(|a| {
         a * (1.0 + m.pad_friction_rise * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0))
@@ -582,37 +562,24 @@ fn axles_with_the_same_pressure_share_one_alpha() {
     // Without the wheel-slide protection the dry runs lock wheels: a locked wheel's brake
     // holds it with less than α p, so those samples (and the filters' settling around them)
     // are left out, one note saying in how many runs and how long.
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("8 of 8 runs have a wheel locked")
-                && n.contains("the longest in pair_200_")),
-        "{:?}",
-        c.notes
+    assert_note(
+        &c.notes,
+        &[
+            "8 of 8 runs have a wheel locked",
+            "the longest in pair_200_",
+        ],
     );
     // Smooth runs without the wheel-slide protection barely tell the tachometers' delay: it
     // comes out at the end of its range and is taken as 0, said so, its standard error not a
     // number — which the calibration's JSON carries as null and reads back.
     assert_eq!(c.tacho_delay_s, 0.0);
     assert!(c.tacho_delay_se.is_nan());
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("tachometers' delay") && n.contains("taken as 0")),
-        "{:?}",
-        c.notes
-    );
+    assert_note(&c.notes, &["tachometers' delay", "taken as 0"]);
     let json = serde_json::to_string(&c).unwrap();
     let back: CampaignCalibration = serde_json::from_str(&json).unwrap();
     assert!(back.tacho_delay_se.is_nan() && back.alpha_nm_per_bar == c.alpha_nm_per_bar);
     assert_eq!(c.alpha_nm_per_bar[0], c.alpha_nm_per_bar[1]);
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("axles 1 and 2") && n.contains("one α")),
-        "{:?}",
-        c.notes
-    );
+    assert_note(&c.notes, &["axles 1 and 2", "one α"]);
 }
 
 /// Hard case: a radar dropout (two seconds of a run's log missing: a CSV logger drops whole

@@ -898,10 +898,9 @@ impl Balance<'_> {
         Some((s, se, used.len()))
     }
 
-    /// Effective samples of the balance's residuals at a fit.
-    fn n_eff(&self, at: &At, form: PadForm, fit: &Fit) -> f64 {
-        let resid: Vec<Vec<f64>> = self
-            .runs
+    /// Each run's residuals of the balance (unweighted, before its constant) at a fit.
+    fn residuals(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<f64>> {
+        self.runs
             .iter()
             .map(|run| {
                 run.rows
@@ -910,7 +909,12 @@ impl Balance<'_> {
                     .map(|z| z[Y] - fit.predict(&z))
                     .collect()
             })
-            .collect();
+            .collect()
+    }
+
+    /// Effective samples of the balance's residuals at a fit.
+    fn n_eff(&self, at: &At, form: PadForm, fit: &Fit) -> f64 {
+        let resid = self.residuals(at, form, fit);
         let mean_of = |e: &[f64]| e.iter().sum::<f64>() / e.len().max(1) as f64;
         let all: Vec<f64> = resid.iter().flatten().copied().collect();
         let global = mean_of(&all);
@@ -942,15 +946,9 @@ impl Balance<'_> {
             .rss_at(&apart, form, 0.0)
             .or_else(|| g.rss_at(&together, form, 0.0))?;
         let var: Vec<Option<f64>> = self
-            .runs
-            .iter()
-            .map(|run| {
-                let e: Vec<f64> = run
-                    .rows
-                    .iter()
-                    .filter_map(|row| self.z_row(run, row, at, form))
-                    .map(|z| z[Y] - fit.predict(&z))
-                    .collect();
+            .residuals(at, form, &fit)
+            .into_iter()
+            .map(|e| {
                 (e.len() >= 2).then(|| {
                     let m = e.iter().sum::<f64>() / e.len() as f64;
                     e.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (e.len() - 1) as f64
