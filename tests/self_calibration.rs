@@ -638,3 +638,33 @@ fn a_radar_dropout_leaves_its_samples_out() {
     );
     assert_eq!(c.runs, 12);
 }
+
+/// Hard case: delays the runs do not tell from 0. The clean mismatch scenes without the
+/// tachometers' counting window and without the radar's spikes have neither delay, yet the
+/// profiled balance finds −1.8 and +2.3 ms; the jackknife over runs puts one standard error
+/// at ~1.8 ms on each, so both are taken as 0 with a note. Kept, they made runs up to 1.048×
+/// worse (measured before the test existed); taken as 0, no run is worse by more than 2 %.
+#[test]
+fn delays_the_runs_do_not_tell_from_0_are_taken_as_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = mismatch_campaign(
+        1,
+        dir.path(),
+        without(&[
+            "brake_scatter",
+            "pad_friction",
+            "radar_error",
+            "load_fluctuation",
+            "pivot_force",
+            "tacho_quantization",
+            "radar_spikes",
+        ]),
+    );
+    let c = calibrate(&runs, dir.path());
+    eprintln!("{:?}", c.notes);
+    for name in ["radar's latency", "tachometers' delay"] {
+        assert_note(&c.notes, &[name, "not told from 0 at 95 %", "taken as 0"]);
+    }
+    assert_eq!((c.radar_latency_s, c.tacho_delay_s), (0.0, 0.0));
+    assert_no_run_worse(&runs, &c);
+}

@@ -325,9 +325,9 @@ fn calibrate_campaign(
     println!("pad        form      constants  γ        BIC");
     for c in &f.pad_candidates {
         let chosen = c.form == f.pad.form && c.per_run_constants == f.per_run_constants;
-        let mark = if chosen { "chosen" } else { "" };
+        let mark = if chosen { "  chosen" } else { "" };
         println!(
-            "           {:<9} {:<10} {:+.4}  {:>10.1}  {mark}{}",
+            "           {:<9} {:<10} {:+.4}  {:>10.1}{mark}{}",
             c.form.name(),
             if c.per_run_constants {
                 "per run"
