@@ -302,6 +302,19 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             c.tacho_delay_s
         );
         assert_eq!(c.pad.form, PadForm::Linear, "{:?}", c.pad_candidates);
+        // The running resistance's speed terms against the scenes' (the simulator's default
+        // Davis b = 30 N·s/m and c = 6 N·s²/m²), within 3 of their standard errors
+        // (measured: within 1.4).
+        for (name, got, se, truth) in [
+            ("c1", c.resistance_c1_n_s_per_m, c.resistance_c1_se, 30.0),
+            ("c2", c.resistance_c2_n_s2_per_m2, c.resistance_c2_se, 6.0),
+        ] {
+            eprintln!("  {name} {got:.3} ± {se:.3} (truth {truth})");
+            assert!(
+                (got - truth).abs() <= 3.0 * se,
+                "{name} {got} ± {se} against {truth}"
+            );
+        }
         let rise = c.pad.rise_to_standstill() / (1.0 - 0.0);
         let true_rise = m.pad_friction_rise * (c.pad.v_ref_mps / m.pad_friction_v0_mps);
         assert!(

@@ -351,14 +351,16 @@ fn calibrate_campaign(
         f.pad.v_ref_mps * 3.6
     );
     println!(
-        "resistance {} + {:.2} N·s/m · v + {:.3} N·s²/m² · v²",
+        "resistance {} + ({:.2} ± {:.2}) N·s/m · v + ({:.3} ± {:.3}) N·s²/m² · v²",
         if f.per_run_constants {
             "a constant per run"
         } else {
             "one constant"
         },
         f.resistance_c1_n_s_per_m,
-        f.resistance_c2_n_s2_per_m2
+        f.resistance_c1_se,
+        f.resistance_c2_n_s2_per_m2,
+        f.resistance_c2_se
     );
     if let Some(sd) = f.alpha_between_sd {
         println!(

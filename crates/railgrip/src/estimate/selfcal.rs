@@ -126,6 +126,17 @@ pub struct CampaignCalibration {
     /// c2, N·s²/m².
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub resistance_c2_n_s2_per_m2: f64,
+    /// One standard error of c1 and of c2 (null in files written before they were reported).
+    #[serde(
+        default = "crate::config::calibrated::nan",
+        with = "crate::config::calibrated::nan_as_null"
+    )]
+    pub resistance_c1_se: f64,
+    #[serde(
+        default = "crate::config::calibrated::nan",
+        with = "crate::config::calibrated::nan_as_null"
+    )]
+    pub resistance_c2_se: f64,
     /// Radar reading / true speed (1 when no run coasts before its brake).
     pub radar_scale: f64,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
@@ -500,6 +511,8 @@ impl<'p> CampaignCalibrator<'p> {
             per_run_constants: per_run,
             resistance_c1_n_s_per_m: fit.beta[groups.len()],
             resistance_c2_n_s2_per_m2: fit.beta[groups.len() + 1],
+            resistance_c1_se: (sigma2 * fit.cov_unit[groups.len()]).sqrt(),
+            resistance_c2_se: (sigma2 * fit.cov_unit[groups.len() + 1]).sqrt(),
             radar_scale: at.scale,
             radar_scale_se: d.scale_se,
             radar_scale_runs: d.scale_runs,
@@ -596,6 +609,10 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
         }
     }
     let jack = drop_insignificant_delays(b, &mut at, notes);
+    // The scale's standard error at the final delays.
+    let (scale_se, scale_runs) = b
+        .radar_scale(&at)
+        .map_or((scale_se, scale_runs), |(_, se, runs)| (se, runs));
     if at.radar_s == 0.0 {
         radar_d2 = f64::NAN;
     }
@@ -1067,8 +1084,9 @@ impl Balance<'_> {
         grams
     }
 
-    /// The radar's scale from the coasts at latency τ, with its standard error and the runs it
-    /// rests on; None without a coast.
+    /// The radar's scale from the coasts at latency τ, with its standard error (the larger of
+    /// the samples' and the jackknife's over runs) and the runs it rests on; None without a
+    /// coast.
     ///
     /// A coasting wheelset is slowed by the rail: the contact force that decelerates its
     /// inertia is a driving one, so it turns slightly faster than it rolls, r ω = v (1 + c d)
@@ -1128,7 +1146,41 @@ impl Balance<'_> {
         }
         let k = if two { 2.0 } else { 1.0 };
         let se = (rss / (n as f64 - k).max(1.0) * var_unit * n as f64 / n_eff).sqrt();
-        Some((s, se, used.len()))
+        // The jackknife over runs (each run's coast left out in turn, the same form): the
+        // runs' own scatter, which the samples' count alone understates (a run's coast shares
+        // its creep and the delays' errors).
+        let runs = used.len();
+        let jack_se = if runs >= 3 {
+            let solve = |t: [f64; 5]| {
+                let [a11, a12, a22, a1y, a2y] = t;
+                if two {
+                    (a22 * a1y - a12 * a2y) / (a11 * a22 - a12 * a12)
+                } else {
+                    a1y / a11
+                }
+            };
+            let total = [s11, s12, s22, s1y, s2y];
+            let loo: Vec<f64> = used
+                .iter()
+                .map(|rows| {
+                    let mut t = total;
+                    for (x1, x2, y) in rows {
+                        t[0] -= x1 * x1;
+                        t[1] -= x1 * x2;
+                        t[2] -= x2 * x2;
+                        t[3] -= x1 * y;
+                        t[4] -= x2 * y;
+                    }
+                    solve(t)
+                })
+                .collect();
+            let r = runs as f64;
+            let m = loo.iter().sum::<f64>() / r;
+            ((r - 1.0) / r * loo.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sqrt()
+        } else {
+            f64::NAN
+        };
+        Some((s, se.max(jack_se), runs))
     }
 
     /// Each run's residuals of the balance (unweighted, before its constant) at a fit.
