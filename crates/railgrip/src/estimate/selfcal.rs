@@ -609,6 +609,11 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
         }
     }
     let jack = drop_insignificant_delays(b, &mut at, notes);
+    // No standard error for a delay taken as 0 (not fitted).
+    let jack = (
+        if at.radar_s == 0.0 { f64::NAN } else { jack.0 },
+        if at.tacho_s == 0.0 { f64::NAN } else { jack.1 },
+    );
     // The scale's standard error at the final delays.
     let (scale_se, scale_runs) = b
         .radar_scale(&at)
@@ -839,7 +844,7 @@ fn unidentified(name: &str, t: f64, d2: f64, (lo, hi): (f64, f64)) -> Option<Str
         ))
     } else if !(d2 > 0.0) {
         Some(format!(
-            "the {name} came out at {:.0} ms where the balance's residual has no minimum (the runs' pressures barely change): not identifiable from these runs, taken as 0",
+            "the {name} came out at {:.0} ms where the balance's residual has no minimum (the runs' pressures barely change, or every axle gets the same pressure): not identifiable from these runs, taken as 0",
             t * 1e3
         ))
     } else {
