@@ -78,6 +78,9 @@ struct BandRow {
     hi_kmh: f64,
     runs: usize,
     pooled: Stats,
+    /// The runs' biases averaged with one weight per run (the pooled bias weighs each run by
+    /// its cells or samples: a run on a slippery rail, which slides more, counts most).
+    bias_run_mean: f64,
     bias_min: f64,
     bias_max: f64,
     /// Curve view only: the range of the runs' hysteresis ratios.
@@ -216,6 +219,7 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             bias: w(&|s| s.bias) / nf,
             max_error: stats.iter().map(|s| s.max_error).fold(0.0, f64::max),
         },
+        bias_run_mean: stats.iter().map(|s| s.bias).sum::<f64>() / stats.len().max(1) as f64,
         bias_min: stats.iter().map(|s| s.bias).fold(f64::INFINITY, f64::min),
         bias_max: stats
             .iter()
@@ -254,17 +258,26 @@ fn print_report(r: &Report, min_samples: usize) {
     let table = |title: &str, rows: &[BandRow], speed: &dyn Fn(&BandRow) -> String| {
         println!("\n{title}");
         println!(
-            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>19} {:>13}",
-            "km/h", "runs", "n", "RMSE μ", "bias", "max |e|", "run biases", "hyst. ratio"
+            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>19} {:>13}",
+            "km/h",
+            "runs",
+            "n",
+            "RMSE μ",
+            "bias",
+            "run mean",
+            "max |e|",
+            "run biases",
+            "hyst. ratio"
         );
         for b in rows {
             println!(
-                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>8.4} {:>19} {:>13}",
+                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>+8.4} {:>8.4} {:>19} {:>13}",
                 speed(b),
                 b.runs,
                 b.pooled.n,
                 b.pooled.rmse,
                 b.pooled.bias,
+                b.bias_run_mean,
                 b.pooled.max_error,
                 format!("{:+.4} … {:+.4}", b.bias_min, b.bias_max),
                 b.hysteresis_ratio
