@@ -351,16 +351,16 @@ fn calibrate_campaign(
         f.pad.v_ref_mps * 3.6
     );
     println!(
-        "resistance {} + ({:.2} ± {:.2}) N·s/m · v + ({:.3} ± {:.3}) N·s²/m² · v²",
+        "resistance {} + ({:.2} ± {}) N·s/m · v + ({:.3} ± {}) N·s²/m² · v²",
         if f.per_run_constants {
             "a constant per run"
         } else {
             "one constant"
         },
         f.resistance_c1_n_s_per_m,
-        f.resistance_c1_se,
+        or_dash(f.resistance_c1_se, 2),
         f.resistance_c2_n_s2_per_m2,
-        f.resistance_c2_se
+        or_dash(f.resistance_c2_se, 3)
     );
     if let Some(sd) = f.alpha_between_sd {
         println!(
@@ -393,4 +393,14 @@ fn calibrate_campaign(
         println!("written    {}", path.display());
     }
     Ok(EXIT_OK)
+}
+
+/// `x` with `digits` decimals, or "–" where it is not a number (a standard error that could
+/// not be computed).
+fn or_dash(x: f64, digits: usize) -> String {
+    if x.is_finite() {
+        format!("{x:.digits$}")
+    } else {
+        "–".into()
+    }
 }

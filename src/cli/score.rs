@@ -219,7 +219,11 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             bias: w(&|s| s.bias) / nf,
             max_error: stats.iter().map(|s| s.max_error).fold(0.0, f64::max),
         },
-        bias_run_mean: stats.iter().map(|s| s.bias).sum::<f64>() / stats.len().max(1) as f64,
+        bias_run_mean: {
+            // Runs with no cell or sample in the band have no bias.
+            let held: Vec<f64> = stats.iter().filter(|s| s.n > 0).map(|s| s.bias).collect();
+            held.iter().sum::<f64>() / held.len().max(1) as f64
+        },
         bias_min: stats.iter().map(|s| s.bias).fold(f64::INFINITY, f64::min),
         bias_max: stats
             .iter()

@@ -130,14 +130,14 @@ impl Calibrated {
     }
 }
 
-/// Serde for an f64 that may not be a number (a standard error that could not be computed):
-/// written as `null`, read back as NaN — JSON has no NaN, and serde_json would write `null`
-/// and then refuse to read it.
 /// NaN: the default of a [`nan_as_null`] field a file may lack.
 pub fn nan() -> f64 {
     f64::NAN
 }
 
+/// Serde for an f64 that may not be a number (a standard error that could not be computed):
+/// written as `null`, read back as NaN — JSON has no NaN, and serde_json would write `null`
+/// and then refuse to read it.
 pub mod nan_as_null {
     pub fn serialize<S: serde::Serializer>(x: &f64, s: S) -> Result<S::Ok, S::Error> {
         if x.is_finite() {

@@ -126,12 +126,15 @@ pub struct CampaignCalibration {
     /// c2, N·s²/m².
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub resistance_c2_n_s2_per_m2: f64,
-    /// One standard error of c1 and of c2 (null in files written before they were reported).
+    /// One standard error of c1, N·s/m, from σ²(XᵀWX)⁻¹ at the chosen pad law's γ and the
+    /// fitted delays (conditional on them: where γ φ(v) correlates with c1 v it understates);
+    /// null in files written before it was reported.
     #[serde(
         default = "crate::config::calibrated::nan",
         with = "crate::config::calibrated::nan_as_null"
     )]
     pub resistance_c1_se: f64,
+    /// One standard error of c2, N·s²/m², likewise.
     #[serde(
         default = "crate::config::calibrated::nan",
         with = "crate::config::calibrated::nan_as_null"
@@ -659,7 +662,15 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
             break (f64::NAN, f64::NAN);
         };
         let se = (j.var_r.sqrt(), j.var_w.sqrt());
-        let z = |t: f64, se: f64, on: bool| if on { t.abs() / se } else { f64::INFINITY };
+        // A delay the jackknife gives no standard error for (too few runs tell it) is not
+        // tested.
+        let z = |t: f64, se: f64, on: bool| {
+            if on && se.is_finite() {
+                t.abs() / se
+            } else {
+                f64::INFINITY
+            }
+        };
         let (zr, zw) = (z(at.radar_s, se.0, fit.0), z(at.tacho_s, se.1, fit.1));
         let radar_first = !(zr >= zw);
         let (name, t, s, z) = if radar_first {
@@ -677,7 +688,10 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
         ));
         *t = 0.0;
         dropped = true;
-        // The other delay again without this one.
+        if let Some((s, _, _)) = b.radar_scale(at) {
+            at.scale = s;
+        }
+        // The other delay again without this one, at the scale without it.
         let (other, range, t) = if radar_first {
             (TACHO_DELAY, TACHO_DELAY_RANGE_S, &mut at.tacho_s)
         } else {
@@ -716,8 +730,9 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
 /// The delays' standard errors (s) by the jackknife over runs: each run left out in turn, the
 /// fitted delays (`fit`: radar's, tachometers') moved by one Newton step on the other runs'
 /// profiled residual (central differences of 4 ms about `at`; a step per delay where the two
-/// together have no minimum), var = (R − 1)/R Σ (τ₋ᵣ − τ̄)². INFINITY for a delay some
-/// run's removal leaves without a minimum; None with fewer than 3 runs.
+/// together have no minimum), var = (R − 1)/R Σ (τ₋ᵣ − τ̄)² over the R runs that hold rows
+/// and whose removal leaves a minimum (a NaN variance, no test, where fewer than 3 do); None
+/// with fewer than 3 runs.
 fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife> {
     let runs = b.runs.len();
     if runs < 3 || !b.per_run {
@@ -751,6 +766,12 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
             })
             .collect()
     };
+    // Runs that hold rows of the balance (the others change nothing when left out).
+    let informative: Vec<bool> = b
+        .run_grams(at, PadForm::Linear)
+        .iter()
+        .map(|g| g.n > 0)
+        .collect();
     let f0 = without_each(0.0, 0.0);
     let pair = |on: bool, i: f64, j: f64| {
         if on {
@@ -798,14 +819,19 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
         })
         .collect();
     let var = |x: fn(&(f64, f64)) -> f64| {
-        let n = runs as f64;
-        let m = steps.iter().map(x).sum::<f64>() / n;
-        let v = (n - 1.0) / n * steps.iter().map(|s| (x(s) - m).powi(2)).sum::<f64>();
-        if v.is_finite() {
-            v
-        } else {
-            f64::INFINITY
+        let vals: Vec<f64> = steps
+            .iter()
+            .zip(&informative)
+            .filter(|(_, on)| **on)
+            .map(|(s, _)| x(s))
+            .filter(|v| v.is_finite())
+            .collect();
+        if vals.len() < 3 {
+            return f64::NAN;
         }
+        let n = vals.len() as f64;
+        let m = vals.iter().sum::<f64>() / n;
+        (n - 1.0) / n * vals.iter().map(|v| (v - m).powi(2)).sum::<f64>()
     };
     Some(Jackknife {
         var_r: var(|s| s.0),
@@ -1044,8 +1070,9 @@ impl Balance<'_> {
         Gram { g, n }
     }
 
-    /// Each run's Gram matrix of z with its own constant eliminated (a run with fewer than two
-    /// rows: zero, n = 0); with one constant per run, [`Self::gram`] is their sum, so a
+    /// Each run's Gram matrix of z with its own constant eliminated, G_r = Σ w z zᵀ −
+    /// (Σ w z)(Σ w z)ᵀ / Σ w over its rows (a run with fewer than two rows: zero, n = 0); with
+    /// one constant per run, [`Self::gram`] is their sum, so a
     /// campaign without one run is the sum less that run's (the delays' jackknife).
     fn run_grams(&self, at: &At, form: PadForm) -> Vec<Gram> {
         let mut grams = Vec::with_capacity(self.runs.len());
@@ -1155,7 +1182,9 @@ impl Balance<'_> {
         // runs' own scatter, which the samples' count alone understates (a run's coast shares
         // its creep and the delays' errors).
         let runs = used.len();
-        let jack_se = if runs >= 3 {
+        // Each fit without one run keeps the full fit's form, so it needs as many runs left
+        // as the form has parameters and one more.
+        let jack_se = if runs >= if two { 4 } else { 3 } {
             let solve = |t: [f64; 5]| {
                 let [a11, a12, a22, a1y, a2y] = t;
                 if two {
@@ -1179,9 +1208,14 @@ impl Balance<'_> {
                     solve(t)
                 })
                 .collect();
-            let r = runs as f64;
+            let loo: Vec<f64> = loo.into_iter().filter(|x| x.is_finite()).collect();
+            let r = loo.len() as f64;
             let m = loo.iter().sum::<f64>() / r;
-            ((r - 1.0) / r * loo.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sqrt()
+            if loo.len() >= 3 {
+                ((r - 1.0) / r * loo.iter().map(|x| (x - m).powi(2)).sum::<f64>()).sqrt()
+            } else {
+                f64::NAN
+            }
         } else {
             f64::NAN
         };

@@ -587,9 +587,26 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         );
     }
     h.push_str("</table>\n");
+    // The running resistance the balance fitted (a dry-run calibration fits none).
+    let resistance = if fit["resistance_c1_n_s_per_m"].is_number() {
+        format!(
+            " Running resistance: {} + ({} ± {}) N·s/m · v + ({} ± {}) N·s²/m² · v².",
+            if fit["per_run_constants"].as_bool() == Some(true) {
+                "a constant per run"
+            } else {
+                "one constant"
+            },
+            se(num(&fit["resistance_c1_n_s_per_m"]), 2),
+            se(num(&fit["resistance_c1_se"]), 2),
+            se(num(&fit["resistance_c2_n_s2_per_m2"]), 3),
+            se(num(&fit["resistance_c2_se"]), 3)
+        )
+    } else {
+        String::new()
+    };
     let _ = writeln!(
         *h,
-        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} ± {} ms. Running resistance: {} + ({:.2} ± {}) N·s/m · v + ({:.3} ± {}) N·s²/m² · v². μ of an axle moves with its brake force (the columns above).</p>",
+        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} ± {} ms.{} μ of an axle moves with its brake force (the columns above).</p>",
         c.pad.form.name(),
         c.pad.gamma,
         c.pad.gamma_se,
@@ -602,15 +619,7 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         -(100.0 / 3.6) * (1.0 - 1.0 / c.radar_scale),
         c.tacho_delay_s * 1e3,
         se(num(&fit["tacho_delay_se"]) * 1e3, 1),
-        if fit["per_run_constants"].as_bool() == Some(true) {
-            "a constant per run"
-        } else {
-            "one constant"
-        },
-        num(&fit["resistance_c1_n_s_per_m"]),
-        se(num(&fit["resistance_c1_se"]), 2),
-        num(&fit["resistance_c2_n_s2_per_m2"]),
-        se(num(&fit["resistance_c2_se"]), 3)
+        resistance
     );
     if let Some(cands) = fit["pad_candidates"].as_array() {
         h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
