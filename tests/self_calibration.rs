@@ -432,6 +432,18 @@ fn calibration_changes_little_on_clean_data() {
         }
         assert_eq!(c.alpha_nm_per_bar, [1600.0; 4]);
         assert_note(&c.notes, &["the pipeline's α kept"]);
+        // With the pipeline's α kept, the resistance is the balance's at them: the scenes'
+        // Davis b = 30 N·s/m and c = 6 N·s²/m² within 3 standard errors.
+        for (name, got, se, truth) in [
+            ("c1", c.resistance_c1_n_s_per_m, c.resistance_c1_se, 30.0),
+            ("c2", c.resistance_c2_n_s2_per_m2, c.resistance_c2_se, 6.0),
+        ] {
+            eprintln!("  {name} {got:.3} ± {se:.3} (truth {truth})");
+            assert!(
+                (got - truth).abs() <= 3.0 * se,
+                "{name} {got} ± {se} against {truth}"
+            );
+        }
         assert_no_run_worse(&runs, &c);
     }
 }

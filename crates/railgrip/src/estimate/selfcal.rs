@@ -489,6 +489,8 @@ impl<'p> CampaignCalibrator<'p> {
             between_sd: pooling,
             kept,
         } = axle_alphas(&g, &fit, sigma2, &veh.brake_torque_nm_per_bar);
+        let constants = if per_run { runs } else { 1.0 };
+        let res = Resistance::applied(&fit, sigma2, kept.is_some(), &g, n / n_eff, constants);
         notes.extend(kept);
         if alpha.iter().any(|a| !(*a > 0.0)) {
             return Err(fail(
@@ -512,10 +514,10 @@ impl<'p> CampaignCalibrator<'p> {
             },
             pad_candidates: candidates,
             per_run_constants: per_run,
-            resistance_c1_n_s_per_m: fit.beta[groups.len()],
-            resistance_c2_n_s2_per_m2: fit.beta[groups.len() + 1],
-            resistance_c1_se: (sigma2 * fit.cov_unit[groups.len()]).sqrt(),
-            resistance_c2_se: (sigma2 * fit.cov_unit[groups.len() + 1]).sqrt(),
+            resistance_c1_n_s_per_m: res.c[0],
+            resistance_c2_n_s2_per_m2: res.c[1],
+            resistance_c1_se: res.se[0],
+            resistance_c2_se: res.se[1],
             radar_scale: at.scale,
             radar_scale_se: d.scale_se,
             radar_scale_runs: d.scale_runs,
@@ -526,10 +528,78 @@ impl<'p> CampaignCalibrator<'p> {
             runs: self.runs.len(),
             samples: g.n,
             effective_samples: n_eff,
-            rms_residual_n: (fit.rss / n).sqrt(),
+            rms_residual_n: (res.rss / n).sqrt(),
             notes,
         })
     }
+}
+
+/// The running resistance's speed terms c1 (N·s/m) and c2 (N·s²/m²) with their standard
+/// errors, and the balance's weighted residual sum of squares (N²) they leave.
+struct Resistance {
+    c: [f64; 2],
+    se: [f64; 2],
+    rss: f64,
+}
+
+impl Resistance {
+    /// The resistance and the residual that go with the α applied: `fit`'s (σ² = `sigma2`), or
+    /// with the pipeline's α `kept`, the balance `g` solved again at them
+    /// ([`resistance_at_ratio_1`]; `fit`'s where that cannot be solved).
+    fn applied(
+        fit: &Fit,
+        sigma2: f64,
+        kept: bool,
+        g: &Gram,
+        inflate: f64,
+        constants: f64,
+    ) -> Resistance {
+        let k = fit.groups.len();
+        let own = Resistance {
+            c: [fit.beta[k], fit.beta[k + 1]],
+            se: [
+                (sigma2 * fit.cov_unit[k]).sqrt(),
+                (sigma2 * fit.cov_unit[k + 1]).sqrt(),
+            ],
+            rss: fit.rss,
+        };
+        if kept {
+            resistance_at_ratio_1(g, inflate, constants).unwrap_or(own)
+        } else {
+            own
+        }
+    }
+}
+
+/// The balance solved for the resistance alone with every axle's α at the pipeline's (ratio 1,
+/// the pad friction constant): y − Σ_i z_i = c + c1 v + c2 v² (the constants already
+/// eliminated in `g`). The standard errors from σ² (XᵀWX)⁻¹ with σ² = RSS/dof × `inflate`
+/// (n/n_eff) and dof = n − `constants` − 2. None where it cannot be solved.
+fn resistance_at_ratio_1(g: &Gram, inflate: f64, constants: f64) -> Option<Resistance> {
+    let at = |p: usize, q: usize| g.g[p * Z + q];
+    let fixed = 0..AXLES;
+    let mut h = g.g.clone();
+    for p in (0..Z).filter(|&p| p != Y) {
+        let v = at(p, Y) - fixed.clone().map(|i| at(p, i)).sum::<f64>();
+        h[p * Z + Y] = v;
+        h[Y * Z + p] = v;
+    }
+    h[Y * Z + Y] = at(Y, Y) - 2.0 * fixed.clone().map(|i| at(i, Y)).sum::<f64>()
+        + fixed
+            .clone()
+            .flat_map(|i| fixed.clone().map(move |j| (i, j)))
+            .map(|(i, j)| at(i, j))
+            .sum::<f64>();
+    let moved = Gram { g: h, n: g.n };
+    let cols = [vec![(2 * AXLES, 1.0)], vec![(2 * AXLES + 1, 1.0)]];
+    let (beta, inv, rss) = moved.solve(&cols)?;
+    let n = g.n as f64;
+    let sigma2 = rss / (n - constants - 2.0).max(1.0) * inflate;
+    Some(Resistance {
+        c: [beta[0], beta[1]],
+        se: [(sigma2 * inv[0]).sqrt(), (sigma2 * inv[3]).sqrt()],
+        rss,
+    })
 }
 
 /// What the delays' profiles give: the curvatures of the residual sum of squares at the
