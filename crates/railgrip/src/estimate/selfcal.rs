@@ -717,8 +717,10 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
 /// shift the radar and the wheels against the pressures and are often told apart less well
 /// than together. One fitted (or no covariance): |τ| against 1.96 standard errors, the least
 /// significant first, the other then profiled again without it and tested again. The radar's
-/// scale is fitted again after a drop. Returns the jackknife standard errors (s) of the
-/// delays (NaN where not computed: fewer than 3 runs tell them, or none fitted).
+/// scale is fitted again after a drop. Both kept together means a delay near 0 beside a strong
+/// one stays (the two shift the same balance; the runs judged their pair). Returns the last
+/// jackknife's standard errors (s; NaN where not computed: fewer than 3 runs tell them, or
+/// none fitted — and meaningless for a delay taken as 0, which the caller reports as NaN).
 ///
 /// The profile's curvature alone (`parameter_errors`) counts the samples of a run as
 /// independent once the residuals' autocorrelation is allowed for, but the radar's noise moves
@@ -736,14 +738,15 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
         };
         let se = (j.var_r.sqrt(), j.var_w.sqrt());
         // Both fitted: tested together (the bundled scenes: latency 8.0 ± 7.1 ms and the
-        // tachometers' 3.2 ± 3.4 ms, neither beyond 1.96 standard errors alone; together they
-        // are, and take 14–16 % off the soap runs' μ error).
-        if let Some(w) = j.wald((at.radar_s, at.tacho_s)) {
+        // tachometers' 3.2 ± 3.4 ms, correlated −0.96 — the runs pin down their sum — neither
+        // beyond 1.96 standard errors alone, together Wald 54; they take 14–16 % off the soap
+        // runs' μ error).
+        if let Some((w, corr)) = j.wald((at.radar_s, at.tacho_s)) {
             if w >= chi2_95(2) {
                 break se;
             }
             notes.push(format!(
-                "the {RADAR_DELAY} ({:.1} ± {:.1} ms) and the {TACHO_DELAY} ({:.1} ± {:.1} ms) came out, but the runs scatter so that together they are not told from 0 at 95 % (one standard error over the runs, each left out in turn; Wald {w:.2} against χ² {:.2}): both taken as 0",
+                "the {RADAR_DELAY} ({:.1} ± {:.1} ms) and the {TACHO_DELAY} ({:.1} ± {:.1} ms) came out, but the runs scatter so that together they are not told from 0 at 95 % (one standard error over the runs, each left out in turn, correlation {corr:+.2}; Wald {w:.2} against χ² {:.2}): both taken as 0",
                 at.radar_s * 1e3,
                 se.0 * 1e3,
                 at.tacho_s * 1e3,
@@ -926,48 +929,65 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
         let m = vals.iter().sum::<f64>() / n;
         (n - 1.0) / n * vals.iter().map(|v| (v - m).powi(2)).sum::<f64>()
     };
-    // The covariance over the runs where both steps are numbers.
-    let both: Vec<(f64, f64)> = steps
-        .iter()
-        .zip(&informative)
-        .filter(|(s, on)| **on && s.0.is_finite() && s.1.is_finite())
-        .map(|(s, _)| *s)
-        .collect();
-    let cov = if fit == (true, true) && both.len() >= 3 {
-        let n = both.len() as f64;
-        let (mr, mw) = (
-            both.iter().map(|s| s.0).sum::<f64>() / n,
-            both.iter().map(|s| s.1).sum::<f64>() / n,
-        );
-        (n - 1.0) / n * both.iter().map(|s| (s.0 - mr) * (s.1 - mw)).sum::<f64>()
+    let joint = if fit == (true, true) {
+        joint_matrix(&steps, &informative)
     } else {
-        f64::NAN
+        None
     };
     Some(Jackknife {
         var_r: var(|s| s.0),
         var_w: var(|s| s.1),
-        cov,
+        joint,
     })
 }
 
-/// The delays' jackknife variances over runs, s²: the radar's latency, the tachometers' delay,
-/// and their covariance (NaN unless both are fitted).
+/// The joint test's matrix [var_r, cov, var_w] (s²) of the jackknife's steps (radar's,
+/// tachometers'), all three over the runs that hold rows and where both steps are numbers
+/// (one set of runs: a covariance matrix by construction); None with fewer than 3 such runs.
+fn joint_matrix(steps: &[(f64, f64)], informative: &[bool]) -> Option<[f64; 3]> {
+    let both: Vec<(f64, f64)> = steps
+        .iter()
+        .zip(informative)
+        .filter(|(s, on)| **on && s.0.is_finite() && s.1.is_finite())
+        .map(|(s, _)| *s)
+        .collect();
+    if both.len() < 3 {
+        return None;
+    }
+    let n = both.len() as f64;
+    let (mr, mw) = (
+        both.iter().map(|s| s.0).sum::<f64>() / n,
+        both.iter().map(|s| s.1).sum::<f64>() / n,
+    );
+    let c = |f: &dyn Fn(&(f64, f64)) -> f64| (n - 1.0) / n * both.iter().map(f).sum::<f64>();
+    Some([
+        c(&|s| (s.0 - mr) * (s.0 - mr)),
+        c(&|s| (s.0 - mr) * (s.1 - mw)),
+        c(&|s| (s.1 - mw) * (s.1 - mw)),
+    ])
+}
+
+/// The delays' jackknife variances over runs, s²: the radar's latency, the tachometers' delay
+/// (each over the runs where its step is a number), and with both fitted the matrix
+/// [var_r, cov, var_w] over the runs where both are (None otherwise).
 struct Jackknife {
     var_r: f64,
     var_w: f64,
-    cov: f64,
+    joint: Option<[f64; 3]>,
 }
 
 impl Jackknife {
-    /// The Wald statistic of both delays `t` = (radar, tachometers) against 0 with this
-    /// covariance, tᵀ V⁻¹ t (χ² with 2 degrees of freedom under "both 0"); None where V is
-    /// not a positive definite number.
-    fn wald(&self, t: (f64, f64)) -> Option<f64> {
-        let det = self.var_r * self.var_w - self.cov * self.cov;
-        if !(self.var_r > 0.0 && det > 0.0 && det.is_finite()) {
+    /// The Wald statistic of both delays `t` = (radar, tachometers) against 0 with the joint
+    /// matrix V, tᵀ V⁻¹ t (χ² with 2 degrees of freedom under "both 0"), and the two delays'
+    /// correlation; None where V is not positive definite.
+    fn wald(&self, t: (f64, f64)) -> Option<(f64, f64)> {
+        let [vr, c, vw] = self.joint?;
+        let det = vr * vw - c * c;
+        if !(vr > 0.0 && det > 0.0 && det.is_finite()) {
             return None;
         }
-        Some((self.var_w * t.0 * t.0 - 2.0 * self.cov * t.0 * t.1 + self.var_r * t.1 * t.1) / det)
+        let w = (vw * t.0 * t.0 - 2.0 * c * t.0 * t.1 + vr * t.1 * t.1) / det;
+        Some((w, c / (vr * vw).sqrt()))
     }
 }
 
