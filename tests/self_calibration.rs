@@ -125,12 +125,13 @@ fn campaign(
         .collect()
 }
 
-/// A scene edit that drops the effects named in `without`.
-fn without<'a>(names: &'a [&'a str]) -> impl Fn(&mut Scene) + 'a {
+/// A scene edit that drops every mismatch effect ([`sim::MISMATCH_EFFECTS`]: the scene as
+/// the pipeline describes it) and the effects named in `also`.
+fn clean<'a>(also: &'a [&'a str]) -> impl Fn(&mut Scene) + 'a {
     move |sc| {
-        let keep = Effect::ALL
-            .iter()
-            .filter(|e| sc.effects.has(**e) && !names.contains(&e.name()));
+        let keep = Effect::ALL.iter().filter(|e| {
+            sc.effects.has(**e) && !sim::MISMATCH_EFFECTS.contains(e) && !also.contains(&e.name())
+        });
         sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
     }
 }
@@ -406,14 +407,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
 fn calibration_changes_little_on_clean_data() {
     let dir = tempfile::tempdir().unwrap();
     for seed in [1, 2] {
-        let clean = without(&[
-            "brake_scatter",
-            "pad_friction",
-            "radar_error",
-            "load_fluctuation",
-            "pivot_force",
-        ]);
-        let runs = mismatch_campaign(seed, dir.path(), clean);
+        let runs = mismatch_campaign(seed, dir.path(), clean(&[]));
         let c = calibrate(&runs, dir.path());
         eprintln!(
             "seed {seed}: α {:?} ± {:?}, pad {:?}, radar {:.5} ± {:.5}, latency {:.1} ms, tachos {:.1} ms",
@@ -495,12 +489,7 @@ fn a_campaign_without_pressure_changes_takes_its_delays_as_0() {
     let runs = mismatch_campaign(
         1,
         dir.path(),
-        without(&[
-            "brake_scatter",
-            "pad_friction",
-            "radar_error",
-            "load_fluctuation",
-            "pivot_force",
+        clean(&[
             "tacho_quantization",
             "radar_noise",
             "radar_spikes",
@@ -694,15 +683,7 @@ fn delays_the_runs_do_not_tell_from_0_are_taken_as_0() {
     let runs = mismatch_campaign(
         1,
         dir.path(),
-        without(&[
-            "brake_scatter",
-            "pad_friction",
-            "radar_error",
-            "load_fluctuation",
-            "pivot_force",
-            "tacho_quantization",
-            "radar_spikes",
-        ]),
+        clean(&["tacho_quantization", "radar_spikes"]),
     );
     let c = calibrate(&runs, dir.path());
     eprintln!("{:?}", c.notes);

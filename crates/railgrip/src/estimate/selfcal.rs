@@ -1180,19 +1180,7 @@ impl Balance<'_> {
         let last = self.runs.len().saturating_sub(1);
         for (ri, run) in self.runs.iter().enumerate() {
             let w = self.weights.get(ri).copied().unwrap_or(1.0);
-            for row in &run.rows {
-                let Some(z) = self.z_row(run, row, at, form) else {
-                    continue;
-                };
-                nr += 1;
-                wr += w;
-                for p in 0..Z {
-                    sr[p] += w * z[p];
-                    for q in 0..=p {
-                        gr[p * Z + q] += w * z[p] * z[q];
-                    }
-                }
-            }
+            nr += self.accumulate(run, w, at, form, (&mut gr, &mut sr, &mut wr));
             if (self.per_run || ri == last) && nr >= 2 {
                 n += nr;
                 for p in 0..Z {
@@ -1216,6 +1204,33 @@ impl Balance<'_> {
         Gram { g, n }
     }
 
+    /// Adds `run`'s rows at `at`, each with weight `w`, to the lower triangle of Σ w z zᵀ (`g`,
+    /// Z × Z), to Σ w z (`s`) and to Σ w (`wsum`), row by row; returns the rows added.
+    fn accumulate(
+        &self,
+        run: &RunSignals,
+        w: f64,
+        at: &At,
+        form: PadForm,
+        (g, s, wsum): (&mut [f64], &mut [f64; Z], &mut f64),
+    ) -> usize {
+        let mut n = 0usize;
+        for row in &run.rows {
+            let Some(z) = self.z_row(run, row, at, form) else {
+                continue;
+            };
+            n += 1;
+            *wsum += w;
+            for p in 0..Z {
+                s[p] += w * z[p];
+                for q in 0..=p {
+                    g[p * Z + q] += w * z[p] * z[q];
+                }
+            }
+        }
+        n
+    }
+
     /// Each run's Gram matrix of z with its own constant eliminated, G_r = Σ w z zᵀ −
     /// (Σ w z)(Σ w z)ᵀ / Σ w over its rows (a run with fewer than two rows: zero, n = 0); with
     /// one constant per run, [`Self::gram`] is their sum, so a
@@ -1226,20 +1241,8 @@ impl Balance<'_> {
             let w = self.weights.get(ri).copied().unwrap_or(1.0);
             let mut g = vec![0.0; Z * Z];
             let mut s = [0.0; Z];
-            let (mut n, mut wr) = (0usize, 0.0);
-            for row in &run.rows {
-                let Some(z) = self.z_row(run, row, at, form) else {
-                    continue;
-                };
-                n += 1;
-                wr += w;
-                for p in 0..Z {
-                    s[p] += w * z[p];
-                    for q in 0..=p {
-                        g[p * Z + q] += w * z[p] * z[q];
-                    }
-                }
-            }
+            let mut wr = 0.0;
+            let n = self.accumulate(run, w, at, form, (&mut g, &mut s, &mut wr));
             if n < 2 {
                 grams.push(Gram {
                     g: vec![0.0; Z * Z],
