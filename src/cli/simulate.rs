@@ -21,7 +21,9 @@ pub struct Args {
     /// Directory for <name>.csv + .meta.toml, <name>.mcap and <name>.truth.parquet.
     #[arg(long, value_name = "DIR")]
     out: PathBuf,
-    /// Seed of the sensor noise (overrides the scene's `seed`).
+    /// A campaign's noise seed: the scene's noise comes from it and the scene's own `seed`
+    /// (the scenes of a folder simulated with one --seed draw independent noise; the seed
+    /// used is printed and in the log's metadata).
     #[arg(long)]
     seed: Option<u64>,
     /// Log format to write.
@@ -42,9 +44,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     };
     let written = out.write(&args.out, &scene.name, fmt)?;
     println!(
-        "scene      {} (seed {}): {:.2} s simulated in {} steps of {} ms, {:.3} s wall ({:.0}x real time)",
+        "scene      {} (noise seed {}): {:.2} s simulated in {} steps of {} ms, {:.3} s wall ({:.0}x real time)",
         scene.name,
-        args.seed.unwrap_or(scene.seed),
+        args.seed.map_or(scene.seed, |s| sim::noise_seed(s, scene.seed)),
         out.duration_s,
         out.steps,
         scene.run.step_s * 1e3,

@@ -334,10 +334,19 @@ impl TrueLaw {
     }
 }
 
-/// Runs a scene. `seed` overrides the scene's seed.
+/// The noise seed of a scene with seed `scene_seed` in a campaign simulated with seed
+/// `campaign`: one SplitMix64 step from both, so that the scenes of one campaign draw
+/// independent noise (a campaign's runs sharing one stream would share their noise, and its
+/// errors would not average over the runs) and each campaign seed gives another realisation.
+pub fn noise_seed(campaign: u64, scene_seed: u64) -> u64 {
+    crate::rng::Rng::new(campaign.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ scene_seed).next_u64()
+}
+
+/// Runs a scene. With `seed`, the scene's noise comes from [`noise_seed`]`(seed, its seed)`
+/// (the log's metadata and the truth name that seed: a scene file with it reproduces the run).
 pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let model = load_law(sc)?;
-    let seed = seed.unwrap_or(sc.seed);
+    let seed = seed.map_or(sc.seed, |s| noise_seed(s, sc.seed));
     let (channels, truth, counters, n) = run_detected(sc, model.as_ref(), seed)?;
     let metadata = RunMetadata {
         ambient_temperature_c: Some(sc.run.ambient_temperature_c),
