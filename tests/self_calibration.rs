@@ -715,3 +715,34 @@ fn without_the_wheel_slide_protection_the_estimates_do_not_change() {
         assert_no_run_worse(&runs, &c);
     }
 }
+
+
+/// Hard case: a campaign of fewer than 3 runs. Its delays cannot be tested against the runs'
+/// scatter, and a profile over one run follows that run's noise: each clean mismatch scene
+/// calibrated on itself came out up to 4.3× worse than uncalibrated. The calibration is
+/// refused with what to do, naming the campaign.
+#[test]
+fn a_campaign_of_fewer_than_3_runs_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = mismatch_campaign(1, dir.path(), clean(&[]));
+    let pipeline = Pipeline::default_uic_z1();
+    for n in [1, 2] {
+        let mut cal = CampaignCalibrator::new(&pipeline);
+        for (log, _) in &runs[..n] {
+            cal.add(log).unwrap();
+        }
+        let e = cal.finish(Path::new("two_runs")).unwrap_err().to_string();
+        assert!(
+            e.contains("two_runs")
+                && e.contains(&format!("only {n} run"))
+                && e.contains("at least 3")
+                && e.contains("estimate.calibration = \"pipeline\""),
+            "{e}"
+        );
+    }
+    let mut cal = CampaignCalibrator::new(&pipeline);
+    for (log, _) in &runs[..3] {
+        cal.add(log).unwrap();
+    }
+    assert_eq!(cal.finish(dir.path()).unwrap().runs, 3);
+}
