@@ -1713,3 +1713,50 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
     assert_eq!(o.status.code(), Some(0));
     assert!(!d.join("o/calibration.json").exists());
 }
+
+/// A whole campaign run again with the same inputs reuses its calibration (`calibration.json`
+/// of the output folder, fitted on the same pipeline file, logs and sidecars by hash) instead
+/// of fitting it again, as it reuses unchanged runs' estimates: the same files, and
+/// `timings.json` says so. A changed input or `--force` fits it again.
+#[test]
+fn a_rerun_reuses_the_campaigns_calibration_until_an_input_changes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = d.join("camp");
+    std::fs::create_dir(&camp).unwrap();
+    for run in ["soap_120kmh_0c", "soap_120kmh_p20", "soap_160kmh_p20"] {
+        for ext in ["csv", "meta.toml"] {
+            let from = root().join(format!("fixtures/archive/{run}.{ext}"));
+            std::fs::copy(&from, camp.join(format!("{run}.{ext}"))).unwrap();
+        }
+    }
+    let pipe = calibrated_pipeline(d, "campaign").display().to_string();
+    let run = |extra: &[&str]| {
+        let mut args = vec!["run", "camp", "--out", "out", "--pipeline", &pipe];
+        args.extend(extra);
+        let o = railgrip(&args, d);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        let timings = std::fs::read_to_string(d.join("out/timings.json")).unwrap();
+        let cal = std::fs::read(d.join("out/calibration.json")).unwrap();
+        let campaign = std::fs::read(d.join("out/campaign.json")).unwrap();
+        (
+            timings.contains("\"calibration_reused\": true"),
+            cal,
+            campaign,
+        )
+    };
+    let (reused, cal, campaign) = run(&[]);
+    assert!(!reused);
+    let (reused, cal2, campaign2) = run(&[]);
+    assert!(reused, "the second run fitted the calibration again");
+    assert_eq!((cal2, campaign2), (cal.clone(), campaign.clone()));
+    let (reused, cal3, _) = run(&["--force"]);
+    assert!(!reused);
+    assert_eq!(cal3, cal);
+    // A changed sidecar (another run name in the metadata) is another input.
+    let side = camp.join("soap_120kmh_0c.meta.toml");
+    let text_before = std::fs::read_to_string(&side).unwrap();
+    std::fs::write(&side, format!("{text_before}\n# edited\n")).unwrap();
+    let (reused, _, _) = run(&[]);
+    assert!(!reused, "a changed sidecar reused the calibration");
+}

@@ -256,6 +256,39 @@ fn assert_no_run_worse(
     }
 }
 
+/// Per axle, the calibrated α_i(v)'s largest relative error against the truth over 5–55 m/s
+/// (printed with α at the top speed); asserts it within 2.5 % and α at the top within 3 standard
+/// errors.
+fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
+    std::array::from_fn(|a| {
+        let mut worst = 0.0f64;
+        for v in [5.0, 15.0, 25.0, 35.0, 45.0, c.pad.v_ref_mps] {
+            let tr = m.brake_torque_nm_per_bar[a]
+                * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
+            worst = worst.max((c.alpha_nm_per_bar[a] * c.pad.factor(v) / tr - 1.0).abs());
+        }
+        let at_top = m.brake_torque_nm_per_bar[a]
+            * (1.0
+                + m.pad_friction_rise * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
+        eprintln!(
+            "  axle {}: α(v) within {:.2} %; α at the top {:+.2} % (se {:.2} %)",
+            a + 1,
+            worst * 100.0,
+            (c.alpha_nm_per_bar[a] / at_top - 1.0) * 100.0,
+            c.alpha_se[a] / at_top * 100.0
+        );
+        assert!(worst <= 0.025, "axle {}: {worst}", a + 1);
+        assert!(
+            (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
+            "axle {}: α {} against {at_top} (se {})",
+            a + 1,
+            c.alpha_nm_per_bar[a],
+            c.alpha_se[a]
+        );
+        worst
+    })
+}
+
 /// The mismatch scenes at the sizes (α scatter 2 %, pad friction +5 % from 200 km/h,
 /// radar +0.3 % and 30 ms late, tachometers counting over 20 ms, so 10 ms late, wheel loads
 /// fluctuating 1.5 % rms at 2–10 Hz, the pivot force's share of the load transfer — which the
@@ -324,35 +357,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             "rise {rise} against {true_rise} (se {})",
             c.pad.gamma_se
         );
-        let mut alpha_within = [0.0f64; 4];
-        for a in 0..4 {
-            let mut worst = 0.0f64;
-            for v in [5.0, 15.0, 25.0, 35.0, 45.0, c.pad.v_ref_mps] {
-                let tr = m.brake_torque_nm_per_bar[a]
-                    * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
-                worst = worst.max((c.alpha_nm_per_bar[a] * c.pad.factor(v) / tr - 1.0).abs());
-            }
-            let at_top = m.brake_torque_nm_per_bar[a]
-                * (1.0
-                    + m.pad_friction_rise
-                        * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
-            eprintln!(
-                "  axle {}: α(v) within {:.2} %; α at the top {:+.2} % (se {:.2} %)",
-                a + 1,
-                worst * 100.0,
-                (c.alpha_nm_per_bar[a] / at_top - 1.0) * 100.0,
-                c.alpha_se[a] / at_top * 100.0
-            );
-            assert!(worst <= 0.025, "axle {}: {worst}", a + 1);
-            alpha_within[a] = worst;
-            assert!(
-                (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
-                "axle {}: α {} against {at_top} (se {})",
-                a + 1,
-                c.alpha_nm_per_bar[a],
-                c.alpha_se[a]
-            );
-        }
+        let alpha_within = alpha_errors(&c, &m);
         for (name, before, after) in before_after(&runs, &c) {
             assert!(
                 after.1 <= 0.6 * before.1,
@@ -362,7 +367,11 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             );
             for (a, (_, bias)) in after.0.iter().enumerate() {
                 eprintln!("{name} axle {}: bias {bias:+.5}", a + 1);
-                let bound = if alpha_within[a] <= 0.005 { 0.001 } else { 0.002 };
+                let bound = if alpha_within[a] <= 0.005 {
+                    0.001
+                } else {
+                    0.002
+                };
                 assert!(
                     bias.abs() <= bound,
                     "{name} axle {}: bias {bias} (α(v) within {})",
@@ -715,7 +724,6 @@ fn without_the_wheel_slide_protection_the_estimates_do_not_change() {
         assert_no_run_worse(&runs, &c);
     }
 }
-
 
 /// Hard case: a campaign of fewer than 3 runs. Its delays cannot be tested against the runs'
 /// scatter, and a profile over one run follows that run's noise: each clean mismatch scene

@@ -313,6 +313,10 @@ pub struct Timings {
     /// Network training: epochs and seconds.
     pub train_epochs: usize,
     pub train_s: Option<f64>,
+    /// The campaign's calibration was the output folder's `calibration.json`, fitted on the
+    /// same inputs (not fitted again).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub calibration_reused: bool,
 }
 
 /// One run's line in [`Timings`].

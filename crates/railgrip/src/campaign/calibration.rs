@@ -46,6 +46,41 @@ pub struct CalibrationRecord {
     pub dry_run: Option<DryRunFit>,
     /// What could not be calibrated, runs left out and why.
     pub notes: Vec<String>,
+    /// SHA-256 over the pipeline file's text and every run's name, log and sidecar, in the
+    /// campaign's order ([`campaign_inputs_sha256`]): a whole campaign run again with the same
+    /// inputs reuses this record instead of fitting it again (empty in files of older versions:
+    /// never reused).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub inputs_sha256: String,
+}
+
+/// The SHA-256 (hex) of what a campaign's calibration depends on: the pipeline file's text and,
+/// in the campaign's order, every run's name, log bytes and sidecar (as a run's reuse key has
+/// them). A run that cannot be read hashes its error, so it never matches a readable one.
+pub fn campaign_inputs_sha256(logs: &[(String, LogSource)], pipeline: &Pipeline) -> String {
+    let mut h = Sha256::new();
+    h.update(b"pipeline\0");
+    h.update(pipeline.text.as_bytes());
+    for (name, src) in logs {
+        h.update(b"\0run\0");
+        h.update(name.as_bytes());
+        h.update(b"\0");
+        let read = src.fetched().and_then(|s| {
+            let log = crate::hash::sha256_stream(s.open()?, &mut [])?;
+            Ok((log, s.sidecar()?.1))
+        });
+        match read {
+            Ok((log, side)) => {
+                h.update(log.as_bytes());
+                h.update(b"\0sidecar\0");
+                if let Some(side) = side {
+                    h.update(side);
+                }
+            }
+            Err(e) => h.update(format!("\0unreadable: {e}").as_bytes()),
+        }
+    }
+    crate::hash::hex(&h.finalize())
 }
 
 /// One α from the runs' full-adhesion samples.
@@ -67,7 +102,9 @@ pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
 /// no calibration; with a given calibration checked against the campaign; else, for a whole
 /// campaign (`compute`), with the calibration fitted here (and its record). A part of a
 /// scheduled campaign (`compute` false) must be given it; `whole`: `logs` are every run of the
-/// campaign (not one task's run alone).
+/// campaign (not one task's run alone). `previous`: an earlier `calibration.json` of this
+/// output folder, reused instead of fitting again when it was fitted on the same inputs (the
+/// pipeline file and every run's log and sidecar, by hash) — as unchanged runs' estimates are.
 pub fn calibrated_pipeline(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
@@ -75,7 +112,8 @@ pub fn calibrated_pipeline(
     compute: bool,
     whole: bool,
     where_: &Path,
-) -> Result<(Pipeline, Option<CalibrationRecord>), CampaignError> {
+    previous: Option<&Path>,
+) -> Result<(Pipeline, Option<Reused>), CampaignError> {
     let mode = pipeline.estimate.calibration;
     if mode == CalibrationSource::Pipeline {
         if pipeline.calibrated.is_some() {
@@ -101,10 +139,43 @@ pub fn calibrated_pipeline(
             hint: "fit it once with `railgrip calibrate --campaign ARCHIVE --out OUT` (it writes OUT/calibration.json) and give it to every part with --calibration OUT/calibration.json".into(),
         });
     }
-    let record = calibrate_campaign(logs, pipeline, options, where_)?;
+    let record = match previous.and_then(|f| reusable(f, logs, pipeline)) {
+        Some(r) => Reused::Yes(r),
+        None => Reused::No(calibrate_campaign(logs, pipeline, options, where_)?),
+    };
     let mut p = pipeline.clone();
-    p.calibrated = Some(record.calibrated.clone());
+    p.calibrated = Some(record.record().calibrated.clone());
     Ok((p, Some(record)))
+}
+
+/// A campaign's calibration record, fitted here or reused from the output folder.
+pub enum Reused {
+    Yes(CalibrationRecord),
+    No(CalibrationRecord),
+}
+
+impl Reused {
+    pub fn record(&self) -> &CalibrationRecord {
+        match self {
+            Reused::Yes(r) | Reused::No(r) => r,
+        }
+    }
+}
+
+/// The calibration record in `file` when it was fitted on these inputs
+/// ([`CalibrationRecord::inputs_sha256`]) for this kind of calibration; None otherwise (no
+/// file, unreadable, another version's without the hash, other inputs).
+fn reusable(
+    file: &Path,
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+) -> Option<CalibrationRecord> {
+    let text = std::fs::read_to_string(file).ok()?;
+    let record: CalibrationRecord = serde_json::from_str(&text).ok()?;
+    let fits = !record.inputs_sha256.is_empty()
+        && record.calibrated.source == pipeline.estimate.calibration.name()
+        && record.inputs_sha256 == campaign_inputs_sha256(logs, pipeline);
+    fits.then_some(record)
 }
 
 /// Refuses a calibration for another kind of calibration or fitted with another pipeline file
@@ -236,6 +307,7 @@ pub fn calibrate_campaign(
                 campaign: Some(fit),
                 dry_run: None,
                 notes,
+                inputs_sha256: campaign_inputs_sha256(logs, pipeline),
             })
         }
         CalibrationSource::DryRun => {
@@ -290,6 +362,7 @@ pub fn calibrate_campaign(
                     runs: ok,
                 }),
                 notes,
+                inputs_sha256: campaign_inputs_sha256(logs, pipeline),
             })
         }
         CalibrationSource::Pipeline => unreachable!("no calibration asked for"),

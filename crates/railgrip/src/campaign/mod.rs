@@ -342,16 +342,8 @@ fn run_sources(
     let t_all = Instant::now();
     // The calibration first: every run's estimate depends on it.
     let t = Instant::now();
-    let (calibrated, cal_record) = calibration::calibrated_pipeline(
-        &logs,
-        pipeline,
-        options,
-        options.part == Part::All,
-        // An estimate part may see one run alone (a task on a cluster): its runs must be among
-        // the calibration's; the models part sees them all.
-        !matches!(options.part, Part::Estimate(_)),
-        root,
-    )?;
+    let (calibrated, cal_record, cal_reused) =
+        campaign_calibration(&logs, pipeline, options, out, root)?;
     let cal_s = t.elapsed().as_secs_f64();
     let pipeline = &calibrated;
     if let Part::Estimate(shard) = options.part {
@@ -359,7 +351,8 @@ fn run_sources(
     }
     prepare_output(out)?;
     let mut stages = Vec::new();
-    if write_calibration_file(out, cal_record.as_ref(), options.part)? {
+    // A reused calibration is the file already there (fitted on the same inputs).
+    if cal_reused || write_calibration_file(out, cal_record.as_ref(), options.part)? {
         stages.push(("calibrate".to_string(), cal_s));
     }
 
@@ -444,6 +437,7 @@ fn run_sources(
             .collect(),
         train_epochs: trained.epochs,
         train_s: trained.train_s,
+        calibration_reused: cal_reused,
     }
     .write(out)?;
     Ok(Outcome {
@@ -460,6 +454,35 @@ fn run_sources(
         skipped,
         tables: vec![],
     })
+}
+
+/// The pipeline the campaign's runs are estimated with, the calibration record behind it and
+/// whether that was reused from `out` ([`calibration::calibrated_pipeline`]).
+fn campaign_calibration(
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    options: Options,
+    out: &OutDir,
+    root: &Path,
+) -> Result<(Pipeline, Option<calibration::CalibrationRecord>, bool), CampaignError> {
+    let (calibrated, record) = calibration::calibrated_pipeline(
+        logs,
+        pipeline,
+        options,
+        options.part == Part::All,
+        // An estimate part may see one run alone (a task on a cluster): its runs must be among
+        // the calibration's; the models part sees them all.
+        !matches!(options.part, Part::Estimate(_)),
+        root,
+        (!options.force && options.part == Part::All)
+            .then(|| out.root().join(calibration::CALIBRATION_FILE))
+            .as_deref(),
+    )?;
+    let reused = matches!(record, Some(calibration::Reused::Yes(_)));
+    let record = record.map(|r| match r {
+        calibration::Reused::Yes(r) | calibration::Reused::No(r) => r,
+    });
+    Ok((calibrated, record, reused))
 }
 
 /// Writes the calibration this campaign fitted as `calibration.json` (true), or, for a whole

@@ -253,6 +253,26 @@ fn near_locked_wheel(
     (mask, locked)
 }
 
+/// Why a campaign of `runs` runs with samples for the balance is not calibrated, and what to
+/// do; None from [`MIN_RUNS`] on.
+fn too_few_runs(runs: usize) -> Option<(String, &'static str)> {
+    if runs == 0 {
+        return Some((
+            "no run has a usable sample for the calibration".into(),
+            "check that the logs hold braking runs above estimate.min_speed_mps",
+        ));
+    }
+    (runs < MIN_RUNS).then(|| {
+        (
+            format!(
+                "only {runs} run{} with samples for the balance: a campaign's calibration needs at least {MIN_RUNS} (with fewer, its delays follow the runs' noise and can make the estimates several times worse)",
+                if runs == 1 { "" } else { "s" }
+            ),
+            "calibrate over 3 or more braking runs of the same vehicle, or set estimate.calibration = \"pipeline\" (or \"dry-run\" with a full-adhesion run)",
+        )
+    })
+}
+
 /// One run as the calibration keeps it (none when it is left out), and a note on it.
 pub struct PreparedRun {
     signals: Option<RunSignals>,
@@ -427,21 +447,8 @@ impl<'p> CampaignCalibrator<'p> {
         let locked = self.locked_note();
         let mut notes = self.notes;
         notes.extend(locked);
-        if self.runs.is_empty() {
-            return Err(fail(
-                "no run has a usable sample for the calibration".into(),
-                "check that the logs hold braking runs above estimate.min_speed_mps",
-            ));
-        }
-        if self.runs.len() < MIN_RUNS {
-            return Err(fail(
-                format!(
-                    "only {} run{} with samples for the balance: a campaign's calibration needs at least {MIN_RUNS} (with fewer, its delays follow the runs' noise and can make the estimates several times worse)",
-                    self.runs.len(),
-                    if self.runs.len() == 1 { "" } else { "s" }
-                ),
-                "calibrate over 3 or more braking runs of the same vehicle, or set estimate.calibration = \"pipeline\" (or \"dry-run\" with a full-adhesion run)",
-            ));
+        if let Some((what_failed, hint)) = too_few_runs(self.runs.len()) {
+            return Err(fail(what_failed, hint));
         }
         let veh = &self.pipeline.vehicle;
         let b = Balance {
