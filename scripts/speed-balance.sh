@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Where a campaign's samples lie in speed, and how the wheel-slide protection cycles there:
-# simulates scenes (noise seed SEED), estimates each run (`railgrip estimate --csv`) and prints
+# simulates scenes (campaign noise seed SEED, as `railgrip simulate --seed` takes it), estimates each run (`railgrip estimate --csv`) and prints
 # per scene family and speed band, for the training axle (2): the valid samples (what a
 # campaign model is trained on), those with slip Δv > 0.2 m/s, the share of the band's time
 # sliding, and the WSP cycles (slip excursions above 0.5 m/s: how many start in the band, their

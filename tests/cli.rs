@@ -1753,10 +1753,28 @@ fn a_rerun_reuses_the_campaigns_calibration_until_an_input_changes() {
     let (reused, cal3, _) = run(&["--force"]);
     assert!(!reused);
     assert_eq!(cal3, cal);
-    // A changed sidecar (another run name in the metadata) is another input.
+    // A changed sidecar (a comment added: other bytes) is another input.
     let side = camp.join("soap_120kmh_0c.meta.toml");
     let text_before = std::fs::read_to_string(&side).unwrap();
     std::fs::write(&side, format!("{text_before}\n# edited\n")).unwrap();
     let (reused, _, _) = run(&[]);
     assert!(!reused, "a changed sidecar reused the calibration");
+    assert!(run(&[]).0, "the same inputs again");
+    // So is a changed pipeline file, and one run fewer.
+    let text_before = std::fs::read_to_string(&pipe).unwrap();
+    std::fs::write(&pipe, format!("{text_before}\n# edited\n")).unwrap();
+    assert!(
+        !run(&[]).0,
+        "a changed pipeline file reused the calibration"
+    );
+    std::fs::remove_file(camp.join("soap_160kmh_p20.csv")).unwrap();
+    std::fs::remove_file(camp.join("soap_160kmh_p20.meta.toml")).unwrap();
+    let o = railgrip(&["run", "camp", "--out", "out", "--pipeline", &pipe], d);
+    // Two runs are too few to calibrate: refused, saying so (not the old calibration reused).
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+    assert!(
+        text(&o.stderr).contains("at least 3"),
+        "{}",
+        text(&o.stderr)
+    );
 }

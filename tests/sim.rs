@@ -56,6 +56,35 @@ fn same_scene_and_seed_give_identical_bytes() {
     );
 }
 
+/// A campaign's noise seed: the scenes of a campaign simulated with one `--seed` draw their
+/// own noise (from it and their own seeds), and the seed in the log's metadata reproduces the
+/// run from a scene file without `--seed`.
+#[test]
+fn one_campaign_seed_gives_each_scene_its_own_noise() {
+    let csv = |sc: &Scene, seed: Option<u64>| {
+        let d = tempfile::tempdir().unwrap();
+        sim::simulate(sc, seed)
+            .unwrap()
+            .write(d.path(), "run", OutputFormat::Csv)
+            .unwrap();
+        let meta = std::fs::read_to_string(d.path().join("run.meta.toml")).unwrap();
+        (std::fs::read(d.path().join("run.csv")).unwrap(), meta)
+    };
+    let with_seed = |seed: u64| {
+        let text = format!(
+            "name = \"t\"\nseed = {seed}\n{ALL_EFFECTS}\n[run]\ninitial_speed_kmh = 60.0\nmax_duration_s = 8.0\n"
+        );
+        Scene::from_toml(&text, "t.toml", None).unwrap()
+    };
+    let (a, b) = (with_seed(3), with_seed(4));
+    let (ca, meta) = csv(&a, Some(7));
+    let (cb, _) = csv(&b, Some(7));
+    assert_ne!(ca, cb, "two scenes of one campaign drew the same noise");
+    let used = sim::noise_seed(7, 3);
+    assert!(meta.contains(&format!("seed = \"{used}\"")), "{meta}");
+    assert_eq!(csv(&with_seed(used), None).0, ca);
+}
+
 #[test]
 fn everything_written_reads_back_through_ingest() {
     let sc = scene(ALL_EFFECTS);

@@ -20,7 +20,8 @@ pub struct Args {
     /// Scene files (TOML) whose truth scores the model, e.g. pipelines/scenes/foreign/*.toml.
     #[arg(value_name = "SCENE", required = true)]
     scenes: Vec<PathBuf>,
-    /// Seeds of the sensor noise: each scene is simulated once per seed (default: its own).
+    /// Campaign noise seeds, as `simulate --seed` takes them: each scene is simulated once per
+    /// seed (default: once, with its own noise).
     #[arg(long, value_delimiter = ',')]
     seeds: Vec<u64>,
     /// Samples of one axle a cell needs to count as supported.
@@ -109,13 +110,15 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     for path in &args.scenes {
         let scene = Scene::load(path)?;
         let law = TrueLaw::of(&scene)?;
-        let seeds = if args.seeds.is_empty() {
-            vec![scene.seed]
+        // Without --seeds, the scene's own noise (as `simulate` without --seed).
+        let seeds: Vec<Option<u64>> = if args.seeds.is_empty() {
+            vec![None]
         } else {
-            args.seeds.clone()
+            args.seeds.iter().copied().map(Some).collect()
         };
         for seed in seeds {
-            let out = sim::simulate(&scene, Some(seed))?;
+            let out = sim::simulate(&scene, seed)?;
+            let seed = seed.unwrap_or(scene.seed);
             let (v0_kmh, t_c) = (scene.run.initial_speed_kmh, scene.run.ambient_temperature_c);
             let samples = out.truth.samples(t_c);
             let name = format!("{} (seed {seed})", scene.name);

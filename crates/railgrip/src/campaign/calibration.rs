@@ -46,19 +46,21 @@ pub struct CalibrationRecord {
     pub dry_run: Option<DryRunFit>,
     /// What could not be calibrated, runs left out and why.
     pub notes: Vec<String>,
-    /// SHA-256 over the pipeline file's text and every run's name, log and sidecar, in the
-    /// campaign's order ([`campaign_inputs_sha256`]): a whole campaign run again with the same
+    /// SHA-256 over railgrip's version, the pipeline file's text and every run's name, log and
+    /// sidecar, in the campaign's order ([`campaign_inputs_sha256`]): a whole campaign run again with the same
     /// inputs reuses this record instead of fitting it again (empty in files of older versions:
     /// never reused).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub inputs_sha256: String,
 }
 
-/// The SHA-256 (hex) of what a campaign's calibration depends on: the pipeline file's text and,
-/// in the campaign's order, every run's name, log bytes and sidecar (as a run's reuse key has
-/// them). A run that cannot be read hashes its error, so it never matches a readable one.
+/// The SHA-256 (hex) of what a campaign's calibration depends on: railgrip's version, the
+/// pipeline file's text and, in the campaign's order, every run's name, log bytes and sidecar
+/// (as a run's reuse key has them). A run that cannot be read hashes its error, so it never
+/// matches a readable one. Reads every log once more (for a bucket, fetches it).
 pub fn campaign_inputs_sha256(logs: &[(String, LogSource)], pipeline: &Pipeline) -> String {
     let mut h = Sha256::new();
+    h.update(concat!("railgrip ", env!("CARGO_PKG_VERSION"), "\0").as_bytes());
     h.update(b"pipeline\0");
     h.update(pipeline.text.as_bytes());
     for (name, src) in logs {
@@ -139,9 +141,11 @@ pub fn calibrated_pipeline(
             hint: "fit it once with `railgrip calibrate --campaign ARCHIVE --out OUT` (it writes OUT/calibration.json) and give it to every part with --calibration OUT/calibration.json".into(),
         });
     }
-    let record = match previous.and_then(|f| reusable(f, logs, pipeline)) {
+    // Hashed before the fit: a log changed while it is fitted is not recorded as fitted.
+    let inputs = campaign_inputs_sha256(logs, pipeline);
+    let record = match previous.and_then(|f| reusable(f, &inputs, pipeline)) {
         Some(r) => Reused::Yes(r),
-        None => Reused::No(calibrate_campaign(logs, pipeline, options, where_)?),
+        None => Reused::No(fit_campaign(logs, pipeline, options, where_, inputs)?),
     };
     let mut p = pipeline.clone();
     p.calibrated = Some(record.record().calibrated.clone());
@@ -165,16 +169,12 @@ impl Reused {
 /// The calibration record in `file` when it was fitted on these inputs
 /// ([`CalibrationRecord::inputs_sha256`]) for this kind of calibration; None otherwise (no
 /// file, unreadable, another version's without the hash, other inputs).
-fn reusable(
-    file: &Path,
-    logs: &[(String, LogSource)],
-    pipeline: &Pipeline,
-) -> Option<CalibrationRecord> {
+fn reusable(file: &Path, inputs: &str, pipeline: &Pipeline) -> Option<CalibrationRecord> {
     let text = std::fs::read_to_string(file).ok()?;
     let record: CalibrationRecord = serde_json::from_str(&text).ok()?;
     let fits = !record.inputs_sha256.is_empty()
         && record.calibrated.source == pipeline.estimate.calibration.name()
-        && record.inputs_sha256 == campaign_inputs_sha256(logs, pipeline);
+        && record.inputs_sha256 == inputs;
     fits.then_some(record)
 }
 
@@ -268,6 +268,18 @@ pub fn calibrate_campaign(
     options: Options,
     where_: &Path,
 ) -> Result<CalibrationRecord, CampaignError> {
+    let inputs = campaign_inputs_sha256(logs, pipeline);
+    fit_campaign(logs, pipeline, options, where_, inputs)
+}
+
+/// [`calibrate_campaign`] with the inputs' hash taken before ([`campaign_inputs_sha256`]).
+fn fit_campaign(
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    options: Options,
+    where_: &Path,
+    inputs_sha256: String,
+) -> Result<CalibrationRecord, CampaignError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.jobs.unwrap_or(0))
         .build()?;
@@ -307,7 +319,7 @@ pub fn calibrate_campaign(
                 campaign: Some(fit),
                 dry_run: None,
                 notes,
-                inputs_sha256: campaign_inputs_sha256(logs, pipeline),
+                inputs_sha256,
             })
         }
         CalibrationSource::DryRun => {
@@ -362,7 +374,7 @@ pub fn calibrate_campaign(
                     runs: ok,
                 }),
                 notes,
-                inputs_sha256: campaign_inputs_sha256(logs, pipeline),
+                inputs_sha256,
             })
         }
         CalibrationSource::Pipeline => unreachable!("no calibration asked for"),

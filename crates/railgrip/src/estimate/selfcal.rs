@@ -253,22 +253,32 @@ fn near_locked_wheel(
     (mask, locked)
 }
 
-/// Why a campaign of `runs` runs with samples for the balance is not calibrated, and what to
-/// do; None from [`MIN_RUNS`] on.
-fn too_few_runs(runs: usize) -> Option<(String, &'static str)> {
+/// Why a campaign of `runs` runs with samples for the balance is not calibrated (with the
+/// `notes` on the runs left out, and why), and what to do; None from [`MIN_RUNS`] on.
+fn too_few_runs(runs: usize, notes: &[String]) -> Option<(String, String)> {
     if runs == 0 {
         return Some((
             "no run has a usable sample for the calibration".into(),
-            "check that the logs hold braking runs above estimate.min_speed_mps",
+            "check that the logs hold braking runs above estimate.min_speed_mps".into(),
         ));
     }
+    let left_out: Vec<&str> = notes
+        .iter()
+        .filter(|n| n.ends_with("; left out of the calibration"))
+        .map(String::as_str)
+        .collect();
+    let left_out = if left_out.is_empty() {
+        String::new()
+    } else {
+        format!("; {}", left_out.join("; "))
+    };
     (runs < MIN_RUNS).then(|| {
         (
             format!(
-                "only {runs} run{} with samples for the balance: a campaign's calibration needs at least {MIN_RUNS} (with fewer, its delays follow the runs' noise and can make the estimates several times worse)",
+                "only {runs} run{} with samples for the balance: a campaign's calibration needs at least {MIN_RUNS} (with fewer, its delays follow the runs' noise and can make the estimates several times worse){left_out}",
                 if runs == 1 { "" } else { "s" }
             ),
-            "calibrate over 3 or more braking runs of the same vehicle, or set estimate.calibration = \"pipeline\" (or \"dry-run\" with a full-adhesion run)",
+            format!("calibrate over {MIN_RUNS} or more braking runs of the same vehicle, or set estimate.calibration = \"pipeline\" (or \"dry-run\" with a full-adhesion run)"),
         )
     })
 }
@@ -447,8 +457,8 @@ impl<'p> CampaignCalibrator<'p> {
         let locked = self.locked_note();
         let mut notes = self.notes;
         notes.extend(locked);
-        if let Some((what_failed, hint)) = too_few_runs(self.runs.len()) {
-            return Err(fail(what_failed, hint));
+        if let Some((what_failed, hint)) = too_few_runs(self.runs.len(), &notes) {
+            return Err(fail(what_failed, &hint));
         }
         let veh = &self.pipeline.vehicle;
         let b = Balance {
@@ -736,15 +746,15 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     )
 }
 
-/// Takes as 0 the fitted delays not told from 0. Each delay's standard error is the larger of
-/// the jackknife's over runs ([`jackknife_delays`]) and the profile's curvature's
-/// ([`curvature_se`]), as reported. Both fitted: tested together, the Wald statistic tᵀV⁻¹t
-/// (V the jackknife's, each variance widened to the curvature's where smaller, the correlation
-/// kept) against
+/// Takes as 0 the fitted delays not told from 0, by two errors: the jackknife's over runs
+/// ([`jackknife_delays`]) and the profile's curvature's ([`curvature_cov`], marginal). Both
+/// fitted: tested together, the Wald statistic tᵀV⁻¹t — the smaller of the jackknife's and
+/// the curvature's — against
 /// χ²₂'s 95 % quantile, both taken as 0 below it (one note) and both kept above — the two
 /// shift the radar and the wheels against the pressures and are often told apart less well
 /// than together. One fitted (or no covariance): |τ| against 1.96 standard errors, the least
-/// significant first, the other then profiled again without it and tested again. The radar's
+/// significant first (each delay's error the larger of the two), the other then profiled
+/// again without it and tested again. The radar's
 /// scale is fitted again after a drop. Both kept together means a delay near 0 beside a strong
 /// one stays (the two shift the same balance; the runs judged their pair). Returns the last
 /// jackknife's standard errors (s; NaN where not computed: fewer than 3 runs tell them, or
@@ -755,7 +765,7 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
 /// a whole run's delay at once: the runs' spread can be larger (the bundled scenes' latency,
 /// 7.1 ms by the jackknife). On runs whose pressures change only when the brake is applied
 /// (no wheel-slide protection), 12 runs' spread came out at a third of the curvature's (the
-/// tachometers' delay 1.3 against 4.4 ms), kept a delay 16 ms off the truth (Wald 22 by the
+/// tachometers' delay 1.3 against 4.7 ms), kept a delay 16 ms off the truth (Wald 22 by the
 /// jackknife alone, 1.7 with the curvature) and made runs up to 1.033× worse.
 fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) -> (f64, f64) {
     let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
@@ -769,19 +779,26 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
             break (f64::NAN, f64::NAN);
         };
         let se = (j.var_r.sqrt(), j.var_w.sqrt());
-        // The test's errors: the larger of the jackknife's and the curvature's, as reported.
-        let floor = curvature_se(b, at, fit);
+        // The test's errors: the larger of the jackknife's and the curvature's (marginal).
+        let curv = curvature_cov(b, at, fit);
+        let floor = curv.map_or((f64::NAN, f64::NAN), |c| (c[0].sqrt(), c[2].sqrt()));
         let tested = (se.0.max(floor.0), se.1.max(floor.1));
-        // Both fitted: tested together (the bundled scenes: latency 8.0 ± 7.1 ms and the
-        // tachometers' 3.2 ± 3.4 ms, correlated −0.96 — the runs pin down their sum — neither
-        // beyond 1.96 standard errors alone, together Wald 54; they take 14–16 % off the soap
-        // runs' μ error).
-        if let Some((w, corr)) = j.wald((at.radar_s, at.tacho_s), floor) {
+        // Both fitted: tested together, by the smaller of the two statistics (the bundled
+        // scenes: latency 8.0 ± 7.1 ms and the tachometers' 3.2 ± 3.4 ms, correlated −0.96 —
+        // the runs pin down their sum — neither beyond 1.96 standard errors alone, together
+        // beyond χ²₂'s quantile; they take 14–16 % off the soap runs' μ error).
+        let t = (at.radar_s, at.tacho_s);
+        let joint = [j.joint, curv.filter(|_| fit == (true, true))]
+            .into_iter()
+            .flatten()
+            .filter_map(|v| wald(v, t))
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let (Some((w, corr)), (true, true)) = (joint, fit) {
             if w >= chi2_95(2) {
                 break se;
             }
             notes.push(format!(
-                "the {RADAR_DELAY} ({:.1} ± {:.1} ms) and the {TACHO_DELAY} ({:.1} ± {:.1} ms) came out, but together they are not told from 0 at 95 % (one standard error: the larger of the runs' scatter, each left out in turn, and the residual's curvature; correlation {corr:+.2}; Wald {w:.2} against χ² {:.2}): both taken as 0",
+                "the {RADAR_DELAY} ({:.1} ± {:.1} ms) and the {TACHO_DELAY} ({:.1} ± {:.1} ms) came out, but together they are not told from 0 at 95 % (one standard error: the larger of the runs' scatter, each left out in turn, and the residual's curvature; correlation {corr:+.2}; Wald {w:.2}, the smaller of the two, against χ² {:.2}): both taken as 0",
                 at.radar_s * 1e3,
                 tested.0 * 1e3,
                 at.tacho_s * 1e3,
@@ -860,53 +877,74 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
     se
 }
 
-/// The delays' standard errors (s) from the curvature of the balance's residual at `at`, as
-/// the delays are profiled — the free fit (every axle's pressure and its pad term apart, the
-/// speed terms, a constant per run): se² = 2 σ² (n/n_eff) / RSS'' (central differences of
-/// 4 ms), with σ² = RSS/(n − 10 − runs) and n_eff the effective samples of the constant pad
-/// law's residuals (as [`Balance::run_weights`] fits it). NaN for a delay not fitted (`fit`)
-/// or where the residual has no minimum. What the samples' noise alone allows: the runs'
-/// scatter ([`jackknife_delays`]) can come out smaller by chance on few runs.
-fn curvature_se(b: &Balance, at: &At, fit: (bool, bool)) -> (f64, f64) {
+/// The delays' covariance (s²) from the curvature of the balance's residual at `at`, as the
+/// delays are profiled — the free fit (every axle's pressure and its pad term apart, the
+/// speed terms, a constant per run): V = 2 σ² (n/n_eff) H⁻¹ with H the residual's Hessian in
+/// the fitted delays (`fit`; central differences of 4 ms, the cross term where both are
+/// fitted), σ² = RSS/(n − 10 − runs), n_eff the effective samples of the constant pad law's
+/// residuals (as [`Balance::run_weights`] fits it). Returned as [var_r, cov, var_w] (NaN for a
+/// delay not fitted); None where H is not positive definite. What the samples' noise alone
+/// allows: the runs' scatter ([`jackknife_delays`]) can come out smaller by chance on few
+/// runs. Marginal, not conditional: with the two delays correlated (they shift the radar and
+/// the wheels against the same pressures) each one's error is larger than its curvature alone
+/// says.
+fn curvature_cov(b: &Balance, at: &At, fit: (bool, bool)) -> Option<[f64; 3]> {
     let g = b.gram(at, PadForm::Linear);
     let runs = b.runs.iter().filter(|r| !r.rows.is_empty()).count() as f64;
     let n = g.n as f64;
     let dof = n - Y as f64 - runs;
     let rss = g.rss_free();
+    if !(dof > 0.0 && rss.is_finite()) || fit == (false, false) {
+        return None;
+    }
     let apart: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
     let together = [(0..AXLES).collect::<Vec<usize>>()];
     let cg = b.gram(at, PadForm::Constant);
     let n_eff = cg
         .rss_at(&apart, PadForm::Constant, 0.0)
         .or_else(|| cg.rss_at(&together, PadForm::Constant, 0.0))
-        .map(|f| b.n_eff(at, PadForm::Constant, &f));
-    let (Some(n_eff), true) = (n_eff, dof > 0.0 && rss.is_finite()) else {
-        return (f64::NAN, f64::NAN);
-    };
-    let sigma2 = rss / dof * n / n_eff;
+        .map(|f| b.n_eff(at, PadForm::Constant, &f))?;
+    let scale = 2.0 * rss / dof * n / n_eff;
     let h = 0.004;
-    let se = |on: bool, shifted: &dyn Fn(f64) -> At| {
-        if !on {
-            return f64::NAN;
-        }
-        let f = |x: f64| b.gram(&shifted(x), PadForm::Linear).rss_free();
-        let d2 = (f(h) - 2.0 * rss + f(-h)) / (h * h);
-        if d2 > 0.0 {
-            (2.0 * sigma2 / d2).sqrt()
-        } else {
-            f64::NAN
-        }
+    let f = |i: f64, j: f64| {
+        b.gram(
+            &At {
+                radar_s: at.radar_s + i * h,
+                tacho_s: at.tacho_s + j * h,
+                ..*at
+            },
+            PadForm::Linear,
+        )
+        .rss_free()
     };
-    (
-        se(fit.0, &|x| At {
-            radar_s: at.radar_s + x,
-            ..*at
-        }),
-        se(fit.1, &|x| At {
-            tacho_s: at.tacho_s + x,
-            ..*at
-        }),
-    )
+    let d2 = |i: f64, j: f64| (f(i, j) - 2.0 * rss + f(-i, -j)) / (h * h);
+    let (hr, hw) = (
+        if fit.0 { d2(1.0, 0.0) } else { f64::NAN },
+        if fit.1 { d2(0.0, 1.0) } else { f64::NAN },
+    );
+    match fit {
+        (true, true) => {
+            let hrw = (f(1.0, 1.0) - f(1.0, -1.0) - f(-1.0, 1.0) + f(-1.0, -1.0)) / (4.0 * h * h);
+            let det = hr * hw - hrw * hrw;
+            (hr > 0.0 && det > 0.0 && det.is_finite())
+                .then(|| [scale * hw / det, -scale * hrw / det, scale * hr / det])
+        }
+        (true, false) => (hr > 0.0).then(|| [scale / hr, f64::NAN, f64::NAN]),
+        _ => (hw > 0.0).then(|| [f64::NAN, f64::NAN, scale / hw]),
+    }
+}
+
+/// The Wald statistic of both delays `t` = (radar, tachometers) against 0 with the joint
+/// matrix `v` = [var_r, cov, var_w], tᵀ V⁻¹ t (χ² with 2 degrees of freedom under "both 0"),
+/// and the two delays' correlation; None where V is not positive definite.
+fn wald(v: [f64; 3], t: (f64, f64)) -> Option<(f64, f64)> {
+    let [vr, c, vw] = v;
+    let det = vr * vw - c * c;
+    if !(vr > 0.0 && det > 0.0 && det.is_finite()) {
+        return None;
+    }
+    let w = (vw * t.0 * t.0 - 2.0 * c * t.0 * t.1 + vr * t.1 * t.1) / det;
+    Some((w, c / (vr * vw).sqrt()))
 }
 
 /// The delays' standard errors (s) by the jackknife over runs: each run left out in turn, the
@@ -1060,34 +1098,6 @@ struct Jackknife {
     var_r: f64,
     var_w: f64,
     joint: Option<[f64; 3]>,
-}
-
-impl Jackknife {
-    /// The Wald statistic of both delays `t` = (radar, tachometers) against 0 with the joint
-    /// matrix V, tᵀ V⁻¹ t (χ² with 2 degrees of freedom under "both 0"), and the two delays'
-    /// correlation; None where V is not positive definite.
-    ///
-    /// `floor` (s) is each delay's least standard error (the profile's curvature's, see
-    /// [`curvature_se`]): where the runs scatter less than that, V is widened to it, the
-    /// correlation kept.
-    fn wald(&self, t: (f64, f64), floor: (f64, f64)) -> Option<(f64, f64)> {
-        let [vr, c, vw] = self.joint?;
-        let widen = |v: f64, f: f64| {
-            if f.is_finite() && v > 0.0 {
-                (f / v.sqrt()).max(1.0)
-            } else {
-                1.0
-            }
-        };
-        let (fr, fw) = (widen(vr, floor.0), widen(vw, floor.1));
-        let (vr, c, vw) = (vr * fr * fr, c * fr * fw, vw * fw * fw);
-        let det = vr * vw - c * c;
-        if !(vr > 0.0 && det > 0.0 && det.is_finite()) {
-            return None;
-        }
-        let w = (vw * t.0 * t.0 - 2.0 * c * t.0 * t.1 + vr * t.1 * t.1) / det;
-        Some((w, c / (vr * vw).sqrt()))
-    }
 }
 
 /// The note for a group of axles fitted with one α.

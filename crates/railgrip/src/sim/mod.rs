@@ -338,6 +338,7 @@ impl TrueLaw {
 /// `campaign`: one SplitMix64 step from both, so that the scenes of one campaign draw
 /// independent noise (a campaign's runs sharing one stream would share their noise, and its
 /// errors would not average over the runs) and each campaign seed gives another realisation.
+/// Scenes with the same own seed still draw the same noise: a campaign's scenes need their own.
 pub fn noise_seed(campaign: u64, scene_seed: u64) -> u64 {
     crate::rng::Rng::new(campaign.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ scene_seed).next_u64()
 }

@@ -245,7 +245,7 @@ const SEED: Key = text(
     "",
     "0..2⁶⁴−1",
     "1",
-    "sensor noise (`railgrip simulate --seed N` draws it from N and this seed together)",
+    "sensor noise (`railgrip simulate --seed N` draws it from N and this seed together; give each scene of a campaign its own)",
 );
 const EFFECTS: Key = text(
     "effects",
