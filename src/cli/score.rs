@@ -118,10 +118,11 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         };
         for seed in seeds {
             let out = sim::simulate(&scene, seed)?;
-            let seed = seed.unwrap_or(scene.seed);
+            // The noise seed the run was simulated with (as `simulate` prints it).
+            let seed = seed.map_or(scene.seed, |s| sim::noise_seed(s, scene.seed));
             let (v0_kmh, t_c) = (scene.run.initial_speed_kmh, scene.run.ambient_temperature_c);
             let samples = out.truth.samples(t_c);
-            let name = format!("{} (seed {seed})", scene.name);
+            let name = format!("{} (noise seed {seed})", scene.name);
             let context = || format!("{}: scoring {}", path.display(), args.model.display());
             let s = score(&samples, &grid, predict).with_context(context)?;
             let mut line = Line::new(&name, v0_kmh, t_c, &s);

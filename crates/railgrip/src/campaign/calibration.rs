@@ -304,15 +304,14 @@ fn fit_campaign(
                     })
                     .collect()
             });
-            let mut notes = Vec::new();
             for p in prepared {
                 match p {
                     Ok(p) => cal.add_prepared(p),
-                    Err(e) => notes.push(format!("left out of the calibration: {e}")),
+                    Err(e) => cal.left_out(&e),
                 }
             }
             let fit = cal.finish(where_)?;
-            notes.extend(fit.notes.iter().cloned());
+            let notes = fit.notes.clone();
             Ok(CalibrationRecord {
                 calibrated: calibrated(fit.corrections()),
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,

@@ -253,18 +253,15 @@ fn near_locked_wheel(
     (mask, locked)
 }
 
+/// The end of a note on a run the calibration leaves out.
+const LEFT_OUT: &str = "left out of the calibration";
+
 /// Why a campaign of `runs` runs with samples for the balance is not calibrated (with the
 /// `notes` on the runs left out, and why), and what to do; None from [`MIN_RUNS`] on.
 fn too_few_runs(runs: usize, notes: &[String]) -> Option<(String, String)> {
-    if runs == 0 {
-        return Some((
-            "no run has a usable sample for the calibration".into(),
-            "check that the logs hold braking runs above estimate.min_speed_mps".into(),
-        ));
-    }
     let left_out: Vec<&str> = notes
         .iter()
-        .filter(|n| n.ends_with("; left out of the calibration"))
+        .filter(|n| n.ends_with(LEFT_OUT))
         .map(String::as_str)
         .collect();
     let left_out = if left_out.is_empty() {
@@ -272,6 +269,12 @@ fn too_few_runs(runs: usize, notes: &[String]) -> Option<(String, String)> {
     } else {
         format!("; {}", left_out.join("; "))
     };
+    if runs == 0 {
+        return Some((
+            format!("no run has a usable sample for the calibration{left_out}"),
+            "check that the logs hold braking runs above estimate.min_speed_mps".into(),
+        ));
+    }
     (runs < MIN_RUNS).then(|| {
         (
             format!(
@@ -317,6 +320,12 @@ impl<'p> CampaignCalibrator<'p> {
         let p = self.prepare(log)?;
         self.add_prepared(p);
         Ok(())
+    }
+
+    /// Notes a run that could not be read or conditioned (`why` names it): left out, and
+    /// named if the campaign then has too few runs.
+    pub fn left_out(&mut self, why: &str) {
+        self.notes.push(format!("{why}; {LEFT_OUT}"));
     }
 
     /// Adds a prepared run (in the campaign's order: the fit sums over the runs in the order
@@ -370,7 +379,7 @@ impl<'p> CampaignCalibrator<'p> {
                 signals: None,
                 locked: None,
                 note: Some(format!(
-                    "{}: no settled sample above {} m/s with every wheel rolling; left out of the calibration",
+                    "{}: no settled sample above {} m/s with every wheel rolling; {LEFT_OUT}",
                     log_name(log),
                     est.min_speed_mps
                 )),
@@ -764,12 +773,14 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
 /// independent once the residuals' autocorrelation is allowed for, but the radar's noise moves
 /// a whole run's delay at once: the runs' spread can be larger (the bundled scenes' latency,
 /// 7.1 ms by the jackknife). On runs whose pressures change only when the brake is applied
-/// (no wheel-slide protection), 12 runs' spread came out at a third of the curvature's (the
+/// (no wheel-slide protection), 12 runs' spread came out at about a quarter of the curvature's (the
 /// tachometers' delay 1.3 against 4.7 ms), kept a delay 16 ms off the truth (Wald 22 by the
 /// jackknife alone, 1.7 with the curvature) and made runs up to 1.033× worse.
 fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) -> (f64, f64) {
     let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
     let mut dropped = false;
+    // Delays that neither error could be computed for at the last test.
+    let mut untested = (false, false);
     let se = loop {
         let fit = (at.radar_s != 0.0, at.tacho_s != 0.0);
         if fit == (false, false) {
@@ -822,6 +833,7 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
             z(at.radar_s, tested.0, fit.0),
             z(at.tacho_s, tested.1, fit.1),
         );
+        untested = (!tested.0.is_finite(), !tested.1.is_finite());
         let radar_first = !(zr >= zw);
         let (name, t, s, z) = if radar_first {
             (RADAR_DELAY, &mut at.radar_s, tested.0, zr)
@@ -869,6 +881,17 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
             }
         }
     };
+    for (kept, untested, name, t) in [
+        (at.radar_s != 0.0, untested.0, RADAR_DELAY, at.radar_s),
+        (at.tacho_s != 0.0, untested.1, TACHO_DELAY, at.tacho_s),
+    ] {
+        if kept && untested {
+            notes.push(format!(
+                "the {name} ({:.1} ms) is kept untested: neither the runs' scatter nor the residual's curvature gives it a standard error",
+                t * 1e3
+            ));
+        }
+    }
     if dropped {
         if let Some((s, _, _)) = b.radar_scale(at) {
             at.scale = s;
@@ -883,7 +906,8 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
 /// the fitted delays (`fit`; central differences of 4 ms, the cross term where both are
 /// fitted), σ² = RSS/(n − 10 − runs), n_eff the effective samples of the constant pad law's
 /// residuals (as [`Balance::run_weights`] fits it). Returned as [var_r, cov, var_w] (NaN for a
-/// delay not fitted); None where H is not positive definite. What the samples' noise alone
+/// delay not fitted); each delay's own curvature, uncorrelated, where H has no joint minimum;
+/// None where a fitted delay's own curvature is not positive. What the samples' noise alone
 /// allows: the runs' scatter ([`jackknife_delays`]) can come out smaller by chance on few
 /// runs. Marginal, not conditional: with the two delays correlated (they shift the radar and
 /// the wheels against the same pressures) each one's error is larger than its curvature alone
@@ -926,8 +950,13 @@ fn curvature_cov(b: &Balance, at: &At, fit: (bool, bool)) -> Option<[f64; 3]> {
         (true, true) => {
             let hrw = (f(1.0, 1.0) - f(1.0, -1.0) - f(-1.0, 1.0) + f(-1.0, -1.0)) / (4.0 * h * h);
             let det = hr * hw - hrw * hrw;
-            (hr > 0.0 && det > 0.0 && det.is_finite())
-                .then(|| [scale * hw / det, -scale * hrw / det, scale * hr / det])
+            if hr > 0.0 && det > 0.0 && det.is_finite() {
+                Some([scale * hw / det, -scale * hrw / det, scale * hr / det])
+            } else {
+                // No joint minimum (or no cross term): each delay's own curvature, which
+                // understates the errors but still bounds the jackknife's.
+                (hr > 0.0 && hw > 0.0).then(|| [scale / hr, 0.0, scale / hw])
+            }
         }
         (true, false) => (hr > 0.0).then(|| [scale / hr, f64::NAN, f64::NAN]),
         _ => (hw > 0.0).then(|| [f64::NAN, f64::NAN, scale / hw]),
