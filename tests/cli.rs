@@ -1760,6 +1760,11 @@ fn a_rerun_reuses_the_campaigns_calibration_until_an_input_changes() {
     let (reused, _, _) = run(&[]);
     assert!(!reused, "a changed sidecar reused the calibration");
     assert!(run(&[]).0, "the same inputs again");
+    // A damaged calibration.json is not reused: fitted again, and written whole.
+    std::fs::write(d.join("out/calibration.json"), "{ not json").unwrap();
+    let (reused, cal4, _) = run(&[]);
+    assert!(!reused);
+    assert!(serde_json::from_slice::<serde_json::Value>(&cal4).is_ok());
     // So is a changed pipeline file, and one run fewer.
     let text_before = std::fs::read_to_string(&pipe).unwrap();
     std::fs::write(&pipe, format!("{text_before}\n# edited\n")).unwrap();

@@ -119,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         for seed in seeds {
             let out = sim::simulate(&scene, seed)?;
             // The noise seed the run was simulated with (as `simulate` prints it).
-            let seed = seed.map_or(scene.seed, |s| sim::noise_seed(s, scene.seed));
+            let seed = sim::run_seed(&scene, seed);
             let (v0_kmh, t_c) = (scene.run.initial_speed_kmh, scene.run.ambient_temperature_c);
             let samples = out.truth.samples(t_c);
             let name = format!("{} (noise seed {seed})", scene.name);

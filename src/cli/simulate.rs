@@ -46,7 +46,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     println!(
         "scene      {} (noise seed {}): {:.2} s simulated in {} steps of {} ms, {:.3} s wall ({:.0}x real time)",
         scene.name,
-        args.seed.map_or(scene.seed, |s| sim::noise_seed(s, scene.seed)),
+        sim::run_seed(&scene, args.seed),
         out.duration_s,
         out.steps,
         scene.run.step_s * 1e3,

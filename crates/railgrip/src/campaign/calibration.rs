@@ -67,19 +67,12 @@ pub fn campaign_inputs_sha256(logs: &[(String, LogSource)], pipeline: &Pipeline)
         h.update(b"\0run\0");
         h.update(name.as_bytes());
         h.update(b"\0");
-        let read = src.fetched().and_then(|s| {
-            let log = crate::hash::sha256_stream(s.open()?, &mut [])?;
-            Ok((log, s.sidecar()?.1))
-        });
-        match read {
-            Ok((log, side)) => {
-                h.update(log.as_bytes());
-                h.update(b"\0sidecar\0");
-                if let Some(side) = side {
-                    h.update(side);
-                }
-            }
-            Err(e) => h.update(format!("\0unreadable: {e}").as_bytes()),
+        // A log that fails part-way hashes what it gave and then its error.
+        if let Err(e) = src
+            .fetched()
+            .and_then(|s| super::runs::hash_log_and_sidecar(&s, &mut h))
+        {
+            h.update(format!("\0unreadable: {e}").as_bytes());
         }
     }
     crate::hash::hex(&h.finalize())
@@ -115,7 +108,7 @@ pub fn calibrated_pipeline(
     whole: bool,
     where_: &Path,
     previous: Option<&Path>,
-) -> Result<(Pipeline, Option<Reused>), CampaignError> {
+) -> Result<(Pipeline, Option<CalibrationRecord>, bool), CampaignError> {
     let mode = pipeline.estimate.calibration;
     if mode == CalibrationSource::Pipeline {
         if pipeline.calibrated.is_some() {
@@ -125,11 +118,11 @@ pub fn calibrated_pipeline(
                 hint: "set estimate.calibration to the calibration's source, or leave --calibration out".into(),
             });
         }
-        return Ok((pipeline.clone(), None));
+        return Ok((pipeline.clone(), None, false));
     }
     if let Some(given) = &pipeline.calibrated {
         check_given(given, logs, pipeline, where_, whole)?;
-        return Ok((pipeline.clone(), None));
+        return Ok((pipeline.clone(), None, false));
     }
     if !compute {
         return Err(CampaignError::Input {
@@ -143,27 +136,16 @@ pub fn calibrated_pipeline(
     }
     // Hashed before the fit: a log changed while it is fitted is not recorded as fitted.
     let inputs = campaign_inputs_sha256(logs, pipeline);
-    let record = match previous.and_then(|f| reusable(f, &inputs, pipeline)) {
-        Some(r) => Reused::Yes(r),
-        None => Reused::No(fit_campaign(logs, pipeline, options, where_, inputs)?),
+    let (record, reused) = match previous.and_then(|f| reusable(f, &inputs, pipeline)) {
+        Some(r) => (r, true),
+        None => (
+            fit_campaign(logs, pipeline, options, where_, inputs)?,
+            false,
+        ),
     };
     let mut p = pipeline.clone();
-    p.calibrated = Some(record.record().calibrated.clone());
-    Ok((p, Some(record)))
-}
-
-/// A campaign's calibration record, fitted here or reused from the output folder.
-pub enum Reused {
-    Yes(CalibrationRecord),
-    No(CalibrationRecord),
-}
-
-impl Reused {
-    pub fn record(&self) -> &CalibrationRecord {
-        match self {
-            Reused::Yes(r) | Reused::No(r) => r,
-        }
-    }
+    p.calibrated = Some(record.calibrated.clone());
+    Ok((p, Some(record), reused))
 }
 
 /// The calibration record in `file` when it was fitted on these inputs

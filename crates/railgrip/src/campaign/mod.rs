@@ -465,7 +465,7 @@ fn campaign_calibration(
     out: &OutDir,
     root: &Path,
 ) -> Result<(Pipeline, Option<calibration::CalibrationRecord>, bool), CampaignError> {
-    let (calibrated, record) = calibration::calibrated_pipeline(
+    calibration::calibrated_pipeline(
         logs,
         pipeline,
         options,
@@ -477,12 +477,7 @@ fn campaign_calibration(
         (!options.force && options.part == Part::All)
             .then(|| out.root().join(calibration::CALIBRATION_FILE))
             .as_deref(),
-    )?;
-    let reused = matches!(record, Some(calibration::Reused::Yes(_)));
-    let record = record.map(|r| match r {
-        calibration::Reused::Yes(r) | calibration::Reused::No(r) => r,
-    });
-    Ok((calibrated, record, reused))
+    )
 }
 
 /// Writes the calibration this campaign fitted as `calibration.json` (true), or, for a whole

@@ -146,16 +146,23 @@ pub fn run_name(root: &Path, path: &Path) -> String {
     parts.join("__")
 }
 
+/// Streams `src`'s log into `h`, then `\0sidecar\0` and its sidecar (if any); returns the log's
+/// own SHA-256 (hex). What a run's reuse key and a campaign's calibration key hash of a log.
+pub(crate) fn hash_log_and_sidecar(src: &LogSource, h: &mut Sha256) -> std::io::Result<String> {
+    let log = crate::hash::sha256_stream(src.open()?, &mut [h])?;
+    h.update(b"\0sidecar\0");
+    if let (_, Some(side)) = src.sidecar()? {
+        h.update(side);
+    }
+    Ok(log)
+}
+
 /// SHA-256 (hex) over the log's bytes, its metadata sidecar's (when there is one), the
 /// pipeline text and the calibration it carries (if any): what decides whether a run's outputs are still current. Also returns the
 /// SHA-256 of the log alone (the model files' provenance). One streaming pass over the log.
 pub fn input_hash(src: &LogSource, pipeline: &Pipeline) -> std::io::Result<(String, String)> {
     let mut h = Sha256::new();
-    let log = crate::hash::sha256_stream(src.open()?, &mut [&mut h])?;
-    h.update(b"\0sidecar\0");
-    if let (_, Some(side)) = src.sidecar()? {
-        h.update(side);
-    }
+    let log = hash_log_and_sidecar(src, &mut h)?;
     h.update(b"\0pipeline\0");
     h.update(pipeline.text.as_bytes());
     if let Some(c) = &pipeline.calibrated {

@@ -791,7 +791,7 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
         };
         let se = (j.var_r.sqrt(), j.var_w.sqrt());
         // The test's errors: the larger of the jackknife's and the curvature's (marginal).
-        let curv = curvature_cov(b, at, fit);
+        let curv = j.curvature;
         let floor = curv.map_or((f64::NAN, f64::NAN), |c| (c[0].sqrt(), c[2].sqrt()));
         let tested = (se.0.max(floor.0), se.1.max(floor.1));
         // Both fitted: tested together, by the smaller of the two statistics (the bundled
@@ -905,19 +905,25 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
 /// speed terms, a constant per run): V = 2 σ² (n/n_eff) H⁻¹ with H the residual's Hessian in
 /// the fitted delays (`fit`; central differences of 4 ms, the cross term where both are
 /// fitted), σ² = RSS/(n − 10 − runs), n_eff the effective samples of the constant pad law's
-/// residuals (as [`Balance::run_weights`] fits it). Returned as [var_r, cov, var_w] (NaN for a
+/// residuals (as [`Balance::run_weights`] fits it). `all(i, j)` is the campaign's residual at
+/// the stencil's point (i, j) × 4 ms (the jackknife's pass computes it), `(n, runs)` the rows
+/// and the runs holding them. Returned as [var_r, cov, var_w] (NaN for a
 /// delay not fitted); each delay's own curvature, uncorrelated, where H has no joint minimum;
 /// None where a fitted delay's own curvature is not positive. What the samples' noise alone
 /// allows: the runs' scatter ([`jackknife_delays`]) can come out smaller by chance on few
 /// runs. Marginal, not conditional: with the two delays correlated (they shift the radar and
 /// the wheels against the same pressures) each one's error is larger than its curvature alone
 /// says.
-fn curvature_cov(b: &Balance, at: &At, fit: (bool, bool)) -> Option<[f64; 3]> {
-    let g = b.gram(at, PadForm::Linear);
-    let runs = b.runs.iter().filter(|r| !r.rows.is_empty()).count() as f64;
-    let n = g.n as f64;
-    let dof = n - Y as f64 - runs;
-    let rss = g.rss_free();
+fn curvature_cov(
+    b: &Balance,
+    at: &At,
+    fit: (bool, bool),
+    (n, runs): (usize, usize),
+    all: &dyn Fn(i8, i8) -> f64,
+) -> Option<[f64; 3]> {
+    let n_rows = n as f64;
+    let dof = n_rows - Y as f64 - runs as f64;
+    let rss = all(0, 0);
     if !(dof > 0.0 && rss.is_finite()) || fit == (false, false) {
         return None;
     }
@@ -928,27 +934,16 @@ fn curvature_cov(b: &Balance, at: &At, fit: (bool, bool)) -> Option<[f64; 3]> {
         .rss_at(&apart, PadForm::Constant, 0.0)
         .or_else(|| cg.rss_at(&together, PadForm::Constant, 0.0))
         .map(|f| b.n_eff(at, PadForm::Constant, &f))?;
-    let scale = 2.0 * rss / dof * n / n_eff;
-    let h = 0.004;
-    let f = |i: f64, j: f64| {
-        b.gram(
-            &At {
-                radar_s: at.radar_s + i * h,
-                tacho_s: at.tacho_s + j * h,
-                ..*at
-            },
-            PadForm::Linear,
-        )
-        .rss_free()
-    };
-    let d2 = |i: f64, j: f64| (f(i, j) - 2.0 * rss + f(-i, -j)) / (h * h);
+    let scale = 2.0 * rss / dof * n_rows / n_eff;
+    let (h, f) = (STENCIL_S, all);
+    let d2 = |i: i8, j: i8| (f(i, j) - 2.0 * rss + f(-i, -j)) / (h * h);
     let (hr, hw) = (
-        if fit.0 { d2(1.0, 0.0) } else { f64::NAN },
-        if fit.1 { d2(0.0, 1.0) } else { f64::NAN },
+        if fit.0 { d2(1, 0) } else { f64::NAN },
+        if fit.1 { d2(0, 1) } else { f64::NAN },
     );
     match fit {
         (true, true) => {
-            let hrw = (f(1.0, 1.0) - f(1.0, -1.0) - f(-1.0, 1.0) + f(-1.0, -1.0)) / (4.0 * h * h);
+            let hrw = (f(1, 1) - f(1, -1) - f(-1, 1) + f(-1, -1)) / (4.0 * h * h);
             let det = hr * hw - hrw * hrw;
             if hr > 0.0 && det > 0.0 && det.is_finite() {
                 Some([scale * hw / det, -scale * hrw / det, scale * hr / det])
@@ -987,54 +982,43 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
     if runs < 3 || !b.per_run {
         return None;
     }
-    let h = 0.004;
-    // The profiled residual without each run at the stencil's points (i, j) × h.
-    let without_each = |i: f64, j: f64| -> Vec<f64> {
-        let a = At {
-            radar_s: at.radar_s + i * h,
-            tacho_s: at.tacho_s + j * h,
-            ..*at
-        };
-        let grams = b.run_grams(&a, PadForm::Linear);
-        let mut total = Gram {
-            g: vec![0.0; Z * Z],
-            n: 0,
-        };
-        for g in &grams {
-            total.n += g.n;
-            total.g.iter_mut().zip(&g.g).for_each(|(t, x)| *t += x);
-        }
-        grams
-            .iter()
-            .map(|g| {
-                let loo = Gram {
-                    g: total.g.iter().zip(&g.g).map(|(t, x)| t - x).collect(),
-                    n: total.n - g.n,
-                };
-                loo.rss_free()
-            })
-            .collect()
-    };
-    // Runs that hold rows of the balance (the others change nothing when left out).
-    let informative: Vec<bool> = b
-        .run_grams(at, PadForm::Linear)
-        .iter()
-        .map(|g| g.n > 0)
+    let h = STENCIL_S;
+    // The stencil's points (i, j) × h about `at`: the centre, ± each fitted delay, and the
+    // diagonals for the cross term where both are fitted.
+    let mut offsets: Vec<(i8, i8)> = vec![(0, 0)];
+    if fit.0 {
+        offsets.extend([(1, 0), (-1, 0)]);
+    }
+    if fit.1 {
+        offsets.extend([(0, 1), (0, -1)]);
+    }
+    if fit == (true, true) {
+        offsets.extend([(1, 1), (-1, -1), (1, -1), (-1, 1)]);
+    }
+    let points: Vec<((i8, i8), Point)> = offsets
+        .into_iter()
+        .map(|(i, j)| ((i, j), b.point(at, i, j)))
         .collect();
-    let f0 = without_each(0.0, 0.0);
-    let pair = |on: bool, i: f64, j: f64| {
-        if on {
-            (without_each(i, j), without_each(-i, -j))
-        } else {
-            (f0.clone(), f0.clone())
-        }
-    };
-    let (rp, rm) = pair(fit.0, 1.0, 0.0);
-    let (wp, wm) = pair(fit.1, 0.0, 1.0);
-    let cross = (fit.0 && fit.1).then(|| {
-        let (pp, mm) = (without_each(1.0, 1.0), without_each(-1.0, -1.0));
-        let (pm, mp) = (without_each(1.0, -1.0), without_each(-1.0, 1.0));
-        (pp, mm, pm, mp)
+    let get = |i: i8, j: i8| points.iter().find(|(o, _)| *o == (i, j)).map(|(_, p)| p);
+    let p0 = get(0, 0).expect("the centre is computed");
+    let (f0, informative) = (&p0.without, &p0.held);
+    // The whole campaign's residual at a point (NaN where not computed) gives the curvature.
+    let all = |i: i8, j: i8| get(i, j).map_or(f64::NAN, |p| p.all);
+    let held = informative.iter().filter(|x| **x).count();
+    let curvature = curvature_cov(b, at, fit, (p0.n, held), &all);
+    // Without each run, the jackknife's (the centre's where not computed).
+    let without = |i: i8, j: i8| get(i, j).map_or(f0, |p| &p.without);
+    let ((rp, rm), (wp, wm)) = (
+        (without(1, 0), without(-1, 0)),
+        (without(0, 1), without(0, -1)),
+    );
+    let cross = (fit == (true, true)).then(|| {
+        (
+            without(1, 1),
+            without(-1, -1),
+            without(1, -1),
+            without(-1, 1),
+        )
     });
     let steps: Vec<(f64, f64)> = (0..runs)
         .map(|r| {
@@ -1070,7 +1054,7 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
     let var = |x: fn(&(f64, f64)) -> f64| {
         let vals: Vec<f64> = steps
             .iter()
-            .zip(&informative)
+            .zip(informative)
             .filter(|(_, on)| **on)
             .map(|(s, _)| x(s))
             .filter(|v| v.is_finite())
@@ -1083,7 +1067,7 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
         (n - 1.0) / n * vals.iter().map(|v| (v - m).powi(2)).sum::<f64>()
     };
     let joint = if fit == (true, true) {
-        joint_matrix(&steps, &informative)
+        joint_matrix(&steps, informative)
     } else {
         None
     };
@@ -1091,7 +1075,23 @@ fn jackknife_delays(b: &Balance, at: &At, fit: (bool, bool)) -> Option<Jackknife
         var_r: var(|s| s.0),
         var_w: var(|s| s.1),
         joint,
+        curvature,
     })
+}
+
+/// The delays' finite-difference step (s): the profile's curvature, the jackknife's and the
+/// test's stencil.
+const STENCIL_S: f64 = 0.004;
+
+/// The balance's profiled residual at one point of the delays' stencil.
+struct Point {
+    /// The whole campaign's residual sum of squares, and its rows.
+    all: f64,
+    n: usize,
+    /// Without each run in turn.
+    without: Vec<f64>,
+    /// Whether each run holds rows of the balance.
+    held: Vec<bool>,
 }
 
 /// The joint test's matrix [var_r, cov, var_w] (s²) of the jackknife's steps (radar's,
@@ -1127,6 +1127,8 @@ struct Jackknife {
     var_r: f64,
     var_w: f64,
     joint: Option<[f64; 3]>,
+    /// The curvature's covariance [var_r, cov, var_w] (s², [`curvature_cov`]).
+    curvature: Option<[f64; 3]>,
 }
 
 /// The note for a group of axles fitted with one α.
@@ -1369,6 +1371,42 @@ impl Balance<'_> {
         n
     }
 
+    /// The profiled residual at the delays' stencil point (i, j) × [`STENCIL_S`] about `at`:
+    /// the whole campaign's and without each run in turn, from one pass over the samples
+    /// (each run's Gram matrix; a campaign without one run is the sum less that run's).
+    fn point(&self, at: &At, i: i8, j: i8) -> Point {
+        let a = At {
+            radar_s: at.radar_s + f64::from(i) * STENCIL_S,
+            tacho_s: at.tacho_s + f64::from(j) * STENCIL_S,
+            ..*at
+        };
+        let grams = self.run_grams(&a, PadForm::Linear);
+        let mut total = Gram {
+            g: vec![0.0; Z * Z],
+            n: 0,
+        };
+        for g in &grams {
+            total.n += g.n;
+            total.g.iter_mut().zip(&g.g).for_each(|(t, x)| *t += x);
+        }
+        let without = grams
+            .iter()
+            .map(|g| {
+                let loo = Gram {
+                    g: total.g.iter().zip(&g.g).map(|(t, x)| t - x).collect(),
+                    n: total.n - g.n,
+                };
+                loo.rss_free()
+            })
+            .collect();
+        Point {
+            all: total.rss_free(),
+            n: total.n,
+            without,
+            held: grams.iter().map(|g| g.n > 0).collect(),
+        }
+    }
+
     /// Each run's Gram matrix of z with its own constant eliminated, G_r = Σ w z zᵀ −
     /// (Σ w z)(Σ w z)ᵀ / Σ w over its rows (a run with fewer than two rows: zero, n = 0); with
     /// one constant per run, [`Self::gram`] is their sum, so a
@@ -1599,7 +1637,7 @@ fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let a = grid[ib.saturating_sub(1)];
     let b = grid[(ib + 1).min(grid.len() - 1)];
     let t = golden(&rss, a, b, 1e-5);
-    let h = 0.004;
+    let h = STENCIL_S;
     let d2 = (rss(t + h) - 2.0 * rss(t) + rss(t - h)) / (h * h);
     (t, d2)
 }
@@ -1631,7 +1669,7 @@ fn parameter_errors(
         if !fitted {
             return f64::NAN;
         }
-        let h = 0.004;
+        let h = STENCIL_S;
         let rss = |x: f64| {
             b.gram(&shifted(x), fit.form)
                 .rss_at(&fit.groups, fit.form, fit.gamma)

@@ -343,11 +343,17 @@ pub fn noise_seed(campaign: u64, scene_seed: u64) -> u64 {
     crate::rng::Rng::new(campaign.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ scene_seed).next_u64()
 }
 
-/// Runs a scene. With `seed`, the scene's noise comes from [`noise_seed`]`(seed, its seed)`
-/// (the log's metadata and the truth name that seed: a scene file with it reproduces the run).
+/// The noise seed `sc` is simulated with: its own, or with a campaign's `seed`
+/// [`noise_seed`]`(seed, its own)`.
+pub fn run_seed(sc: &Scene, seed: Option<u64>) -> u64 {
+    seed.map_or(sc.seed, |s| noise_seed(s, sc.seed))
+}
+
+/// Runs a scene with the noise of [`run_seed`] (the log's metadata and the truth name that
+/// seed: a scene file with it reproduces the run).
 pub fn simulate(sc: &Scene, seed: Option<u64>) -> Result<SimOutput, SimError> {
     let model = load_law(sc)?;
-    let seed = seed.map_or(sc.seed, |s| noise_seed(s, sc.seed));
+    let seed = run_seed(sc, seed);
     let (channels, truth, counters, n) = run_detected(sc, model.as_ref(), seed)?;
     let metadata = RunMetadata {
         ambient_temperature_c: Some(sc.run.ambient_temperature_c),
