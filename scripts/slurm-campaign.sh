@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
-# Runs a railgrip campaign on a Slurm cluster: a job array of N estimate shards, then the models
-# stage once every shard has finished (docs/cluster.md). The output folder must be on a file
+# Runs a railgrip campaign on a Slurm cluster: the campaign's calibration, then a job array of N
+# estimate shards, then the models stage once every shard has finished (docs/cluster.md). The output folder must be on a file
 # system every node sees. Extra sbatch options (partition, account, time) go in SBATCH_OPTS,
 # the models job's own (cores, memory) in SBATCH_MODELS_OPTS.
 #
 #   scripts/slurm-campaign.sh ARCHIVE OUT N [PIPELINE]
 #
 # OUT may be s3://BUCKET/PREFIX (the AWS_* variables reach the jobs through sbatch's default
-# --export=ALL). Prints the two job ids. RAILGRIP (default: railgrip on PATH) is the binary the
+# --export=ALL). Prints the three job ids. RAILGRIP (default: railgrip on PATH) is the binary the
 # jobs run; SLURM_LOGS the folder of the jobs' logs (default OUT/slurm, ./railgrip-slurm for s3://).
 set -euo pipefail
 if [ $# -lt 3 ] || [ $# -gt 4 ]; then
@@ -31,8 +31,15 @@ case $out in
 esac
 mkdir -p "$logs"
 
+# The campaign's calibration (OUT/calibration.json, when the pipeline asks for one), which every
+# shard and the models job take from OUT.
+calib=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-calibrate \
+    --output="$logs/calibrate.log" \
+    --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage calibrate)")
+calib=${calib%%;*}
 # One task per shard; each estimates every N-th run into the shared folder, one core each.
 shards=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-estimate --array="1-$n" \
+    --dependency="afterok:$calib" \
     --cpus-per-task=1 --output="$logs/estimate-%a.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" --jobs 1 "${pipeline[@]}" \
         --stage estimate --shard)\"\$SLURM_ARRAY_TASK_ID/$n\"")
@@ -41,4 +48,4 @@ shards=${shards%%;*}
 models=$("$sbatch" --parsable "${opts[@]}" "${models_opts[@]}" --job-name=railgrip-models \
     --dependency="afterany:$shards" --output="$logs/models.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage models)")
-echo "estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"
+echo "calibration: job $calib; estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"

@@ -1233,6 +1233,29 @@ fn estimate_shards_then_the_models_stage_write_the_bytes_of_one_run() {
     std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
     let one = railgrip(&["run", "campaign", "--out", "one"], dir.path());
     assert_eq!(one.status.code(), Some(3), "{}", text(&one.stderr));
+    // The default pipeline calibrates the campaign: a shard refuses to start without it.
+    let early = railgrip(
+        &[
+            "run", "campaign", "--out", "sh", "--stage", "estimate", "--shard", "1/3",
+        ],
+        dir.path(),
+    );
+    assert_eq!(early.status.code(), Some(1), "{}", text(&early.stdout));
+    assert!(
+        text(&early.stderr).contains("--stage calibrate"),
+        "{}",
+        text(&early.stderr)
+    );
+    let c = railgrip(
+        &["run", "campaign", "--out", "sh", "--stage", "calibrate"],
+        dir.path(),
+    );
+    assert_eq!(c.status.code(), Some(0), "{}", text(&c.stderr));
+    let out = text(&c.stdout);
+    assert!(
+        out.contains("campaign calibration over") && out.contains("broken"),
+        "{out}"
+    );
     for k in 1..=3 {
         let shard = format!("{k}/3");
         let o = railgrip(
@@ -1329,7 +1352,7 @@ fn the_models_stage_refuses_missing_and_stale_runs_by_name() {
 }
 
 #[test]
-fn the_slurm_script_runs_the_shards_then_the_models_stage() {
+fn the_slurm_script_runs_the_calibration_the_shards_then_the_models_stage() {
     // scripts/slurm-campaign.sh against a stand-in for sbatch that runs each job at once
     // (array tasks one after the other with SLURM_ARRAY_TASK_ID set) and records its options.
     // The script was also run under a real single-node Slurm 22.05 (docs/cluster.md).
@@ -1342,11 +1365,12 @@ fn the_slurm_script_runs_the_shards_then_the_models_stage() {
         r#"#!/usr/bin/env bash
 set -euo pipefail
 echo "$*" >> "$(dirname "$0")/submitted.txt"
-array="" wrap=""
+array="" wrap="" name=""
 for a in "$@"; do
     case $a in
         --array=*) array=${a#--array=} ;;
         --wrap=*) wrap=${a#--wrap=} ;;
+        --job-name=*) name=${a#--job-name=} ;;
     esac
 done
 if [ -n "$array" ]; then
@@ -1354,6 +1378,9 @@ if [ -n "$array" ]; then
         SLURM_ARRAY_TASK_ID=$k bash -c "$wrap" > /dev/null || [ $? -eq 3 ]
     done
     echo 101
+elif [ "$name" = railgrip-calibrate ]; then
+    bash -c "$wrap" > /dev/null
+    echo 100
 else
     bash -c "$wrap" > /dev/null
     echo 102
@@ -1375,12 +1402,16 @@ fi
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", text(&o.stderr));
-    assert!(text(&o.stdout).contains("job 101 (array 1-2); models: job 102"));
+    assert!(text(&o.stdout)
+        .contains("calibration: job 100; estimate shards: job 101 (array 1-2); models: job 102"));
     let submitted = std::fs::read_to_string(dir.path().join("submitted.txt")).unwrap();
     assert!(
-        submitted.contains("--dependency=afterany:101"),
+        submitted.contains("--dependency=afterok:100")
+            && submitted.contains("--dependency=afterany:101"),
         "{submitted}"
     );
+    // The default pipeline ("auto") calibrates the three runs; every part took that calibration.
+    assert!(dir.path().join("sh/calibration.json").is_file());
     assert!(
         submitted.contains("--cpus-per-task=2 --job-name=railgrip-models"),
         "{submitted}"
@@ -1424,10 +1455,23 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     let d = dir.path();
     let (camp, pipe, cal) = bundled_calibration(d);
     let (camp, pipe, cal) = (camp.as_str(), pipe.as_str(), cal.as_str());
-    // Written only for a pipeline that runs with it.
-    let o = railgrip(&["calibrate", "--campaign", camp, "--out", "x"], d);
+    // Written only for a pipeline that runs with it: the default ("auto") does.
+    let own = calibrated_pipeline(d, "pipeline").display().to_string();
+    let o = railgrip(
+        &[
+            "calibrate",
+            "--campaign",
+            camp,
+            "--out",
+            "x",
+            "--pipeline",
+            &own,
+        ],
+        d,
+    );
     assert_eq!(o.status.code(), Some(1));
     assert!(text(&o.stderr).contains("estimate.calibration is \"pipeline\""));
+
     let o = railgrip(&["calibrate", "--campaign", camp], d);
     let s = text(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{s}{}", text(&o.stderr));
@@ -1530,6 +1574,54 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     assert!(same);
 }
 
+/// The default pipeline ("auto"): `calibrate --campaign --out` writes a "campaign" calibration;
+/// a run estimated alone takes the pipeline's values (the same μ as "pipeline") and says why,
+/// or the campaign's calibration when it is given.
+#[test]
+fn auto_estimates_a_run_alone_with_the_pipelines_values_unless_given_the_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = root().join("fixtures/archive").display().to_string();
+    let o = railgrip(&["calibrate", "--campaign", &camp, "--out", "x"], d);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let auto: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("x/calibration.json")).unwrap())
+            .unwrap();
+    assert_eq!(auto["calibrated"]["source"], "campaign");
+    let own = calibrated_pipeline(d, "pipeline").display().to_string();
+    let run = archive("soap_120kmh_0c.csv");
+    let estimate = |out: &str, extra: &[&str]| {
+        let mut args = vec!["estimate", run.as_str(), "--out", out];
+        args.extend(extra);
+        let o = railgrip(&args, d);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        let mu = common::parquet_columns(
+            &d.join(out).join("soap_120kmh_0c.estimates.parquet"),
+            &["mu"],
+        )
+        .remove(0);
+        (text(&o.stderr), mu)
+    };
+    let (said, plain) = estimate("plain", &[]);
+    assert!(
+        said.contains("a run alone cannot calibrate itself"),
+        "{said}"
+    );
+    let (said, mu_own) = estimate("own", &["--pipeline", &own]);
+    assert!(!said.contains("cannot calibrate"), "{said}");
+    let same = |a: &[f64], b: &[f64]| {
+        a.len() == b.len()
+            && a.iter()
+                .zip(b)
+                .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))
+    };
+    assert!(same(&plain, &mu_own));
+    let cal = d.join("x/calibration.json").display().to_string();
+    let (said, given) = estimate("given", &["--calibration", &cal]);
+    assert!(!said.contains("cannot calibrate"), "{said}");
+    assert!(!same(&plain, &given));
+}
+
 /// A campaign calibration, as `railgrip calibrate --campaign` writes it for the bundled archive
 /// and a pipeline that runs with it: (archive, pipeline file, calibration file).
 fn bundled_calibration(d: &Path) -> (String, String, String) {
@@ -1574,8 +1666,9 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
         args
     }
     // A pipeline that does not ask for a calibration.
+    let own = calibrated_pipeline(d, "pipeline").display().to_string();
     refused(
-        &models(camp, None, cal),
+        &models(camp, Some(&own), cal),
         "estimate.calibration is \"pipeline\"",
     );
     // The same settings in another file (one more comment line): another pipeline file.
@@ -1593,7 +1686,12 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
     // One run estimated alone: the same checks of the pipeline.
     let run = archive("soap_120kmh_0c.csv");
     let alone = ["estimate", run.as_str(), "--out", "e", "--calibration", cal];
-    refused(&alone, "estimate.calibration is \"pipeline\"");
+    refused(
+        &[&alone[..], &["--pipeline", &own]].concat(),
+        "estimate.calibration is \"pipeline\"",
+    );
+    // The default pipeline ("auto") takes a "campaign" calibration, but of its own file.
+    refused(&alone, "another pipeline file");
     refused(
         &[&alone[..], &["--pipeline", edited]].concat(),
         "another pipeline file",
@@ -1633,6 +1731,95 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
     refused(
         &models(other.to_str().unwrap(), Some(pipe), cal),
         "does not belong to this campaign: it was fitted on other runs (not fitted: none; not in the campaign: dry_120kmh_p20",
+    );
+}
+
+/// The default `estimate.calibration = "auto"`: a campaign of three runs is calibrated (its
+/// calibration in the output folder, the campaign record and the report), one of two runs is
+/// estimated with the pipeline's values and the run's notes say why; `"campaign"` refuses two.
+#[test]
+fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    three_run_campaign(&d.join("three"));
+    two_run_campaign(&d.join("two"));
+    let o = railgrip(&["run", "three", "--out", "o3", "--json"], d);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let campaign: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o3/campaign.json")).unwrap())
+            .unwrap();
+    assert_eq!(campaign["calibration"]["source"], "campaign");
+    assert_eq!(campaign["calibration"]["runs"].as_array().unwrap().len(), 3);
+    assert!(d.join("o3/calibration.json").is_file());
+
+    let o = railgrip(&["run", "two", "--out", "o2", "--json"], d);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let json: serde_json::Value = serde_json::from_str(&text(&o.stdout)).unwrap();
+    let notes: Vec<&str> = json["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .collect();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.starts_with("calibration: none (only 2 runs")
+                && n.contains("estimated with [vehicle]'s α")),
+        "{notes:?}"
+    );
+    assert!(!d.join("o2/calibration.json").exists());
+    let campaign: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o2/campaign.json")).unwrap())
+            .unwrap();
+    assert!(campaign["calibration"].is_null(), "{campaign}");
+    // The same two runs with the pipeline's own values: the same estimates.
+    let own = calibrated_pipeline(d, "pipeline");
+    let o = railgrip(
+        &[
+            "run",
+            "two",
+            "--out",
+            "own",
+            "--pipeline",
+            own.to_str().unwrap(),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let runs = |out: &str| {
+        let mut v: Vec<Vec<f64>> = files_below(&d.join(out))
+            .into_iter()
+            .filter(|p| p.file_name().unwrap() == "estimates.parquet")
+            .map(|p| common::parquet_columns(&p, &["mu"]).remove(0))
+            .collect();
+        v.sort_by_key(Vec::len);
+        v
+    };
+    let (auto, own) = (runs("o2"), runs("own"));
+    assert_eq!(auto.len(), 2);
+    assert!(auto.iter().zip(&own).all(|(a, b)| a
+        .iter()
+        .zip(b)
+        .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))));
+    // "campaign" refuses the two.
+    let camp = calibrated_pipeline(d, "campaign");
+    let o = railgrip(
+        &[
+            "run",
+            "two",
+            "--out",
+            "oc",
+            "--pipeline",
+            camp.to_str().unwrap(),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+    assert!(
+        text(&o.stderr).contains("a campaign's calibration needs at least 3"),
+        "{}",
+        text(&o.stderr)
     );
 }
 
@@ -1690,7 +1877,7 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
         "no calibration section"
     );
     // A rerun reuses every run (the calibration is the same, so are the runs' keys); the
-    // same archive with the pipeline's own α leaves no calibration file behind.
+    // same archive with the pipeline's own α ("pipeline") leaves no calibration file behind.
     let o = railgrip(
         &[
             "run",
@@ -1709,7 +1896,18 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
         "{}",
         text(&o.stderr)
     );
-    let o = railgrip(&["run", camp.to_str().unwrap(), "--out", "o"], d);
+    let own = calibrated_pipeline(d, "pipeline");
+    let o = railgrip(
+        &[
+            "run",
+            camp.to_str().unwrap(),
+            "--out",
+            "o",
+            "--pipeline",
+            own.to_str().unwrap(),
+        ],
+        d,
+    );
     assert_eq!(o.status.code(), Some(0));
     assert!(!d.join("o/calibration.json").exists());
 }

@@ -234,7 +234,23 @@ fn a_campaign_in_a_bucket_runs_into_a_bucket_with_the_bytes_of_a_local_output() 
     let mut without = moto.download("camp", "2026/out");
     assert!(without.remove("notes/keep.txt").is_some());
     assert_same(&remote, &without, "after a run with --mcap and one without");
-    // In parts: two shards and the models stage on the bucket give the same bytes.
+    // In parts: the calibration, two shards and the models stage on the bucket give the same
+    // bytes (each part takes the calibration.json the first wrote).
+    let c = moto.railgrip(
+        &[
+            "run",
+            "s3://camp/2026/a",
+            "--out",
+            "s3://camp/2026/sharded",
+            "--stage",
+            "calibrate",
+        ],
+        dir.path(),
+    );
+    assert_eq!(c.status.code(), Some(0), "{}", text(&c.stderr));
+    assert!(moto
+        .download("camp", "2026/sharded")
+        .contains_key("calibration.json"));
     for k in ["1/2", "2/2"] {
         let o = moto.railgrip(
             &[

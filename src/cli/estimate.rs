@@ -49,6 +49,12 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             )?;
             pipeline.calibrated = Some(given);
         }
+        // A run alone cannot calibrate itself: "auto" estimates it with the pipeline's values.
+        None if pipeline.estimate.calibration == railgrip::config::CalibrationSource::Auto => {
+            eprintln!(
+                "note: estimated with [vehicle]'s α and the radar as logged (estimate.calibration = \"auto\": a run alone cannot calibrate itself; give a campaign's calibration with --calibration FILE, which `railgrip calibrate --campaign ARCHIVE --out DIR` writes)"
+            );
+        }
         None if pipeline.estimate.calibration != railgrip::config::CalibrationSource::Pipeline => {
             anyhow::bail!(
                 "{}: estimate.calibration = \"{}\" needs the campaign's calibration. Hint: give it with --calibration FILE (railgrip calibrate --campaign ARCHIVE --out DIR writes DIR/calibration.json)",
@@ -281,7 +287,7 @@ fn calibrate_campaign(
     use railgrip::config::CalibrationSource;
     // The file written is for runs whose pipeline says "campaign" (it names that file's
     // hash); printed only, the fit is shown whatever the file says.
-    if pipeline.estimate.calibration != CalibrationSource::Campaign {
+    if pipeline.estimate.calibration.fitted() != Some(CalibrationSource::Campaign) {
         if out.is_some() {
             anyhow::bail!(
                 "{}: estimate.calibration is \"{}\", so the runs would not use a campaign calibration written with --out. Hint: give the pipeline the campaign runs with (estimate.calibration = \"campaign\") with --pipeline",

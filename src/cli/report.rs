@@ -89,7 +89,9 @@ fn print_stages(o: &campaign::Outcome) {
 
 /// What an estimate shard did: its runs, notes and time.
 pub(super) fn print_shard(o: &campaign::Outcome) {
-    print_runs(o);
+    if !o.records.is_empty() {
+        print_runs(o);
+    }
     for n in &o.notes {
         println!("note       {n}");
     }

@@ -37,20 +37,22 @@ pub struct Args {
     #[arg(long)]
     mcap: bool,
     /// The part of the job to do, for schedulers (a Slurm job array, docs/cluster.md): `all`;
-    /// `estimate` (with --shard K/N: that shard's runs into --out, no models or report);
-    /// `models` (train and report from what every shard wrote; refuses missing or stale runs
-    /// by name). The shards and then `models` write the same files as one `all`.
-    #[arg(long, value_name = "PART", default_value = "all", value_parser = ["all", "estimate", "models"])]
+    /// `calibrate` (the campaign's calibration into --out/calibration.json, when the pipeline
+    /// asks for one; first, before the other parts); `estimate` (with --shard K/N: that shard's
+    /// runs into --out, no models or report); `models` (train and report from what every shard
+    /// wrote; refuses missing or stale runs by name). `calibrate`, the shards and then
+    /// `models` write the same files as one `all`.
+    #[arg(long, value_name = "PART", default_value = "all", value_parser = ["all", "calibrate", "estimate", "models"])]
     stage: String,
     /// With --stage estimate: shard K of N (1 ≤ K ≤ N); the runs at positions K−1, K−1+N, …
     /// of the campaign's order.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
     /// The campaign's calibration (the calibration.json that `railgrip calibrate --campaign`
-    /// or an earlier `railgrip run` wrote), for a pipeline with estimate.calibration =
+    /// or an earlier `railgrip run` wrote), for a pipeline with estimate.calibration = "auto",
     /// "campaign" or "dry-run": every part of a scheduled campaign is given the same one
     /// (refused when fitted on other runs or with another pipeline file). Without it, `all`
-    /// fits it first.
+    /// fits it first, and the other parts take --out/calibration.json (`--stage calibrate`).
     #[arg(long, value_name = "FILE")]
     calibration: Option<std::path::PathBuf>,
 }
@@ -104,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             "--force goes with the estimate part (--stage estimate or all): --stage models uses what the shards wrote"
         ),
         ("models", None) => campaign::Part::Models,
+        ("calibrate", None) => campaign::Part::Calibrate,
         _ => campaign::Part::All,
     };
     let options = campaign::Options {
@@ -150,7 +153,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         println!("{}", serde_json::to_string_pretty(&s)?);
         return Ok(code);
     }
-    if matches!(part, campaign::Part::Estimate(_)) {
+    if matches!(
+        part,
+        campaign::Part::Estimate(_) | campaign::Part::Calibrate
+    ) {
         super::report::print_shard(&o);
         return Ok(if failed > 0 { EXIT_LOSSY } else { EXIT_OK });
     }

@@ -581,10 +581,11 @@ fn campaign_runs(
         .map_err(err)
 }
 
-/// The campaign's calibration (`estimate.calibration` "campaign" or "dry-run" of `pipeline`)
-/// fitted over the runs of `archive`, written as `calibration.json` into `out` (a path,
-/// file:// or s3://), and the pipeline carrying it — what every estimate task is then given.
-/// A pipeline with "pipeline" comes back as it is.
+/// The campaign's calibration (`estimate.calibration` "auto", "campaign" or "dry-run" of
+/// `pipeline`) fitted over the runs of `archive`, written as `calibration.json` into `out` (a
+/// path, file:// or s3://), and the pipeline carrying it — what every estimate task is then
+/// given. A pipeline with "pipeline", or with "auto" on a campaign of fewer than 3 runs with
+/// samples for the balance, comes back as it is.
 #[pyfunction]
 #[pyo3(signature = (archive, out, pipeline, jobs=None))]
 fn calibrate_campaign(
@@ -595,7 +596,7 @@ fn calibrate_campaign(
     jobs: Option<usize>,
 ) -> PyResult<PyPipeline> {
     let p = pipeline.inner.clone();
-    if p.estimate.calibration == railgrip::config::CalibrationSource::Pipeline {
+    if p.estimate.calibration.fitted().is_none() {
         return Ok(PyPipeline { inner: p });
     }
     py.detach(|| -> Result<PyPipeline, String> {
@@ -607,17 +608,24 @@ fn calibrate_campaign(
             jobs,
             ..Default::default()
         };
-        let record = railgrip::campaign::calibration::calibrate_campaign(&logs, &p, options, &root)
-            .map_err(|e| s(&e))?;
+        let c = railgrip::campaign::calibration::calibrated_pipeline(
+            &logs, &p, options, true, true, &root, None,
+        )
+        .map_err(|e| s(&e))?;
         let folder = railgrip::store::OutFolder::at(&out).map_err(|e| s(&e))?;
         std::fs::create_dir_all(folder.dir())
             .map_err(|e| format!("{}: cannot create the folder: {e}", folder.dir().display()))?;
-        let path = railgrip::campaign::calibration::write_calibration(folder.dir(), &record)
-            .map_err(|e| s(&e))?;
-        folder.finish(&[path]).map_err(|e| s(&e))?;
-        let mut inner = p;
-        inner.calibrated = Some(record.calibrated);
-        Ok(PyPipeline { inner })
+        let written = match &c.record {
+            Some(record) => {
+                vec![
+                    railgrip::campaign::calibration::write_calibration(folder.dir(), record)
+                        .map_err(|e| s(&e))?,
+                ]
+            }
+            None => vec![],
+        };
+        folder.finish(&written).map_err(|e| s(&e))?;
+        Ok(PyPipeline { inner: c.pipeline })
     })
     .map_err(err)
 }

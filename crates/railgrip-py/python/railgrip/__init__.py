@@ -69,7 +69,10 @@ def estimate(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFram
     ``dv_mps``, ``ddv_mps2``, ``slip_ratio``, ``decel_mps2``, ``normal_N``, ``tangential_N``,
     ``mu`` and ``valid``; the same values as the command. ``attrs`` as :func:`read_log`, plus
     filter_mode, group_delay_s and despiked. The table (with its ``attrs``) can be given to
-    :func:`train`.
+    :func:`train`. A run alone cannot calibrate itself: with ``estimate.calibration = "auto"``
+    (the default) it is estimated with the pipeline's α and the radar as logged, as the command
+    does without ``--calibration``; a campaign's calibration is applied by :func:`run` and
+    :func:`railgrip.ray.run`.
     """
     frame = _frame(*_native.estimate(os.fspath(path), pipeline))
     frame.attrs["name"] = _stem(frame.attrs.get("source", "run"))

@@ -33,7 +33,7 @@ class Pipeline:
     def text(self) -> str: ...
     @property
     def calibration_source(self) -> str:
-        """``estimate.calibration``: "pipeline", "campaign" or "dry-run"."""
+        """``estimate.calibration``: "auto" (the default), "pipeline", "campaign" or "dry-run"."""
     @property
     def calibration(self) -> Optional[str]:
         """The campaign calibration this pipeline carries (JSON), if any."""

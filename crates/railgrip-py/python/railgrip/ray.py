@@ -187,9 +187,12 @@ def run(
         ray.init()
     runs = _native.campaign_runs(archive, out)
     n = len(runs)
-    # A campaign that calibrates itself is calibrated here, once, over every run; each task is
-    # then given the pipeline that carries the calibration (the two passes of `railgrip run`).
-    if pipeline is not None and pipeline.calibration_source != "pipeline":
+    # A campaign that calibrates itself (the default pipeline's "auto" from 3 runs on) is
+    # calibrated here, once, over every run; each task is then given the pipeline that carries
+    # the calibration (the two passes of `railgrip run`).
+    if pipeline is None:
+        pipeline = _native.Pipeline.default()
+    if pipeline.calibration_source != "pipeline":
         say(f"calibrate  {n} run(s) from {archive} ({pipeline.calibration_source})")
         pipeline = _native.calibrate_campaign(archive, out, pipeline)
     say(f"estimate   {n} run(s) from {archive} as {n} Ray task(s)")

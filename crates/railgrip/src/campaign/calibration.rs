@@ -21,7 +21,7 @@ use super::{CampaignError, Options};
 use crate::config::calibrated::{Calibrated, Corrections, PadLaw};
 use crate::config::{CalibrationSource, Pipeline};
 use crate::estimate::calibrate::{calibrate, AlphaFit, Resistance};
-use crate::estimate::selfcal::{CampaignCalibration, CampaignCalibrator};
+use crate::estimate::selfcal::{CampaignCalibration, CampaignCalibrator, MIN_RUNS};
 use crate::format::AXLES;
 use crate::ingest::LogSource;
 
@@ -93,6 +93,20 @@ pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
     crate::hash::hex(&Sha256::digest(pipeline.text.as_bytes()))
 }
 
+/// What [`calibrated_pipeline`] gives: the pipeline the runs are estimated with and how it came
+/// to be.
+#[derive(Debug)]
+pub struct CampaignCalibrated {
+    /// The pipeline, carrying the calibration when one applies.
+    pub pipeline: Pipeline,
+    /// The calibration fitted (or reused) here; None when none applies or one was given.
+    pub record: Option<CalibrationRecord>,
+    /// Whether `record` is `previous`, reused.
+    pub reused: bool,
+    /// Why a pipeline with "auto" estimates with its own values (too few runs), for the report.
+    pub note: Option<String>,
+}
+
 /// The pipeline the campaign's runs are estimated with: `pipeline` as it is when it asks for
 /// no calibration; with a given calibration checked against the campaign; else, for a whole
 /// campaign (`compute`), with the calibration fitted here (and its record). A part of a
@@ -100,6 +114,10 @@ pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
 /// campaign (not one task's run alone). `previous`: an earlier `calibration.json` of this
 /// output folder, reused instead of fitting again when it was fitted on the same inputs (the
 /// pipeline file and every run's log and sidecar, by hash) — as unchanged runs' estimates are.
+///
+/// "auto" is "campaign" but where the campaign has fewer than [`MIN_RUNS`] runs with samples
+/// for the balance (fewer listed, for a part that is not given the calibration): the pipeline
+/// as it is, with a note saying why.
 pub fn calibrated_pipeline(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
@@ -108,9 +126,15 @@ pub fn calibrated_pipeline(
     whole: bool,
     where_: &Path,
     previous: Option<&Path>,
-) -> Result<(Pipeline, Option<CalibrationRecord>, bool), CampaignError> {
+) -> Result<CampaignCalibrated, CampaignError> {
     let mode = pipeline.estimate.calibration;
-    if mode == CalibrationSource::Pipeline {
+    let as_is = |note: Option<String>| CampaignCalibrated {
+        pipeline: pipeline.clone(),
+        record: None,
+        reused: false,
+        note,
+    };
+    if mode.fitted().is_none() {
         if pipeline.calibrated.is_some() {
             return Err(CampaignError::Input {
                 path: where_.to_path_buf(),
@@ -118,34 +142,61 @@ pub fn calibrated_pipeline(
                 hint: "set estimate.calibration to the calibration's source, or leave --calibration out".into(),
             });
         }
-        return Ok((pipeline.clone(), None, false));
+        return Ok(as_is(None));
     }
     if let Some(given) = &pipeline.calibrated {
         check_given(given, logs, pipeline, where_, whole)?;
-        return Ok((pipeline.clone(), None, false));
+        return Ok(as_is(None));
     }
     if !compute {
+        if mode == CalibrationSource::Auto && logs.len() < MIN_RUNS {
+            return Ok(as_is(Some(auto_note(&format!(
+                "the campaign has {} run{}",
+                logs.len(),
+                if logs.len() == 1 { "" } else { "s" }
+            )))));
+        }
         return Err(CampaignError::Input {
             path: where_.to_path_buf(),
             message: format!(
                 "estimate.calibration = \"{}\": the runs are estimated with the campaign's calibration, which was not given",
                 mode.name()
             ),
-            hint: "fit it once with `railgrip calibrate --campaign ARCHIVE --out OUT` (it writes OUT/calibration.json) and give it to every part with --calibration OUT/calibration.json".into(),
+            hint: "fit it once with `railgrip run ARCHIVE --out OUT --stage calibrate` (or `railgrip calibrate --campaign ARCHIVE --out OUT`), which writes OUT/calibration.json, before the other parts; or give it with --calibration FILE".into(),
         });
     }
     // Hashed before the fit: a log changed while it is fitted is not recorded as fitted.
     let inputs = campaign_inputs_sha256(logs, pipeline);
-    let (record, reused) = match previous.and_then(|f| reusable(f, &inputs, pipeline)) {
-        Some(r) => (r, true),
-        None => (
-            fit_campaign(logs, pipeline, options, where_, inputs)?,
-            false,
-        ),
-    };
-    let mut p = pipeline.clone();
-    p.calibrated = Some(record.calibrated.clone());
-    Ok((p, Some(record), reused))
+    if let Some(record) = previous.and_then(|f| reusable(f, &inputs, pipeline)) {
+        let mut p = pipeline.clone();
+        p.calibrated = Some(record.calibrated.clone());
+        return Ok(CampaignCalibrated {
+            pipeline: p,
+            record: Some(record),
+            reused: true,
+            note: None,
+        });
+    }
+    match fit_campaign(logs, pipeline, options, where_, inputs)? {
+        Fit::Record(record) => {
+            let mut p = pipeline.clone();
+            p.calibrated = Some(record.calibrated.clone());
+            Ok(CampaignCalibrated {
+                pipeline: p,
+                record: Some(*record),
+                reused: false,
+                note: None,
+            })
+        }
+        Fit::TooFew(why) => Ok(as_is(Some(auto_note(&why)))),
+    }
+}
+
+/// The note of an "auto" campaign estimated with the pipeline's own values.
+fn auto_note(why: &str) -> String {
+    format!(
+        "calibration: none ({why}; estimate.calibration = \"auto\" calibrates a campaign from {MIN_RUNS} runs on): the runs are estimated with [vehicle]'s α and the radar as logged"
+    )
 }
 
 /// The calibration record in `file` when it was fitted on these inputs
@@ -155,7 +206,7 @@ fn reusable(file: &Path, inputs: &str, pipeline: &Pipeline) -> Option<Calibratio
     let text = std::fs::read_to_string(file).ok()?;
     let record: CalibrationRecord = serde_json::from_str(&text).ok()?;
     let fits = !record.inputs_sha256.is_empty()
-        && record.calibrated.source == pipeline.estimate.calibration.name()
+        && Some(record.calibrated.source.as_str()) == fitted_name(pipeline)
         && record.inputs_sha256 == inputs;
     fits.then_some(record)
 }
@@ -167,7 +218,7 @@ pub fn check_for_run(
     pipeline: &Pipeline,
     run: &Path,
 ) -> Result<(), CampaignError> {
-    let why = if given.source != pipeline.estimate.calibration.name() {
+    let why = if Some(given.source.as_str()) != fitted_name(pipeline) {
         format!(
             "it is a \"{}\" calibration and the pipeline's estimate.calibration is \"{}\"",
             given.source,
@@ -196,7 +247,7 @@ fn check_given(
 ) -> Result<(), CampaignError> {
     let names: Vec<&str> = logs.iter().map(|(n, _)| n.as_str()).collect();
     let fitted: Vec<&str> = given.runs.iter().map(String::as_str).collect();
-    let why = if given.source != pipeline.estimate.calibration.name() {
+    let why = if Some(given.source.as_str()) != fitted_name(pipeline) {
         Some(format!(
             "it is a \"{}\" calibration and the pipeline asks for \"{}\"",
             given.source,
@@ -241,17 +292,41 @@ fn check_given(
     }
 }
 
-/// Fits the campaign's calibration (`estimate.calibration` of `pipeline`, not "pipeline") on
-/// its runs, conditioned in parallel on `options.jobs` threads; a run that cannot be read is
-/// left out with a note (its estimate fails on its own).
+/// The source name a calibration for `pipeline` has ([`CalibrationSource::fitted`]).
+fn fitted_name(pipeline: &Pipeline) -> Option<&'static str> {
+    pipeline
+        .estimate
+        .calibration
+        .fitted()
+        .map(CalibrationSource::name)
+}
+
+/// Fits the campaign's calibration (`estimate.calibration` of `pipeline`, not "pipeline";
+/// "auto" as "campaign") on its runs, conditioned in parallel on `options.jobs` threads; a run
+/// that cannot be read is left out with a note (its estimate fails on its own). Too few runs
+/// are an error here, also for "auto".
 pub fn calibrate_campaign(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
     options: Options,
     where_: &Path,
 ) -> Result<CalibrationRecord, CampaignError> {
+    let mut p = pipeline.clone();
+    if p.estimate.calibration == CalibrationSource::Auto {
+        p.estimate.calibration = CalibrationSource::Campaign;
+    }
     let inputs = campaign_inputs_sha256(logs, pipeline);
-    fit_campaign(logs, pipeline, options, where_, inputs)
+    match fit_campaign(logs, &p, options, where_, inputs)? {
+        Fit::Record(r) => Ok(*r),
+        Fit::TooFew(_) => unreachable!("\"campaign\" refuses too few runs"),
+    }
+}
+
+/// What [`fit_campaign`] gives.
+enum Fit {
+    Record(Box<CalibrationRecord>),
+    /// "auto" and too few runs for a calibration: why.
+    TooFew(String),
 }
 
 /// [`calibrate_campaign`] with the inputs' hash taken before ([`campaign_inputs_sha256`]).
@@ -261,11 +336,16 @@ fn fit_campaign(
     options: Options,
     where_: &Path,
     inputs_sha256: String,
-) -> Result<CalibrationRecord, CampaignError> {
+) -> Result<Fit, CampaignError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.jobs.unwrap_or(0))
         .build()?;
-    let mode = pipeline.estimate.calibration;
+    let auto = pipeline.estimate.calibration == CalibrationSource::Auto;
+    let mode = pipeline
+        .estimate
+        .calibration
+        .fitted()
+        .expect("fit_campaign is called for a pipeline that asks for a calibration");
     let mut raw = pipeline.clone();
     raw.calibrated = None;
     let calibrated = |corrections| Calibrated {
@@ -292,16 +372,19 @@ fn fit_campaign(
                     Err(e) => cal.left_out(&e),
                 }
             }
+            if let Some(why) = cal.too_few().filter(|_| auto) {
+                return Ok(Fit::TooFew(why));
+            }
             let fit = cal.finish(where_)?;
             let notes = fit.notes.clone();
-            Ok(CalibrationRecord {
+            Ok(Fit::Record(Box::new(CalibrationRecord {
                 calibrated: calibrated(fit.corrections()),
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 campaign: Some(fit),
                 dry_run: None,
                 notes,
                 inputs_sha256,
-            })
+            })))
         }
         CalibrationSource::DryRun => {
             let fits: Vec<(String, RunAlpha)> = pool.install(|| {
@@ -339,7 +422,7 @@ fn fit_campaign(
                         .map(|e| format!("{n}: no α from this run: {e}"))
                 })
                 .collect();
-            Ok(CalibrationRecord {
+            Ok(Fit::Record(Box::new(CalibrationRecord {
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 calibrated: calibrated(Corrections {
                     alpha_nm_per_bar: [alpha; AXLES],
@@ -356,9 +439,11 @@ fn fit_campaign(
                 }),
                 notes,
                 inputs_sha256,
-            })
+            })))
         }
-        CalibrationSource::Pipeline => unreachable!("no calibration asked for"),
+        CalibrationSource::Auto | CalibrationSource::Pipeline => {
+            unreachable!("fitted() is \"campaign\" or \"dry-run\"")
+        }
     }
 }
 

@@ -105,6 +105,10 @@ pub enum Part {
     /// Train and report from the runs the shards estimated: every run of the campaign must be
     /// there for its current inputs (a missing or stale run is an error naming it).
     Models,
+    /// Fit the campaign's calibration (when the pipeline asks for one) into the output
+    /// folder's `calibration.json`, which the estimate shards and the models part then take;
+    /// no runs, no models.
+    Calibrate,
 }
 
 /// Shard `k` of `n` (1-based): the runs whose position in the campaign's order (0-based) is
@@ -342,17 +346,31 @@ fn run_sources(
     let t_all = Instant::now();
     // The calibration first: every run's estimate depends on it.
     let t = Instant::now();
-    let (calibrated, cal_record, cal_reused) =
-        campaign_calibration(&logs, pipeline, options, out, root)?;
+    let cal = campaign_calibration(&logs, pipeline, options, out, root)?;
     let cal_s = t.elapsed().as_secs_f64();
-    let pipeline = &calibrated;
-    if let Part::Estimate(shard) = options.part {
-        return estimate_shard(root, logs, skipped, out, pipeline, options, shard, progress);
+    match options.part {
+        Part::Estimate(shard) => {
+            let mut o = estimate_shard(
+                root,
+                logs,
+                skipped,
+                out,
+                &cal.pipeline,
+                options,
+                shard,
+                progress,
+            )?;
+            o.notes.extend(cal.note);
+            return Ok(o);
+        }
+        Part::Calibrate => return calibrate_part(root, skipped, out, cal, cal_s),
+        Part::All | Part::Models => {}
     }
+    let pipeline = &cal.pipeline;
     prepare_output(out)?;
     let mut stages = Vec::new();
     // A reused calibration is the file already there (fitted on the same inputs).
-    if cal_reused || write_calibration_file(out, cal_record.as_ref(), options.part)? {
+    if cal.reused || write_calibration_file(out, cal.record.as_ref(), options.part)? {
         stages.push(("calibrate".to_string(), cal_s));
     }
 
@@ -402,14 +420,9 @@ fn run_sources(
         }),
     }
     .write(out)?;
-    let mut notes = trained.notes;
+    let mut notes = cal_notes(&cal, None);
+    notes.extend(trained.notes);
     notes.append(&mut replay_notes);
-    if let Some(c) = &pipeline.calibrated {
-        notes.insert(0, c.summary());
-    }
-    if let Some(r) = &cal_record {
-        notes.extend(r.notes.iter().map(|n| format!("calibration: {n}")));
-    }
     let report = match crate::report::write_report(out) {
         Ok(p) => Some(p),
         Err(e) => {
@@ -437,7 +450,7 @@ fn run_sources(
             .collect(),
         train_epochs: trained.epochs,
         train_s: trained.train_s,
-        calibration_reused: cal_reused,
+        calibration_reused: cal.reused,
     }
     .write(out)?;
     Ok(Outcome {
@@ -457,27 +470,106 @@ fn run_sources(
 }
 
 /// The pipeline the campaign's runs are estimated with, the calibration record behind it and
-/// whether that was reused from `out` ([`calibration::calibrated_pipeline`]).
+/// whether that was reused from `out` ([`calibration::calibrated_pipeline`]). A part of a
+/// scheduled campaign that is not given the calibration takes the one its calibrate part wrote
+/// into `out` ([`Part::Calibrate`]), when there is one.
 fn campaign_calibration(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
     options: Options,
     out: &OutDir,
     root: &Path,
-) -> Result<(Pipeline, Option<calibration::CalibrationRecord>, bool), CampaignError> {
+) -> Result<calibration::CampaignCalibrated, CampaignError> {
+    let computes = matches!(options.part, Part::All | Part::Calibrate);
+    let written = out.root().join(calibration::CALIBRATION_FILE);
+    let taken;
+    let pipeline = if !computes
+        && pipeline.calibrated.is_none()
+        && pipeline.estimate.calibration.fitted().is_some()
+        && written.is_file()
+    {
+        let mut p = pipeline.clone();
+        p.calibrated = Some(calibration::read_calibration(&written)?);
+        taken = p;
+        &taken
+    } else {
+        pipeline
+    };
     calibration::calibrated_pipeline(
         logs,
         pipeline,
         options,
-        options.part == Part::All,
+        computes,
         // An estimate part may see one run alone (a task on a cluster): its runs must be among
         // the calibration's; the models part sees them all.
         !matches!(options.part, Part::Estimate(_)),
         root,
-        (!options.force && options.part == Part::All)
-            .then(|| out.root().join(calibration::CALIBRATION_FILE))
-            .as_deref(),
+        (!options.force && computes).then_some(written.as_path()),
     )
+}
+
+/// The notes on a campaign's calibration, in the order the outcome gives them: why "auto" fitted
+/// none, the calibration applied (with `file`, where it was written), and the fit's own notes.
+fn cal_notes(cal: &calibration::CampaignCalibrated, file: Option<&Path>) -> Vec<String> {
+    let mut notes: Vec<String> = cal.note.iter().cloned().collect();
+    if let Some(c) = &cal.pipeline.calibrated {
+        notes.push(match file {
+            Some(f) => format!(
+                "{} ({}{})",
+                c.summary(),
+                f.display(),
+                if cal.reused {
+                    ", reused: fitted on the same inputs"
+                } else {
+                    ""
+                }
+            ),
+            None => c.summary(),
+        });
+    }
+    if let Some(r) = &cal.record {
+        notes.extend(r.notes.iter().map(|n| format!("calibration: {n}")));
+    }
+    notes
+}
+
+/// The calibrate part ([`Part::Calibrate`]): the calibration fitted (or reused) written into
+/// `out`, or, when none applies, an earlier one removed; the outcome carries no runs.
+fn calibrate_part(
+    root: &Path,
+    skipped: Vec<Skipped>,
+    out: &OutDir,
+    cal: calibration::CampaignCalibrated,
+    seconds: f64,
+) -> Result<Outcome, CampaignError> {
+    std::fs::create_dir_all(out.root()).map_err(|source| CampaignError::Write {
+        path: out.root().to_path_buf(),
+        source,
+    })?;
+    write_calibration_file(out, cal.record.as_ref(), Part::Calibrate)?;
+    let file = out.root().join(calibration::CALIBRATION_FILE);
+    let mut notes = cal_notes(&cal, cal.record.is_some().then_some(file.as_path()));
+    if notes.is_empty() {
+        notes
+            .push("calibration: none (estimate.calibration = \"pipeline\"): nothing to fit".into());
+    }
+    Ok(Outcome {
+        archive: root.to_path_buf(),
+        records: vec![],
+        condition: None,
+        models: vec![],
+        model_error: None,
+        chosen: None,
+        audit: None,
+        notes,
+        report: None,
+        stages: vec![
+            ("calibrate".to_string(), seconds),
+            ("total".to_string(), seconds),
+        ],
+        skipped,
+        tables: vec![],
+    })
 }
 
 /// Writes the calibration this campaign fitted as `calibration.json` (true), or, for a whole
@@ -492,7 +584,7 @@ fn write_calibration_file(
         calibration::write_calibration(out.root(), record)?;
         return Ok(true);
     }
-    if part == Part::All {
+    if matches!(part, Part::All | Part::Calibrate) {
         let stale = out.root().join(calibration::CALIBRATION_FILE);
         match std::fs::remove_file(&stale) {
             Err(e) if e.kind() != std::io::ErrorKind::NotFound => {

@@ -167,7 +167,8 @@ fn run_logs_at(
                         .map(|(_, (run, _))| run.as_str())
                         .collect(),
                 ),
-                _ => None,
+                Part::Calibrate => Some(vec![]),
+                Part::All | Part::Models => None,
             };
             let staged = Staged::pull(Arc::clone(&b), &prefix, only.as_deref())?;
             let result = run_sources(
@@ -369,7 +370,8 @@ struct Staged {
 /// The files a finished campaign writes last (and a new one removes first).
 const LAST: [&str; 2] = ["campaign.json", "report/index.html"];
 /// The files railgrip writes at the top of an output folder.
-const OWNED_TOP: [&str; 4] = [
+const OWNED_TOP: [&str; 5] = [
+    "calibration.json",
     "campaign.json",
     "summary.csv",
     "summary.parquet",
@@ -415,8 +417,14 @@ impl Staged {
             Some(runs) => self.list_runs(runs)?,
             None => self.bucket.list(&join(&self.prefix, "runs/"))?,
         };
+        // The campaign's calibration: what its parts take, and what a whole campaign reuses.
+        let cal_key = join(&self.prefix, super::calibration::CALIBRATION_FILE);
+        let cal = self
+            .bucket
+            .head(&cal_key)?
+            .map(|size| crate::store::Object { key: cal_key, size });
         let top = join(&self.prefix, "");
-        for o in listed {
+        for o in listed.into_iter().chain(cal) {
             let rel = o
                 .key
                 .strip_prefix(&top)
@@ -457,6 +465,14 @@ impl Staged {
             .iter()
             .map(|r| format!("runs/{}/", r.run))
             .collect();
+        if part == Part::Calibrate {
+            let rel = super::calibration::CALIBRATION_FILE;
+            return if files.iter().any(|f| f == rel) {
+                self.upload(rel)
+            } else {
+                Ok(self.bucket.delete(&key(rel))?)
+            };
+        }
         let shard = matches!(part, Part::Estimate(_));
         // What is there now: a shard looks at its own runs' folders only.
         let listed = if shard {

@@ -21,6 +21,11 @@ pub mod raw {
 /// Where the brake coefficients and the radar's corrections come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CalibrationSource {
+    /// [`CalibrationSource::Campaign`] where a campaign of at least
+    /// [`crate::estimate::selfcal::MIN_RUNS`] runs with samples for the balance is estimated
+    /// together; [`CalibrationSource::Pipeline`], with a note, where there are fewer (a run
+    /// estimated alone, a small campaign): a run cannot calibrate itself (docs/calibration.md).
+    Auto,
     /// `[vehicle]`'s α as given, the radar trusted.
     Pipeline,
     /// Fitted from the campaign's own runs (per-axle α, pad friction's speed law, radar scale
@@ -34,9 +39,22 @@ pub enum CalibrationSource {
 impl CalibrationSource {
     pub fn name(self) -> &'static str {
         match self {
+            CalibrationSource::Auto => "auto",
             CalibrationSource::Pipeline => "pipeline",
             CalibrationSource::Campaign => "campaign",
             CalibrationSource::DryRun => "dry-run",
+        }
+    }
+
+    /// The calibration a campaign fits under this source (what a given calibration's
+    /// `source` must be): "campaign" for "auto" and "campaign", "dry-run", none for "pipeline".
+    pub fn fitted(self) -> Option<CalibrationSource> {
+        match self {
+            CalibrationSource::Auto | CalibrationSource::Campaign => {
+                Some(CalibrationSource::Campaign)
+            }
+            CalibrationSource::DryRun => Some(CalibrationSource::DryRun),
+            CalibrationSource::Pipeline => None,
         }
     }
 }
@@ -106,9 +124,9 @@ const SLIDING: Key = Key::num(
 const CALIBRATION: Key = Key {
     name: "estimate.calibration",
     unit: "",
-    range: Range::Choice(&["pipeline", "campaign", "dry-run"]),
-    default: Default::Text("\"pipeline\""),
-    meaning: "α and the radar as `[vehicle]` gives them; fitted from the campaign's own runs (per-axle α, pad friction, radar scale and latency, tachometer delay; docs/calibration.md); or one α from the runs' full-adhesion samples",
+    range: Range::Choice(&["auto", "pipeline", "campaign", "dry-run"]),
+    default: Default::Text("\"auto\""),
+    meaning: "\"campaign\" where 3 or more runs are estimated together, else \"pipeline\" with a note (a run cannot calibrate itself); α and the radar as `[vehicle]` gives them; fitted from the campaign's own runs (per-axle α, pad friction, radar scale and latency, tachometer delay; docs/calibration.md); or one α from the runs' full-adhesion samples",
 };
 
 /// The keys of `[estimate]`, in the order of the documented table.
@@ -138,11 +156,12 @@ impl Checker<'_> {
                 &CALIBRATION,
                 e.calibration,
                 &[
+                    ("auto", CalibrationSource::Auto),
                     ("pipeline", CalibrationSource::Pipeline),
                     ("campaign", CalibrationSource::Campaign),
                     ("dry-run", CalibrationSource::DryRun),
                 ],
-                CalibrationSource::Pipeline,
+                CalibrationSource::Auto,
             )?,
         })
     }

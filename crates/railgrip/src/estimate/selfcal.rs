@@ -455,6 +455,12 @@ impl<'p> CampaignCalibrator<'p> {
         ))
     }
 
+    /// Why the runs added so far are too few for a calibration ([`MIN_RUNS`] with samples for
+    /// the balance; the runs left out named), or None: what [`Self::finish`] would refuse.
+    pub fn too_few(&self) -> Option<String> {
+        too_few_runs(self.runs.len(), &self.notes).map(|(what, _)| what)
+    }
+
     /// Fits the campaign (see the module's documentation). `what` names the campaign in
     /// errors.
     pub fn finish(self, what: &std::path::Path) -> Result<CampaignCalibration, EstimateError> {
