@@ -56,6 +56,21 @@ fn bench(c: &mut Criterion) {
             b.iter(|| campaign::estimate_runs(&root, &logs, &out, &p, o, &Quiet).unwrap())
         });
     }
+    // The campaign's calibration ("auto", the default: the 8 runs' force balance), fitted.
+    g.bench_function("calibrate", |b| {
+        b.iter(|| {
+            campaign::calibration::calibrated_pipeline(
+                &logs,
+                &p,
+                opts(2, true),
+                true,
+                true,
+                &root,
+                None,
+            )
+            .unwrap()
+        })
+    });
     let (_, tables) =
         campaign::estimate_runs(&root, &logs, &out, &p, opts(2, false), &Quiet).unwrap();
     g.bench_function("train", |b| {

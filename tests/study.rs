@@ -3,7 +3,7 @@
 
 mod common;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use railgrip::study::{Plan, StudyError, DEFAULT_PLAN_TOML};
@@ -272,6 +272,13 @@ fn cells_are_scored_against_a_foreign_law_resume_and_repeat_bit_for_bit() {
         );
         let cells = o["cells"].as_array().unwrap();
         assert_eq!(cells.len(), 5);
+        // The default pipeline calibrates the campaign per conditioning, as `railgrip run` does.
+        let calibrations: Vec<PathBuf> = std::fs::read_dir(dir.path().join("st/conditioning"))
+            .unwrap()
+            .map(|e| e.unwrap().path().join("calibration.json"))
+            .collect();
+        assert!(!calibrations.is_empty());
+        assert!(calibrations.iter().all(|c| c.is_file()), "{calibrations:?}");
         let mut best_net = f64::INFINITY;
         for c in cells {
             assert!(c["error"].is_null(), "{c}");

@@ -164,14 +164,18 @@ def test_a_task_reads_its_own_log_without_listing_the_campaign(tmp_path):
 def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
     camp = campaign(tmp_path / "camp", broken=False)
     runs = railgrip._native.campaign_runs(str(camp))
+    out = str(tmp_path / "out")
+    # The default pipeline calibrates the campaign's 3 runs: the parts are given it.
+    pipeline = railgrip._native.calibrate_campaign(str(camp), out, railgrip.Pipeline.default())
+    assert pipeline.calibration is not None
     name, _, log = runs[0]
-    facts, parts = railgrip._native.estimate_run(str(camp), name, log, str(tmp_path / "out"))
+    facts, parts = railgrip._native.estimate_run(str(camp), name, log, out, pipeline)
     record = json.dumps(json.loads(facts)["record"])
     one = railgrip._native.RunSet()
     one.add(record, parts)
     assert len(one) == 1
     with pytest.raises(railgrip.RailgripError, match=r"2 of the campaign's 3 runs were not given: .*" + runs[1][0]):
-        railgrip._native.run_models(str(camp), str(tmp_path / "out"), one)
+        railgrip._native.run_models(str(camp), out, one, pipeline)
     import pyarrow as pa
 
     with pytest.raises(railgrip.RailgripError, match="schema metadata"):
@@ -185,7 +189,7 @@ def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
         railgrip._native.RunSet().add("{}", None)
     # Every run, but one twice, one the campaign does not have, and a table under another
     # run's record: each named.
-    results = [railgrip._native.estimate_run(str(camp), n, l, str(tmp_path / "out")) for n, _, l in runs]
+    results = [railgrip._native.estimate_run(str(camp), n, l, out, pipeline) for n, _, l in runs]
     recs = [json.dumps(json.loads(f)["record"]) for f, _ in results]
     bad = railgrip._native.RunSet()
     bad.add(recs[0], results[0][1])
@@ -196,7 +200,7 @@ def test_the_models_task_refuses_missing_runs_and_foreign_tables(tmp_path):
     foreign["run"] = "elsewhere"
     bad.add(json.dumps(foreign), None)
     with pytest.raises(railgrip.RailgripError) as e:
-        railgrip._native.run_models(str(camp), str(tmp_path / "out"), bad)
+        railgrip._native.run_models(str(camp), out, bad, pipeline)
     text = str(e.value)
     assert f"{runs[1][0]}: the table of run {runs[2][0]!r}" in text.replace('"', "'"), text
     assert f"{runs[2][0]}: given twice" in text, text

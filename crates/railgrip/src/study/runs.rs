@@ -57,7 +57,10 @@ pub(super) struct Split {
 }
 
 /// Every conditioning's estimates of `logs`, through the campaign's per-run stage (reused when
-/// unchanged); runs that could not be estimated are noted once.
+/// unchanged), each with the campaign's calibration that conditioning's pipeline asks for
+/// (fitted over every run, the held-out ones too, as `railgrip run` fits it; written beside the
+/// conditioning's runs and reused on the same inputs); runs that could not be estimated are
+/// noted once.
 pub(super) fn estimate(
     conditionings: &Conditionings,
     logs: &[(String, LogSource)],
@@ -65,6 +68,7 @@ pub(super) fn estimate(
     pool: &rayon::ThreadPool,
     notes: &mut Vec<String>,
 ) -> Result<Vec<Estimated>, StudyError> {
+    use crate::campaign::calibration::{calibrated_pipeline, write_calibration, CALIBRATION_FILE};
     let mut estimated = Vec::new();
     for (key, pipe) in &conditionings.pipelines {
         let od = OutDir::new(paths.conditioning(key));
@@ -72,6 +76,28 @@ pub(super) fn estimate(
             path: od.runs(),
             source,
         })?;
+        let options = crate::campaign::Options {
+            jobs: Some(pool.current_num_threads()),
+            ..Default::default()
+        };
+        let previous = od.root().join(CALIBRATION_FILE);
+        let cal = calibrated_pipeline(logs, pipe, options, true, true, od.root(), Some(&previous))?;
+        if let Some(r) = &cal.record {
+            write_calibration(od.root(), r)?;
+        }
+        for n in cal.note.iter().chain(
+            cal.pipeline
+                .calibrated
+                .as_ref()
+                .map(crate::config::calibrated::Calibrated::summary)
+                .as_ref(),
+        ) {
+            let note = format!("conditioning {key}: {n}");
+            if !notes.contains(&note) {
+                notes.push(note);
+            }
+        }
+        let pipe = &cal.pipeline;
         let results: Vec<(RunRecord, Option<RunTable>)> = pool.install(|| {
             logs.par_iter()
                 .map(|(name, src)| process_run(src, name, &od, pipe, false))
