@@ -2,6 +2,10 @@
 //! stage with 1 worker thread against 2 (`--jobs 1` / `--jobs 2`), all through the library's
 //! campaign functions (the ones `railgrip run` calls):
 //!
+//! - `run/calibrate`: the campaign's calibration the default pipeline asks for
+//!   (`estimate.calibration = "auto"`: the 8 runs conditioned once more and the force balance
+//!   solved) — `campaign::calibration::calibrated_pipeline`; the stages below use the pipeline
+//!   carrying it, as `railgrip run` does;
 //! - `run/estimate_jobs1`, `run/estimate_jobs2`: ingest, condition, estimate and write the
 //!   estimates table of every run (`--force`: nothing reused) — `campaign::estimate_runs`;
 //! - `run/estimate_reused`: the same stage when every run is unchanged (hashing and reading
@@ -47,6 +51,20 @@ fn bench(c: &mut Criterion) {
     };
     let mut g = c.benchmark_group("run");
     g.sample_size(10).measurement_time(Duration::from_secs(8));
+    let calibrate = || {
+        campaign::calibration::calibrated_pipeline(
+            &logs,
+            &p,
+            opts(2, true),
+            true,
+            true,
+            &root,
+            None,
+        )
+        .unwrap()
+    };
+    g.bench_function("calibrate", |b| b.iter(calibrate));
+    let p = calibrate().pipeline;
     for (name, o) in [
         ("estimate_jobs1", opts(1, true)),
         ("estimate_jobs2", opts(2, true)),
@@ -56,21 +74,6 @@ fn bench(c: &mut Criterion) {
             b.iter(|| campaign::estimate_runs(&root, &logs, &out, &p, o, &Quiet).unwrap())
         });
     }
-    // The campaign's calibration ("auto", the default: the 8 runs' force balance), fitted.
-    g.bench_function("calibrate", |b| {
-        b.iter(|| {
-            campaign::calibration::calibrated_pipeline(
-                &logs,
-                &p,
-                opts(2, true),
-                true,
-                true,
-                &root,
-                None,
-            )
-            .unwrap()
-        })
-    });
     let (_, tables) =
         campaign::estimate_runs(&root, &logs, &out, &p, opts(2, false), &Quiet).unwrap();
     g.bench_function("train", |b| {

@@ -3,7 +3,8 @@
 # pipelines/scenes/top_speed (80–200 km/h × three temperatures × rail condition ±5 %), scene k
 # of the campaign being top-speed scene k mod 12 at noise seed 1 + k / 12 (so runs differ by
 # speed, temperature, condition, demand and sensor noise), runs `railgrip run --force` on each
-# and prints one row per campaign: runs, wall time per stage (timings.json) and peak RSS
+# and prints one row per campaign: runs, wall time per stage (timings.json; calibrate is 0 where
+# the pipeline fits no calibration) and peak RSS
 # (GNU time's maximum resident set size).
 #
 #   scripts/scaling.sh [OUT_DIR] [SIZES]      default: target/scaling "8 64 256"
@@ -36,7 +37,7 @@ for ((k = 0; k < largest; k++)); do
     mv "$tmp/$base.meta.toml" "$pool/$name.meta.toml"
     rm -rf "$tmp"
 done
-printf '%6s %10s %10s %10s %10s %12s\n' runs estimate_s train_s report_s total_s peak_rss_MiB
+printf '%6s %10s %10s %10s %10s %10s %12s\n' runs calibrate_s estimate_s train_s report_s total_s peak_rss_MiB
 for n in $sizes; do
     camp="$out/campaign$n"
     rm -rf "$camp" && mkdir -p "$camp/archive"
@@ -56,6 +57,6 @@ for n in $sizes; do
 import json, sys
 t = dict(json.load(open(sys.argv[1]))["stages"])
 rss = int(open(sys.argv[2]).read().split()[-1]) / 1024
-print(f"{int(sys.argv[3]):6d} {t['estimate']:10.2f} {t['train']:10.2f} {t['report']:10.2f} {t['total']:10.2f} {rss:12.0f}")
+print(f"{int(sys.argv[3]):6d} {t.get('calibrate', 0.0):10.2f} {t['estimate']:10.2f} {t['train']:10.2f} {t['report']:10.2f} {t['total']:10.2f} {rss:12.0f}")
 EOF
 done

@@ -26,8 +26,9 @@ mkdir -p "$out"
 # scenes' vehicle has), with the pipeline's α and radar, and calibrating itself.
 base="$out/pipeline.toml"
 pipe="$out/campaign.toml"
-sed '/^\[vehicle\]/a pivot_force_load_transfer = true' pipelines/uic_z1.toml > "$base"
-sed '/^\[estimate\]/a calibration = "campaign"' "$base" > "$pipe"
+sed -e '/^\[vehicle\]/a pivot_force_load_transfer = true' \
+    -e '/^\[estimate\]/a calibration = "pipeline"' pipelines/uic_z1.toml > "$base"
+sed 's/^calibration = "pipeline"$/calibration = "campaign"/' "$base" > "$pipe"
 for seed in $seeds; do
     archive="$out/seed$seed/archive"
     mkdir -p "$archive"

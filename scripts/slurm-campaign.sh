@@ -32,20 +32,21 @@ esac
 mkdir -p "$logs"
 
 # The campaign's calibration (OUT/calibration.json, when the pipeline asks for one), which every
-# shard and the models job take from OUT.
+# shard and the models job take from OUT. Should it fail, the shards and the models job are
+# cancelled (--kill-on-invalid-dep), not left pending.
 calib=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-calibrate \
     --output="$logs/calibrate.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage calibrate)")
 calib=${calib%%;*}
 # One task per shard; each estimates every N-th run into the shared folder, one core each.
 shards=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-estimate --array="1-$n" \
-    --dependency="afterok:$calib" \
+    --dependency="afterok:$calib" --kill-on-invalid-dep=yes \
     --cpus-per-task=1 --output="$logs/estimate-%a.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" --jobs 1 "${pipeline[@]}" \
         --stage estimate --shard)\"\$SLURM_ARRAY_TASK_ID/$n\"")
 shards=${shards%%;*}
 # Training and the report, once every shard succeeded (exit 3, some runs failed, counts as done).
 models=$("$sbatch" --parsable "${opts[@]}" "${models_opts[@]}" --job-name=railgrip-models \
-    --dependency="afterany:$shards" --output="$logs/models.log" \
+    --dependency="afterany:$shards" --kill-on-invalid-dep=yes --output="$logs/models.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage models)")
 echo "calibration: job $calib; estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"

@@ -1734,9 +1734,87 @@ fn a_calibration_of_another_pipeline_or_campaign_is_refused() {
     );
 }
 
+/// A scheduled campaign's later parts follow what its calibrate part decided: where "auto" can
+/// fit no calibration (three runs listed, one of them broken) the calibrate part records that,
+/// and the shards and the models part estimate with the pipeline's values — the bytes of one
+/// `run`. The models part refuses a calibration fitted before a log changed, and the calibrate
+/// part is not given one.
+#[test]
+fn the_parts_follow_the_calibrate_parts_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = d.join("campaign");
+    two_run_campaign(&camp);
+    std::fs::write(camp.join("broken.csv"), "t,v_radar\n0,abc\n").unwrap();
+    let one = railgrip(&["run", "campaign", "--out", "one"], d);
+    assert_eq!(one.status.code(), Some(3), "{}", text(&one.stderr));
+    let part = |args: &[&str]| {
+        let mut all = vec!["run", "campaign", "--out", "sh"];
+        all.extend(args);
+        let o = railgrip(&all, d);
+        assert!(
+            matches!(o.status.code(), Some(0 | 3)),
+            "{args:?}: {}{}",
+            text(&o.stdout),
+            text(&o.stderr)
+        );
+        text(&o.stdout)
+    };
+    let said = part(&["--stage", "calibrate"]);
+    assert!(said.contains("calibration: none (only 2 runs"), "{said}");
+    let record: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("sh/calibration.json")).unwrap())
+            .unwrap();
+    assert_eq!(record["calibrated"]["source"], "none");
+    for k in ["1/2", "2/2"] {
+        part(&["--stage", "estimate", "--shard", k]);
+    }
+    part(&["--stage", "models"]);
+    let (a, b) = (outputs(&d.join("one")), outputs(&d.join("sh")));
+    assert!(a.contains_key(Path::new("calibration.json")));
+    assert_eq!(a.keys().collect::<Vec<_>>(), b.keys().collect::<Vec<_>>());
+    for (k, v) in &a {
+        assert!(b.get(k) == Some(v), "{} differs", k.display());
+    }
+
+    // Three good runs: calibrated; a sidecar edited after the calibrate part.
+    let camp3 = d.join("three");
+    three_run_campaign(&camp3);
+    let run3 = |args: &[&str]| {
+        let mut all = vec!["run", "three", "--out", "t"];
+        all.extend(args);
+        railgrip(&all, d)
+    };
+    let given = run3(&[
+        "--stage",
+        "calibrate",
+        "--calibration",
+        "sh/calibration.json",
+    ]);
+    assert_eq!(given.status.code(), Some(1));
+    assert!(text(&given.stderr).contains("--stage calibrate fits it"));
+    assert_eq!(run3(&["--stage", "calibrate"]).status.code(), Some(0));
+    assert_eq!(run3(&["--stage", "estimate"]).status.code(), Some(0));
+    let sidecar = std::fs::read_dir(&camp3)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .find(|p| p.to_string_lossy().ends_with(".meta.toml"))
+        .unwrap();
+    let text_s = std::fs::read_to_string(&sidecar).unwrap();
+    std::fs::write(&sidecar, text_s + "# edited\n").unwrap();
+    let m = run3(&["--stage", "models"]);
+    assert_eq!(m.status.code(), Some(1), "{}", text(&m.stdout));
+    assert!(
+        text(&m.stderr).contains("fitted on other inputs"),
+        "{}",
+        text(&m.stderr)
+    );
+}
+
 /// The default `estimate.calibration = "auto"`: a campaign of three runs is calibrated (its
 /// calibration in the output folder, the campaign record and the report), one of two runs is
-/// estimated with the pipeline's values and the run's notes say why; `"campaign"` refuses two.
+/// estimated with the pipeline's values, the notes and its calibration.json say why;
+/// `"campaign"` refuses two.
 #[test]
 fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
     let dir = tempfile::tempdir().unwrap();
@@ -1768,7 +1846,15 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
                 && n.contains("estimated with [vehicle]'s α")),
         "{notes:?}"
     );
-    assert!(!d.join("o2/calibration.json").exists());
+    // Its calibration.json records that none was fitted, and why.
+    let none: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o2/calibration.json")).unwrap())
+            .unwrap();
+    assert_eq!(none["calibrated"]["source"], "none");
+    assert!(
+        none["notes"][0].as_str().unwrap().contains("only 2 runs"),
+        "{none}"
+    );
     let campaign: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("o2/campaign.json")).unwrap())
             .unwrap();
@@ -1797,7 +1883,7 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
         v
     };
     let (auto, own) = (runs("o2"), runs("own"));
-    assert_eq!(auto.len(), 2);
+    assert_eq!((auto.len(), own.len()), (2, 2));
     assert!(auto.iter().zip(&own).all(|(a, b)| a
         .iter()
         .zip(b)

@@ -47,7 +47,14 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 &pipeline,
                 std::path::Path::new(&args.run),
             )?;
-            pipeline.calibrated = Some(given);
+            if given.source == railgrip::campaign::calibration::NONE_SOURCE {
+                eprintln!(
+                    "note: estimated with [vehicle]'s α and the radar as logged: {} records that the campaign fitted no calibration (estimate.calibration = \"auto\")",
+                    f.display()
+                );
+            } else {
+                pipeline.calibrated = Some(given);
+            }
         }
         // A run alone cannot calibrate itself: "auto" estimates it with the pipeline's values.
         None if pipeline.estimate.calibration == railgrip::config::CalibrationSource::Auto => {

@@ -106,6 +106,9 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             "--force goes with the estimate part (--stage estimate or all): --stage models uses what the shards wrote"
         ),
         ("models", None) => campaign::Part::Models,
+        ("calibrate", None) if args.calibration.is_some() => bail!(
+            "--calibration goes with the parts that use a calibration (estimate, models, all): --stage calibrate fits it"
+        ),
         ("calibrate", None) => campaign::Part::Calibrate,
         _ => campaign::Part::All,
     };

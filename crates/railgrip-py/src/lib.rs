@@ -94,7 +94,7 @@ impl PyPipeline {
         Ok(PyPipeline { inner })
     }
 
-    /// `estimate.calibration`: "pipeline", "campaign" or "dry-run".
+    /// `estimate.calibration`: "auto" (the default), "pipeline", "campaign" or "dry-run".
     #[getter]
     fn calibration_source(&self) -> &'static str {
         self.inner.estimate.calibration.name()
@@ -527,11 +527,12 @@ fn run(
     let part = match (stage, shard) {
         ("all", None) => Part::All,
         ("models", None) => Part::Models,
+        ("calibrate", None) => Part::Calibrate,
         ("estimate", Some((k, n))) if k >= 1 && k <= n => Part::Estimate(Shard { k, n }),
         ("estimate", None) => Part::Estimate(Shard { k: 1, n: 1 }),
         _ => {
             return Err(PyValueError::new_err(format!(
-                "stage = {stage:?}, shard = {shard:?}: give stage \"all\", \"models\", or \"estimate\" with shard = (k, n), 1 ≤ k ≤ n"
+                "stage = {stage:?}, shard = {shard:?}: give stage \"all\", \"calibrate\", \"models\", or \"estimate\" with shard = (k, n), 1 ≤ k ≤ n"
             )))
         }
     };

@@ -226,3 +226,24 @@ def test_a_self_calibrating_campaign_on_ray_writes_the_bytes_of_railgrip_run(loc
     assert_same_tree(tmp_path / "ray", tmp_path / "cli")
     record = json.loads((tmp_path / "ray" / "campaign.json").read_text())
     assert record["calibration"]["source"] == "campaign"
+
+
+def test_a_campaign_auto_cannot_calibrate_runs_on_ray_as_railgrip_run(local_ray, tmp_path):
+    """The default pipeline ("auto") on two good runs and a broken log: no calibration can be
+    fitted; the driver writes the record that says so, the tasks and the models task follow it,
+    and the files are those of `railgrip run`."""
+    camp = tmp_path / "camp"
+    camp.mkdir()
+    for name in SMALL[:2]:
+        for f in ARCHIVE.glob(name + ".*"):
+            if not f.name.endswith(".truth.parquet"):
+                shutil.copy(f, camp / f.name)
+    (camp / "broken.csv").write_text("t,v_radar\n0,abc\n")
+    lines = []
+    result = railgrip.ray.run(camp, tmp_path / "ray", progress=lines.append)
+    assert result.failed == 1, lines
+    assert railgrip_cli("run", str(camp), "--out", str(tmp_path / "cli")) == 3
+    assert_same_tree(tmp_path / "ray", tmp_path / "cli")
+    record = json.loads((tmp_path / "ray" / "calibration.json").read_text())
+    assert record["calibrated"]["source"] == "none", record
+    assert "only 2 runs" in record["notes"][0], record

@@ -93,17 +93,21 @@ pub fn pipeline_sha256(pipeline: &Pipeline) -> String {
     crate::hash::hex(&Sha256::digest(pipeline.text.as_bytes()))
 }
 
+/// The source of a record saying that "auto" fitted no calibration ([`Calibrated::source`]).
+pub const NONE_SOURCE: &str = "none";
+
 /// What [`calibrated_pipeline`] gives: the pipeline the runs are estimated with and how it came
 /// to be.
 #[derive(Debug)]
 pub struct CampaignCalibrated {
     /// The pipeline, carrying the calibration when one applies.
     pub pipeline: Pipeline,
-    /// The calibration fitted (or reused) here; None when none applies or one was given.
+    /// The record fitted (or reused) here — for "auto" without a calibration, the record that
+    /// says so ([`NONE_SOURCE`]); None when the pipeline asks for none or one was given.
     pub record: Option<CalibrationRecord>,
     /// Whether `record` is `previous`, reused.
     pub reused: bool,
-    /// Why a pipeline with "auto" estimates with its own values (too few runs), for the report.
+    /// Why a pipeline with "auto" estimates with its own values, for the report.
     pub note: Option<String>,
 }
 
@@ -115,9 +119,11 @@ pub struct CampaignCalibrated {
 /// output folder, reused instead of fitting again when it was fitted on the same inputs (the
 /// pipeline file and every run's log and sidecar, by hash) — as unchanged runs' estimates are.
 ///
-/// "auto" is "campaign" but where the campaign has fewer than [`MIN_RUNS`] runs with samples
-/// for the balance (fewer listed, for a part that is not given the calibration): the pipeline
-/// as it is, with a note saying why.
+/// "auto" is "campaign" but where the campaign's calibration cannot be fitted (fewer than
+/// [`MIN_RUNS`] runs with samples for the balance, or a fit that fails): the pipeline as it
+/// is, with a note saying why, and a record of that ([`NONE_SOURCE`]) for the later parts of a
+/// scheduled campaign. A part given no calibration at all keeps the pipeline as it is where
+/// fewer than [`MIN_RUNS`] runs are listed (one task's run alone).
 pub fn calibrated_pipeline(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
@@ -128,11 +134,15 @@ pub fn calibrated_pipeline(
     previous: Option<&Path>,
 ) -> Result<CampaignCalibrated, CampaignError> {
     let mode = pipeline.estimate.calibration;
-    let as_is = |note: Option<String>| CampaignCalibrated {
-        pipeline: pipeline.clone(),
-        record: None,
-        reused: false,
-        note,
+    let as_is = |note: Option<String>| {
+        let mut p = pipeline.clone();
+        p.calibrated = None;
+        CampaignCalibrated {
+            pipeline: p,
+            record: None,
+            reused: false,
+            note,
+        }
     };
     if mode.fitted().is_none() {
         if pipeline.calibrated.is_some() {
@@ -146,7 +156,17 @@ pub fn calibrated_pipeline(
     }
     if let Some(given) = &pipeline.calibrated {
         check_given(given, logs, pipeline, where_, whole)?;
-        return Ok(as_is(None));
+        if whole && !compute {
+            check_inputs(given, logs, pipeline, where_)?;
+        }
+        return Ok(if given.source == NONE_SOURCE {
+            as_is(Some(auto_note(&format!(
+                "the campaign's calibrate part fitted none over its {} runs",
+                given.runs.len()
+            ))))
+        } else {
+            as_is(None).with(pipeline)
+        });
     }
     if !compute {
         if mode == CalibrationSource::Auto && logs.len() < MIN_RUNS {
@@ -167,48 +187,106 @@ pub fn calibrated_pipeline(
     }
     // Hashed before the fit: a log changed while it is fitted is not recorded as fitted.
     let inputs = campaign_inputs_sha256(logs, pipeline);
-    if let Some(record) = previous.and_then(|f| reusable(f, &inputs, pipeline)) {
-        let mut p = pipeline.clone();
-        p.calibrated = Some(record.calibrated.clone());
-        return Ok(CampaignCalibrated {
-            pipeline: p,
-            record: Some(record),
-            reused: true,
-            note: None,
-        });
+    let (record, reused) = match previous.and_then(|f| reusable(f, &inputs, pipeline)) {
+        Some(r) => (r, true),
+        None => (
+            fit_campaign(logs, pipeline, options, where_, inputs)?,
+            false,
+        ),
+    };
+    let mut c = as_is(None);
+    if record.calibrated.source == NONE_SOURCE {
+        c.note = record.notes.first().cloned();
+    } else {
+        c.pipeline.calibrated = Some(record.calibrated.clone());
     }
-    match fit_campaign(logs, pipeline, options, where_, inputs)? {
-        Fit::Record(record) => {
-            let mut p = pipeline.clone();
-            p.calibrated = Some(record.calibrated.clone());
-            Ok(CampaignCalibrated {
-                pipeline: p,
-                record: Some(*record),
-                reused: false,
-                note: None,
-            })
-        }
-        Fit::TooFew(why) => Ok(as_is(Some(auto_note(&why)))),
+    c.record = Some(record);
+    c.reused = reused;
+    Ok(c)
+}
+
+impl CampaignCalibrated {
+    /// This, with `pipeline` (and the calibration it carries) as the runs' pipeline.
+    fn with(mut self, pipeline: &Pipeline) -> Self {
+        self.pipeline = pipeline.clone();
+        self
     }
 }
 
 /// The note of an "auto" campaign estimated with the pipeline's own values.
 fn auto_note(why: &str) -> String {
     format!(
-        "calibration: none ({why}; estimate.calibration = \"auto\" calibrates a campaign from {MIN_RUNS} runs on): the runs are estimated with [vehicle]'s α and the radar as logged"
+        "calibration: none ({why}): the runs are estimated with [vehicle]'s α and the radar as logged (estimate.calibration = \"auto\" calibrates a campaign of {MIN_RUNS} or more runs whose calibration can be fitted)"
     )
 }
 
+/// The record of an "auto" campaign that fitted no calibration, and why.
+fn none_record(
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    why: &str,
+    inputs_sha256: String,
+) -> CalibrationRecord {
+    let alpha = pipeline.vehicle.brake_torque_nm_per_bar;
+    CalibrationRecord {
+        calibrated: Calibrated {
+            source: NONE_SOURCE.to_string(),
+            corrections: Corrections {
+                alpha_nm_per_bar: alpha,
+                pad: PadLaw::constant(),
+                radar_scale: 1.0,
+                radar_latency_s: 0.0,
+                tacho_delay_s: 0.0,
+            },
+            runs: logs.iter().map(|(n, _)| n.clone()).collect(),
+            pipeline_sha256: pipeline_sha256(pipeline),
+            inputs_sha256: None,
+        },
+        pipeline_alpha_nm_per_bar: alpha,
+        campaign: None,
+        dry_run: None,
+        notes: vec![auto_note(why)],
+        inputs_sha256,
+    }
+}
+
 /// The calibration record in `file` when it was fitted on these inputs
-/// ([`CalibrationRecord::inputs_sha256`]) for this kind of calibration; None otherwise (no
-/// file, unreadable, another version's without the hash, other inputs).
+/// ([`CalibrationRecord::inputs_sha256`]) for this kind of calibration (for "auto", also the
+/// record that it fitted none); None otherwise (no file, unreadable, another version's without
+/// the hash, other inputs).
 fn reusable(file: &Path, inputs: &str, pipeline: &Pipeline) -> Option<CalibrationRecord> {
     let text = std::fs::read_to_string(file).ok()?;
     let record: CalibrationRecord = serde_json::from_str(&text).ok()?;
     let fits = !record.inputs_sha256.is_empty()
-        && Some(record.calibrated.source.as_str()) == fitted_name(pipeline)
+        && source_fits(&record.calibrated.source, pipeline)
         && record.inputs_sha256 == inputs;
     fits.then_some(record)
+}
+
+/// Whether a calibration of `source` is one `pipeline` asks for.
+fn source_fits(source: &str, pipeline: &Pipeline) -> bool {
+    Some(source) == fitted_name(pipeline)
+        || (source == NONE_SOURCE && pipeline.estimate.calibration == CalibrationSource::Auto)
+}
+
+/// Refuses, for a campaign's models part, a calibration fitted on logs or sidecars that have
+/// changed since (by [`CalibrationRecord::inputs_sha256`], where the calibration came with it).
+fn check_inputs(
+    given: &Calibrated,
+    logs: &[(String, LogSource)],
+    pipeline: &Pipeline,
+    where_: &Path,
+) -> Result<(), CampaignError> {
+    match &given.inputs_sha256 {
+        Some(h) if !h.is_empty() && *h != campaign_inputs_sha256(logs, pipeline) => {
+            Err(CampaignError::Input {
+                path: where_.to_path_buf(),
+                message: "the given calibration was fitted on other inputs: a log or sidecar of the campaign changed since".into(),
+                hint: "fit it again (`railgrip run ARCHIVE --out OUT --stage calibrate`, or `railgrip calibrate --campaign`) and estimate the runs again with it".into(),
+            })
+        }
+        _ => Ok(()),
+    }
 }
 
 /// Refuses a calibration for another kind of calibration or fitted with another pipeline file
@@ -218,7 +296,7 @@ pub fn check_for_run(
     pipeline: &Pipeline,
     run: &Path,
 ) -> Result<(), CampaignError> {
-    let why = if Some(given.source.as_str()) != fitted_name(pipeline) {
+    let why = if !source_fits(&given.source, pipeline) {
         format!(
             "it is a \"{}\" calibration and the pipeline's estimate.calibration is \"{}\"",
             given.source,
@@ -247,7 +325,7 @@ fn check_given(
 ) -> Result<(), CampaignError> {
     let names: Vec<&str> = logs.iter().map(|(n, _)| n.as_str()).collect();
     let fitted: Vec<&str> = given.runs.iter().map(String::as_str).collect();
-    let why = if Some(given.source.as_str()) != fitted_name(pipeline) {
+    let why = if !source_fits(&given.source, pipeline) {
         Some(format!(
             "it is a \"{}\" calibration and the pipeline asks for \"{}\"",
             given.source,
@@ -316,27 +394,19 @@ pub fn calibrate_campaign(
         p.estimate.calibration = CalibrationSource::Campaign;
     }
     let inputs = campaign_inputs_sha256(logs, pipeline);
-    match fit_campaign(logs, &p, options, where_, inputs)? {
-        Fit::Record(r) => Ok(*r),
-        Fit::TooFew(_) => unreachable!("\"campaign\" refuses too few runs"),
-    }
+    fit_campaign(logs, &p, options, where_, inputs)
 }
 
-/// What [`fit_campaign`] gives.
-enum Fit {
-    Record(Box<CalibrationRecord>),
-    /// "auto" and too few runs for a calibration: why.
-    TooFew(String),
-}
-
-/// [`calibrate_campaign`] with the inputs' hash taken before ([`campaign_inputs_sha256`]).
+/// [`calibrate_campaign`] with the inputs' hash taken before ([`campaign_inputs_sha256`]);
+/// for "auto", where too few runs have samples for the balance or the fit fails, the record
+/// that no calibration was fitted, and why ([`NONE_SOURCE`]).
 fn fit_campaign(
     logs: &[(String, LogSource)],
     pipeline: &Pipeline,
     options: Options,
     where_: &Path,
     inputs_sha256: String,
-) -> Result<Fit, CampaignError> {
+) -> Result<CalibrationRecord, CampaignError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(options.jobs.unwrap_or(0))
         .build()?;
@@ -353,6 +423,7 @@ fn fit_campaign(
         corrections,
         runs: logs.iter().map(|(n, _)| n.clone()).collect(),
         pipeline_sha256: pipeline_sha256(pipeline),
+        inputs_sha256: None,
     };
     let read = |src: &LogSource| crate::ingest::ingest_source(src, &raw);
     match mode {
@@ -373,18 +444,25 @@ fn fit_campaign(
                 }
             }
             if let Some(why) = cal.too_few().filter(|_| auto) {
-                return Ok(Fit::TooFew(why));
+                return Ok(none_record(logs, pipeline, &why, inputs_sha256));
             }
-            let fit = cal.finish(where_)?;
+            let fit = match cal.finish(where_) {
+                Ok(fit) => fit,
+                Err(e) if auto => {
+                    let why = format!("the campaign's calibration could not be fitted: {e}");
+                    return Ok(none_record(logs, pipeline, &why, inputs_sha256));
+                }
+                Err(e) => return Err(e.into()),
+            };
             let notes = fit.notes.clone();
-            Ok(Fit::Record(Box::new(CalibrationRecord {
+            Ok(CalibrationRecord {
                 calibrated: calibrated(fit.corrections()),
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 campaign: Some(fit),
                 dry_run: None,
                 notes,
                 inputs_sha256,
-            })))
+            })
         }
         CalibrationSource::DryRun => {
             let fits: Vec<(String, RunAlpha)> = pool.install(|| {
@@ -422,7 +500,7 @@ fn fit_campaign(
                         .map(|e| format!("{n}: no α from this run: {e}"))
                 })
                 .collect();
-            Ok(Fit::Record(Box::new(CalibrationRecord {
+            Ok(CalibrationRecord {
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 calibrated: calibrated(Corrections {
                     alpha_nm_per_bar: [alpha; AXLES],
@@ -439,7 +517,7 @@ fn fit_campaign(
                 }),
                 notes,
                 inputs_sha256,
-            })))
+            })
         }
         CalibrationSource::Auto | CalibrationSource::Pipeline => {
             unreachable!("fitted() is \"campaign\" or \"dry-run\"")
@@ -460,7 +538,10 @@ pub fn read_calibration(path: &Path) -> Result<Calibrated, CampaignError> {
     let text =
         std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read the file: {e}")))?;
     match serde_json::from_str::<CalibrationRecord>(&text) {
-        Ok(r) => Ok(r.calibrated),
+        Ok(r) => Ok(Calibrated {
+            inputs_sha256: Some(r.inputs_sha256),
+            ..r.calibrated
+        }),
         Err(e) => serde_json::from_str::<Calibrated>(&text)
             .map_err(|_| bad(format!("not a calibration file: {e}"))),
     }

@@ -489,7 +489,13 @@ fn campaign_calibration(
         && written.is_file()
     {
         let mut p = pipeline.clone();
-        p.calibrated = Some(calibration::read_calibration(&written)?);
+        p.calibrated = Some(calibration::read_calibration(&written).map_err(|e| {
+            CampaignError::Input {
+                path: written.clone(),
+                message: format!("the campaign's calibration, which this part takes from the output folder, cannot be used: {e}"),
+                hint: "write it again with `railgrip run ARCHIVE --out OUT --stage calibrate` (the same archive, pipeline and --out)".into(),
+            }
+        })?);
         taken = p;
         &taken
     } else {
@@ -527,7 +533,11 @@ fn cal_notes(cal: &calibration::CampaignCalibrated, file: Option<&Path>) -> Vec<
             None => c.summary(),
         });
     }
-    if let Some(r) = &cal.record {
+    if let Some(r) = cal
+        .record
+        .as_ref()
+        .filter(|r| r.calibrated.source != calibration::NONE_SOURCE)
+    {
         notes.extend(r.notes.iter().map(|n| format!("calibration: {n}")));
     }
     notes
@@ -546,9 +556,14 @@ fn calibrate_part(
         path: out.root().to_path_buf(),
         source,
     })?;
+    // The runs will be estimated with this calibration: what described them no longer does.
+    remove_campaign_results(out)?;
     write_calibration_file(out, cal.record.as_ref(), Part::Calibrate)?;
     let file = out.root().join(calibration::CALIBRATION_FILE);
-    let mut notes = cal_notes(&cal, cal.record.is_some().then_some(file.as_path()));
+    let mut notes = cal_notes(
+        &cal,
+        cal.pipeline.calibrated.is_some().then_some(file.as_path()),
+    );
     if notes.is_empty() {
         notes
             .push("calibration: none (estimate.calibration = \"pipeline\"): nothing to fit".into());

@@ -466,6 +466,10 @@ impl Staged {
             .map(|r| format!("runs/{}/", r.run))
             .collect();
         if part == Part::Calibrate {
+            // The campaign's results no longer describe the runs to be estimated.
+            for f in LAST {
+                self.bucket.delete(&key(f))?;
+            }
             let rel = super::calibration::CALIBRATION_FILE;
             return if files.iter().any(|f| f == rel) {
                 self.upload(rel)

@@ -97,13 +97,20 @@ pub struct Corrections {
 /// another pipeline file.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Calibrated {
-    /// "campaign" or "dry-run" (`estimate.calibration`).
+    /// "campaign" or "dry-run" (`estimate.calibration`), or "none": `"auto"` found too few
+    /// runs and the runs are estimated with the pipeline's values (a record that says so, for
+    /// the later parts of a scheduled campaign).
     pub source: String,
     pub corrections: Corrections,
     /// The campaign's runs (names, in the campaign's order) it was fitted on.
     pub runs: Vec<String>,
     /// SHA-256 of the pipeline file's text it was fitted with.
     pub pipeline_sha256: String,
+    /// The SHA-256 of the inputs it was fitted on (`calibration.json`'s `inputs_sha256`), when
+    /// it was read from such a record: a campaign's models part refuses one fitted on other
+    /// logs. Not part of the calibration as written (campaign.json, the runs' reuse keys).
+    #[serde(skip)]
+    pub inputs_sha256: Option<String>,
 }
 
 impl Calibrated {
