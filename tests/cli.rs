@@ -319,7 +319,7 @@ fn train_eval_export_work_end_to_end() {
         "95 %       mu0 [",
         // Two runs at two temperatures: no temperature law; from 120 and 160 km/h, the level's
         // speed law (the truth's falls with speed).
-        "law        μ0(T) constant, k(T) constant, μ0(v) curtius_kniffler chosen by BIC among 13 forms",
+        "law        μ0(T) constant, k(T) constant, μ0(v) curtius_kniffler chosen by BIC among 16 forms",
         "μ0 × g(v), curtius_kniffler: c = [",
     ] {
         assert!(s.contains(needle), "{needle}: {s}");

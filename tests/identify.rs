@@ -1904,12 +1904,13 @@ fn speed_forms_alone_at_one_temperature_with_intervals() {
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     let linear = |v: f64| 1.0 + 0.3 * (1.0 - v / 25.0);
-    // One ambient temperature: the speed forms alone (4 candidates).
+    // One ambient temperature: the speed forms alone (5 candidates: none, linear,
+    // Curtius–Kniffler, quadratic, cubic).
     let mut one = polach_rows_level(&base, &linear, 7, 6000, (0.0, 5.0), 0.005, 29.0 / 31.0);
     one.metadata.ambient_temperature_c = Some(10.0);
     let (r, _) = fit_campaign(&[one], patch, q, 1, 2, true);
     let t = r.temperature.as_ref().expect("a speed law");
-    assert_eq!(t.candidates.len(), 4);
+    assert_eq!(t.candidates.len(), 5);
     assert!(
         t.speed.is_some() && !t.has_temperature_law(),
         "{}",
@@ -2003,8 +2004,8 @@ fn the_temperature_form_follows_what_varies() {
                 "{what} seed {seed}: chose {}; {table:?}; {notes:?}",
                 t.form()
             );
-            // 3 × 3 temperature forms; three speed laws (15–35 m/s) on the best three.
-            assert_eq!(t.candidates.len(), 18, "{what}");
+            // 3 × 3 temperature forms; four speed laws (15–35 m/s) on the best three.
+            assert_eq!(t.candidates.len(), 21, "{what}");
             // The level does not depend on speed: no speed law (BIC).
             assert!(t.speed.is_none(), "{what} seed {seed}: {}", t.form());
             match what {

@@ -23,7 +23,8 @@ pub struct TemperatureCandidate {
     /// Degrees of μ0(T) and of k_A(T), k_S(T)/k_A(T) (0: constant).
     pub mu0_degree: usize,
     pub k_degree: usize,
-    /// μ0's speed law: "polynomial 1", "polynomial 2", "curtius_kniffler"; absent: none.
+    /// μ0's speed law: "polynomial 1", "polynomial 2", "polynomial 3", "curtius_kniffler";
+    /// absent: none.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed_form: Option<String>,
     /// Free parameters (those the pooled fit held are not counted).
@@ -578,6 +579,7 @@ impl Offered {
                 Some(basis(false, 1)),
                 Some(basis(true, 1)),
                 Some(basis(false, 2)),
+                Some(basis(false, 3)),
             ]);
         }
         let (k_temps, excluded) = k_identified(per_temperature);
@@ -652,8 +654,8 @@ const SPEED_ON_T_FORMS: usize = 3;
 /// Every candidate: the temperature forms without a speed law, from the pooled fit's values;
 /// then, when speed laws are offered, each speed law on the [`SPEED_ON_T_FORMS`] temperature
 /// forms with the least BIC so far, warm-started from their solutions (a speed law changes the
-/// level, rarely which temperature form fits best; the search costs 9 + 9 fits instead of
-/// 36 at degree 2). Ordered by temperature form, then speed law.
+/// level, rarely which temperature form fits best; the search costs 9 + 12 fits instead of
+/// 45 at degree 2). Ordered by temperature form, then speed law.
 fn fit_all_forms(
     g: &Grouped,
     offered: &Offered,
