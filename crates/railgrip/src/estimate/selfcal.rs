@@ -1271,12 +1271,14 @@ const Y: usize = Z - 1;
 /// Series `x` at sample `k` shifted by `shift` samples (linear interpolation; exactly sample
 /// k + shift when that is whole), None outside the series or where a sample it reads is not
 /// `ok`. Shared by the calibration and the estimation it corrects.
+#[inline]
 pub(crate) fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
     let pos = k as f64 + shift;
     if !(pos >= 0.0) {
         return None;
     }
-    let i = pos.floor() as usize;
+    // pos ≥ 0: truncation is the floor (and needs no libm call).
+    let i = pos as usize;
     let f = pos - i as f64;
     if f == 0.0 {
         // On a sample: that sample alone (no neighbour needed).
@@ -1368,9 +1370,11 @@ impl Balance<'_> {
             n += 1;
             *wsum += w;
             for p in 0..Z {
-                s[p] += w * z[p];
-                for q in 0..=p {
-                    g[p * Z + q] += w * z[p] * z[q];
+                // w z_p z_q as (w z_p) z_q: the same product, hoisted.
+                let wp = w * z[p];
+                s[p] += wp;
+                for (gq, zq) in g[p * Z..=p * Z + p].iter_mut().zip(&z[..=p]) {
+                    *gq += wp * zq;
                 }
             }
         }
