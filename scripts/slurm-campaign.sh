@@ -33,7 +33,8 @@ mkdir -p "$logs"
 
 # The campaign's calibration (OUT/calibration.json, when the pipeline asks for one), which every
 # shard and the models job take from OUT. Should it fail, the shards and the models job are
-# cancelled (--kill-on-invalid-dep), not left pending.
+# cancelled (--kill-on-invalid-dep; the models job also depends on it with afterok, since
+# afterany on cancelled shards would let it start), not left pending.
 calib=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-calibrate \
     --output="$logs/calibrate.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage calibrate)")
@@ -47,6 +48,6 @@ shards=$("$sbatch" --parsable "${opts[@]}" --job-name=railgrip-estimate --array=
 shards=${shards%%;*}
 # Training and the report, once every shard succeeded (exit 3, some runs failed, counts as done).
 models=$("$sbatch" --parsable "${opts[@]}" "${models_opts[@]}" --job-name=railgrip-models \
-    --dependency="afterany:$shards" --kill-on-invalid-dep=yes --output="$logs/models.log" \
+    --dependency="afterany:$shards,afterok:$calib" --kill-on-invalid-dep=yes --output="$logs/models.log" \
     --wrap="$(printf '%q ' "$railgrip" run "$archive" --out "$out" "${pipeline[@]}" --stage models)")
 echo "calibration: job $calib; estimate shards: job $shards (array 1-$n); models: job ${models%%;*}"

@@ -712,6 +712,8 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
         let c = run_and_score("pipelines/scenes/top_speed/", seed);
+        // A level that falls steeper at the top: BIC chooses the cubic speed law.
+        assert_eq!(c.polach_speed, ("polynomial".to_string(), 3), "seed {seed}");
         let polach = &c.models["polach"];
         eprintln!("seed {seed}: polach replay {:?}", polach.replay);
         assert!(
@@ -801,6 +803,8 @@ struct CampaignScores {
     /// By name: `polach` (mlp.polach.json), `network` (mlp.json, the 2-input network),
     /// `residual` (mlp.residual.json) and `chosen`.
     models: std::collections::BTreeMap<&'static str, BandScores>,
+    /// The Polach model's speed law: its form and number of coefficients.
+    polach_speed: (String, usize),
 }
 
 impl CampaignScores {
@@ -852,10 +856,14 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
     let out = tmp.path().join("out");
     let models = out.join("models");
     let polach = ModelFile::read(&models.join("mlp.polach.json")).unwrap();
-    assert!(
-        polach.polach.as_ref().unwrap().speed.is_some(),
-        "{prefix} seed {seed}: no speed law"
-    );
+    let polach_speed = polach
+        .polach
+        .as_ref()
+        .unwrap()
+        .speed
+        .as_ref()
+        .map(|s| (s.form.clone(), s.coefficients.len()))
+        .unwrap_or_else(|| panic!("{prefix} seed {seed}: no speed law"));
     let camp: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("campaign.json")).unwrap()).unwrap();
     let chosen = camp["chosen_model"].as_str().unwrap().to_string();
@@ -922,6 +930,7 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
     CampaignScores {
         chosen,
         models: scores,
+        polach_speed,
     }
 }
 

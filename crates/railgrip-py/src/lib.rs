@@ -585,8 +585,9 @@ fn campaign_runs(
 /// The campaign's calibration (`estimate.calibration` "auto", "campaign" or "dry-run" of
 /// `pipeline`) fitted over the runs of `archive`, written as `calibration.json` into `out` (a
 /// path, file:// or s3://), and the pipeline carrying it — what every estimate task is then
-/// given. A pipeline with "pipeline", or with "auto" on a campaign of fewer than 3 runs with
-/// samples for the balance, comes back as it is.
+/// given. A pipeline with "pipeline" comes back as it is; so does one with "auto" where no
+/// calibration can be fitted (fewer than 3 runs with samples for the balance, or a fit that
+/// fails), and then `calibration.json` records that, and why, for the tasks.
 #[pyfunction]
 #[pyo3(signature = (archive, out, pipeline, jobs=None))]
 fn calibrate_campaign(

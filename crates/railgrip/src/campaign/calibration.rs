@@ -310,7 +310,11 @@ pub fn check_for_run(
     Err(CampaignError::Input {
         path: run.to_path_buf(),
         message: format!("the given calibration does not fit this pipeline: {why}"),
-        hint: "give the pipeline the calibration was fitted with (--pipeline), the one with estimate.calibration = \"campaign\"".into(),
+        hint: if given.source == NONE_SOURCE {
+            "this file records that the campaign fitted no calibration (estimate.calibration = \"auto\"): give the pipeline it was written with (--pipeline), or leave --calibration out".into()
+        } else {
+            format!("give the pipeline the calibration was fitted with (--pipeline), one with estimate.calibration = \"{}\"{}", given.source, if given.source == "campaign" { " or \"auto\"" } else { "" })
+        },
     })
 }
 

@@ -345,6 +345,13 @@ fn run_sources(
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
     // The calibration first: every run's estimate depends on it.
+    if options.part == Part::Calibrate && pipeline.calibrated.is_some() {
+        return Err(CampaignError::Input {
+            path: out.root().to_path_buf(),
+            message: "the calibrate part was given a calibration: it fits the campaign's own".into(),
+            hint: "leave the calibration out of the calibrate part (give it to the estimate and models parts instead, or let them take OUT/calibration.json)".into(),
+        });
+    }
     let t = Instant::now();
     let cal = campaign_calibration(&logs, pipeline, options, out, root)?;
     let cal_s = t.elapsed().as_secs_f64();
@@ -556,7 +563,8 @@ fn calibrate_part(
         path: out.root().to_path_buf(),
         source,
     })?;
-    // The runs will be estimated with this calibration: what described them no longer does.
+    // The calibrate part starts a scheduled campaign: the earlier one's record and report go
+    // until its models part writes them again (as an estimate shard removes them).
     remove_campaign_results(out)?;
     write_calibration_file(out, cal.record.as_ref(), Part::Calibrate)?;
     let file = out.root().join(calibration::CALIBRATION_FILE);

@@ -97,9 +97,10 @@ pub struct Corrections {
 /// another pipeline file.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Calibrated {
-    /// "campaign" or "dry-run" (`estimate.calibration`), or "none": `"auto"` found too few
-    /// runs and the runs are estimated with the pipeline's values (a record that says so, for
-    /// the later parts of a scheduled campaign).
+    /// "campaign" or "dry-run" (`estimate.calibration`), or "none": `"auto"` could fit none
+    /// (too few runs with samples for the balance, or a fit that failed) and the runs are
+    /// estimated with the pipeline's values (a record that says so, written as
+    /// `calibration.json`, for the later parts of a scheduled campaign).
     pub source: String,
     pub corrections: Corrections,
     /// The campaign's runs (names, in the campaign's order) it was fitted on.

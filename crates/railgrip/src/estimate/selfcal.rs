@@ -1274,7 +1274,8 @@ const Y: usize = Z - 1;
 #[inline]
 pub(crate) fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f64> {
     let pos = k as f64 + shift;
-    if !(pos >= 0.0) {
+    // Outside the series (also what no index can hold): None, as past its end.
+    if !(pos >= 0.0) || pos >= x.len() as f64 {
         return None;
     }
     // pos ≥ 0: truncation is the floor (and needs no libm call).

@@ -325,7 +325,8 @@ fn forms_table(h: &mut String, f: &PolachReport) {
             t.samples, t.effective_samples
         );
         for c in &t.candidates {
-            let chosen = c.mu0_degree == t.mu0_degree && c.k_degree == t.k_degree;
+            // The same degrees and the same speed law (the names carry both).
+            let chosen = c.form() == t.form();
             let _ = writeln!(
                 *h,
                 "<tr><td class=\"l\">{}</td><td>{}</td><td>{:.5}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td><td class=\"l\">{}</td></tr>",
