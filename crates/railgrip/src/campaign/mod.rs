@@ -345,13 +345,6 @@ fn run_sources(
 ) -> Result<Outcome, CampaignError> {
     let t_all = Instant::now();
     // The calibration first: every run's estimate depends on it.
-    if options.part == Part::Calibrate && pipeline.calibrated.is_some() {
-        return Err(CampaignError::Input {
-            path: out.root().to_path_buf(),
-            message: "the calibrate part was given a calibration: it fits the campaign's own".into(),
-            hint: "leave the calibration out of the calibrate part (give it to the estimate and models parts instead, or let them take OUT/calibration.json)".into(),
-        });
-    }
     let t = Instant::now();
     let cal = campaign_calibration(&logs, pipeline, options, out, root)?;
     let cal_s = t.elapsed().as_secs_f64();
@@ -487,6 +480,13 @@ fn campaign_calibration(
     out: &OutDir,
     root: &Path,
 ) -> Result<calibration::CampaignCalibrated, CampaignError> {
+    if options.part == Part::Calibrate && pipeline.calibrated.is_some() {
+        return Err(CampaignError::Input {
+            path: out.root().to_path_buf(),
+            message: "the calibrate part was given a calibration: it fits the campaign's own".into(),
+            hint: "leave the calibration out of the calibrate part (give it to the estimate and models parts instead, or let them take OUT/calibration.json)".into(),
+        });
+    }
     let computes = matches!(options.part, Part::All | Part::Calibrate);
     let written = out.root().join(calibration::CALIBRATION_FILE);
     let taken;
