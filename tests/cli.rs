@@ -1436,6 +1436,11 @@ fi
     assert_eq!(o.status.code(), Some(2), "{}", text(&o.stderr));
 }
 
+/// A JSON file, parsed.
+fn json_file(path: impl AsRef<Path>) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 /// The bundled pipeline with `estimate.calibration` set, written into `dir`.
 fn calibrated_pipeline(dir: &Path, source: &str) -> PathBuf {
     let text = std::fs::read_to_string(root().join("pipelines/uic_z1.toml")).unwrap();
@@ -1478,8 +1483,7 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     for want in ["α1 ", "α4 ", "pad ", "radar      scale", "tachos     delay"] {
         assert!(s.contains(want), "{want}: {s}");
     }
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(cal).unwrap()).unwrap();
+    let record = json_file(cal);
     assert_eq!(record["calibrated"]["source"], "campaign");
     assert_eq!(record["calibrated"]["runs"].as_array().unwrap().len(), 8);
 
@@ -1584,9 +1588,7 @@ fn auto_estimates_a_run_alone_with_the_pipelines_values_unless_given_the_calibra
     let camp = root().join("fixtures/archive").display().to_string();
     let o = railgrip(&["calibrate", "--campaign", &camp, "--out", "x"], d);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    let auto: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("x/calibration.json")).unwrap())
-            .unwrap();
+    let auto = json_file(d.join("x/calibration.json"));
     assert_eq!(auto["calibrated"]["source"], "campaign");
     let own = calibrated_pipeline(d, "pipeline").display().to_string();
     let run = archive("soap_120kmh_0c.csv");
@@ -1762,9 +1764,7 @@ fn the_parts_follow_the_calibrate_parts_record() {
     };
     let said = part(&["--stage", "calibrate"]);
     assert!(said.contains("calibration: none (only 2 runs"), "{said}");
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("sh/calibration.json")).unwrap())
-            .unwrap();
+    let record = json_file(d.join("sh/calibration.json"));
     assert_eq!(record["calibrated"]["source"], "none");
     for k in ["1/2", "2/2"] {
         part(&["--stage", "estimate", "--shard", k]);
@@ -1811,6 +1811,30 @@ fn the_parts_follow_the_calibrate_parts_record() {
     );
 }
 
+/// A part that takes a damaged `OUT/calibration.json` stops, naming the file and the command
+/// that writes it again.
+#[test]
+fn a_damaged_output_folder_calibration_is_named_with_the_command_to_write_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    three_run_campaign(&d.join("three"));
+    std::fs::create_dir_all(d.join("t")).unwrap();
+    std::fs::write(d.join("t/calibration.json"), "{\"calibrated\": 1").unwrap();
+    for stage in [&["--stage", "estimate"][..], &["--stage", "models"][..]] {
+        let mut args = vec!["run", "three", "--out", "t"];
+        args.extend(stage);
+        let o = railgrip(&args, d);
+        assert_eq!(o.status.code(), Some(1), "{stage:?}: {}", text(&o.stdout));
+        let e = text(&o.stderr);
+        assert!(
+            e.contains("calibration.json")
+                && e.contains("cannot be used")
+                && e.contains("--stage calibrate"),
+            "{stage:?}: {e}"
+        );
+    }
+}
+
 /// The default `estimate.calibration = "auto"`: a campaign of three runs is calibrated (its
 /// calibration in the output folder, the campaign record and the report), one of two runs is
 /// estimated with the pipeline's values, the notes and its calibration.json say why;
@@ -1823,9 +1847,7 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
     two_run_campaign(&d.join("two"));
     let o = railgrip(&["run", "three", "--out", "o3", "--json"], d);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    let campaign: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o3/campaign.json")).unwrap())
-            .unwrap();
+    let campaign = json_file(d.join("o3/campaign.json"));
     assert_eq!(campaign["calibration"]["source"], "campaign");
     assert_eq!(campaign["calibration"]["runs"].as_array().unwrap().len(), 3);
     assert!(d.join("o3/calibration.json").is_file());
@@ -1847,17 +1869,13 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
         "{notes:?}"
     );
     // Its calibration.json records that none was fitted, and why.
-    let none: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o2/calibration.json")).unwrap())
-            .unwrap();
+    let none = json_file(d.join("o2/calibration.json"));
     assert_eq!(none["calibrated"]["source"], "none");
     assert!(
         none["notes"][0].as_str().unwrap().contains("only 2 runs"),
         "{none}"
     );
-    let campaign: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o2/campaign.json")).unwrap())
-            .unwrap();
+    let campaign = json_file(d.join("o2/campaign.json"));
     assert!(campaign["calibration"].is_null(), "{campaign}");
     // The same two runs with the pipeline's own values: the same estimates.
     let own = calibrated_pipeline(d, "pipeline");
@@ -1933,9 +1951,7 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
         text(&o.stdout),
         text(&o.stderr)
     );
-    let record: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o/calibration.json")).unwrap())
-            .unwrap();
+    let record = json_file(d.join("o/calibration.json"));
     let runs: Vec<&str> = record["dry_run"]["runs"]
         .as_array()
         .unwrap()
@@ -1945,12 +1961,9 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
     assert!(runs.contains(&"dry_120kmh_p20"), "{runs:?}");
     let alpha = record["dry_run"]["alpha_nm_per_bar"].as_f64().unwrap();
     assert!((alpha / 1600.0 - 1.0).abs() < 0.02, "{alpha}");
-    let campaign: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o/campaign.json")).unwrap()).unwrap();
+    let campaign = json_file(d.join("o/campaign.json"));
     assert_eq!(campaign["calibration"]["source"], "dry-run");
-    let model: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("o/models/mlp.json")).unwrap())
-            .unwrap();
+    let model = json_file(d.join("o/models/mlp.json"));
     let prov = model["provenance"]["calibration"].as_str().unwrap();
     assert!(
         prov.starts_with("dry-run calibration over 8 runs"),

@@ -165,7 +165,12 @@ pub fn calibrated_pipeline(
                 given.runs.len()
             ))))
         } else {
-            as_is(None).with(pipeline)
+            CampaignCalibrated {
+                pipeline: pipeline.clone(),
+                record: None,
+                reused: false,
+                note: None,
+            }
         });
     }
     if !compute {
@@ -203,14 +208,6 @@ pub fn calibrated_pipeline(
     c.record = Some(record);
     c.reused = reused;
     Ok(c)
-}
-
-impl CampaignCalibrated {
-    /// This, with `pipeline` (and the calibration it carries) as the runs' pipeline.
-    fn with(mut self, pipeline: &Pipeline) -> Self {
-        self.pipeline = pipeline.clone();
-        self
-    }
 }
 
 /// The note of an "auto" campaign estimated with the pipeline's own values.
