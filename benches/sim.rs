@@ -5,7 +5,10 @@
 //! vehicle speed) relative to a 0.02 ms reference run; then what each effect costs alone (the
 //! minimal scene plus that one effect) and the FASTSIM law's cost by grid
 //! (`sim/thermal/20s`, `sim/fastsim_10x10/20s` in criterion as well), and the `thermal`
-//! effect's update interval against its error.
+//! effect's update interval against its error. `sim/cube_root/*`: the patch refresh's four
+//! cube roots per logger record under `load_transfer` — `f64::cbrt` (correctly rounded,
+//! a call per root) against `railgrip_simd::cbrt4` (the same bits, on vector lanes), 1 024
+//! sets of four load ratios each.
 //!
 //!     cargo bench --bench sim
 
@@ -167,5 +170,52 @@ fn thermal_update_tradeoff(minimal_rtf: f64) {
     }
 }
 
-criterion_group!(benches, bench);
+/// `f64::cbrt` against [`railgrip_simd::cbrt4`] on the widest lanes this CPU has, on the
+/// load ratios a braking sees (0.7–1.3).
+fn cube_root(c: &mut Criterion) {
+    use railgrip_simd::{cbrt4, Isa, Portable};
+    let sets: Vec<[f64; 4]> = (0..1024)
+        .map(|i| std::array::from_fn(|a| 0.7 + 0.6 * ((i * 4 + a) as f64 / 4096.0)))
+        .collect();
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn lanes(isa: railgrip_simd::Avx2, sets: &[[f64; 4]]) -> f64 {
+        sets.iter()
+            .map(|x| cbrt4::<railgrip_simd::F64x4>(isa, *x).iter().sum::<f64>())
+            .sum()
+    }
+    let mut g = c.benchmark_group("sim/cube_root");
+    g.throughput(Throughput::Elements(4 * sets.len() as u64));
+    g.bench_function("std", |b| {
+        b.iter(|| {
+            black_box(&sets)
+                .iter()
+                .map(|x| x.map(f64::cbrt).iter().sum::<f64>())
+                .sum::<f64>()
+        })
+    });
+    match Isa::detect() {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512(t) => g.bench_function("railgrip_cbrt4", |b| {
+            // SAFETY: the token proves AVX2 and FMA.
+            b.iter(|| unsafe { lanes(t.avx2(), black_box(&sets)) })
+        }),
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2(t) => g.bench_function("railgrip_cbrt4", |b| {
+            // SAFETY: the token proves AVX2 and FMA.
+            b.iter(|| unsafe { lanes(t, black_box(&sets)) })
+        }),
+        _ => g.bench_function("railgrip_cbrt4", |b| {
+            b.iter(|| {
+                black_box(&sets)
+                    .iter()
+                    .map(|x| cbrt4::<f64>(Portable, *x).iter().sum::<f64>())
+                    .sum::<f64>()
+            })
+        }),
+    };
+    g.finish();
+}
+
+criterion_group!(benches, bench, cube_root);
 criterion_main!(benches);

@@ -527,7 +527,7 @@ fn run<V: Select>(
         let t = n as f64 * setup.h;
         let omega = st.ax.omega;
         if log.due(t) && log.record(t, &st, &mut counters) {
-            setup.refresh_patch(&mut st, &mut counters);
+            setup.refresh_patch::<V>(isa, &mut st, &mut counters);
         }
         if st.v <= sc.run.stop_speed_mps || n >= max_steps {
             break;

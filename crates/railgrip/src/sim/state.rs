@@ -730,15 +730,21 @@ impl<'a> Setup<'a> {
     }
 
     /// Refreshes the patch constant for the wheel loads (a b ∝ Q^(2/3)) under load transfer
-    /// (at the output rate: the loads change slowly).
+    /// (at the output rate: the loads change slowly). The four cube roots on `V`'s lanes
+    /// ([`crate::simd::cbrt4`], correctly rounded: the bits of `f64::cbrt`).
     #[inline(always)]
-    pub(super) fn refresh_patch(&self, st: &mut SimState, counters: &mut EffectCounters) {
+    pub(super) fn refresh_patch<V: Select>(
+        &self,
+        isa: V::Isa,
+        st: &mut SimState,
+        counters: &mut EffectCounters,
+    ) {
         if !self.fx.has(Effect::LoadTransfer) {
             return;
         }
-        for a in 0..AXLES {
+        let ratios = crate::simd::cbrt4::<V>(isa, st.normal.map(|n| n * 0.5 / self.q0));
+        for (a, ratio) in ratios.into_iter().enumerate() {
             counters.hit(Effect::LoadTransfer);
-            let ratio = (st.normal[a] * 0.5 / self.q0).cbrt();
             st.half_inv_k[a] = 0.5 / (self.k0 * ratio * ratio);
             st.patch_ratio[a] = ratio.max(1e-2);
             // The thermal effect's patch follows the load too (a, p_max ∝ Q^(1/3)).
