@@ -3,8 +3,9 @@
 //! four lanes) and [`F64x8`] (AVX-512F, eight lanes) implementations, so that tanh, the hidden
 //! layer ([`tanh_of_doubled`]), exp ([`exp_lanes`]), atan ([`atan_parts`]) and the cube
 //! root ([`cbrt4`], correctly rounded) are written once and every path performs the same
-//! IEEE operations lane by lane — the results are bit-identical whatever the CPU (tested in `model::net::tests` and `sim::tests`). [`Select`]
-//! adds comparisons and blends (f64 and AVX2) for the simulator's branch-free axle step.
+//! IEEE operations lane by lane — the results are bit-identical whatever the CPU (tested in
+//! `model::net::tests` and `sim::tests`). [`Select`] adds comparisons and blends (f64 and
+//! AVX2) for the simulator's branch-free axle step.
 //! Multiply-adds are fused everywhere (`f64::mul_add`, `vfmadd`): FMA is correctly rounded, so
 //! hardware and software agree to the bit; on a CPU without FMA the portable path computes it
 //! in software.
