@@ -1891,21 +1891,7 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
         d,
     );
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-    let runs = |out: &str| {
-        let mut v: Vec<Vec<f64>> = files_below(&d.join(out))
-            .into_iter()
-            .filter(|p| p.file_name().unwrap() == "estimates.parquet")
-            .map(|p| common::parquet_columns(&p, &["mu"]).remove(0))
-            .collect();
-        v.sort_by_key(Vec::len);
-        v
-    };
-    let (auto, own) = (runs("o2"), runs("own"));
-    assert_eq!((auto.len(), own.len()), (2, 2));
-    assert!(auto.iter().zip(&own).all(|(a, b)| a
-        .iter()
-        .zip(b)
-        .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))));
+    assert_same_mu(&d.join("o2"), &d.join("own"), 2);
     // "campaign" refuses the two.
     let camp = calibrated_pipeline(d, "campaign");
     let o = railgrip(
@@ -1924,6 +1910,111 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
         text(&o.stderr).contains("a campaign's calibration needs at least 3"),
         "{}",
         text(&o.stderr)
+    );
+}
+
+/// The μ columns of every `estimates.parquet` below `a` and `b` are the same (NaN where NaN),
+/// `runs` of them.
+fn assert_same_mu(a: &Path, b: &Path, runs: usize) {
+    let mu = |dir: &Path| {
+        let mut v: Vec<Vec<f64>> = files_below(dir)
+            .into_iter()
+            .filter(|p| p.file_name().unwrap() == "estimates.parquet")
+            .map(|p| common::parquet_columns(&p, &["mu"]).remove(0))
+            .collect();
+        v.sort_by_key(Vec::len);
+        v
+    };
+    let (x, y) = (mu(a), mu(b));
+    assert_eq!((x.len(), y.len()), (runs, runs));
+    assert!(x.iter().zip(&y).all(|(a, b)| a.len() == b.len()
+        && a.iter()
+            .zip(b)
+            .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))));
+}
+
+/// Three runs cut to their first 3.1 s (1.8 s of braking) are enough runs but too little
+/// braking for the balance: its fit gives a negative α. "auto" then keeps the pipeline's
+/// values with the fit's error in a note and a "none" record, for the whole job and for the
+/// calibrate part; "campaign" stops with the error, naming the campaign.
+#[test]
+fn auto_keeps_the_pipelines_values_where_the_campaigns_fit_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let camp = d.join("short");
+    std::fs::create_dir(&camp).unwrap();
+    for run in ["soap_120kmh_0c", "soap_120kmh_m20", "soap_120kmh_p20"] {
+        let log = std::fs::read_to_string(archive(&format!("{run}.csv"))).unwrap();
+        let head: Vec<&str> = log.lines().take(1300).collect();
+        std::fs::write(camp.join(format!("{run}.csv")), head.join("\n") + "\n").unwrap();
+        std::fs::copy(
+            archive(&format!("{run}.meta.toml")),
+            camp.join(format!("{run}.meta.toml")),
+        )
+        .unwrap();
+    }
+    let o = railgrip(&["run", "short", "--out", "auto", "--json"], d);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let json: serde_json::Value = serde_json::from_str(&text(&o.stdout)).unwrap();
+    let note = json["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|n| n.as_str().unwrap())
+        .find(|n| n.starts_with("calibration: none"))
+        .unwrap_or_else(|| panic!("{json}"));
+    assert!(
+        note.contains("could not be fitted")
+            && note.contains("non-positive brake coefficient")
+            && note.contains("estimated with [vehicle]'s α"),
+        "{note}"
+    );
+    let none = json_file(d.join("auto/calibration.json"));
+    assert_eq!(none["calibrated"]["source"], "none");
+    assert!(json_file(d.join("auto/campaign.json"))["calibration"].is_null());
+    // The estimates are the pipeline's.
+    let own = calibrated_pipeline(d, "pipeline");
+    let o = railgrip(
+        &[
+            "run",
+            "short",
+            "--out",
+            "own",
+            "--pipeline",
+            own.to_str().unwrap(),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert_same_mu(&d.join("auto"), &d.join("own"), 3);
+    // The calibrate part writes the same record.
+    let o = railgrip(
+        &["run", "short", "--out", "part", "--stage", "calibrate"],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert_eq!(
+        json_file(d.join("part/calibration.json"))["calibrated"]["source"],
+        "none"
+    );
+    // "campaign" stops with the fit's error.
+    let camp = calibrated_pipeline(d, "campaign");
+    let o = railgrip(
+        &[
+            "run",
+            "short",
+            "--out",
+            "oc",
+            "--pipeline",
+            camp.to_str().unwrap(),
+        ],
+        d,
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", text(&o.stdout));
+    let err = text(&o.stderr);
+    assert!(
+        err.contains("short") && err.contains("non-positive brake coefficient"),
+        "{err}"
     );
 }
 
