@@ -1916,21 +1916,32 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
 /// The μ columns of every `estimates.parquet` below `a` and `b` are the same (NaN where NaN),
 /// `runs` of them.
 fn assert_same_mu(a: &Path, b: &Path, runs: usize) {
+    // Paired by the table's path below its folder (the runs' names).
     let mu = |dir: &Path| {
-        let mut v: Vec<Vec<f64>> = files_below(dir)
+        let mut v: Vec<(PathBuf, Vec<f64>)> = files_below(dir)
             .into_iter()
             .filter(|p| p.file_name().unwrap() == "estimates.parquet")
-            .map(|p| common::parquet_columns(&p, &["mu"]).remove(0))
+            .map(|p| {
+                let mu = common::parquet_columns(&p, &["mu"]).remove(0);
+                (p.strip_prefix(dir).unwrap().to_path_buf(), mu)
+            })
             .collect();
-        v.sort_by_key(Vec::len);
+        v.sort_by(|a, b| a.0.cmp(&b.0));
         v
     };
     let (x, y) = (mu(a), mu(b));
     assert_eq!((x.len(), y.len()), (runs, runs));
-    assert!(x.iter().zip(&y).all(|(a, b)| a.len() == b.len()
-        && a.iter()
-            .zip(b)
-            .all(|(x, y)| x == y || (x.is_nan() && y.is_nan()))));
+    for ((pa, a), (pb, b)) in x.iter().zip(&y) {
+        assert_eq!(pa, pb);
+        assert!(
+            a.len() == b.len()
+                && a.iter()
+                    .zip(b)
+                    .all(|(x, y)| x == y || (x.is_nan() && y.is_nan())),
+            "{}: μ differs",
+            pa.display()
+        );
+    }
 }
 
 /// Three runs cut to their first 3.1 s (1.8 s of braking) are enough runs but too little
