@@ -264,6 +264,26 @@ impl Scratch {
             d2: vec![0.0; shape.hidden2 * BLOCK],
         }
     }
+
+    /// Values per block of [`Scratch::save`]: the hidden activations of both layers.
+    pub fn activations(shape: Shape) -> usize {
+        (shape.hidden + shape.hidden2) * BLOCK
+    }
+
+    /// Copies the hidden activations [`block`]'s forward pass left here into `out`
+    /// ([`Scratch::activations`] values).
+    pub fn save(&self, out: &mut [f64]) {
+        let (a, b) = out.split_at_mut(self.t1.len());
+        a.copy_from_slice(&self.t1);
+        b.copy_from_slice(&self.t2);
+    }
+
+    /// Puts activations saved by [`Scratch::save`] back, for [`jacobian_block`].
+    pub fn restore(&mut self, saved: &[f64]) {
+        let (a, b) = saved.split_at(self.t1.len());
+        self.t1.copy_from_slice(a);
+        self.t2.copy_from_slice(b);
+    }
 }
 
 /// One block of `n ≤ BLOCK` samples on lanes `V` (`n` a multiple of `V::N`; the caller pads):
@@ -273,6 +293,8 @@ impl Scratch {
 /// width of a larger matrix the block is a column range of).
 /// Every lane performs the operations of [`forward_grad`] in the same order (fused
 /// multiply-adds, the same tanh), so the results are those of one sample at a time.
+/// The forward pass leaves the hidden activations in `scratch` ([`Scratch::activations`]);
+/// [`jacobian_block`] takes them from there.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn block<V: Lanes>(
@@ -283,11 +305,10 @@ pub(crate) fn block<V: Lanes>(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    mut jac: Option<(&mut [f64], usize)>,
+    jac: Option<(&mut [f64], usize)>,
     scratch: &mut Scratch,
 ) {
     let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
-    let one = V::splat(isa, 1.0);
     let two = V::splat(isa, 2.0);
     let mut s = 0;
     while s < n {
@@ -320,43 +341,67 @@ pub(crate) fn block<V: Lanes>(
             out = w.fma(V::load(isa, &last[g * BLOCK + s..]), out);
         }
         out.sub(V::load(isa, &y[s..])).store(&mut r[s..]);
-        if let Some((jac, stride)) = jac.as_mut() {
-            let stride = *stride;
-            one.store(&mut jac[shape.bo() * stride + s..]);
-            for g in 0..n_last {
-                V::load(isa, &last[g * BLOCK + s..])
-                    .store(&mut jac[(shape.wo() + g) * stride + s..]);
+        s += V::N;
+    }
+    if let Some((jac, stride)) = jac {
+        jacobian_block::<V>(isa, shape, theta, x, n, (jac, stride), scratch);
+    }
+}
+
+/// The Jacobian rows of [`block`] from the hidden activations its forward pass left in
+/// `scratch` (or that were put back there: the same values give the same bits).
+#[inline(always)]
+pub(crate) fn jacobian_block<V: Lanes>(
+    isa: V::Isa,
+    shape: Shape,
+    theta: &[f64],
+    x: &[&[f64]],
+    n: usize,
+    (jac, stride): (&mut [f64], usize),
+    scratch: &mut Scratch,
+) {
+    let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
+    let one = V::splat(isa, 1.0);
+    let mut s = 0;
+    while s < n {
+        let (last, n_last) = if nh2 > 0 {
+            (&scratch.t2, nh2)
+        } else {
+            (&scratch.t1, nh)
+        };
+        one.store(&mut jac[shape.bo() * stride + s..]);
+        for g in 0..n_last {
+            V::load(isa, &last[g * BLOCK + s..]).store(&mut jac[(shape.wo() + g) * stride + s..]);
+        }
+        // δ of the first layer, through the second when there is one.
+        if nh2 > 0 {
+            for g in 0..nh2 {
+                let t = V::load(isa, &scratch.t2[g * BLOCK + s..]);
+                let d2 = V::splat(isa, theta[shape.wo() + g]).mul(t.fnma(t, one));
+                d2.store(&mut scratch.d2[g * BLOCK + s..]);
+                d2.store(&mut jac[(shape.b2() + g) * stride + s..]);
+                for h in 0..nh {
+                    d2.mul(V::load(isa, &scratch.t1[h * BLOCK + s..]))
+                        .store(&mut jac[(shape.w2() + g * nh + h) * stride + s..]);
+                }
             }
-            // δ of the first layer, through the second when there is one.
-            if nh2 > 0 {
+        }
+        for h in 0..nh {
+            let t = V::load(isa, &scratch.t1[h * BLOCK + s..]);
+            let d1 = if nh2 > 0 {
+                let mut acc = V::splat(isa, 0.0);
                 for g in 0..nh2 {
-                    let t = V::load(isa, &scratch.t2[g * BLOCK + s..]);
-                    let d2 = V::splat(isa, theta[shape.wo() + g]).mul(t.fnma(t, one));
-                    d2.store(&mut scratch.d2[g * BLOCK + s..]);
-                    d2.store(&mut jac[(shape.b2() + g) * stride + s..]);
-                    for h in 0..nh {
-                        d2.mul(V::load(isa, &scratch.t1[h * BLOCK + s..]))
-                            .store(&mut jac[(shape.w2() + g * nh + h) * stride + s..]);
-                    }
+                    let w = V::splat(isa, theta[shape.w2() + g * nh + h]);
+                    acc = w.fma(V::load(isa, &scratch.d2[g * BLOCK + s..]), acc);
                 }
-            }
-            for h in 0..nh {
-                let t = V::load(isa, &scratch.t1[h * BLOCK + s..]);
-                let d1 = if nh2 > 0 {
-                    let mut acc = V::splat(isa, 0.0);
-                    for g in 0..nh2 {
-                        let w = V::splat(isa, theta[shape.w2() + g * nh + h]);
-                        acc = w.fma(V::load(isa, &scratch.d2[g * BLOCK + s..]), acc);
-                    }
-                    acc.mul(t.fnma(t, one))
-                } else {
-                    V::splat(isa, theta[shape.wo() + h]).mul(t.fnma(t, one))
-                };
-                d1.store(&mut jac[(shape.b1() + h) * stride + s..]);
-                for (i, xi) in x.iter().enumerate().take(ni) {
-                    d1.mul(V::load(isa, &xi[s..]))
-                        .store(&mut jac[(h * ni + i) * stride + s..]);
-                }
+                acc.mul(t.fnma(t, one))
+            } else {
+                V::splat(isa, theta[shape.wo() + h]).mul(t.fnma(t, one))
+            };
+            d1.store(&mut jac[(shape.b1() + h) * stride + s..]);
+            for (i, xi) in x.iter().enumerate().take(ni) {
+                d1.mul(V::load(isa, &xi[s..]))
+                    .store(&mut jac[(h * ni + i) * stride + s..]);
             }
         }
         s += V::N;

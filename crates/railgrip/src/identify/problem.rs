@@ -7,6 +7,10 @@
 //! Blocks are grouped into fixed chunks of [`CHUNK`] samples, chunks run in parallel and are
 //! summed in order, so the result does not depend on the number of threads; memory is
 //! O(chunk × P) per thread, never O(N × P).
+//! Nothing is computed twice: the forward pass of LM's accepted trial step is the next epoch's,
+//! so a training pass keeps its hidden activations and residuals (O(N × hidden), up to
+//! [`MAX_CACHED_VALUES`]) and the normal equations at the same θ build only the Jacobian from
+//! them — the same values, so the same bits.
 
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, MatMut, MatRef, Par};
@@ -21,6 +25,10 @@ use crate::simd::{Isa, Portable};
 /// Samples per chunk: fixed, so the sums (chunk results added in order) do not depend on the
 /// number of threads.
 pub const CHUNK: usize = 8 * BLOCK;
+
+/// Values between the end of one row of a chunk's matrix A and the start of the next (one
+/// 64-byte cache line), so that rows are not a power of two apart.
+const ROW_PAD: usize = 8;
 
 /// [`mlp::block`] on the widest lanes of this CPU (same bits on every path).
 #[allow(clippy::too_many_arguments)]
@@ -82,6 +90,67 @@ fn block_avx2(
     mlp::block::<F64x4>(isa, shape, theta, x, y, n, r, jac, scratch)
 }
 
+/// [`mlp::jacobian_block`] on the widest lanes of this CPU (same bits on every path).
+fn jacobian_dispatch(
+    isa: Isa,
+    shape: Shape,
+    theta: &[f64],
+    x: &[&[f64]],
+    jac: (&mut [f64], usize),
+    scratch: &mut Scratch,
+) {
+    match isa {
+        // SAFETY: the token proves AVX-512F on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512(t) => unsafe { jacobian_avx512(t, shape, theta, x, jac, scratch) },
+        // SAFETY: the token proves AVX2 and FMA on this CPU.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2(t) => unsafe { jacobian_avx2(t, shape, theta, x, jac, scratch) },
+        _ => mlp::jacobian_block::<f64>(Portable, shape, theta, x, BLOCK, jac, scratch),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn jacobian_avx512(
+    isa: Avx512,
+    shape: Shape,
+    theta: &[f64],
+    x: &[&[f64]],
+    jac: (&mut [f64], usize),
+    scratch: &mut Scratch,
+) {
+    mlp::jacobian_block::<F64x8>(isa, shape, theta, x, BLOCK, jac, scratch)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn jacobian_avx2(
+    isa: Avx2,
+    shape: Shape,
+    theta: &[f64],
+    x: &[&[f64]],
+    jac: (&mut [f64], usize),
+    scratch: &mut Scratch,
+) {
+    mlp::jacobian_block::<F64x4>(isa, shape, theta, x, BLOCK, jac, scratch)
+}
+
+/// The last forward pass over the training samples: its θ and, per block, the hidden
+/// activations ([`Scratch::save`]) and the residuals. LM's accepted trial step is the next
+/// epoch's θ, so the normal equations there take the activations and residuals from here
+/// instead of computing them again — the same values, so the same bits.
+struct ForwardCache {
+    /// θ of `data`; empty while `data` is being written or holds nothing.
+    theta: Vec<f64>,
+    /// Per block: [`Scratch::activations`] values, then the block's [`BLOCK`] residuals.
+    data: Vec<f64>,
+}
+
+/// Training sets whose forward pass would take more than this many values (~256 MiB) to keep
+/// compute it again for the normal equations instead.
+const MAX_CACHED_VALUES: usize = 32 << 20;
+
 /// Samples stored by input column, padded to whole blocks (padding: inputs and target 0,
 /// masked out of every sum).
 #[derive(Clone)]
@@ -125,6 +194,10 @@ pub struct MlpProblem {
     /// (max − min)² / 4 of the target: normalised MSE → μ² units.
     scale: f64,
     isa: Isa,
+    /// The training set's last forward pass; None where it would be too large to keep. Taken
+    /// with `try_lock`: starts that share the problem in parallel compute without it rather
+    /// than wait.
+    cache: Option<std::sync::Mutex<ForwardCache>>,
 }
 
 impl MlpProblem {
@@ -138,9 +211,11 @@ impl MlpProblem {
         scale: f64,
     ) -> Self {
         let k = shape.inputs;
+        let train = Columns::new(&x, &y, k);
         MlpProblem {
             shape,
-            train: Columns::new(&x, &y, k),
+            cache: ForwardCache::for_set(shape, &train),
+            train,
             val: Columns::new(&vx, &vy, k),
             scale,
             isa: Isa::detect(),
@@ -152,6 +227,7 @@ impl MlpProblem {
         assert_eq!(shape.inputs, self.shape.inputs);
         MlpProblem {
             shape,
+            cache: ForwardCache::for_set(shape, &self.train),
             train: self.train.clone(),
             val: self.val.clone(),
             scale: self.scale,
@@ -159,34 +235,56 @@ impl MlpProblem {
         }
     }
 
-    /// Σ r² over `cols` (blocks in order, samples in order within a block).
-    fn sse_of(&self, theta: &[f64], cols: &Columns) -> f64 {
-        let parts: Vec<f64> = cols
-            .chunks()
-            .into_par_iter()
-            .map(|range| {
-                let mut scratch = Scratch::new(self.shape);
-                let mut r = vec![0.0; BLOCK];
-                let mut sse = 0.0;
-                for a in range.clone().step_by(BLOCK) {
-                    let n = BLOCK.min(range.end - a);
-                    let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
-                    block_dispatch(
-                        self.isa,
-                        self.shape,
-                        theta,
-                        &xs,
-                        &cols.y[a..a + BLOCK],
-                        BLOCK,
-                        &mut r,
-                        None,
-                        &mut scratch,
-                    );
-                    sse += r[..n].iter().map(|e| e * e).sum::<f64>();
+    /// Σ r² over `cols` (blocks in order, samples in order within a block); with `cache`, the
+    /// pass's activations and residuals are kept in it for [`MlpProblem::normal_equations`].
+    fn sse_of(&self, theta: &[f64], cols: &Columns, cache: Option<&mut ForwardCache>) -> f64 {
+        let per_block = Scratch::activations(self.shape) + BLOCK;
+        let pass = |range: std::ops::Range<usize>, mut keep: Option<&mut [f64]>| {
+            let mut scratch = Scratch::new(self.shape);
+            let mut r = vec![0.0; BLOCK];
+            let mut sse = 0.0;
+            for (b, a) in range.clone().step_by(BLOCK).enumerate() {
+                let n = BLOCK.min(range.end - a);
+                let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
+                block_dispatch(
+                    self.isa,
+                    self.shape,
+                    theta,
+                    &xs,
+                    &cols.y[a..a + BLOCK],
+                    BLOCK,
+                    &mut r,
+                    None,
+                    &mut scratch,
+                );
+                sse += r[..n].iter().map(|e| e * e).sum::<f64>();
+                if let Some(keep) = keep.as_deref_mut() {
+                    let (act, res) =
+                        keep[b * per_block..(b + 1) * per_block].split_at_mut(per_block - BLOCK);
+                    scratch.save(act);
+                    res.copy_from_slice(&r);
                 }
-                sse
-            })
-            .collect();
+            }
+            sse
+        };
+        let parts: Vec<f64> = match cache {
+            Some(cache) => {
+                cache.theta.clear();
+                let parts = cols
+                    .chunks()
+                    .into_par_iter()
+                    .zip(cache.data.par_chunks_mut(CHUNK / BLOCK * per_block))
+                    .map(|(range, keep)| pass(range, Some(keep)))
+                    .collect();
+                cache.theta.extend_from_slice(theta);
+                parts
+            }
+            None => cols
+                .chunks()
+                .into_par_iter()
+                .map(|range| pass(range, None))
+                .collect(),
+        };
         parts.iter().sum()
     }
 
@@ -200,38 +298,59 @@ impl MlpProblem {
         theta: &[f64],
         range: std::ops::Range<usize>,
         buf: &mut ChunkBuffers,
+        kept: Option<&[f64]>,
     ) -> (Vec<f64>, f64) {
         let p = self.shape.n_params();
         let cols = &self.train;
         let width = range.len().div_ceil(BLOCK) * BLOCK;
-        let a_mat = &mut buf.a_mat[..(p + 1) * width];
+        // Rows `ld` apart, not `width`: a power-of-two distance would put every row's samples
+        // in the same L1 cache set, and the Jacobian's P row streams would evict each other.
+        let ld = width + ROW_PAD;
+        let a_mat = &mut buf.a_mat[..(p + 1) * ld];
         let r = &mut buf.r;
+        let per_block = Scratch::activations(self.shape) + BLOCK;
         let mut sse = 0.0;
         for (b, a) in range.clone().step_by(BLOCK).enumerate() {
             let n = BLOCK.min(range.end - a);
             let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
             let at = b * BLOCK;
-            block_dispatch(
-                self.isa,
-                self.shape,
-                theta,
-                &xs,
-                &cols.y[a..a + BLOCK],
-                BLOCK,
-                r,
-                Some((&mut a_mat[at..], width)),
-                &mut buf.scratch,
-            );
+            if let Some(kept) = kept {
+                // The forward pass at this θ was the last one: its activations and residuals.
+                let (act, res) =
+                    kept[b * per_block..(b + 1) * per_block].split_at(per_block - BLOCK);
+                buf.scratch.restore(act);
+                r.copy_from_slice(res);
+                jacobian_dispatch(
+                    self.isa,
+                    self.shape,
+                    theta,
+                    &xs,
+                    (&mut a_mat[at..], ld),
+                    &mut buf.scratch,
+                );
+            } else {
+                block_dispatch(
+                    self.isa,
+                    self.shape,
+                    theta,
+                    &xs,
+                    &cols.y[a..a + BLOCK],
+                    BLOCK,
+                    r,
+                    Some((&mut a_mat[at..], ld)),
+                    &mut buf.scratch,
+                );
+            }
             sse += r[..n].iter().map(|e| e * e).sum::<f64>();
-            a_mat[p * width + at..p * width + at + n].copy_from_slice(&r[..n]);
+            a_mat[p * ld + at..p * ld + at + n].copy_from_slice(&r[..n]);
             // Padding samples are zero in A: they contribute nothing.
             for q in 0..=p {
-                a_mat[q * width + at + n..q * width + at + BLOCK].fill(0.0);
+                a_mat[q * ld + at + n..q * ld + at + BLOCK].fill(0.0);
             }
         }
         // The lower triangle of A Aᵀ: a symmetric rank-k update (faer, sequential).
         let mut gram = vec![0.0; (p + 1) * (p + 1)];
-        let am = MatRef::from_row_major_slice(a_mat, p + 1, width);
+        let am = MatRef::from_row_major_slice_with_stride(a_mat, p + 1, width, ld);
         matmul(
             MatMut::from_row_major_slice_mut(&mut gram, p + 1, p + 1),
             BlockStructure::TriangularLower,
@@ -247,6 +366,20 @@ impl MlpProblem {
     }
 }
 
+impl ForwardCache {
+    /// An empty cache for the training set `train`, or None where it would hold more than
+    /// [`MAX_CACHED_VALUES`].
+    fn for_set(shape: Shape, train: &Columns) -> Option<std::sync::Mutex<ForwardCache>> {
+        let values = train.y.len() / BLOCK * (Scratch::activations(shape) + BLOCK);
+        (values <= MAX_CACHED_VALUES).then(|| {
+            std::sync::Mutex::new(ForwardCache {
+                theta: Vec::new(),
+                data: vec![0.0; values],
+            })
+        })
+    }
+}
+
 /// What [`MlpProblem::gram_of_chunk`] works in, allocated once per rayon job of an epoch's
 /// normal equations (each job takes several chunks) rather than once per chunk: A for a whole
 /// chunk, the block's residuals and its hidden activations.
@@ -259,7 +392,7 @@ struct ChunkBuffers {
 impl ChunkBuffers {
     fn new(shape: Shape) -> ChunkBuffers {
         ChunkBuffers {
-            a_mat: vec![0.0; (shape.n_params() + 1) * CHUNK],
+            a_mat: vec![0.0; (shape.n_params() + 1) * (CHUNK + ROW_PAD)],
             r: vec![0.0; BLOCK],
             scratch: Scratch::new(shape),
         }
@@ -274,19 +407,40 @@ impl LeastSquares for MlpProblem {
         self.train.n
     }
     fn sse(&self, theta: &[f64]) -> f64 {
-        self.sse_of(theta, &self.train)
+        let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
+        self.sse_of(theta, &self.train, guard.as_deref_mut())
     }
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         let p = self.shape.n_params();
-        let grams: Vec<(Vec<f64>, f64)> = self
-            .train
-            .chunks()
-            .into_par_iter()
-            .map_init(
-                || ChunkBuffers::new(self.shape),
-                |buf, range| self.gram_of_chunk(theta, range, buf),
-            )
-            .collect();
+        let guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
+        let kept = guard.as_deref().filter(|c| {
+            c.theta.len() == theta.len()
+                && c.theta
+                    .iter()
+                    .zip(theta)
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+        });
+        let chunks = self.train.chunks();
+        let grams: Vec<(Vec<f64>, f64)> = match kept {
+            Some(kept) => {
+                let per_chunk = CHUNK / BLOCK * (Scratch::activations(self.shape) + BLOCK);
+                chunks
+                    .into_par_iter()
+                    .zip(kept.data.par_chunks(per_chunk))
+                    .map_init(
+                        || ChunkBuffers::new(self.shape),
+                        |buf, (range, kept)| self.gram_of_chunk(theta, range, buf, Some(kept)),
+                    )
+                    .collect()
+            }
+            None => chunks
+                .into_par_iter()
+                .map_init(
+                    || ChunkBuffers::new(self.shape),
+                    |buf, range| self.gram_of_chunk(theta, range, buf, None),
+                )
+                .collect(),
+        };
         let mut total = vec![0.0; (p + 1) * (p + 1)];
         let mut sse = 0.0;
         for (g, s) in &grams {
@@ -313,9 +467,56 @@ impl LeastSquares for MlpProblem {
         if self.val.n == 0 {
             return None;
         }
-        Some(self.sse_of(theta, &self.val) / self.val.n as f64 * self.scale)
+        Some(self.sse_of(theta, &self.val, None) / self.val.n as f64 * self.scale)
     }
     fn mse_scale(&self) -> f64 {
         self.scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The normal equations are the same bits whether the last forward pass was at their θ
+    /// (the activations reused), at another θ, or absent, for one and two hidden layers and a
+    /// training set that ends in a partial block.
+    #[test]
+    fn normal_equations_reuse_the_forward_pass_bit_for_bit() {
+        let two = Shape {
+            inputs: 2,
+            hidden: 6,
+            hidden2: 5,
+        };
+        for shape in [Shape::one(3, 10), two] {
+            let n = 2 * CHUNK + 3 * BLOCK + 17;
+            let k = shape.inputs;
+            let x: Vec<f64> = (0..n * k)
+                .map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0)
+                .collect();
+            let y: Vec<f64> = (0..n)
+                .map(|i| ((i * 104_729) % 997) as f64 / 498.5 - 1.0)
+                .collect();
+            let problem = MlpProblem::new(shape, x.clone(), y.clone(), x, y, 1.0);
+            assert!(problem.cache.is_some());
+            let theta = mlp::nguyen_widrow(shape, 5);
+            let other: Vec<f64> = theta.iter().map(|t| t * 0.9).collect();
+            let fresh = problem.normal_equations(&theta);
+            let sse = problem.sse(&theta);
+            let reused = problem.normal_equations(&theta);
+            problem.sse(&other);
+            let after_other = problem.normal_equations(&theta);
+            let bits = |ne: &NormalEquations| {
+                ne.jtj
+                    .iter()
+                    .chain(&ne.jtr)
+                    .chain([&ne.sse])
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&fresh), bits(&reused), "{shape:?}");
+            assert_eq!(bits(&fresh), bits(&after_other), "{shape:?}");
+            assert_eq!(sse.to_bits(), fresh.sse.to_bits());
+        }
     }
 }
