@@ -290,7 +290,7 @@ impl Scratch {
 /// inputs `x[c][s]` (normalised input c of sample s), targets `y[s]`. Writes the residuals
 /// `r[s] = ŷ_s − y_s` and, with `jac = Some((out, stride))`, the Jacobian rows
 /// `out[p · stride + s] = ∂ŷ_s/∂θ_p` (`stride ≥ n`: [`BLOCK`] for a block of its own, or the
-/// width of a larger matrix the block is a column range of).
+/// row stride of a larger matrix the block is a column range of).
 /// Every lane performs the operations of [`forward_grad`] in the same order (fused
 /// multiply-adds, the same tanh), so the results are those of one sample at a time.
 /// The forward pass leaves the hidden activations in `scratch` ([`Scratch::activations`]);

@@ -7,10 +7,11 @@
 //! Blocks are grouped into fixed chunks of [`CHUNK`] samples, chunks run in parallel and are
 //! summed in order, so the result does not depend on the number of threads; memory is
 //! O(chunk × P) per thread, never O(N × P).
-//! Nothing is computed twice: the forward pass of LM's accepted trial step is the next epoch's,
-//! so a training pass keeps its hidden activations and residuals (O(N × hidden), up to
-//! [`MAX_CACHED_VALUES`]) and the normal equations at the same θ build only the Jacobian from
-//! them — the same values, so the same bits.
+//! The forward pass of LM's accepted trial step is the next epoch's, so a training pass keeps
+//! its hidden activations and residuals (O(N × hidden), up to [`MAX_CACHED_VALUES`] per
+//! problem) and the normal equations at the same θ build only the Jacobian from them — the same
+//! values, so the same bits. (Rejected trial steps, the first epoch, and starts that share one
+//! problem and overwrite each other's pass still compute it.)
 
 use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, MatMut, MatRef, Par};
@@ -110,6 +111,7 @@ fn jacobian_dispatch(
     }
 }
 
+/// [`mlp::jacobian_block`] on AVX-512 registers (eight samples per vector).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 fn jacobian_avx512(
@@ -123,6 +125,7 @@ fn jacobian_avx512(
     mlp::jacobian_block::<F64x8>(isa, shape, theta, x, BLOCK, jac, scratch)
 }
 
+/// [`mlp::jacobian_block`] on AVX2 registers (four samples per vector).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 fn jacobian_avx2(
@@ -141,14 +144,18 @@ fn jacobian_avx2(
 /// epoch's θ, so the normal equations there take the activations and residuals from here
 /// instead of computing them again — the same values, so the same bits.
 struct ForwardCache {
+    /// The shape `data` is laid out for (a problem whose public `shape` was changed since does
+    /// not use it).
+    shape: Shape,
     /// θ of `data`; empty while `data` is being written or holds nothing.
     theta: Vec<f64>,
     /// Per block: [`Scratch::activations`] values, then the block's [`BLOCK`] residuals.
     data: Vec<f64>,
 }
 
-/// Training sets whose forward pass would take more than this many values (~256 MiB) to keep
-/// compute it again for the normal equations instead.
+/// Training sets whose forward pass would take more than this many values (~256 MiB) to keep,
+/// compute it again for the normal equations instead. Per problem: every network being fitted
+/// (folds and candidates run side by side) holds its own.
 const MAX_CACHED_VALUES: usize = 32 << 20;
 
 /// Samples stored by input column, padded to whole blocks (padding: inputs and target 0,
@@ -195,8 +202,9 @@ pub struct MlpProblem {
     scale: f64,
     isa: Isa,
     /// The training set's last forward pass; None where it would be too large to keep. Taken
-    /// with `try_lock`: starts that share the problem in parallel compute without it rather
-    /// than wait.
+    /// with `try_lock`, never `lock`: a rayon worker that holds it can pick up another start's
+    /// work on the same problem on the same thread, which would then wait for itself; a start
+    /// that finds it taken computes without it.
     cache: Option<std::sync::Mutex<ForwardCache>>,
 }
 
@@ -227,7 +235,8 @@ impl MlpProblem {
         assert_eq!(shape.inputs, self.shape.inputs);
         MlpProblem {
             shape,
-            cache: ForwardCache::for_set(shape, &self.train),
+            // Its one caller evaluates the averaged network once: nothing to keep.
+            cache: None,
             train: self.train.clone(),
             val: self.val.clone(),
             scale: self.scale,
@@ -273,7 +282,7 @@ impl MlpProblem {
                 let parts = cols
                     .chunks()
                     .into_par_iter()
-                    .zip(cache.data.par_chunks_mut(CHUNK / BLOCK * per_block))
+                    .zip_eq(cache.data.par_chunks_mut(CHUNK / BLOCK * per_block))
                     .map(|(range, keep)| pass(range, Some(keep)))
                     .collect();
                 cache.theta.extend_from_slice(theta);
@@ -292,7 +301,9 @@ impl MlpProblem {
     /// chunk), and Σ r² summed in sample order (as [`MlpProblem::sse_of`] sums it, so that the
     /// current and a trial error compare like for like). A holds the whole chunk, so one matrix
     /// product serves it; the blocks write their Jacobian rows straight into it, and `buf` is
-    /// reused from chunk to chunk of a rayon job.
+    /// reused from chunk to chunk of a rayon job. `kept`: the chunk's part of a forward pass at
+    /// this θ ([`ForwardCache`]), whose activations and residuals are used instead of a forward
+    /// pass of its own.
     fn gram_of_chunk(
         &self,
         theta: &[f64],
@@ -373,6 +384,7 @@ impl ForwardCache {
         let values = train.y.len() / BLOCK * (Scratch::activations(shape) + BLOCK);
         (values <= MAX_CACHED_VALUES).then(|| {
             std::sync::Mutex::new(ForwardCache {
+                shape,
                 theta: Vec::new(),
                 data: vec![0.0; values],
             })
@@ -408,25 +420,32 @@ impl LeastSquares for MlpProblem {
     }
     fn sse(&self, theta: &[f64]) -> f64 {
         let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
-        self.sse_of(theta, &self.train, guard.as_deref_mut())
+        let cache = guard.as_deref_mut().filter(|c| c.shape == self.shape);
+        self.sse_of(theta, &self.train, cache)
     }
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         let p = self.shape.n_params();
-        let guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
-        let kept = guard.as_deref().filter(|c| {
-            c.theta.len() == theta.len()
+        let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
+        let holds = |c: &ForwardCache| {
+            c.shape == self.shape
+                && c.theta.len() == theta.len()
                 && c.theta
                     .iter()
                     .zip(theta)
                     .all(|(a, b)| a.to_bits() == b.to_bits())
-        });
+        };
+        // Released at once when it holds another θ: a start beside this one may fill it.
+        if !guard.as_deref().is_some_and(holds) {
+            guard = None;
+        }
+        let kept = guard.as_deref();
         let chunks = self.train.chunks();
         let grams: Vec<(Vec<f64>, f64)> = match kept {
             Some(kept) => {
                 let per_chunk = CHUNK / BLOCK * (Scratch::activations(self.shape) + BLOCK);
                 chunks
                     .into_par_iter()
-                    .zip(kept.data.par_chunks(per_chunk))
+                    .zip_eq(kept.data.par_chunks(per_chunk))
                     .map_init(
                         || ChunkBuffers::new(self.shape),
                         |buf, (range, kept)| self.gram_of_chunk(theta, range, buf, Some(kept)),
@@ -502,7 +521,18 @@ mod tests {
             let theta = mlp::nguyen_widrow(shape, 5);
             let other: Vec<f64> = theta.iter().map(|t| t * 0.9).collect();
             let fresh = problem.normal_equations(&theta);
+            // LM's order: the trial's SSE, the validation error, the next normal equations.
             let sse = problem.sse(&theta);
+            problem.validation_mse(&theta);
+            let kept = problem
+                .cache
+                .as_ref()
+                .unwrap()
+                .lock()
+                .unwrap()
+                .theta
+                .clone();
+            assert_eq!(kept, theta, "the training pass is kept");
             let reused = problem.normal_equations(&theta);
             problem.sse(&other);
             let after_other = problem.normal_equations(&theta);
