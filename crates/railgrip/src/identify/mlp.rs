@@ -278,7 +278,7 @@ impl Scratch {
         b.copy_from_slice(&self.t2);
     }
 
-    /// Puts activations saved by [`Scratch::save`] back, for [`jacobian_block`].
+    /// Puts activations saved by [`Scratch::save`] back, for [`Pass::Jacobian`].
     pub fn restore(&mut self, saved: &[f64]) {
         let (a, b) = saved.split_at(self.t1.len());
         self.t1.copy_from_slice(a);
@@ -286,15 +286,27 @@ impl Scratch {
     }
 }
 
+/// What [`block`] computes.
+pub(crate) enum Pass<'a> {
+    /// The residuals (the hidden activations left in the scratch).
+    Forward,
+    /// The residuals and the Jacobian rows `out[p · stride + s]` (see [`block`]).
+    Both(&'a mut [f64], usize),
+    /// The Jacobian rows alone, from hidden activations already in the scratch — left there
+    /// by a forward pass, or put back ([`Scratch::restore`]): the same values give the same
+    /// bits. `y` and `r` are not touched.
+    Jacobian(&'a mut [f64], usize),
+}
+
 /// One block of `n ≤ BLOCK` samples on lanes `V` (`n` a multiple of `V::N`; the caller pads):
 /// inputs `x[c][s]` (normalised input c of sample s), targets `y[s]`. Writes the residuals
-/// `r[s] = ŷ_s − y_s` and, with `jac = Some((out, stride))`, the Jacobian rows
+/// `r[s] = ŷ_s − y_s` and, as `pass` asks, the Jacobian rows
 /// `out[p · stride + s] = ∂ŷ_s/∂θ_p` (`stride ≥ n`: [`BLOCK`] for a block of its own, or the
 /// row stride of a larger matrix the block is a column range of).
 /// Every lane performs the operations of [`forward_grad`] in the same order (fused
 /// multiply-adds, the same tanh), so the results are those of one sample at a time.
 /// The forward pass leaves the hidden activations in `scratch` ([`Scratch::activations`]);
-/// [`jacobian_block`] takes them from there.
+/// the Jacobian is built from them there.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(crate) fn block<V: Lanes>(
@@ -305,13 +317,18 @@ pub(crate) fn block<V: Lanes>(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<(&mut [f64], usize)>,
+    pass: Pass<'_>,
     scratch: &mut Scratch,
 ) {
+    let (forward, jac) = match pass {
+        Pass::Forward => (true, None),
+        Pass::Both(out, stride) => (true, Some((out, stride))),
+        Pass::Jacobian(out, stride) => (false, Some((out, stride))),
+    };
     let (ni, nh, nh2) = (shape.inputs, shape.hidden, shape.hidden2);
     let two = V::splat(isa, 2.0);
     let mut s = 0;
-    while s < n {
+    while forward && s < n {
         // Hidden layer 1.
         for h in 0..nh {
             let mut z = V::splat(isa, theta[shape.b1() + h]);
@@ -348,10 +365,9 @@ pub(crate) fn block<V: Lanes>(
     }
 }
 
-/// The Jacobian rows of [`block`] from the hidden activations its forward pass left in
-/// `scratch` (or that were put back there: the same values give the same bits).
+/// The Jacobian rows of [`block`] from the hidden activations in `scratch`.
 #[inline(always)]
-pub(crate) fn jacobian_block<V: Lanes>(
+fn jacobian_block<V: Lanes>(
     isa: V::Isa,
     shape: Shape,
     theta: &[f64],
@@ -581,7 +597,7 @@ mod tests {
             let p = shape.n_params();
             let (mut r, mut jac) = (vec![0.0; BLOCK], vec![0.0; p * BLOCK]);
             let mut scratch = Scratch::new(shape);
-            block::<f64>(crate::simd::Portable, shape, &theta, &xs, &y, n, &mut r, Some((&mut jac, BLOCK)), &mut scratch);
+            block::<f64>(crate::simd::Portable, shape, &theta, &xs, &y, n, &mut r, Pass::Both(&mut jac, BLOCK), &mut scratch);
             let mut g = vec![0.0; p];
             for s in 0..n {
                 let xi: Vec<f64> = (0..inputs).map(|c| x[c][s]).collect();
@@ -621,7 +637,7 @@ mod tests {
                 &y,
                 BLOCK,
                 &mut r,
-                Some((&mut jac, BLOCK)),
+                Pass::Both(&mut jac, BLOCK),
                 &mut sc,
             );
             (r, jac)

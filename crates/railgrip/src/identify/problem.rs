@@ -18,7 +18,7 @@ use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
 use super::lm::{LeastSquares, NormalEquations};
-use super::mlp::{self, Scratch, Shape, BLOCK};
+use super::mlp::{self, Pass, Scratch, Shape, BLOCK};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Avx2, Avx512, F64x4, F64x8};
 use crate::simd::{Isa, Portable};
@@ -41,17 +41,17 @@ pub(super) fn block_dispatch(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<(&mut [f64], usize)>,
+    pass: Pass<'_>,
     scratch: &mut Scratch,
 ) {
     match isa {
         // SAFETY: the token proves AVX-512F on this CPU.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512(t) => unsafe { block_avx512(t, shape, theta, x, y, n, r, jac, scratch) },
+        Isa::Avx512(t) => unsafe { block_avx512(t, shape, theta, x, y, n, r, pass, scratch) },
         // SAFETY: the token proves AVX2 and FMA on this CPU.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2(t) => unsafe { block_avx2(t, shape, theta, x, y, n, r, jac, scratch) },
-        _ => mlp::block::<f64>(Portable, shape, theta, x, y, n, r, jac, scratch),
+        Isa::Avx2(t) => unsafe { block_avx2(t, shape, theta, x, y, n, r, pass, scratch) },
+        _ => mlp::block::<f64>(Portable, shape, theta, x, y, n, r, pass, scratch),
     }
 }
 
@@ -67,10 +67,10 @@ fn block_avx512(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<(&mut [f64], usize)>,
+    pass: Pass<'_>,
     scratch: &mut Scratch,
 ) {
-    mlp::block::<F64x8>(isa, shape, theta, x, y, n, r, jac, scratch)
+    mlp::block::<F64x8>(isa, shape, theta, x, y, n, r, pass, scratch)
 }
 
 /// [`mlp::block`] on AVX2 registers (four samples per vector).
@@ -85,58 +85,10 @@ fn block_avx2(
     y: &[f64],
     n: usize,
     r: &mut [f64],
-    jac: Option<(&mut [f64], usize)>,
+    pass: Pass<'_>,
     scratch: &mut Scratch,
 ) {
-    mlp::block::<F64x4>(isa, shape, theta, x, y, n, r, jac, scratch)
-}
-
-/// [`mlp::jacobian_block`] on the widest lanes of this CPU (same bits on every path).
-fn jacobian_dispatch(
-    isa: Isa,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    jac: (&mut [f64], usize),
-    scratch: &mut Scratch,
-) {
-    match isa {
-        // SAFETY: the token proves AVX-512F on this CPU.
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx512(t) => unsafe { jacobian_avx512(t, shape, theta, x, jac, scratch) },
-        // SAFETY: the token proves AVX2 and FMA on this CPU.
-        #[cfg(target_arch = "x86_64")]
-        Isa::Avx2(t) => unsafe { jacobian_avx2(t, shape, theta, x, jac, scratch) },
-        _ => mlp::jacobian_block::<f64>(Portable, shape, theta, x, BLOCK, jac, scratch),
-    }
-}
-
-/// [`mlp::jacobian_block`] on AVX-512 registers (eight samples per vector).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-fn jacobian_avx512(
-    isa: Avx512,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    jac: (&mut [f64], usize),
-    scratch: &mut Scratch,
-) {
-    mlp::jacobian_block::<F64x8>(isa, shape, theta, x, BLOCK, jac, scratch)
-}
-
-/// [`mlp::jacobian_block`] on AVX2 registers (four samples per vector).
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-fn jacobian_avx2(
-    isa: Avx2,
-    shape: Shape,
-    theta: &[f64],
-    x: &[&[f64]],
-    jac: (&mut [f64], usize),
-    scratch: &mut Scratch,
-) {
-    mlp::jacobian_block::<F64x4>(isa, shape, theta, x, BLOCK, jac, scratch)
+    mlp::block::<F64x4>(isa, shape, theta, x, y, n, r, pass, scratch)
 }
 
 /// The last forward pass over the training samples: its θ and, per block, the hidden
@@ -263,7 +215,7 @@ impl MlpProblem {
                     &cols.y[a..a + BLOCK],
                     BLOCK,
                     &mut r,
-                    None,
+                    Pass::Forward,
                     &mut scratch,
                 );
                 sse += r[..n].iter().map(|e| e * e).sum::<f64>();
@@ -331,12 +283,15 @@ impl MlpProblem {
                     kept[b * per_block..(b + 1) * per_block].split_at(per_block - BLOCK);
                 buf.scratch.restore(act);
                 r.copy_from_slice(res);
-                jacobian_dispatch(
+                block_dispatch(
                     self.isa,
                     self.shape,
                     theta,
                     &xs,
-                    (&mut a_mat[at..], ld),
+                    &cols.y[a..a + BLOCK],
+                    BLOCK,
+                    r,
+                    Pass::Jacobian(&mut a_mat[at..], ld),
                     &mut buf.scratch,
                 );
             } else {
@@ -348,7 +303,7 @@ impl MlpProblem {
                     &cols.y[a..a + BLOCK],
                     BLOCK,
                     r,
-                    Some((&mut a_mat[at..], ld)),
+                    Pass::Both(&mut a_mat[at..], ld),
                     &mut buf.scratch,
                 );
             }
