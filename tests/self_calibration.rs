@@ -420,6 +420,51 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     }
 }
 
+/// Each run's constant of the balance is its running resistance's constant and its gradient
+/// force: the mismatch scenes (seed 1), each on its own gradient (−5 … +6 ‰ in steps of 1 ‰),
+/// Davis a = 1200 N. Every run's constant within 3 of its standard errors of
+/// a + M g sin(atan i) (M the simulator's translating mass), and the standard errors small
+/// enough to tell the gradients apart (below 1 ‰'s force).
+#[test]
+fn each_runs_constant_is_its_resistance_and_gradient() {
+    let dir = tempfile::tempdir().unwrap();
+    let next = std::cell::Cell::new(0usize);
+    let grades = std::cell::RefCell::new(Vec::new());
+    let runs = mismatch_campaign(1, dir.path(), |sc| {
+        let i = next.get();
+        next.set(i + 1);
+        sc.effects = sc.effects.with(Effect::Gradient);
+        sc.run.gradient_permille = -5.0 + i as f64;
+        let mass = sc.vehicle.body_mass_kg + 2.0 * sc.vehicle.bogie_mass_kg;
+        let force = mass * 9.80665 * (sc.run.gradient_permille / 1000.0).atan().sin();
+        grades
+            .borrow_mut()
+            .push((sc.resistance.davis_a_n + force, mass * 9.80665 / 1000.0));
+    });
+    let c = calibrate(&runs, dir.path());
+    assert!(c.per_run_constants, "{:?}", c.pad_candidates);
+    assert_eq!(c.resistance_constants.len(), runs.len());
+    for ((log, _), (rc, (truth, permille))) in runs
+        .iter()
+        .zip(c.resistance_constants.iter().zip(grades.borrow().iter()))
+    {
+        let name = log.source.file_name().unwrap().to_string_lossy();
+        eprintln!(
+            "{}: {:.0} ± {:.0} N, truth {truth:.0} N",
+            rc.run, rc.constant_n, rc.se_n
+        );
+        assert_eq!(rc.run, name);
+        assert!(rc.se_n > 0.0 && rc.se_n < *permille, "{}: se {}", rc.run, rc.se_n);
+        assert!(
+            (rc.constant_n - truth).abs() <= 3.0 * rc.se_n,
+            "{}: {} ± {} against {truth}",
+            rc.run,
+            rc.constant_n,
+            rc.se_n
+        );
+    }
+}
+
 /// Without a mismatch (the same scenes, the brake rig and the radar as the pipeline says),
 /// the calibration finds the identity within its errors and keeps the pipeline's α (one ratio
 /// to it for all axles, within its errors of 1: a change the data do not call for would only

@@ -375,6 +375,7 @@ fn calibrate_campaign(
         f.resistance_c2_n_s2_per_m2,
         or_dash(f.resistance_c2_se, 3)
     );
+    print_run_constants(&f.resistance_constants, f.per_run_constants);
     if let Some(sd) = f.alpha_between_sd {
         println!(
             "pooling    the axles' α spread {:.1} N·m/bar (1σ) beyond their errors; fitted α {:?}",
@@ -415,5 +416,40 @@ fn or_dash(x: f64, digits: usize) -> String {
         format!("{x:.digits$}")
     } else {
         "–".into()
+    }
+}
+
+/// The balance's constant per run (the resistance's constant and the run's gradient force):
+/// every run up to a dozen, else their range (all of them are in `calibration.json`).
+fn print_run_constants(constants: &[railgrip::estimate::selfcal::RunConstant], per_run: bool) {
+    const LISTED: usize = 12;
+    if constants.is_empty() {
+        return;
+    }
+    if !per_run {
+        let c = &constants[0];
+        println!(
+            "constant   {:.0} ± {} N for every run (resistance's constant and gradient force)",
+            c.constant_n,
+            or_dash(c.se_n, 0)
+        );
+    } else if constants.len() <= LISTED {
+        for c in constants {
+            println!(
+                "constant   {}: {:.0} ± {} N (resistance's constant and gradient force)",
+                c.run,
+                c.constant_n,
+                or_dash(c.se_n, 0)
+            );
+        }
+    } else {
+        let (lo, hi) = constants
+            .iter()
+            .map(|c| c.constant_n)
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+        println!(
+            "constant   {lo:.0} … {hi:.0} N over {} runs (resistance's constant and gradient force; each run's in calibration.json)",
+            constants.len()
+        );
     }
 }

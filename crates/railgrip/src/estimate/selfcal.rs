@@ -149,6 +149,11 @@ pub struct CampaignCalibration {
         with = "crate::config::calibrated::nan_as_null"
     )]
     pub resistance_c2_se: f64,
+    /// Each run's constant of the balance (the resistance's constant and the run's gradient
+    /// force), in the campaign's order; every run has the campaign's one constant where
+    /// `per_run_constants` is false. Empty in files written before they were reported.
+    #[serde(default)]
+    pub resistance_constants: Vec<RunConstant>,
     /// Radar reading / true speed (1 when no run coasts before its brake).
     pub radar_scale: f64,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
@@ -191,6 +196,8 @@ impl CampaignCalibration {
 
 /// One run's signals as the balance needs them (matched filters).
 struct RunSignals {
+    /// The log's file name (for the per-run resistance constants).
+    name: String,
     fs: f64,
     /// Radar speed and its rate at every sample, m/s and m/s² (shifted by τ when used).
     v_radar: Vec<f64>,
@@ -416,6 +423,7 @@ impl<'p> CampaignCalibrator<'p> {
         Ok(PreparedRun {
             locked,
             signals: Some(RunSignals {
+                name: log_name(log),
                 fs: c.sample_rate_hz,
                 v_radar: c.v_mps,
                 a_radar: c.accel_mps2,
@@ -542,6 +550,7 @@ impl<'p> CampaignCalibrator<'p> {
         } = axle_alphas(&g, &fit, sigma2, &veh.brake_torque_nm_per_bar);
         let constants = if per_run { runs } else { 1.0 };
         let res = Resistance::applied(&fit, sigma2, kept.is_some(), &g, n / n_eff, constants);
+        let run_constants = b.run_constants(&at, res.fit.form, &res);
         notes.extend(kept);
         if alpha.iter().any(|a| !(*a > 0.0)) {
             return Err(fail(
@@ -569,6 +578,7 @@ impl<'p> CampaignCalibrator<'p> {
             resistance_c2_n_s2_per_m2: res.c[1],
             resistance_c1_se: res.se[0],
             resistance_c2_se: res.se[1],
+            resistance_constants: run_constants,
             radar_scale: at.scale,
             radar_scale_se: d.scale_se,
             radar_scale_runs: d.scale_runs,
@@ -586,11 +596,15 @@ impl<'p> CampaignCalibrator<'p> {
 }
 
 /// The running resistance's speed terms c1 (N·s/m) and c2 (N·s²/m²) with their standard
-/// errors, and the balance's weighted residual sum of squares (N²) they leave.
+/// errors, and the balance's weighted residual sum of squares (N²) they leave; `fit` is the
+/// balance as applied (the pipeline's α with ratio 1 where they are kept) with `sigma2` (N²,
+/// a row of weight 1), for the constants.
 struct Resistance {
     c: [f64; 2],
     se: [f64; 2],
     rss: f64,
+    fit: Fit,
+    sigma2: f64,
 }
 
 impl Resistance {
@@ -606,19 +620,106 @@ impl Resistance {
         constants: f64,
     ) -> Resistance {
         let k = fit.groups.len();
-        let own = Resistance {
+        let own = || Resistance {
             c: [fit.beta[k], fit.beta[k + 1]],
             se: [
                 (sigma2 * fit.cov_unit[k]).sqrt(),
                 (sigma2 * fit.cov_unit[k + 1]).sqrt(),
             ],
             rss: fit.rss,
+            fit: fit.clone(),
+            sigma2,
         };
         if kept {
-            resistance_at_ratio_1(g, inflate, constants).unwrap_or(own)
+            resistance_at_ratio_1(g, inflate, constants).unwrap_or_else(own)
         } else {
-            own
+            own()
         }
+    }
+}
+
+/// One run's constant of the balance (N): the running resistance's constant and the run's
+/// gradient force, M g i for a gradient i (positive uphill), together.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct RunConstant {
+    /// The log's file name.
+    pub run: String,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
+    pub constant_n: f64,
+    /// One standard error, N: the run's mean residual's (σ²/Σw over its rows, σ² with the
+    /// residuals' correlation) and the fitted coefficients' (x̄ᵀ Cov(β) x̄ at the run's mean
+    /// columns), conditional on the pad law's γ and the delays as c1's is.
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
+    pub se_n: f64,
+}
+
+impl Balance<'_> {
+    /// Each run's constant c_r = Σ w (y − x·β) / Σ w over its rows at `res`'s fit, with its
+    /// standard error; with one constant for the campaign (`per_run` false) every run gets
+    /// that one (the weighted mean over all rows). The constant is uncorrelated with the
+    /// other coefficients' estimates (they are fitted about the run means), so its variance
+    /// is σ²/Σw + x̄ᵀ (σ² (XᵀWX)⁻¹) x̄.
+    fn run_constants(&self, at: &At, form: PadForm, res: &Resistance) -> Vec<RunConstant> {
+        let fit = &res.fit;
+        let k = fit.beta.len();
+        // Per run: Σ w, Σ w e, Σ w x.
+        let sums: Vec<(f64, f64, Vec<f64>)> = self
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(ri, run)| {
+                let w = self.weights.get(ri).copied().unwrap_or(1.0);
+                let (mut sw, mut se, mut sx) = (0.0, 0.0, vec![0.0; k]);
+                for row in &run.rows {
+                    let Some(z) = self.z_row(run, row, at, form) else {
+                        continue;
+                    };
+                    sw += w;
+                    se += w * (z[Y] - fit.predict(&z));
+                    for (s, x) in sx.iter_mut().zip(fit.columns(&z)) {
+                        *s += w * x;
+                    }
+                }
+                (sw, se, sx)
+            })
+            .collect();
+        let constant = |(sw, se, sx): &(f64, f64, Vec<f64>)| {
+            let xbar: Vec<f64> = sx.iter().map(|x| x / sw).collect();
+            let mut var = res.sigma2 / sw;
+            for p in 0..k {
+                for q in 0..k {
+                    var += xbar[p] * res.sigma2 * fit.cov[p * k + q] * xbar[q];
+                }
+            }
+            (se / sw, var.max(0.0).sqrt())
+        };
+        let campaign = (!self.per_run).then(|| {
+            let mut all = (0.0, 0.0, vec![0.0; k]);
+            for (sw, se, sx) in &sums {
+                all.0 += sw;
+                all.1 += se;
+                all.2.iter_mut().zip(sx).for_each(|(a, x)| *a += x);
+            }
+            constant(&all)
+        });
+        self.runs
+            .iter()
+            .zip(&sums)
+            .map(|(run, s)| {
+                let (c, se) = campaign.unwrap_or_else(|| {
+                    if s.0 > 0.0 {
+                        constant(s)
+                    } else {
+                        (f64::NAN, f64::NAN)
+                    }
+                });
+                RunConstant {
+                    run: run.name.clone(),
+                    constant_n: c,
+                    se_n: se,
+                }
+            })
+            .collect()
     }
 }
 
@@ -646,10 +747,31 @@ fn resistance_at_ratio_1(g: &Gram, inflate: f64, constants: f64) -> Option<Resis
     let (beta, inv, rss) = moved.solve(&cols)?;
     let n = g.n as f64;
     let sigma2 = rss / (n - constants - 2.0).max(1.0) * inflate;
+    // The balance as applied: each axle its own group at ratio 1 (known, no variance), the
+    // pad friction constant, c1 and c2 as solved.
+    let k = AXLES + 2;
+    let mut cov = vec![0.0; k * k];
+    cov[AXLES * k + AXLES] = inv[0];
+    cov[AXLES * k + AXLES + 1] = inv[1];
+    cov[(AXLES + 1) * k + AXLES] = inv[2];
+    cov[(AXLES + 1) * k + AXLES + 1] = inv[3];
+    let mut b = vec![1.0; AXLES];
+    b.extend([beta[0], beta[1]]);
     Some(Resistance {
         c: [beta[0], beta[1]],
         se: [(sigma2 * inv[0]).sqrt(), (sigma2 * inv[3]).sqrt()],
         rss,
+        fit: Fit {
+            form: PadForm::Constant,
+            groups: (0..AXLES).map(|a| vec![a]).collect(),
+            gamma: 0.0,
+            beta: b,
+            cov_unit: (0..k).map(|c| cov[c * k + c]).collect(),
+            cov,
+            corr: Vec::new(),
+            rss,
+        },
+        sigma2,
     })
 }
 
@@ -1888,6 +2010,9 @@ struct Fit {
     gamma: f64,
     beta: Vec<f64>,
     cov_unit: Vec<f64>,
+    /// (XᵀWX)⁻¹ of the fit's columns (groups' α, c1, c2), row-major: σ² times it is β's
+    /// covariance.
+    cov: Vec<f64>,
     /// Correlations between the groups' α estimates (groups × groups).
     corr: Vec<f64>,
     rss: f64,
@@ -1903,6 +2028,19 @@ impl Fit {
         }
         let k = self.groups.len();
         s + self.beta[k] * z[2 * AXLES] + self.beta[k + 1] * z[2 * AXLES + 1]
+    }
+
+    /// The fit's columns x at a z row (each group's Σ (z_a + γ φ z_a), v, v²): x·β is
+    /// [`Self::predict`].
+    fn columns(&self, z: &[f64; Z]) -> Vec<f64> {
+        let mut x: Vec<f64> = self
+            .groups
+            .iter()
+            .map(|grp| grp.iter().map(|&a| z[a] + self.gamma * z[AXLES + a]).sum())
+            .collect();
+        x.push(z[2 * AXLES]);
+        x.push(z[2 * AXLES + 1]);
+        x
     }
 }
 
@@ -1997,6 +2135,7 @@ impl Gram {
             groups: groups.to_vec(),
             gamma,
             cov_unit: (0..k).map(|c| inv[c * k + c]).collect(),
+            cov: inv,
             beta,
             corr,
             rss,

@@ -640,6 +640,7 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         }
         h.push_str("</table>\n");
     }
+    run_constants(h, fit);
     if let Some(notes) = rec["notes"].as_array() {
         for n in notes {
             let _ = writeln!(
@@ -649,6 +650,32 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
             );
         }
     }
+}
+
+/// The balance's constant per run (the running resistance's constant and the run's gradient
+/// force), folded: a campaign of hundreds of runs has as many rows.
+fn run_constants(h: &mut String, fit: &serde_json::Value) {
+    let Some(rows) = fit["resistance_constants"].as_array().filter(|r| !r.is_empty()) else {
+        return;
+    };
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    let per_run = fit["per_run_constants"].as_bool() == Some(true);
+    let _ = writeln!(
+        *h,
+        "<details><summary>The balance's constant {} (the running resistance's constant and the gradient force M g i, N)</summary>\n<table><tr><th class=\"l\">run</th><th>constant, N</th><th>± 1σ</th></tr>",
+        if per_run { "per run" } else { "(one for the campaign)" }
+    );
+    for r in rows {
+        let se = num(&r["se_n"]);
+        let _ = writeln!(
+            *h,
+            "<tr><td class=\"l\">{}</td><td>{:.0}</td><td>{}</td></tr>",
+            esc(r["run"].as_str().unwrap_or("?")),
+            num(&r["constant_n"]),
+            if se.is_finite() { format!("{se:.0}") } else { "–".into() }
+        );
+    }
+    h.push_str("</table></details>\n");
 }
 
 fn provenance(h: &mut String, m: &Model) {
