@@ -317,7 +317,7 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
 /// radar's noise, ~0.75 % one standard error over 12 runs. Each axle's bias is within ±0.001
 /// where its α(v) is within 0.5 %, within ±0.002 where not (measured: up to 0.0015, axle 3 of
 /// seed 1, α(v) 1.58 % off). The three campaigns pooled (one vehicle, 36 runs) bring α to
-/// −0.01 … +0.13 % with one standard error of 0.44–0.49 %.
+/// −0.01 … +0.13 % with one standard error of 0.45–0.52 %.
 #[test]
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();
