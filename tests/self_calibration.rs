@@ -454,7 +454,12 @@ fn each_runs_constant_is_its_resistance_and_gradient() {
             rc.run, rc.constant_n, rc.se_n
         );
         assert_eq!(rc.run, name);
-        assert!(rc.se_n > 0.0 && rc.se_n < *permille, "{}: se {}", rc.run, rc.se_n);
+        assert!(
+            rc.se_n > 0.0 && rc.se_n < *permille,
+            "{}: se {}",
+            rc.run,
+            rc.se_n
+        );
         assert!(
             (rc.constant_n - truth).abs() <= 3.0 * rc.se_n,
             "{}: {} ± {} against {truth}",

@@ -446,7 +446,9 @@ fn print_run_constants(constants: &[railgrip::estimate::selfcal::RunConstant], p
         let (lo, hi) = constants
             .iter()
             .map(|c| c.constant_n)
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x), b.max(x)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+                (a.min(x), b.max(x))
+            });
         println!(
             "constant   {lo:.0} … {hi:.0} N over {} runs (resistance's constant and gradient force; each run's in calibration.json)",
             constants.len()

@@ -2298,7 +2298,12 @@ mod tests {
         assert_eq!(p.alpha, [1.0; AXLES]);
         // Not the common ratio's 0.005 alone: the scatter between the axles might be small
         // rather than none (tests/data/pooling/reference.py).
-        let reference = [0.007_197_055_8, 0.007_197_055_8, 0.008_154_936_0, 0.008_154_936_0];
+        let reference = [
+            0.007_197_055_8,
+            0.007_197_055_8,
+            0.008_154_936_0,
+            0.008_154_936_0,
+        ];
         for (se, r) in p.alpha_se.iter().zip(reference) {
             assert!((se / r - 1.0).abs() < 1e-4, "{se} against {r}");
         }
@@ -2308,7 +2313,16 @@ mod tests {
     /// (tests/data/pooling/reference.py: the trapezoid rule directly in τ, 2 000 001 points).
     #[test]
     fn pooled_standard_errors_match_the_reference_quadrature() {
-        let cases: [([f64; AXLES], [f64; AXLES], f64, f64, bool, [(f64, f64); AXLES]); 2] = [
+        // (fitted ratios, their errors, common, its error, differ, (reported, se) per axle)
+        type Case = (
+            [f64; AXLES],
+            [f64; AXLES],
+            f64,
+            f64,
+            bool,
+            [(f64, f64); AXLES],
+        );
+        let cases: [Case; 2] = [
             (
                 [1.03, 0.97, 1.01, 0.99],
                 [0.01; AXLES],
@@ -2338,13 +2352,12 @@ mod tests {
         ];
         for (r, se, common, common_se, differ, want) in cases {
             let p = partial_pooling(&groups(), &r, &se, common, common_se, differ);
-            for a in 0..AXLES {
-                assert!((p.alpha[a] - want[a].0).abs() < 1e-11, "{a}: {}", p.alpha[a]);
+            for (a, (alpha, alpha_se)) in want.iter().enumerate() {
+                assert!((p.alpha[a] - alpha).abs() < 1e-11, "{a}: {}", p.alpha[a]);
                 assert!(
-                    (p.alpha_se[a] / want[a].1 - 1.0).abs() < 1e-4,
-                    "{a}: {} against {}",
-                    p.alpha_se[a],
-                    want[a].1
+                    (p.alpha_se[a] / alpha_se - 1.0).abs() < 1e-4,
+                    "{a}: {} against {alpha_se}",
+                    p.alpha_se[a]
                 );
             }
         }
@@ -2355,7 +2368,12 @@ mod tests {
     #[test]
     fn pooled_standard_errors_grow_with_the_scatter() {
         let se_of = |spread: f64| {
-            let r = [1.0 + spread, 1.0 - spread, 1.0 + spread / 2.0, 1.0 - spread / 2.0];
+            let r = [
+                1.0 + spread,
+                1.0 - spread,
+                1.0 + spread / 2.0,
+                1.0 - spread / 2.0,
+            ];
             partial_pooling(&groups(), &r, &[0.01; AXLES], 1.0, 0.005, false).alpha_se[0]
         };
         let mut last = 0.0;

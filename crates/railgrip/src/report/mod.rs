@@ -655,7 +655,10 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
 /// The balance's constant per run (the running resistance's constant and the run's gradient
 /// force), folded: a campaign of hundreds of runs has as many rows.
 fn run_constants(h: &mut String, fit: &serde_json::Value) {
-    let Some(rows) = fit["resistance_constants"].as_array().filter(|r| !r.is_empty()) else {
+    let Some(rows) = fit["resistance_constants"]
+        .as_array()
+        .filter(|r| !r.is_empty())
+    else {
         return;
     };
     let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
@@ -672,7 +675,11 @@ fn run_constants(h: &mut String, fit: &serde_json::Value) {
             "<tr><td class=\"l\">{}</td><td>{:.0}</td><td>{}</td></tr>",
             esc(r["run"].as_str().unwrap_or("?")),
             num(&r["constant_n"]),
-            if se.is_finite() { format!("{se:.0}") } else { "–".into() }
+            if se.is_finite() {
+                format!("{se:.0}")
+            } else {
+                "–".into()
+            }
         );
     }
     h.push_str("</table></details>\n");
