@@ -314,10 +314,10 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
 /// most 0.6 × the uncalibrated one (measured: 0.27–0.41), and α_i(v) within 2.5 % and 3
 /// standard errors — not the 0.5 % aimed for (measured: 0.37–1.58 %, 6 of 12 axles within
 /// 0.5 %): the per-axle α rest on the wheel-slide protection's pressure differences against the
-/// radar's noise, ~0.75 % one standard error over 12 runs. Each axle's bias is within ±0.001
+/// radar's noise, ~0.8 % one standard error over 12 runs. Each axle's bias is within ±0.001
 /// where its α(v) is within 0.5 %, within ±0.002 where not (measured: up to 0.0015, axle 3 of
 /// seed 1, α(v) 1.58 % off). The three campaigns pooled (one vehicle, 36 runs) bring α to
-/// −0.01 … +0.13 % with one standard error of 0.45–0.52 %.
+/// −0.01 … +0.13 % with one standard error of 0.44–0.52 %.
 #[test]
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();

@@ -429,16 +429,16 @@ fn print_run_constants(constants: &[railgrip::estimate::selfcal::RunConstant], p
     if !per_run {
         let c = &constants[0];
         println!(
-            "constant   {:.0} ± {} N for every run (resistance's constant and gradient force)",
-            c.constant_n,
+            "constant   {} ± {} N for every run (resistance's constant and gradient force)",
+            or_dash(c.constant_n, 0),
             or_dash(c.se_n, 0)
         );
     } else if constants.len() <= LISTED {
         for c in constants {
             println!(
-                "constant   {}: {:.0} ± {} N (resistance's constant and gradient force)",
+                "constant   {}: {} ± {} N (resistance's constant and gradient force)",
                 c.run,
-                c.constant_n,
+                or_dash(c.constant_n, 0),
                 or_dash(c.se_n, 0)
             );
         }
@@ -446,6 +446,7 @@ fn print_run_constants(constants: &[railgrip::estimate::selfcal::RunConstant], p
         let (lo, hi) = constants
             .iter()
             .map(|c| c.constant_n)
+            .filter(|c| c.is_finite())
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
                 (a.min(x), b.max(x))
             });

@@ -662,24 +662,32 @@ fn run_constants(h: &mut String, fit: &serde_json::Value) {
         return;
     };
     let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    let dash = |x: f64| {
+        if x.is_finite() {
+            format!("{x:.0}")
+        } else {
+            "–".to_string()
+        }
+    };
     let per_run = fit["per_run_constants"].as_bool() == Some(true);
     let _ = writeln!(
         *h,
         "<details><summary>The balance's constant {} (the running resistance's constant and the gradient force M g i, N)</summary>\n<table><tr><th class=\"l\">run</th><th>constant, N</th><th>± 1σ</th></tr>",
         if per_run { "per run" } else { "(one for the campaign)" }
     );
+    // One constant for the campaign: one row.
+    let rows = if per_run { &rows[..] } else { &rows[..1] };
     for r in rows {
-        let se = num(&r["se_n"]);
+        let run = if per_run {
+            esc(r["run"].as_str().unwrap_or("?"))
+        } else {
+            "every run".to_string()
+        };
         let _ = writeln!(
             *h,
-            "<tr><td class=\"l\">{}</td><td>{:.0}</td><td>{}</td></tr>",
-            esc(r["run"].as_str().unwrap_or("?")),
-            num(&r["constant_n"]),
-            if se.is_finite() {
-                format!("{se:.0}")
-            } else {
-                "–".into()
-            }
+            "<tr><td class=\"l\">{run}</td><td>{}</td><td>{}</td></tr>",
+            dash(num(&r["constant_n"])),
+            dash(num(&r["se_n"]))
         );
     }
     h.push_str("</table></details>\n");
