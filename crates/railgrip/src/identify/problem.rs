@@ -19,6 +19,7 @@ use rayon::prelude::*;
 
 use super::lm::{LeastSquares, NormalEquations};
 use super::mlp::{self, Pass, Scratch, Shape, BLOCK};
+use crate::model::MAX_INPUTS;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Avx2, Avx512, F64x4, F64x8};
 use crate::simd::{Isa, Portable};
@@ -127,8 +128,24 @@ struct Columns {
 }
 
 impl Columns {
+    /// The [`BLOCK`] samples from `a` of every input column, on the stack (no allocation per
+    /// block), and how many columns there are.
+    #[inline]
+    fn block(&self, a: usize) -> ([&[f64]; MAX_INPUTS], usize) {
+        let mut xs: [&[f64]; MAX_INPUTS] = [&[]; MAX_INPUTS];
+        for (x, c) in xs.iter_mut().zip(&self.x) {
+            *x = &c[a..a + BLOCK];
+        }
+        (xs, self.x.len())
+    }
+
     /// From row-major inputs (`k` per sample) and targets.
     fn new(x: &[f64], y: &[f64], k: usize) -> Columns {
+        // Configurations name at most MAX_INPUTS inputs (`train.inputs`), as model files hold.
+        assert!(
+            k <= MAX_INPUTS,
+            "a network takes at most {MAX_INPUTS} inputs, not {k}"
+        );
         let n = y.len();
         let padded = n.div_ceil(BLOCK) * BLOCK;
         let mut cols = vec![vec![0.0; padded]; k];
@@ -212,12 +229,13 @@ impl MlpProblem {
             let mut sse = 0.0;
             for (b, a) in range.clone().step_by(BLOCK).enumerate() {
                 let n = BLOCK.min(range.end - a);
-                let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
+                let (xs, k) = cols.block(a);
+                let xs = &xs[..k];
                 block_dispatch(
                     self.isa,
                     self.shape,
                     theta,
-                    &xs,
+                    xs,
                     &cols.y[a..a + BLOCK],
                     BLOCK,
                     &mut r,
@@ -281,7 +299,8 @@ impl MlpProblem {
         let mut sse = 0.0;
         for (b, a) in range.clone().step_by(BLOCK).enumerate() {
             let n = BLOCK.min(range.end - a);
-            let xs: Vec<&[f64]> = cols.x.iter().map(|c| &c[a..a + BLOCK]).collect();
+            let (xs, k) = cols.block(a);
+            let xs = &xs[..k];
             let at = b * BLOCK;
             if let Some(kept) = kept {
                 // The forward pass at this θ was the last one: its activations and residuals.
@@ -293,7 +312,7 @@ impl MlpProblem {
                     self.isa,
                     self.shape,
                     theta,
-                    &xs,
+                    xs,
                     &cols.y[a..a + BLOCK],
                     BLOCK,
                     r,
@@ -305,7 +324,7 @@ impl MlpProblem {
                     self.isa,
                     self.shape,
                     theta,
-                    &xs,
+                    xs,
                     &cols.y[a..a + BLOCK],
                     BLOCK,
                     r,
