@@ -1454,6 +1454,30 @@ fn calibrated_pipeline(dir: &Path, source: &str) -> PathBuf {
     path
 }
 
+/// A campaign calibration's record gives each run's constant of the balance, finite and with
+/// a positive error, under the campaign's name for the run; `calibrate` prints them.
+fn assert_run_constants(record: &serde_json::Value, stdout: &str) {
+    assert!(stdout.contains("constant   "), "{stdout}");
+    let constants = record["campaign"]["resistance_constants"]
+        .as_array()
+        .unwrap();
+    let names: Vec<&str> = constants
+        .iter()
+        .map(|c| c["run"].as_str().unwrap())
+        .collect();
+    let runs: Vec<&str> = record["calibrated"]["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_str().unwrap())
+        .collect();
+    assert_eq!(names, runs);
+    assert!(constants
+        .iter()
+        .all(|c| c["constant_n"].as_f64().is_some_and(f64::is_finite)
+            && c["se_n"].as_f64().is_some_and(|x| x > 0.0)));
+}
+
 #[test]
 fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     let dir = tempfile::tempdir().unwrap();
@@ -1486,6 +1510,7 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     let record = json_file(cal);
     assert_eq!(record["calibrated"]["source"], "campaign");
     assert_eq!(record["calibrated"]["runs"].as_array().unwrap().len(), 8);
+    assert_run_constants(&record, &s);
 
     // A shard of a campaign whose pipeline asks for the calibration needs it given.
     let shard = [

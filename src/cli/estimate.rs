@@ -451,7 +451,9 @@ fn print_run_constants(constants: &[railgrip::estimate::selfcal::RunConstant], p
                 (a.min(x), b.max(x))
             });
         println!(
-            "constant   {lo:.0} … {hi:.0} N over {} runs (resistance's constant and gradient force; each run's in calibration.json)",
+            "constant   {} … {} N over {} runs (resistance's constant and gradient force; each run's in calibration.json)",
+            or_dash(lo, 0),
+            or_dash(hi, 0),
             constants.len()
         );
     }

@@ -284,7 +284,7 @@ fn check_inputs(
         Some(h) if !h.is_empty() && *h != campaign_inputs_sha256(logs, pipeline) => {
             Err(CampaignError::Input {
                 path: where_.to_path_buf(),
-                message: "the given calibration was fitted on other inputs: a log or sidecar of the campaign changed since".into(),
+                message: "the given calibration was fitted on other inputs: a log or sidecar of the campaign changed since, or it was written by another railgrip version or calibration method".into(),
                 hint: "fit it again (`railgrip run ARCHIVE --out OUT --stage calibrate`, or `railgrip calibrate --campaign`) and estimate the runs again with it".into(),
             })
         }

@@ -304,10 +304,13 @@ pub struct PreparedRun {
 
 impl PreparedRun {
     /// The run under the campaign's name for it (else its log's file name): the name its
-    /// resistance constant is reported under.
+    /// resistance constant and the locked-wheel note give.
     pub fn named(mut self, name: &str) -> PreparedRun {
         if let Some(s) = &mut self.signals {
             s.name = name.to_string();
+        }
+        if let Some(l) = &mut self.locked {
+            l.0 = name.to_string();
         }
         self
     }
@@ -656,7 +659,7 @@ impl Resistance {
 /// partial pooling), or the pipeline's where those are kept.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunConstant {
-    /// The log's file name.
+    /// The run's name (the campaign's name for it, else its log's file name).
     pub run: String,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub constant_n: f64,
@@ -2352,8 +2355,8 @@ mod tests {
             .collect()
     }
 
-    /// Solves the symmetric positive definite system m x = b for every column of `b` by
-    /// Gauss–Jordan elimination (a reference independent of the balance's own solver).
+    /// The inverse of the symmetric positive definite matrix `m` by Gauss–Jordan elimination
+    /// with partial pivoting (a reference independent of the balance's own solver).
     fn gauss_jordan(mut m: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
         let n = m.len();
         for (i, row) in m.iter_mut().enumerate() {
@@ -2553,7 +2556,7 @@ mod tests {
             assert!(se >= 0.005 && se > last, "spread {spread}: {se}");
             last = se;
         }
-        // An error of 0 (or NaN) is no posterior to integrate: the error at τ² = 0.
+        // An error of 0 is no posterior to integrate: the error at τ² = 0.
         let mut e = [0.01; AXLES];
         e[2] = 0.0;
         let p = partial_pooling(&groups(), &[1.0; AXLES], &e, 1.0, 0.005, false);

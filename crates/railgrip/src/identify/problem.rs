@@ -110,9 +110,9 @@ struct ForwardCache {
 /// compute it again for the normal equations instead: kept, it is written and read back from
 /// memory, and once it no longer stays in the caches that costs more than the forward pass.
 /// Measured with `cargo bench --bench lm` on a 2-core AMD EPYC VM (1 MiB L2 per core, 32 MiB
-/// L3), kept against computed again: 2-10-1 at 15 000 and 60 000 samples (1.3 and 5.3 MiB
-/// kept) 2.5–3 % faster, 3-40-1 at 15 000 (4.9 MiB) 3–5 % faster; 2-10-1 at 250 000
-/// (22 MiB) 4 % slower and at 1 000 000 (88 MiB) 18 % slower. Per problem: every network
+/// L3), kept against computed again: 2-10-1 at 15 000 and 60 000 samples (1.3 and 5.1 MiB
+/// kept) 2.5–3 % faster, 3-40-1 at 15 000 (4.7 MiB) 3–5 % faster; 2-10-1 at 250 000
+/// (21 MiB) 4 % slower and at 1 000 000 (84 MiB) 18 % slower. Per problem: every network
 /// being fitted (folds and candidates run side by side, two at a time on two cores) holds its
 /// own.
 const MAX_CACHED_VALUES: usize = 1 << 20;
@@ -185,6 +185,9 @@ pub struct MlpProblem {
 
 impl MlpProblem {
     /// From normalised row-major inputs and targets.
+    ///
+    /// # Panics
+    /// With more than `MAX_INPUTS` (4) inputs per sample: no configuration names more.
     pub fn new(
         shape: Shape,
         x: Vec<f64>,
