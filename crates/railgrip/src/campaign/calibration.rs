@@ -47,9 +47,9 @@ pub struct CalibrationRecord {
     /// What could not be calibrated, runs left out and why.
     pub notes: Vec<String>,
     /// SHA-256 over railgrip's version and the calibration's method, the pipeline file's text and
-    /// every run's name, log and sidecar, in the campaign's order ([`campaign_inputs_sha256`]): a whole campaign run again with the same
-    /// inputs reuses this record instead of fitting it again (empty in files of older versions:
-    /// never reused).
+    /// every run's name, log and sidecar, in the campaign's order ([`campaign_inputs_sha256`]):
+    /// a whole campaign run again with the same inputs reuses this record instead of fitting it
+    /// again (empty in files of older versions: never reused).
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub inputs_sha256: String,
 }
@@ -58,9 +58,10 @@ pub struct CalibrationRecord {
 const CALIBRATION_METHOD: &str = "calibration 2 (per-run constants; pooled errors over τ)\0";
 
 /// The SHA-256 (hex) of what a campaign's calibration depends on: railgrip's version and the
-/// calibration's method ([`CALIBRATION_METHOD`]), the pipeline file's text and, in the campaign's order, every run's name, log bytes and sidecar
-/// (as a run's reuse key has them). A run that cannot be read hashes its error, so it never
-/// matches a readable one. Reads every log once more (for a bucket, fetches it).
+/// calibration's method ([`CALIBRATION_METHOD`]), the pipeline file's text and, in the
+/// campaign's order, every run's name, log bytes and sidecar (as a run's reuse key has them).
+/// A run that cannot be read hashes its error, so it never matches a readable one. Reads every
+/// log once more (for a bucket, fetches it).
 pub fn campaign_inputs_sha256(logs: &[(String, LogSource)], pipeline: &Pipeline) -> String {
     let mut h = Sha256::new();
     h.update(concat!("railgrip ", env!("CARGO_PKG_VERSION"), "\0").as_bytes());

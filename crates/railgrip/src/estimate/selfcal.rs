@@ -638,8 +638,8 @@ impl Resistance {
         let own = || Resistance {
             c: [fit.beta[k], fit.beta[k + 1]],
             se: [
-                (sigma2 * fit.cov_unit[k]).sqrt(),
-                (sigma2 * fit.cov_unit[k + 1]).sqrt(),
+                (sigma2 * fit.var_unit(k)).sqrt(),
+                (sigma2 * fit.var_unit(k + 1)).sqrt(),
             ],
             rss: fit.rss,
             fit: fit.clone(),
@@ -694,7 +694,8 @@ impl Balance<'_> {
                     };
                     sw += w;
                     se += w * (z[Y] - fit.predict(&z));
-                    for (s, x) in sx.iter_mut().zip(fit.columns(&z)) {
+                    let (x, _) = fit.columns(&z);
+                    for (s, x) in sx.iter_mut().zip(x) {
                         *s += w * x;
                     }
                 }
@@ -774,8 +775,8 @@ fn resistance_at_ratio_1(g: &Gram, inflate: f64, constants: f64) -> Option<Resis
     Some(Resistance {
         c: [beta[0], beta[1]],
         se: [
-            (sigma2 * common.cov_unit[1]).sqrt(),
-            (sigma2 * common.cov_unit[2]).sqrt(),
+            (sigma2 * common.var_unit(1)).sqrt(),
+            (sigma2 * common.var_unit(2)).sqrt(),
         ],
         rss,
         fit: Fit {
@@ -1863,7 +1864,7 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
     for (gi, grp) in groups.iter().enumerate() {
         for &a in grp {
             ratio[a] = fit.beta[gi];
-            ratio_se[a] = (sigma2 * fit.cov_unit[gi]).sqrt();
+            ratio_se[a] = (sigma2 * fit.var_unit(gi)).sqrt();
         }
     }
     let times = |r: &[f64; AXLES]| std::array::from_fn(|a| r[a] * alpha_pipeline[a]);
@@ -1873,7 +1874,7 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
     let mut between_sd = None;
     if groups.len() > 1 {
         if let Some(common) = &common {
-            let common_se = (sigma2 * common.cov_unit[0]).sqrt();
+            let common_se = (sigma2 * common.var_unit(0)).sqrt();
             // The groups differ when one common ratio fits significantly worse: the
             // likelihood ratio (RSS_common − RSS)/σ² against χ² with groups − 1 degrees of
             // freedom (it takes the ratios' correlations into account, which a sum of squared
@@ -1892,7 +1893,7 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
     let kept = fit.form == PadForm::Constant
         && one_ratio
         && common.as_ref().is_some_and(|c| {
-            let se = (sigma2 * c.cov_unit[0]).sqrt();
+            let se = (sigma2 * c.var_unit(0)).sqrt();
             (c.beta[0] - 1.0).abs() <= Z95 * se
         });
     if kept {
@@ -2101,7 +2102,6 @@ struct Fit {
     groups: Vec<Vec<usize>>,
     gamma: f64,
     beta: Vec<f64>,
-    cov_unit: Vec<f64>,
     /// (XᵀWX)⁻¹ of the fit's columns (groups' α, c1, c2), row-major: σ² times it is β's
     /// covariance.
     cov: Vec<f64>,
@@ -2111,28 +2111,31 @@ struct Fit {
 }
 
 impl Fit {
-    /// x·β for a z row (the run constant excluded).
-    fn predict(&self, z: &[f64; Z]) -> f64 {
-        let mut s = 0.0;
-        for (gi, grp) in self.groups.iter().enumerate() {
-            let x: f64 = grp.iter().map(|&a| z[a] + self.gamma * z[AXLES + a]).sum();
-            s += self.beta[gi] * x;
-        }
+    /// The fit's columns x at a z row (each group's Σ (z_a + γ φ z_a), v, v²) and how many
+    /// there are (groups + 2).
+    fn columns(&self, z: &[f64; Z]) -> ([f64; AXLES + 2], usize) {
+        let mut x = [0.0; AXLES + 2];
         let k = self.groups.len();
-        s + self.beta[k] * z[2 * AXLES] + self.beta[k + 1] * z[2 * AXLES + 1]
+        for (xg, grp) in x.iter_mut().zip(&self.groups) {
+            *xg = grp.iter().map(|&a| z[a] + self.gamma * z[AXLES + a]).sum();
+        }
+        x[k] = z[2 * AXLES];
+        x[k + 1] = z[2 * AXLES + 1];
+        (x, k + 2)
     }
 
-    /// The fit's columns x at a z row (each group's Σ (z_a + γ φ z_a), v, v²): x·β is
-    /// [`Self::predict`].
-    fn columns(&self, z: &[f64; Z]) -> Vec<f64> {
-        let mut x: Vec<f64> = self
-            .groups
+    /// x·β for a z row (the run constant excluded), summed in column order.
+    fn predict(&self, z: &[f64; Z]) -> f64 {
+        let (x, n) = self.columns(z);
+        x[..n]
             .iter()
-            .map(|grp| grp.iter().map(|&a| z[a] + self.gamma * z[AXLES + a]).sum())
-            .collect();
-        x.push(z[2 * AXLES]);
-        x.push(z[2 * AXLES + 1]);
-        x
+            .zip(&self.beta)
+            .fold(0.0, |s, (x, b)| s + b * x)
+    }
+
+    /// The unscaled variance of coefficient `i`: the diagonal of (XᵀWX)⁻¹.
+    fn var_unit(&self, i: usize) -> f64 {
+        self.cov[i * self.beta.len() + i]
     }
 }
 
@@ -2226,7 +2229,6 @@ impl Gram {
             form,
             groups: groups.to_vec(),
             gamma,
-            cov_unit: (0..k).map(|c| inv[c * k + c]).collect(),
             cov: inv,
             beta,
             corr,
@@ -2263,7 +2265,7 @@ impl Gram {
             // Relative standard error of each group's α.
             let sigma2 = fit.rss / (self.n as f64).max(1.0) * inflate;
             let worst = (0..groups.len())
-                .map(|gi| ((sigma2 * fit.cov_unit[gi]).sqrt() / fit.beta[gi].abs(), gi))
+                .map(|gi| ((sigma2 * fit.var_unit(gi)).sqrt() / fit.beta[gi].abs(), gi))
                 .fold((0.0f64, 0usize), |m, x| {
                     if x.0 > m.0 || x.0.is_nan() {
                         x
@@ -2317,13 +2319,8 @@ mod tests {
     /// pseudo-random sequence, y = Σ ratio_i α_i p_i/r + c_run + c1 v + c2 v² + noise (N),
     /// carried by the radar's deceleration (the wheels' ω̇ zero).
     fn synthetic_runs(sizes: &[usize], r: f64, mass: f64, alpha: [f64; AXLES]) -> Vec<RunSignals> {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut uniform = move || {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::rng::Rng::new(7);
+        let mut uniform = move || rng.uniform();
         let ratio = [1.01, 0.99, 1.02, 0.98];
         sizes
             .iter()

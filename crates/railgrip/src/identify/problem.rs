@@ -305,36 +305,28 @@ impl MlpProblem {
             let (xs, k) = cols.block(a);
             let xs = &xs[..k];
             let at = b * BLOCK;
-            if let Some(kept) = kept {
+            let jac = &mut a_mat[at..];
+            let pass = if let Some(kept) = kept {
                 // The forward pass at this θ was the last one: its activations and residuals.
                 let (act, res) =
                     kept[b * per_block..(b + 1) * per_block].split_at(per_block - BLOCK);
                 buf.scratch.restore(act);
                 r.copy_from_slice(res);
-                block_dispatch(
-                    self.isa,
-                    self.shape,
-                    theta,
-                    xs,
-                    &cols.y[a..a + BLOCK],
-                    BLOCK,
-                    r,
-                    Pass::Jacobian(&mut a_mat[at..], ld),
-                    &mut buf.scratch,
-                );
+                Pass::Jacobian(jac, ld)
             } else {
-                block_dispatch(
-                    self.isa,
-                    self.shape,
-                    theta,
-                    xs,
-                    &cols.y[a..a + BLOCK],
-                    BLOCK,
-                    r,
-                    Pass::Both(&mut a_mat[at..], ld),
-                    &mut buf.scratch,
-                );
-            }
+                Pass::Both(jac, ld)
+            };
+            block_dispatch(
+                self.isa,
+                self.shape,
+                theta,
+                xs,
+                &cols.y[a..a + BLOCK],
+                BLOCK,
+                r,
+                pass,
+                &mut buf.scratch,
+            );
             sse += r[..n].iter().map(|e| e * e).sum::<f64>();
             a_mat[p * ld + at..p * ld + at + n].copy_from_slice(&r[..n]);
             // Padding samples are zero in A: they contribute nothing.

@@ -661,14 +661,8 @@ fn run_constants(h: &mut String, fit: &serde_json::Value) {
     else {
         return;
     };
-    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
-    let dash = |x: f64| {
-        if x.is_finite() {
-            format!("{x:.0}")
-        } else {
-            "–".to_string()
-        }
-    };
+    // Newtons to the unit; null (NaN in the fit) as a dash.
+    let newtons = |v: &serde_json::Value| opt(v.as_f64().filter(|x| x.is_finite()), 0);
     let per_run = fit["per_run_constants"].as_bool() == Some(true);
     let _ = writeln!(
         *h,
@@ -686,8 +680,8 @@ fn run_constants(h: &mut String, fit: &serde_json::Value) {
         let _ = writeln!(
             *h,
             "<tr><td class=\"l\">{run}</td><td>{}</td><td>{}</td></tr>",
-            dash(num(&r["constant_n"])),
-            dash(num(&r["se_n"]))
+            newtons(&r["constant_n"]),
+            newtons(&r["se_n"])
         );
     }
     h.push_str("</table></details>\n");
