@@ -531,7 +531,14 @@ fn polach_fits_on_foreign_laws_converge_and_classify_every_parameter() {
         let set = measurement_scenes(law, Some("_120kmh"));
         let (tables, _) = campaign(&set, dir.path());
         let (report, notes) = fit_campaign(&tables, patch, q, p.train.decimate, 2, true);
-        assert!(notes.is_empty(), "{law}: {notes:?}");
+        // Every fit succeeds; the only notes say why a temperature's k cannot enter k(T)
+        // (the table law's sharp peak, with the creepage at a fixed speed, holds k_A at 1).
+        assert!(
+            notes
+                .iter()
+                .all(|n| n.starts_with("k(T) not identified at T = ")),
+            "{law}: {notes:?}"
+        );
         let fits: Vec<_> = report
             .pooled
             .iter()
@@ -630,10 +637,13 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
             // RMSE against the truth over the slipping samples of every run: the chosen law
             // (at each run's temperature) and the constant one (the pooled fit).
             let pooled = report.pooled.as_ref().unwrap().params();
+            // The creepage at the speed the fits took it (the sample's, or a fixed one).
+            let creepage = report.creepage.as_ref().and_then(|c| c.speed());
             let rmse = |at: &dyn Fn(f64) -> PolachParams| {
                 let (mut sse, mut n) = (0.0, 0);
                 for x in truth.iter().filter(|x| x.dv_mps > 0.01) {
-                    let mu = polach(&patch, &at(x.t_c), q, x.v_mps, x.dv_mps, 0.0)
+                    let v_s = creepage.unwrap_or(x.v_mps);
+                    let mu = polach(&patch, &at(x.t_c), q, v_s, x.dv_mps, 0.0)
                         .unwrap()
                         .fx_n
                         / q;
@@ -687,49 +697,55 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// The top-speed campaign (12 runs at 80–200 km/h whose level falls steeper at the top), one
 /// per noise seed, through `railgrip run` with its defaults (`train.model = "auto"`), every
 /// model scored against the truth it does not contain, per speed band:
-/// - the campaign's Polach model carries a speed law of μ0 and its replay bias, pooled per
-///   speed band, stays within ±0.004 in every band (without a speed law a Polach model cannot
-///   follow the level; BIC chooses the cubic speed law on every seed: −0.0023 … −0.0025 at
-///   145–210 km/h measured, −0.0038 … −0.00405 at 170–210 km/h with the quadratic law alone);
+/// - the Polach fits take the creepage at one fixed speed (the truth's creep slope per m/s of
+///   slip does not fall with speed as Polach's w/v makes it; BIC prefers the fixed speed by
+///   ~600 on every seed, measured) and carry a quadratic speed law of μ0; the Polach model's
+///   replay bias, pooled per speed band, stays within ±0.002 in every band (−0.0007 … +0.0004
+///   measured; with Polach's creepage it needed the cubic law and reached −0.0025 at
+///   145–210 km/h);
 /// - the model the campaign chose by held-out runs (the residual network on every seed
-///   measured) has a pooled replay bias within ±0.002 in every band (+0.0014 at most,
+///   measured) has a pooled replay bias within ±0.0015 in every band (+0.0011 at most,
 ///   measured), and in the curve view (the model at each run's initial speed and temperature)
-///   a bias within ±0.004 at every initial speed (+0.0023 at most, by `railgrip score`) — at
-///   200 km/h less than half the 2-input network's (+0.0004 … +0.0023 against +0.0198,
-///   measured) — and a loss/recovery difference of 0.45–1.3 times the truth's in every run
-///   where the truth's is at least 0.002 (0.58 … 0.99 measured; 0.08 at 200 km/h when the
-///   residual's support was counted per speed cell);
+///   a bias within ±0.0025 at every initial speed (−0.0004 … +0.0020 measured, by `railgrip
+///   score`; +0.0023 with Polach's creepage) — at 200 km/h less than half the 2-input
+///   network's — and a loss/recovery difference of 0.65–1.3 times the truth's in every run
+///   where the truth's is at least 0.002 (0.73 … 1.02 measured; 0.58 … 0.99 with Polach's
+///   creepage);
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
-/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): a
-/// curve bias within ±0.002 (+0.0023 at 200 km/h on seeds 2–3), curve RMSE ≤ 0.005 (0.0058 …
-/// 0.0065), a hysteresis ratio of 0.8–1.2 everywhere (0.58–0.99), and per run and band a
-/// replay bias
-/// within ±0.0015 (each run's rail condition is ±5 % of the mean, which no model input
-/// carries).
+/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): curve
+/// RMSE ≤ 0.005 in every band (0.0039 … 0.0061; against the law at the runs' mean rail
+/// condition 0.0037 … 0.0050), a hysteresis ratio of 0.8–1.2 everywhere (0.73–1.02), and per
+/// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
+/// which no model input carries).
 #[test]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
         let c = run_and_score("pipelines/scenes/top_speed/", seed);
-        // A level that falls steeper at the top: BIC chooses the cubic speed law.
-        assert_eq!(c.polach_speed, ("polynomial".to_string(), 3), "seed {seed}");
+        // The creep slope of the truth does not fall with speed: BIC takes the creepage at a
+        // fixed speed, and the level's quadratic speed law.
+        assert!(
+            c.polach_creepage.is_some(),
+            "seed {seed}: Polach's creepage chosen"
+        );
+        assert_eq!(c.polach_speed, ("polynomial".to_string(), 2), "seed {seed}");
         let polach = &c.models["polach"];
         eprintln!("seed {seed}: polach replay {:?}", polach.replay);
         assert!(
-            polach.replay.iter().all(|b| b.abs() <= 0.004),
+            polach.replay.iter().all(|b| b.abs() <= 0.002),
             "seed {seed}: {:?}",
             polach.replay
         );
         let chosen = &c.models["chosen"];
         assert!(
-            chosen.replay.iter().all(|b| b.abs() <= 0.002),
+            chosen.replay.iter().all(|b| b.abs() <= 0.0015),
             "seed {seed}: {} replay {:?}",
             c.chosen,
             chosen.replay
         );
         assert!(
-            chosen.curve.iter().all(|(_, b)| b.abs() <= 0.004),
+            chosen.curve.iter().all(|(_, b)| b.abs() <= 0.0025),
             "seed {seed}: {} curve {:?}",
             c.chosen,
             chosen.curve
@@ -741,7 +757,7 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
                 && chosen
                     .hysteresis
                     .iter()
-                    .all(|(_, r)| (0.45..=1.3).contains(r)),
+                    .all(|(_, r)| (0.65..=1.3).contains(r)),
             "seed {seed}: {} hysteresis ratios {:?}",
             c.chosen,
             chosen.hysteresis
@@ -805,6 +821,8 @@ struct CampaignScores {
     models: std::collections::BTreeMap<&'static str, BandScores>,
     /// The Polach model's speed law: its form and number of coefficients.
     polach_speed: (String, usize),
+    /// The Polach model's fixed creepage speed (m/s), if it has one.
+    polach_creepage: Option<f64>,
 }
 
 impl CampaignScores {
@@ -856,6 +874,7 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
     let out = tmp.path().join("out");
     let models = out.join("models");
     let polach = ModelFile::read(&models.join("mlp.polach.json")).unwrap();
+    let polach_creepage = polach.polach.as_ref().unwrap().creepage_speed_mps;
     let polach_speed = polach
         .polach
         .as_ref()
@@ -931,6 +950,7 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         chosen,
         models: scores,
         polach_speed,
+        polach_creepage,
     }
 }
 

@@ -911,6 +911,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         residuals: vec![],
         excluded: vec![],
         notes: vec![],
+        creepage_speed_mps: None,
     };
     railgrip::identify::export::polach_file(
         &fit,
@@ -920,6 +921,7 @@ fn polach_model(with_temperature: bool) -> ModelFile {
         (0.01, 4.5),
         (3.0, 44.0),
         25.0,
+        None,
         polach_provenance(),
     )
     .unwrap()
@@ -1248,6 +1250,11 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
             "μ0(v) Curtius–Kniffler",
             with_speed_law(polach_model(false), "curtius_kniffler", &[0.6]),
         ),
+        ("k(T), μ0(v), creepage at a fixed speed", {
+            let mut f = with_speed_law(polach_model(true), "polynomial", &[-0.3, -0.1]);
+            f.polach.as_mut().unwrap().creepage_speed_mps = Some(17.5);
+            f
+        }),
     ];
     for (with_t, file) in files {
         let model = Model::new(file).unwrap();
@@ -1269,6 +1276,45 @@ fn polach_c_header_agrees_with_the_rust_evaluator() {
             );
             assert!(worst <= 1e-12, "{worst}");
         }
+    }
+}
+
+/// The slip-velocity form: the creepage taken at the file's `creepage_speed_mps` rather than at
+/// the rolling speed. Without a speed law μ(w) is then the same at every speed, and it is the
+/// rolling form's μ at that speed; a non-positive speed is refused.
+#[test]
+fn polach_creepage_at_a_fixed_speed_gives_the_same_curve_at_every_speed() {
+    let rolling = polach_model(false);
+    let mut fixed = rolling.clone();
+    fixed.polach.as_mut().unwrap().creepage_speed_mps = Some(20.0);
+    schema_check(
+        &fixed.to_json(),
+        "Polach model file with a fixed creepage speed",
+    );
+    let back = ModelFile::from_json(&fixed.to_json(), "f.json").unwrap();
+    assert_eq!(back, fixed);
+    // A file without the field is unchanged by it (older files and rolling fits).
+    assert!(!rolling.to_json().contains("creepage_speed_mps"));
+    let (r, f) = (
+        Model::new(rolling).unwrap(),
+        Model::new(fixed.clone()).unwrap(),
+    );
+    for dv in [0.05, 0.3, 1.0, 4.0, -0.7] {
+        let at_vs = r.mu_vt(dv, 0.0, 20.0, f64::NAN);
+        for v in [3.0, 20.0, 44.0, 80.0] {
+            assert_eq!(f.mu_vt(dv, 0.0, v, f64::NAN), at_vs, "dv {dv}, v {v}");
+        }
+    }
+    // The rolling form's creep slope falls with speed; the fixed one's does not.
+    assert!(r.mu_vt(0.1, 0.0, 40.0, f64::NAN) < 0.6 * r.mu_vt(0.1, 0.0, 10.0, f64::NAN));
+    let good = fixed.to_json();
+    for x in [0.0, -5.0] {
+        assert_refused(
+            &good,
+            "bad.polach.json",
+            &|v| v["polach"]["creepage_speed_mps"] = x.into(),
+            "creepage_speed_mps",
+        );
     }
 }
 
@@ -1591,6 +1637,22 @@ fn polach_rows_level(
     sigma: f64,
     phi: f64,
 ) -> RunTable {
+    polach_rows_creepage(truth, level, None, seed, n, (dv_min, v_min), sigma, phi)
+}
+
+/// [`polach_rows_level`] with the creepage taken at `creepage_speed` (m/s) instead of each
+/// sample's speed when given: the contact library's law evaluated at that speed.
+#[allow(clippy::too_many_arguments)]
+fn polach_rows_creepage(
+    truth: &railgrip::contact::polach::PolachParams,
+    level: &dyn Fn(f64) -> f64,
+    creepage_speed: Option<f64>,
+    seed: u64,
+    n: usize,
+    (dv_min, v_min): (f64, f64),
+    sigma: f64,
+    phi: f64,
+) -> RunTable {
     use railgrip::contact::polach::polach;
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
@@ -1609,7 +1671,8 @@ fn polach_rows_level(
             mu0: truth.mu0 * level(v),
             ..*truth
         };
-        let mu = polach(&patch, &at_v, q, v, dv, 0.0).unwrap().fx_n / q + noise;
+        let v_s = creepage_speed.unwrap_or(v);
+        let mu = polach(&patch, &at_v, q, v_s, dv, 0.0).unwrap().fx_n / q + noise;
         t.axle.push(2);
         t.time_s.push(i as f64 * 0.01);
         t.v_mps.push(v);
@@ -1626,6 +1689,42 @@ fn fit_of(t: &RunTable) -> railgrip::identify::polach::PolachFit {
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
     fit_polach("synthetic", &[t], patch, q, 1, DEFAULT_START, true).unwrap()
+}
+
+/// A campaign's fits take the creepage its data follow: Polach's w/v on data from Polach's
+/// law, w over one fixed speed on data whose creep slope per m/s of slip is the same at every
+/// speed; either way by a clear BIC margin, and the chosen fit's residual is the noise.
+#[test]
+fn polach_campaigns_choose_the_creepage_their_data_follow() {
+    use railgrip::identify::polach::fit_campaign;
+    let p = Pipeline::default_uic_z1();
+    let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
+    let (_, want) = polach_table(0.0, 5.0, 0.002, 0.0);
+    let truth = railgrip::contact::polach::PolachParams {
+        mu0: want[0],
+        a_ratio: want[1],
+        b_s_per_m: want[2],
+        k_a: want[3],
+        k_s: want[4],
+    };
+    for (creepage, chosen) in [(None, "rolling_speed"), (Some(20.0), "fixed_speed")] {
+        let tables: Vec<RunTable> = (1..=3)
+            .map(|seed| {
+                let rows = (0.0, 5.0);
+                polach_rows_creepage(&truth, &|_| 1.0, creepage, seed, 3000, rows, 0.002, 0.0)
+            })
+            .collect();
+        let (r, _) = fit_campaign(&tables, patch, q, 1, 0, false);
+        let c = r.creepage.as_ref().expect("both pooled fits");
+        let (bic, rmse) = (c.bic.unwrap(), c.rmse.unwrap());
+        eprintln!("{creepage:?}: {c:?}");
+        assert_eq!(c.chosen, chosen);
+        let (won, lost) = if creepage.is_some() { (1, 0) } else { (0, 1) };
+        assert!(bic[lost] - bic[won] > 50.0, "{bic:?}");
+        assert!((rmse[won] / 0.002 - 1.0).abs() < 0.1, "{rmse:?}");
+        assert!(rmse[lost] > 1.2 * rmse[won], "{rmse:?}");
+        assert_eq!(c.speed(), creepage.map(|_| c.fixed_speed_mps));
+    }
 }
 
 #[test]
@@ -1858,6 +1957,7 @@ fn the_speed_law_follows_a_level_that_falls_with_speed() {
                 r.dv_range_mps,
                 r.v_range_mps,
                 v_ref,
+                r.creepage.as_ref().and_then(|c| c.speed()),
                 polach_provenance(),
             )
             .unwrap();
@@ -2001,8 +2101,9 @@ fn the_temperature_form_follows_what_varies() {
                 .map(|c| format!("{} BIC {:.1}", c.form(), c.bic))
                 .collect();
             eprintln!(
-                "{what} seed {seed}: chose {}; {table:?}; {notes:?}",
-                t.form()
+                "{what} seed {seed}: chose {}; {table:?}; {notes:?}; creepage {:?}",
+                t.form(),
+                r.creepage
             );
             // 3 × 3 temperature forms; four speed laws (15–35 m/s) on the best three.
             assert_eq!(t.candidates.len(), 21, "{what}");
@@ -2053,6 +2154,7 @@ fn the_temperature_form_follows_what_varies() {
                 r.dv_range_mps,
                 r.v_range_mps,
                 25.0,
+                r.creepage.as_ref().and_then(|c| c.speed()),
                 polach_provenance(),
             )
             .unwrap();

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use railgrip::model::Model;
 use railgrip::score::{curve, replay, score, Band, Grid, Sample, Score, Stats, SPEED_BANDS_KMH};
-use railgrip::sim::{self, Scene, TrueLaw};
+use railgrip::sim::{self, AdhesionLaw, Scene, TrueLaw};
 
 use super::{EXIT_LOSSY, EXIT_OK};
 
@@ -49,6 +49,14 @@ struct Line {
     /// The curve view at the run's initial speed and temperature (laws in closed form only).
     curve: Option<Stats>,
     curve_hysteresis_ratio: Option<f64>,
+    /// The scene's rail condition (`adhesion.level_scale`; 1 for laws without one).
+    level_scale: f64,
+    /// The curve view against the law at the scored runs' mean condition (the run's law
+    /// × s̄/s): the model's error with the run's own condition taken out.
+    curve_mean_condition: Option<Stats>,
+    /// The law at the mean condition against the run's own law on the same cells: what a
+    /// campaign model that knew the law exactly, but not the run's condition, would score.
+    curve_condition_floor: Option<Stats>,
     /// The replay view per speed band.
     replay: Vec<Band>,
 }
@@ -67,6 +75,9 @@ impl Line {
             hysteresis_predicted: s.hysteresis.map(|h| h.1),
             curve: None,
             curve_hysteresis_ratio: None,
+            level_scale: 1.0,
+            curve_mean_condition: None,
+            curve_condition_floor: None,
             replay: Vec::new(),
         }
     }
@@ -94,7 +105,21 @@ struct Report {
     /// Every scene's samples pooled (the per-cell score only).
     all: Line,
     curve_by_initial_speed: Vec<BandRow>,
+    /// The scored runs' mean rail condition s̄ (one weight per scene), where their conditions
+    /// differ; the two tables below only then.
+    mean_level_scale: Option<f64>,
+    curve_at_mean_condition: Vec<BandRow>,
+    curve_condition_floor: Vec<BandRow>,
     replay_by_speed_band: Vec<BandRow>,
+}
+
+/// The rail condition of a scene's true law: `loss_recovery`'s `level_scale` multiplies both
+/// peaks, so μ is proportional to it (docs/simulator.md#foreign-laws); other laws have none.
+fn level_scale(scene: &Scene) -> f64 {
+    match &scene.adhesion.law {
+        AdhesionLaw::LossRecovery(l) => l.level_scale,
+        _ => 1.0,
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<u8> {
@@ -107,9 +132,21 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let mut lines = Vec::new();
     let mut pooled: Vec<Sample> = Vec::new();
     let mut runs = 0usize;
+    let mut loaded = Vec::with_capacity(args.scenes.len());
     for path in &args.scenes {
         let scene = Scene::load(path)?;
         let law = TrueLaw::of(&scene)?;
+        loaded.push((path, scene, law));
+    }
+    // The mean condition of the scenes with a law in closed form, where their conditions differ.
+    let scales: Vec<f64> = loaded
+        .iter()
+        .filter(|(_, _, law)| law.is_some())
+        .map(|(_, scene, _)| level_scale(scene))
+        .collect();
+    let mean_scale = (scales.iter().any(|s| *s != scales[0]))
+        .then(|| scales.iter().sum::<f64>() / scales.len() as f64);
+    for (path, scene, law) in loaded {
         // Without --seeds, the scene's own noise (as `simulate` without --seed).
         let seeds: Vec<Option<u64>> = if args.seeds.is_empty() {
             vec![None]
@@ -138,6 +175,39 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 .with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
+                line.level_scale = level_scale(&scene);
+                if let Some(mean) = mean_scale {
+                    // μ is proportional to the condition: the law at the mean one is × s̄/s.
+                    let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / line.level_scale;
+                    let own = |dv, q, v, _| law.mu(dv, q, v);
+                    let v0 = v0_kmh / 3.6;
+                    let m = curve(&samples, &grid, v0, t_c, predict, at_mean);
+                    let m = m.with_context(context)?;
+                    if let Ok(d) = std::env::var("DUMP_CELLS") {
+                        let mut f = std::fs::OpenOptions::new()
+                            .append(true)
+                            .create(true)
+                            .open(d)
+                            .unwrap();
+                        for c in &m.cells {
+                            use std::io::Write;
+                            writeln!(
+                                f,
+                                "{} {} {} {} {} {}",
+                                scene.name,
+                                c.dv_mps,
+                                c.ddv_mps2,
+                                c.samples,
+                                c.true_mu,
+                                c.predicted_mu
+                            )
+                            .unwrap();
+                        }
+                    }
+                    line.curve_mean_condition = Some(m.stats);
+                    let f = curve(&samples, &grid, v0, t_c, at_mean, own);
+                    line.curve_condition_floor = Some(f.with_context(context)?.stats);
+                }
             }
             line.replay =
                 replay(&samples, &grid, &SPEED_BANDS_KMH, predict).with_context(context)?;
@@ -156,7 +226,10 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let all = score(&pooled, &grid, predict)?;
     let negative = lines.iter().any(|l| l.negative_cells > 0) || all.negative_cells > 0;
     let report = Report {
-        curve_by_initial_speed: curve_rows(&lines),
+        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, true),
+        mean_level_scale: mean_scale,
+        curve_at_mean_condition: curve_rows(&lines, |l| l.curve_mean_condition, false),
+        curve_condition_floor: curve_rows(&lines, |l| l.curve_condition_floor, false),
         replay_by_speed_band: replay_rows(&lines),
         scenes: lines,
         all: Line::new("all", f64::NAN, f64::NAN, &all),
@@ -172,17 +245,22 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     Ok(if negative { EXIT_LOSSY } else { EXIT_OK })
 }
 
-/// The curve view grouped by the runs' initial speeds (each run's cells pooled).
-fn curve_rows(lines: &[Line]) -> Vec<BandRow> {
+/// A curve view (`stats` of each run) grouped by the runs' initial speeds (each run's cells
+/// pooled), with the hysteresis ratios if `hysteresis`.
+fn curve_rows(lines: &[Line], stats: fn(&Line) -> Option<Stats>, hysteresis: bool) -> Vec<BandRow> {
     let mut by: BTreeMap<u64, Vec<&Line>> = BTreeMap::new();
-    for l in lines.iter().filter(|l| l.curve.is_some()) {
+    for l in lines.iter().filter(|l| stats(l).is_some()) {
         by.entry(l.initial_speed_kmh.to_bits()).or_default().push(l);
     }
     let mut rows: Vec<BandRow> = by
         .into_values()
         .map(|ls| {
-            let stats: Vec<Stats> = ls.iter().filter_map(|l| l.curve).collect();
-            let ratios: Vec<f64> = ls.iter().filter_map(|l| l.curve_hysteresis_ratio).collect();
+            let stats: Vec<Stats> = ls.iter().filter_map(|l| stats(l)).collect();
+            let ratios: Vec<f64> = ls
+                .iter()
+                .filter(|_| hysteresis)
+                .filter_map(|l| l.curve_hysteresis_ratio)
+                .collect();
             let v = ls[0].initial_speed_kmh;
             row(v, v, &stats, &ratios)
         })
@@ -297,6 +375,18 @@ fn print_report(r: &Report, min_samples: usize) {
         table(
             "Curve view: the model at each run's initial speed and ambient temperature against the true law, on the run's supported (Δv, dΔv/dt) cells (n = cells)",
             &r.curve_by_initial_speed,
+            &|b| format!("{:.0}", b.lo_kmh),
+        );
+    }
+    if let Some(mean) = r.mean_level_scale {
+        table(
+            &format!("Curve view against the law at the runs' mean rail condition (level_scale s̄ = {mean:.4}; each run's law × s̄/s): the model's error without the run's own condition, which no campaign model can know"),
+            &r.curve_at_mean_condition,
+            &|b| format!("{:.0}", b.lo_kmh),
+        );
+        table(
+            "Condition floor: the law at the mean condition against each run's own law on the same cells — what a campaign model with the exact law would score in the curve view",
+            &r.curve_condition_floor,
             &|b| format!("{:.0}", b.lo_kmh),
         );
     }

@@ -394,6 +394,11 @@ fn polach_text(p: &PolachSpec, prefix: &str, about: &[(&str, String)]) -> String
         ("v_lo", lit(v_lo)),
         ("v_hi", lit(v_hi)),
         ("v_c", lit(CURTIUS_KNIFFLER_SPEED_MPS)),
+        ("cfix", u8::from(p.creepage_speed_mps.is_some()).to_string()),
+        (
+            "vcr",
+            lit(p.creepage_speed_mps.unwrap_or(p.reference_speed_mps)),
+        ),
         ("nmu0", mu0_t.len().to_string()),
         ("nka", ka_t.len().to_string()),
         ("nks", ks_t.len().to_string()),

@@ -14,8 +14,10 @@
 //!    μ0 × g(v), v (after step 1) clamped to the law's fitted range: the adhesion level falling
 //!    with rolling speed (seed 002 Fig. 8), which Polach's law alone does not have — it makes
 //!    μ fall with slip velocity only (seed 004 eq. 2).
-//! 3. μ_w = μ0 [(1 − A) e^(−B w) + A]; ε = K (w / v) / μ_w with K = π G a b c11 / (4 Q)
-//!    (eq. 2 with C = (3/8)(G/a) c11, the creepage s = w/v and the wheel load Q of the fit);
+//! 3. μ_w = μ0 [(1 − A) e^(−B w) + A]; ε = K (w / v_s) / μ_w with K = π G a b c11 / (4 Q)
+//!    (eq. 2 with C = (3/8)(G/a) c11, the creepage s = w/v_s and the wheel load Q of the fit);
+//!    v_s is the speed after step 1 (Polach's creepage), or the file's `creepage_speed_mps`
+//!    where the fit chose the slip-velocity form ([`PolachSpec::creepage_speed_mps`]);
 //!    μ = sign(Δv) · (2 μ_w / π) [k_A ε / (1 + (k_A ε)²) + arctan(k_S ε)] (eq. 1).
 //!
 //! dΔv/dt is not an input of this law (it is accepted and ignored, so simulators call either
@@ -72,6 +74,14 @@ pub struct PolachSpec {
     /// unknown field rather than evaluating it without).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub speed: Option<SpeedSpec>,
+    /// The speed v_s the creepage s = w/v_s is taken at (m/s). Absent: the rolling speed v —
+    /// Polach's creepage (seed 004 eq. 2), whose creep slope per m/s of slip falls as 1/v.
+    /// Given: this fixed speed (the fit's reference speed) — the slip-velocity form, whose
+    /// slope per m/s of slip is the same at every speed, as in adhesion curves measured over
+    /// slip velocity (seed 002 Fig. 8); chosen by BIC against Polach's
+    /// (`identify::polach::fit_campaign`). An older railgrip refuses a file with it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creepage_speed_mps: Option<f64>,
 }
 
 /// Curtius–Kniffler's speed constant, m/s: their μ(v) = 7.5/(v + 44) + 0.161, v in km/h.
@@ -296,6 +306,10 @@ pub(crate) fn check_spec(p: &PolachSpec) -> Result<(), Defect> {
         ("patch.c11", pt.c11),
         ("wheel_load_n", p.wheel_load_n),
         ("reference_speed_mps", p.reference_speed_mps),
+        (
+            "creepage_speed_mps",
+            p.creepage_speed_mps.unwrap_or(p.reference_speed_mps),
+        ),
     ] {
         if !(x.is_finite() && x > 0.0) {
             return Err(Defect::Value(format!(
@@ -415,6 +429,8 @@ pub(crate) struct PolachEval {
     /// K = π G a b c11 / (4 Q): ε = K s / μ_w.
     stiffness: f64,
     v_ref: f64,
+    /// The fixed creepage speed of the slip-velocity form (m/s); `None`: the rolling speed.
+    creepage_speed: Option<f64>,
     /// Fitted Δv and v ranges (m/s), for [`super::Model::in_domain`].
     dv: (f64, f64),
     v: (f64, f64),
@@ -470,6 +486,7 @@ impl PolachEval {
             k_s: p.k_s,
             stiffness: stiffness(p),
             v_ref: p.reference_speed_mps,
+            creepage_speed: p.creepage_speed_mps,
             dv: (0.0, f64::INFINITY),
             v: (0.0, f64::INFINITY),
             temperature: p.temperature.as_ref().map(|t| TemperatureEval {
@@ -510,7 +527,7 @@ impl PolachEval {
             return 0.0;
         }
         let mu_w = mu0 * ((1.0 - self.a_ratio) * (-self.b * w).exp() + self.a_ratio);
-        let eps = self.stiffness * (w / v) / mu_w;
+        let eps = self.stiffness * (w / self.creepage_speed.unwrap_or(v)) / mu_w;
         let x = ka * eps;
         let f = 2.0 * mu_w / PI * (x / (1.0 + x * x) + (ks * eps).atan());
         f.copysign(dv)

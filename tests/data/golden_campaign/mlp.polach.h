@@ -23,6 +23,7 @@
 #define MLP_POLACH_HAS_SPEED 1
 #define MLP_POLACH_SPEED_CURTIUS_KNIFFLER 1
 #define MLP_POLACH_N_SPEED 1
+#define MLP_POLACH_CREEPAGE_FIXED_SPEED 0
 
 static const double mlp_polach_mu0 = 0.09386317010340589;
 static const double mlp_polach_a_ratio = 0.2853891009116879;
@@ -38,6 +39,7 @@ static const double mlp_polach_t_hi = 20.0;
 static const double mlp_polach_v_lo = 1.4180712802382844;
 static const double mlp_polach_v_hi = 44.11759750601813;
 static const double mlp_polach_v_c = 12.222222222222221;
+static const double mlp_polach_v_creepage = 20.55939372445665;
 static const double mlp_polach_mu0_T[1] = {
     0.0
 };
@@ -95,7 +97,8 @@ static inline double mlp_polach_mu_vt(double dv_mps, double ddv_mps2, double v_m
         return 0.0;
     }
     mu_w = mu0 * ((1.0 - mlp_polach_a_ratio) * exp(-mlp_polach_b * w) + mlp_polach_a_ratio);
-    eps = mlp_polach_stiffness * (w / v) / mu_w;
+    /* The creepage w/v (Polach), or w over a fixed speed (the slip-velocity form). */
+    eps = mlp_polach_stiffness * (w / (MLP_POLACH_CREEPAGE_FIXED_SPEED ? mlp_polach_v_creepage : v)) / mu_w;
     x = ka * eps;
     f = 2.0 * mu_w / mlp_polach_pi * (x / (1.0 + x * x) + atan(ks * eps));
     return copysign(f, dv_mps);

@@ -163,7 +163,8 @@ pub(crate) fn network_file(
 /// `temperature` law whose chosen form depends on T replaces them: its A, B, and μ0, k_A, k_S
 /// at its reference temperature (for callers that give none), with its polynomials. `dv_range`,
 /// `v_range` are the slip and speed ranges of the fitted samples (m/s), `v_ref` the speed for
-/// callers that give none (m/s).
+/// callers that give none (m/s), `creepage_speed` the fixed speed the fit took the creepage at
+/// (m/s; `None`: each sample's).
 #[allow(clippy::too_many_arguments)]
 pub fn polach_file(
     fit: &PolachFit,
@@ -173,6 +174,7 @@ pub fn polach_file(
     dv_range: (f64, f64),
     v_range: (f64, f64),
     v_ref: f64,
+    creepage_speed: Option<f64>,
     provenance: Provenance,
 ) -> Result<ModelFile, IdentifyError> {
     let input = |name: &str, unit: &str, (lo, hi): (f64, f64)| InputSpec {
@@ -247,6 +249,7 @@ pub fn polach_file(
             reference_speed_mps: v_ref,
             temperature,
             speed,
+            creepage_speed_mps: creepage_speed,
         }),
         provenance,
         metrics: Metrics {

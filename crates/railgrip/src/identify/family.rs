@@ -261,6 +261,7 @@ impl PolachFile {
             report.dv_range_mps,
             report.v_range_mps,
             self.reference_speed_mps,
+            report.creepage.as_ref().and_then(|c| c.speed()),
             provenance.clone(),
         )
     }
@@ -534,6 +535,14 @@ pub fn campaign_models(data: FitData<'_>) -> Result<CampaignFit, IdentifyError> 
         })
         .map(|t| t.form_choice())
         .unwrap_or_default();
+    // The folds take the creepage where the campaign did, with or without a law.
+    let form = FormChoice {
+        fixed_creepage_speed: polach_fits
+            .creepage
+            .as_ref()
+            .is_some_and(|c| c.speed().is_some()),
+        ..form
+    };
     // The candidates on all runs beside the folds: both in parallel, so that no core idles
     // while a single-start network trains.
     let (fits, mut scores) = rayon::join(

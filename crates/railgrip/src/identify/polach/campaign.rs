@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fit::{fit_polach, samples, PolachFit};
+use super::fit::{fit_polach_creepage, samples, PolachFit};
 use super::law::{Sample, DEFAULT_START};
 use super::temperature::{fit_temperature_forms, FormChoice, TemperatureFit};
 use crate::contact::polach::ContactPatch;
@@ -34,6 +34,67 @@ pub struct PolachReport {
     /// The campaign generation that wrote the file (`campaign.json`'s), when a campaign did.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub generation: Option<String>,
+    /// Which creepage the fits use, and why (absent in files written before the choice: each
+    /// sample's speed).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creepage: Option<CreepageChoice>,
+}
+
+/// The creepage of a campaign's Polach fits: s = w/v at each sample's speed v (Polach's, seed
+/// 004 eq. 2: the creep slope per m/s of slip falls as 1/v) or s = w/v_s at one fixed speed
+/// v_s, the runs' median (the slip-velocity form: the same slope at every speed, as adhesion
+/// curves measured over slip velocity show, seed 002 Fig. 8). Both have the same parameters;
+/// the pooled fits (all runs, no temperature or speed law) decide by BIC with n_eff
+/// ([`TemperatureCandidate`](super::TemperatureCandidate)'s criterion), Polach's unless the
+/// fixed speed's is lower by more than 10.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CreepageChoice {
+    /// `"rolling_speed"` (Polach's) or `"fixed_speed"` (the slip-velocity form).
+    pub chosen: String,
+    /// v_s of the slip-velocity form, m/s (the model file's `creepage_speed_mps` when chosen).
+    pub fixed_speed_mps: f64,
+    /// BIC and RMS residual of μ of the pooled fit with each: Polach's, then the fixed speed's
+    /// (absent where the campaign's choice was refitted, in the model choice's folds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bic: Option<[f64; 2]>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rmse: Option<[f64; 2]>,
+}
+
+impl CreepageChoice {
+    /// The speed the creepage is taken at: `None` for each sample's own.
+    pub fn speed(&self) -> Option<f64> {
+        (self.chosen == FIXED_SPEED).then_some(self.fixed_speed_mps)
+    }
+}
+
+const FIXED_SPEED: &str = "fixed_speed";
+const ROLLING_SPEED: &str = "rolling_speed";
+
+/// BIC must favour the fixed speed's creepage by more than this to replace Polach's, the
+/// physical one: "very strong" evidence on Kass & Raftery's scale (JASA 90 (1995) 773–795).
+const CREEPAGE_BIC_MARGIN: f64 = 10.0;
+
+/// The creepage of the pooled fits `rolling` (each sample's speed) and `fixed` (`v_s`, m/s):
+/// the fixed speed's where its BIC is lower by more than [`CREEPAGE_BIC_MARGIN`], else
+/// Polach's. Both forms have the same five parameters, so both BICs count all five (a
+/// parameter held for want of identification was still chosen by the data); one n_eff for
+/// both, the smaller (the more autocorrelated residuals).
+fn choose_creepage(rolling: &PolachFit, fixed: &PolachFit, v_s: f64) -> CreepageChoice {
+    let n_eff = rolling.effective_samples.min(fixed.effective_samples);
+    let bic = |f: &PolachFit| n_eff * (f.rmse * f.rmse).ln() + 5.0 * n_eff.ln();
+    let b = [bic(rolling), bic(fixed)];
+    CreepageChoice {
+        chosen: if b[0] - b[1] > CREEPAGE_BIC_MARGIN {
+            FIXED_SPEED
+        } else {
+            ROLLING_SPEED
+        }
+        .into(),
+        fixed_speed_mps: v_s,
+        bic: Some(b),
+        rmse: Some([rolling.rmse, fixed.rmse]),
+    }
 }
 
 /// Fits every run, every temperature group (with profile-likelihood intervals for the pooled
@@ -48,7 +109,33 @@ pub fn fit_campaign(
     intervals: bool,
 ) -> (PolachReport, Vec<String>) {
     let all: Vec<&RunTable> = tables.iter().collect();
-    let (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals);
+    let v_ref = crate::identify::median_speed(tables);
+    // The groups with Polach's creepage and, beside them, the pooled fit with the fixed
+    // speed's; the groups again with that one where BIC prefers it.
+    let (fixed, (mut fits, mut notes)) = rayon::join(
+        || {
+            let f = fit_polach_creepage(
+                "all runs",
+                &all,
+                patch,
+                q_n,
+                decimate,
+                DEFAULT_START,
+                false,
+                Some(v_ref),
+            );
+            f.ok()
+        },
+        || fit_groups(tables, patch, q_n, decimate, intervals, None),
+    );
+    let creepage = match (&fits.pooled, &fixed) {
+        (Some(r), Some(f)) => Some(choose_creepage(r, f, v_ref)),
+        _ => None,
+    };
+    let speed = creepage.as_ref().and_then(CreepageChoice::speed);
+    if speed.is_some() {
+        (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals, speed);
+    }
     let law = match &fits.pooled {
         Some(p) => fit_temperature_forms(
             &all,
@@ -58,13 +145,16 @@ pub fn fit_campaign(
             degree,
             p,
             &fits.per_temperature,
-            crate::identify::median_speed(tables),
+            v_ref,
             intervals,
             None,
+            speed,
         ),
         None => Err(no_pooled_fit()),
     };
-    report(&all, patch, q_n, decimate, fits, law, notes)
+    let mut r = report(&all, patch, q_n, decimate, fits, law, notes);
+    r.0.creepage = creepage;
+    r
 }
 
 /// The lean fit of a model-choice fold: all runs pooled (no intervals) and the temperature
@@ -78,10 +168,21 @@ pub fn fit_campaign_form(
 ) -> (PolachReport, Vec<String>) {
     let all: Vec<&RunTable> = tables.iter().collect();
     let mut notes = Vec::new();
-    let pooled = fit_polach("all runs", &all, patch, q_n, decimate, DEFAULT_START, false)
-        .map_err(|e| notes.push(e.to_string()))
-        .ok();
-    let law = match (&pooled, form == FormChoice::default()) {
+    let v_ref = crate::identify::median_speed(tables);
+    let speed = form.fixed_creepage_speed.then_some(v_ref);
+    let pooled = fit_polach_creepage(
+        "all runs",
+        &all,
+        patch,
+        q_n,
+        decimate,
+        DEFAULT_START,
+        false,
+        speed,
+    )
+    .map_err(|e| notes.push(e.to_string()))
+    .ok();
+    let law = match (&pooled, !form.has_law()) {
         (Some(_), true) => Err(IdentifyError::Data {
             what: "the campaign chose no temperature or speed law".into(),
             hint: "none needed".into(),
@@ -94,9 +195,10 @@ pub fn fit_campaign_form(
             0,
             p,
             &[],
-            crate::identify::median_speed(tables),
+            v_ref,
             false,
             Some(form),
+            speed,
         ),
         (None, _) => Err(no_pooled_fit()),
     };
@@ -105,7 +207,19 @@ pub fn fit_campaign_form(
         per_run: Vec::new(),
         per_temperature: Vec::new(),
     };
-    report(&all, patch, q_n, decimate, fits, law, notes)
+    let mut r = report(&all, patch, q_n, decimate, fits, law, notes);
+    r.0.creepage = Some(CreepageChoice {
+        chosen: if speed.is_some() {
+            FIXED_SPEED
+        } else {
+            ROLLING_SPEED
+        }
+        .into(),
+        fixed_speed_mps: v_ref,
+        bic: None,
+        rmse: None,
+    });
+    r
 }
 
 fn no_pooled_fit() -> IdentifyError {
@@ -150,6 +264,7 @@ fn report(
             temperature,
             temperature_note,
             generation: None,
+            creepage: None,
         },
         notes,
     )
@@ -170,6 +285,7 @@ fn fit_groups(
     q_n: f64,
     decimate: usize,
     intervals: bool,
+    creepage_speed: Option<f64>,
 ) -> (GroupFits, Vec<String>) {
     let start = DEFAULT_START;
     let all: Vec<&RunTable> = tables.iter().collect();
@@ -191,12 +307,29 @@ fn fit_groups(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => {
-                    fit_polach("all runs", &all, patch, q_n, decimate, start, intervals)
-                }
+                Group::Pooled => fit_polach_creepage(
+                    "all runs",
+                    &all,
+                    patch,
+                    q_n,
+                    decimate,
+                    start,
+                    intervals,
+                    creepage_speed,
+                ),
                 Group::Run(i) => {
                     let t = &tables[*i];
-                    fit_polach(&t.name, &[t], patch, q_n, decimate, start, false).map(|mut f| {
+                    let f = fit_polach_creepage(
+                        &t.name,
+                        &[t],
+                        patch,
+                        q_n,
+                        decimate,
+                        start,
+                        false,
+                        creepage_speed,
+                    );
+                    f.map(|mut f| {
                         f.ambient_temperature_c = t.metadata.ambient_temperature_c;
                         f
                     })
@@ -206,7 +339,7 @@ fn fit_groups(
                         .iter()
                         .filter(|t| t.metadata.ambient_temperature_c == Some(*temp))
                         .collect();
-                    fit_polach(
+                    fit_polach_creepage(
                         &format!("T = {temp} °C"),
                         &group,
                         patch,
@@ -214,6 +347,7 @@ fn fit_groups(
                         decimate,
                         start,
                         intervals,
+                        creepage_speed,
                     )
                     .map(|mut f| {
                         f.ambient_temperature_c = Some(*temp);

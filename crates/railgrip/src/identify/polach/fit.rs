@@ -114,6 +114,22 @@ pub fn fit_polach(
     start: PolachParams,
     profile: bool,
 ) -> Result<PolachFit, IdentifyError> {
+    fit_polach_creepage(group, tables, patch, q_n, decimate, start, profile, None)
+}
+
+/// [`fit_polach`] with the creepage taken at `creepage_speed` (m/s; `None`: at each sample's
+/// speed, Polach's creepage; see [`super::law::with_patch`]).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn fit_polach_creepage(
+    group: &str,
+    tables: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    start: PolachParams,
+    profile: bool,
+    creepage_speed: Option<f64>,
+) -> Result<PolachFit, IdentifyError> {
     let s = samples(tables, q_n, decimate);
     if s.len() < 20 {
         return Err(IdentifyError::Data {
@@ -124,7 +140,7 @@ pub fn fit_polach(
             hint: "fit Polach on braking runs with wheel slip".into(),
         });
     }
-    let s = with_patch(s, &patch);
+    let s = with_patch(s, &patch, creepage_speed);
     let mut held = Held {
         fixed: [None; 5],
         status: all_estimated(),

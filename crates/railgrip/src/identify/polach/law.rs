@@ -13,16 +13,22 @@ pub(super) struct Sample {
     pub(super) v: f64,
     pub(super) dv: f64,
     pub(super) mu: f64,
-    /// c (w/v)/Q with c = π G a b c11/4 of the patch: the gradient ε times μ_w (set by
+    /// c (w/v_s)/Q with c = π G a b c11/4 of the patch: the gradient ε times μ_w (set by
     /// [`with_patch`]).
     pub(super) cs: f64,
 }
 
-/// The samples with their patch term `cs` set.
-pub(super) fn with_patch(mut s: Vec<Sample>, patch: &ContactPatch) -> Vec<Sample> {
+/// The samples with their patch term `cs` set: the creepage w/v_s taken at the sample's speed
+/// (`creepage_speed` `None`: Polach's, seed 004 eq. 2) or at a fixed speed (m/s; the
+/// slip-velocity form, the model file's `creepage_speed_mps`).
+pub(super) fn with_patch(
+    mut s: Vec<Sample>,
+    patch: &ContactPatch,
+    creepage_speed: Option<f64>,
+) -> Vec<Sample> {
     let c = std::f64::consts::PI * patch.g_pa * patch.a_m * patch.b_m * patch.c11 / 4.0;
     for x in &mut s {
-        x.cs = c * (x.dv / x.v) / x.q_n;
+        x.cs = c * (x.dv / creepage_speed.unwrap_or(x.v)) / x.q_n;
     }
     s
 }

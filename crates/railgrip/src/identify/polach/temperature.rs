@@ -142,6 +142,10 @@ pub struct TemperatureFit {
     /// Forms not offered, and why.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub notes: Vec<String>,
+    /// The fixed speed the creepage was taken at (m/s; the slip-velocity form); absent: each
+    /// sample's speed (Polach's creepage).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub creepage_speed_mps: Option<f64>,
 }
 
 impl TemperatureFit {
@@ -193,6 +197,16 @@ pub struct FormChoice {
     pub k_degree: usize,
     /// The speed law: (Curtius–Kniffler, terms); `None`: none.
     pub speed: Option<(bool, usize)>,
+    /// The creepage taken at the runs' median speed (the slip-velocity form) rather than at
+    /// each sample's speed.
+    pub fixed_creepage_speed: bool,
+}
+
+impl FormChoice {
+    /// Whether the form has a temperature or speed law.
+    pub fn has_law(&self) -> bool {
+        self.mu0_degree > 0 || self.k_degree > 0 || self.speed.is_some()
+    }
 }
 
 impl TemperatureFit {
@@ -205,6 +219,7 @@ impl TemperatureFit {
                 .speed
                 .as_ref()
                 .map(|s| (s.form == "curtius_kniffler", s.coefficients.len())),
+            fixed_creepage_speed: self.creepage_speed_mps.is_some(),
         }
     }
 }
@@ -349,8 +364,9 @@ pub fn fit_temperature_forms(
     v_ref: f64,
     intervals: bool,
     pinned: Option<FormChoice>,
+    creepage_speed: Option<f64>,
 ) -> Result<TemperatureFit, IdentifyError> {
-    let g = Grouped::of(tables, patch, q_n, decimate)?;
+    let g = Grouped::of(tables, patch, q_n, decimate, creepage_speed)?;
     let (lo, hi) = g.range;
     let offered = match pinned {
         None => Offered::of(&g, degree, pooled, per_temperature, v_ref),
@@ -417,6 +433,7 @@ pub fn fit_temperature_forms(
         residuals: Vec::new(),
         excluded: offered.excluded,
         notes: offered.notes,
+        creepage_speed_mps: creepage_speed,
     };
     law.residuals = per_temperature
         .iter()
@@ -453,6 +470,7 @@ impl Grouped {
         patch: ContactPatch,
         q_n: f64,
         decimate: usize,
+        creepage_speed: Option<f64>,
     ) -> Result<Grouped, IdentifyError> {
         let mut temps: Vec<f64> = tables
             .iter()
@@ -487,7 +505,7 @@ impl Grouped {
                 hint: "fit on braking runs with wheel slip".into(),
             });
         }
-        let s = with_patch(s, &patch);
+        let s = with_patch(s, &patch, creepage_speed);
         // The samples' median temperature (groups are in ascending temperature).
         let mut seen = 0;
         let reference_c = ranges

@@ -51,7 +51,7 @@ proptest::proptest! {
         let p = patch();
         let q = 80_000.0;
         let x = [mu0, a, b, k_a, rho];
-        let s = with_patch(vec![Sample { q_n: q, v, dv, mu: 0.0, cs: f64::NAN }], &p)[0];
+        let s = with_patch(vec![Sample { q_n: q, v, dv, mu: 0.0, cs: f64::NAN }], &p, None)[0];
         let (f, g) = mu_and_gradient(&x, &s);
         proptest::prop_assert_eq!(f.to_bits(), mu_only(&x, &s).to_bits());
         let law = crate::contact::polach::polach(&p, &law_params(&x), q, v, dv, 0.0).unwrap();
@@ -89,7 +89,7 @@ fn grouped_samples() -> (Vec<Sample>, Vec<(f64, std::ops::Range<usize>)>) {
         }
         ranges.push((*t, from..s.len()));
     }
-    (with_patch(s, &patch()), ranges)
+    (with_patch(s, &patch(), None), ranges)
 }
 
 fn groups_for(degrees: [usize; 5], ranges: &[(f64, std::ops::Range<usize>)]) -> Vec<Group> {
@@ -184,7 +184,7 @@ fn the_law_on_vector_lanes_has_the_one_sample_laws_bits() {
             cs: f64::NAN,
         })
         .collect();
-    let samples = with_patch(samples, &p);
+    let samples = with_patch(samples, &p, None);
     assert!(samples.len() < BLOCK);
     for x in [
         [0.3, 0.4, 0.6, 0.3, 0.5],
