@@ -321,6 +321,8 @@ fn train_eval_export_work_end_to_end() {
         // speed law (the truth's falls with speed).
         "law        μ0(T) constant, k(T) constant, μ0(v) curtius_kniffler chosen by BIC among 16 forms",
         "μ0 × g(v), curtius_kniffler: c = [",
+        // Polach truth: Polach's creepage, and why.
+        "creepage   Polach's w/v (BIC w/v ",
     ] {
         assert!(s.contains(needle), "{needle}: {s}");
     }
@@ -624,6 +626,8 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
         "report"
     );
     assert!(html.contains("Fig. 9") && html.contains("k_A(T)") && html.contains("Fig. 11"));
+    // The creepage the Polach fits took: Polach's own on this archive of Polach truth.
+    assert!(html.contains("Creepage: Polach's w/v"), "report");
     // Every run that was estimated has its own section (drawn as the report loads the run),
     // and Fig. 10 still has the first training run's validation axle.
     let ok_runs = rows.iter().filter(|r| r.contains(",ok,")).count();

@@ -333,6 +333,78 @@ fn train_exits_3_and_marks_the_file_when_the_audit_fails() {
     assert!(Model::new(m).unwrap().mu(1.0, 0.0).is_finite());
 }
 
+/// Scenes on rails of different condition (`level_scale` 0.95 and 1.05): `score` adds the
+/// curve view against the law at their mean condition and the condition floor, the exact law
+/// at the mean condition against each run's own — high on the slippery run, low on the other,
+/// by the condition's share of μ — and neither where the conditions are equal.
+#[test]
+fn score_separates_the_runs_rail_condition_from_the_models_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = |name: &str| {
+        root()
+            .join(format!("pipelines/scenes/top_speed/{name}.toml"))
+            .to_string_lossy()
+            .into_owned()
+    };
+    let (slippery, good) = (scene("lrq_80kmh_p1"), scene("lrq_80kmh_p23"));
+    let model = root().join("models/golden/synthetic_mlp.json");
+    let model = model.to_str().unwrap();
+    let o = railgrip(&["score", model, &slippery, &good, "--json"], dir.path());
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        (v["mean_level_scale"].as_f64().unwrap() - 1.0).abs() < 1e-12,
+        "{v}"
+    );
+    let runs = v["scenes"].as_array().unwrap();
+    let floor =
+        |run: &serde_json::Value, k: &str| run["curve_condition_floor"][k].as_f64().unwrap();
+    assert_eq!(runs[0]["level_scale"], 0.95);
+    // The law at condition 1 is 1/0.95 of the slippery run's and 1/1.05 of the other's.
+    assert!(
+        floor(&runs[0], "bias") > 0.0 && floor(&runs[1], "bias") < 0.0,
+        "{v}"
+    );
+    for run in runs {
+        // |bias| ≤ RMSE ≤ max, and the floor's error is the condition's share of μ (< 6 %
+        // of the largest μ of these laws, ~0.13).
+        let (b, r, m) = (
+            floor(run, "bias"),
+            floor(run, "rmse"),
+            floor(run, "max_error"),
+        );
+        assert!(b.abs() <= r && r <= m && m < 0.06 * 0.13 && r > 0.0, "{v}");
+        let at_mean = &run["curve_mean_condition"];
+        assert!(at_mean["n"] == run["curve"]["n"], "the same cells: {v}");
+    }
+    for key in ["curve_at_mean_condition", "curve_condition_floor"] {
+        assert_eq!(
+            v[key].as_array().unwrap().len(),
+            1,
+            "one initial speed: {v}"
+        );
+    }
+    let text = railgrip(&["score", model, &slippery, &good], dir.path());
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(
+        text.contains("mean rail condition") && text.contains("Condition floor"),
+        "{text}"
+    );
+    // Equal conditions: no such tables.
+    let o = railgrip(&["score", model, &good, "--json"], dir.path());
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(v["mean_level_scale"].is_null(), "{v}");
+    assert!(
+        v["curve_condition_floor"].as_array().unwrap().is_empty(),
+        "{v}"
+    );
+}
+
 #[test]
 fn score_prints_supported_cell_scores_and_exits_3_on_negative_adhesion() {
     let dir = tempfile::tempdir().unwrap();

@@ -218,8 +218,23 @@ fn print_polach(report: &PolachReport) {
     }
 }
 
-/// The temperature law chosen, or why there is none.
+/// The temperature law chosen, or why there is none; and the creepage the fits took.
 fn print_temperature_law(report: &PolachReport) {
+    if let Some(c) = &report.creepage {
+        let why = c.bic.map_or(String::new(), |b| {
+            format!(
+                " (BIC w/v {:.1}, fixed speed {:.1}; the fixed speed needs ΔBIC > 10)",
+                b[0], b[1]
+            )
+        });
+        match c.speed() {
+            Some(v) => println!(
+                "creepage   w over a fixed {:.1} km/h (the slip-velocity form){why}",
+                v * 3.6
+            ),
+            None => println!("creepage   Polach's w/v{why}"),
+        }
+    }
     match &report.temperature {
         Some(t) => {
             // ΔBIC of the runner-up among the valid forms.

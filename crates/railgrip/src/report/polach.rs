@@ -14,6 +14,7 @@ use crate::identify::polach::{ParamStatus, PolachFit, PolachReport, PARAMETERS, 
 /// The Polach fits (seed 004 eq. 1–3) over the estimates, and k_A(T), k_S(T).
 pub(super) fn polach_fits(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), ReportError> {
     fits_table(h, f);
+    creepage_note(h, f);
     h.push_str("<div class=\"figs\">\n");
     fit_curves(h, i, f)?;
     profiles(h, f)?;
@@ -307,6 +308,37 @@ fn speed_chart(h: &mut String, f: &PolachReport) -> Result<(), ReportError> {
         false,
     )?);
     Ok(())
+}
+
+/// Which creepage the fits took and why: Polach's w/v, or w over one fixed speed where BIC
+/// prefers it by more than 10.
+fn creepage_note(h: &mut String, f: &PolachReport) {
+    let Some(c) = &f.creepage else { return };
+    let fixed = c.speed().is_some();
+    let _ = write!(
+        *h,
+        "<p>Creepage: {}",
+        if fixed {
+            format!(
+                "<strong>w over a fixed speed of {:.1} km/h</strong> (the runs' median; the creep slope per m/s of slip the same at every speed, as curves measured over slip velocity show — not Polach's w/v, whose slope falls as 1/v)",
+                c.fixed_speed_mps * 3.6
+            )
+        } else {
+            "Polach's w/v (seed 004 eq. 2)".to_string()
+        }
+    );
+    if let (Some(b), Some(r)) = (c.bic, c.rmse) {
+        let _ = write!(
+            *h,
+            ". Pooled fits: w/v RMSE μ {:.5}, BIC {:.1}; w over {:.1} km/h RMSE μ {:.5}, BIC {:.1} (the fixed speed is taken where its BIC is lower by more than 10)",
+            r[0],
+            b[0],
+            c.fixed_speed_mps * 3.6,
+            r[1],
+            b[1]
+        );
+    }
+    h.push_str(".</p>\n");
 }
 
 /// The temperature forms the law was chosen from (BIC), and why there is no law when there is
