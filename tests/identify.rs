@@ -1707,7 +1707,12 @@ fn polach_campaigns_choose_the_creepage_their_data_follow() {
         k_a: want[3],
         k_s: want[4],
     };
-    for (creepage, chosen) in [(None, "rolling_speed"), (Some(20.0), "fixed_speed")] {
+    use railgrip::identify::polach::Creepage;
+    let cases = [
+        (None, Creepage::RollingSpeed),
+        (Some(20.0), Creepage::FixedSpeed),
+    ];
+    for (creepage, chosen) in cases {
         let tables: Vec<RunTable> = (1..=3)
             .map(|seed| {
                 let rows = (0.0, 5.0);
@@ -1723,7 +1728,8 @@ fn polach_campaigns_choose_the_creepage_their_data_follow() {
         assert!(bic[lost] - bic[won] > 50.0, "{bic:?}");
         assert!((rmse[won] / 0.002 - 1.0).abs() < 0.1, "{rmse:?}");
         assert!(rmse[lost] > 1.2 * rmse[won], "{rmse:?}");
-        assert_eq!(c.speed(), creepage.map(|_| c.fixed_speed_mps));
+        // The fixed speed is the runs' median (speeds uniform over 5–35 m/s).
+        assert!((c.fixed_speed_mps - 20.0).abs() < 1.0, "{c:?}");
     }
 }
 

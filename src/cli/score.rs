@@ -49,8 +49,8 @@ struct Line {
     /// The curve view at the run's initial speed and temperature (laws in closed form only).
     curve: Option<Stats>,
     curve_hysteresis_ratio: Option<f64>,
-    /// The scene's rail condition (`adhesion.level_scale`; 1 for laws without one).
-    level_scale: f64,
+    /// The scene's rail condition (`adhesion.level_scale`); absent for laws without one.
+    level_scale: Option<f64>,
     /// The curve view against the law at the scored runs' mean condition (the run's law
     /// × s̄/s): the model's error with the run's own condition taken out.
     curve_mean_condition: Option<Stats>,
@@ -75,7 +75,7 @@ impl Line {
             hysteresis_predicted: s.hysteresis.map(|h| h.1),
             curve: None,
             curve_hysteresis_ratio: None,
-            level_scale: 1.0,
+            level_scale: None,
             curve_mean_condition: None,
             curve_condition_floor: None,
             replay: Vec::new(),
@@ -115,10 +115,10 @@ struct Report {
 
 /// The rail condition of a scene's true law: `loss_recovery`'s `level_scale` multiplies both
 /// peaks, so μ is proportional to it (docs/simulator.md#foreign-laws); other laws have none.
-fn level_scale(scene: &Scene) -> f64 {
+fn level_scale(scene: &Scene) -> Option<f64> {
     match &scene.adhesion.law {
-        AdhesionLaw::LossRecovery(l) => l.level_scale,
-        _ => 1.0,
+        AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
+        _ => None,
     }
 }
 
@@ -138,11 +138,12 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         let law = TrueLaw::of(&scene)?;
         loaded.push((path, scene, law));
     }
-    // The mean condition of the scenes with a law in closed form, where their conditions differ.
+    // The mean condition of the scenes whose law has one, where their conditions differ (the
+    // two tables then cover those scenes only).
     let scales: Vec<f64> = loaded
         .iter()
         .filter(|(_, _, law)| law.is_some())
-        .map(|(_, scene, _)| level_scale(scene))
+        .filter_map(|(_, scene, _)| level_scale(scene))
         .collect();
     let mean_scale = (scales.iter().any(|s| *s != scales[0]))
         .then(|| scales.iter().sum::<f64>() / scales.len() as f64);
@@ -176,35 +177,13 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
                 line.level_scale = level_scale(&scene);
-                if let Some(mean) = mean_scale {
+                if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
-                    let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / line.level_scale;
+                    let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / own_scale;
                     let own = |dv, q, v, _| law.mu(dv, q, v);
                     let v0 = v0_kmh / 3.6;
                     let m = curve(&samples, &grid, v0, t_c, predict, at_mean);
-                    let m = m.with_context(context)?;
-                    if let Ok(d) = std::env::var("DUMP_CELLS") {
-                        let mut f = std::fs::OpenOptions::new()
-                            .append(true)
-                            .create(true)
-                            .open(d)
-                            .unwrap();
-                        for c in &m.cells {
-                            use std::io::Write;
-                            writeln!(
-                                f,
-                                "{} {} {} {} {} {}",
-                                scene.name,
-                                c.dv_mps,
-                                c.ddv_mps2,
-                                c.samples,
-                                c.true_mu,
-                                c.predicted_mu
-                            )
-                            .unwrap();
-                        }
-                    }
-                    line.curve_mean_condition = Some(m.stats);
+                    line.curve_mean_condition = Some(m.with_context(context)?.stats);
                     let f = curve(&samples, &grid, v0, t_c, at_mean, own);
                     line.curve_condition_floor = Some(f.with_context(context)?.stats);
                 }

@@ -94,12 +94,15 @@ fn fit_curves(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Report
         .as_ref()
         .and_then(|m| m.file.polach.as_ref().map(|p| p.reference_speed_mps))
         .unwrap_or(25.0);
+    // The creepage at the speed the fits took it: at v_ref, or the fixed speed (then the curve
+    // is the same at every speed).
+    let v_creepage = f.creepage.as_ref().and_then(|c| c.speed()).unwrap_or(v_ref);
     let dv_max = f.dv_range_mps.1.max(0.5);
     let curve = |p: &PolachParams| -> Vec<(f64, f64)> {
         (1..=200)
             .filter_map(|k| {
                 let dv = dv_max * k as f64 / 200.0;
-                polach(&patch, p, f.wheel_load_n, v_ref, dv, 0.0)
+                polach(&patch, p, f.wheel_load_n, v_creepage, dv, 0.0)
                     .ok()
                     .map(|r| (dv, r.fx_n / f.wheel_load_n))
             })

@@ -49,8 +49,7 @@ pub struct PolachReport {
 /// fixed speed's is lower by more than 10.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CreepageChoice {
-    /// `"rolling_speed"` (Polach's) or `"fixed_speed"` (the slip-velocity form).
-    pub chosen: String,
+    pub chosen: Creepage,
     /// v_s of the slip-velocity form, m/s (the model file's `creepage_speed_mps` when chosen).
     pub fixed_speed_mps: f64,
     /// BIC and RMS residual of μ of the pooled fit with each: Polach's, then the fixed speed's
@@ -61,15 +60,22 @@ pub struct CreepageChoice {
     pub rmse: Option<[f64; 2]>,
 }
 
+/// Where the creepage s = w/v_s is taken.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Creepage {
+    /// At each sample's rolling speed (Polach's).
+    RollingSpeed,
+    /// At one fixed speed (the slip-velocity form).
+    FixedSpeed,
+}
+
 impl CreepageChoice {
     /// The speed the creepage is taken at: `None` for each sample's own.
     pub fn speed(&self) -> Option<f64> {
-        (self.chosen == FIXED_SPEED).then_some(self.fixed_speed_mps)
+        (self.chosen == Creepage::FixedSpeed).then_some(self.fixed_speed_mps)
     }
 }
-
-const FIXED_SPEED: &str = "fixed_speed";
-const ROLLING_SPEED: &str = "rolling_speed";
 
 /// BIC must favour the fixed speed's creepage by more than this to replace Polach's, the
 /// physical one: "very strong" evidence on Kass & Raftery's scale (JASA 90 (1995) 773–795).
@@ -80,21 +86,21 @@ const CREEPAGE_BIC_MARGIN: f64 = 10.0;
 /// Polach's. Both forms have the same five parameters, so both BICs count all five (a
 /// parameter held for want of identification was still chosen by the data); one n_eff for
 /// both, the smaller (the more autocorrelated residuals).
-fn choose_creepage(rolling: &PolachFit, fixed: &PolachFit, v_s: f64) -> CreepageChoice {
+/// `None` where a BIC is not finite (a fit without residual or samples): Polach's stays.
+fn choose_creepage(rolling: &PolachFit, fixed: &PolachFit, v_s: f64) -> Option<CreepageChoice> {
     let n_eff = rolling.effective_samples.min(fixed.effective_samples);
     let bic = |f: &PolachFit| n_eff * (f.rmse * f.rmse).ln() + 5.0 * n_eff.ln();
     let b = [bic(rolling), bic(fixed)];
-    CreepageChoice {
+    b.iter().all(|x| x.is_finite()).then(|| CreepageChoice {
         chosen: if b[0] - b[1] > CREEPAGE_BIC_MARGIN {
-            FIXED_SPEED
+            Creepage::FixedSpeed
         } else {
-            ROLLING_SPEED
-        }
-        .into(),
+            Creepage::RollingSpeed
+        },
         fixed_speed_mps: v_s,
         bic: Some(b),
         rmse: Some([rolling.rmse, fixed.rmse]),
-    }
+    })
 }
 
 /// Fits every run, every temperature group (with profile-likelihood intervals for the pooled
@@ -114,22 +120,25 @@ pub fn fit_campaign(
     // speed's; the groups again with that one where BIC prefers it.
     let (fixed, (mut fits, mut notes)) = rayon::join(
         || {
-            let f = fit_polach_creepage(
-                "all runs",
-                &all,
-                patch,
-                q_n,
-                decimate,
-                DEFAULT_START,
-                false,
-                Some(v_ref),
-            );
-            f.ok()
+            // Only at a speed the creepage can be taken at (runs that barely move have none).
+            let f = (v_ref.is_finite() && v_ref > 0.0).then(|| {
+                fit_polach_creepage(
+                    "all runs",
+                    &all,
+                    patch,
+                    q_n,
+                    decimate,
+                    DEFAULT_START,
+                    false,
+                    Some(v_ref),
+                )
+            });
+            f.and_then(Result::ok)
         },
         || fit_groups(tables, patch, q_n, decimate, intervals, None),
     );
     let creepage = match (&fits.pooled, &fixed) {
-        (Some(r), Some(f)) => Some(choose_creepage(r, f, v_ref)),
+        (Some(r), Some(f)) => choose_creepage(r, f, v_ref),
         _ => None,
     };
     let speed = creepage.as_ref().and_then(CreepageChoice::speed);
@@ -210,11 +219,10 @@ pub fn fit_campaign_form(
     let mut r = report(&all, patch, q_n, decimate, fits, law, notes);
     r.0.creepage = Some(CreepageChoice {
         chosen: if speed.is_some() {
-            FIXED_SPEED
+            Creepage::FixedSpeed
         } else {
-            ROLLING_SPEED
-        }
-        .into(),
+            Creepage::RollingSpeed
+        },
         fixed_speed_mps: v_ref,
         bic: None,
         rmse: None,

@@ -30,7 +30,7 @@ mod temperature;
 #[cfg(test)]
 mod tests;
 
-pub use campaign::{fit_campaign, fit_campaign_form, CreepageChoice, PolachReport};
+pub use campaign::{fit_campaign, fit_campaign_form, Creepage, CreepageChoice, PolachReport};
 pub use fit::{fit_polach, PolachFit};
 pub use law::{ParamStatus, DEFAULT_START, PARAMETERS};
 pub use profile::{Profile, PROFILE_LIMIT};
