@@ -46,14 +46,14 @@ fn bench(c: &mut Criterion) {
     }
     assert_eq!(t.len(), N);
     let start = DEFAULT_START;
-    let fit = || fit_polach("pooled", &[&t], patch, q, 1, start, false).unwrap();
+    let fit = || fit_polach("pooled", &[&t], patch, q, 1, start, false, None).unwrap();
     let mut g = c.benchmark_group("polach");
     g.sample_size(10).measurement_time(Duration::from_secs(10));
     g.bench_function("pooled_fit_150k", |b| b.iter(fit));
     // What the intervals cost: the same fit with the profile likelihood of every parameter
     // (both sides in parallel: on all cores).
     g.bench_function("pooled_fit_150k_with_profiles", |b| {
-        b.iter(|| fit_polach("pooled", &[&t], patch, q, 1, start, true).unwrap())
+        b.iter(|| fit_polach("pooled", &[&t], patch, q, 1, start, true, None).unwrap())
     });
     // The whole Polach part of `railgrip train` on the bundled soap runs at the pipeline's
     // decimation: pooled, per-run and per-temperature fits, profiles and the temperature

@@ -726,6 +726,22 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
         assert!(err.contains(file) && err.contains("Hint:"), "{file}: {err}");
         std::fs::write(&path, good).unwrap();
     }
+    // A creepage the fits cannot have taken: named, with the values it may take.
+    let path = o_dir.join("models/mlp.polach-fits.json");
+    let good = std::fs::read_to_string(&path).unwrap();
+    let chosen = "\"chosen\": \"rolling_speed\"";
+    assert!(good.contains(chosen), "{good}");
+    std::fs::write(&path, good.replace(chosen, "\"chosen\": \"sideways\"")).unwrap();
+    let o = railgrip(&["report", "out"], dir.path());
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("mlp.polach-fits.json")
+            && err.contains("sideways")
+            && err.contains("fixed_speed"),
+        "{err}"
+    );
+    std::fs::write(&path, good).unwrap();
 }
 
 #[test]

@@ -1688,7 +1688,7 @@ fn fit_of(t: &RunTable) -> railgrip::identify::polach::PolachFit {
     use railgrip::identify::polach::{fit_polach, DEFAULT_START};
     let p = Pipeline::default_uic_z1();
     let (patch, q) = railgrip::identify::pipeline_patch(&p).unwrap();
-    fit_polach("synthetic", &[t], patch, q, 1, DEFAULT_START, true).unwrap()
+    fit_polach("synthetic", &[t], patch, q, 1, DEFAULT_START, true, None).unwrap()
 }
 
 /// A campaign's fits take the creepage its data follow: Polach's w/v on data from Polach's

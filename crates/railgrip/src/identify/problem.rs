@@ -184,6 +184,32 @@ pub struct MlpProblem {
 }
 
 impl MlpProblem {
+    /// The [`BLOCK`] samples of `cols` from `a` through [`block_dispatch`]: residuals into `r`,
+    /// and whatever else `pass` asks for.
+    fn run_block(
+        &self,
+        theta: &[f64],
+        cols: &Columns,
+        a: usize,
+        r: &mut [f64],
+        pass: Pass<'_>,
+        scratch: &mut Scratch,
+    ) {
+        let (xs, k) = cols.block(a);
+        let y = &cols.y[a..a + BLOCK];
+        block_dispatch(
+            self.isa,
+            self.shape,
+            theta,
+            &xs[..k],
+            y,
+            BLOCK,
+            r,
+            pass,
+            scratch,
+        );
+    }
+
     /// From normalised row-major inputs and targets.
     ///
     /// # Panics
@@ -232,19 +258,7 @@ impl MlpProblem {
             let mut sse = 0.0;
             for (b, a) in range.clone().step_by(BLOCK).enumerate() {
                 let n = BLOCK.min(range.end - a);
-                let (xs, k) = cols.block(a);
-                let xs = &xs[..k];
-                block_dispatch(
-                    self.isa,
-                    self.shape,
-                    theta,
-                    xs,
-                    &cols.y[a..a + BLOCK],
-                    BLOCK,
-                    &mut r,
-                    Pass::Forward,
-                    &mut scratch,
-                );
+                self.run_block(theta, cols, a, &mut r, Pass::Forward, &mut scratch);
                 sse += r[..n].iter().map(|e| e * e).sum::<f64>();
                 if let Some(keep) = keep.as_deref_mut() {
                     let (act, res) =
@@ -302,8 +316,6 @@ impl MlpProblem {
         let mut sse = 0.0;
         for (b, a) in range.clone().step_by(BLOCK).enumerate() {
             let n = BLOCK.min(range.end - a);
-            let (xs, k) = cols.block(a);
-            let xs = &xs[..k];
             let at = b * BLOCK;
             let jac = &mut a_mat[at..];
             let pass = if let Some(kept) = kept {
@@ -316,17 +328,7 @@ impl MlpProblem {
             } else {
                 Pass::Both(jac, ld)
             };
-            block_dispatch(
-                self.isa,
-                self.shape,
-                theta,
-                xs,
-                &cols.y[a..a + BLOCK],
-                BLOCK,
-                r,
-                pass,
-                &mut buf.scratch,
-            );
+            self.run_block(theta, cols, a, r, pass, &mut buf.scratch);
             sse += r[..n].iter().map(|e| e * e).sum::<f64>();
             a_mat[p * ld + at..p * ld + at + n].copy_from_slice(&r[..n]);
             // Padding samples are zero in A: they contribute nothing.

@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fit::{fit_polach_creepage, samples, PolachFit};
+use super::fit::{fit_polach, samples, PolachFit};
 use super::law::{Sample, DEFAULT_START};
 use super::temperature::{fit_temperature_forms, FormChoice, TemperatureFit};
 use crate::contact::polach::ContactPatch;
@@ -121,18 +121,8 @@ pub fn fit_campaign(
     let (fixed, (mut fits, mut notes)) = rayon::join(
         || {
             // Only at a speed the creepage can be taken at (runs that barely move have none).
-            let f = (v_ref.is_finite() && v_ref > 0.0).then(|| {
-                fit_polach_creepage(
-                    "all runs",
-                    &all,
-                    patch,
-                    q_n,
-                    decimate,
-                    DEFAULT_START,
-                    false,
-                    Some(v_ref),
-                )
-            });
+            let f = (v_ref.is_finite() && v_ref > 0.0)
+                .then(|| fit_pooled(&all, patch, q_n, decimate, false, Some(v_ref)));
             f.and_then(Result::ok)
         },
         || fit_groups(tables, patch, q_n, decimate, intervals, None),
@@ -179,18 +169,9 @@ pub fn fit_campaign_form(
     let mut notes = Vec::new();
     let v_ref = crate::identify::median_speed(tables);
     let speed = form.fixed_creepage_speed.then_some(v_ref);
-    let pooled = fit_polach_creepage(
-        "all runs",
-        &all,
-        patch,
-        q_n,
-        decimate,
-        DEFAULT_START,
-        false,
-        speed,
-    )
-    .map_err(|e| notes.push(e.to_string()))
-    .ok();
+    let pooled = fit_pooled(&all, patch, q_n, decimate, false, speed)
+        .map_err(|e| notes.push(e.to_string()))
+        .ok();
     let law = match (&pooled, !form.has_law()) {
         (Some(_), true) => Err(IdentifyError::Data {
             what: "the campaign chose no temperature or speed law".into(),
@@ -228,6 +209,27 @@ pub fn fit_campaign_form(
         rmse: None,
     });
     r
+}
+
+/// All runs pooled from the default start, with the creepage at `speed` ([`fit_polach`]).
+fn fit_pooled(
+    all: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    intervals: bool,
+    speed: Option<f64>,
+) -> Result<PolachFit, IdentifyError> {
+    fit_polach(
+        "all runs",
+        all,
+        patch,
+        q_n,
+        decimate,
+        DEFAULT_START,
+        intervals,
+        speed,
+    )
 }
 
 fn no_pooled_fit() -> IdentifyError {
@@ -311,33 +313,27 @@ fn fit_groups(
     let mut groups = vec![Group::Pooled];
     groups.extend((0..tables.len()).map(Group::Run));
     groups.extend(temps.iter().map(|t| Group::Temperature(*t)));
+    // One fit of a group, the creepage as the campaign takes it.
+    let fit = |name: &str, group: &[&RunTable], profile: bool| {
+        fit_polach(
+            name,
+            group,
+            patch,
+            q_n,
+            decimate,
+            start,
+            profile,
+            creepage_speed,
+        )
+    };
     let fits: Vec<(&Group, Result<PolachFit, IdentifyError>)> = groups
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => fit_polach_creepage(
-                    "all runs",
-                    &all,
-                    patch,
-                    q_n,
-                    decimate,
-                    start,
-                    intervals,
-                    creepage_speed,
-                ),
+                Group::Pooled => fit("all runs", &all, intervals),
                 Group::Run(i) => {
                     let t = &tables[*i];
-                    let f = fit_polach_creepage(
-                        &t.name,
-                        &[t],
-                        patch,
-                        q_n,
-                        decimate,
-                        start,
-                        false,
-                        creepage_speed,
-                    );
-                    f.map(|mut f| {
+                    fit(&t.name, &[t], false).map(|mut f| {
                         f.ambient_temperature_c = t.metadata.ambient_temperature_c;
                         f
                     })
@@ -347,17 +343,7 @@ fn fit_groups(
                         .iter()
                         .filter(|t| t.metadata.ambient_temperature_c == Some(*temp))
                         .collect();
-                    fit_polach_creepage(
-                        &format!("T = {temp} °C"),
-                        &group,
-                        patch,
-                        q_n,
-                        decimate,
-                        start,
-                        intervals,
-                        creepage_speed,
-                    )
-                    .map(|mut f| {
+                    fit(&format!("T = {temp} °C"), &group, intervals).map(|mut f| {
                         f.ambient_temperature_c = Some(*temp);
                         f
                     })

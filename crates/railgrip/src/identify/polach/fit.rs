@@ -104,23 +104,11 @@ pub(super) fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sa
 ///    with it (tested);
 /// 4. with `profile`, the profile likelihood of every estimated parameter ([`Profile`]).
 ///
-/// The fit ends with every parameter classified; it fails only without data.
-pub fn fit_polach(
-    group: &str,
-    tables: &[&RunTable],
-    patch: ContactPatch,
-    q_n: f64,
-    decimate: usize,
-    start: PolachParams,
-    profile: bool,
-) -> Result<PolachFit, IdentifyError> {
-    fit_polach_creepage(group, tables, patch, q_n, decimate, start, profile, None)
-}
-
-/// [`fit_polach`] with the creepage taken at `creepage_speed` (m/s; `None`: at each sample's
-/// speed, Polach's creepage; see [`super::law::with_patch`]).
+/// The fit ends with every parameter classified; it fails only without data. The creepage is
+/// taken at `creepage_speed` (m/s; `None`: at each sample's speed, Polach's; see
+/// [`super::law::with_patch`]).
 #[allow(clippy::too_many_arguments)]
-pub(super) fn fit_polach_creepage(
+pub fn fit_polach(
     group: &str,
     tables: &[&RunTable],
     patch: ContactPatch,
