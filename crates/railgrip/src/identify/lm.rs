@@ -61,6 +61,12 @@ pub trait LeastSquares {
     fn mse_scale(&self) -> f64 {
         1.0
     }
+    /// True when the problem ends the fit at θ, an accepted step's parameters
+    /// ([`StopReason::AtBound`]): a parameter that reached its bound, which the caller then
+    /// holds there. Never by default.
+    fn stop_at(&self, _theta: &[f64]) -> bool {
+        false
+    }
 }
 
 /// A borrowed problem is a problem (the solver takes its problem by value).
@@ -82,6 +88,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn mse_scale(&self) -> f64 {
         (**self).mse_scale()
+    }
+    fn stop_at(&self, theta: &[f64]) -> bool {
+        (**self).stop_at(theta)
     }
 }
 
@@ -107,6 +116,15 @@ pub struct LmSettings {
     /// most `ftol`, or moved the parameters by at most `xtol` (‖Δθ‖ ≤ xtol (‖θ‖ + xtol)).
     pub ftol: f64,
     pub xtol: f64,
+    /// Damping that heeds the gain ratio ρ = actual / predicted reduction of the SSE (the
+    /// test of Fletcher 1971 and Madsen, Nielsen & Tingleff 2004, §3.2; trainlm has none): an
+    /// accepted step with ρ < 1/4 doubles μ instead of lowering it by mu_dec. Without it μ falls
+    /// after every accepted step, however little of the predicted reduction it delivered, down
+    /// to pure Gauss–Newton steps (μ = 1e-180 was seen) that zigzag across a curved valley,
+    /// each lowering the SSE a little, until the epoch limit. Steps with ρ ≥ 1/4 keep trainlm's
+    /// rule, so a fit that never takes a poor step follows the same path as without it.
+    /// Plain least squares only (ignored with [`LmSettings::bayesian`]).
+    pub gain_ratio: bool,
 }
 
 impl Default for LmSettings {
@@ -123,6 +141,7 @@ impl Default for LmSettings {
             bayesian: false,
             ftol: 0.0,
             xtol: 0.0,
+            gain_ratio: false,
         }
     }
 }
@@ -202,6 +221,8 @@ pub enum StopReason {
     /// With MINPACK's tests on: no step reduces the cost at any damping up to `mu_max` — the
     /// minimum at the arithmetic's precision (MINPACK's info 6/7), not a failure.
     NoFurtherReduction,
+    /// The problem's own stop ([`LeastSquares::stop_at`]): a parameter reached its bound.
+    AtBound,
 }
 
 impl StopReason {
@@ -217,6 +238,7 @@ impl StopReason {
             StopReason::NoFurtherReduction => {
                 "converged: no step reduces the cost any further (MINPACK info 6)"
             }
+            StopReason::AtBound => "a parameter reached its bound",
         }
     }
 }
@@ -344,6 +366,9 @@ impl<O: LeastSquares> Solver<O, LmState> for LevenbergMarquardt<'_> {
             if let Some((t, e)) = self.damped_step(problem, &mut system, &theta, &rhs, ne.sse)? {
                 next = t;
                 next_sse = e;
+                if self.stop.is_none() && problem.problem("stop_count", |o| Ok(o.stop_at(&next)))? {
+                    self.stop = Some(StopReason::AtBound);
+                }
             }
             self.update_bayes(&mut system, n, next_sse, &next);
         }
@@ -424,6 +449,30 @@ impl DampedSystem {
     }
 }
 
+/// The gain ratio of the accepted step from `theta` to `next` (δ = theta − next, solving
+/// (JᵀJ + μ I) δ = Jᵀr = `rhs`) that took the SSE from `sse` to `next_sse`: the actual
+/// reduction over the reduction the linear model ‖r − Jδ‖² predicts, which is
+/// 2δᵀJᵀr − δᵀJᵀJδ = δᵀJᵀr + μ‖δ‖² (Madsen, Nielsen & Tingleff 2004, eq. 3.9).
+fn gain_ratio(theta: &[f64], next: &[f64], rhs: &[f64], mu: f64, sse: f64, next_sse: f64) -> f64 {
+    let (mut d_g, mut d_d) = (0.0, 0.0);
+    for ((t, n), g) in theta.iter().zip(next).zip(rhs) {
+        let d = t - n;
+        d_g += d * g;
+        d_d += d * d;
+    }
+    (sse - next_sse) / (d_g + mu * d_d)
+}
+
+/// The factor μ takes after an accepted step of gain ratio `rho` ([`LmSettings::gain_ratio`]):
+/// 2 below 1/4 (Madsen, Nielsen & Tingleff's lower threshold), else mu_dec.
+fn damping_after(rho: f64, s: LmSettings) -> f64 {
+    if rho >= 0.25 {
+        s.mu_dec
+    } else {
+        2.0
+    }
+}
+
 /// The objective a step must lower: the SSE (trainlm) or F = β E_D + α E_W (trainbr).
 fn objective(bayes: Option<Bayes>, sse: f64, t: &[f64]) -> f64 {
     match bayes {
@@ -488,7 +537,11 @@ impl LevenbergMarquardt<'_> {
             };
             if let Some((next, next_sse)) = accepted {
                 self.check_convergence(f0, objective(bayes, next_sse, &next), theta, &next);
-                self.mu *= s.mu_dec;
+                self.mu *= if s.gain_ratio && bayes.is_none() {
+                    damping_after(gain_ratio(theta, &next, rhs, self.mu, sse, next_sse), s)
+                } else {
+                    s.mu_dec
+                };
                 if self.bayes.is_some() {
                     // trainbr's floor.
                     self.mu = self.mu.max(1e-20);
@@ -709,6 +762,108 @@ mod tests {
             (a[0] - b[0]).abs() < 1e-6 && (a[1] - b[1]).abs() < 1e-6,
             "{a:?} {b:?}"
         );
+    }
+
+    /// Dennis & Schnabel's large-residual example (1996, Example 10.2.4): r = (θ + 1,
+    /// λθ² + θ − 1), minimum at θ = 0 with residuals (1, −1) for every λ; the Gauss–Newton
+    /// step overshoots by the factor λ there (λ < 0: a zigzag), `stops` ends the fit where θ
+    /// first comes within it of 0 ([`LeastSquares::stop_at`]).
+    struct LargeResidual {
+        lambda: f64,
+        stops: Option<f64>,
+    }
+    impl LeastSquares for LargeResidual {
+        fn n_params(&self) -> usize {
+            1
+        }
+        fn n_train(&self) -> usize {
+            2
+        }
+        fn sse(&self, t: &[f64]) -> f64 {
+            let (a, b) = (t[0] + 1.0, self.lambda * t[0] * t[0] + t[0] - 1.0);
+            a * a + b * b
+        }
+        fn normal_equations(&self, t: &[f64]) -> NormalEquations {
+            let (a, b) = (t[0] + 1.0, self.lambda * t[0] * t[0] + t[0] - 1.0);
+            let jb = 2.0 * self.lambda * t[0] + 1.0;
+            NormalEquations {
+                jtj: vec![1.0 + jb * jb],
+                jtr: vec![a + jb * b],
+                sse: a * a + b * b,
+            }
+        }
+        fn validation_mse(&self, _: &[f64]) -> Option<f64> {
+            None
+        }
+        fn stop_at(&self, t: &[f64]) -> bool {
+            self.stops.is_some_and(|s| t[0].abs() < s)
+        }
+    }
+
+    /// On the zigzag of a large-residual problem trainlm's rule lowers μ after every accepted
+    /// step down to pure Gauss–Newton steps and crawls; heeding the gain ratio keeps enough
+    /// damping to cross the valley and ends at the same minimum in a fraction of the epochs.
+    /// On a problem whose linear model is exact (ρ = 1) both take the same path.
+    #[test]
+    fn the_gain_ratio_ends_a_large_residual_zigzag() {
+        let fit = |gain_ratio: bool, lambda: f64| {
+            run(
+                LargeResidual {
+                    lambda,
+                    stops: None,
+                },
+                LevenbergMarquardt::new(LmSettings {
+                    ftol: 1e-14,
+                    xtol: 0.0,
+                    min_grad: 0.0,
+                    gain_ratio,
+                    ..LmSettings::default()
+                }),
+                vec![1.0],
+            )
+            .unwrap()
+            .0
+        };
+        let (plain, heeded) = (fit(false, -0.9), fit(true, -0.9));
+        for s in [&plain, &heeded] {
+            assert_eq!(s.stop_reason(), Some(StopReason::CostConverged));
+            assert!(s.best().unwrap()[0].abs() < 1e-5, "{:?}", s.best());
+        }
+        assert!(
+            2 * heeded.history().len() < plain.history().len(),
+            "{} against {} epochs",
+            heeded.history().len(),
+            plain.history().len()
+        );
+        // λ = 0: the residuals are linear, every step's ρ is 1.
+        let (a, b) = (fit(false, 0.0), fit(true, 0.0));
+        let path = |s: &LevenbergMarquardt| -> Vec<(f64, f64)> {
+            s.history().iter().map(|e| (e.train_mse, e.mu)).collect()
+        };
+        assert_eq!(path(&a), path(&b));
+        assert_eq!(a.best(), b.best());
+    }
+
+    /// A problem's own stop ends the fit at the first accepted step that meets it.
+    #[test]
+    fn a_problem_stops_the_fit_where_it_says() {
+        let (s, _) = run(
+            LargeResidual {
+                lambda: -0.9,
+                stops: Some(0.05),
+            },
+            LevenbergMarquardt::new(LmSettings {
+                ftol: 1e-14,
+                ..LmSettings::default()
+            }),
+            vec![1.0],
+        )
+        .unwrap();
+        assert_eq!(s.stop_reason(), Some(StopReason::AtBound));
+        let t = s.best().unwrap()[0];
+        assert!(t.abs() < 0.05, "{t}");
+        // It had not yet converged there.
+        assert!(t.abs() > 1e-4, "{t}");
     }
 
     #[test]

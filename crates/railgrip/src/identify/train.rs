@@ -115,6 +115,7 @@ pub fn lm_settings(cfg: &TrainConfig) -> LmSettings {
         // trainlm and trainbr have no such tests.
         ftol: 0.0,
         xtol: 0.0,
+        gain_ratio: false,
     }
 }
 

@@ -11,6 +11,7 @@ use super::problem::{constant_nodes, fit_settings, solve, Covariance, PolachProb
 use super::profile::{label, profiles, Profile};
 use crate::contact::polach::{ContactPatch, PolachParams};
 use crate::identify::dataset::RunTable;
+use crate::identify::lm::LeastSquares;
 
 use crate::identify::IdentifyError;
 
@@ -93,7 +94,13 @@ pub(super) fn samples(tables: &[&RunTable], q_n: f64, decimate: usize) -> Vec<Sa
 ///    MINPACK's ftol/xtol convergence);
 /// 2. a parameter within [`AT_BOUND`] of a bound (in its logistic coordinate) is held at the
 ///    bound (`at bound`; a lower bound of 0, which no Polach law may take, where it was
-///    detected: A = 1e-4) and the rest refitted;
+///    detected: A = 1e-4) and the rest refitted. LM stops as soon as a parameter gets there
+///    ([`PolachProblem::stop_at_bound`]): in logistic coordinates its Jacobian column fades as
+///    it nears the bound, and LM would spend tens of epochs creeping the last 1e-4 of the way.
+///    A parameter held at a bound whose gradient, once the rest is refitted, points back inside
+///    (the stop came on the way to an interior optimum) is released, refitted from `start`
+///    and not stopped at a bound again — an active-set method's test of the bound (Nocedal &
+///    Wright 2006, §16.5);
 /// 3. standard errors σ² (JᵀJ)⁻¹ in the natural parameters, inflated by n/n_eff for the
 ///    residuals' autocorrelation ([`effective_samples`]); the free parameter with the largest
 ///    se/x above 1/1.96 (Wald interval including zero; a singular JᵀJ counts as infinite) is held
@@ -136,8 +143,10 @@ pub fn fit_polach(
     };
     let mut current = solver_order(&start);
     let mut iterations = 0;
+    let mut released = [false; 5];
     let (x, var, cov, stop) = loop {
-        let problem = PolachProblem::plain(&s, held.fixed, None);
+        let mut problem = PolachProblem::plain(&s, held.fixed, None);
+        problem.stop_at_bound = released.map(|r| !r);
         let (problem, theta, its, stop) =
             solve(group, problem, &constant_nodes(&current), fit_settings())?;
         iterations += its;
@@ -147,6 +156,9 @@ pub fn fit_polach(
         current = x;
         // 2. Bounds.
         if held.at_bounds(&x, &mut current) {
+            continue;
+        }
+        if held.release_inside(&s, &x, &solver_order(&start), &mut current, &mut released) {
             continue;
         }
         // 3. Identifiability of the free parameters.
@@ -238,6 +250,48 @@ impl Held {
         held
     }
 
+    /// Releases every parameter held at a bound whose gradient at `x` (the rest refitted)
+    /// points back inside: the SSE falls as it leaves the bound, so the bound is not where the
+    /// fit belongs. A released parameter restarts from `start` (its coordinate barely moves
+    /// at the bound) and is marked in `released`; true when one was.
+    fn release_inside(
+        &mut self,
+        s: &[Sample],
+        x: &[f64; 5],
+        start: &[f64; 5],
+        current: &mut [f64; 5],
+        released: &mut [bool; 5],
+    ) -> bool {
+        let mut any = false;
+        for i in 0..5 {
+            if self.status[i] != ParamStatus::AtBound || released[i] {
+                continue;
+            }
+            let mut fixed = self.fixed;
+            fixed[i] = None;
+            let problem = PolachProblem::plain(s, fixed, None);
+            let theta = problem.theta(&constant_nodes(x));
+            let Some(c) = problem.free.iter().position(|co| co.param == i) else {
+                continue;
+            };
+            // Jᵀr is half the gradient of the SSE in the logistic coordinates, in which the
+            // upper bound is +∞ and the lower −∞.
+            let g = problem.normal_equations(&theta).jtr[c];
+            let upper = sigmoid(theta[c]) > 0.5;
+            if (upper && g > 0.0) || (!upper && g < 0.0) {
+                self.fixed[i] = None;
+                self.status[i] = ParamStatus::Estimated;
+                let name = label(i);
+                self.notes
+                    .retain(|n| !(n.starts_with(name) && n.contains("ran into its bound")));
+                current[i] = start[i];
+                released[i] = true;
+                any = true;
+            }
+        }
+        any
+    }
+
     /// Holds the worst-determined free parameter at its value `x` if any fails the Wald test
     /// (its 95 % interval, ±1.96 se from the variances `var`, includes 0); true when one did.
     fn worst_determined(&mut self, problem: &PolachProblem, var: &[f64; 5], x: &[f64; 5]) -> bool {
@@ -282,5 +336,76 @@ fn ks_variance(
     match (fixed[3].is_none(), fixed[4].is_none()) {
         (false, false) => f64::NAN,
         _ => x[4] * x[4] * v0(var[3]) + x[3] * x[3] * v0(var[4]) + 2.0 * x[3] * x[4] * cov_ka_rho,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::identify::polach::law::mu_only;
+
+    /// Samples of Polach's law at `x` (natural, solver order), the patch term scaled by
+    /// `stiffer` (2: a creep slope twice what the fit's patch gives, so that k_A would have to
+    /// be twice its true value), with a little noise.
+    fn law_samples(x: &[f64; 5], stiffer: f64) -> Vec<Sample> {
+        let patch = ContactPatch {
+            a_m: 0.0061,
+            b_m: 0.0045,
+            g_pa: 8.0e10,
+            c11: 4.1,
+            c22: 3.6,
+        };
+        let mut rng = crate::rng::Rng::new(7);
+        let s: Vec<Sample> = (0..600)
+            .map(|_| Sample {
+                q_n: 80_000.0,
+                v: 10.0 + 30.0 * rng.uniform(),
+                dv: 0.005 + 3.0 * rng.uniform(),
+                mu: 0.0,
+                cs: f64::NAN,
+            })
+            .collect();
+        with_patch(s, &patch, None)
+            .into_iter()
+            .map(|mut p| {
+                let mut truth = p;
+                truth.cs *= stiffer;
+                p.mu = mu_only(x, &truth) + 0.002 * rng.normal();
+                p
+            })
+            .collect()
+    }
+
+    /// k_A held at its upper bound 1 after an early stop: released where the data's k_A is
+    /// 0.4 (the SSE falls as it leaves the bound), kept where the data would need k_A = 2.
+    #[test]
+    fn a_bound_the_data_pull_away_from_is_released() {
+        for (k_a, stiffer, released) in [(0.4, 1.0, true), (1.0, 2.0, false)] {
+            let truth = [0.2, 0.3, 0.5, k_a, 0.2];
+            let s = law_samples(&truth, stiffer);
+            let mut held = Held {
+                fixed: [None, None, None, Some(1.0), None],
+                status: all_estimated(),
+                notes: vec!["k_A ran into its bound 1; held there and the rest refitted".into()],
+            };
+            held.status[3] = ParamStatus::AtBound;
+            let mut at = truth;
+            at[3] = 1.0;
+            let start = solver_order(&crate::identify::polach::DEFAULT_START);
+            let mut current = at;
+            let mut marks = [false; 5];
+            let got = held.release_inside(&s, &at, &start, &mut current, &mut marks);
+            assert_eq!(got, released, "k_A {k_a}");
+            assert_eq!(marks[3], released);
+            if released {
+                assert_eq!(held.fixed[3], None);
+                assert_eq!(held.status[3], ParamStatus::Estimated);
+                assert!(held.notes.is_empty(), "{:?}", held.notes);
+                assert_eq!(current[3], start[3]);
+            } else {
+                assert_eq!(held.fixed[3], Some(1.0));
+                assert_eq!(held.notes.len(), 1);
+            }
+        }
     }
 }
