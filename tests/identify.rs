@@ -1730,6 +1730,18 @@ fn polach_campaigns_choose_the_creepage_their_data_follow() {
         assert!(rmse[lost] > 1.2 * rmse[won], "{rmse:?}");
         // The fixed speed is the runs' median (speeds uniform over 5–35 m/s).
         assert!((c.fixed_speed_mps - 20.0).abs() < 1.0, "{c:?}");
+        if creepage.is_some() {
+            // With intervals, the pooled fit the choice made gets its profiles: the same
+            // parameters to the bit, and an interval per parameter.
+            let (ri, _) = fit_campaign(&tables, patch, q, 1, 0, true);
+            let (a, b) = (r.pooled.as_ref().unwrap(), ri.pooled.as_ref().unwrap());
+            let bits = |f: &railgrip::identify::polach::PolachFit| {
+                [f.mu0, f.a_ratio, f.b_s_per_m, f.k_a, f.k_s].map(f64::to_bits)
+            };
+            assert_eq!(bits(a), bits(b));
+            assert!(a.profiles.is_empty());
+            assert_eq!(b.profiles.len(), 5, "{:?}", b.status);
+        }
     }
 }
 

@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use super::fit::{fit_polach, samples, PolachFit};
+use super::fit::{fit_polach, fit_samples, fit_unprofiled, samples, PolachFit, Unprofiled};
 use super::law::{Sample, DEFAULT_START};
 use super::temperature::{fit_temperature_forms, FormChoice, TemperatureFit};
 use crate::contact::polach::ContactPatch;
@@ -121,19 +121,23 @@ pub fn fit_campaign(
     let (fixed, (mut fits, mut notes)) = rayon::join(
         || {
             // Only at a speed the creepage can be taken at (runs that barely move have none).
-            let f = (v_ref.is_finite() && v_ref > 0.0)
-                .then(|| fit_pooled(&all, patch, q_n, decimate, false, Some(v_ref)));
-            f.and_then(Result::ok)
+            (v_ref.is_finite() && v_ref > 0.0)
+                .then(|| {
+                    let s = fit_samples("all runs", &all, patch, q_n, decimate, Some(v_ref))?;
+                    fit_unprofiled("all runs", &s, DEFAULT_START)
+                })
+                .and_then(Result::ok)
         },
-        || fit_groups(tables, patch, q_n, decimate, intervals, None),
+        || fit_groups(tables, patch, q_n, decimate, intervals, None, None),
     );
     let creepage = match (&fits.pooled, &fixed) {
-        (Some(r), Some(f)) => choose_creepage(r, f, v_ref),
+        (Some(r), Some(f)) => choose_creepage(r, &f.fit, v_ref),
         _ => None,
     };
     let speed = creepage.as_ref().and_then(CreepageChoice::speed);
     if speed.is_some() {
-        (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals, speed);
+        // The pooled fit at that speed is made: only its profiles are left.
+        (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals, speed, fixed);
     }
     let law = match &fits.pooled {
         Some(p) => fit_temperature_forms(
@@ -289,6 +293,8 @@ struct GroupFits {
 
 /// All runs pooled, every run and every ambient temperature, fitted independently: in
 /// parallel, results kept in group order; the groups that could not be fitted in the notes.
+/// `pooled`: the pooled fit at this creepage when it is made already (its profiles are added
+/// with `intervals`).
 fn fit_groups(
     tables: &[RunTable],
     patch: ContactPatch,
@@ -296,8 +302,10 @@ fn fit_groups(
     decimate: usize,
     intervals: bool,
     creepage_speed: Option<f64>,
+    pooled: Option<Unprofiled>,
 ) -> (GroupFits, Vec<String>) {
     let start = DEFAULT_START;
+    let pooled = std::sync::Mutex::new(pooled);
     let all: Vec<&RunTable> = tables.iter().collect();
     let mut temps: Vec<f64> = tables
         .iter()
@@ -330,7 +338,18 @@ fn fit_groups(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => fit("all runs", &all, intervals),
+                Group::Pooled => match pooled
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner)
+                    .take()
+                {
+                    Some(u) if intervals => {
+                        fit_samples("all runs", &all, patch, q_n, decimate, creepage_speed)
+                            .map(|s| u.finish(true, &s))
+                    }
+                    Some(u) => Ok(u.fit),
+                    None => fit("all runs", &all, intervals),
+                },
                 Group::Run(i) => {
                     let t = &tables[*i];
                     fit(&t.name, &[t], false).map(|mut f| {

@@ -125,6 +125,20 @@ pub fn fit_polach(
     profile: bool,
     creepage_speed: Option<f64>,
 ) -> Result<PolachFit, IdentifyError> {
+    let s = fit_samples(group, tables, patch, q_n, decimate, creepage_speed)?;
+    Ok(fit_unprofiled(group, &s, start)?.finish(profile, &s))
+}
+
+/// The samples of a fit of `tables` with their patch term (see [`fit_polach`]); an error
+/// with fewer than 20.
+pub(super) fn fit_samples(
+    group: &str,
+    tables: &[&RunTable],
+    patch: ContactPatch,
+    q_n: f64,
+    decimate: usize,
+    creepage_speed: Option<f64>,
+) -> Result<Vec<Sample>, IdentifyError> {
     let s = samples(tables, q_n, decimate);
     if s.len() < 20 {
         return Err(IdentifyError::Data {
@@ -135,7 +149,44 @@ pub fn fit_polach(
             hint: "fit Polach on braking runs with wheel slip".into(),
         });
     }
-    let s = with_patch(s, &patch, creepage_speed);
+    Ok(with_patch(s, &patch, creepage_speed))
+}
+
+/// A fit before its profile likelihoods, with what they need: the held values and the
+/// covariance at the optimum (its residuals dropped).
+pub(super) struct Unprofiled {
+    pub(super) fit: PolachFit,
+    fixed: [Option<f64>; 5],
+    x: [f64; 5],
+    cov: Covariance,
+}
+
+impl Unprofiled {
+    /// The fit, with the profile likelihood of every estimated parameter when `profile`
+    /// (`s`: the samples it was fitted to).
+    pub(super) fn finish(self, profile: bool, s: &[Sample]) -> PolachFit {
+        let mut fit = self.fit;
+        if profile {
+            fit.profiles = profiles(
+                &fit.group,
+                s,
+                self.fixed,
+                &self.x,
+                &fit.se,
+                &fit.status,
+                &self.cov,
+            );
+        }
+        fit
+    }
+}
+
+/// Steps 1–3 of [`fit_polach`] on samples `s` (with their patch term).
+pub(super) fn fit_unprofiled(
+    group: &str,
+    s: &[Sample],
+    start: PolachParams,
+) -> Result<Unprofiled, IdentifyError> {
     let mut held = Held {
         fixed: [None; 5],
         status: all_estimated(),
@@ -145,7 +196,7 @@ pub fn fit_polach(
     let mut iterations = 0;
     let mut released = [false; 5];
     let (x, var, cov, stop) = loop {
-        let mut problem = PolachProblem::plain(&s, held.fixed, None);
+        let mut problem = PolachProblem::plain(s, held.fixed, None);
         problem.stop_at_bound = released.map(|r| !r);
         let (problem, theta, its, stop) =
             solve(group, problem, &constant_nodes(&current), fit_settings())?;
@@ -158,7 +209,7 @@ pub fn fit_polach(
         if held.at_bounds(&x, &mut current) {
             continue;
         }
-        if held.release_inside(&s, &x, &solver_order(&start), &mut current, &mut released) {
+        if held.release_inside(s, &x, &solver_order(&start), &mut current, &mut released) {
             continue;
         }
         // 3. Identifiability of the free parameters.
@@ -186,12 +237,7 @@ pub fn fit_polach(
         ParamStatus::Estimated => var[i].sqrt(),
         _ => f64::NAN,
     });
-    let profiles = if profile {
-        profiles(group, &s, fixed, &x, &se, &status, &cov)
-    } else {
-        Vec::new()
-    };
-    Ok(PolachFit {
+    let fit = PolachFit {
         group: group.to_string(),
         mu0: p.mu0,
         a_ratio: p.a_ratio,
@@ -201,13 +247,22 @@ pub fn fit_polach(
         se,
         status,
         notes,
-        profiles,
+        profiles: Vec::new(),
         samples: s.len(),
         effective_samples: cov.n_eff,
         rmse: (cov.sse / s.len() as f64).sqrt(),
         ambient_temperature_c: None,
         iterations,
         stop_reason: stop.text().to_string(),
+    };
+    Ok(Unprofiled {
+        fit,
+        fixed,
+        x,
+        cov: Covariance {
+            residuals: Vec::new(),
+            ..cov
+        },
     })
 }
 
