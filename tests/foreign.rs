@@ -711,14 +711,14 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 ///   a bias within ±0.0025 at every initial speed (−0.0004 … +0.0020 measured, by `railgrip
 ///   score`; +0.0023 with Polach's creepage) — at 200 km/h less than half the 2-input
 ///   network's — and a loss/recovery difference of 0.65–1.3 times the truth's in every run
-///   where the truth's is at least 0.002 (0.73 … 1.02 measured; 0.58 … 0.99 with Polach's
+///   where the truth's is at least 0.002 (0.72 … 1.02 measured; 0.58 … 0.99 with Polach's
 ///   creepage);
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
 /// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): curve
 /// RMSE ≤ 0.005 in every band (0.0039 … 0.0061; against the law at the runs' mean rail
-/// condition 0.0035 … 0.0050), a hysteresis ratio of 0.8–1.2 everywhere (0.73–1.02), and per
+/// condition 0.0035 … 0.0050), a hysteresis ratio of 0.8–1.2 everywhere (0.72–1.02), and per
 /// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
 /// which no model input carries).
 #[test]
