@@ -13,6 +13,12 @@
 //! accumulates them over fixed chunks of samples in parallel and sums the chunks in order, so
 //! the result does not depend on the number of threads.
 //!
+//! Two additions, off by default (trainlm has neither), on in the Polach fits: MINPACK's
+//! convergence tests ([`LmSettings::ftol`], [`LmSettings::xtol`]) and damping that heeds the gain
+//! ratio ([`LmSettings::gain_ratio`]: an accepted step that delivered less than a quarter of
+//! its predicted reduction doubles μ instead of lowering it). A problem may also end the fit
+//! itself after an accepted step ([`LeastSquares::stop_at`], [`StopReason::AtBound`]).
+//!
 //! Bayesian regularisation ([`LmSettings::bayesian`]), as MATLAB `trainbr` does it (MacKay 1992;
 //! Foresee & Hagan 1997; reference-values.md, tag trainbr): LM on F = β E_D + α E_W with
 //! E_D = Σ r² and E_W = Σ θ², step θ' = θ − (β JᵀJ + (μ + α) I)⁻¹ (β Jᵀr + α θ), accepted when F
@@ -509,8 +515,9 @@ impl LevenbergMarquardt<'_> {
 
     /// The μ loop: tries θ' = θ − (system + μ I)⁻¹ `rhs`, raising μ by mu_inc after every
     /// rejected step (factorisation failed, a non-finite step or SSE, or an objective not
-    /// below `sse`'s), until a step is accepted — returned with its SSE, μ lowered by mu_dec —
-    /// or μ exceeds mu_max (stop; `None`).
+    /// below `sse`'s), until a step is accepted — returned with its SSE, μ lowered by mu_dec
+    /// (or, with [`LmSettings::gain_ratio`], doubled after a poor step) — or μ exceeds mu_max
+    /// (stop; `None`).
     fn damped_step<O: LeastSquares>(
         &mut self,
         problem: &mut Problem<O>,
@@ -824,7 +831,7 @@ mod tests {
             .unwrap()
             .0
         };
-        let (plain, heeded) = (fit(false, -0.9), fit(true, -0.9));
+        let (plain, heeded) = (fit(false, -0.95), fit(true, -0.95));
         for s in [&plain, &heeded] {
             assert_eq!(s.stop_reason(), Some(StopReason::CostConverged));
             assert!(s.best().unwrap()[0].abs() < 1e-5, "{:?}", s.best());
@@ -842,6 +849,51 @@ mod tests {
         };
         assert_eq!(path(&a), path(&b));
         assert_eq!(a.best(), b.best());
+    }
+
+    /// The gain ratio against the reduction computed by hand: 1 for residuals linear in θ at
+    /// any damping, and below 1/4 where the SSE fell by much less than predicted.
+    #[test]
+    fn the_gain_ratio_is_the_actual_over_the_predicted_reduction() {
+        // r = J θ − y with J = [[1, 0], [1, 2], [0, 1]], y = (1, 2, 3): SSE(θ) = ‖Jθ − y‖².
+        let j = [[1.0, 0.0], [1.0, 2.0], [0.0, 1.0]];
+        let y = [1.0, 2.0, 3.0];
+        let sse = |t: &[f64]| -> f64 {
+            j.iter()
+                .zip(&y)
+                .map(|(row, yi)| (row[0] * t[0] + row[1] * t[1] - yi).powi(2))
+                .sum()
+        };
+        let theta = [0.3, -0.2];
+        let mut jtj = [0.0; 4];
+        let mut jtr = [0.0; 2];
+        for (row, yi) in j.iter().zip(&y) {
+            let r = row[0] * theta[0] + row[1] * theta[1] - yi;
+            for p in 0..2 {
+                jtr[p] += row[p] * r;
+                for q in 0..2 {
+                    jtj[p * 2 + q] += row[p] * row[q];
+                }
+            }
+        }
+        for mu in [0.0, 0.5, 3.0] {
+            let a = [jtj[0] + mu, jtj[1], jtj[2], jtj[3] + mu];
+            let det = a[0] * a[3] - a[1] * a[2];
+            let d = [
+                (a[3] * jtr[0] - a[1] * jtr[1]) / det,
+                (a[0] * jtr[1] - a[2] * jtr[0]) / det,
+            ];
+            let next = [theta[0] - d[0], theta[1] - d[1]];
+            let rho = gain_ratio(&theta, &next, &jtr, mu, sse(&theta), sse(&next));
+            assert!((rho - 1.0).abs() < 1e-12, "μ {mu}: ρ {rho}");
+            // The same step credited with a tenth of its reduction.
+            let poor = sse(&theta) - 0.1 * (sse(&theta) - sse(&next));
+            let rho = gain_ratio(&theta, &next, &jtr, mu, sse(&theta), poor);
+            assert!((rho - 0.1).abs() < 1e-12, "μ {mu}: ρ {rho}");
+            let s = LmSettings::default();
+            assert_eq!(damping_after(rho, s), 2.0);
+            assert_eq!(damping_after(0.25, s), s.mu_dec);
+        }
     }
 
     /// A problem's own stop ends the fit at the first accepted step that meets it.

@@ -338,18 +338,20 @@ fn fit_groups(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => match pooled
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner)
-                    .take()
-                {
-                    Some(u) if intervals => {
-                        fit_samples("all runs", &all, patch, q_n, decimate, creepage_speed)
-                            .map(|s| u.finish(true, &s))
+                Group::Pooled => {
+                    let made = pooled
+                        .lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                        .take();
+                    match made {
+                        Some(u) if intervals => {
+                            fit_samples("all runs", &all, patch, q_n, decimate, creepage_speed)
+                                .map(|s| u.finish(true, &s))
+                        }
+                        Some(u) => Ok(u.fit),
+                        None => fit("all runs", &all, intervals),
                     }
-                    Some(u) => Ok(u.fit),
-                    None => fit("all runs", &all, intervals),
-                },
+                }
                 Group::Run(i) => {
                     let t = &tables[*i];
                     fit(&t.name, &[t], false).map(|mut f| {

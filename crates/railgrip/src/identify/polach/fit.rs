@@ -4,8 +4,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::law::{
-    law_params, sigmoid, solver_order, to_unconstrained, with_patch, ParamStatus, Sample, AT_BOUND,
-    IDENTIFIED_Z, LOWER, UPPER,
+    law_params, sigmoid, solver_order, with_patch, ParamStatus, Sample, AT_BOUND, IDENTIFIED_Z,
+    LOWER, UPPER,
 };
 use super::problem::{constant_nodes, fit_settings, solve, Covariance, PolachProblem};
 use super::profile::{label, profiles, Profile};
@@ -205,8 +205,15 @@ pub(super) fn fit_unprofiled(
             .at_group(&problem.groups[0], &problem.nodes(&theta).0)
             .0;
         current = x;
-        // 2. Bounds.
-        if held.at_bounds(&x, &mut current) {
+        // 2. Bounds, tested on the logistic coordinates themselves (the test of LM's stop).
+        let sg: [f64; 5] = std::array::from_fn(|i| {
+            problem
+                .free
+                .iter()
+                .position(|c| c.param == i)
+                .map_or(f64::NAN, |c| sigmoid(theta[c]))
+        });
+        if held.at_bounds(&sg, &mut current) {
             continue;
         }
         if held.release_inside(s, &x, &solver_order(&start), &mut current, &mut released) {
@@ -274,13 +281,14 @@ struct Held {
 }
 
 impl Held {
-    /// Holds every free parameter of `x` that ran into its bound there (also in `current`, the
-    /// next start); true when one did and the rest must be refitted.
-    fn at_bounds(&mut self, x: &[f64; 5], current: &mut [f64; 5]) -> bool {
+    /// Holds every free parameter that ran into its bound, `sg` the logistic coordinates σ of
+    /// the fit's parameters (also in `current`, the next start); true when one did and the
+    /// rest must be refitted.
+    fn at_bounds(&mut self, sg: &[f64; 5], current: &mut [f64; 5]) -> bool {
         let mut held = false;
         let free_now: Vec<usize> = (0..5).filter(|i| self.fixed[*i].is_none()).collect();
         for i in free_now {
-            let sg = sigmoid(to_unconstrained(i, x[i]));
+            let sg = sg[i];
             if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
                 // A lower bound of 0 (μ0, A, k_A, ρ) is not a valid Polach law (the model
                 // file needs them > 0): held where the bound was detected, σ = AT_BOUND —
@@ -305,8 +313,8 @@ impl Held {
         held
     }
 
-    /// Releases every parameter held at a bound whose gradient at `x` (the rest refitted)
-    /// points back inside: the SSE falls as it leaves the bound, so the bound is not where the
+    /// Releases every parameter held at a bound whose gradient at the edge of the bound's band,
+    /// the others at `x` (refitted), points back inside: the SSE falls as it leaves the bound, so the bound is not where the
     /// fit belongs. A released parameter restarts from `start` (its coordinate barely moves
     /// at the bound) and is marked in `released`; true when one was.
     fn release_inside(
@@ -325,14 +333,18 @@ impl Held {
             let mut fixed = self.fixed;
             fixed[i] = None;
             let problem = PolachProblem::plain(s, fixed, None);
-            let theta = problem.theta(&constant_nodes(x));
+            let mut theta = problem.theta(&constant_nodes(x));
             let Some(c) = problem.free.iter().position(|co| co.param == i) else {
                 continue;
             };
+            // At the edge of the band in which a parameter counts as at its bound (σ = AT_BOUND
+            // or 1 − AT_BOUND), where LM stopped: an optimum inside the band is the bound's.
+            let upper = sigmoid(theta[c]) > 0.5;
+            let edge = ((1.0 - AT_BOUND) / AT_BOUND).ln();
+            theta[c] = if upper { edge } else { -edge };
             // Jᵀr is half the gradient of the SSE in the logistic coordinates, in which the
             // upper bound is +∞ and the lower −∞.
             let g = problem.normal_equations(&theta).jtr[c];
-            let upper = sigmoid(theta[c]) > 0.5;
             if (upper && g > 0.0) || (!upper && g < 0.0) {
                 self.fixed[i] = None;
                 self.status[i] = ParamStatus::Estimated;
@@ -431,35 +443,51 @@ mod tests {
             .collect()
     }
 
-    /// k_A held at its upper bound 1 after an early stop: released where the data's k_A is
-    /// 0.4 (the SSE falls as it leaves the bound), kept where the data would need k_A = 2.
+    /// A parameter held at its bound after an early stop: released where the data pull it back
+    /// inside (the SSE falls as it leaves the bound), kept where they push it out — k_A at its
+    /// upper bound 1 (the data's k_A 0.4, or a creep slope that would need k_A = 2), A at its
+    /// lower bound, held at σ = 1e-4 (the data's A 0.3, or a falling friction that would need
+    /// A = −0.1).
     #[test]
     fn a_bound_the_data_pull_away_from_is_released() {
-        for (k_a, stiffer, released) in [(0.4, 1.0, true), (1.0, 2.0, false)] {
-            let truth = [0.2, 0.3, 0.5, k_a, 0.2];
+        let a_low =
+            crate::identify::polach::law::to_natural(1, (AT_BOUND / (1.0 - AT_BOUND)).ln()).0;
+        for (i, held_at, truth_value, stiffer, released) in [
+            (3, 1.0, 0.4, 1.0, true),
+            (3, 1.0, 1.0, 2.0, false),
+            (1, a_low, 0.3, 1.0, true),
+            (1, a_low, -0.1, 1.0, false),
+        ] {
+            let mut truth = [0.2, 0.3, 0.5, 0.4, 0.2];
+            truth[i] = truth_value;
             let s = law_samples(&truth, stiffer);
             let mut held = Held {
-                fixed: [None, None, None, Some(1.0), None],
+                fixed: [None; 5],
                 status: all_estimated(),
-                notes: vec!["k_A ran into its bound 1; held there and the rest refitted".into()],
+                notes: vec![format!(
+                    "{} ran into its bound {held_at}; held there and the rest refitted",
+                    label(i)
+                )],
             };
-            held.status[3] = ParamStatus::AtBound;
+            held.fixed[i] = Some(held_at);
+            held.status[i] = ParamStatus::AtBound;
             let mut at = truth;
-            at[3] = 1.0;
+            at[i] = held_at;
             let start = solver_order(&crate::identify::polach::DEFAULT_START);
             let mut current = at;
             let mut marks = [false; 5];
             let got = held.release_inside(&s, &at, &start, &mut current, &mut marks);
-            assert_eq!(got, released, "k_A {k_a}");
-            assert_eq!(marks[3], released);
+            let case = format!("{} held at {held_at}, data {truth_value}", label(i));
+            assert_eq!(got, released, "{case}");
+            assert_eq!(marks[i], released, "{case}");
             if released {
-                assert_eq!(held.fixed[3], None);
-                assert_eq!(held.status[3], ParamStatus::Estimated);
-                assert!(held.notes.is_empty(), "{:?}", held.notes);
-                assert_eq!(current[3], start[3]);
+                assert_eq!(held.fixed[i], None, "{case}");
+                assert_eq!(held.status[i], ParamStatus::Estimated, "{case}");
+                assert!(held.notes.is_empty(), "{case}: {:?}", held.notes);
+                assert_eq!(current[i], start[i], "{case}");
             } else {
-                assert_eq!(held.fixed[3], Some(1.0));
-                assert_eq!(held.notes.len(), 1);
+                assert_eq!(held.fixed[i], Some(held_at), "{case}");
+                assert_eq!(held.notes.len(), 1, "{case}");
             }
         }
     }
