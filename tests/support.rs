@@ -438,6 +438,15 @@ fn score_prints_supported_cell_scores_and_exits_3_on_negative_adhesion() {
     let by_speed = v["curve_by_initial_speed"].as_array().unwrap();
     assert_eq!(by_speed.len(), 1);
     assert_eq!(by_speed[0]["lo_kmh"], 120.0);
+    // The same cells at the run's states: as many cells, scored elsewhere.
+    let states = v["curve_at_runs_states"].as_array().unwrap();
+    assert_eq!(states.len(), 1);
+    assert_eq!(states[0]["pooled"]["n"], by_speed[0]["pooled"]["n"]);
+    assert_ne!(states[0]["pooled"]["rmse"], by_speed[0]["pooled"]["rmse"]);
+    assert_eq!(
+        rows[0]["curve_at_states"]["n"].as_u64(),
+        curve["n"].as_u64()
+    );
     let bands: Vec<f64> = v["replay_by_speed_band"]
         .as_array()
         .unwrap()

@@ -49,6 +49,10 @@ struct Line {
     /// The curve view at the run's initial speed and temperature (laws in closed form only).
     curve: Option<Stats>,
     curve_hysteresis_ratio: Option<f64>,
+    /// The curve view with each cell at its samples' mean slip and slip rate (the run's
+    /// states) instead of its nominal centre, and its hysteresis ratio.
+    curve_at_states: Option<Stats>,
+    curve_at_states_hysteresis_ratio: Option<f64>,
     /// The scene's rail condition (`adhesion.level_scale`); absent for laws without one.
     level_scale: Option<f64>,
     /// The curve view against the law at the scored runs' mean condition (the run's law
@@ -75,6 +79,8 @@ impl Line {
             hysteresis_predicted: s.hysteresis.map(|h| h.1),
             curve: None,
             curve_hysteresis_ratio: None,
+            curve_at_states: None,
+            curve_at_states_hysteresis_ratio: None,
             level_scale: None,
             curve_mean_condition: None,
             curve_condition_floor: None,
@@ -105,6 +111,8 @@ struct Report {
     /// Every scene's samples pooled (the per-cell score only).
     all: Line,
     curve_by_initial_speed: Vec<BandRow>,
+    /// The curve view with each cell at its samples' mean slip and slip rate.
+    curve_at_runs_states: Vec<BandRow>,
     /// The scored runs' mean rail condition s̄ (one weight per scene), where their conditions
     /// differ; the two tables below only then.
     mean_level_scale: Option<f64>,
@@ -176,6 +184,20 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 .with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
+                let states = curve(
+                    &samples,
+                    &Grid {
+                        at_sample_means: true,
+                        ..grid.clone()
+                    },
+                    v0_kmh / 3.6,
+                    t_c,
+                    predict,
+                    |dv, q, v, _| law.mu(dv, q, v),
+                )
+                .with_context(context)?;
+                line.curve_at_states = Some(states.stats);
+                line.curve_at_states_hysteresis_ratio = states.hysteresis_ratio(MIN_HYSTERESIS);
                 line.level_scale = level_scale(&scene);
                 if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
@@ -205,10 +227,15 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let all = score(&pooled, &grid, predict)?;
     let negative = lines.iter().any(|l| l.negative_cells > 0) || all.negative_cells > 0;
     let report = Report {
-        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, true),
+        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, Some(|l| l.curve_hysteresis_ratio)),
+        curve_at_runs_states: curve_rows(
+            &lines,
+            |l| l.curve_at_states,
+            Some(|l| l.curve_at_states_hysteresis_ratio),
+        ),
         mean_level_scale: mean_scale,
-        curve_at_mean_condition: curve_rows(&lines, |l| l.curve_mean_condition, false),
-        curve_condition_floor: curve_rows(&lines, |l| l.curve_condition_floor, false),
+        curve_at_mean_condition: curve_rows(&lines, |l| l.curve_mean_condition, None),
+        curve_condition_floor: curve_rows(&lines, |l| l.curve_condition_floor, None),
         replay_by_speed_band: replay_rows(&lines),
         scenes: lines,
         all: Line::new("all", f64::NAN, f64::NAN, &all),
@@ -225,8 +252,12 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
 }
 
 /// A curve view (`stats` of each run) grouped by the runs' initial speeds (each run's cells
-/// pooled), with the hysteresis ratios if `hysteresis`.
-fn curve_rows(lines: &[Line], stats: fn(&Line) -> Option<Stats>, hysteresis: bool) -> Vec<BandRow> {
+/// pooled), with the runs' hysteresis ratios (`ratio`) where given.
+fn curve_rows(
+    lines: &[Line],
+    stats: fn(&Line) -> Option<Stats>,
+    ratio: Option<fn(&Line) -> Option<f64>>,
+) -> Vec<BandRow> {
     let mut by: BTreeMap<u64, Vec<&Line>> = BTreeMap::new();
     for l in lines.iter().filter(|l| stats(l).is_some()) {
         by.entry(l.initial_speed_kmh.to_bits()).or_default().push(l);
@@ -235,11 +266,10 @@ fn curve_rows(lines: &[Line], stats: fn(&Line) -> Option<Stats>, hysteresis: boo
         .into_values()
         .map(|ls| {
             let stats: Vec<Stats> = ls.iter().filter_map(|l| stats(l)).collect();
-            let ratios: Vec<f64> = ls
-                .iter()
-                .filter(|_| hysteresis)
-                .filter_map(|l| l.curve_hysteresis_ratio)
-                .collect();
+            let ratios: Vec<f64> = match ratio {
+                Some(r) => ls.iter().filter_map(|l| r(l)).collect(),
+                None => Vec::new(),
+            };
             let v = ls[0].initial_speed_kmh;
             row(v, v, &stats, &ratios)
         })
@@ -354,6 +384,11 @@ fn print_report(r: &Report, min_samples: usize) {
         table(
             "Curve view: the model at each run's initial speed and ambient temperature against the true law, on the run's supported (Δv, dΔv/dt) cells (n = cells)",
             &r.curve_by_initial_speed,
+            &|b| format!("{:.0}", b.lo_kmh),
+        );
+        table(
+            "Curve view at the runs' states: the same cells, each at its samples' mean Δv and dΔv/dt (the axle with the most samples there) instead of its nominal centre — a slip-rate window spans 0.5–1.5 × its centre",
+            &r.curve_at_runs_states,
             &|b| format!("{:.0}", b.lo_kmh),
         );
     }

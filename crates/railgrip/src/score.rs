@@ -58,6 +58,11 @@ pub struct Grid {
     pub v_half_kmh: f64,
     /// Samples of one axle a cell needs to count.
     pub min_samples: usize,
+    /// [`curve`] evaluates each cell at its samples' mean slip and slip rate (those of the
+    /// axle with the most samples there) instead of its nominal centre: where the run's states
+    /// are. A slip-rate window spans 0.5–1.5 times its centre, so at the fast rates its samples
+    /// can lie far from it (at q = −8 m/s², mostly between −4 and −6).
+    pub at_sample_means: bool,
 }
 
 impl Default for Grid {
@@ -70,6 +75,7 @@ impl Default for Grid {
             v_step_kmh: 10.0,
             v_half_kmh: 15.0,
             min_samples: 20,
+            at_sample_means: false,
         }
     }
 }
@@ -290,11 +296,14 @@ pub fn curve(
         ..grid.clone()
     };
     let counts = support(samples, &wide)?;
-    let mut best: BTreeMap<(i64, i64), usize> = BTreeMap::new();
-    for ((_, _, qi, di), n) in &counts {
-        if *n >= grid.min_samples {
+    // Per (slip rate, slip) cell the axle with the most samples (the first of equals).
+    let mut best: BTreeMap<(i64, i64), Moments> = BTreeMap::new();
+    for ((_, _, qi, di), m) in &counts {
+        if m.n >= grid.min_samples {
             let b = best.entry((*qi, *di)).or_default();
-            *b = (*b).max(*n);
+            if m.n > b.n {
+                *b = *m;
+            }
         }
     }
     if best.is_empty() {
@@ -303,9 +312,16 @@ pub fn curve(
         });
     }
     let mut cells = Vec::with_capacity(best.len());
-    for ((qi, di), n) in &best {
-        let dv = *di as f64 * grid.dv_step_mps;
-        let q = qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1];
+    for ((qi, di), m) in &best {
+        let n = &m.n;
+        let (dv, q) = if grid.at_sample_means {
+            (m.dv / m.n as f64, m.ddv / m.n as f64)
+        } else {
+            (
+                *di as f64 * grid.dv_step_mps,
+                qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1],
+            )
+        };
         let (p, t) = (predict(dv, q, v_mps, t_c), law(dv, q, v_mps, t_c));
         if !p.is_finite() || !t.is_finite() {
             return Err(ScoreError::Model {
@@ -377,7 +393,7 @@ pub fn replay(
         if band_of(edges_kmh, s.v_mps * 3.6).is_none()
             || !cells_of(grid, s)
                 .iter()
-                .any(|k| counts.get(k).is_some_and(|n| *n >= grid.min_samples))
+                .any(|k| counts.get(k).is_some_and(|m| m.n >= grid.min_samples))
         {
             continue;
         }
@@ -430,15 +446,26 @@ fn band_of(edges_kmh: &[f64], v_kmh: f64) -> Option<usize> {
 }
 
 /// Samples per (axle, cell), the samples checked finite.
-fn support(samples: &[Sample], grid: &Grid) -> Result<BTreeMap<Key, usize>, ScoreError> {
-    let mut counts: BTreeMap<Key, usize> = BTreeMap::new();
+fn support(samples: &[Sample], grid: &Grid) -> Result<BTreeMap<Key, Moments>, ScoreError> {
+    let mut counts: BTreeMap<Key, Moments> = BTreeMap::new();
     for (index, s) in samples.iter().enumerate() {
         check_finite(index, s)?;
         for k in cells_of(grid, s) {
-            *counts.entry(k).or_default() += 1;
+            let m = counts.entry(k).or_default();
+            m.n += 1;
+            m.dv += s.dv_mps;
+            m.ddv += s.ddv_mps2;
         }
     }
     Ok(counts)
+}
+
+/// A cell's sample count and the sums of its samples' slip and slip rate.
+#[derive(Debug, Default, Clone, Copy)]
+struct Moments {
+    n: usize,
+    dv: f64,
+    ddv: f64,
 }
 
 /// Sample `index` has finite inputs and μ (truth files hold finite values only).
@@ -541,6 +568,54 @@ mod tests {
         let (t, p) = flat.hysteresis.unwrap();
         assert!(p.abs() < 0.1 * t, "{t} {p}");
         assert!(flat.negative_cells > 0);
+    }
+
+    /// With `at_sample_means` each curve cell is evaluated at its samples' mean slip and slip
+    /// rate: samples at slip rates 5–6 m/s² fill the q = 8 window (4–12) far below its centre,
+    /// and a law linear in the slip rate is scored there at their mean, not at 8.
+    #[test]
+    fn curve_cells_at_the_samples_means() {
+        let mut rng = crate::rng::Rng::new(5);
+        let s: Vec<Sample> = (0..400)
+            .map(|_| Sample {
+                axle: 1,
+                dv_mps: 0.95 + 0.1 * rng.uniform(),
+                ddv_mps2: 5.0 + rng.uniform(),
+                v_mps: 30.0,
+                t_c: f64::NAN,
+                mu: 0.0,
+            })
+            .collect();
+        let linear = |_: f64, q: f64, _: f64, _: f64| 0.01 * q;
+        let nominal = curve(&s, &Grid::default(), 30.0, f64::NAN, linear, linear).unwrap();
+        let g = Grid {
+            at_sample_means: true,
+            ..Grid::default()
+        };
+        let means = curve(&s, &g, 30.0, f64::NAN, linear, linear).unwrap();
+        assert_eq!(nominal.cells.len(), means.cells.len());
+        // The cells holding every sample: Δv = 1.0 m/s (±0.1) at q = 4 (2–6) and q = 8 (4–12).
+        let full = |c: &CurveScore| -> Vec<CurveCell> {
+            c.cells
+                .iter()
+                .filter(|x| x.samples == s.len())
+                .copied()
+                .collect()
+        };
+        let at_centres: Vec<(f64, f64)> = full(&nominal)
+            .iter()
+            .map(|x| (x.dv_mps, x.ddv_mps2))
+            .collect();
+        assert_eq!(at_centres, vec![(1.0, 4.0), (1.0, 8.0)]);
+        let mean_q = s.iter().map(|x| x.ddv_mps2).sum::<f64>() / s.len() as f64;
+        let mean_dv = s.iter().map(|x| x.dv_mps).sum::<f64>() / s.len() as f64;
+        let at_means = full(&means);
+        assert_eq!(at_means.len(), 2);
+        for c in at_means {
+            assert!((c.ddv_mps2 - mean_q).abs() < 1e-12, "{c:?} {mean_q}");
+            assert!((c.dv_mps - mean_dv).abs() < 1e-12, "{c:?} {mean_dv}");
+            assert!((c.true_mu - 0.01 * mean_q).abs() < 1e-12);
+        }
     }
 
     #[test]
