@@ -716,9 +716,14 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
+/// At the runs' states (each curve cell at its samples' mean slip and slip rate) the chosen
+/// model's curve RMSE is within 0.005 and its bias within ±0.002 at every initial speed
+/// (0.0026–0.0044 and −0.0007 … +0.0018 measured).
+///
 /// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): curve
-/// RMSE ≤ 0.005 in every band (0.0039 … 0.0061; against the law at the runs' mean rail
-/// condition 0.0035 … 0.0050), a hysteresis ratio of 0.8–1.2 everywhere (0.72–1.02), and per
+/// RMSE ≤ 0.005 in every band at the cells' nominal centres (0.0039 … 0.0061; against the law
+/// at the runs' mean rail condition 0.0035 … 0.0050), a hysteresis ratio of 0.8–1.2
+/// everywhere (0.72–1.02 at the centres, 0.74–1.07 at the runs' states), and per
 /// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
 /// which no model input carries).
 #[test]
@@ -764,6 +769,17 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             "seed {seed}: {} hysteresis ratios {:?}",
             c.chosen,
             chosen.hysteresis
+        );
+        // At the runs' states (each curve cell at its samples' mean slip and slip rate):
+        // RMSE within 0.005 and bias within ±0.002 at every initial speed.
+        assert!(
+            chosen
+                .at_states
+                .iter()
+                .all(|(_, (rmse, bias))| *rmse <= 0.005 && bias.abs() <= 0.002),
+            "seed {seed}: {} curve at the runs' states {:?}",
+            c.chosen,
+            chosen.at_states
         );
         c.assert_top_speed_under_half_the_network(seed);
     }
@@ -813,6 +829,9 @@ struct BandScores {
     /// Per run: (initial speed, the curve's hysteresis ratio) where the truth's loss − recovery
     /// difference is at least 0.002.
     hysteresis: Vec<(i64, f64)>,
+    /// The curve at the runs' states (each cell at its samples' mean slip and slip rate): per
+    /// initial speed, pooled over its runs (cell-weighted), (RMSE, bias).
+    at_states: Vec<(i64, (f64, f64))>,
 }
 
 /// A campaign and its models' scores per speed band ([`run_and_score`]).
@@ -909,6 +928,7 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
         let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
         let mut hysteresis = Vec::new();
+        let mut states: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
         for (t, sc) in truths.iter().zip(&scenes) {
             for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap() {
                 let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
@@ -932,6 +952,18 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
             let e = curves.entry(v0.round() as i64).or_default();
             e.0 += c.stats.bias * c.stats.n as f64;
             e.1 += c.stats.n;
+            let at_means = Grid {
+                at_sample_means: true,
+                ..Grid::default()
+            };
+            let c = curve(t, &at_means, v0 / 3.6, t_c, predict, |dv, q, v, _| {
+                law.mu(dv, q, v)
+            })
+            .unwrap();
+            let e = states.entry(v0.round() as i64).or_default();
+            e.0 += c.stats.rmse * c.stats.rmse * c.stats.n as f64;
+            e.1 += c.stats.bias * c.stats.n as f64;
+            e.2 += c.stats.n;
         }
         assert!(
             sums.iter().all(|(_, n)| *n > 0),
@@ -944,10 +976,17 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
                 .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
                 .collect(),
             hysteresis,
+            at_states: states
+                .iter()
+                .map(|(k, (sq, b, n))| {
+                    let n = (*n).max(1) as f64;
+                    (*k, ((sq / n).sqrt(), b / n))
+                })
+                .collect(),
         };
         eprintln!(
-            "{prefix} seed {seed} {name} ({chosen}): replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}",
-            s.replay, s.curve, s.hysteresis
+            "{prefix} seed {seed} {name} ({chosen}): replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
+            s.replay, s.curve, s.hysteresis, s.at_states
         );
         scores.insert(name, s);
     }
