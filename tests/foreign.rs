@@ -867,7 +867,6 @@ impl CampaignScores {
 /// run` with its defaults on them, and scores the campaign's models against each scene's true
 /// law in the replay and curve views. Every speed band must hold samples of every model.
 fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
-    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
     let (folder, start) = prefix.rsplit_once('/').unwrap();
     let paths: Vec<PathBuf> = scene_files(folder)
         .into_iter()
@@ -923,72 +922,8 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         ),
         ("chosen", ModelFile::read(&out.join(&chosen)).unwrap()),
     ] {
-        let model = Model::new(file).unwrap();
-        let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
-        let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
-        let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
-        let mut hysteresis = Vec::new();
-        let mut states: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
-        for (t, sc) in truths.iter().zip(&scenes) {
-            for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap() {
-                let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
-                sums[i].0 += b.stats.bias * b.stats.n as f64;
-                sums[i].1 += b.stats.n;
-            }
-            let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
-            let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
-            let c = curve(
-                t,
-                &Grid::default(),
-                v0 / 3.6,
-                t_c,
-                predict,
-                |dv, q, v, _| law.mu(dv, q, v),
-            )
-            .unwrap();
-            if let Some(r) = c.hysteresis_ratio(0.002) {
-                hysteresis.push((v0.round() as i64, r));
-            }
-            let e = curves.entry(v0.round() as i64).or_default();
-            e.0 += c.stats.bias * c.stats.n as f64;
-            e.1 += c.stats.n;
-            let at_means = Grid {
-                at_sample_means: true,
-                ..Grid::default()
-            };
-            let c = curve(t, &at_means, v0 / 3.6, t_c, predict, |dv, q, v, _| {
-                law.mu(dv, q, v)
-            })
-            .unwrap();
-            let e = states.entry(v0.round() as i64).or_default();
-            e.0 += c.stats.rmse * c.stats.rmse * c.stats.n as f64;
-            e.1 += c.stats.bias * c.stats.n as f64;
-            e.2 += c.stats.n;
-        }
-        assert!(
-            sums.iter().all(|(_, n)| *n > 0),
-            "{prefix} seed {seed} {name}: a speed band without scored samples {sums:?}"
-        );
-        let s = BandScores {
-            replay: sums.iter().map(|(s, n)| s / *n as f64).collect(),
-            curve: curves
-                .iter()
-                .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
-                .collect(),
-            hysteresis,
-            at_states: states
-                .iter()
-                .map(|(k, (sq, b, n))| {
-                    let n = (*n).max(1) as f64;
-                    (*k, ((sq / n).sqrt(), b / n))
-                })
-                .collect(),
-        };
-        eprintln!(
-            "{prefix} seed {seed} {name} ({chosen}): replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
-            s.replay, s.curve, s.hysteresis, s.at_states
-        );
-        scores.insert(name, s);
+        let what = format!("{prefix} seed {seed} {name} ({chosen})");
+        scores.insert(name, band_scores(file, &truths, &scenes, &what));
     }
     CampaignScores {
         chosen,
@@ -997,6 +932,84 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         polach_creepage,
         polach_reference_speed,
     }
+}
+
+/// One model's scores on the campaign's runs (`truths` the runs' true samples, `scenes` their
+/// scenes, `what` names the model in messages): replay bias per band, curve bias per initial
+/// speed, hysteresis ratios, and the curve at the runs' states.
+fn band_scores(
+    file: ModelFile,
+    truths: &[Vec<Sample>],
+    scenes: &[Scene],
+    what: &str,
+) -> BandScores {
+    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
+    let model = Model::new(file).unwrap();
+    let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
+    let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
+    let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+    let mut hysteresis = Vec::new();
+    let mut states: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
+    for (t, sc) in truths.iter().zip(scenes) {
+        for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap() {
+            let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
+            sums[i].0 += b.stats.bias * b.stats.n as f64;
+            sums[i].1 += b.stats.n;
+        }
+        let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
+        let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
+        let c = curve(
+            t,
+            &Grid::default(),
+            v0 / 3.6,
+            t_c,
+            predict,
+            |dv, q, v, _| law.mu(dv, q, v),
+        )
+        .unwrap();
+        if let Some(r) = c.hysteresis_ratio(0.002) {
+            hysteresis.push((v0.round() as i64, r));
+        }
+        let e = curves.entry(v0.round() as i64).or_default();
+        e.0 += c.stats.bias * c.stats.n as f64;
+        e.1 += c.stats.n;
+        let at_means = Grid {
+            at_sample_means: true,
+            ..Grid::default()
+        };
+        let c = curve(t, &at_means, v0 / 3.6, t_c, predict, |dv, q, v, _| {
+            law.mu(dv, q, v)
+        })
+        .unwrap();
+        let e = states.entry(v0.round() as i64).or_default();
+        e.0 += c.stats.rmse * c.stats.rmse * c.stats.n as f64;
+        e.1 += c.stats.bias * c.stats.n as f64;
+        e.2 += c.stats.n;
+    }
+    assert!(
+        sums.iter().all(|(_, n)| *n > 0),
+        "{what}: a speed band without scored samples {sums:?}"
+    );
+    let s = BandScores {
+        replay: sums.iter().map(|(s, n)| s / *n as f64).collect(),
+        curve: curves
+            .iter()
+            .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
+            .collect(),
+        hysteresis,
+        at_states: states
+            .iter()
+            .map(|(k, (sq, b, n))| {
+                let n = (*n).max(1) as f64;
+                (*k, ((sq / n).sqrt(), b / n))
+            })
+            .collect(),
+    };
+    eprintln!(
+        "{what}: replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
+        s.replay, s.curve, s.hysteresis, s.at_states
+    );
+    s
 }
 
 /// The defaults of seed 002's 2-input network, measured on a law it does not contain: one
