@@ -23,7 +23,8 @@
 //! - [`curve`]: the model on the run's supported (Δv, dΔv/dt) cells (support counted over the
 //!   run's whole speed range, per axle) at the run's **initial speed and ambient temperature**,
 //!   against the true law there — what a simulator that starts a brake from that speed asks.
-//!   Its hysteresis ratio is predicted over true loss − recovery difference.
+//!   Its hysteresis ratio is predicted over true loss − recovery difference. Each cell at its
+//!   nominal centre, or ([`Grid::at_sample_means`]) at its samples' mean slip and slip rate.
 //! - [`replay`]: the model at every sample's own inputs (samples in a supported cell of their
 //!   axle), against the sample's μ, binned by the sample's speed — what a simulator replaying
 //!   the run sees.
@@ -61,7 +62,9 @@ pub struct Grid {
     /// [`curve`] evaluates each cell at its samples' mean slip and slip rate (those of the
     /// axle with the most samples there) instead of its nominal centre: where the run's states
     /// are. A slip-rate window spans 0.5–1.5 times its centre, so at the fast rates its samples
-    /// can lie far from it (at q = −8 m/s², mostly between −4 and −6).
+    /// can lie far from it (on the top-speed scenes, at q = −8 m/s² mostly between −4 and −6).
+    /// The loss − recovery pairs stay those of the nominal cells; each member is evaluated at
+    /// its own samples' means, the model and the truth at the same points.
     pub at_sample_means: bool,
 }
 
@@ -244,8 +247,9 @@ impl Stats {
     }
 }
 
-/// One supported (Δv, dΔv/dt) cell of a run in the [`curve`] view: its centre, the samples
-/// behind its support (the best-supported axle's), and the true and predicted μ at the centre.
+/// One supported (Δv, dΔv/dt) cell of a run in the [`curve`] view: where it is evaluated (its
+/// centre, or with [`Grid::at_sample_means`] its samples' mean slip and slip rate), the samples
+/// behind its support (the best-supported axle's), and the true and predicted μ there.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct CurveCell {
     pub dv_mps: f64,
@@ -313,7 +317,6 @@ pub fn curve(
     }
     let mut cells = Vec::with_capacity(best.len());
     for ((qi, di), m) in &best {
-        let n = &m.n;
         let (dv, q) = if grid.at_sample_means {
             (m.dv / m.n as f64, m.ddv / m.n as f64)
         } else {
@@ -333,7 +336,7 @@ pub fn curve(
         cells.push(CurveCell {
             dv_mps: dv,
             ddv_mps2: q,
-            samples: *n,
+            samples: m.n,
             true_mu: t,
             predicted_mu: p,
         });
@@ -345,7 +348,9 @@ pub fn curve(
     let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
     for (&(qi, di), &i) in &index {
         let up = &cells[i];
-        if qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&up.dv_mps) {
+        // The slip range by the cells' nominal slip (at the samples' means too).
+        let dv = di as f64 * grid.dv_step_mps;
+        if qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&dv) {
             continue;
         }
         if let Some(&j) = index.get(&(-qi, di)) {
@@ -576,7 +581,7 @@ mod tests {
     #[test]
     fn curve_cells_at_the_samples_means() {
         let mut rng = crate::rng::Rng::new(5);
-        let s: Vec<Sample> = (0..400)
+        let s1: Vec<Sample> = (0..400)
             .map(|_| Sample {
                 axle: 1,
                 dv_mps: 0.95 + 0.1 * rng.uniform(),
@@ -586,6 +591,16 @@ mod tests {
                 mu: 0.0,
             })
             .collect();
+        // Axle 2 in the same cells with fewer samples and other means: not the one scored.
+        let s2 = (0..300).map(|_| Sample {
+            axle: 2,
+            dv_mps: 0.91 + 0.02 * rng.uniform(),
+            ddv_mps2: 4.1 + 0.1 * rng.uniform(),
+            v_mps: 30.0,
+            t_c: f64::NAN,
+            mu: 0.0,
+        });
+        let s: Vec<Sample> = s1.iter().copied().chain(s2).collect();
         let linear = |_: f64, q: f64, _: f64, _: f64| 0.01 * q;
         let nominal = curve(&s, &Grid::default(), 30.0, f64::NAN, linear, linear).unwrap();
         let g = Grid {
@@ -594,11 +609,12 @@ mod tests {
         };
         let means = curve(&s, &g, 30.0, f64::NAN, linear, linear).unwrap();
         assert_eq!(nominal.cells.len(), means.cells.len());
-        // The cells holding every sample: Δv = 1.0 m/s (±0.1) at q = 4 (2–6) and q = 8 (4–12).
+        // The cells holding every sample of axle 1: Δv = 1.0 m/s (±0.1) at q = 4 (2–6) and
+        // q = 8 (4–12).
         let full = |c: &CurveScore| -> Vec<CurveCell> {
             c.cells
                 .iter()
-                .filter(|x| x.samples == s.len())
+                .filter(|x| x.samples == s1.len())
                 .copied()
                 .collect()
         };
@@ -607,8 +623,8 @@ mod tests {
             .map(|x| (x.dv_mps, x.ddv_mps2))
             .collect();
         assert_eq!(at_centres, vec![(1.0, 4.0), (1.0, 8.0)]);
-        let mean_q = s.iter().map(|x| x.ddv_mps2).sum::<f64>() / s.len() as f64;
-        let mean_dv = s.iter().map(|x| x.dv_mps).sum::<f64>() / s.len() as f64;
+        let mean_q = s1.iter().map(|x| x.ddv_mps2).sum::<f64>() / s1.len() as f64;
+        let mean_dv = s1.iter().map(|x| x.dv_mps).sum::<f64>() / s1.len() as f64;
         let at_means = full(&means);
         assert_eq!(at_means.len(), 2);
         for c in at_means {
