@@ -694,54 +694,51 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     assert!(o_dir.join("report/index.html").exists());
 
+    // `bad` written over an output file: `report` exits 1 (the file restored after); its error.
+    let refused = |file: &str, bad: &str| -> String {
+        let path = o_dir.join(file);
+        let good = std::fs::read(&path).unwrap();
+        std::fs::write(&path, bad).unwrap();
+        let o = railgrip(&["report", "out"], dir.path());
+        std::fs::write(&path, good).unwrap();
+        let err = text(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{file}: {err}");
+        err
+    };
+
     // A model file of another generation (a killed re-run) is refused by name.
-    let path = o_dir.join("models/mlp.json");
-    let good = std::fs::read_to_string(&path).unwrap();
+    let good = std::fs::read_to_string(o_dir.join("models/mlp.json")).unwrap();
     let camp_rec: serde_json::Value =
         serde_json::from_slice(&std::fs::read(o_dir.join("campaign.json")).unwrap()).unwrap();
     let g = camp_rec["generation"].as_str().unwrap();
     assert_eq!(g.len(), 16);
     assert!(good.contains(g));
-    std::fs::write(&path, good.replace(g, "0123456789abcdef")).unwrap();
-    let o = railgrip(&["report", "out"], dir.path());
-    let err = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{err}");
+    let err = refused("models/mlp.json", &good.replace(g, "0123456789abcdef"));
     assert!(
         err.contains("mlp.json") && err.contains("generation 0123456789abcdef"),
         "{err}"
     );
-    std::fs::write(&path, good).unwrap();
 
     // A corrupt model or fits file is an error naming it, not a report without that section.
     for (file, bad) in [
         ("models/mlp.polach-fits.json", "{\"pooled\": 3}"),
         ("models/mlp.json", "{}"),
     ] {
-        let path = o_dir.join(file);
-        let good = std::fs::read(&path).unwrap();
-        std::fs::write(&path, bad).unwrap();
-        let o = railgrip(&["report", "out"], dir.path());
-        let err = text(&o.stderr);
-        assert_eq!(o.status.code(), Some(1), "{file}: {err}");
+        let err = refused(file, bad);
         assert!(err.contains(file) && err.contains("Hint:"), "{file}: {err}");
-        std::fs::write(&path, good).unwrap();
     }
     // A creepage the fits cannot have taken: named, with the values it may take.
-    let path = o_dir.join("models/mlp.polach-fits.json");
-    let good = std::fs::read_to_string(&path).unwrap();
+    let fits = "models/mlp.polach-fits.json";
+    let good = std::fs::read_to_string(o_dir.join(fits)).unwrap();
     let chosen = "\"chosen\": \"rolling_speed\"";
     assert!(good.contains(chosen), "{good}");
-    std::fs::write(&path, good.replace(chosen, "\"chosen\": \"sideways\"")).unwrap();
-    let o = railgrip(&["report", "out"], dir.path());
-    let err = text(&o.stderr);
-    assert_eq!(o.status.code(), Some(1), "{err}");
+    let err = refused(fits, &good.replace(chosen, "\"chosen\": \"sideways\""));
     assert!(
         err.contains("mlp.polach-fits.json")
             && err.contains("sideways")
             && err.contains("fixed_speed"),
         "{err}"
     );
-    std::fs::write(&path, good).unwrap();
 }
 
 #[test]

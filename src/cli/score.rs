@@ -173,37 +173,22 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             let s = score(&samples, &grid, predict).with_context(context)?;
             let mut line = Line::new(&name, v0_kmh, t_c, &s);
             if let Some(law) = &law {
-                let c = curve(
-                    &samples,
-                    &grid,
-                    v0_kmh / 3.6,
-                    t_c,
-                    predict,
-                    |dv, q, v, _| law.mu(dv, q, v),
-                )
-                .with_context(context)?;
+                let v0 = v0_kmh / 3.6;
+                let own = |dv, q, v, _| law.mu(dv, q, v);
+                let c = curve(&samples, &grid, v0, t_c, predict, own).with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
-                let states = curve(
-                    &samples,
-                    &Grid {
-                        at_sample_means: true,
-                        ..grid.clone()
-                    },
-                    v0_kmh / 3.6,
-                    t_c,
-                    predict,
-                    |dv, q, v, _| law.mu(dv, q, v),
-                )
-                .with_context(context)?;
-                line.curve_at_states = Some(states.stats);
-                line.curve_at_states_hysteresis_ratio = states.hysteresis_ratio(MIN_HYSTERESIS);
+                let at_states = Grid {
+                    at_sample_means: true,
+                    ..grid.clone()
+                };
+                let c = curve(&samples, &at_states, v0, t_c, predict, own).with_context(context)?;
+                line.curve_at_states = Some(c.stats);
+                line.curve_at_states_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
                 line.level_scale = level_scale(&scene);
                 if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
                     let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / own_scale;
-                    let own = |dv, q, v, _| law.mu(dv, q, v);
-                    let v0 = v0_kmh / 3.6;
                     let m = curve(&samples, &grid, v0, t_c, predict, at_mean);
                     line.curve_mean_condition = Some(m.with_context(context)?.stats);
                     let f = curve(&samples, &grid, v0, t_c, at_mean, own);

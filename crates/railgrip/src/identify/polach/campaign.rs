@@ -137,7 +137,15 @@ pub fn fit_campaign(
     let speed = creepage.as_ref().and_then(CreepageChoice::speed);
     if speed.is_some() {
         // The pooled fit at that speed is made: only its profiles are left.
-        (fits, notes) = fit_groups(tables, patch, q_n, decimate, intervals, speed, fixed);
+        (fits, notes) = fit_groups(
+            tables,
+            patch,
+            q_n,
+            decimate,
+            intervals,
+            speed,
+            fixed.as_ref(),
+        );
     }
     let law = match &fits.pooled {
         Some(p) => fit_temperature_forms(
@@ -302,10 +310,9 @@ fn fit_groups(
     decimate: usize,
     intervals: bool,
     creepage_speed: Option<f64>,
-    pooled: Option<Unprofiled>,
+    pooled: Option<&Unprofiled>,
 ) -> (GroupFits, Vec<String>) {
     let start = DEFAULT_START;
-    let pooled = std::sync::Mutex::new(pooled);
     let all: Vec<&RunTable> = tables.iter().collect();
     let mut temps: Vec<f64> = tables
         .iter()
@@ -338,20 +345,14 @@ fn fit_groups(
         .par_iter()
         .map(|g| {
             let r = match g {
-                Group::Pooled => {
-                    let made = pooled
-                        .lock()
-                        .unwrap_or_else(std::sync::PoisonError::into_inner)
-                        .take();
-                    match made {
-                        Some(u) if intervals => {
-                            fit_samples("all runs", &all, patch, q_n, decimate, creepage_speed)
-                                .map(|s| u.finish(true, &s))
-                        }
-                        Some(u) => Ok(u.fit),
-                        None => fit("all runs", &all, intervals),
+                Group::Pooled => match pooled {
+                    Some(u) if intervals => {
+                        fit_samples("all runs", &all, patch, q_n, decimate, creepage_speed)
+                            .map(|s| u.finish(true, &s))
                     }
-                }
+                    Some(u) => Ok(u.fit.clone()),
+                    None => fit("all runs", &all, intervals),
+                },
                 Group::Run(i) => {
                     let t = &tables[*i];
                     fit(&t.name, &[t], false).map(|mut f| {

@@ -164,8 +164,8 @@ pub(super) struct Unprofiled {
 impl Unprofiled {
     /// The fit, with the profile likelihood of every estimated parameter when `profile`
     /// (`s`: the samples it was fitted to).
-    pub(super) fn finish(self, profile: bool, s: &[Sample]) -> PolachFit {
-        let mut fit = self.fit;
+    pub(super) fn finish(&self, profile: bool, s: &[Sample]) -> PolachFit {
+        let mut fit = self.fit.clone();
         if profile {
             fit.profiles = profiles(
                 &fit.group,
@@ -415,13 +415,7 @@ mod tests {
     /// `stiffer` (2: a creep slope twice what the fit's patch gives, so that k_A would have to
     /// be twice its true value), with a little noise.
     fn law_samples(x: &[f64; 5], stiffer: f64) -> Vec<Sample> {
-        let patch = ContactPatch {
-            a_m: 0.0061,
-            b_m: 0.0045,
-            g_pa: 8.0e10,
-            c11: 4.1,
-            c22: 3.6,
-        };
+        let patch = crate::identify::polach::tests::patch();
         let mut rng = crate::rng::Rng::new(7);
         let s: Vec<Sample> = (0..600)
             .map(|_| Sample {

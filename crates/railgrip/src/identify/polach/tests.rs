@@ -29,7 +29,8 @@ fn reparametrisation_round_trips_and_respects_bounds() {
     }
 }
 
-fn patch() -> ContactPatch {
+/// The contact patch of the unit tests (also the fit module's).
+pub(super) fn patch() -> ContactPatch {
     ContactPatch {
         a_m: 0.0061,
         b_m: 0.0045,
