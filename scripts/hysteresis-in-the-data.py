@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Does a simulated campaign's data keep the true loss - recovery difference?
+
+For every run and axle, bins the estimates (`railgrip run`'s runs/<run>/estimates.parquet,
+valid samples) by their own slip and slip rate, and the truth (<archive>/<run>.truth.parquet)
+by the true ones, on the curve view's cells: slip every 0.1 m/s (+-0.1) from 0.5 to 3 m/s,
+slip rate +-{0.25, 0.5, 1, 2, 4, 8} m/s^2 (0.5-1.5 times the centre), a pair of cells (+q, -q)
+counting where both hold at least 20 samples in both tables. Prints per run and axle the
+pairs, the estimates' mean loss - recovery difference over the truth's, and the estimates'
+mean offset on each branch (loss: +q, recovery: -q).
+
+    python3 scripts/hysteresis-in-the-data.py ARCHIVE_DIR RUN_OUT_DIR
+
+ARCHIVE_DIR holds the scenes' truth tables (`railgrip simulate`), RUN_OUT_DIR is the output
+folder of `railgrip run` on that archive. Needs numpy and pyarrow. The figures of
+docs/training.md ("Where the network loses it") come from it.
+"""
+import glob
+import os
+import sys
+
+import numpy as np
+import pyarrow.parquet as pq
+
+SLIPS = np.arange(0.5, 3.0 + 1e-9, 0.1)
+RATES = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0]
+MIN_SAMPLES = 20
+
+
+def cell_means(dv, q, mu):
+    """{(slip, rate): (mean mu at +rate, mean mu at -rate)} where both hold enough samples."""
+    out = {}
+    for s in SLIPS:
+        near = np.abs(dv - s) <= 0.1
+        for r in RATES:
+            sides = []
+            for sign in (1.0, -1.0):
+                m = near & (q * sign >= 0.5 * r) & (q * sign <= 1.5 * r)
+                sides.append((int(m.sum()), mu[m].mean() if m.any() else np.nan))
+            if all(n >= MIN_SAMPLES for n, _ in sides):
+                out[(round(float(s), 2), r)] = (sides[0][1], sides[1][1])
+    return out
+
+
+def main():
+    if len(sys.argv) != 3:
+        sys.exit(__doc__)
+    archive, run_out = sys.argv[1], sys.argv[2]
+    estimates = sorted(glob.glob(os.path.join(run_out, "runs", "*", "estimates.parquet")))
+    if not estimates:
+        sys.exit(f"no runs/*/estimates.parquet under {run_out}: give the output folder of `railgrip run`")
+    for path in estimates:
+        run = os.path.basename(os.path.dirname(path))
+        truth_path = os.path.join(archive, f"{run}.truth.parquet")
+        if not os.path.exists(truth_path):
+            print(f"{run}: no {truth_path}, skipped")
+            continue
+        truth = pq.read_table(truth_path).to_pandas()
+        est = pq.read_table(path).to_pandas()
+        cols = []
+        for axle in sorted(truth.axle.unique()):
+            t = truth[truth.axle == axle]
+            e = est[(est.axle == axle) & est.valid]
+            ct = cell_means(t.dv_mps.values, t.ddv_mps2.values, t.mu.values)
+            ce = cell_means(e.dv_mps.values, e.ddv_mps2.values, e.mu.values)
+            both = sorted(set(ct) & set(ce))
+            if not both:
+                cols.append(f"axle {axle}: no pairs")
+                continue
+            diff_t = np.mean([ct[k][0] - ct[k][1] for k in both])
+            diff_e = np.mean([ce[k][0] - ce[k][1] for k in both])
+            loss = np.mean([ce[k][0] - ct[k][0] for k in both])
+            rec = np.mean([ce[k][1] - ct[k][1] for k in both])
+            cols.append(
+                f"axle {axle}: {len(both):2d} pairs, ratio {diff_e / diff_t:.2f}"
+                f" (loss {loss:+.4f}, recovery {rec:+.4f})"
+            )
+        print(f"{run:18s} " + " | ".join(cols))
+
+
+if __name__ == "__main__":
+    main()
