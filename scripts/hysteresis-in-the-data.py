@@ -3,17 +3,20 @@
 
 For every run and axle, bins the estimates (`railgrip run`'s runs/<run>/estimates.parquet,
 valid samples) by their own slip and slip rate, and the truth (<archive>/<run>.truth.parquet)
-by the true ones, on the curve view's cells: slip every 0.1 m/s (+-0.1) from 0.5 to 3 m/s,
-slip rate +-{0.25, 0.5, 1, 2, 4, 8} m/s^2 (0.5-1.5 times the centre), a pair of cells (+q, -q)
-counting where both hold at least 20 samples in both tables. Prints per run and axle the
-pairs, the estimates' mean loss - recovery difference over the truth's, and the estimates'
-mean offset on each branch (loss: +q, recovery: -q).
+by the true ones, and takes each cell's mean mu. The cells are laid out as the curve view of
+`railgrip score` lays them out (score::Grid's defaults, speed ignored): slip every 0.1 m/s
+(+-0.1) from 0.5 to 3 m/s, slip rate +-{0.25, 0.5, 1, 2, 4, 8} m/s^2 (0.5-1.5 times the
+centre). Unlike the curve view, which scores a model at one point per cell on the
+best-supported axle, this compares the two tables' cell means axle by axle. A pair of cells
+(+q, -q) counts where both hold at least 20 samples in both tables. Prints per run and axle
+the pairs, the estimates' mean loss - recovery difference over the truth's, and the
+estimates' mean offset on each branch (loss: +q, recovery: -q).
 
     python3 scripts/hysteresis-in-the-data.py ARCHIVE_DIR RUN_OUT_DIR
 
 ARCHIVE_DIR holds the scenes' truth tables (`railgrip simulate`), RUN_OUT_DIR is the output
-folder of `railgrip run` on that archive. Needs numpy and pyarrow. The figures of
-docs/training.md ("Where the network loses it") come from it.
+folder of `railgrip run` on that archive. Needs numpy, pandas and pyarrow. The 0.94-1.05 of
+docs/training.md ("Where the network loses it") comes from it.
 """
 import glob
 import os
@@ -25,6 +28,8 @@ import pyarrow.parquet as pq
 SLIPS = np.arange(0.5, 3.0 + 1e-9, 0.1)
 RATES = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0]
 MIN_SAMPLES = 20
+# True loss - recovery difference below which no ratio is given (railgrip score's threshold).
+MIN_DIFFERENCE = 0.002
 
 
 def cell_means(dv, q, mu):
@@ -71,8 +76,10 @@ def main():
             diff_e = np.mean([ce[k][0] - ce[k][1] for k in both])
             loss = np.mean([ce[k][0] - ct[k][0] for k in both])
             rec = np.mean([ce[k][1] - ct[k][1] for k in both])
+            # A ratio of two near-zero differences means nothing (the score's threshold).
+            ratio = f"{diff_e / diff_t:.2f}" if abs(diff_t) >= MIN_DIFFERENCE else "n/a"
             cols.append(
-                f"axle {axle}: {len(both):2d} pairs, ratio {diff_e / diff_t:.2f}"
+                f"axle {axle}: {len(both):2d} pairs, ratio {ratio}"
                 f" (loss {loss:+.4f}, recovery {rec:+.4f})"
             )
         print(f"{run:18s} " + " | ".join(cols))
