@@ -16,6 +16,9 @@
 //! without early stopping, and `benches/peers/adam_torch.py` (PyTorch, float64, 1 thread and
 //! all threads) — seconds per epoch and the validation MSE after the last epoch. The PyTorch
 //! peer is skipped with a message when python3 with torch is missing (`pip install torch`).
+//! What the comparison depends on is printed with it: this CPU (model, the vector path
+//! railgrip takes, logical CPUs) and the peer's torch version, the vector extension its CPU
+//! kernels dispatch to, and whether it has MKL and oneDNN.
 
 use std::hint::black_box;
 use std::path::PathBuf;
@@ -182,6 +185,8 @@ fn bench(c: &mut Criterion) {
     std::fs::create_dir_all(&dir).unwrap();
     let peer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/adam_torch.py");
     let epochs = 10;
+    eprintln!("adam: CPU {}", common::cpu_line());
+    let mut peer_env: Option<String> = None;
     println!(
         "\n{:<12} {:>18} {:>14} {:>18} {:>14} {:>18} {:>14}",
         "network",
@@ -219,6 +224,15 @@ fn bench(c: &mut Criterion) {
             match cmd.output() {
                 Ok(o) if o.status.success() => {
                     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+                    peer_env.get_or_insert_with(|| {
+                        format!(
+                            "torch {}, CPU kernels {}, MKL {}, oneDNN {}",
+                            r["torch"].as_str().unwrap_or("?"),
+                            r["cpu_capability"].as_str().unwrap_or("unknown"),
+                            r["mkl"],
+                            r["mkldnn"]
+                        )
+                    });
                     peer_cols.push(format!(
                         "{:>18.3} {:>14.3e}",
                         r["s_per_epoch"].as_f64().unwrap(),
@@ -252,6 +266,9 @@ fn bench(c: &mut Criterion) {
             ours_val,
             peer_cols.join(" ")
         );
+    }
+    if let Some(env) = peer_env {
+        eprintln!("adam: peer {env}");
     }
 }
 

@@ -10,6 +10,9 @@
 
 use std::hint::black_box;
 
+#[path = "../tests/common/mod.rs"]
+mod common;
+
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use railgrip::contact::fastsim::{Bound, Creepage, Fastsim, Friction, Patch};
 use railgrip::contact::flash::{flash_temperature, Heating, Material};
@@ -155,7 +158,8 @@ fn bench_fastsim(c: &mut Criterion) {
 /// numpy with the strips vectorised, and the plain loop compiled by numba), on identical
 /// inputs in the same run: forces compared, time per call best of 5 on each side (railgrip's
 /// own loop here; the criterion rows above are the reported figures). Skipped with a message
-/// without python3 and numpy (numba optional).
+/// without python3 and numpy (numba optional). Printed with this CPU and the peers' versions,
+/// numba's with the CPU its LLVM compiles for and that CPU's widest vector extension.
 fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
     use std::process::Command;
     let grids = [10usize, 20, 50, 100, 200];
@@ -193,8 +197,9 @@ fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
         eprintln!("(numba missing: pip install numba for the compiled peer)");
     }
     eprintln!(
-        "FASTSIM (elliptic bound) against Python peers ({}), same inputs, same run, µs per call:",
-        v["versions"].as_str().unwrap_or("versions unknown")
+        "FASTSIM (elliptic bound) against Python peers ({}), same inputs, same run, µs per call; CPU {}:",
+        v["versions"].as_str().unwrap_or("versions unknown"),
+        common::cpu_line()
     );
     eprintln!(
         "  grid     railgrip   numpy (×)          numba (×)          largest |ΔF|/μN vs railgrip"

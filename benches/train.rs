@@ -10,7 +10,9 @@
 //! - railgrip: trainlm defaults with validation stop, wall time and the validation MSE of the
 //!   weights it returns, and the time at which its validation MSE first reached scipy's;
 //! - scipy: `benches/peers/lm_scipy.py` (`least_squares(method='lm')`, MINPACK, analytic
-//!   Jacobian) — skipped with a message when python3 with numpy and scipy is missing;
+//!   Jacobian) — skipped with a message when python3 with numpy and scipy is missing; printed
+//!   with this CPU (model, the vector path railgrip takes, logical CPUs) and scipy's and
+//!   numpy's versions and BLAS;
 //! - the exported C header: ns per call and per sample of the batch function, compiled with the
 //!   system `cc -O2` and `cc -O3 -march=native` (skipped without cc).
 //!
@@ -108,6 +110,7 @@ fn bench(c: &mut Criterion) {
         trained.val_mse
     );
 
+    eprintln!("train: CPU {}", common::cpu_line());
     // scipy peer (RAILGRIP_BENCH_QUICK=1 skips it while iterating on the evaluator).
     let quick = std::env::var("RAILGRIP_BENCH_QUICK").as_deref() == Ok("1");
     let peer = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("benches/peers/lm_scipy.py");

@@ -86,6 +86,11 @@ def main():
         "train_mse": train_mse,
         "val_mse": val_mse,
         "torch": torch.__version__,
+        # The vector extension torch's own CPU kernels dispatch to, and its math libraries.
+        "cpu_capability": getattr(getattr(torch.backends, "cpu", None), "get_cpu_capability",
+                                  lambda: "unknown")(),
+        "mkl": torch.backends.mkl.is_available(),
+        "mkldnn": torch.backends.mkldnn.is_available(),
     }))
 
 

@@ -147,11 +147,20 @@ def best_us(f, calls):
 
 
 def versions():
-    """numpy's version, and numba's when it is installed."""
+    """numpy's version, and numba's when it is installed with the CPU its LLVM compiles for
+    and the widest vector extension that CPU gives it."""
     v = f"numpy {np.__version__}"
     try:
         import numba
         v += f", numba {numba.__version__}"
+        try:
+            import llvmlite.binding as llvm
+            feats = llvm.get_host_cpu_features()
+            width = ("AVX-512" if feats.get("avx512f") else
+                     "AVX2" if feats.get("avx2") else "no AVX2")
+            v += f" (LLVM target {llvm.get_host_cpu_name()}, {width})"
+        except Exception:
+            pass
     except ImportError:
         pass
     return v

@@ -65,8 +65,25 @@ def main(path):
         "val_mse": val_mse,
         "status": int(res.status),
         "message": res.message,
-        "versions": f"scipy {scipy.__version__}, numpy {np.__version__}",
+        "versions": versions(),
     }))
+
+
+def versions():
+    """scipy's and numpy's versions and the BLAS each was built with (MINPACK's own loops are
+    plain C; the residuals and Jacobian here are numpy)."""
+    def blas(config):
+        try:
+            b = config["Build Dependencies"]["blas"]
+            return f"{b.get('name', '?')} {b.get('version', '')}".strip()
+        except Exception:  # an older release without mode="dicts"
+            return "BLAS unknown"
+    try:
+        scipy_cfg = scipy.show_config(mode="dicts")
+    except Exception:  # scipy before 1.11 has no mode="dicts"
+        scipy_cfg = {}
+    return (f"scipy {scipy.__version__} ({blas(scipy_cfg)}), "
+            f"numpy {np.__version__} ({blas(np.show_config(mode='dicts'))})")
 
 
 if __name__ == "__main__":
