@@ -229,8 +229,12 @@ fn bench(c: &mut Criterion) {
                             "torch {}, CPU kernels {}, MKL {}, oneDNN {}",
                             r["torch"].as_str().unwrap_or("?"),
                             r["cpu_capability"].as_str().unwrap_or("unknown"),
-                            r["mkl"],
+                            r["mkl"]
+                                .as_bool()
+                                .map_or("?", |b| if b { "yes" } else { "no" }),
                             r["mkldnn"]
+                                .as_bool()
+                                .map_or("?", |b| if b { "yes" } else { "no" })
                         )
                     });
                     peer_cols.push(format!(

@@ -196,10 +196,10 @@ fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
     if v["numba"] != true {
         eprintln!("(numba missing: pip install numba for the compiled peer)");
     }
+    eprintln!("contact: CPU {}", common::cpu_line());
     eprintln!(
-        "FASTSIM (elliptic bound) against Python peers ({}), same inputs, same run, µs per call; CPU {}:",
-        v["versions"].as_str().unwrap_or("versions unknown"),
-        common::cpu_line()
+        "FASTSIM (elliptic bound) against Python peers ({}), same inputs, same run, µs per call:",
+        v["versions"].as_str().unwrap_or("versions unknown")
     );
     eprintln!(
         "  grid     railgrip   numpy (×)          numba (×)          largest |ΔF|/μN vs railgrip"

@@ -89,9 +89,18 @@ def main():
         # The vector extension torch's own CPU kernels dispatch to, and its math libraries.
         "cpu_capability": getattr(getattr(torch.backends, "cpu", None), "get_cpu_capability",
                                   lambda: "unknown")(),
-        "mkl": torch.backends.mkl.is_available(),
-        "mkldnn": torch.backends.mkldnn.is_available(),
+        "mkl": available("mkl"),
+        "mkldnn": available("mkldnn"),
     }))
+
+
+def available(backend):
+    """Whether torch has the math library `backend` ("mkl", "mkldnn"); None where this torch
+    cannot say."""
+    try:
+        return bool(getattr(torch.backends, backend).is_available())
+    except Exception:
+        return None
 
 
 if __name__ == "__main__":

@@ -158,7 +158,9 @@ def versions():
             feats = llvm.get_host_cpu_features()
             width = ("AVX-512" if feats.get("avx512f") else
                      "AVX2" if feats.get("avx2") else "no AVX2")
-            v += f" (LLVM target {llvm.get_host_cpu_name()}, {width})"
+            # NUMBA_CPU_NAME, when set, is what numba compiles for instead of this CPU.
+            target = numba.core.config.CPU_NAME or llvm.get_host_cpu_name()
+            v += f" (LLVM target {target}, the host CPU has {width})"
         except Exception:
             pass
     except ImportError:

@@ -72,18 +72,14 @@ def main(path):
 def versions():
     """scipy's and numpy's versions and the BLAS each was built with (MINPACK's own loops are
     plain C; the residuals and Jacobian here are numpy)."""
-    def blas(config):
+    def blas(module):
         try:
-            b = config["Build Dependencies"]["blas"]
+            b = module.show_config(mode="dicts")["Build Dependencies"]["blas"]
             return f"{b.get('name', '?')} {b.get('version', '')}".strip()
-        except Exception:  # an older release without mode="dicts"
+        except Exception:  # a release without show_config(mode="dicts"), or no BLAS entry
             return "BLAS unknown"
-    try:
-        scipy_cfg = scipy.show_config(mode="dicts")
-    except Exception:  # scipy before 1.11 has no mode="dicts"
-        scipy_cfg = {}
-    return (f"scipy {scipy.__version__} ({blas(scipy_cfg)}), "
-            f"numpy {np.__version__} ({blas(np.show_config(mode='dicts'))})")
+    return (f"scipy {scipy.__version__} ({blas(scipy)}), "
+            f"numpy {np.__version__} ({blas(np)})")
 
 
 if __name__ == "__main__":
