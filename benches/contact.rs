@@ -159,7 +159,7 @@ fn bench_fastsim(c: &mut Criterion) {
 /// inputs in the same run: forces compared, time per call best of 5 on each side (railgrip's
 /// own loop here; the criterion rows above are the reported figures). Skipped with a message
 /// without python3 and numpy (numba optional). Printed with this CPU and the peers' versions,
-/// numba's with the CPU its LLVM compiles for and that CPU's widest vector extension.
+/// numba's with the CPU its LLVM compiles for and the host's widest vector extension.
 fn fastsim_peers(fp: &Patch, fr: &Friction, cr: &Creepage) {
     use std::process::Command;
     let grids = [10usize, 20, 50, 100, 200];

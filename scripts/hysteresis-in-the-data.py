@@ -28,6 +28,8 @@ import pyarrow.parquet as pq
 SLIPS = np.arange(0.5, 3.0 + 1e-9, 0.1)
 RATES = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0]
 MIN_SAMPLES = 20
+TRUTH_COLUMNS = ("axle", "dv_mps", "ddv_mps2", "mu")
+ESTIMATE_COLUMNS = TRUTH_COLUMNS + ("valid",)
 # True loss - recovery difference below which no ratio is given (railgrip score's threshold).
 MIN_DIFFERENCE = 0.002
 
@@ -54,14 +56,21 @@ def main():
     estimates = sorted(glob.glob(os.path.join(run_out, "runs", "*", "estimates.parquet")))
     if not estimates:
         sys.exit(f"no runs/*/estimates.parquet under {run_out}: give the output folder of `railgrip run`")
+    compared = 0
     for path in estimates:
         run = os.path.basename(os.path.dirname(path))
         truth_path = os.path.join(archive, f"{run}.truth.parquet")
         if not os.path.exists(truth_path):
-            print(f"{run}: no {truth_path}, skipped")
+            print(f"{truth_path}: missing, run {run} skipped (give the archive it was simulated into)",
+                  file=sys.stderr)
             continue
         truth = pq.read_table(truth_path).to_pandas()
         est = pq.read_table(path).to_pandas()
+        for table, name, cols in ((truth, truth_path, TRUTH_COLUMNS), (est, path, ESTIMATE_COLUMNS)):
+            missing = [c for c in cols if c not in table.columns]
+            if missing:
+                sys.exit(f"{name}: no column {missing[0]}; give a table written by railgrip")
+        compared += 1
         cols = []
         for axle in sorted(truth.axle.unique()):
             t = truth[truth.axle == axle]
@@ -83,6 +92,8 @@ def main():
                 f" (loss {loss:+.4f}, recovery {rec:+.4f})"
             )
         print(f"{run:18s} " + " | ".join(cols))
+    if compared == 0:
+        sys.exit(f"no run of {run_out} has its truth table in {archive}: nothing compared")
 
 
 if __name__ == "__main__":

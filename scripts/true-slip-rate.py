@@ -1,21 +1,26 @@
 #!/usr/bin/env python3
-"""A simulated campaign's estimates with one column replaced by the truth's, for `railgrip train`.
+"""A simulated campaign's estimates with columns replaced by the truth's, for `railgrip train`.
 
 Copies every runs/<run>/estimates.parquet of a `railgrip run` output folder to
-OUT_DIR/<run>.estimates.parquet (the name `railgrip train` takes) with the named columns
-(default ddv_mps2, the slip rate) taken from <archive>/<run>.truth.parquet, matched per axle
-to the nearest truth sample in time (within 1 ms; where none is that close the estimate is
-kept). Every other column, and the file's run metadata, stay as they were. Training on the
-result asks how much of a model's error comes from that column's estimation error:
+OUT_DIR/<run>.estimates.parquet (the name `railgrip train` takes). In the runs that --only
+selects (default: all), the --columns (default ddv_mps2, the slip rate) are taken from
+<archive>/<run>.truth.parquet, matched per axle to the nearest truth sample in time (within
+1 ms; where none is that close the estimate is kept); the other runs are copied unedited.
+Every other column, and each file's run metadata, stay as they were. Training on the result
+asks how much of a model's error comes from that column's estimation error:
 
-    python3 scripts/true-slip-rate.py ARCHIVE_DIR RUN_OUT_DIR OUT_DIR [COLUMNS]
+    python3 scripts/true-slip-rate.py ARCHIVE_DIR RUN_OUT_DIR OUT_DIR [--columns C1,C2]
+                                      [--only PATTERN ...]
     railgrip train OUT_DIR/*.estimates.parquet --out OUT_DIR/models
     railgrip score OUT_DIR/models/mlp.residual.json pipelines/scenes/top_speed/*.toml --seeds N
 
-COLUMNS is a comma-separated list of estimate columns the truth table also has (ddv_mps2,
-dv_mps, mu, v_mps, omega_radps, p_bar, normal_N, tangential_N). Needs numpy, pandas and
-pyarrow. docs/training.md ("The estimated slip rate is the cause") used it with the default.
+--columns: estimate columns the truth table also has, numeric (ddv_mps2, dv_mps, mu, v_mps,
+omega_radps, p_bar, normal_N, tangential_N). --only: shell patterns of run names
+(e.g. 'lrq_160*' 'lrq_200*'). Needs numpy, pandas and pyarrow. docs/training.md ("On seed 1
+the estimated slip rate is the cause") used it.
 """
+import argparse
+import fnmatch
 import glob
 import os
 import sys
@@ -52,30 +57,44 @@ def replaced(estimates, truth, columns):
     return estimates
 
 
+def check_columns(path, schema, columns, what):
+    """Exits naming the file when a column is missing or not a floating-point column."""
+    for c in columns:
+        if c not in schema.names:
+            sys.exit(f"{path}: no column {c} in the {what}; it has {', '.join(schema.names)}")
+        if not pa.types.is_floating(schema.field(c).type):
+            sys.exit(f"{path}: column {c} is {schema.field(c).type}, not a number; give numeric columns")
+
+
 def main():
-    if len(sys.argv) not in (4, 5):
-        sys.exit(__doc__)
-    archive, run_out, out = sys.argv[1:4]
-    columns = (sys.argv[4] if len(sys.argv) == 5 else "ddv_mps2").split(",")
-    paths = sorted(glob.glob(os.path.join(run_out, "runs", "*", "estimates.parquet")))
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("archive", help="folder with the scenes' <run>.truth.parquet")
+    ap.add_argument("run_out", help="output folder of `railgrip run` on that archive")
+    ap.add_argument("out", help="folder to write <run>.estimates.parquet into")
+    ap.add_argument("--columns", default="ddv_mps2", help="comma-separated (default ddv_mps2)")
+    ap.add_argument("--only", nargs="*", default=["*"], help="run-name patterns to edit (default all)")
+    a = ap.parse_args()
+    columns = [c for c in a.columns.split(",") if c]
+    paths = sorted(glob.glob(os.path.join(a.run_out, "runs", "*", "estimates.parquet")))
     if not paths:
-        sys.exit(f"no runs/*/estimates.parquet under {run_out}: give the output folder of `railgrip run`")
-    os.makedirs(out, exist_ok=True)
+        sys.exit(f"no runs/*/estimates.parquet under {a.run_out}: give the output folder of `railgrip run`")
+    os.makedirs(a.out, exist_ok=True)
     for path in paths:
         run = os.path.basename(os.path.dirname(path))
-        truth_path = os.path.join(archive, f"{run}.truth.parquet")
-        if not os.path.exists(truth_path):
-            sys.exit(f"{truth_path}: missing; give the archive the run was simulated into")
-        truth = pq.read_table(truth_path).to_pandas()
-        missing = [c for c in columns if c not in truth.columns]
-        if missing:
-            sys.exit(f"{truth_path}: no column {missing[0]}; the truth has {', '.join(truth.columns)}")
         table = pq.read_table(path)
         # The run metadata railgrip reads is in the file's key-value metadata.
         meta = {k: v for k, v in (pq.read_metadata(path).metadata or {}).items() if k != b"ARROW:schema"}
-        table = replaced(table, truth, columns).replace_schema_metadata(meta)
-        pq.write_table(table, os.path.join(out, f"{run}.estimates.parquet"))
-        print(f"{run}: {', '.join(columns)} from the truth")
+        edit = any(fnmatch.fnmatchcase(run, p) for p in a.only)
+        if edit:
+            truth_path = os.path.join(a.archive, f"{run}.truth.parquet")
+            if not os.path.exists(truth_path):
+                sys.exit(f"{truth_path}: missing; give the archive the run was simulated into")
+            check_columns(path, table.schema, columns, "estimates")
+            truth = pq.read_table(truth_path)
+            check_columns(truth_path, truth.schema, columns, "truth")
+            table = replaced(table, truth.to_pandas(), columns)
+        pq.write_table(table.replace_schema_metadata(meta), os.path.join(a.out, f"{run}.estimates.parquet"))
+        print(f"{run}: {', '.join(columns) + ' from the truth' if edit else 'unedited'}")
 
 
 if __name__ == "__main__":
