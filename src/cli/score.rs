@@ -7,7 +7,9 @@ use std::path::PathBuf;
 
 use anyhow::Context as _;
 use railgrip::model::Model;
-use railgrip::score::{curve, replay, score, Band, Grid, Sample, Score, Stats, SPEED_BANDS_KMH};
+use railgrip::score::{
+    replay, score, Band, CurveSupport, Grid, Sample, Score, Stats, SPEED_BANDS_KMH,
+};
 use railgrip::sim::{self, AdhesionLaw, Scene, TrueLaw};
 
 use super::{EXIT_LOSSY, EXIT_OK};
@@ -175,23 +177,25 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             if let Some(law) = &law {
                 let v0 = v0_kmh / 3.6;
                 let own = |dv, q, v, _| law.mu(dv, q, v);
-                let c = curve(&samples, &grid, v0, t_c, predict, own).with_context(context)?;
+                // The run's cells once, for every curve table below.
+                let cells = CurveSupport::of(&samples, &grid).with_context(context)?;
+                let c = cells
+                    .curve(false, v0, t_c, predict, own)
+                    .with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
-                let at_states = Grid {
-                    at_sample_means: true,
-                    ..grid.clone()
-                };
-                let c = curve(&samples, &at_states, v0, t_c, predict, own).with_context(context)?;
+                let c = cells
+                    .curve(true, v0, t_c, predict, own)
+                    .with_context(context)?;
                 line.curve_at_states = Some(c.stats);
                 line.curve_at_states_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
                 line.level_scale = level_scale(&scene);
                 if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
                     let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / own_scale;
-                    let m = curve(&samples, &grid, v0, t_c, predict, at_mean);
+                    let m = cells.curve(false, v0, t_c, predict, at_mean);
                     line.curve_mean_condition = Some(m.with_context(context)?.stats);
-                    let f = curve(&samples, &grid, v0, t_c, at_mean, own);
+                    let f = cells.curve(false, v0, t_c, at_mean, own);
                     line.curve_condition_floor = Some(f.with_context(context)?.stats);
                 }
             }

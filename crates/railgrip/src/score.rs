@@ -282,9 +282,64 @@ impl CurveScore {
     }
 }
 
+/// The cells a run supports in the [`curve`] view: per (slip rate, slip) cell of `grid`'s
+/// geometry (speed ignored), the moments of the axle with the most samples there. Computed once
+/// per run, it serves every curve table of that run ([`CurveSupport::curve`]).
+#[derive(Debug, Clone)]
+pub struct CurveSupport {
+    grid: Grid,
+    best: BTreeMap<(i64, i64), Moments>,
+}
+
+impl CurveSupport {
+    /// The support of the run's `samples` on `grid`'s cells; an error when a sample is not
+    /// finite or no cell has `grid.min_samples` samples of one axle.
+    pub fn of(samples: &[Sample], grid: &Grid) -> Result<CurveSupport, ScoreError> {
+        // Support of (axle, q, Δv) over all speeds: one speed cell holding every speed.
+        let wide = Grid {
+            v_step_kmh: 1e9,
+            v_half_kmh: 0.5e9,
+            ..grid.clone()
+        };
+        let counts = support(samples, &wide)?;
+        // Per (slip rate, slip) cell the axle with the most samples (the first of equals).
+        let mut best: BTreeMap<(i64, i64), Moments> = BTreeMap::new();
+        for ((_, _, qi, di), m) in &counts {
+            if m.n >= grid.min_samples {
+                let b = best.entry((*qi, *di)).or_default();
+                if m.n > b.n {
+                    *b = *m;
+                }
+            }
+        }
+        if best.is_empty() {
+            return Err(ScoreError::NoSupport {
+                min: grid.min_samples,
+            });
+        }
+        Ok(CurveSupport {
+            grid: grid.clone(),
+            best,
+        })
+    }
+
+    /// The curve view on these cells (see [`curve`]), each cell at its nominal centre or, with
+    /// `at_sample_means`, at its samples' mean slip and slip rate.
+    pub fn curve(
+        &self,
+        at_sample_means: bool,
+        v_mps: f64,
+        t_c: f64,
+        predict: impl Fn(f64, f64, f64, f64) -> f64,
+        law: impl Fn(f64, f64, f64, f64) -> f64,
+    ) -> Result<CurveScore, ScoreError> {
+        curve_on(self, at_sample_means, v_mps, t_c, predict, law)
+    }
+}
+
 /// The curve view of one run (module text): `predict` and the true `law`, both
 /// μ(Δv, dΔv/dt, v, T), on the (Δv, dΔv/dt) cells the run's `samples` support, at speed
-/// `v_mps` (m/s) and temperature `t_c` (°C).
+/// `v_mps` (m/s) and temperature `t_c` (°C). Several views of one run: [`CurveSupport`].
 pub fn curve(
     samples: &[Sample],
     grid: &Grid,
@@ -293,31 +348,23 @@ pub fn curve(
     predict: impl Fn(f64, f64, f64, f64) -> f64,
     law: impl Fn(f64, f64, f64, f64) -> f64,
 ) -> Result<CurveScore, ScoreError> {
-    // Support of (axle, q, Δv) over all speeds: one speed cell holding every speed.
-    let wide = Grid {
-        v_step_kmh: 1e9,
-        v_half_kmh: 0.5e9,
-        ..grid.clone()
-    };
-    let counts = support(samples, &wide)?;
-    // Per (slip rate, slip) cell the axle with the most samples (the first of equals).
-    let mut best: BTreeMap<(i64, i64), Moments> = BTreeMap::new();
-    for ((_, _, qi, di), m) in &counts {
-        if m.n >= grid.min_samples {
-            let b = best.entry((*qi, *di)).or_default();
-            if m.n > b.n {
-                *b = *m;
-            }
-        }
-    }
-    if best.is_empty() {
-        return Err(ScoreError::NoSupport {
-            min: grid.min_samples,
-        });
-    }
+    let support = CurveSupport::of(samples, grid)?;
+    curve_on(&support, grid.at_sample_means, v_mps, t_c, predict, law)
+}
+
+/// [`curve`] on a run's support computed once.
+fn curve_on(
+    support: &CurveSupport,
+    at_sample_means: bool,
+    v_mps: f64,
+    t_c: f64,
+    predict: impl Fn(f64, f64, f64, f64) -> f64,
+    law: impl Fn(f64, f64, f64, f64) -> f64,
+) -> Result<CurveScore, ScoreError> {
+    let (grid, best) = (&support.grid, &support.best);
     let mut cells = Vec::with_capacity(best.len());
-    for ((qi, di), m) in &best {
-        let (dv, q) = if grid.at_sample_means {
+    for ((qi, di), m) in best {
+        let (dv, q) = if at_sample_means {
             (m.dv / m.n as f64, m.ddv / m.n as f64)
         } else {
             (
@@ -631,6 +678,17 @@ mod tests {
             assert!((c.ddv_mps2 - mean_q).abs() < 1e-12, "{c:?} {mean_q}");
             assert!((c.dv_mps - mean_dv).abs() < 1e-12, "{c:?} {mean_dv}");
             assert!((c.true_mu - 0.01 * mean_q).abs() < 1e-12);
+        }
+        // One support serves both views with the same cells as computing it per view.
+        let once = CurveSupport::of(&s, &Grid::default()).unwrap();
+        for (at_means, per_view) in [(false, &nominal), (true, &means)] {
+            let c = once
+                .curve(at_means, 30.0, f64::NAN, linear, linear)
+                .unwrap();
+            assert_eq!(
+                (&c.cells, c.stats, c.hysteresis),
+                (&per_view.cells, per_view.stats, per_view.hysteresis)
+            );
         }
     }
 
