@@ -333,7 +333,58 @@ impl CurveSupport {
         predict: impl Fn(f64, f64, f64, f64) -> f64,
         law: impl Fn(f64, f64, f64, f64) -> f64,
     ) -> Result<CurveScore, ScoreError> {
-        curve_on(self, at_sample_means, v_mps, t_c, predict, law)
+        let (grid, best) = (&self.grid, &self.best);
+        let mut cells = Vec::with_capacity(best.len());
+        for ((qi, di), m) in best {
+            let (dv, q) = if at_sample_means {
+                (m.dv / m.n as f64, m.ddv / m.n as f64)
+            } else {
+                (
+                    *di as f64 * grid.dv_step_mps,
+                    qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1],
+                )
+            };
+            let (p, t) = (predict(dv, q, v_mps, t_c), law(dv, q, v_mps, t_c));
+            if !p.is_finite() || !t.is_finite() {
+                return Err(ScoreError::Model {
+                    dv,
+                    ddv: q,
+                    v: v_mps,
+                });
+            }
+            cells.push(CurveCell {
+                dv_mps: dv,
+                ddv_mps2: q,
+                samples: m.n,
+                true_mu: t,
+                predicted_mu: p,
+            });
+        }
+        let stats = Stats::of(cells.iter().map(|c| c.predicted_mu - c.true_mu));
+        // The cells are in `best`'s key order: the index of a key is its cell's.
+        let index: BTreeMap<(i64, i64), usize> =
+            best.keys().enumerate().map(|(i, k)| (*k, i)).collect();
+        let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
+        for (&(qi, di), &i) in &index {
+            let up = &cells[i];
+            // The slip range by the cells' nominal slip (at the samples' means too).
+            let dv = di as f64 * grid.dv_step_mps;
+            if qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&dv) {
+                continue;
+            }
+            if let Some(&j) = index.get(&(-qi, di)) {
+                dt += up.true_mu - cells[j].true_mu;
+                dp += up.predicted_mu - cells[j].predicted_mu;
+                pairs += 1;
+            }
+        }
+        Ok(CurveScore {
+            v_mps,
+            t_c,
+            cells,
+            stats,
+            hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
+        })
     }
 }
 
@@ -349,70 +400,7 @@ pub fn curve(
     law: impl Fn(f64, f64, f64, f64) -> f64,
 ) -> Result<CurveScore, ScoreError> {
     let support = CurveSupport::of(samples, grid)?;
-    curve_on(&support, grid.at_sample_means, v_mps, t_c, predict, law)
-}
-
-/// [`curve`] on a run's support computed once.
-fn curve_on(
-    support: &CurveSupport,
-    at_sample_means: bool,
-    v_mps: f64,
-    t_c: f64,
-    predict: impl Fn(f64, f64, f64, f64) -> f64,
-    law: impl Fn(f64, f64, f64, f64) -> f64,
-) -> Result<CurveScore, ScoreError> {
-    let (grid, best) = (&support.grid, &support.best);
-    let mut cells = Vec::with_capacity(best.len());
-    for ((qi, di), m) in best {
-        let (dv, q) = if at_sample_means {
-            (m.dv / m.n as f64, m.ddv / m.n as f64)
-        } else {
-            (
-                *di as f64 * grid.dv_step_mps,
-                qi.signum() as f64 * grid.q_centres_mps2[qi.unsigned_abs() as usize - 1],
-            )
-        };
-        let (p, t) = (predict(dv, q, v_mps, t_c), law(dv, q, v_mps, t_c));
-        if !p.is_finite() || !t.is_finite() {
-            return Err(ScoreError::Model {
-                dv,
-                ddv: q,
-                v: v_mps,
-            });
-        }
-        cells.push(CurveCell {
-            dv_mps: dv,
-            ddv_mps2: q,
-            samples: m.n,
-            true_mu: t,
-            predicted_mu: p,
-        });
-    }
-    let stats = Stats::of(cells.iter().map(|c| c.predicted_mu - c.true_mu));
-    // The cells are in `best`'s key order: the index of a key is its cell's.
-    let index: BTreeMap<(i64, i64), usize> =
-        best.keys().enumerate().map(|(i, k)| (*k, i)).collect();
-    let (mut dt, mut dp, mut pairs) = (0.0, 0.0, 0usize);
-    for (&(qi, di), &i) in &index {
-        let up = &cells[i];
-        // The slip range by the cells' nominal slip (at the samples' means too).
-        let dv = di as f64 * grid.dv_step_mps;
-        if qi <= 0 || !(0.5 - 1e-9..=3.0 + 1e-9).contains(&dv) {
-            continue;
-        }
-        if let Some(&j) = index.get(&(-qi, di)) {
-            dt += up.true_mu - cells[j].true_mu;
-            dp += up.predicted_mu - cells[j].predicted_mu;
-            pairs += 1;
-        }
-    }
-    Ok(CurveScore {
-        v_mps,
-        t_c,
-        cells,
-        stats,
-        hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
-    })
+    support.curve(grid.at_sample_means, v_mps, t_c, predict, law)
 }
 
 /// One speed band of the [`replay`] view: [lo, hi) km/h and the statistics of its samples.
