@@ -4,8 +4,8 @@
 use serde::{Deserialize, Serialize};
 
 use super::law::{
-    law_params, sigmoid, solver_order, with_patch, ParamStatus, Sample, AT_BOUND, IDENTIFIED_Z,
-    LOWER, UPPER,
+    is_at_bound, law_params, sigmoid, solver_order, with_patch, ParamStatus, Sample, AT_BOUND,
+    IDENTIFIED_Z, LOWER, UPPER,
 };
 use super::problem::{constant_nodes, fit_settings, solve, Covariance, PolachProblem};
 use super::profile::{label, profiles, Profile};
@@ -289,7 +289,7 @@ impl Held {
         let free_now: Vec<usize> = (0..5).filter(|i| self.fixed[*i].is_none()).collect();
         for i in free_now {
             let sg = sg[i];
-            if !(AT_BOUND..=1.0 - AT_BOUND).contains(&sg) {
+            if is_at_bound(sg) {
                 // A lower bound of 0 (μ0, A, k_A, ρ) is not a valid Polach law (the model
                 // file needs them > 0): held where the bound was detected, σ = AT_BOUND —
                 // A = 1e-4 rather than 0. Other bounds are valid values, held exactly.

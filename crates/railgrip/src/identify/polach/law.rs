@@ -47,6 +47,13 @@ pub(super) const LOWER: [f64; 5] = [0.0, 0.0, 1e-3, 0.0, 0.0];
 pub(super) const UPPER: [f64; 5] = [1.5, 1.0, 100.0, 1.0, 1.0];
 /// A parameter whose logistic coordinate is within this of 0 or 1 sits at its bound.
 pub(super) const AT_BOUND: f64 = 1e-4;
+
+/// Whether a logistic coordinate σ is within [`AT_BOUND`] of 0 or 1: the one test of "at its
+/// bound", for LM's stop ([`super::problem::PolachProblem`]) and for holding the parameter
+/// there ([`super::fit`]).
+pub(super) fn is_at_bound(sigma: f64) -> bool {
+    !(AT_BOUND..=1.0 - AT_BOUND).contains(&sigma)
+}
 /// A parameter is identified when its 95 % Wald interval (±1.96 se, se corrected for the
 /// residuals' autocorrelation) excludes zero: se ≤ x / 1.96.
 pub(super) const IDENTIFIED_Z: f64 = 1.96;

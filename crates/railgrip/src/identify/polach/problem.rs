@@ -4,7 +4,7 @@
 //! analytic Jacobian.
 
 use super::block::{Gram, LawBlock, BLOCK};
-use super::law::{sigmoid, to_natural, to_unconstrained, Sample, AT_BOUND, LOWER, UPPER};
+use super::law::{is_at_bound, sigmoid, to_natural, to_unconstrained, Sample, LOWER, UPPER};
 use crate::identify::lm::{self, LeastSquares, LevenbergMarquardt, LmSettings, NormalEquations};
 use crate::identify::IdentifyError;
 use crate::linalg::{cho_solve, cholesky, effective_samples};
@@ -91,7 +91,7 @@ pub(super) struct PolachProblem<'a> {
     pub(super) speed: Option<SpeedBasis>,
     /// Speed-law coefficients held at a value (profile likelihood of a coefficient).
     pub(super) speed_held: [Option<f64>; 3],
-    /// Per parameter: end the fit when its logistic coordinate comes within [`AT_BOUND`] of
+    /// Per parameter: end the fit when its logistic coordinate comes within [`AT_BOUND`](super::law::AT_BOUND) of
     /// 0 or 1 ([`LeastSquares::stop_at`]; the plain fit then holds it there).
     pub(super) stop_at_bound: [bool; 5],
     /// The lanes the law is evaluated on ([`LawBlock::eval`]).
@@ -404,11 +404,10 @@ impl LeastSquares for PolachProblem<'_> {
         self.sse_nodes(&self.nodes(theta).0)
     }
     fn stop_at(&self, theta: &[f64]) -> bool {
-        self.free.iter().zip(theta).any(|(c, t)| {
-            c.param < 5
-                && self.stop_at_bound[c.param]
-                && !(AT_BOUND..=1.0 - AT_BOUND).contains(&sigmoid(*t))
-        })
+        self.free
+            .iter()
+            .zip(theta)
+            .any(|(c, t)| c.param < 5 && self.stop_at_bound[c.param] && is_at_bound(sigmoid(*t)))
     }
     /// One pass over the samples: JᵀJ and Jᵀr in the unconstrained coordinates (the
     /// analytic Jacobian in the natural parameters times the chain of node → parameter and
