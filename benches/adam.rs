@@ -225,16 +225,17 @@ fn bench(c: &mut Criterion) {
                 Ok(o) if o.status.success() => {
                     let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
                     peer_env.get_or_insert_with(|| {
+                        let has = |k: &str| match r[k].as_bool() {
+                            Some(true) => "yes",
+                            Some(false) => "no",
+                            None => "?",
+                        };
                         format!(
                             "torch {}, CPU kernels {}, MKL {}, oneDNN {}",
                             r["torch"].as_str().unwrap_or("?"),
                             r["cpu_capability"].as_str().unwrap_or("unknown"),
-                            r["mkl"]
-                                .as_bool()
-                                .map_or("?", |b| if b { "yes" } else { "no" }),
-                            r["mkldnn"]
-                                .as_bool()
-                                .map_or("?", |b| if b { "yes" } else { "no" })
+                            has("mkl"),
+                            has("mkldnn")
                         )
                     });
                     peer_cols.push(format!(
