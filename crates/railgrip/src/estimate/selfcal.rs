@@ -65,7 +65,7 @@ use crate::linalg::{cho_solve, cholesky, effective_samples};
 use crate::signal;
 use crate::vehicle::total_mass_kg;
 
-use super::EstimateError;
+use super::{counting, EstimateError};
 pub use crate::config::calibrated::{Corrections, PadForm, PadLaw};
 
 /// The fewest runs with samples in the balance that a campaign's calibration is fitted on.
@@ -166,8 +166,14 @@ pub struct CampaignCalibration {
     pub radar_latency_se: f64,
     /// The tachometers' delay (a counting window's half, for pulse counters), s.
     pub tacho_delay_s: f64,
+    /// Not a number where the delay is not fitted: taken as 0, or half the counting window.
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub tacho_delay_se: f64,
+    /// The tachometers' counting window read from their quantisation (s), whose half is
+    /// then their delay instead of the balance's fit ([`counting`]); None where the runs do
+    /// not show one (and in files written before it was read).
+    #[serde(default)]
+    pub tacho_window_s: Option<f64>,
     /// Runs in the balance.
     pub runs: usize,
     /// Samples in the balance (after decimation).
@@ -212,6 +218,9 @@ struct RunSignals {
     rows: Vec<(usize, [f64; AXLES])>,
     /// Samples of the coast before the first brake.
     coast: Vec<usize>,
+    /// Each axle's deepest trough of its raw tachometer's quantisation residual
+    /// ([`counting::deepest_trough`]).
+    troughs: Vec<Option<counting::Trough>>,
 }
 
 /// A log's file name for notes (not its whole path: a campaign's calibration must not depend
@@ -447,9 +456,51 @@ impl<'p> CampaignCalibrator<'p> {
                 wd_sum,
                 rows,
                 coast,
+                troughs: (0..AXLES)
+                    .map(|a| counting::deepest_trough(&log.omega_radps[a], log.sample_rate_hz))
+                    .collect(),
             }),
             note,
         })
+    }
+
+    /// The campaign's tachometer counting window ([`counting::campaign_window`]), said in a
+    /// note where one is read or where some axles show one and too few agree.
+    fn counting_window(
+        runs: &[RunSignals],
+        notes: &mut Vec<String>,
+    ) -> Option<counting::Window> {
+        let per_run: Vec<(f64, Vec<Option<counting::Trough>>)> = runs
+            .iter()
+            .map(|r| (r.fs, r.troughs.clone()))
+            .collect();
+        match counting::campaign_window(&per_run) {
+            Ok(Some(w)) => {
+                let fs = runs[0].fs;
+                let samples = if runs.iter().all(|r| r.fs == fs) {
+                    format!(" ({:.0} samples at {fs:.0} Hz)", w.window_s * fs)
+                } else {
+                    String::new()
+                };
+                notes.push(format!(
+                    "the tachometers count pulses over {:.1} ms{samples}: their quantisation error's autocorrelation is {:.2} at that lag on {} of {} axles of the runs, so their delay is taken as half of it, {:.1} ms, not fitted from the balance",
+                    w.window_s * 1e3,
+                    w.mean_acf,
+                    w.showing,
+                    w.looked_at,
+                    w.delay_s() * 1e3
+                ));
+                Some(w)
+            }
+            Ok(None) => None,
+            Err((agree, looked_at)) => {
+                notes.push(format!(
+                    "only {agree} of {looked_at} axles of the runs show the same tachometer counting window in their quantisation (at least {:.0} % must): the tachometers' delay is fitted from the balance",
+                    counting::AGREEING * 100.0
+                ));
+                None
+            }
+        }
     }
 
     /// One note for the runs with a locked wheel, if any.
@@ -524,7 +575,8 @@ impl<'p> CampaignCalibrator<'p> {
             ));
         }
 
-        let (at, d) = fit_radar_and_delays(&b, &mut notes);
+        let window = Self::counting_window(&self.runs, &mut notes);
+        let (at, d) = fit_radar_and_delays(&b, &mut notes, window.map(|w| w.delay_s()));
         let weights = b.run_weights(&at).unwrap_or_else(|| {
             notes.push(
                 "no first fit of the balance to weigh the runs by: every run weighs the same"
@@ -601,6 +653,7 @@ impl<'p> CampaignCalibrator<'p> {
             radar_latency_se: tau_se,
             tacho_delay_s: at.tacho_s,
             tacho_delay_se: tacho_se,
+            tacho_window_s: window.map(|w| w.window_s),
             runs: self.runs.len(),
             samples: g.n,
             effective_samples: n_eff,
@@ -801,14 +854,20 @@ struct Delays {
 }
 
 /// The radar's scale without delays, the two delays at that scale (coordinate descent, three
-/// rounds), the scale at those delays; notes for what could not be fitted.
-fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
+/// rounds), the scale at those delays; notes for what could not be fitted. With the
+/// tachometers' delay known (`known_tacho`, s: half their counting window), only the radar's
+/// latency is profiled and tested, the tachometers' delay held.
+fn fit_radar_and_delays(
+    b: &Balance,
+    notes: &mut Vec<String>,
+    known_tacho: Option<f64>,
+) -> (At, Delays) {
     // The scale without delays; the two delays at that scale (coordinate descent); the
     // scale at those delays.
     let coast_note = "no run coasts before its first brake application, so the radar's scale is not calibrated (taken as 1, the pipeline's radar trusted) and the pad friction's speed law is hard to tell from the running resistance's; log a second or more of coasting before the brake";
     let mut at = At {
         radar_s: 0.0,
-        tacho_s: 0.0,
+        tacho_s: known_tacho.unwrap_or(0.0),
         scale: 1.0,
     };
     match b.radar_scale(&at) {
@@ -817,10 +876,15 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     }
     let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
     let (mut radar_d2, mut tacho_d2) = (f64::NAN, f64::NAN);
-    for _ in 0..3 {
+    if known_tacho.is_some() {
         (at.radar_s, radar_d2) = profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
-        (at.tacho_s, tacho_d2) =
-            profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
+    } else {
+        for _ in 0..3 {
+            (at.radar_s, radar_d2) =
+                profile_delay(LATENCY_RANGE_S, |t| free(&At { radar_s: t, ..at }));
+            (at.tacho_s, tacho_d2) =
+                profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
+        }
     }
     let (scale_se, scale_runs) = match b.radar_scale(&at) {
         Some((s, se, runs)) => {
@@ -834,10 +898,14 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     // So is one where the balance's residual has no minimum (a curvature that is not
     // positive: runs without pressure changes to time).
     let mut at_edge = false;
+    let tacho_fitted = known_tacho.is_none();
     for (name, t, d2, range) in [
         (RADAR_DELAY, &mut at.radar_s, radar_d2, LATENCY_RANGE_S),
         (TACHO_DELAY, &mut at.tacho_s, tacho_d2, TACHO_DELAY_RANGE_S),
-    ] {
+    ]
+    .into_iter()
+    .take(if tacho_fitted { 2 } else { 1 })
+    {
         if let Some(note) = unidentified(name, *t, d2, range) {
             notes.push(note);
             *t = 0.0;
@@ -854,7 +922,7 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
                 at.radar_s = 0.0;
             }
         }
-        if at.tacho_s != 0.0 {
+        if tacho_fitted && at.tacho_s != 0.0 {
             (at.tacho_s, tacho_d2) =
                 profile_delay(TACHO_DELAY_RANGE_S, |t| free(&At { tacho_s: t, ..at }));
             let range = TACHO_DELAY_RANGE_S;
@@ -867,11 +935,15 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
             at.scale = s;
         }
     }
-    let jack = drop_insignificant_delays(b, &mut at, notes);
-    // No standard error for a delay taken as 0 (not fitted).
+    let jack = drop_insignificant_delays(b, &mut at, notes, tacho_fitted);
+    // No standard error for a delay taken as 0 or held (not fitted).
     let jack = (
         if at.radar_s == 0.0 { f64::NAN } else { jack.0 },
-        if at.tacho_s == 0.0 { f64::NAN } else { jack.1 },
+        if at.tacho_s == 0.0 || !tacho_fitted {
+            f64::NAN
+        } else {
+            jack.1
+        },
     );
     // The scale's standard error at the final delays.
     let (scale_se, scale_runs) = b
@@ -880,7 +952,7 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
     if at.radar_s == 0.0 {
         radar_d2 = f64::NAN;
     }
-    if at.tacho_s == 0.0 {
+    if at.tacho_s == 0.0 || !tacho_fitted {
         tacho_d2 = f64::NAN;
     }
 
@@ -909,6 +981,8 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
 /// one stays (the two shift the same balance; the runs judged their pair). Returns the last
 /// jackknife's standard errors (s; NaN where not computed: fewer than 3 runs tell them, or
 /// none fitted — and meaningless for a delay taken as 0, which the caller reports as NaN).
+/// With `tacho_fitted` false the tachometers' delay is held (known): only the radar's
+/// latency is tested.
 ///
 /// Neither error alone is enough. The profile's curvature counts the samples of a run as
 /// independent once the residuals' autocorrelation is allowed for, but the radar's noise moves
@@ -917,13 +991,18 @@ fn fit_radar_and_delays(b: &Balance, notes: &mut Vec<String>) -> (At, Delays) {
 /// (no wheel-slide protection), 12 runs' spread came out at about a quarter of the curvature's (the
 /// tachometers' delay 1.3 against 4.7 ms), kept a delay 16 ms off the truth (Wald 22 by the
 /// jackknife alone, 1.7 with the curvature) and made runs up to 1.033× worse.
-fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) -> (f64, f64) {
+fn drop_insignificant_delays(
+    b: &Balance,
+    at: &mut At,
+    notes: &mut Vec<String>,
+    tacho_fitted: bool,
+) -> (f64, f64) {
     let free = |at: &At| b.gram(at, PadForm::Linear).rss_free();
     let mut dropped = false;
     // Delays that neither error could be computed for at the last test.
     let mut untested = (false, false);
     let se = loop {
-        let fit = (at.radar_s != 0.0, at.tacho_s != 0.0);
+        let fit = (at.radar_s != 0.0, tacho_fitted && at.tacho_s != 0.0);
         if fit == (false, false) {
             break (f64::NAN, f64::NAN);
         }
@@ -1000,7 +1079,7 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
         } else {
             (RADAR_DELAY, LATENCY_RANGE_S, &mut at.radar_s)
         };
-        if *t != 0.0 {
+        if *t != 0.0 && (tacho_fitted || !radar_first) {
             let base = *at;
             let shifted = |x: f64| {
                 if radar_first {
@@ -1024,7 +1103,7 @@ fn drop_insignificant_delays(b: &Balance, at: &mut At, notes: &mut Vec<String>) 
     };
     for (kept, untested, name, t) in [
         (at.radar_s != 0.0, untested.0, RADAR_DELAY, at.radar_s),
-        (at.tacho_s != 0.0, untested.1, TACHO_DELAY, at.tacho_s),
+        (tacho_fitted && at.tacho_s != 0.0, untested.1, TACHO_DELAY, at.tacho_s),
     ] {
         if kept && untested {
             notes.push(format!(

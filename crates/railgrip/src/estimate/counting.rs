@@ -1,0 +1,209 @@
+//! The tachometers' counting window, read from their quantisation.
+//!
+//! A tachometer that counts pulses over the last W samples reports
+//!
+//!   ω̂_k = Δθ (⌊θ_k / Δθ⌋ − ⌊θ_{k−W} / Δθ⌋) / (W h)
+//!
+//! (Δθ the angle per pulse, rad; h the sample period, s): the mean of ω over the window,
+//! which lags ω by W h / 2, plus the quantisation error e_k = Δθ (u_{k−W} − u_k) / (W h) with
+//! u_k = frac(θ_k / Δθ) ∈ [0, 1). Where several pulses pass per sample the u_k are close to
+//! independent and uniform, so e_k is a difference of two of them W samples apart: its
+//! autocorrelation is −1/2 at lag W and about 0 at every other lag ≥ 1. That trough is
+//! sharp and its depth does not depend on the speed (a count of ±1 pulse is as likely at
+//! 20 as at 200 km/h), while the wheel's own motion, smooth at the sample rate, barely
+//! reaches the residual about a low-pass at a twentieth of the sample rate. So the window,
+//! and with it the delay W h / 2, can be read off the raw tachometer channel instead of being
+//! fitted from the deceleration balance, where it trades off against the radar's latency
+//! (docs/calibration.md, "The delays").
+//!
+//! Not every tachometer counts over a window: one that times the interval between pulses
+//! leaves no trough, and a window much longer than 20 samples puts most of its error below
+//! the residual's cut-off. Those campaigns keep the balance's fit.
+
+use crate::signal::filter::{LowPass4, MIN_LEN};
+
+/// The residual's low-pass cut-off as a fraction of the sample rate.
+const CUTOFF_FRACTION: f64 = 1.0 / 20.0;
+/// Longest window looked for, samples.
+pub const MAX_LAG: usize = 32;
+/// Shortest stretch of finite samples used, s (a stretch is filtered on its own).
+const MIN_STRETCH_S: f64 = 2.0;
+/// An axle shows a counting window where its residual's autocorrelation falls to this or
+/// below at the lag (the ideal counter gives −0.5; smooth motion and pressure-driven slips
+/// leave it above −0.1 on the simulated runs without a window).
+pub const TROUGH: f64 = -0.35;
+
+/// One axle's evidence: the lag (samples) where the residual's autocorrelation is lowest,
+/// and that autocorrelation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Trough {
+    pub lag: usize,
+    pub acf: f64,
+}
+
+/// The lag and depth of the deepest trough of the autocorrelation of `omega`'s residual
+/// about its zero-phase low-pass at fs/20 (rad/s, sampled at `fs` Hz), over lags
+/// 1..=[`MAX_LAG`], from the stretches of at least 2 s of finite samples; None where no
+/// stretch is that long or the residual is 0 (an unquantised or constant channel). The
+/// caller decides with [`TROUGH`] whether it is a counting window.
+pub fn deepest_trough(omega: &[f64], fs: f64) -> Option<Trough> {
+    let lp = LowPass4::butterworth(fs * CUTOFF_FRACTION, fs).ok()?;
+    let min_len = ((MIN_STRETCH_S * fs).ceil() as usize).max(MIN_LEN + 1);
+    let mut sums = [0.0f64; MAX_LAG + 1];
+    let mut start = 0;
+    while start < omega.len() {
+        let end = omega[start..]
+            .iter()
+            .position(|x| !x.is_finite())
+            .map_or(omega.len(), |p| start + p);
+        if end - start >= min_len {
+            let x = &omega[start..end];
+            let smooth = lp.zero_phase(x).ok()?;
+            let e: Vec<f64> = x.iter().zip(&smooth).map(|(a, b)| a - b).collect();
+            for (lag, s) in sums.iter_mut().enumerate() {
+                *s += e.iter().zip(&e[lag..]).map(|(a, b)| a * b).sum::<f64>();
+            }
+        }
+        start = end + 1;
+    }
+    if !(sums[0] > 0.0) {
+        return None;
+    }
+    let (lag, acf) = (1..=MAX_LAG)
+        .map(|lag| (lag, sums[lag] / sums[0]))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    Some(Trough { lag, acf })
+}
+
+/// A campaign's counting window: its length (s), the axles of the runs that show it and
+/// those looked at, and the mean depth of their troughs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Window {
+    pub window_s: f64,
+    pub showing: usize,
+    pub looked_at: usize,
+    pub mean_acf: f64,
+}
+
+impl Window {
+    /// The tachometers' delay, half the window, s.
+    pub fn delay_s(&self) -> f64 {
+        0.5 * self.window_s
+    }
+}
+
+/// Share of a campaign's axles (of all runs) that must show the same window.
+pub const AGREEING: f64 = 0.75;
+
+/// The campaign's counting window from each run's sample rate (Hz) and its axles' troughs:
+/// the troughs at or below [`TROUGH`] whose window (lag / fs) is within half a sample of
+/// their median, when they are at least [`AGREEING`] of all the axles looked at (axles
+/// without a trough count as looked at); the window is their mean. Err with what was seen
+/// when some axles show a window but too few agree (for the note); Ok(None) when none does.
+pub fn campaign_window(
+    runs: &[(f64, Vec<Option<Trough>>)],
+) -> Result<Option<Window>, (usize, usize)> {
+    let looked_at: usize = runs.iter().map(|(_, t)| t.len()).sum();
+    let mut shown: Vec<(f64, f64, f64)> = runs
+        .iter()
+        .flat_map(|(fs, troughs)| {
+            troughs
+                .iter()
+                .flatten()
+                .filter(|t| t.acf <= TROUGH)
+                .map(move |t| (t.lag as f64 / fs, 0.5 / fs, t.acf))
+        })
+        .collect();
+    if shown.is_empty() {
+        return Ok(None);
+    }
+    shown.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let median = shown[shown.len() / 2].0;
+    let agree: Vec<&(f64, f64, f64)> = shown
+        .iter()
+        .filter(|(w, half, _)| (w - median).abs() <= half * (1.0 + 1e-9))
+        .collect();
+    if (agree.len() as f64) < AGREEING * looked_at as f64 {
+        return Err((agree.len(), looked_at));
+    }
+    let n = agree.len() as f64;
+    Ok(Some(Window {
+        window_s: agree.iter().map(|a| a.0).sum::<f64>() / n,
+        showing: agree.len(),
+        looked_at,
+        mean_acf: agree.iter().map(|a| a.2).sum::<f64>() / n,
+    }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A counter over `window` samples of a wheel turning at a slowly varying rate.
+    fn counted(window: usize, n: usize, fs: f64, pulses_per_rev: f64) -> Vec<f64> {
+        let dtheta = std::f64::consts::TAU / pulses_per_rev;
+        let h = 1.0 / fs;
+        let mut theta = 0.0;
+        let mut angles = Vec::with_capacity(n);
+        for k in 0..n {
+            let t = k as f64 * h;
+            let omega = 100.0 - 1.5 * t + 2.0 * (2.0 * std::f64::consts::PI * 0.7 * t).sin();
+            theta += omega * h;
+            angles.push(theta);
+        }
+        (0..n)
+            .map(|k| {
+                let j = k.saturating_sub(window);
+                let span = (k - j).max(1) as f64;
+                ((angles[k] / dtheta).floor() - (angles[j] / dtheta).floor()) * dtheta / (span * h)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_trough_is_at_the_counting_window() {
+        for window in [1, 4, 8, 13] {
+            let x = counted(window, 20_000, 417.0, 1000.0);
+            let t = deepest_trough(&x, 417.0).unwrap();
+            assert_eq!(t.lag, window, "{t:?}");
+            assert!(t.acf <= -0.4, "{t:?}");
+        }
+    }
+
+    #[test]
+    fn a_smooth_channel_shows_no_window() {
+        let fs = 417.0;
+        let x: Vec<f64> = (0..20_000)
+            .map(|k| {
+                let t = k as f64 / fs;
+                100.0 - 1.5 * t + 2.0 * (2.0 * std::f64::consts::PI * 0.7 * t).sin()
+            })
+            .collect();
+        // Only the filter's round-off is left: no trough anywhere near a window's.
+        assert!(deepest_trough(&x, fs).is_none_or(|t| t.acf > TROUGH));
+    }
+
+    #[test]
+    fn gaps_split_the_channel_and_short_stretches_are_skipped() {
+        let mut x = counted(8, 20_000, 417.0, 1000.0);
+        for v in &mut x[9_000..9_010] {
+            *v = f64::NAN;
+        }
+        assert_eq!(deepest_trough(&x, 417.0).unwrap().lag, 8);
+        assert!(deepest_trough(&x[..500], 417.0).is_none());
+    }
+
+    #[test]
+    fn the_campaign_needs_three_quarters_of_its_axles_to_agree() {
+        let t = |lag, acf| Some(Trough { lag, acf });
+        let agree = vec![(417.0, vec![t(8, -0.5), t(8, -0.52), t(8, -0.5), None])];
+        let w = campaign_window(&agree).unwrap().unwrap();
+        assert!((w.window_s - 8.0 / 417.0).abs() < 1e-12);
+        assert!((w.delay_s() - 4.0 / 417.0).abs() < 1e-12);
+        assert_eq!((w.showing, w.looked_at), (3, 4));
+        let split = vec![(417.0, vec![t(8, -0.5), t(3, -0.5), t(8, -0.5), t(3, -0.5)])];
+        assert_eq!(campaign_window(&split), Err((2, 4)));
+        let shallow = vec![(417.0, vec![t(8, -0.1); 4])];
+        assert_eq!(campaign_window(&shallow), Ok(None));
+    }
+}
