@@ -10,8 +10,13 @@
 //! independent and uniform, so e_k is a difference of two of them W samples apart: its
 //! autocorrelation is −1/2 at lag W and about 0 at every other lag ≥ 1. That trough is
 //! sharp and its depth does not depend on the speed (a count of ±1 pulse is as likely at
-//! 20 as at 200 km/h), while the wheel's own motion, smooth at the sample rate, barely
-//! reaches the residual about a low-pass at a twentieth of the sample rate. So the window,
+//! 20 as at 200 km/h). The wheel's own motion is smooth at the sample rate, and what of it
+//! reaches the residual about a low-pass at a twentieth of the sample rate (the filter's
+//! ringing after a wheel slide's kinks) has a smooth autocorrelation: +0.8 at lag 1 and a
+//! broad trough near half the filter's period, 8 samples (−0.58 on a simulated run without
+//! the counting, against −0.52 with it and |ρ| ≤ 0.11 at the other lags). So a trough counts
+//! as a window only where it stands alone: deep, with every shorter lag and the next one
+//! near 0. The window,
 //! and with it the delay W h / 2, can be read off the raw tachometer channel instead of being
 //! fitted from the deceleration balance, where it trades off against the radar's latency
 //! (docs/calibration.md, "The delays").
@@ -33,23 +38,43 @@ const MIN_STRETCH_S: f64 = 2.0;
 /// leave it above −0.1 on the simulated runs without a window).
 pub const TROUGH: f64 = -0.35;
 
+/// At most this |autocorrelation| at every lag shorter than the trough's and the next one:
+/// the trough stands alone.
+pub const FLANK: f64 = 0.2;
+
 /// One axle's evidence: the lag (samples) where the residual's autocorrelation is lowest,
-/// and that autocorrelation.
+/// that autocorrelation, and the largest |autocorrelation| at the other lags from 1 to one
+/// beyond the trough's (its flank).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Trough {
     pub lag: usize,
     pub acf: f64,
+    pub flank: f64,
+}
+
+impl Trough {
+    /// Deep ([`TROUGH`]) and alone ([`FLANK`]): a counting window of `lag` samples.
+    pub fn is_window(&self) -> bool {
+        self.acf <= TROUGH && self.flank <= FLANK
+    }
 }
 
 /// The lag and depth of the deepest trough of the autocorrelation of `omega`'s residual
 /// about its zero-phase low-pass at fs/20 (rad/s, sampled at `fs` Hz), over lags
 /// 1..=[`MAX_LAG`], from the stretches of at least 2 s of finite samples; None where no
-/// stretch is that long or the residual is 0 (an unquantised or constant channel). The
-/// caller decides with [`TROUGH`] whether it is a counting window.
+/// stretch is that long or the residual is 0 (a constant channel). [`Trough::is_window`]
+/// says whether it is a counting window.
+///
+/// The autocorrelation is computed in blocks of one second (at least 4 × [`MAX_LAG`]
+/// samples) and the median over blocks taken at each lag: a block holding a transient (the
+/// filter's ringing after a step at a wheel lock or a stretch's end, a spike) would otherwise
+/// outweigh the rest of the run, whose error is a few hundredths of a rad/s. A block whose
+/// raw samples never change (a wheel standing) is left out.
 pub fn deepest_trough(omega: &[f64], fs: f64) -> Option<Trough> {
     let lp = LowPass4::butterworth(fs * CUTOFF_FRACTION, fs).ok()?;
     let min_len = ((MIN_STRETCH_S * fs).ceil() as usize).max(MIN_LEN + 1);
-    let mut sums = [0.0f64; MAX_LAG + 1];
+    let block = (fs.round() as usize).max(4 * MAX_LAG);
+    let mut blocks: Vec<[f64; MAX_LAG]> = Vec::new();
     let mut start = 0;
     while start < omega.len() {
         let end = omega[start..]
@@ -60,19 +85,46 @@ pub fn deepest_trough(omega: &[f64], fs: f64) -> Option<Trough> {
             let x = &omega[start..end];
             let smooth = lp.zero_phase(x).ok()?;
             let e: Vec<f64> = x.iter().zip(&smooth).map(|(a, b)| a - b).collect();
-            for (lag, s) in sums.iter_mut().enumerate() {
-                *s += e.iter().zip(&e[lag..]).map(|(a, b)| a * b).sum::<f64>();
+            for (b, raw) in e.chunks_exact(block).zip(x.chunks_exact(block)) {
+                // A wheel that stands (locked, or the train stopped) counts no pulses: its
+                // block holds only the filter's round-off and says nothing of a window.
+                let counting = raw.iter().any(|v| *v != raw[0]);
+                let var: f64 = b.iter().map(|v| v * v).sum();
+                if counting && var > 0.0 {
+                    blocks.push(std::array::from_fn(|i| {
+                        b.iter().zip(&b[i + 1..]).map(|(u, v)| u * v).sum::<f64>() / var
+                    }));
+                }
             }
         }
         start = end + 1;
     }
-    if !(sums[0] > 0.0) {
+    if blocks.is_empty() {
         return None;
     }
-    let (lag, acf) = (1..=MAX_LAG)
-        .map(|lag| (lag, sums[lag] / sums[0]))
-        .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    Some(Trough { lag, acf })
+    let rho: Vec<f64> = (0..MAX_LAG)
+        .map(|i| {
+            let mut col: Vec<f64> = blocks.iter().map(|b| b[i]).collect();
+            col.sort_by(f64::total_cmp);
+            let m = col.len() / 2;
+            if col.len() % 2 == 1 {
+                col[m]
+            } else {
+                0.5 * (col[m - 1] + col[m])
+            }
+        })
+        .collect();
+    let rho = |lag: usize| rho[lag - 1];
+    let lag = (1..=MAX_LAG).min_by(|a, b| rho(*a).total_cmp(&rho(*b)))?;
+    let flank = (1..=(lag + 1).min(MAX_LAG))
+        .filter(|l| *l != lag)
+        .map(|l| rho(l).abs())
+        .fold(0.0, f64::max);
+    Some(Trough {
+        lag,
+        acf: rho(lag),
+        flank,
+    })
 }
 
 /// A campaign's counting window: its length (s), the axles of the runs that show it and
@@ -96,7 +148,7 @@ impl Window {
 pub const AGREEING: f64 = 0.75;
 
 /// The campaign's counting window from each run's sample rate (Hz) and its axles' troughs:
-/// the troughs at or below [`TROUGH`] whose window (lag / fs) is within half a sample of
+/// the troughs that are windows ([`Trough::is_window`]) whose length (lag / fs) is within half a sample of
 /// their median, when they are at least [`AGREEING`] of all the axles looked at (axles
 /// without a trough count as looked at); the window is their mean. Err with what was seen
 /// when some axles show a window but too few agree (for the note); Ok(None) when none does.
@@ -110,7 +162,7 @@ pub fn campaign_window(
             troughs
                 .iter()
                 .flatten()
-                .filter(|t| t.acf <= TROUGH)
+                .filter(|t| t.is_window())
                 .map(move |t| (t.lag as f64 / fs, 0.5 / fs, t.acf))
         })
         .collect();
@@ -166,7 +218,7 @@ mod tests {
             let x = counted(window, 20_000, 417.0, 1000.0);
             let t = deepest_trough(&x, 417.0).unwrap();
             assert_eq!(t.lag, window, "{t:?}");
-            assert!(t.acf <= -0.4, "{t:?}");
+            assert!(t.acf <= -0.4 && t.is_window(), "{t:?}");
         }
     }
 
@@ -180,7 +232,25 @@ mod tests {
             })
             .collect();
         // Only the filter's round-off is left: no trough anywhere near a window's.
-        assert!(deepest_trough(&x, fs).is_none_or(|t| t.acf > TROUGH));
+        assert!(deepest_trough(&x, fs).is_none_or(|t| !t.is_window()));
+    }
+
+    #[test]
+    fn a_kinked_channel_rings_but_shows_no_window() {
+        // Exact ω whose deceleration changes in steps (a wheel-slide protection's cycles):
+        // the low-pass rings after each kink, a broad trough, not a counting window.
+        let fs = 417.0;
+        let mut omega = 120.0;
+        let x: Vec<f64> = (0..20_000)
+            .map(|k| {
+                let phase = (k / 300) % 2;
+                omega -= if phase == 0 { 2.0 } else { 9.0 } / fs;
+                omega
+            })
+            .collect();
+        let t = deepest_trough(&x, fs).unwrap();
+        assert!(!t.is_window(), "{t:?}");
+        assert!(t.flank > FLANK, "{t:?}");
     }
 
     #[test]
@@ -190,12 +260,18 @@ mod tests {
             *v = f64::NAN;
         }
         assert_eq!(deepest_trough(&x, 417.0).unwrap().lag, 8);
-        assert!(deepest_trough(&x[..500], 417.0).is_none());
+        assert!(deepest_trough(&x[..800], 417.0).is_none());
     }
 
     #[test]
     fn the_campaign_needs_three_quarters_of_its_axles_to_agree() {
-        let t = |lag, acf| Some(Trough { lag, acf });
+        let t = |lag, acf| {
+            Some(Trough {
+                lag,
+                acf,
+                flank: 0.05,
+            })
+        };
         let agree = vec![(417.0, vec![t(8, -0.5), t(8, -0.52), t(8, -0.5), None])];
         let w = campaign_window(&agree).unwrap().unwrap();
         assert!((w.window_s - 8.0 / 417.0).abs() < 1e-12);

@@ -466,14 +466,9 @@ impl<'p> CampaignCalibrator<'p> {
 
     /// The campaign's tachometer counting window ([`counting::campaign_window`]), said in a
     /// note where one is read or where some axles show one and too few agree.
-    fn counting_window(
-        runs: &[RunSignals],
-        notes: &mut Vec<String>,
-    ) -> Option<counting::Window> {
-        let per_run: Vec<(f64, Vec<Option<counting::Trough>>)> = runs
-            .iter()
-            .map(|r| (r.fs, r.troughs.clone()))
-            .collect();
+    fn counting_window(runs: &[RunSignals], notes: &mut Vec<String>) -> Option<counting::Window> {
+        let per_run: Vec<(f64, Vec<Option<counting::Trough>>)> =
+            runs.iter().map(|r| (r.fs, r.troughs.clone())).collect();
         match counting::campaign_window(&per_run) {
             Ok(Some(w)) => {
                 let fs = runs[0].fs;
@@ -1103,7 +1098,12 @@ fn drop_insignificant_delays(
     };
     for (kept, untested, name, t) in [
         (at.radar_s != 0.0, untested.0, RADAR_DELAY, at.radar_s),
-        (tacho_fitted && at.tacho_s != 0.0, untested.1, TACHO_DELAY, at.tacho_s),
+        (
+            tacho_fitted && at.tacho_s != 0.0,
+            untested.1,
+            TACHO_DELAY,
+            at.tacho_s,
+        ),
     ] {
         if kept && untested {
             notes.push(format!(
@@ -2416,6 +2416,7 @@ mod tests {
                     wd_sum: vec![0.0; n],
                     rows: Vec::new(),
                     coast: Vec::new(),
+                    troughs: vec![None; AXLES],
                 };
                 for k in 0..n {
                     let v = 5.0 + 50.0 * uniform();
