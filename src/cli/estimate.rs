@@ -384,18 +384,25 @@ fn calibrate_campaign(
         );
     }
     println!(
-        "radar      scale {:.5} ± {:.5} (coasts of {} runs), latency {:.1} ± {:.1} ms",
+        "radar      scale {:.5} ± {} (coasts of {} runs), latency {:.1} ± {} ms",
         f.radar_scale,
-        f.radar_scale_se,
+        or_dash(f.radar_scale_se, 5),
         f.radar_scale_runs,
         f.radar_latency_s * 1e3,
-        f.radar_latency_se * 1e3
+        or_dash(f.radar_latency_se * 1e3, 1)
     );
-    println!(
-        "tachos     delay {:.1} ± {:.1} ms",
-        f.tacho_delay_s * 1e3,
-        f.tacho_delay_se * 1e3
-    );
+    match f.tacho_window_s {
+        Some(w) => println!(
+            "tachos     delay {:.1} ms: half their {:.1} ms counting window, read from their quantisation",
+            f.tacho_delay_s * 1e3,
+            w * 1e3
+        ),
+        None => println!(
+            "tachos     delay {:.1} ± {} ms",
+            f.tacho_delay_s * 1e3,
+            or_dash(f.tacho_delay_se * 1e3, 1)
+        ),
+    }
     for n in &record.notes {
         println!("note       {n}");
     }

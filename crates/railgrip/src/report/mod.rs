@@ -606,7 +606,7 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     };
     let _ = writeln!(
         *h,
-        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} ± {} ms.{} μ of an axle moves with its brake force (the columns above).</p>",
+        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} {}.{} μ of an axle moves with its brake force (the columns above).</p>",
         c.pad.form.name(),
         c.pad.gamma,
         c.pad.gamma_se,
@@ -618,7 +618,13 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         se(num(&fit["radar_latency_se"]) * 1e3, 1),
         -(100.0 / 3.6) * (1.0 - 1.0 / c.radar_scale),
         c.tacho_delay_s * 1e3,
-        se(num(&fit["tacho_delay_se"]) * 1e3, 1),
+        match fit["tacho_window_s"].as_f64() {
+            Some(w) => format!(
+                "ms, half their {:.1} ms counting window (read from their quantisation)",
+                w * 1e3
+            ),
+            None => format!("± {} ms", se(num(&fit["tacho_delay_se"]) * 1e3, 1)),
+        },
         resistance
     );
     if let Some(cands) = fit["pad_candidates"].as_array() {
