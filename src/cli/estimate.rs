@@ -383,6 +383,22 @@ fn calibrate_campaign(
             f.alpha_fitted.map(|a| (a * 10.0).round() / 10.0)
         );
     }
+    print_sensors(f);
+    for n in &record.notes {
+        println!("note       {n}");
+    }
+    println!("time       {seconds:.2} s");
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
+        let path = write_calibration(dir, &record)?;
+        println!("written    {}", path.display());
+    }
+    Ok(EXIT_OK)
+}
+
+/// The radar's and the tachometers' lines of `railgrip calibrate --campaign`.
+fn print_sensors(f: &railgrip::estimate::selfcal::CampaignCalibration) {
     println!(
         "radar      scale {:.5} ± {} (coasts of {} runs), latency {:.1} ± {} ms",
         f.radar_scale,
@@ -403,17 +419,6 @@ fn calibrate_campaign(
             or_dash(f.tacho_delay_se * 1e3, 1)
         ),
     }
-    for n in &record.notes {
-        println!("note       {n}");
-    }
-    println!("time       {seconds:.2} s");
-    if let Some(dir) = out {
-        std::fs::create_dir_all(dir)
-            .map_err(|e| anyhow::anyhow!("{}: cannot create the folder: {e}", dir.display()))?;
-        let path = write_calibration(dir, &record)?;
-        println!("written    {}", path.display());
-    }
-    Ok(EXIT_OK)
 }
 
 /// `x` with `digits` decimals, or "–" where it is not a number (a standard error that could

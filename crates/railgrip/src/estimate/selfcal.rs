@@ -498,6 +498,27 @@ impl<'p> CampaignCalibrator<'p> {
         }
     }
 
+    /// The balance over `runs`, unweighted, each run with its own constant, its reference
+    /// speed the fastest sample's radar speed.
+    fn balance<'r>(pipeline: &Pipeline, runs: &'r [RunSignals]) -> Balance<'r> {
+        let veh = &pipeline.vehicle;
+        let v_ref = runs
+            .iter()
+            .flat_map(|run| run.rows.iter().map(|(k, ..)| run.v_radar[*k]))
+            .fold(0.0f64, f64::max);
+        Balance {
+            runs,
+            r: veh.wheel_radius_m,
+            inv_r: 1.0 / veh.wheel_radius_m,
+            mass: total_mass_kg(veh),
+            j_r: veh.axle_inertia_kgm2 / veh.wheel_radius_m,
+            v_ref,
+            per_run: true,
+            alpha_pipeline: veh.brake_torque_nm_per_bar,
+            weights: &[],
+        }
+    }
+
     /// One note for the runs with a locked wheel, if any.
     fn locked_note(&self) -> Option<String> {
         let longest = self.locked.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
@@ -545,23 +566,8 @@ impl<'p> CampaignCalibrator<'p> {
             return Err(fail(what_failed, &hint));
         }
         let veh = &self.pipeline.vehicle;
-        let b = Balance {
-            runs: &self.runs,
-            r: veh.wheel_radius_m,
-            inv_r: 1.0 / veh.wheel_radius_m,
-            mass: total_mass_kg(veh),
-            j_r: veh.axle_inertia_kgm2 / veh.wheel_radius_m,
-            v_ref: 0.0,
-            per_run: true,
-            alpha_pipeline: veh.brake_torque_nm_per_bar,
-            weights: &[],
-        };
-        let v_ref = self
-            .runs
-            .iter()
-            .flat_map(|run| run.rows.iter().map(|(k, ..)| run.v_radar[*k]))
-            .fold(0.0f64, f64::max);
-        let b = Balance { v_ref, ..b };
+        let b = Self::balance(self.pipeline, &self.runs);
+        let v_ref = b.v_ref;
         let samples: usize = self.runs.iter().map(|r| r.rows.len()).sum();
         if samples < 200 {
             return Err(fail(
@@ -1014,12 +1020,7 @@ fn drop_insignificant_delays(
         // the runs pin down their sum — neither beyond 1.96 standard errors alone, together
         // beyond χ²₂'s quantile; they take 14–16 % off the soap runs' μ error).
         // A fitted delay whose 95 % interval reaches an end of its searched range has no
-        // minimum the runs place inside it, like one at the end itself: it goes first. (The
-        // pair case's smooth dry runs: the radar's latency at −43 ± 5.6 ms with the
-        // tachometers held at their window, where fitted together both ran to −50 ms.)
-        let reaches_end = |t: f64, se: f64, on: bool, (lo, hi): (f64, f64)| {
-            on && se.is_finite() && (t - lo).min(hi - t) < Z95 * se
-        };
+        // minimum the runs place inside it, like one at the end itself: it goes first.
         let ends = (
             reaches_end(at.radar_s, tested.0, fit.0, LATENCY_RANGE_S),
             reaches_end(at.tacho_s, tested.1, fit.1, TACHO_DELAY_RANGE_S),
@@ -1047,25 +1048,20 @@ fn drop_insignificant_delays(
             dropped = true;
             break (f64::NAN, f64::NAN);
         }
-        // A delay without either standard error is not tested.
-        let z = |t: f64, se: f64, on: bool| {
-            if on && se.is_finite() {
+        // A delay without either standard error is not tested; one whose interval reaches
+        // its range's end counts as 0 standard errors from 0.
+        let z = |t: f64, se: f64, on: bool, end: bool| {
+            if end {
+                0.0
+            } else if on && se.is_finite() {
                 t.abs() / se
             } else {
                 f64::INFINITY
             }
         };
         let (zr, zw) = (
-            if ends.0 {
-                0.0
-            } else {
-                z(at.radar_s, tested.0, fit.0)
-            },
-            if ends.1 {
-                0.0
-            } else {
-                z(at.tacho_s, tested.1, fit.1)
-            },
+            z(at.radar_s, tested.0, fit.0, ends.0),
+            z(at.tacho_s, tested.1, fit.1, ends.1),
         );
         untested = (!tested.0.is_finite(), !tested.1.is_finite());
         let radar_first = !(zr >= zw);
@@ -1079,21 +1075,7 @@ fn drop_insignificant_delays(
         if z >= Z95 {
             break se;
         }
-        notes.push(if end {
-            format!(
-                "the {name} came out at {:.1} ms ± {:.1} ms, its 95 % interval reaching the end of the searched range ({:.0}…{:.0} ms): not identifiable from these runs, taken as 0 (check the logger's time stamps)",
-                *t * 1e3,
-                s * 1e3,
-                lo * 1e3,
-                hi * 1e3
-            )
-        } else {
-            format!(
-                "the {name} came out at {:.1} ms ± {:.1} ms (one standard error: the larger of the runs' scatter, each left out in turn, and the residual's curvature): not told from 0 at 95 %, taken as 0",
-                *t * 1e3,
-                s * 1e3
-            )
-        });
+        notes.push(dropped_note(name, *t, s, end.then_some((lo, hi))));
         *t = 0.0;
         dropped = true;
         if let Some((s, _, _)) = b.radar_scale(at) {
@@ -1127,14 +1109,10 @@ fn drop_insignificant_delays(
             }
         }
     };
+    let tacho_kept = tacho_fitted && at.tacho_s != 0.0;
     for (kept, untested, name, t) in [
         (at.radar_s != 0.0, untested.0, RADAR_DELAY, at.radar_s),
-        (
-            tacho_fitted && at.tacho_s != 0.0,
-            untested.1,
-            TACHO_DELAY,
-            at.tacho_s,
-        ),
+        (tacho_kept, untested.1, TACHO_DELAY, at.tacho_s),
     ] {
         if kept && untested {
             notes.push(format!(
@@ -1149,6 +1127,33 @@ fn drop_insignificant_delays(
         }
     }
     se
+}
+
+/// Whether a fitted delay `t` (s, `on`) with standard error `se` has a 95 % interval that
+/// reaches an end of its searched range `(lo, hi)` (s). The pair case's smooth dry runs: the
+/// radar's latency alone at −43 ± 5.6 ms with the tachometers held at their window, where
+/// fitted together both ran to the −50 ms end.
+fn reaches_end(t: f64, se: f64, on: bool, (lo, hi): (f64, f64)) -> bool {
+    on && se.is_finite() && (t - lo).min(hi - t) < Z95 * se
+}
+
+/// The note for a delay taken as 0 at `t` ± `se` (s): not told from 0, or (`range` given, s)
+/// its interval reaching the range's end.
+fn dropped_note(name: &str, t: f64, se: f64, range: Option<(f64, f64)>) -> String {
+    match range {
+        Some((lo, hi)) => format!(
+            "the {name} came out at {:.1} ms ± {:.1} ms, its 95 % interval reaching the end of the searched range ({:.0}…{:.0} ms): not identifiable from these runs, taken as 0 (check the logger's time stamps)",
+            t * 1e3,
+            se * 1e3,
+            lo * 1e3,
+            hi * 1e3
+        ),
+        None => format!(
+            "the {name} came out at {:.1} ms ± {:.1} ms (one standard error: the larger of the runs' scatter, each left out in turn, and the residual's curvature): not told from 0 at 95 %, taken as 0",
+            t * 1e3,
+            se * 1e3
+        ),
+    }
 }
 
 /// The delays' covariance (s²) from the curvature of the balance's residual at `at`, as the
