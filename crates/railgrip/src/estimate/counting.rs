@@ -6,24 +6,30 @@
 //!
 //! (Δθ the angle per pulse, rad; h the sample period, s): the mean of ω over the window,
 //! which lags ω by W h / 2, plus the quantisation error e_k = Δθ (u_{k−W} − u_k) / (W h) with
-//! u_k = frac(θ_k / Δθ) ∈ [0, 1). Where several pulses pass per sample the u_k are close to
+//! u_k = frac(θ_k / Δθ) ∈ [0, 1) — the ±1-count error of frequency (pulse-counting) speed
+//! measurement (Petrella, Tursini, Peretti, Zigliotto, "Speed measurement algorithms for
+//! low-resolution incremental encoder equipped drives: a comparative analysis", ACEMP 2007).
+//! Where several pulses pass per sample and the speed changes, the u_k are close to
 //! independent and uniform, so e_k is a difference of two of them W samples apart: its
-//! autocorrelation is −1/2 at lag W and about 0 at every other lag ≥ 1. That trough is
-//! sharp and its depth does not depend on the speed (a count of ±1 pulse is as likely at
-//! 20 as at 200 km/h). The wheel's own motion is smooth at the sample rate, and what of it
-//! reaches the residual about a low-pass at a twentieth of the sample rate (the filter's
-//! ringing after a wheel slide's kinks) has a smooth autocorrelation: +0.8 at lag 1 and a
-//! broad trough near half the filter's period, 8 samples (−0.58 on a simulated run without
-//! the counting, against −0.52 with it and |ρ| ≤ 0.11 at the other lags). So a trough counts
-//! as a window only where it stands alone: deep, with every shorter lag and the next one
-//! near 0. The window,
+//! autocorrelation is −1/2 at lag W and about 0 at every other lag ≥ 1. With 1000 pulses per
+//! revolution the trough is −0.48 … −0.53 whatever the speed; with 100–200 it stays −0.44 …
+//! −0.53 but the other lags reach ±0.25 (the fractions rotate regularly within a second of
+//! slow deceleration), and with 60 it can be as shallow as −0.33. The wheel's own motion is
+//! smooth at the sample rate, and what of it reaches the residual about a low-pass at a
+//! twentieth of the sample rate (the filter's ringing after a wheel slide's kinks) has a
+//! smooth autocorrelation: +0.3 … +0.9 at lag 1 and a broad trough around lag 8 (−0.70 on a
+//! simulated 200 km/h run without the counting, against −0.52 with it and |ρ| ≤ 0.11 at the
+//! other lags). Depth alone does not tell the two apart; a trough counts as a window only
+//! where it also stands alone, every shorter lag and the next one within ±[`FLANK`]. The window,
 //! and with it the delay W h / 2, can be read off the raw tachometer channel instead of being
 //! fitted from the deceleration balance, where it trades off against the radar's latency
 //! (docs/calibration.md, "The delays").
 //!
 //! Not every tachometer counts over a window: one that times the interval between pulses
-//! leaves no trough, and a window much longer than 20 samples puts most of its error below
-//! the residual's cut-off. Those campaigns keep the balance's fit.
+//! leaves no trough. Windows of 1–13 samples are tested; the lags searched end at
+//! [`MAX_LAG`], and a long window loses part of its error below the residual's cut-off. The
+//! held delay assumes the tachometer chain adds no other latency (a filter, a logger's time
+//! stamps). Campaigns whose tachometers show no window keep the balance's fit.
 
 use crate::signal::filter::{LowPass4, MIN_LEN};
 
@@ -34,13 +40,14 @@ pub const MAX_LAG: usize = 32;
 /// Shortest stretch of finite samples used, s (a stretch is filtered on its own).
 const MIN_STRETCH_S: f64 = 2.0;
 /// An axle shows a counting window where its residual's autocorrelation falls to this or
-/// below at the lag (the ideal counter gives −0.5; smooth motion and pressure-driven slips
-/// leave it above −0.1 on the simulated runs without a window).
+/// below at the lag (the ideal counter gives −0.5). Depth alone is not enough: the filter's
+/// ringing on runs without a window reaches −0.70; [`FLANK`] tells them apart.
 pub const TROUGH: f64 = -0.35;
 
 /// At most this |autocorrelation| at every lag shorter than the trough's and the next one:
-/// the trough stands alone.
-pub const FLANK: f64 = 0.2;
+/// the trough stands alone (a counter with 100–200 pulses per revolution reaches ±0.25 there,
+/// the ringing without a window +0.3 … +0.9 at lag 1).
+pub const FLANK: f64 = 0.3;
 
 /// One axle's evidence: the lag (samples) where the residual's autocorrelation is lowest,
 /// that autocorrelation, and the largest |autocorrelation| at the other lags from 1 to one
@@ -66,7 +73,8 @@ impl Trough {
 /// says whether it is a counting window.
 ///
 /// The autocorrelation is computed in blocks of one second (at least 4 × [`MAX_LAG`]
-/// samples) and the median over blocks taken at each lag: a block holding a transient (the
+/// samples; at lag L the sum over the block's n − L pairs scaled by n / (n − L)) and the
+/// median over blocks taken at each lag: a block holding a transient (the
 /// filter's ringing after a step at a wheel lock or a stretch's end, a spike) would otherwise
 /// outweigh the rest of the run, whose error is a few hundredths of a rad/s. A block whose
 /// raw samples never change (a wheel standing) is left out.
@@ -83,7 +91,10 @@ pub fn deepest_trough(omega: &[f64], fs: f64) -> Option<Trough> {
             .map_or(omega.len(), |p| start + p);
         if end - start >= min_len {
             let x = &omega[start..end];
-            let smooth = lp.zero_phase(x).ok()?;
+            let Ok(smooth) = lp.zero_phase(x) else {
+                start = end + 1;
+                continue;
+            };
             let e: Vec<f64> = x.iter().zip(&smooth).map(|(a, b)| a - b).collect();
             for (b, raw) in e.chunks_exact(block).zip(x.chunks_exact(block)) {
                 // A wheel that stands (locked, or the train stopped) counts no pulses: its
@@ -91,8 +102,10 @@ pub fn deepest_trough(omega: &[f64], fs: f64) -> Option<Trough> {
                 let counting = raw.iter().any(|v| *v != raw[0]);
                 let var: f64 = b.iter().map(|v| v * v).sum();
                 if counting && var > 0.0 {
+                    let n = b.len() as f64;
                     blocks.push(std::array::from_fn(|i| {
-                        b.iter().zip(&b[i + 1..]).map(|(u, v)| u * v).sum::<f64>() / var
+                        let pairs = n - (i + 1) as f64;
+                        b.iter().zip(&b[i + 1..]).map(|(u, v)| u * v).sum::<f64>() / var * n / pairs
                     }));
                 }
             }
@@ -146,12 +159,17 @@ impl Window {
 
 /// Share of a campaign's axles (of all runs) that must show the same window.
 pub const AGREEING: f64 = 0.75;
+/// Share of a campaign's axles that must show some window before too few agreeing is worth a
+/// note (one noisy axle is not).
+pub const SHOWING: f64 = 0.25;
 
 /// The campaign's counting window from each run's sample rate (Hz) and its axles' troughs:
 /// the troughs that are windows ([`Trough::is_window`]) whose length (lag / fs) is within half a sample of
 /// their median, when they are at least [`AGREEING`] of all the axles looked at (axles
-/// without a trough count as looked at); the window is their mean. Err with what was seen
-/// when some axles show a window but too few agree (for the note); Ok(None) when none does.
+/// without a trough count as looked at); the window is their mean. Windows are compared in
+/// seconds: a counter set in samples at two logging rates shows two windows, too few agree,
+/// and the note says so. Err with what was seen when at least [`SHOWING`] of the axles show
+/// a window but too few agree (for the note); Ok(None) when fewer show one.
 pub fn campaign_window(
     runs: &[(f64, Vec<Option<Trough>>)],
 ) -> Result<Option<Window>, (usize, usize)> {
@@ -166,7 +184,7 @@ pub fn campaign_window(
                 .map(move |t| (t.lag as f64 / fs, 0.5 / fs, t.acf))
         })
         .collect();
-    if shown.is_empty() {
+    if shown.is_empty() || (shown.len() as f64) < SHOWING * looked_at as f64 {
         return Ok(None);
     }
     shown.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -219,6 +237,16 @@ mod tests {
             let t = deepest_trough(&x, 417.0).unwrap();
             assert_eq!(t.lag, window, "{t:?}");
             assert!(t.acf <= -0.4 && t.is_window(), "{t:?}");
+        }
+    }
+
+    #[test]
+    fn a_coarse_counter_still_shows_its_window() {
+        // 100 pulses per revolution: the fractions rotate more regularly, the flank grows.
+        for window in [4, 8] {
+            let x = counted(window, 20_000, 417.0, 100.0);
+            let t = deepest_trough(&x, 417.0).unwrap();
+            assert!(t.lag == window && t.is_window(), "{t:?}");
         }
     }
 
@@ -281,5 +309,9 @@ mod tests {
         assert_eq!(campaign_window(&split), Err((2, 4)));
         let shallow = vec![(417.0, vec![t(8, -0.1); 4])];
         assert_eq!(campaign_window(&shallow), Ok(None));
+        // One axle of eight with a window is noise, not a reason for a note.
+        let mut one = vec![None; 8];
+        one[3] = t(8, -0.5);
+        assert_eq!(campaign_window(&[(417.0, one)]), Ok(None));
     }
 }

@@ -478,11 +478,12 @@ impl<'p> CampaignCalibrator<'p> {
                     String::new()
                 };
                 notes.push(format!(
-                    "the tachometers count pulses over {:.1} ms{samples}: their quantisation error's autocorrelation is {:.2} at that lag on {} of {} axles of the runs, so their delay is taken as half of it, {:.1} ms, not fitted from the balance",
+                    "the tachometers count pulses over {:.1} ms{samples}: their quantisation error's autocorrelation is {:+.2} at that lag on {} of {} axles ({} runs), so their delay is taken as half of it, {:.1} ms, not fitted from the balance (assuming the tachometer chain adds no other latency)",
                     w.window_s * 1e3,
                     w.mean_acf,
                     w.showing,
                     w.looked_at,
+                    runs.len(),
                     w.delay_s() * 1e3
                 ));
                 Some(w)
@@ -490,7 +491,8 @@ impl<'p> CampaignCalibrator<'p> {
             Ok(None) => None,
             Err((agree, looked_at)) => {
                 notes.push(format!(
-                    "only {agree} of {looked_at} axles of the runs show the same tachometer counting window in their quantisation (at least {:.0} % must): the tachometers' delay is fitted from the balance",
+                    "only {agree} of {looked_at} axles ({} runs) show the same tachometer counting window in their quantisation (at least {:.0} % must; a window set in samples differs in time between logging rates): the tachometers' delay is fitted from the balance",
+                    runs.len(),
                     counting::AGREEING * 100.0
                 ));
                 None
@@ -1019,8 +1021,8 @@ fn drop_insignificant_delays(
         // scenes: latency 8.0 ± 7.1 ms and the tachometers' 3.2 ± 3.4 ms, correlated −0.96 —
         // the runs pin down their sum — neither beyond 1.96 standard errors alone, together
         // beyond χ²₂'s quantile; they take 14–16 % off the soap runs' μ error).
-        // A fitted delay whose 95 % interval reaches an end of its searched range has no
-        // minimum the runs place inside it, like one at the end itself: it goes first.
+        // A fitted delay whose 95 % interval reaches the lower end of its searched range has
+        // no minimum the runs place inside it, like one at the end itself: it goes first.
         let ends = (
             reaches_end(at.radar_s, tested.0, fit.0, LATENCY_RANGE_S),
             reaches_end(at.tacho_s, tested.1, fit.1, TACHO_DELAY_RANGE_S),
@@ -1130,19 +1132,22 @@ fn drop_insignificant_delays(
 }
 
 /// Whether a fitted delay `t` (s, `on`) with standard error `se` has a 95 % interval that
-/// reaches an end of its searched range `(lo, hi)` (s). The pair case's smooth dry runs: the
-/// radar's latency alone at −43 ± 5.6 ms with the tachometers held at their window, where
-/// fitted together both ran to the −50 ms end.
-fn reaches_end(t: f64, se: f64, on: bool, (lo, hi): (f64, f64)) -> bool {
-    on && se.is_finite() && (t - lo).min(hi - t) < Z95 * se
+/// reaches the lower end `lo` (s, negative) of its searched range. A sensor cannot read ahead
+/// of the brake pressures, so a delay running off the negative end is the balance's model
+/// error or a logger's time stamps, not a fit. The pair case's smooth dry runs: the radar's
+/// latency alone at −43 ± 5.6 ms with the tachometers held at their window, where fitted
+/// together both ran to the −50 ms end. The upper end is not tested: a long latency well
+/// told from 0 (say 170 ± 20 ms) is kept, and one at the end itself is no fit already.
+fn reaches_end(t: f64, se: f64, on: bool, (lo, _): (f64, f64)) -> bool {
+    on && se.is_finite() && t - lo < Z95 * se
 }
 
 /// The note for a delay taken as 0 at `t` ± `se` (s): not told from 0, or (`range` given, s)
-/// its interval reaching the range's end.
+/// its interval reaching the range's lower end.
 fn dropped_note(name: &str, t: f64, se: f64, range: Option<(f64, f64)>) -> String {
     match range {
         Some((lo, hi)) => format!(
-            "the {name} came out at {:.1} ms ± {:.1} ms, its 95 % interval reaching the end of the searched range ({:.0}…{:.0} ms): not identifiable from these runs, taken as 0 (check the logger's time stamps)",
+            "the {name} came out at {:.1} ms ± {:.1} ms, its 95 % interval reaching the lower end of the searched range ({:.0}…{:.0} ms; no sensor reads ahead of the pressures): not identifiable from these runs, taken as 0 (check the logger's time stamps)",
             t * 1e3,
             se * 1e3,
             lo * 1e3,
