@@ -188,6 +188,40 @@ fn effects_not_listed_cost_nothing() {
     );
 }
 
+/// A counting tachometer counts the pulses between its own sample instants. The simulator
+/// takes each sample at the first step at or after its instant; the counter must read the
+/// wheel's angle at the instant, not at that step (up to 0.1 ms later: at 200 km/h that is
+/// ω · 0.1 ms / 19.2 ms ≈ 0.65 rad/s, fifty times a count's worth at 100 000 pulses per
+/// revolution, in a pattern that repeats at the beat of the steps against the logger rate).
+#[test]
+fn the_counting_tachometers_read_the_wheel_at_their_sample_instants() {
+    let sc = Scene::from_toml(
+        "name = \"t\"\nseed = 3\neffects = [\"tacho_quantization\"]\n[run]\ninitial_speed_kmh = 200.0\nmax_duration_s = 2.0\n[brake]\ndemand_bar = [[0.0, 0.0]]\n[sensors]\ntacho_pulses_per_rev = 100000.0\n",
+        "t.toml",
+        None,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    let out = sim::simulate(&sc, None).unwrap();
+    let s = &sc.sensors;
+    let window = (s.tacho_window_s * s.tacho_rate_hz).round();
+    // One count's worth, and the channel's rounding to 1e-4 rad/s.
+    let count = std::f64::consts::TAU / s.tacho_pulses_per_rev * s.tacho_rate_hz / window;
+    let omega = out.truth.omega_radps[0][0];
+    assert!(omega > 120.0, "the wheel turns at {omega} rad/s");
+    let mut worst: f64 = 0.0;
+    for a in 0..4 {
+        let ch = &out.channels[1 + a];
+        // Past the first window (shorter counts there).
+        for m in &ch.values[window as usize + 1..] {
+            worst = worst.max((m - omega).abs());
+        }
+    }
+    assert!(
+        worst <= count + 0.5e-4 + 1e-9,
+        "the tachometers read up to {worst} rad/s off a wheel turning steadily at {omega} rad/s; one count is {count}"
+    );
+}
+
 /// The calibration mismatches do what they say, measured from the output alone: the radar reads
 /// `radar_scale` × the speed of `radar_latency_s` ago; each axle's brake torque over its
 /// pressure, from the wheel's balance J ω̇ = T r − α p, is its own α_i, rising as the train

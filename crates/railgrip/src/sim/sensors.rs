@@ -164,7 +164,7 @@ impl<'a> Logger<'a> {
                 let ts = round_to(self.next_k[g] as f64 / self.rates[g], 1e6);
                 match g {
                     RADAR => self.radar(ts, st, counters),
-                    TACHO => self.tachometers(ts, st, counters),
+                    TACHO => self.tachometers(ts, t - self.next_t[g], st, counters),
                     PRESSURE => self.pressures(ts, st, counters),
                     TRUTH => {
                         self.truth_sample(ts, st);
@@ -214,13 +214,20 @@ impl<'a> Logger<'a> {
     }
 
     #[inline(always)]
-    fn tachometers(&mut self, ts: f64, st: &SimState, counters: &mut EffectCounters) {
+    fn tachometers(&mut self, ts: f64, lag: f64, st: &SimState, counters: &mut EffectCounters) {
         let quantized = self.sc.effects.has(Effect::TachoQuantization);
         let k = self.next_k[TACHO] as usize;
         let window = self.window;
-        self.theta_hist[k % (window + 1)] = st.theta;
-        for a in 0..AXLES {
-            let omega = st.ax.omega[a];
+        // The wheel angles at the sample's own instant, `lag` (< one step) before the step
+        // that takes it: a counter latched at the step would see up to a step's rotation more,
+        // an error of ω·lag / window in its reading that the steps' beat against the logger
+        // rate turns into a line near 8 Hz.
+        let mut theta = st.theta;
+        for (th, om) in theta.iter_mut().zip(st.ax.omega) {
+            *th -= om * lag;
+        }
+        self.theta_hist[k % (window + 1)] = theta;
+        for (a, (&th, &omega)) in theta.iter().zip(&st.ax.omega).enumerate() {
             let m = if quantized {
                 counters.hit(Effect::TachoQuantization);
                 // Pulses counted over the last `window` samples.
@@ -229,8 +236,7 @@ impl<'a> Logger<'a> {
                     omega
                 } else {
                     let old = self.theta_hist[(k - span) % (window + 1)][a];
-                    let count =
-                        (st.theta[a] / self.pulse_angle).floor() - (old / self.pulse_angle).floor();
+                    let count = (th / self.pulse_angle).floor() - (old / self.pulse_angle).floor();
                     count * self.pulse_angle * self.rates[TACHO] / span as f64
                 }
             } else {
