@@ -9,14 +9,16 @@ ddv_mps2 (m/s^2) replaced, axle by axle, by one of:
                     forward-backward): the estimate's bandwidth without its noise;
 - error-below:F     the truth plus only the part of the estimate's error below F Hz;
 - error-above:F     the truth plus only the part of the estimate's error above F Hz;
-- brake-torque:F    the estimate plus the brake torque's fast part, r (alpha/J) (p_4 - p_F)
-                    scaled by kappa: the wheel's acceleration is omega' = c - (alpha/J) p (c the
-                    contact's torque over the inertia J), the estimate's omega' is low-passed
-                    at 4 Hz, and p_4, p_F are the logged pressure low-passed at 4 and F Hz.
-                    kappa is the regression, over each second, of the 4-15 Hz band of the
-                    logged omega' (the tachometers moved back by --delay-ms) on that of
-                    -(alpha/J) p, clipped to [0, 1.2]: where the wheel creeps the contact force
-                    follows the brake and cancels part of it.
+- brake-torque:F    (F > 4) the estimate's wheel acceleration with the brake torque's fast
+                    part added, omega'_new = omega'_4 + kappa (alpha/J)(p_4 - p_F), so that
+                    ddv_new = ddv - r kappa (alpha/J)(p_4 - p_F) (braking runs: ddv = v' - r
+                    omega'). The wheel's acceleration is omega' = c - (alpha/J) p (c the
+                    contact's torque over the inertia J), the estimate's omega'_4 is low-passed
+                    at 4 Hz, and p_4, p_F are the logged pressure (bar) low-passed at 4 and F
+                    Hz. kappa is the regression, over a centred sliding 1 s window, of the
+                    4-15 Hz band of the logged omega' on that of -(alpha/J) p, clipped to
+                    [0, 1.2]: where the wheel creeps the contact force follows the brake and
+                    cancels part of it. The tachometers are moved back by --delay-ms first.
 
 Every other column and each file's run metadata stay as they were. The truth comes from
 <ARCHIVE_DIR>/<run>.truth.parquet, the logs (brake-torque only) from <ARCHIVE_DIR>/<run>.csv,
@@ -30,6 +32,9 @@ the models, and of what kind:
     railgrip score OUT_DIR/models/mlp.residual.json pipelines/scenes/top_speed/*.toml --seeds N
 
 --alpha (N m/bar), --inertia (kg m^2), --radius (m): the pipeline's (defaults: UIC-Z1's).
+--delay-ms: the counting tachometers' delay, half their counting window (default: half of 8
+samples at 417 Hz, the simulator's default 20 ms window at the default rate). Nothing is
+written unless every run could be edited.
 Needs numpy, pandas, pyarrow and scipy. docs/training.md ("The loss is the 4 Hz bandwidth" and
 "The brake torque's fast part added back") used it on the top-speed scenes.
 """
@@ -51,13 +56,20 @@ def lowpass(x, hz, fs):
     return sosfiltfilt(butter(4, hz, fs=fs, output="sos"), x)
 
 
-def brake_torque_part(log, axle, fs, a):
-    """r kappa (alpha/J)(p_4 - p_F) on the log's time base, kappa over each second."""
+def column(frame, name, path):
+    """The column `name` of `frame` as floats, or an exit naming the file."""
+    if name not in frame:
+        sys.exit(f"{path}: no column {name}; it has {', '.join(map(str, frame.columns))}")
+    return frame[name].to_numpy(dtype=float)
+
+
+def brake_torque_part(log, log_path, axle, fs, a):
+    """r kappa (alpha/J)(p_4 - p_F) on the log's time base, kappa over a sliding 1 s window."""
     b = a.alpha / a.inertia
     shift = int(round(a.delay_ms * 1e-3 * fs))
-    omega = log[f"omega{axle}"].to_numpy()
+    omega = column(log, f"omega{axle}", log_path)
     omega = np.concatenate([omega[shift:], np.full(shift, omega[-1])])
-    p = log[f"p{axle}"].to_numpy()
+    p = column(log, f"p{axle}", log_path)
     h = 1.0 / fs
     w4 = lowpass(omega, 4.0, fs)
     band_w = np.gradient(lowpass(omega, 15.0, fs) - w4, h)
@@ -88,10 +100,14 @@ def main():
         a.cutoff = float(hz)
     except ValueError:
         sys.exit(f"variant {a.variant!r}: {hz!r} is not a frequency in Hz")
+    if not a.cutoff > 0.0 or (kind == "brake-torque" and not a.cutoff > 4.0):
+        sys.exit(f"variant {a.variant!r}: give F above {'4 Hz (the estimate is at 4 Hz)' if kind == 'brake-torque' else '0'}")
+    if a.delay_ms < 0.0:
+        sys.exit(f"--delay-ms {a.delay_ms}: a delay is not negative")
     paths = sorted(glob.glob(os.path.join(a.run_out, "runs", "*", "estimates.parquet")))
     if not paths:
         sys.exit(f"no runs/*/estimates.parquet under {a.run_out}: give the output folder of `railgrip run`")
-    os.makedirs(a.out, exist_ok=True)
+    edited = []
     for path in paths:
         run = os.path.basename(os.path.dirname(path))
         table = pq.read_table(path)
@@ -99,6 +115,8 @@ def main():
         est = table.to_pandas()
         t = est["time_s"].to_numpy()
         fs = 1.0 / np.median(np.diff(np.unique(t)))
+        if not a.cutoff < fs / 2:
+            sys.exit(f"{path}: {a.cutoff} Hz is not below half the sample rate ({fs:.0f} Hz); give a lower F")
         new = est["ddv_mps2"].to_numpy().copy()
         if kind == "brake-torque":
             log_path = os.path.join(a.archive, f"{run}.csv")
@@ -114,10 +132,12 @@ def main():
             sel = (est["axle"] == axle).to_numpy()
             old = new[sel]
             if kind == "brake-torque":
-                part = brake_torque_part(log, axle, fs, a)
-                x = old - np.interp(t[sel], log["t"].to_numpy(), part)
+                part = brake_torque_part(log, log_path, axle, fs, a)
+                x = old - np.interp(t[sel], column(log, "t", log_path), part)
             else:
                 tr = truth[truth.axle == axle].sort_values("time_s")
+                if tr.empty:
+                    sys.exit(f"{truth_path}: no samples of axle {axle}; give the truth the run was simulated with")
                 q = np.interp(t[sel], tr.time_s.to_numpy(), tr.ddv_mps2.to_numpy())
                 err = np.nan_to_num(old - q)
                 if kind == "truth-lowpass":
@@ -129,7 +149,10 @@ def main():
             new[sel] = np.where(np.isfinite(old), x, old)
         i = table.schema.get_field_index("ddv_mps2")
         table = table.set_column(i, table.schema.field("ddv_mps2"), pa.array(new))
-        pq.write_table(table.replace_schema_metadata(meta), os.path.join(a.out, f"{run}.estimates.parquet"))
+        edited.append((run, table.replace_schema_metadata(meta)))
+    os.makedirs(a.out, exist_ok=True)
+    for run, table in edited:
+        pq.write_table(table, os.path.join(a.out, f"{run}.estimates.parquet"))
         print(f"{run}: ddv_mps2 as {a.variant}")
 
 
