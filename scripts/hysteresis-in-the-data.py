@@ -18,12 +18,13 @@ ARCHIVE_DIR holds the scenes' truth tables (`railgrip simulate`), RUN_OUT_DIR is
 folder of `railgrip run` on that archive. Needs numpy, pandas and pyarrow. The 0.94-1.05 of
 docs/training.md ("Where the network loses it") comes from it.
 """
-import glob
 import os
 import sys
 
 import numpy as np
 import pyarrow.parquet as pq
+
+from campaign_tables import run_estimates
 
 SLIPS = np.arange(0.5, 3.0 + 1e-9, 0.1)
 RATES = [0.25, 0.5, 1.0, 2.0, 4.0, 8.0]
@@ -53,12 +54,8 @@ def main():
     if len(sys.argv) != 3:
         sys.exit(__doc__)
     archive, run_out = sys.argv[1], sys.argv[2]
-    estimates = sorted(glob.glob(os.path.join(run_out, "runs", "*", "estimates.parquet")))
-    if not estimates:
-        sys.exit(f"no runs/*/estimates.parquet under {run_out}: give the output folder of `railgrip run`")
     compared = 0
-    for path in estimates:
-        run = os.path.basename(os.path.dirname(path))
+    for run, path in run_estimates(run_out):
         truth_path = os.path.join(archive, f"{run}.truth.parquet")
         if not os.path.exists(truth_path):
             print(f"{truth_path}: missing, run {run} skipped (give the archive it was simulated into)",

@@ -39,7 +39,6 @@ Needs numpy, pandas, pyarrow and scipy. docs/training.md ("The loss is the 4 Hz 
 "The brake torque's fast part added back") used it on the top-speed scenes.
 """
 import argparse
-import glob
 import os
 import sys
 
@@ -48,6 +47,8 @@ import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
 from scipy.signal import butter, sosfiltfilt
+
+from campaign_tables import COUNTER_DELAY_MS, run_estimates, run_metadata, write_estimates
 
 VARIANTS = ("truth-lowpass", "error-below", "error-above", "brake-torque")
 
@@ -91,7 +92,7 @@ def main():
     ap.add_argument("--alpha", type=float, default=1600.0)
     ap.add_argument("--inertia", type=float, default=120.0)
     ap.add_argument("--radius", type=float, default=0.445)
-    ap.add_argument("--delay-ms", type=float, default=8 / 417 / 2 * 1e3)
+    ap.add_argument("--delay-ms", type=float, default=COUNTER_DELAY_MS)
     a = ap.parse_args()
     kind, _, hz = a.variant.partition(":")
     if kind not in VARIANTS or not hz:
@@ -104,14 +105,10 @@ def main():
         sys.exit(f"variant {a.variant!r}: give F above {'4 Hz (the estimate is at 4 Hz)' if kind == 'brake-torque' else '0'}")
     if a.delay_ms < 0.0:
         sys.exit(f"--delay-ms {a.delay_ms}: a delay is not negative")
-    paths = sorted(glob.glob(os.path.join(a.run_out, "runs", "*", "estimates.parquet")))
-    if not paths:
-        sys.exit(f"no runs/*/estimates.parquet under {a.run_out}: give the output folder of `railgrip run`")
     edited = []
-    for path in paths:
-        run = os.path.basename(os.path.dirname(path))
+    for run, path in run_estimates(a.run_out):
         table = pq.read_table(path)
-        meta = {k: v for k, v in (pq.read_metadata(path).metadata or {}).items() if k != b"ARROW:schema"}
+        meta = run_metadata(path)
         est = table.to_pandas()
         t = est["time_s"].to_numpy()
         fs = 1.0 / np.median(np.diff(np.unique(t)))
@@ -149,10 +146,10 @@ def main():
             new[sel] = np.where(np.isfinite(old), x, old)
         i = table.schema.get_field_index("ddv_mps2")
         table = table.set_column(i, table.schema.field("ddv_mps2"), pa.array(new))
-        edited.append((run, table.replace_schema_metadata(meta)))
+        edited.append((run, table, meta))
     os.makedirs(a.out, exist_ok=True)
-    for run, table in edited:
-        pq.write_table(table, os.path.join(a.out, f"{run}.estimates.parquet"))
+    for run, table, meta in edited:
+        write_estimates(a.out, run, table, meta)
         print(f"{run}: ddv_mps2 as {a.variant}")
 
 

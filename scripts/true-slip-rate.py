@@ -21,7 +21,6 @@ the estimated slip rate is the cause") used it.
 """
 import argparse
 import fnmatch
-import glob
 import os
 import sys
 
@@ -29,6 +28,8 @@ import numpy as np
 import pandas as pd
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+from campaign_tables import run_estimates, run_metadata, write_estimates
 
 
 def replaced(estimates, truth, columns):
@@ -75,15 +76,11 @@ def main():
     ap.add_argument("--only", nargs="*", default=["*"], help="run-name patterns to edit (default all)")
     a = ap.parse_args()
     columns = [c for c in a.columns.split(",") if c]
-    paths = sorted(glob.glob(os.path.join(a.run_out, "runs", "*", "estimates.parquet")))
-    if not paths:
-        sys.exit(f"no runs/*/estimates.parquet under {a.run_out}: give the output folder of `railgrip run`")
+    runs = run_estimates(a.run_out)
     os.makedirs(a.out, exist_ok=True)
-    for path in paths:
-        run = os.path.basename(os.path.dirname(path))
+    for run, path in runs:
         table = pq.read_table(path)
-        # The run metadata railgrip reads is in the file's key-value metadata.
-        meta = {k: v for k, v in (pq.read_metadata(path).metadata or {}).items() if k != b"ARROW:schema"}
+        meta = run_metadata(path)
         edit = any(fnmatch.fnmatchcase(run, p) for p in a.only)
         if edit:
             truth_path = os.path.join(a.archive, f"{run}.truth.parquet")
@@ -93,7 +90,7 @@ def main():
             truth = pq.read_table(truth_path)
             check_columns(truth_path, truth.schema, columns, "truth")
             table = replaced(table, truth.to_pandas(), columns)
-        pq.write_table(table.replace_schema_metadata(meta), os.path.join(a.out, f"{run}.estimates.parquet"))
+        write_estimates(a.out, run, table, meta)
         print(f"{run}: {', '.join(columns) + ' from the truth' if edit else 'unedited'}")
 
 

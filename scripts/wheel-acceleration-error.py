@@ -32,13 +32,15 @@ import numpy as np
 import pandas as pd
 from scipy.signal import butter, sosfiltfilt
 
+from campaign_tables import COUNTER_DELAY_MS
+
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("archive")
     ap.add_argument("--axle", type=int, default=2)
     ap.add_argument("--cutoffs", default="4,6,8,12")
-    ap.add_argument("--delay-ms", type=float, default=8 / 417 / 2 * 1e3)
+    ap.add_argument("--delay-ms", type=float, default=COUNTER_DELAY_MS)
     ap.add_argument("--radius", type=float, default=0.445)
     a = ap.parse_args()
     cutoffs = [float(c) for c in a.cutoffs.split(",")]
