@@ -2753,6 +2753,71 @@ fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
     assert!(seen > 20, "{seen} supported (Δv, dΔv/dt) cells");
 }
 
+/// Runs' tables parked in their estimates files (a pool holds tables only while it stays
+/// within `train.max_pooled_samples`) and read back thinned train the same models, to the byte,
+/// as the tables held in memory; a parked file that changed before it was read back is an
+/// error naming it.
+#[test]
+fn parked_tables_train_the_same_models_as_held_ones() {
+    use railgrip::campaign::{Pool, PooledRun};
+    let p0 = Pipeline::default_uic_z1();
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("fixtures/archive");
+    let dir = tempfile::tempdir().unwrap();
+    let mut tables = Vec::new();
+    let mut files = Vec::new();
+    for name in ["soap_120kmh_0c", "soap_120kmh_m20", "soap_120kmh_p20"] {
+        let log = railgrip::ingest_file(&src.join(format!("{name}.csv")), &p0).unwrap();
+        let e = railgrip::estimate::estimate(&log, &p0).unwrap();
+        let file = e.write_named(dir.path(), name, false).unwrap().remove(0);
+        tables.push(railgrip::identify::RunTable::from_estimates(
+            name, name, "", &e,
+        ));
+        files.push(file);
+    }
+    let pooled: usize = tables.iter().map(|t| t.len()).sum();
+    let mut p = p0.clone();
+    p.train.model = railgrip::config::ModelChoice::Mlp;
+    p.train.leave_one_run_out = false;
+    p.train.polach_intervals = false;
+    p.train.max_pooled_samples = pooled / 3;
+    // In turn, as `railgrip run` admits finished runs: the first fits, the others do not.
+    let pool = Pool::new(p.train.max_pooled_samples);
+    let runs: Vec<PooledRun> = tables
+        .iter()
+        .zip(&files)
+        .map(|(t, f)| pool.admit(t.clone(), f))
+        .collect();
+    let parked = runs
+        .iter()
+        .filter(|r| matches!(r, PooledRun::Parked(_)))
+        .count();
+    assert_eq!(parked, 2, "{runs:?}");
+    let held = railgrip::campaign::train_models(tables.clone(), &p, None).unwrap();
+    let read_back = railgrip::campaign::train_pooled(runs.clone(), &p, None).unwrap();
+    assert_eq!(read_back.samples, held.samples);
+    assert_eq!(read_back.mlp.to_json(), held.mlp.to_json());
+    assert_eq!(
+        read_back.polach.as_ref().map(|m| m.to_json()),
+        held.polach.as_ref().map(|m| m.to_json())
+    );
+    assert_eq!(read_back.notes, held.notes);
+    // Under the limit every table is held: nothing is read back.
+    let roomy = Pool::new(pooled);
+    assert!(tables
+        .iter()
+        .zip(&files)
+        .all(|(t, f)| matches!(roomy.admit(t.clone(), f), PooledRun::Held(_))));
+    // A parked file overwritten with another run's estimates before it is read back.
+    std::fs::copy(&files[0], &files[2]).unwrap();
+    let err = railgrip::campaign::train_pooled(runs, &p, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&files[2].display().to_string()) && err.contains("changed while"),
+        "{err}"
+    );
+}
+
 /// A campaign whose pooled valid samples exceed `train.max_pooled_samples` trains on every
 /// m-th sample of each run and axle (m the smallest that fits) and says so in a note; under the
 /// limit nothing is thinned and no note is written.

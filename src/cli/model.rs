@@ -4,7 +4,7 @@ use std::io::Write as _;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
-use railgrip::campaign::{train_models, CampaignModels, ModelPaths};
+use railgrip::campaign::{train_pooled, CampaignModels, ModelPaths};
 use railgrip::identify::polach::PolachReport;
 use railgrip::model::{c_header, Model, ModelFile};
 
@@ -40,7 +40,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
     }
     let pipeline = args.pipeline.load()?;
     let folder = railgrip::store::OutFolder::at(&args.out)?;
-    let tables = railgrip::campaign::load_tables(&args.inputs, &pipeline)?;
+    let tables = railgrip::campaign::load_pooled(&args.inputs, &pipeline)?;
     let quiet = args.quiet;
     let progress = |e: &railgrip::model::Epoch| {
         if !quiet {
@@ -50,7 +50,7 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
             );
         }
     };
-    let models = train_models(tables, &pipeline, Some(&progress))?;
+    let models = train_pooled(tables, &pipeline, Some(&progress))?;
     eprintln!(
         "data       {} run(s) on {} rail, {} valid samples; [train] split {:?}, decimate {}",
         models.runs,

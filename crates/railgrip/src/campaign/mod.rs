@@ -6,6 +6,7 @@
 //! CLI draws bars from it); the library never prints.
 
 pub mod calibration;
+pub mod pool;
 mod remote;
 pub mod runs;
 pub mod summary;
@@ -21,13 +22,14 @@ pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
 };
+pub use pool::{ParkedRun, Pool, PooledRun};
 pub use remote::{campaign_logs_at, estimate_run_at, models_at, run_at, sources_at};
 pub use runs::{
     discover, discover_all, failed_record, input_hash, process_run, recall_run, run_name,
 };
 pub use summary::{write_summary, SUMMARY_COLUMNS};
-pub use tables::load_tables;
-pub use train::{train_models, CampaignModels};
+pub use tables::{load_pooled, load_tables};
+pub use train::{train_models, train_pooled, CampaignModels};
 
 use crate::config::Pipeline;
 use crate::identify::dataset::RunTable;
@@ -375,11 +377,7 @@ fn run_sources(
     }
 
     let t = Instant::now();
-    let (records, tables) = match (options.part, given) {
-        (Part::Models, Some(given)) => given_runs(&logs, out, given)?,
-        (Part::Models, None) => recall_runs(root, &logs, out, pipeline, options, progress)?,
-        _ => estimate_runs(root, &logs, out, pipeline, options, progress)?,
-    };
+    let (records, tables) = campaign_runs(root, &logs, out, pipeline, options, given, progress)?;
     stages.push((
         Stage::Estimate.name().to_string(),
         t.elapsed().as_secs_f64(),
@@ -703,6 +701,29 @@ fn each_run<T: Send>(
     }))
 }
 
+/// Stage 1 of a whole campaign or its models part: the runs estimated, recalled from the
+/// estimate shards' outputs or given, their tables waiting for the models within
+/// `train.max_pooled_samples` ([`pool`]).
+fn campaign_runs(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    given: Option<Given>,
+    progress: CampaignProgress<'_>,
+) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
+    let pool = Pool::new(pipeline.train.max_pooled_samples);
+    match (options.part, given) {
+        (Part::Models, Some(given)) => {
+            let (records, tables) = given_runs(logs, out, given)?;
+            Ok((records, tables.into_iter().map(PooledRun::from).collect()))
+        }
+        (Part::Models, None) => recall_runs(root, logs, out, pipeline, options, progress, &pool),
+        _ => estimate_pooled(root, logs, out, pipeline, options, progress, &pool),
+    }
+}
+
 /// The runs the estimate shards wrote ([`Part::Models`]), each checked against its current
 /// inputs. Records in the order of `logs`; an error names every run that is missing or stale.
 fn recall_runs(
@@ -712,14 +733,17 @@ fn recall_runs(
     pipeline: &Pipeline,
     options: Options,
     progress: CampaignProgress<'_>,
-) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
+    pool: &Pool,
+) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
     let found = each_run(
         root,
         logs,
         options,
         progress,
         |name, src| {
-            runs::recall_run(src, name, out, pipeline).map_err(|why| format!("{name} ({why})"))
+            runs::recall_run(src, name, out, pipeline)
+                .map(|(rec, table)| (rec, table.map(|t| pool.admit(t, &out.run_estimates(name)))))
+                .map_err(|why| format!("{name} ({why})"))
         },
         |r| r.as_ref().ok().map(|(rec, _)| rec),
     )?;
@@ -739,7 +763,7 @@ fn recall_runs(
             hint: "run `railgrip run --stage estimate --shard K/N` for every shard K of N (the same archive, pipeline and --out) before --stage models".into(),
         });
     }
-    let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) =
+    let (records, tables): (Vec<RunRecord>, Vec<Option<PooledRun>>) =
         found.into_iter().flatten().unzip();
     Ok((records, tables.into_iter().flatten().collect()))
 }
@@ -821,15 +845,46 @@ pub fn estimate_runs(
     options: Options,
     progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
+    estimate_each(root, logs, out, pipeline, options, progress, |_, t| t)
+}
+
+/// [`estimate_runs`] with each run's table held or parked by `pool` ([`pool`]).
+fn estimate_pooled(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+    pool: &Pool,
+) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
+    estimate_each(root, logs, out, pipeline, options, progress, |name, t| {
+        pool.admit(t, &out.run_estimates(name))
+    })
+}
+
+/// Stage 1 with `keep` taking each estimated run's table as it is done.
+fn estimate_each<T: Send>(
+    root: &Path,
+    logs: &[(String, LogSource)],
+    out: &OutDir,
+    pipeline: &Pipeline,
+    options: Options,
+    progress: CampaignProgress<'_>,
+    keep: impl Fn(&str, RunTable) -> T + Sync,
+) -> Result<(Vec<RunRecord>, Vec<T>), CampaignError> {
     let results = each_run(
         root,
         logs,
         options,
         progress,
-        |name, src| process_run(src, name, out, pipeline, options.force),
+        |name, src| {
+            let (rec, table) = process_run(src, name, out, pipeline, options.force);
+            (rec, table.map(|t| keep(name, t)))
+        },
         |(rec, _)| Some(rec),
     )?;
-    let (records, tables): (Vec<RunRecord>, Vec<Option<RunTable>>) = results.into_iter().unzip();
+    let (records, tables): (Vec<RunRecord>, Vec<Option<T>>) = results.into_iter().unzip();
     Ok((records, tables.into_iter().flatten().collect()))
 }
 
@@ -953,7 +1008,7 @@ struct Trained {
 /// A campaign whose models cannot be trained still completes (the reason is in the outcome);
 /// models that cannot be written fail it.
 fn train_stage(
-    tables: Vec<RunTable>,
+    tables: Vec<PooledRun>,
     out: &OutDir,
     pipeline: &Pipeline,
     generation: &str,
@@ -976,7 +1031,7 @@ fn train_stage(
     }
     progress.event(Event::TrainStarts);
     let epochs = |e: &Epoch| progress.event(Event::Epoch(e));
-    match train_models(tables, pipeline, Some(&epochs)) {
+    match train_pooled(tables, pipeline, Some(&epochs)) {
         Ok(mut m) => {
             m.set_generation(generation);
             t.epochs = m.trained.history.len();

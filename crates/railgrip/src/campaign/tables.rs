@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
+use super::pool::{Pool, PooledRun};
 use super::CampaignError;
 use crate::config::Pipeline;
 use crate::identify::dataset::RunTable;
@@ -74,11 +75,36 @@ pub fn load_tables(
     inputs: &[PathBuf],
     pipeline: &Pipeline,
 ) -> Result<Vec<RunTable>, CampaignError> {
+    load_each(inputs, pipeline, |t, _| t)
+}
+
+/// [`load_tables`] for the models ([`super::train_pooled`]): an estimates table is held while
+/// the tables held stay within `train.max_pooled_samples`, else parked in its own file and
+/// read back thinned ([`super::pool`]). A log estimated on the fly has no file to be read back
+/// from, so its table is always held.
+pub fn load_pooled(
+    inputs: &[PathBuf],
+    pipeline: &Pipeline,
+) -> Result<Vec<PooledRun>, CampaignError> {
+    let pool = Pool::new(pipeline.train.max_pooled_samples);
+    load_each(inputs, pipeline, |t, file| match file {
+        Some(p) => pool.admit(t, p),
+        None => PooledRun::Held(t),
+    })
+}
+
+/// Each input's table given to `keep` with the estimates file it was read from (None for a
+/// log, estimated on the fly).
+fn load_each<T: Send>(
+    inputs: &[PathBuf],
+    pipeline: &Pipeline,
+    keep: impl Fn(RunTable, Option<&Path>) -> T + Sync,
+) -> Result<Vec<T>, CampaignError> {
     expand(inputs)?
         .par_iter()
-        .map(|input| -> Result<RunTable, CampaignError> {
+        .map(|input| -> Result<T, CampaignError> {
             let (run, src) = match input {
-                Input::Table(p) => return Ok(RunTable::read_parquet(p)?),
+                Input::Table(p) => return Ok(keep(RunTable::read_parquet(p)?, Some(p))),
                 Input::Log(run, src) => (run, src),
             };
             // A log in a bucket is fetched once for the estimation and the hash.
@@ -94,7 +120,7 @@ pub fn load_tables(
                     path: src.name().to_path_buf(),
                     source,
                 })?;
-            Ok(RunTable::from_estimates(run, &name, &sha, &e))
+            Ok(keep(RunTable::from_estimates(run, &name, &sha, &e), None))
         })
         .collect()
 }

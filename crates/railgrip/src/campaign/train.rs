@@ -5,6 +5,7 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
+use super::pool::{into_tables, PooledRun};
 use super::{CampaignError, ModelPaths};
 use crate::config::Pipeline;
 use crate::identify::choice::Choice;
@@ -13,7 +14,7 @@ use crate::identify::family::{campaign_models, FitData};
 use crate::identify::lm::EpochProgress;
 use crate::identify::polach::PolachReport;
 use crate::identify::{
-    pooled_thinning, select_condition, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
+    pooled_thinning, select_condition, CampaignRun, HeldOut, HeldOutFile, IdentifyError, TrainedMlp,
 };
 use crate::model::{c_header, Epoch, InputFile, ModelFile, Provenance};
 use crate::table::{Cell, CsvText};
@@ -52,14 +53,26 @@ pub fn train_models(
     pipeline: &Pipeline,
     progress: Option<EpochProgress<'_>>,
 ) -> Result<CampaignModels, IdentifyError> {
-    let choice = select_condition(tables, pipeline.train.condition.as_deref())?;
-    let mut tables = choice.used;
+    train_pooled(
+        tables.into_iter().map(PooledRun::from).collect(),
+        pipeline,
+        progress,
+    )
+}
+
+/// [`train_models`] from runs whose tables may be parked in their estimates files
+/// ([`super::pool`]): each is read back, thinned, when the condition and the thinning are
+/// known. The same models as from the tables themselves.
+pub fn train_pooled(
+    runs: Vec<PooledRun>,
+    pipeline: &Pipeline,
+    progress: Option<EpochProgress<'_>>,
+) -> Result<CampaignModels, IdentifyError> {
+    let choice = select_condition(runs, pipeline.train.condition.as_deref())?;
     let limit = pipeline.train.max_pooled_samples;
-    let thinning = pooled_thinning(&tables, limit);
-    let pooled: usize = tables.iter().map(|t| t.len()).sum();
-    for t in &mut tables {
-        t.thin(thinning);
-    }
+    let thinning = pooled_thinning(&choice.used, limit);
+    let pooled: usize = choice.used.iter().flat_map(|r| r.axle_counts()).sum();
+    let tables = into_tables(choice.used, thinning)?;
     let samples = tables.iter().map(|t| t.len()).sum();
     let provenance = Provenance {
         inputs: tables

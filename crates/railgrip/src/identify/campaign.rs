@@ -38,16 +38,38 @@ pub fn creep_spec(
 /// curves, and a dry calibration run in a soap campaign would bend both the network and the
 /// Polach fits.
 #[derive(Debug)]
-pub struct ConditionChoice {
+pub struct ConditionChoice<T = RunTable> {
     pub condition: String,
-    pub used: Vec<RunTable>,
+    pub used: Vec<T>,
     /// (run, its condition) of the runs left out.
     pub skipped: Vec<(String, String)>,
 }
 
+/// What choosing a campaign's rail condition and its thinning needs of a run, whether its
+/// table is in memory or waits in its estimates file ([`crate::campaign::PooledRun`]).
+pub trait CampaignRun {
+    fn run_name(&self) -> &str;
+    fn run_metadata(&self) -> &crate::format::RunMetadata;
+    /// Valid samples of each axle, in the table's order (its axle blocks,
+    /// [`RunTable::axle_ranges`]).
+    fn axle_counts(&self) -> Vec<usize>;
+}
+
+impl CampaignRun for RunTable {
+    fn run_name(&self) -> &str {
+        &self.name
+    }
+    fn run_metadata(&self) -> &crate::format::RunMetadata {
+        &self.metadata
+    }
+    fn axle_counts(&self) -> Vec<usize> {
+        self.axle_ranges().map(|r| r.len()).collect()
+    }
+}
+
 /// The rail condition of a run, `unknown` without metadata.
-pub fn run_condition(t: &RunTable) -> String {
-    t.metadata
+pub fn run_condition<T: CampaignRun + ?Sized>(t: &T) -> String {
+    t.run_metadata()
         .condition
         .clone()
         .unwrap_or_else(|| "unknown".into())
@@ -55,10 +77,10 @@ pub fn run_condition(t: &RunTable) -> String {
 
 /// Keeps the runs of condition `wanted`, or without it of the most common condition (most
 /// runs; a tie goes to the alphabetically first).
-pub fn select_condition(
-    tables: Vec<RunTable>,
+pub fn select_condition<T: CampaignRun>(
+    tables: Vec<T>,
     wanted: Option<&str>,
-) -> Result<ConditionChoice, IdentifyError> {
+) -> Result<ConditionChoice<T>, IdentifyError> {
     let mut counts: std::collections::BTreeMap<String, usize> = Default::default();
     for t in &tables {
         *counts.entry(run_condition(t)).or_default() += 1;
@@ -86,7 +108,7 @@ pub fn select_condition(
                 hint: "give estimates tables or run logs".into(),
             })?,
     };
-    let (used, other): (Vec<RunTable>, Vec<RunTable>) = tables
+    let (used, other): (Vec<T>, Vec<T>) = tables
         .into_iter()
         .partition(|t| run_condition(t) == condition);
     Ok(ConditionChoice {
@@ -94,7 +116,7 @@ pub fn select_condition(
         used,
         skipped: other
             .iter()
-            .map(|t| (t.name.clone(), run_condition(t)))
+            .map(|t| (t.run_name().to_string(), run_condition(t)))
             .collect(),
     })
 }
@@ -104,11 +126,8 @@ pub fn select_condition(
 /// Σ ⌈n_(run, axle) / m⌉ ≤ `limit` samples (1 when they are within it already; `limit` ≥ the
 /// number of run-axle pairs, which every limit the pipeline accepts is). The same for any
 /// order of the tables.
-pub fn pooled_thinning(tables: &[RunTable], limit: usize) -> usize {
-    let counts: Vec<usize> = tables
-        .iter()
-        .flat_map(|t| t.axle_ranges().map(|r| r.len()))
-        .collect();
+pub fn pooled_thinning<T: CampaignRun>(tables: &[T], limit: usize) -> usize {
+    let counts: Vec<usize> = tables.iter().flat_map(|t| t.axle_counts()).collect();
     let limit = limit.max(counts.len()).max(1);
     let kept = |m: usize| counts.iter().map(|n| n.div_ceil(m)).sum::<usize>();
     let total = kept(1);

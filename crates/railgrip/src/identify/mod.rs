@@ -31,7 +31,7 @@ pub mod train;
 pub use crate::model::InputSet;
 pub use campaign::{
     creep_spec, median_speed, pipeline_patch, pooled_thinning, run_condition, select_condition,
-    ConditionChoice,
+    CampaignRun, ConditionChoice,
 };
 pub use dataset::{Dataset, EstimateColumns, MapMinMax, RunTable};
 pub use family::{campaign_models, CampaignFit, FitData, Fitted, ModelFamily, FAMILIES};

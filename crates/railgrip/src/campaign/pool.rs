@@ -1,0 +1,164 @@
+//! The runs' tables on their way to the models, held within `train.max_pooled_samples`.
+//!
+//! The models train on at most `train.max_pooled_samples` pooled valid samples: over it, every
+//! run and axle keeps every m-th sample ([`crate::identify::pooled_thinning`]), and m depends
+//! on every run's counts. So that the campaign's tables do not all wait in memory until the
+//! last run is estimated (a 10 000-run campaign's would take ~32 GB), a [`Pool`] holds a
+//! run's table only while the tables it holds stay within the limit; any other run's table is
+//! *parked*: only its counts are kept, and the table is read back from the estimates file the
+//! run wrote, already thinned, when the models need it ([`into_tables`]). A parked table reads
+//! back the same numbers as the held one (the estimates file keeps every column in full), so
+//! the models are the same bytes whichever runs were parked.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use crate::format::RunMetadata;
+use crate::identify::dataset::RunTable;
+use crate::identify::{CampaignRun, IdentifyError};
+
+/// A run's table, in memory or parked in its estimates file.
+#[derive(Debug, Clone)]
+pub enum PooledRun {
+    Held(RunTable),
+    Parked(ParkedRun),
+}
+
+/// A run whose table waits in its estimates file: what choosing the condition and the thinning
+/// need, and the provenance the read-back table gets.
+#[derive(Debug, Clone)]
+pub struct ParkedRun {
+    /// The estimates table (`railgrip estimate`'s format) it is read back from.
+    pub path: PathBuf,
+    pub name: String,
+    pub source: String,
+    pub sha256: String,
+    pub metadata: RunMetadata,
+    /// Valid samples of each axle block.
+    pub counts: Vec<usize>,
+}
+
+impl From<RunTable> for PooledRun {
+    fn from(t: RunTable) -> PooledRun {
+        PooledRun::Held(t)
+    }
+}
+
+impl CampaignRun for PooledRun {
+    fn run_name(&self) -> &str {
+        match self {
+            PooledRun::Held(t) => &t.name,
+            PooledRun::Parked(p) => &p.name,
+        }
+    }
+    fn run_metadata(&self) -> &RunMetadata {
+        match self {
+            PooledRun::Held(t) => &t.metadata,
+            PooledRun::Parked(p) => &p.metadata,
+        }
+    }
+    fn axle_counts(&self) -> Vec<usize> {
+        match self {
+            PooledRun::Held(t) => t.axle_counts(),
+            PooledRun::Parked(p) => p.counts.clone(),
+        }
+    }
+}
+
+impl PooledRun {
+    /// Parks `table`, to be read back from `path` (the estimates file it was read from or
+    /// written to).
+    pub fn park(table: RunTable, path: &Path) -> PooledRun {
+        PooledRun::Parked(ParkedRun {
+            path: path.to_path_buf(),
+            counts: table.axle_counts(),
+            name: table.name,
+            source: table.source,
+            sha256: table.sha256,
+            metadata: table.metadata,
+        })
+    }
+
+    /// The table thinned to every `m`-th sample of each axle ([`RunTable::thin`]); a parked
+    /// one read back from its file, which must hold the counts it was parked with.
+    pub fn into_thinned(self, m: usize) -> Result<RunTable, IdentifyError> {
+        let mut t = match self {
+            PooledRun::Held(t) => t,
+            PooledRun::Parked(p) => {
+                let mut t = RunTable::read_parquet(&p.path)?;
+                if t.axle_counts() != p.counts {
+                    return Err(IdentifyError::Input {
+                        file: p.path.display().to_string(),
+                        message: format!(
+                            "run {}: the estimates file changed while the campaign ran (valid samples per axle {:?}, {:?} when it was estimated)",
+                            p.name,
+                            t.axle_counts(),
+                            p.counts
+                        ),
+                        hint: "run the campaign again and leave its output folder alone while it runs".into(),
+                    });
+                }
+                t.name = p.name;
+                t.source = p.source;
+                t.sha256 = p.sha256;
+                t.metadata = p.metadata;
+                t
+            }
+        };
+        t.thin(m);
+        Ok(t)
+    }
+}
+
+/// Holds runs' tables while the samples it holds stay within a limit, and parks the rest
+/// ([`PooledRun::park`]). Safe to share between the threads that estimate the runs; which runs
+/// are held then depends on the order they finish, the tables the models get do not.
+#[derive(Debug)]
+pub struct Pool {
+    limit: usize,
+    held: AtomicUsize,
+}
+
+impl Pool {
+    /// A pool for `limit` samples: `train.max_pooled_samples`, which the thinning brings the
+    /// models' samples within anyway.
+    pub fn new(limit: usize) -> Pool {
+        Pool {
+            limit,
+            held: AtomicUsize::new(0),
+        }
+    }
+
+    /// `table` held, or parked in `path` when holding it would take the pool over its limit.
+    pub fn admit(&self, table: RunTable, path: &Path) -> PooledRun {
+        let n = table.len();
+        let fits = self
+            .held
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |h| {
+                (h + n <= self.limit).then_some(h + n)
+            })
+            .is_ok();
+        if fits {
+            PooledRun::Held(table)
+        } else {
+            PooledRun::park(table, path)
+        }
+    }
+}
+
+/// The runs' tables, each thinned by `m`: the held ones first (giving their memory back), then
+/// the parked ones read back one at a time, so that at most one full table is in memory beside
+/// the thinned ones. In the order given.
+pub fn into_tables(mut runs: Vec<PooledRun>, m: usize) -> Result<Vec<RunTable>, IdentifyError> {
+    for r in &mut runs {
+        if let PooledRun::Held(t) = r {
+            t.thin(m);
+        }
+    }
+    runs.into_iter()
+        .map(|r| match r {
+            PooledRun::Held(t) => Ok(t),
+            parked => parked.into_thinned(m),
+        })
+        .collect()
+}
