@@ -117,6 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
         force: args.force,
         mcap: args.mcap,
         part,
+        tables: false,
     };
     let o = campaign::run_at(
         &root,

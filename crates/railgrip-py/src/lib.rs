@@ -542,6 +542,7 @@ fn run(
         force,
         mcap,
         part,
+        tables: false,
     };
     let o = py
         .detach(|| railgrip::campaign::run_at(&archive, &out, &pipeline, options, &Quiet))
@@ -736,6 +737,7 @@ fn estimate_run<'py>(
         force,
         mcap: false,
         part: Part::Estimate(Shard { k: 1, n: 1 }),
+        tables: true,
     };
     let o = py
         .detach(|| {
@@ -840,6 +842,7 @@ fn run_models(
         force: false,
         mcap,
         part: Part::Models,
+        tables: false,
     };
     let o = py
         .detach(|| railgrip::campaign::models_at(&archive, &out, &pipeline, options, &Quiet, given))

@@ -91,6 +91,11 @@ pub struct Options {
     pub mcap: bool,
     /// The whole job, or the part a scheduler's job does ([`Part`]).
     pub part: Part,
+    /// An estimate shard returns its runs' tables in [`Outcome::tables`], for a caller that
+    /// trains on them in memory (a Ray task per run); without it the shard keeps none, so that
+    /// a shard of thousands of runs does not hold them all, and the models part reads them
+    /// back from the output folder.
+    pub tables: bool,
 }
 
 /// Which part of a campaign one call does. A scheduler (a Slurm job array, any cluster) runs
@@ -209,9 +214,9 @@ pub struct Outcome {
     pub stages: Vec<(String, f64)>,
     /// Files that are not logs, with why.
     pub skipped: Vec<Skipped>,
-    /// An estimate shard's run tables (its runs that could be estimated, reused ones read
-    /// back), in the order of its records; empty for a whole campaign, whose tables go to the
-    /// training stage.
+    /// An estimate shard's run tables when [`Options::tables`] asks for them (its runs that
+    /// could be estimated, reused ones read back), in the order of its records; empty
+    /// otherwise, and for a whole campaign, whose tables go to the training stage.
     pub tables: Vec<RunTable>,
 }
 
@@ -643,7 +648,12 @@ fn estimate_shard(
         .collect();
     make_output_folders(out)?;
     remove_campaign_results(out)?;
-    let (records, tables) = estimate_runs(root, &mine, out, pipeline, options, progress)?;
+    let (records, tables) = if options.tables {
+        estimate_runs(root, &mine, out, pipeline, options, progress)?
+    } else {
+        let (records, _) = estimate_each(root, &mine, out, pipeline, options, progress, |_, _| ())?;
+        (records, vec![])
+    };
     progress.event(Event::StageDone(Stage::Estimate));
     let elapsed = t.elapsed().as_secs_f64();
     Ok(Outcome {

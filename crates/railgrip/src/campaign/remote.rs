@@ -73,6 +73,7 @@ pub fn estimate_run_at(
     };
     let options = Options {
         part: Part::Estimate(super::Shard { k: 1, n: 1 }),
+        tables: true,
         ..options
     };
     run_logs_at(

@@ -444,7 +444,7 @@ const MAX_POOLED: Key = Key::num(
     "",
     int(1e4, 1e10),
     20e6,
-    "pooled valid samples (runs × axles of the training condition) the training holds: beyond it every run and axle keeps every m-th sample, m the smallest that fits, with a note in the report (memory: docs/benchmarks.md#how-it-grows-with-the-campaign)",
+    "pooled valid samples (runs × axles of the training condition) the training holds: beyond it every run and axle keeps every m-th sample, m the smallest that fits, with a note in the report; while the runs are estimated, tables beyond it wait in their estimates files (memory: docs/benchmarks.md#how-it-grows-with-the-campaign)",
 );
 const CONDITION: Key = text(
     "train.condition",

@@ -111,6 +111,11 @@ pub struct RunTable {
     pub mu: Column<f64>,
 }
 
+/// The columns of an estimates table a [`RunTable`] reads.
+const TABLE_COLUMNS: [&str; 7] = [
+    "time_s", "axle", "v_mps", "dv_mps", "ddv_mps2", "mu", "valid",
+];
+
 impl RunTable {
     /// The valid samples of `e`, axle by axle in time order.
     pub fn from_estimates(name: &str, source: &str, sha256: &str, e: &Estimates) -> RunTable {
@@ -243,7 +248,22 @@ impl RunTable {
                 RunMetadata::from_pairs(&pairs).ok()
             })
             .unwrap_or_default();
-        let df = reader.finish().map_err(|source| IdentifyError::Table {
+        // Only the columns the models read, each file decoded on the calling thread: the
+        // callers read many files in parallel, and a decoder waiting on its own parallel column
+        // jobs would take up further files meanwhile (rayon's work stealing), holding many
+        // half-read tables at once.
+        let columns = reader.schema().ok().map(|s| {
+            TABLE_COLUMNS
+                .iter()
+                .filter(|c| s.get(c).is_some())
+                .map(|c| c.to_string())
+                .collect::<Vec<_>>()
+        });
+        let df = reader
+            .with_columns(columns)
+            .read_parallel(ParallelStrategy::None)
+            .finish()
+            .map_err(|source| IdentifyError::Table {
             file: path.display().to_string(),
             source,
             hint: "give an estimates table written by `railgrip estimate` (or the run logs themselves)".into(),
