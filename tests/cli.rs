@@ -266,6 +266,98 @@ fn calibrate_prints_the_pipeline_line() {
     assert_eq!(o.status.code(), Some(1));
 }
 
+/// A campaign over `train.max_pooled_samples` parks most runs' tables in their estimates files
+/// and reads them back thinned: `run` as one job, as estimate shards and then its models part
+/// (which recalls the runs from the output folder), and `train` on the runs' estimates tables
+/// train the same network as `train` on the logs (estimated on the fly, so never parked).
+#[test]
+fn a_campaign_over_the_sample_limit_trains_the_same_network_whole_sharded_and_from_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    // 558 536 pooled valid samples in the bundled archive: a run or two fit, the rest park.
+    let pipeline = std::fs::read_to_string(root().join("pipelines/uic_z1.toml"))
+        .unwrap()
+        .replace("[train]\n", "[train]\nmax_pooled_samples = 100000\n")
+        // The pipeline's calibration, so that `train` on the logs estimates as `run` does.
+        .replace("[estimate]\n", "[estimate]\ncalibration = \"pipeline\"\n")
+        .replace("model = \"auto\" ", "model = \"mlp\" ")
+        .replace("leave_one_run_out = true ", "leave_one_run_out = false ")
+        .replace("polach_intervals = true ", "polach_intervals = false ");
+    for key in [
+        "max_pooled_samples = 100000",
+        "model = \"mlp\"",
+        "calibration = \"pipeline\"",
+    ] {
+        assert!(pipeline.contains(key), "{key}");
+    }
+    std::fs::write(dir.path().join("p.toml"), pipeline).unwrap();
+    let campaign = archive("");
+    let ok = |args: &[&str]| {
+        let o = railgrip(args, dir.path());
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {}", text(&o.stderr));
+    };
+    ok(&["run", &campaign, "--out", "whole", "--pipeline", "p.toml"]);
+    let whole = std::fs::read_to_string(dir.path().join("whole/models/mlp.json")).unwrap();
+    let record = std::fs::read_to_string(dir.path().join("whole/campaign.json")).unwrap();
+    assert!(
+        record.contains("exceed train.max_pooled_samples = 100000"),
+        "{record}"
+    );
+    for stage in [
+        &["--stage", "calibrate"][..],
+        &["--stage", "estimate", "--shard", "1/2"],
+        &["--stage", "estimate", "--shard", "2/2"],
+        &["--stage", "models"],
+    ] {
+        let mut args = vec!["run", &campaign, "--out", "sharded", "--pipeline", "p.toml"];
+        args.extend_from_slice(stage);
+        ok(&args);
+    }
+    let sharded = std::fs::read_to_string(dir.path().join("sharded/models/mlp.json")).unwrap();
+    assert_eq!(sharded, whole, "the sharded campaign's network");
+    // `train` on the whole run's estimates tables, in the campaign's order.
+    let mut runs: Vec<String> = files_below(&dir.path().join("whole/runs"))
+        .into_iter()
+        .filter(|p| p.ends_with("estimates.parquet"))
+        .map(|p| p.display().to_string())
+        .collect();
+    runs.sort();
+    assert!(runs.len() >= 7, "{runs:?}");
+    let mut args = vec![
+        "train",
+        "--out",
+        "tables",
+        "--pipeline",
+        "p.toml",
+        "--quiet",
+    ];
+    args.extend(runs.iter().map(String::as_str));
+    ok(&args);
+    let layers = |text: &str| -> serde_json::Value {
+        serde_json::from_str::<serde_json::Value>(text).unwrap()["layers"].clone()
+    };
+    let from_tables = std::fs::read_to_string(dir.path().join("tables/mlp.json")).unwrap();
+    assert_eq!(
+        layers(&from_tables),
+        layers(&whole),
+        "the network from the tables"
+    );
+    ok(&[
+        "train",
+        &campaign,
+        "--out",
+        "logs",
+        "--pipeline",
+        "p.toml",
+        "--quiet",
+    ]);
+    let from_logs = std::fs::read_to_string(dir.path().join("logs/mlp.json")).unwrap();
+    assert_eq!(
+        layers(&from_logs),
+        layers(&whole),
+        "the network from the logs"
+    );
+}
+
 #[test]
 fn train_takes_a_campaign_folder_like_run() {
     // `train` refused a folder ("Is a directory") while `run` took it.

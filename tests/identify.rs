@@ -2813,7 +2813,7 @@ fn parked_tables_train_the_same_models_as_held_ones() {
         .unwrap_err()
         .to_string();
     assert!(
-        err.contains(&files[2].display().to_string()) && err.contains("changed while"),
+        err.contains(&files[2].display().to_string()) && err.contains("changed between"),
         "{err}"
     );
 }

@@ -36,6 +36,8 @@ pub struct ParkedRun {
     pub metadata: RunMetadata,
     /// Valid samples of each axle block.
     pub counts: Vec<usize>,
+    /// SHA-256 of the file when it was parked: read back, it must be the same file.
+    pub file_sha256: String,
 }
 
 impl From<RunTable> for PooledRun {
@@ -67,8 +69,11 @@ impl CampaignRun for PooledRun {
 
 impl PooledRun {
     /// Parks `table`, to be read back from `path` (the estimates file it was read from or
-    /// written to).
+    /// written to); held instead when the file cannot be hashed (it could not be read back).
     pub fn park(table: RunTable, path: &Path) -> PooledRun {
+        let Ok(file_sha256) = crate::hash::sha256_file(path) else {
+            return PooledRun::Held(table);
+        };
         PooledRun::Parked(ParkedRun {
             path: path.to_path_buf(),
             counts: table.axle_counts(),
@@ -76,6 +81,7 @@ impl PooledRun {
             source: table.source,
             sha256: table.sha256,
             metadata: table.metadata,
+            file_sha256,
         })
     }
 
@@ -85,17 +91,16 @@ impl PooledRun {
         let mut t = match self {
             PooledRun::Held(t) => t,
             PooledRun::Parked(p) => {
+                // `read_parquet` gives the table the file's own SHA-256.
                 let mut t = RunTable::read_parquet(&p.path)?;
-                if t.axle_counts() != p.counts {
+                if t.sha256 != p.file_sha256 || t.axle_counts() != p.counts {
                     return Err(IdentifyError::Input {
                         file: p.path.display().to_string(),
                         message: format!(
-                            "run {}: the estimates file changed while the campaign ran (valid samples per axle {:?}, {:?} when it was estimated)",
-                            p.name,
-                            t.axle_counts(),
-                            p.counts
+                            "run {}: the estimates file changed between its estimate and the training (its SHA-256 was {}, now {})",
+                            p.name, p.file_sha256, t.sha256
                         ),
-                        hint: "run the campaign again and leave its output folder alone while it runs".into(),
+                        hint: "run the campaign again and leave its output folder (or the tables given) alone while it runs".into(),
                     });
                 }
                 t.name = p.name;
