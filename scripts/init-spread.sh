@@ -1,0 +1,60 @@
+#!/usr/bin/env bash
+# How much the network's initialisation moves the top-speed scores: retrains the estimates of
+# each seed's top-speed campaign (scripts/top-speed.sh, run first into the same OUT_DIR) with
+# `train.seed` set to each of TRAIN_SEEDS, and once with four starts averaged (`starts = 4`,
+# `ensemble = 4`), through `railgrip train`, scores the residual network with `railgrip score`
+# and prints one row per training: the lowest and highest hysteresis ratio over the runs and
+# the curve RMSE per speed band (80 / 120 / 160 / 200 km/h), nominal cell centres
+# (docs/training.md, "The network's initialisation").
+#
+#   scripts/top-speed.sh OUT_DIR "1 2 3"
+#   scripts/init-spread.sh [OUT_DIR] [SEEDS] [TRAIN_SEEDS]   default: target/top-speed "1 2 3" "1 2 3 4"
+#
+# Needs a release build (RAILGRIP=path, default target/release/railgrip).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out="${1:-target/top-speed}"
+seeds="${2:-1 2 3}"
+train_seeds="${3:-1 2 3 4}"
+bin="${RAILGRIP:-target/release/railgrip}"
+[ -x "$bin" ] || { echo "no $bin: run cargo build --release first (or set RAILGRIP)" >&2; exit 2; }
+base=pipelines/uic_z1.toml
+for key in '^seed = 1 ' '^starts = 1 ' '^ensemble = 1 '; do
+    grep -q "$key" "$base" || { echo "$base: no line matching '$key' to edit" >&2; exit 2; }
+done
+scenes=(pipelines/scenes/top_speed/*.toml)
+printf '%-5s %-18s %7s %7s   %s\n' seed training lowest highest "curve RMSE 80 / 120 / 160 / 200 km/h"
+for seed in $seeds; do
+    runs="$out/seed$seed/out/runs"
+    [ -d "$runs" ] || { echo "no $runs: run scripts/top-speed.sh $out \"$seed\" first" >&2; exit 2; }
+    work="$out/seed$seed/init-spread"
+    rm -rf "$work" && mkdir -p "$work/tables"
+    for r in "$runs"/*/; do
+        cp "$r/estimates.parquet" "$work/tables/$(basename "$r").estimates.parquet"
+    done
+    for t in $train_seeds ensemble4; do
+        if [ "$t" = ensemble4 ]; then
+            sed -e 's/^starts = 1 /starts = 4 /' -e 's/^ensemble = 1 /ensemble = 4 /' "$base" > "$work/p_$t.toml"
+            label="4 starts averaged"
+        else
+            sed -e "s/^seed = 1 /seed = $t /" "$base" > "$work/p_$t.toml"
+            label="train.seed = $t"
+        fi
+        "$bin" train "$work"/tables/*.estimates.parquet --out "$work/m_$t" --pipeline "$work/p_$t.toml" --quiet \
+            > "$work/train_$t.log" 2>&1 || { echo "seed $seed, $label: railgrip train failed, see $work/train_$t.log" >&2; exit 1; }
+        "$bin" score "$work/m_$t/mlp.residual.json" "${scenes[@]}" --seeds "$seed" > "$work/score_$t.txt"
+        # The curve view's table: one row per speed band; the last two columns are the band's
+        # lowest and highest hysteresis ratio.
+        awk -v s="$seed" -v l="$label" '
+            /^Curve view: the model/ { c = 1; next }
+            c && /^(80|120|160|200) / {
+                if (lo == "" || $(NF-2) < lo) lo = $(NF-2)
+                if (hi == "" || $NF > hi) hi = $NF
+                r = r (r == "" ? "" : " / ") $4
+                n++
+            }
+            c && n == 4 { c = 0 }
+            END { if (n != 4) { print "seed " s ", " l ": no curve view in the score" > "/dev/stderr"; exit 1 }
+                  printf "%-5s %-18s %7s %7s   %s\n", s, l, lo, hi, r }' "$work/score_$t.txt"
+    done
+done
