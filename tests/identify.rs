@@ -2809,11 +2809,20 @@ fn parked_tables_train_the_same_models_as_held_ones() {
         .all(|(t, f)| matches!(roomy.admit(t.clone(), f), PooledRun::Held(_))));
     // A parked file overwritten with another run's estimates before it is read back.
     std::fs::copy(&files[0], &files[2]).unwrap();
-    let err = railgrip::campaign::train_pooled(runs, &p, None)
+    let err = railgrip::campaign::train_pooled(runs.clone(), &p, None)
         .unwrap_err()
         .to_string();
     assert!(
         err.contains(&files[2].display().to_string()) && err.contains("changed between"),
+        "{err}"
+    );
+    // A parked file gone before it is read back.
+    std::fs::remove_file(&files[1]).unwrap();
+    let err = railgrip::campaign::train_pooled(runs, &p, None)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains(&files[1].display().to_string()) && err.contains("does not read back"),
         "{err}"
     );
 }

@@ -92,7 +92,20 @@ impl PooledRun {
             PooledRun::Held(t) => t,
             PooledRun::Parked(p) => {
                 // `read_parquet` gives the table the file's own SHA-256.
-                let mut t = RunTable::read_parquet(&p.path)?;
+                let mut t = RunTable::read_parquet(&p.path).map_err(|e| IdentifyError::Input {
+                    file: p.path.display().to_string(),
+                    message: format!(
+                        "run {}: its estimates table, left in this file for the training, does not read back ({})",
+                        p.name,
+                        match &e {
+                            IdentifyError::Input { message, .. } => message.clone(),
+                            IdentifyError::Table { source, .. } => source.to_string(),
+                            IdentifyError::Read { source, .. } => source.to_string(),
+                            other => other.to_string(),
+                        }
+                    ),
+                    hint: "run the campaign again and leave its output folder (or the tables given) alone while it runs".into(),
+                })?;
                 if t.sha256 != p.file_sha256 || t.axle_counts() != p.counts {
                     return Err(IdentifyError::Input {
                         file: p.path.display().to_string(),
