@@ -724,18 +724,20 @@ fn campaign_runs(
     progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
     let pool = Pool::new(pipeline.train.max_pooled_samples);
+    let admit = |name: &str, t: RunTable| pool.admit(t, &out.run_estimates(name));
     match (options.part, given) {
         (Part::Models, Some(given)) => {
             let (records, tables) = given_runs(logs, out, given)?;
             Ok((records, tables.into_iter().map(PooledRun::from).collect()))
         }
-        (Part::Models, None) => recall_runs(root, logs, out, pipeline, options, progress, &pool),
-        _ => estimate_pooled(root, logs, out, pipeline, options, progress, &pool),
+        (Part::Models, None) => recall_runs(root, logs, out, pipeline, options, progress, &admit),
+        _ => estimate_each(root, logs, out, pipeline, options, progress, admit),
     }
 }
 
 /// The runs the estimate shards wrote ([`Part::Models`]), each checked against its current
-/// inputs. Records in the order of `logs`; an error names every run that is missing or stale.
+/// inputs, each table given to `admit` (held or parked). Records in the order of `logs`; an
+/// error names every run that is missing or stale.
 fn recall_runs(
     root: &Path,
     logs: &[(String, LogSource)],
@@ -743,7 +745,7 @@ fn recall_runs(
     pipeline: &Pipeline,
     options: Options,
     progress: CampaignProgress<'_>,
-    pool: &Pool,
+    admit: &(impl Fn(&str, RunTable) -> PooledRun + Sync),
 ) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
     let found = each_run(
         root,
@@ -752,7 +754,7 @@ fn recall_runs(
         progress,
         |name, src| {
             runs::recall_run(src, name, out, pipeline)
-                .map(|(rec, table)| (rec, table.map(|t| pool.admit(t, &out.run_estimates(name)))))
+                .map(|(rec, table)| (rec, table.map(|t| admit(name, t))))
                 .map_err(|why| format!("{name} ({why})"))
         },
         |r| r.as_ref().ok().map(|(rec, _)| rec),
@@ -856,21 +858,6 @@ pub fn estimate_runs(
     progress: CampaignProgress<'_>,
 ) -> Result<(Vec<RunRecord>, Vec<RunTable>), CampaignError> {
     estimate_each(root, logs, out, pipeline, options, progress, |_, t| t)
-}
-
-/// [`estimate_runs`] with each run's table held or parked by `pool` ([`pool`]).
-fn estimate_pooled(
-    root: &Path,
-    logs: &[(String, LogSource)],
-    out: &OutDir,
-    pipeline: &Pipeline,
-    options: Options,
-    progress: CampaignProgress<'_>,
-    pool: &Pool,
-) -> Result<(Vec<RunRecord>, Vec<PooledRun>), CampaignError> {
-    estimate_each(root, logs, out, pipeline, options, progress, |name, t| {
-        pool.admit(t, &out.run_estimates(name))
-    })
 }
 
 /// Stage 1 with `keep` taking each estimated run's table as it is done.
