@@ -43,7 +43,14 @@ def main():
     ap.add_argument("--delay-ms", type=float, default=COUNTER_DELAY_MS)
     ap.add_argument("--radius", type=float, default=0.445)
     a = ap.parse_args()
-    cutoffs = [float(c) for c in a.cutoffs.split(",")]
+    try:
+        cutoffs = [float(c) for c in a.cutoffs.split(",")]
+    except ValueError:
+        raise SystemExit(f"--cutoffs {a.cutoffs!r}: give frequencies in Hz separated by commas, e.g. 4,6,8")
+    if not all(c > 0.0 for c in cutoffs):
+        raise SystemExit(f"--cutoffs {a.cutoffs!r}: every cut-off must be above 0 Hz")
+    if a.delay_ms < 0.0:
+        raise SystemExit(f"--delay-ms {a.delay_ms}: a delay is not negative")
     logs = sorted(glob.glob(os.path.join(a.archive, "*.csv")))
     if not logs:
         raise SystemExit(f"{a.archive}: no .csv logs (simulate with --format csv)")
@@ -56,14 +63,25 @@ def main():
             print(f"{run}: no {run}.truth.parquet, skipped")
             continue
         log = pd.read_csv(path)
+        col = f"omega{a.axle}"
+        for c in ("t", col):
+            if c not in log.columns:
+                raise SystemExit(f"{path}: no column {c!r} (a log of `railgrip simulate --format csv`; --axle 1–4)")
         t = log["t"].to_numpy()
         fs = 1.0 / np.median(np.diff(t))
+        if not max(cutoffs) < fs / 2:
+            raise SystemExit(f"{path}: cut-off {max(cutoffs)} Hz is not below half the sample rate of {fs:.0f} Hz; give lower --cutoffs")
         h = 1.0 / fs
         shift = int(round(a.delay_ms * 1e-3 * fs))
-        omega = log[f"omega{a.axle}"].to_numpy()[shift:]
+        omega = log[col].to_numpy()[shift:]
         t = t[: len(omega)]
         tr = pd.read_parquet(truth_path)
+        for c in ("axle", "time_s", "omega_radps"):
+            if c not in tr.columns:
+                raise SystemExit(f"{truth_path}: no column {c!r} (the truth table `railgrip simulate` writes)")
         tr = tr[tr.axle == a.axle].sort_values("time_s")
+        if tr.empty:
+            raise SystemExit(f"{truth_path}: no samples of axle {a.axle}")
         w_true = np.interp(t, tr.time_s.to_numpy(), tr.omega_radps.to_numpy())
         wdot_true = np.gradient(w_true, h)
         keep = (t > 3.0) & (w_true > 10.0)
