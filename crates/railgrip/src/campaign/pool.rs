@@ -69,9 +69,10 @@ impl CampaignRun for PooledRun {
 
 impl PooledRun {
     /// Parks `table`, to be read back from `path` (the estimates file it was read from or
-    /// written to); held instead when the file cannot be hashed (it could not be read back).
-    pub fn park(table: RunTable, path: &Path) -> PooledRun {
-        let Ok(file_sha256) = crate::hash::sha256_file(path) else {
+    /// written to), whose SHA-256 is `file_sha256` when known (else it is computed here); held
+    /// instead when the file cannot be hashed (it could not be read back).
+    pub fn park(table: RunTable, path: &Path, file_sha256: Option<String>) -> PooledRun {
+        let Some(file_sha256) = file_sha256.or_else(|| crate::hash::sha256_file(path).ok()) else {
             return PooledRun::Held(table);
         };
         PooledRun::Parked(ParkedRun {
@@ -86,7 +87,7 @@ impl PooledRun {
     }
 
     /// The table thinned to every `m`-th sample of each axle ([`RunTable::thin`]); a parked
-    /// one read back from its file, which must hold the counts it was parked with.
+    /// one read back from its file, which must be the file it was parked with (its SHA-256).
     pub fn into_thinned(self, m: usize) -> Result<RunTable, IdentifyError> {
         let mut t = match self {
             PooledRun::Held(t) => t,
@@ -149,6 +150,17 @@ impl Pool {
 
     /// `table` held, or parked in `path` when holding it would take the pool over its limit.
     pub fn admit(&self, table: RunTable, path: &Path) -> PooledRun {
+        self.admit_known(table, path, None)
+    }
+
+    /// [`Pool::admit`] for a table [`RunTable::read_parquet`] read from `path` itself, whose
+    /// `sha256` is therefore the file's: it is not hashed again when parked.
+    pub fn admit_read(&self, table: RunTable, path: &Path) -> PooledRun {
+        let sha = table.sha256.clone();
+        self.admit_known(table, path, Some(sha))
+    }
+
+    fn admit_known(&self, table: RunTable, path: &Path, file_sha256: Option<String>) -> PooledRun {
         let n = table.len();
         let fits = self
             .held
@@ -159,7 +171,7 @@ impl Pool {
         if fits {
             PooledRun::Held(table)
         } else {
-            PooledRun::park(table, path)
+            PooledRun::park(table, path, file_sha256)
         }
     }
 }

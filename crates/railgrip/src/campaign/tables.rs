@@ -88,7 +88,7 @@ pub fn load_pooled(
 ) -> Result<Vec<PooledRun>, CampaignError> {
     let pool = Pool::new(pipeline.train.max_pooled_samples);
     load_each(inputs, pipeline, |t, file| match file {
-        Some(p) => pool.admit(t, p),
+        Some(p) => pool.admit_read(t, p),
         None => PooledRun::Held(t),
     })
 }
