@@ -69,6 +69,55 @@ fn temp_pid(name: &str) -> Option<u32> {
     pid.parse().ok()
 }
 
+/// A scratch file beside an output, `<dir>/.<name>.<tag>.tmp-<pid>`: written and read back
+/// while the output is being built (so that what the output gathers need not be held in
+/// memory), removed when dropped, and by [`remove_stale_temporaries`] when a killed process
+/// left it behind.
+#[derive(Debug)]
+pub struct Scratch {
+    path: PathBuf,
+    file: File,
+}
+
+impl Scratch {
+    /// Creates (truncates) the scratch file for the output `beside`, open for reading and
+    /// writing.
+    pub fn beside(beside: &Path, tag: &str) -> io::Result<Scratch> {
+        let name = beside
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let tmp = format!(".{name}.{tag}.tmp-{}", std::process::id());
+        let path = match beside.parent() {
+            Some(dir) => dir.join(tmp),
+            None => PathBuf::from(tmp),
+        };
+        let file = fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(&path)?;
+        Ok(Scratch { path, file })
+    }
+
+    /// The open file (its position is wherever the last read or write left it).
+    pub fn file(&mut self) -> &mut File {
+        &mut self.file
+    }
+
+    /// Where it is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = fs::remove_file(&self.path);
+    }
+}
+
 /// `<dir>/.<name>.tmp-<pid>`: hidden, beside the target (same file system, so rename is atomic).
 fn temp_path(path: &Path) -> PathBuf {
     let name = path
@@ -86,6 +135,28 @@ fn temp_path(path: &Path) -> PathBuf {
 mod tests {
     use super::*;
     use std::io::Write;
+
+    #[test]
+    fn a_scratch_file_reads_back_what_was_written_and_is_gone_when_dropped() {
+        use std::io::{Read, Seek};
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("index.html");
+        let mut s = Scratch::beside(&target, "sections").unwrap();
+        let path = s.path().to_path_buf();
+        assert!(path
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .starts_with(".index.html.sections.tmp-"));
+        s.file().write_all(b"one two").unwrap();
+        s.file().rewind().unwrap();
+        let mut back = String::new();
+        s.file().read_to_string(&mut back).unwrap();
+        assert_eq!(back, "one two");
+        drop(s);
+        assert!(!path.exists());
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
 
     #[test]
     fn failure_leaves_no_file_and_success_replaces_whole() {

@@ -228,21 +228,42 @@ pub struct Stats {
 impl Stats {
     /// Statistics of `errors` (μ̂ − μ); all zero for none.
     pub fn of(errors: impl IntoIterator<Item = f64>) -> Stats {
-        let (mut n, mut sum, mut sq, mut max) = (0usize, 0.0, 0.0, 0.0f64);
+        let mut acc = StatsAcc::default();
         for e in errors {
-            n += 1;
-            sum += e;
-            sq += e * e;
-            max = max.max(e.abs());
+            acc.push(e);
         }
-        if n == 0 {
+        acc.stats()
+    }
+}
+
+/// [`Stats`] gathered one error at a time (the same sums in the same order as
+/// [`Stats::of`], so the same figures to the last bit).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StatsAcc {
+    n: usize,
+    sum: f64,
+    sq: f64,
+    max: f64,
+}
+
+impl StatsAcc {
+    pub fn push(&mut self, e: f64) {
+        self.n += 1;
+        self.sum += e;
+        self.sq += e * e;
+        self.max = self.max.max(e.abs());
+    }
+
+    /// The statistics so far; all zero for none.
+    pub fn stats(&self) -> Stats {
+        if self.n == 0 {
             return Stats::default();
         }
         Stats {
-            n,
-            rmse: (sq / n as f64).sqrt(),
-            bias: sum / n as f64,
-            max_error: max,
+            n: self.n,
+            rmse: (self.sq / self.n as f64).sqrt(),
+            bias: self.sum / self.n as f64,
+            max_error: self.max,
         }
     }
 }
@@ -460,22 +481,49 @@ pub fn replay(
 /// edge belongs to it; errors outside every band are left out), the [`Stats`] of each band
 /// that has errors.
 pub fn by_speed_band(edges_kmh: &[f64], errors: impl IntoIterator<Item = (f64, f64)>) -> Vec<Band> {
-    let mut binned: Vec<Vec<f64>> = vec![Vec::new(); edges_kmh.len().saturating_sub(1)];
+    let mut acc = SpeedBands::new(edges_kmh);
     for (v_kmh, e) in errors {
-        if let Some(b) = band_of(edges_kmh, v_kmh) {
-            binned[b].push(e);
+        acc.push(v_kmh, e);
+    }
+    acc.bands()
+}
+
+/// [`by_speed_band`] gathered one error at a time, without keeping the errors.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedBands {
+    edges_kmh: Vec<f64>,
+    acc: Vec<StatsAcc>,
+}
+
+impl SpeedBands {
+    /// Bands over `edges_kmh` (ascending, km/h).
+    pub fn new(edges_kmh: &[f64]) -> SpeedBands {
+        SpeedBands {
+            edges_kmh: edges_kmh.to_vec(),
+            acc: vec![StatsAcc::default(); edges_kmh.len().saturating_sub(1)],
         }
     }
-    binned
-        .iter()
-        .enumerate()
-        .filter(|(_, e)| !e.is_empty())
-        .map(|(b, e)| Band {
-            lo_kmh: edges_kmh[b],
-            hi_kmh: edges_kmh[b + 1],
-            stats: Stats::of(e.iter().copied()),
-        })
-        .collect()
+
+    /// One error μ̂ − μ at speed `v_kmh` (left out outside every band).
+    pub fn push(&mut self, v_kmh: f64, e: f64) {
+        if let Some(b) = band_of(&self.edges_kmh, v_kmh) {
+            self.acc[b].push(e);
+        }
+    }
+
+    /// The [`Stats`] of each band that has errors.
+    pub fn bands(&self) -> Vec<Band> {
+        self.acc
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.n > 0)
+            .map(|(b, a)| Band {
+                lo_kmh: self.edges_kmh[b],
+                hi_kmh: self.edges_kmh[b + 1],
+                stats: a.stats(),
+            })
+            .collect()
+    }
 }
 
 /// The band of `edges_kmh` (ascending) speed `v_kmh` falls in: [lo, hi), `None` outside.

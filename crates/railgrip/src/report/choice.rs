@@ -8,7 +8,6 @@ use std::fmt::Write as _;
 use super::{esc, opt, Inputs};
 use crate::identify::choice::Choice;
 use crate::model::Model;
-use crate::score::{self, SPEED_BANDS_KMH};
 
 /// The section: the choice, the candidates' table, and the chosen model per speed band.
 pub(super) fn campaign_model(h: &mut String, i: &Inputs, choice: &Choice, chosen: Option<&Model>) {
@@ -44,26 +43,20 @@ pub(super) fn campaign_model(h: &mut String, i: &Inputs, choice: &Choice, chosen
         }
         h.push_str("</table>\n");
     }
-    if let Some(m) = chosen {
-        by_speed_band(h, i, m);
+    if chosen.is_some() {
+        by_speed_band(h, i);
     }
 }
 
 /// The chosen model at every valid axle-2 sample of the training condition's runs (its own
-/// Δv, dΔv/dt, v and the run's ambient temperature) against the estimate, per speed band.
-fn by_speed_band(h: &mut String, i: &Inputs, m: &Model) {
-    let mut errors = Vec::new();
-    for (r, d) in i.data.iter().filter(|(r, _)| i.in_condition(r)) {
-        let t_c = r.ambient_temperature_c.unwrap_or(f64::NAN);
-        for &(dv, ddv, mu, _, v) in &d.valid[1] {
-            let e = m.mu_vt(dv, ddv, v, t_c) - mu;
-            if e.is_finite() {
-                errors.push((v * 3.6, e));
-            }
-        }
-    }
+/// Δv, dΔv/dt, v and the run's ambient temperature) against the estimate, per speed band
+/// (gathered as the runs were read).
+fn by_speed_band(h: &mut String, i: &Inputs) {
+    let Some(bands) = &i.across.bands else {
+        return;
+    };
     h.push_str("<h3>The campaign model per speed band</h3>\n<p class=\"note\">Replayed at every valid sample of axle 2 (its own inputs, the run's ambient temperature) against the estimate; the speed is the vehicle's at the sample. A bias that grows with speed is a level the model does not let fall with speed.</p>\n<table><tr><th class=\"l\">speed band (km/h)</th><th>samples</th><th>bias μ</th><th>RMSE μ</th></tr>\n");
-    for b in score::by_speed_band(&SPEED_BANDS_KMH, errors) {
+    for b in bands.bands() {
         let _ = writeln!(
             *h,
             "<tr><td class=\"l\">{:.0} – {:.0}</td><td>{}</td><td>{:+.5}</td><td>{:.5}</td></tr>",

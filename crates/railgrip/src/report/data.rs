@@ -18,37 +18,86 @@ pub(super) struct RunData {
     pub valid: [Vec<ValidPoint>; AXLES],
 }
 
-/// What the report keeps of a run once its own section is drawn: that section, and the valid
-/// samples the sections across runs read (the others' axles left empty).
-pub(super) struct KeptRun {
-    pub section: String,
-    pub valid: [Vec<ValidPoint>; AXLES],
+/// The valid samples of axle `axle` (1-based) in a run's estimates table, reading only its
+/// `axle` and `valid` columns (the report sizes its charts across runs with it before it reads
+/// the runs).
+pub(super) fn count_valid(path: &Path, axle: usize) -> Result<usize, ReportError> {
+    let df = open(path, Some(&["axle", "valid"]))?;
+    let (axles, valid) = (
+        column_f64(&df, path, "axle")?,
+        column_bool(&df, path, "valid")?,
+    );
+    Ok(axles
+        .iter()
+        .zip(&valid)
+        .filter(|(a, v)| **v && (**a as usize).clamp(1, AXLES) == axle)
+        .count())
 }
 
-pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
+/// The table of `path`, every column or only `columns`.
+fn open(path: &Path, columns: Option<&[&str]>) -> Result<polars::prelude::DataFrame, ReportError> {
     use polars::prelude::*;
-    let bad = |message: String| ReportError::Data {
-        file: path.display().to_string(),
-        message,
-    };
     let file = crate::input::open_regular(path).map_err(|source| ReportError::Read {
         file: path.display().to_string(),
         source,
     })?;
+    let mut reader = ParquetReader::new(file);
+    if let Some(c) = columns {
+        reader = reader.with_columns(Some(c.iter().map(|s| s.to_string()).collect()));
+    }
+    reader.finish().map_err(|source| ReportError::Table {
+        file: path.display().to_string(),
+        source,
+    })
+}
+
+/// Column `name` as f64 (NaN for nulls); an error naming the file when it is missing.
+fn column_f64(
+    df: &polars::prelude::DataFrame,
+    path: &Path,
+    name: &str,
+) -> Result<Vec<f64>, ReportError> {
+    use polars::prelude::*;
     let table = |source| ReportError::Table {
         file: path.display().to_string(),
         source,
     };
-    let df = ParquetReader::new(file).finish().map_err(table)?;
-    let f = |name: &str| -> Result<Vec<f64>, ReportError> {
-        let c = df
-            .column(name)
-            .map_err(|_| bad(format!("no column {name}")))?
-            .cast(&DataType::Float64)
-            .map_err(table)?;
-        let ca = c.f64().map_err(table)?;
-        Ok(ca.iter().map(|x| x.unwrap_or(f64::NAN)).collect())
-    };
+    let c = df
+        .column(name)
+        .map_err(|_| ReportError::Data {
+            file: path.display().to_string(),
+            message: format!("no column {name}"),
+        })?
+        .cast(&DataType::Float64)
+        .map_err(table)?;
+    let ca = c.f64().map_err(table)?;
+    Ok(ca.iter().map(|x| x.unwrap_or(f64::NAN)).collect())
+}
+
+/// Column `name` as bool (false for nulls); an error naming the file when it is missing.
+fn column_bool(
+    df: &polars::prelude::DataFrame,
+    path: &Path,
+    name: &str,
+) -> Result<Vec<bool>, ReportError> {
+    let c = df
+        .column(name)
+        .map_err(|_| ReportError::Data {
+            file: path.display().to_string(),
+            message: format!("no column {name}"),
+        })?
+        .bool()
+        .map_err(|source| ReportError::Table {
+            file: path.display().to_string(),
+            source,
+        })?
+        .clone();
+    Ok(c.iter().map(|x| x.unwrap_or(false)).collect())
+}
+
+pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
+    let df = open(path, None)?;
+    let f = |name: &str| column_f64(&df, path, name);
     let (t, axle, v, p, dv, ddv, mu) = (
         f("time_s")?,
         f("axle")?,
@@ -58,13 +107,7 @@ pub(super) fn read_run(path: &Path) -> Result<RunData, ReportError> {
         f("ddv_mps2")?,
         f("mu")?,
     );
-    let vcol = df
-        .column("valid")
-        .map_err(|_| bad("no column valid".into()))?
-        .bool()
-        .map_err(table)?
-        .clone();
-    let valid: Vec<bool> = vcol.iter().map(|x| x.unwrap_or(false)).collect();
+    let valid = column_bool(&df, path, "valid")?;
     let mut d = RunData {
         time_s: vec![],
         v_mps: vec![],

@@ -22,12 +22,14 @@ use std::path::{Path, PathBuf};
 
 use plotters::style::RGBColor;
 
+use crate::atomic::Scratch;
 use crate::format::AXLES;
 use crate::identify::polach::PolachReport;
 use crate::model::{Model, ModelError, ModelFile};
 use crate::outdir::{CampaignRecord, OutDir, RecordError, RunRecord};
-use data::{read_run, KeptRun, RunData};
-use plot::{chart, Series, PALETTE};
+use crate::score::SpeedBands;
+use data::{count_valid, read_run, RunData, ValidPoint};
+use plot::{chart, chart_thinned, Series, Thinned, PALETTE};
 
 /// Why the report could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -93,8 +95,101 @@ struct Inputs<'a> {
     /// The model choice and the chosen model, when the campaign wrote them.
     choice: Option<crate::identify::choice::Choice>,
     chosen: Option<Model>,
-    /// The runs that were estimated, with their tables.
-    data: Vec<(&'a RunRecord, KeptRun)>,
+    /// Runs that were estimated (their tables read).
+    estimated: usize,
+    /// What the sections across runs draw, gathered as the runs were read.
+    across: Across<'a>,
+    /// Each estimated run's own section, in run order ([`run_section`]), written out as the
+    /// runs were read and copied into the page last.
+    sections: Scratch,
+}
+
+/// What the sections across runs draw from the runs' samples, gathered one run at a time so
+/// that the report keeps no run's samples (bar the first run's, for Fig. 10): the charts' clouds
+/// as they draw them ([`Thinned`]) and the chosen model's errors per speed band as sums.
+/// Everything is over axle 2's valid samples (seed 002's training axle) of the runs of the
+/// training condition, in run order.
+struct Across<'a> {
+    /// μ against Δv per initial speed and per ambient temperature: (key, cloud), keys
+    /// ascending.
+    by_speed: Vec<(f64, Thinned)>,
+    by_temperature: Vec<(f64, Thinned)>,
+    /// The same samples in one cloud (the Polach fits' chart).
+    all: Thinned,
+    /// The chosen model replayed at each sample against the estimate, per speed band.
+    bands: Option<SpeedBands>,
+    /// The first run of the training condition and its valid samples on every axle (Fig. 10
+    /// draws its validation axle).
+    first: Option<(&'a RunRecord, [Vec<ValidPoint>; AXLES])>,
+}
+
+fn initial_speed(r: &RunRecord) -> Option<f64> {
+    r.initial_speed_kmh
+}
+
+fn ambient_temperature(r: &RunRecord) -> Option<f64> {
+    r.ambient_temperature_c
+}
+
+impl<'a> Across<'a> {
+    /// Empty clouds sized for the runs `runs` (the training condition's, with their numbers of
+    /// valid axle-2 samples).
+    fn new(runs: &[(&RunRecord, usize)], chosen: Option<&Model>) -> Across<'a> {
+        let groups = |key: fn(&RunRecord) -> Option<f64>| -> Vec<(f64, Thinned)> {
+            let mut keys: Vec<f64> = runs.iter().filter_map(|(r, _)| key(r)).collect();
+            keys.sort_by(f64::total_cmp);
+            keys.dedup();
+            keys.iter()
+                .map(|kv| {
+                    let total = runs
+                        .iter()
+                        .filter(|(r, _)| key(r) == Some(*kv))
+                        .map(|(_, n)| n)
+                        .sum();
+                    (*kv, Thinned::new(total))
+                })
+                .collect()
+        };
+        Across {
+            by_speed: groups(initial_speed),
+            by_temperature: groups(ambient_temperature),
+            all: Thinned::new(runs.iter().map(|(_, n)| n).sum()),
+            bands: chosen.map(|_| SpeedBands::new(&crate::score::SPEED_BANDS_KMH)),
+            first: None,
+        }
+    }
+
+    /// A run of the training condition, its valid samples per axle.
+    fn add(&mut self, r: &'a RunRecord, valid: [Vec<ValidPoint>; AXLES], chosen: Option<&Model>) {
+        let group = |groups: &mut Vec<(f64, Thinned)>, key: Option<f64>| {
+            groups
+                .iter_mut()
+                .position(|(kv, _)| key == Some(*kv))
+                .map(|k| k as isize)
+                .unwrap_or(-1)
+        };
+        let ks = group(&mut self.by_speed, initial_speed(r));
+        let kt = group(&mut self.by_temperature, ambient_temperature(r));
+        let t_c = r.ambient_temperature_c.unwrap_or(f64::NAN);
+        for &(dv, ddv, mu, _, v) in &valid[1] {
+            if ks >= 0 {
+                self.by_speed[ks as usize].1.push((dv, mu));
+            }
+            if kt >= 0 {
+                self.by_temperature[kt as usize].1.push((dv, mu));
+            }
+            self.all.push((dv, mu));
+            if let (Some(b), Some(m)) = (&mut self.bands, chosen) {
+                let e = m.mu_vt(dv, ddv, v, t_c) - mu;
+                if e.is_finite() {
+                    b.push(v * 3.6, e);
+                }
+            }
+        }
+        if self.first.is_none() {
+            self.first = Some((r, valid));
+        }
+    }
 }
 
 impl<'a> Inputs<'a> {
@@ -113,29 +208,6 @@ impl<'a> Inputs<'a> {
             }
             None => Vec::new(),
         };
-        // One run at a time: its own section is drawn here, and only what the sections across
-        // runs read is kept (axle 2's valid samples; every axle's for the first run of the
-        // training condition, whose validation axle Fig. 10 draws), so that the report's
-        // memory grows by a run's axle-2 samples, not by its whole table.
-        let in_condition =
-            |r: &RunRecord| camp.condition.is_none() || r.condition == camp.condition;
-        let mut data = Vec::new();
-        let mut first_in_condition = true;
-        for r in camp.runs.iter().filter(|r| r.ok()) {
-            let mut d = read_run(&out.run_estimates(&r.run))?;
-            let section = run_section(r, &mut d)?;
-            let keep_all_axles = first_in_condition && in_condition(r);
-            first_in_condition &= !in_condition(r);
-            let mut valid = d.valid;
-            if !keep_all_axles {
-                for (a, v) in valid.iter_mut().enumerate() {
-                    if a != 1 {
-                        *v = Vec::new();
-                    }
-                }
-            }
-            data.push((r, KeptRun { section, valid }));
-        }
         let choice: Option<crate::identify::choice::Choice> = optional_json(&models.choice())?;
         if let Some(c) = &choice {
             same_generation(camp, &models.choice(), c.generation.as_deref())?;
@@ -158,6 +230,38 @@ impl<'a> Inputs<'a> {
                 same_generation(camp, &path, m.file.provenance.generation.as_deref())?;
             }
         }
+        // One run at a time: its own section is drawn and written out, and the sections across
+        // runs take what they draw of its samples (sized beforehand from the runs' numbers of
+        // valid axle-2 samples), so that the report's memory does not grow with the runs.
+        let in_condition =
+            |r: &RunRecord| camp.condition.is_none() || r.condition == camp.condition;
+        let mut sized = Vec::new();
+        for r in camp.runs.iter().filter(|r| r.ok() && in_condition(r)) {
+            sized.push((r, count_valid(&out.run_estimates(&r.run), 2)?));
+        }
+        let mut across = Across::new(&sized, chosen.as_ref());
+        drop(sized);
+        let html = out.report_html();
+        let werr = |source: std::io::Error| ReportError::Write {
+            file: html.display().to_string(),
+            source,
+        };
+        std::fs::create_dir_all(out.report_dir()).map_err(werr)?;
+        let mut sections = Scratch::beside(&html, "sections").map_err(werr)?;
+        let mut estimated = 0;
+        {
+            let mut w = std::io::BufWriter::new(sections.file());
+            for r in camp.runs.iter().filter(|r| r.ok()) {
+                let mut d = read_run(&out.run_estimates(&r.run))?;
+                w.write_all(run_section(r, &mut d)?.as_bytes())
+                    .map_err(werr)?;
+                if in_condition(r) {
+                    across.add(r, d.valid, chosen.as_ref());
+                }
+                estimated += 1;
+            }
+            w.flush().map_err(werr)?;
+        }
         Ok(Inputs {
             camp,
             mlp,
@@ -166,13 +270,10 @@ impl<'a> Inputs<'a> {
             held_out,
             choice,
             chosen,
-            data,
+            estimated,
+            across,
+            sections,
         })
-    }
-
-    /// True for the runs of the condition the models were trained on.
-    fn in_condition(&self, r: &RunRecord) -> bool {
-        self.camp.condition.is_none() || r.condition == self.camp.condition
     }
 }
 
@@ -247,19 +348,24 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
         polach::polach_fits(&mut h, &i, f)?;
     }
     h.push_str("<h2>Per run</h2>\n");
-    per_run(&mut h, &i)?;
+    let mut tail = String::new();
     if let Some(m) = &i.mlp {
-        provenance(&mut h, m);
+        provenance(&mut tail, m);
     }
-    h.push_str("</body></html>\n");
+    tail.push_str("</body></html>\n");
 
     let path = out.report_html();
     let werr = |source: std::io::Error| ReportError::Write {
         file: path.display().to_string(),
         source,
     };
-    std::fs::create_dir_all(out.report_dir()).map_err(werr)?;
-    crate::atomic::write_atomically(&path, |w| w.write_all(h.as_bytes())).map_err(werr)?;
+    let mut sections = i.sections;
+    crate::atomic::write_atomically(&path, |w| {
+        w.write_all(h.as_bytes())?;
+        per_run(w, &mut sections)?;
+        w.write_all(tail.as_bytes())
+    })
+    .map_err(werr)?;
     Ok(path)
 }
 
@@ -276,7 +382,7 @@ fn opt(v: Option<f64>, d: usize) -> String {
 
 /// The document head, styles and the campaign line.
 fn head(h: &mut String, i: &Inputs) {
-    let (camp, data) = (i.camp, &i.data);
+    let camp = i.camp;
     let _ = write!(
         *h,
         r#"{head}<h1>railgrip validation report</h1>
@@ -286,8 +392,8 @@ fn head(h: &mut String, i: &Inputs) {
         head = page_head(&format!("railgrip report — {}", camp.archive)),
         archive = esc(&camp.archive),
         n = camp.runs.len(),
-        nok = data.len(),
-        nf = camp.runs.len() - data.len(),
+        nok = i.estimated,
+        nf = camp.runs.len() - i.estimated,
         cond = esc(camp.condition.as_deref().unwrap_or("–")),
         pipe = esc(&camp.pipeline),
         ver = env!("CARGO_PKG_VERSION"),
@@ -418,55 +524,44 @@ fn runs(h: &mut String, i: &Inputs) {
 
 /// μ against Δv across runs, by initial speed (seed 002 Fig. 8) and by ambient temperature.
 fn across_runs(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
-    let data = &i.data;
-    // Across runs.
     h.push_str("<h2>Across runs</h2>\n<p class=\"note\">Valid estimates, axle 2 (the training axle of seed 002), every run of the training condition.</p>\n<div class=\"figs\">\n");
-    let group = |key: &dyn Fn(&RunRecord) -> Option<f64>, unit: &str| -> Vec<Series> {
-        let mut keys: Vec<f64> = data
+    for (title, groups, unit) in [
+        (
+            "μ against Δv by initial speed (seed 002 Fig. 8)",
+            &i.across.by_speed,
+            "km/h",
+        ),
+        (
+            "μ against Δv by ambient temperature",
+            &i.across.by_temperature,
+            "°C",
+        ),
+    ] {
+        let series: Vec<Series> = groups
             .iter()
-            .filter(|(r, _)| i.in_condition(r))
-            .filter_map(|(r, _)| key(r))
-            .collect();
-        keys.sort_by(f64::total_cmp);
-        keys.dedup();
-        keys.iter()
             .enumerate()
-            .map(|(k, kv)| Series {
+            .map(|(k, (kv, cloud))| Series {
                 name: format!("{kv} {unit}"),
                 color: PALETTE[k % PALETTE.len()],
-                pts: data
-                    .iter()
-                    .filter(|(r, _)| i.in_condition(r) && key(r) == Some(*kv))
-                    .flat_map(|(_, d)| d.valid[1].iter().map(|v| (v.0, v.2)))
-                    .collect(),
+                pts: cloud.points().to_vec(),
                 dots: true,
             })
-            .collect()
-    };
-    h.push_str(&chart(
-        "μ against Δv by initial speed (seed 002 Fig. 8)",
-        "Δv (m/s)",
-        "μ",
-        &group(&|r| r.initial_speed_kmh, "km/h"),
-        false,
-    )?);
-    h.push_str(&chart(
-        "μ against Δv by ambient temperature",
-        "Δv (m/s)",
-        "μ",
-        &group(&|r| r.ambient_temperature_c, "°C"),
-        false,
-    )?);
+            .collect();
+        let clouds: Vec<&Thinned> = groups.iter().map(|(_, c)| c).collect();
+        h.push_str(&chart_thinned(title, "Δv (m/s)", "μ", &series, &clouds)?);
+    }
     h.push_str("</div>\n");
     Ok(())
 }
 
-/// Per run: speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7), drawn
-/// when the run was loaded ([`run_section`]).
-fn per_run(h: &mut String, i: &Inputs) -> Result<(), ReportError> {
-    for (_, d) in &i.data {
-        h.push_str(&d.section);
-    }
+/// Per run: speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7), each
+/// drawn when the run was read ([`run_section`]) and kept in the scratch file `sections`,
+/// copied into the page here.
+fn per_run(w: &mut impl std::io::Write, sections: &mut Scratch) -> std::io::Result<()> {
+    use std::io::Seek;
+    let f = sections.file();
+    f.rewind()?;
+    std::io::copy(f, w)?;
     Ok(())
 }
 

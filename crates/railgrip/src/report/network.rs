@@ -121,10 +121,10 @@ fn training(h: &mut String, m: &Model) -> Result<(), ReportError> {
 /// Fig. 10: the network against the estimate on the first training-condition run's first
 /// validation axle.
 fn against_estimate(h: &mut String, i: &Inputs, m: &Model) -> Result<(), ReportError> {
-    let (camp, data) = (i.camp, &i.data);
+    let camp = i.camp;
     let va = camp.validation_axles.first().copied().unwrap_or(3) as usize;
-    if let Some((r, d)) = data.iter().find(|(r, _)| i.in_condition(r)) {
-        let pts = &d.valid[(va.clamp(1, AXLES)) - 1];
+    if let Some((r, valid)) = &i.across.first {
+        let pts = &valid[(va.clamp(1, AXLES)) - 1];
         let est: Vec<(f64, f64)> = pts.iter().map(|p| (p.3, p.2)).collect();
         // The network at each sample's own speed and the run's ambient temperature (models
         // without those inputs ignore them).

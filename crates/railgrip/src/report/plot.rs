@@ -81,6 +81,69 @@ pub(super) fn chart(
     chart_axes(title, x_desc, y_desc, series, false, log_y)
 }
 
+/// [`chart`] (linear axes) with scatter clouds gathered by [`Thinned`] first: each cloud's
+/// strided points are drawn as its series (`series[k]` for the k-th cloud's position), and the
+/// axes also cover each cloud's full extent, so the chart is the one its whole cloud would draw.
+pub(super) fn chart_thinned(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    clouds: &[&Thinned],
+) -> Result<String, ReportError> {
+    let bounds: Vec<(f64, f64)> = clouds.iter().flat_map(|c| c.corners()).collect();
+    chart_with_bounds(title, x_desc, y_desc, series, false, false, &bounds)
+}
+
+/// A scatter cloud gathered one point at a time and kept as a chart draws it: every
+/// `step`-th point, `step` = ⌈`total` / [`MAX_SCATTER`]⌉ as [`stride`] takes it from the whole
+/// cloud, and the cloud's finite extent in x and y (the axes cover every point). `total`, the
+/// number of points the cloud will get, must be known before the first.
+#[derive(Debug, Clone)]
+pub(super) struct Thinned {
+    step: usize,
+    seen: usize,
+    pts: Vec<(f64, f64)>,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl Thinned {
+    pub fn new(total: usize) -> Thinned {
+        Thinned {
+            step: total.div_ceil(MAX_SCATTER).max(1),
+            seen: 0,
+            pts: Vec::new(),
+            x: (f64::INFINITY, f64::NEG_INFINITY),
+            y: (f64::INFINITY, f64::NEG_INFINITY),
+        }
+    }
+
+    pub fn push(&mut self, p: (f64, f64)) {
+        if self.seen.is_multiple_of(self.step) {
+            self.pts.push(p);
+        }
+        self.seen += 1;
+        if p.0.is_finite() {
+            self.x = (self.x.0.min(p.0), self.x.1.max(p.0));
+        }
+        if p.1.is_finite() {
+            self.y = (self.y.0.min(p.1), self.y.1.max(p.1));
+        }
+    }
+
+    /// The kept points.
+    pub fn points(&self) -> &[(f64, f64)] {
+        &self.pts
+    }
+
+    /// Two points spanning the cloud's extent (non-finite where it has no finite value, which
+    /// the axes' range leaves out).
+    fn corners(&self) -> [(f64, f64); 2] {
+        [(self.x.0, self.y.0), (self.x.1, self.y.1)]
+    }
+}
+
 /// [`chart`] with a choice of logarithmic axes for x and y (positive data spanning decades).
 pub(crate) fn chart_axes(
     title: &str,
@@ -89,6 +152,19 @@ pub(crate) fn chart_axes(
     series: &[Series],
     log_x: bool,
     log_y: bool,
+) -> Result<String, ReportError> {
+    chart_with_bounds(title, x_desc, y_desc, series, log_x, log_y, &[])
+}
+
+/// [`chart_axes`] whose axes also cover the points `bounds` (not drawn).
+fn chart_with_bounds(
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    series: &[Series],
+    log_x: bool,
+    log_y: bool,
+    bounds: &[(f64, f64)],
 ) -> Result<String, ReportError> {
     register_font();
     let err = plot_err(title);
@@ -119,12 +195,20 @@ pub(crate) fn chart_axes(
             tick(*x)
         }
     };
-    let xr = range_of(series.iter().flat_map(|s| s.pts.iter().map(|p| p.0)));
-    let yr = range_of(series.iter().flat_map(|s| {
-        s.pts
+    let bx = |x: f64| if log_x { x.max(1e-300).log10() } else { x };
+    let xr = range_of(
+        series
             .iter()
-            .map(|p| if log_y { p.1.max(1e-300).log10() } else { p.1 })
-    }));
+            .flat_map(|s| s.pts.iter().map(|p| p.0))
+            .chain(bounds.iter().map(|p| p.0).filter(|x| x.is_finite()).map(bx)),
+    );
+    let by = |y: f64| if log_y { y.max(1e-300).log10() } else { y };
+    let yr = range_of(
+        series
+            .iter()
+            .flat_map(|s| s.pts.iter().map(|p| by(p.1)))
+            .chain(bounds.iter().map(|p| p.1).filter(|y| y.is_finite()).map(by)),
+    );
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
@@ -363,5 +447,68 @@ mod tests {
         )
         .unwrap();
         assert!(small_labels(&svg) >= 2, "{svg}");
+    }
+
+    /// A cloud of `n` points in two runs' groups, some of them with a non-finite coordinate,
+    /// and a line beside it.
+    fn cloud(n: usize, seed: u64) -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+        let mut rng = crate::rng::Rng::new(seed);
+        let pts = (0..n)
+            .map(|k| {
+                let x = 9.0 * rng.uniform();
+                let y = 0.3 * rng.uniform() - 0.05;
+                match k % 97 {
+                    13 => (f64::NAN, y),
+                    41 => (x, f64::INFINITY),
+                    _ => (x, y),
+                }
+            })
+            .collect();
+        let line = (0..=20)
+            .map(|k| (k as f64 * 0.5, 0.1 + 0.01 * k as f64))
+            .collect();
+        (pts, line)
+    }
+
+    #[test]
+    fn a_cloud_gathered_point_by_point_draws_the_chart_of_the_whole_cloud() {
+        // Sizes around the stride's edges: below the small-dot limit, at and above MAX_SCATTER,
+        // and many strides; extremes inside and outside the kept points.
+        for (n, seed) in [
+            (0, 1),
+            (7, 2),
+            (49, 3),
+            (400, 4),
+            (401, 5),
+            (1200, 6),
+            (45_679, 7),
+        ] {
+            let (pts, line) = cloud(n, seed);
+            let series = |pts: Vec<(f64, f64)>| {
+                vec![
+                    Series {
+                        name: "cloud".into(),
+                        color: PALETTE[0],
+                        pts,
+                        dots: true,
+                    },
+                    Series {
+                        name: "curve".into(),
+                        color: PALETTE[1],
+                        pts: line.clone(),
+                        dots: false,
+                    },
+                ]
+            };
+            let whole = chart("c", "x", "y", &series(pts.clone()), false).unwrap();
+            let mut t = Thinned::new(pts.len());
+            for p in &pts {
+                t.push(*p);
+            }
+            assert!(t.points().len() <= MAX_SCATTER, "n = {n}");
+            let thinned =
+                chart_thinned("c", "x", "y", &series(t.points().to_vec()), &[&t]).unwrap();
+            assert!(thinned == whole, "n = {n}: the charts differ");
+        }
     }
 }

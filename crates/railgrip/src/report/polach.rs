@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use plotters::style::RGBColor;
 
-use super::plot::{chart, Series, PALETTE};
+use super::plot::{chart, chart_thinned, Series, PALETTE};
 use super::{esc, Inputs, ReportError};
 use crate::contact::polach::{horner, polach, ContactPatch, PolachParams};
 use crate::identify::polach::{ParamStatus, PolachFit, PolachReport, PARAMETERS, PROFILE_LIMIT};
@@ -82,7 +82,7 @@ fn fits_table(h: &mut String, f: &PolachReport) {
 /// Each fit's curve at the reference speed over the estimates (axle 2 of the runs of the
 /// training condition).
 fn fit_curves(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), ReportError> {
-    let (data, polach_model) = (&i.data, &i.polach);
+    let polach_model = &i.polach;
     let patch = ContactPatch {
         a_m: f.patch[0],
         b_m: f.patch[1],
@@ -125,11 +125,7 @@ fn fit_curves(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Report
             dots: false,
         });
     }
-    let scatter: Vec<(f64, f64)> = data
-        .iter()
-        .filter(|(r, _)| i.in_condition(r))
-        .flat_map(|(_, d)| d.valid[1].iter().map(|v| (v.0, v.2)))
-        .collect();
+    let scatter = i.across.all.points().to_vec();
     series.insert(
         0,
         Series {
@@ -139,12 +135,12 @@ fn fit_curves(h: &mut String, i: &Inputs, f: &PolachReport) -> Result<(), Report
             dots: true,
         },
     );
-    h.push_str(&chart(
+    h.push_str(&chart_thinned(
         &format!("Polach fits at {v_ref:.1} m/s over the estimates"),
         "Δv (m/s)",
         "μ",
         &series,
-        false,
+        &[&i.across.all],
     )?);
     Ok(())
 }
