@@ -786,6 +786,73 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
     assert!(o_dir.join("report/index.html").exists());
 
+    // Each run on a page of its own: index.html links every estimated run's page (its name
+    // percent-encoded) and draws none of their charts; each page has its run's three.
+    let o = railgrip(&["report", "out", "--run-sections", "pages"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    let index = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
+    assert_eq!(
+        index
+            .matches("Vehicle and wheel peripheral speeds (Fig. 3)")
+            .count(),
+        0
+    );
+    assert!(
+        index.contains("Fig. 10") && index.contains("Fig. 11"),
+        "the rest stays"
+    );
+    let decode = |s: &str| -> String {
+        let b = s.as_bytes();
+        let mut out = Vec::new();
+        let mut k = 0;
+        while k < b.len() {
+            if b[k] == b'%' {
+                out.push(u8::from_str_radix(&s[k + 1..k + 3], 16).unwrap());
+                k += 3;
+            } else {
+                out.push(b[k]);
+                k += 1;
+            }
+        }
+        String::from_utf8(out).unwrap()
+    };
+    let mut linked: Vec<String> = index
+        .split("href=\"runs/")
+        .skip(1)
+        .map(|rest| decode(&rest[..rest.find('"').unwrap()]))
+        .collect();
+    linked.sort();
+    linked.dedup();
+    assert_eq!(linked.len(), ok_runs, "{linked:?}");
+    let mut pages: Vec<String> = std::fs::read_dir(o_dir.join("report/runs"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    pages.sort();
+    assert_eq!(pages, linked, "every page linked, every link a page");
+    for p in &pages {
+        let page = std::fs::read_to_string(o_dir.join("report/runs").join(p)).unwrap();
+        for title in [
+            "Vehicle and wheel peripheral speeds (Fig. 3)",
+            "Brake-cylinder pressures (Fig. 4)",
+            "per axle (Fig. 7)",
+        ] {
+            assert_eq!(page.matches(title).count(), 1, "{p}: {title}");
+        }
+        assert!(page.contains("href=\"../index.html\"") && page.ends_with("</body></html>\n"));
+    }
+    // Inline again (auto: fewer runs than a page each needs): the pages are gone.
+    let o = railgrip(&["report", "out"], dir.path());
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+    assert!(!o_dir.join("report/runs").exists());
+    let index = std::fs::read_to_string(o_dir.join("report/index.html")).unwrap();
+    assert_eq!(
+        index
+            .matches("Vehicle and wheel peripheral speeds (Fig. 3)")
+            .count(),
+        ok_runs
+    );
+
     // `bad` written over an output file: `report` exits 1 (the file restored after); its error.
     let refused = |file: &str, bad: &str| -> String {
         let path = o_dir.join(file);

@@ -110,10 +110,28 @@ pub struct ReportArgs {
     /// An output folder of `railgrip run`.
     #[arg(value_name = "OUT_DIR")]
     out: PathBuf,
+    /// Where each run's speeds, pressures and μ against Δv go: in index.html, on a page of
+    /// their own per run (report/runs/<run>.html, linked from index.html), or inline up to 32
+    /// estimated runs and on pages beyond (auto, what `railgrip run` writes).
+    #[arg(long, value_enum, default_value_t = RunSectionsArg::Auto)]
+    run_sections: RunSectionsArg,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum RunSectionsArg {
+    Auto,
+    Inline,
+    Pages,
 }
 
 pub fn report(args: ReportArgs) -> anyhow::Result<u8> {
-    let p = railgrip::report::write_report(&OutDir::new(&args.out))?;
+    use railgrip::report::RunSections;
+    let sections = match args.run_sections {
+        RunSectionsArg::Auto => RunSections::Auto,
+        RunSectionsArg::Inline => RunSections::Inline,
+        RunSectionsArg::Pages => RunSections::Pages,
+    };
+    let p = railgrip::report::write_report_as(&OutDir::new(&args.out), sections)?;
     println!("report     {}", p.display());
     Ok(EXIT_OK)
 }

@@ -1,7 +1,8 @@
 //! The validation report: one self-contained HTML file (`<out>/report/index.html`, plots as
 //! inline SVG drawn by plotters with the embedded DejaVu Sans for text layout, no external
 //! resources), rebuilt from what `railgrip run` wrote: `campaign.json`, the per-run estimates
-//! tables and the model files.
+//! tables and the model files. Beyond [`INLINE_RUNS`] runs (or when asked, [`RunSections`])
+//! each run's own charts go on a page of their own, `report/runs/<run>.html`.
 //!
 //! Figures follow seed 002 (002_8d8769283f5e9cb6.txt): per run, vehicle speed against wheel
 //! peripheral speeds (Fig. 3), brake pressures (Fig. 4) and μ against Δv per axle (Fig. 7);
@@ -97,6 +98,9 @@ struct Inputs<'a> {
     chosen: Option<Model>,
     /// Runs that were estimated (their tables read).
     estimated: usize,
+    /// Each run's section on a page of its own (`report/runs/<run>.html`) instead of in
+    /// `sections`.
+    pages: bool,
     /// What the sections across runs draw, gathered as the runs were read.
     across: Across<'a>,
     /// Each estimated run's own section, in run order ([`run_section`]), written out as the
@@ -193,7 +197,11 @@ impl<'a> Across<'a> {
 }
 
 impl<'a> Inputs<'a> {
-    fn load(out: &OutDir, camp: &'a CampaignRecord) -> Result<Inputs<'a>, ReportError> {
+    fn load(
+        out: &OutDir,
+        camp: &'a CampaignRecord,
+        pages: bool,
+    ) -> Result<Inputs<'a>, ReportError> {
         let models = out.models();
         let fits: Option<PolachReport> = optional_json(&models.polach_fits())?;
         if let Some(f) = &fits {
@@ -246,15 +254,24 @@ impl<'a> Inputs<'a> {
             file: html.display().to_string(),
             source,
         };
-        std::fs::create_dir_all(out.report_dir()).map_err(werr)?;
+        std::fs::create_dir_all(if pages {
+            pages_dir(out)
+        } else {
+            out.report_dir()
+        })
+        .map_err(werr)?;
         let mut sections = Scratch::beside(&html, "sections").map_err(werr)?;
         let mut estimated = 0;
         {
             let mut w = std::io::BufWriter::new(sections.file());
             for r in camp.runs.iter().filter(|r| r.ok()) {
                 let mut d = read_run(&out.run_estimates(&r.run))?;
-                w.write_all(run_section(r, &mut d)?.as_bytes())
-                    .map_err(werr)?;
+                let section = run_section(r, &mut d)?;
+                if pages {
+                    write_page(out, r, &section)?;
+                } else {
+                    w.write_all(section.as_bytes()).map_err(werr)?;
+                }
                 if in_condition(r) {
                     across.add(r, d.valid, chosen.as_ref());
                 }
@@ -271,6 +288,7 @@ impl<'a> Inputs<'a> {
             choice,
             chosen,
             estimated,
+            pages,
             across,
             sections,
         })
@@ -325,11 +343,39 @@ fn optional_model(path: &Path) -> Result<Option<Model>, ReportError> {
     Ok(Some(Model::named(file, &path.display().to_string())?))
 }
 
-/// Writes `<out>/report/index.html` from `<out>/campaign.json` and what it points to; returns
-/// its path.
+/// Campaigns of more estimated runs than this get a page per run with [`RunSections::Auto`]:
+/// each run's three charts take ~250 KB, so one page for hundreds of runs would be more than a
+/// browser opens comfortably.
+pub const INLINE_RUNS: usize = 32;
+
+/// Where each run's own section (speeds, pressures, μ against Δv) goes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum RunSections {
+    /// In `index.html` up to [`INLINE_RUNS`] estimated runs, on pages of their own beyond.
+    #[default]
+    Auto,
+    /// In `index.html`.
+    Inline,
+    /// On pages of their own, `report/runs/<run>.html`, linked from `index.html`.
+    Pages,
+}
+
+/// Writes the report of the output folder `out` with [`RunSections::Auto`].
 pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
+    write_report_as(out, RunSections::Auto)
+}
+
+/// Writes `<out>/report/index.html` from `<out>/campaign.json` and what it points to, each
+/// run's section where `sections` says; returns its path. Pages of runs the report no longer has (or all of them, inline) are removed once
+/// `index.html` is written.
+pub fn write_report_as(out: &OutDir, sections: RunSections) -> Result<PathBuf, ReportError> {
     let camp = CampaignRecord::read(out)?;
-    let i = Inputs::load(out, &camp)?;
+    let pages = match sections {
+        RunSections::Auto => camp.runs.iter().filter(|r| r.ok()).count() > INLINE_RUNS,
+        RunSections::Inline => false,
+        RunSections::Pages => true,
+    };
+    let i = Inputs::load(out, &camp, pages)?;
     let mut h = String::new();
     head(&mut h, &i);
     if let Some(m) = &i.mlp {
@@ -348,6 +394,9 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
         polach::polach_fits(&mut h, &i, f)?;
     }
     h.push_str("<h2>Per run</h2>\n");
+    if pages {
+        run_links(&mut h, &i);
+    }
     let mut tail = String::new();
     if let Some(m) = &i.mlp {
         provenance(&mut tail, m);
@@ -366,7 +415,75 @@ pub fn write_report(out: &OutDir) -> Result<PathBuf, ReportError> {
         w.write_all(tail.as_bytes())
     })
     .map_err(werr)?;
+    remove_stale_pages(out, if pages { camp.runs.as_slice() } else { &[] });
     Ok(path)
+}
+
+/// The folder of the runs' own pages, `report/runs`.
+fn pages_dir(out: &OutDir) -> PathBuf {
+    out.report_dir().join("runs")
+}
+
+/// A run's own page: `report/runs/<run>.html`.
+fn page_name(run: &str) -> String {
+    format!("{run}.html")
+}
+
+/// `name` as a relative URL path segment: every byte but the unreserved ones (RFC 3986)
+/// percent-encoded.
+fn href_segment(name: &str) -> String {
+    let mut s = String::new();
+    for b in name.bytes() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'.' | b'_' | b'~') {
+            s.push(b as char);
+        } else {
+            let _ = write!(s, "%{b:02X}");
+        }
+    }
+    s
+}
+
+/// Removes the runs' pages that are not of the estimated runs in `runs` (all of them when it
+/// is empty), and the folder when nothing else is left in it. Errors are ignored: a page that
+/// cannot be removed stays, unlinked.
+fn remove_stale_pages(out: &OutDir, runs: &[RunRecord]) {
+    let dir = pages_dir(out);
+    let Ok(entries) = std::fs::read_dir(&dir) else {
+        return;
+    };
+    let keep: std::collections::HashSet<String> = runs
+        .iter()
+        .filter(|r| r.ok())
+        .map(|r| page_name(&r.run))
+        .collect();
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".html") && !keep.contains(&name) {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+    let _ = std::fs::remove_dir(&dir);
+}
+
+/// The list of the runs' own pages, in place of their sections.
+fn run_links(h: &mut String, i: &Inputs) {
+    let _ = writeln!(
+        *h,
+        "<p class=\"note\">Each run's speeds (Fig. 3), pressures (Fig. 4) and μ against Δv per axle (Fig. 7) are on a page of their own ({} runs).</p>\n<ul>",
+        i.estimated
+    );
+    for r in i.camp.runs.iter().filter(|r| r.ok()) {
+        let _ = writeln!(
+            *h,
+            "<li><a href=\"runs/{}\">{}</a> — {} km/h, {} °C, {}</li>",
+            href_segment(&page_name(&r.run)),
+            esc(&r.run),
+            opt(r.initial_speed_kmh, 0),
+            opt(r.ambient_temperature_c, 0),
+            esc(r.condition.as_deref().unwrap_or("condition unknown"))
+        );
+    }
+    h.push_str("</ul>\n");
 }
 
 pub(crate) fn esc(s: &str) -> String {
@@ -463,7 +580,15 @@ fn runs(h: &mut String, i: &Inputs) {
         let _ = writeln!(
             *h,
             "<tr><td class=\"l\">{}</td><td class=\"{}\">{}</td><td>{}</td><td>{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td></tr>",
-            esc(&r.run),
+            if i.pages && r.ok() {
+                format!(
+                    "<a href=\"runs/{}\">{}</a>",
+                    href_segment(&page_name(&r.run)),
+                    esc(&r.run)
+                )
+            } else {
+                esc(&r.run)
+            },
             if r.ok() { "" } else { "failed" },
             if r.ok() { "ok" } else { "FAILED" },
             opt(r.initial_speed_kmh, 0),
@@ -631,7 +756,22 @@ fn run_section(r: &RunRecord, d: &mut RunData) -> Result<String, ReportError> {
     Ok(h)
 }
 
-/// Where the network came from.
+/// A run's own page, `report/runs/<run>.html`: its section under a link back to the campaign's
+/// report.
+fn write_page(out: &OutDir, r: &RunRecord, section: &str) -> Result<(), ReportError> {
+    let path = pages_dir(out).join(page_name(&r.run));
+    let page = format!(
+        "{}<p><a href=\"../index.html\">← the campaign's report</a></p>\n{section}</body></html>\n",
+        page_head(&format!("railgrip report — {}", r.run))
+    );
+    crate::atomic::write_atomically(&path, |w| w.write_all(page.as_bytes())).map_err(|source| {
+        ReportError::Write {
+            file: path.display().to_string(),
+            source,
+        }
+    })
+}
+
 /// The campaign's calibration, when its runs were estimated with one (`calibration.json`, read
 /// as plain JSON: the report does not depend on the campaign module that writes it): what was
 /// fitted, its standard errors, the pad-friction forms compared, what it does to each axle's
@@ -788,6 +928,7 @@ fn run_constants(h: &mut String, fit: &serde_json::Value) {
     h.push_str("</table></details>\n");
 }
 
+/// Where the network came from.
 fn provenance(h: &mut String, m: &Model) {
     let p = &m.file.provenance;
     h.push_str("<h2>Provenance</h2>\n<table>");

@@ -449,9 +449,10 @@ mod tests {
         assert!(small_labels(&svg) >= 2, "{svg}");
     }
 
-    /// A cloud of `n` points in two runs' groups, some of them with a non-finite coordinate,
-    /// and a line beside it.
-    fn cloud(n: usize, seed: u64) -> (Vec<(f64, f64)>, Vec<(f64, f64)>) {
+    type Points = Vec<(f64, f64)>;
+
+    /// A cloud of `n` points, some of them with a non-finite coordinate, and a line beside it.
+    fn cloud(n: usize, seed: u64) -> (Points, Points) {
         let mut rng = crate::rng::Rng::new(seed);
         let pts = (0..n)
             .map(|k| {
