@@ -886,6 +886,19 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
         let err = refused(file, bad);
         assert!(err.contains(file) && err.contains("Hint:"), "{file}: {err}");
     }
+    // A run's table without a column the report reads (a truth table in its place): named,
+    // with the column.
+    let table = o_dir.join("runs/soap_120kmh_p20/estimates.parquet");
+    let good = std::fs::read(&table).unwrap();
+    std::fs::copy(archive("soap_120kmh_p20.truth.parquet"), &table).unwrap();
+    let o = railgrip(&["report", "out"], dir.path());
+    std::fs::write(&table, good).unwrap();
+    let err = text(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("soap_120kmh_p20/estimates.parquet") && err.contains("no column valid"),
+        "{err}"
+    );
     // A creepage the fits cannot have taken: named, with the values it may take.
     let fits = "models/mlp.polach-fits.json";
     let good = std::fs::read_to_string(o_dir.join(fits)).unwrap();

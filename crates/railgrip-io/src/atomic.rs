@@ -71,8 +71,8 @@ fn temp_pid(name: &str) -> Option<u32> {
 
 /// A scratch file beside an output, `<dir>/.<name>.<tag>.tmp-<pid>`: written and read back
 /// while the output is being built (so that what the output gathers need not be held in
-/// memory), removed when dropped, and by [`remove_stale_temporaries`] when a killed process
-/// left it behind.
+/// memory), removed when dropped; one a killed process left behind is removed by the next
+/// [`remove_stale_temporaries`] over its folder (`railgrip run` sweeps its output folder).
 #[derive(Debug)]
 pub struct Scratch {
     path: PathBuf,

@@ -930,7 +930,15 @@ fn remove_campaign_results(out: &OutDir) -> Result<(), CampaignError> {
             _ => {}
         }
     }
-    Ok(())
+    // The runs' own report pages (large campaigns) go with the page that links them.
+    let pages = out.report_dir().join("runs");
+    match std::fs::remove_dir_all(&pages) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(CampaignError::Write {
+            path: pages,
+            source: e,
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// With `mcap`, writes each estimated run's `<run>.railgrip.mcap` (its estimates and the

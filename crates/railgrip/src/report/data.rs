@@ -41,14 +41,23 @@ fn open(path: &Path, columns: Option<&[&str]>) -> Result<polars::prelude::DataFr
         file: path.display().to_string(),
         source,
     })?;
-    let mut reader = ParquetReader::new(file);
-    if let Some(c) = columns {
-        reader = reader.with_columns(Some(c.iter().map(|s| s.to_string()).collect()));
-    }
-    reader.finish().map_err(|source| ReportError::Table {
+    let table = |source| ReportError::Table {
         file: path.display().to_string(),
         source,
-    })
+    };
+    let mut reader = ParquetReader::new(file);
+    if let Some(c) = columns {
+        // The same error as a whole table without the column, not the reader's own.
+        let schema = reader.schema().map_err(table)?;
+        if let Some(missing) = c.iter().find(|name| !schema.contains(name)) {
+            return Err(ReportError::Data {
+                file: path.display().to_string(),
+                message: format!("no column {missing}"),
+            });
+        }
+        reader = reader.with_columns(Some(c.iter().map(|s| s.to_string()).collect()));
+    }
+    reader.finish().map_err(table)
 }
 
 /// Column `name` as f64 (NaN for nulls); an error naming the file when it is missing.
