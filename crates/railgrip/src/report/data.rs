@@ -41,14 +41,10 @@ fn open(path: &Path, columns: Option<&[&str]>) -> Result<polars::prelude::DataFr
         file: path.display().to_string(),
         source,
     })?;
-    let table = |source| ReportError::Table {
-        file: path.display().to_string(),
-        source,
-    };
     let mut reader = ParquetReader::new(file);
     if let Some(c) = columns {
         // The same error as a whole table without the column, not the reader's own.
-        let schema = reader.schema().map_err(table)?;
+        let schema = reader.schema().map_err(table_error(path))?;
         if let Some(missing) = c.iter().find(|name| !schema.contains(name)) {
             return Err(ReportError::Data {
                 file: path.display().to_string(),
@@ -57,50 +53,49 @@ fn open(path: &Path, columns: Option<&[&str]>) -> Result<polars::prelude::DataFr
         }
         reader = reader.with_columns(Some(c.iter().map(|s| s.to_string()).collect()));
     }
-    reader.finish().map_err(table)
+    reader.finish().map_err(table_error(path))
 }
 
-/// Column `name` as f64 (NaN for nulls); an error naming the file when it is missing.
+/// A table error naming the file.
+fn table_error(path: &Path) -> impl Fn(polars::error::PolarsError) -> ReportError + '_ {
+    move |source| ReportError::Table {
+        file: path.display().to_string(),
+        source,
+    }
+}
+
+/// Column `name`; an error naming the file when it is missing.
+fn column<'d>(
+    df: &'d polars::prelude::DataFrame,
+    path: &Path,
+    name: &str,
+) -> Result<&'d polars::prelude::Column, ReportError> {
+    df.column(name).map_err(|_| ReportError::Data {
+        file: path.display().to_string(),
+        message: format!("no column {name}"),
+    })
+}
+
+/// Column `name` as f64 (NaN for nulls).
 fn column_f64(
     df: &polars::prelude::DataFrame,
     path: &Path,
     name: &str,
 ) -> Result<Vec<f64>, ReportError> {
-    use polars::prelude::*;
-    let table = |source| ReportError::Table {
-        file: path.display().to_string(),
-        source,
-    };
-    let c = df
-        .column(name)
-        .map_err(|_| ReportError::Data {
-            file: path.display().to_string(),
-            message: format!("no column {name}"),
-        })?
-        .cast(&DataType::Float64)
-        .map_err(table)?;
-    let ca = c.f64().map_err(table)?;
+    let c = column(df, path, name)?
+        .cast(&polars::prelude::DataType::Float64)
+        .map_err(table_error(path))?;
+    let ca = c.f64().map_err(table_error(path))?;
     Ok(ca.iter().map(|x| x.unwrap_or(f64::NAN)).collect())
 }
 
-/// Column `name` as bool (false for nulls); an error naming the file when it is missing.
+/// Column `name` as bool (false for nulls).
 fn column_bool(
     df: &polars::prelude::DataFrame,
     path: &Path,
     name: &str,
 ) -> Result<Vec<bool>, ReportError> {
-    let c = df
-        .column(name)
-        .map_err(|_| ReportError::Data {
-            file: path.display().to_string(),
-            message: format!("no column {name}"),
-        })?
-        .bool()
-        .map_err(|source| ReportError::Table {
-            file: path.display().to_string(),
-            source,
-        })?
-        .clone();
+    let c = column(df, path, name)?.bool().map_err(table_error(path))?;
     Ok(c.iter().map(|x| x.unwrap_or(false)).collect())
 }
 

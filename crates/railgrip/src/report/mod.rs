@@ -165,22 +165,18 @@ impl<'a> Across<'a> {
 
     /// A run of the training condition, its valid samples per axle.
     fn add(&mut self, r: &'a RunRecord, valid: [Vec<ValidPoint>; AXLES], chosen: Option<&Model>) {
-        let group = |groups: &mut Vec<(f64, Thinned)>, key: Option<f64>| {
-            groups
-                .iter_mut()
-                .position(|(kv, _)| key == Some(*kv))
-                .map(|k| k as isize)
-                .unwrap_or(-1)
+        let group = |groups: &[(f64, Thinned)], key: Option<f64>| {
+            groups.iter().position(|(kv, _)| key == Some(*kv))
         };
-        let ks = group(&mut self.by_speed, initial_speed(r));
-        let kt = group(&mut self.by_temperature, ambient_temperature(r));
+        let ks = group(&self.by_speed, initial_speed(r));
+        let kt = group(&self.by_temperature, ambient_temperature(r));
         let t_c = r.ambient_temperature_c.unwrap_or(f64::NAN);
         for &(dv, ddv, mu, _, v) in &valid[1] {
-            if ks >= 0 {
-                self.by_speed[ks as usize].1.push((dv, mu));
+            if let Some(k) = ks {
+                self.by_speed[k].1.push((dv, mu));
             }
-            if kt >= 0 {
-                self.by_temperature[kt as usize].1.push((dv, mu));
+            if let Some(k) = kt {
+                self.by_temperature[k].1.push((dv, mu));
             }
             self.all.push((dv, mu));
             if let (Some(b), Some(m)) = (&mut self.bands, chosen) {

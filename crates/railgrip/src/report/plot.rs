@@ -78,7 +78,7 @@ pub(super) fn chart(
     series: &[Series],
     log_y: bool,
 ) -> Result<String, ReportError> {
-    chart_axes(title, x_desc, y_desc, series, false, log_y)
+    chart_axes(title, x_desc, y_desc, series, false, log_y, &[])
 }
 
 /// [`chart`] (linear axes) with scatter clouds gathered by [`Thinned`] first: each cloud's
@@ -92,7 +92,7 @@ pub(super) fn chart_thinned(
     clouds: &[&Thinned],
 ) -> Result<String, ReportError> {
     let bounds: Vec<(f64, f64)> = clouds.iter().flat_map(|c| c.corners()).collect();
-    chart_with_bounds(title, x_desc, y_desc, series, false, false, &bounds)
+    chart_axes(title, x_desc, y_desc, series, false, false, &bounds)
 }
 
 /// A scatter cloud gathered one point at a time and kept as a chart draws it: every
@@ -144,20 +144,9 @@ impl Thinned {
     }
 }
 
-/// [`chart`] with a choice of logarithmic axes for x and y (positive data spanning decades).
+/// [`chart`] with a choice of logarithmic axes for x and y (positive data spanning decades),
+/// whose axes also cover the points `bounds` (not drawn; empty for most charts).
 pub(crate) fn chart_axes(
-    title: &str,
-    x_desc: &str,
-    y_desc: &str,
-    series: &[Series],
-    log_x: bool,
-    log_y: bool,
-) -> Result<String, ReportError> {
-    chart_with_bounds(title, x_desc, y_desc, series, log_x, log_y, &[])
-}
-
-/// [`chart_axes`] whose axes also cover the points `bounds` (not drawn).
-fn chart_with_bounds(
     title: &str,
     x_desc: &str,
     y_desc: &str,

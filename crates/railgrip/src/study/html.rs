@@ -141,7 +141,7 @@ fn fronts(h: &mut String, o: &Outcome) {
                     .collect(),
                 dots: false,
             });
-            chart_axes(title, x_desc, "error (μ)", &series, true, true)
+            chart_axes(title, x_desc, "error (μ)", &series, true, true, &[])
         };
     for fig in [
         plot(
