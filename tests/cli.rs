@@ -2159,8 +2159,9 @@ fn assert_same_mu(a: &Path, b: &Path, runs: usize) {
 }
 
 /// Three runs cut to their first 3.1 s (1.8 s of braking) are enough runs but too little
-/// braking for the balance: its fit cannot place the α (26.7 ± 507.7 N·m/bar; with both
-/// delays fitted it gave a negative α). "auto" then keeps the pipeline's
+/// braking for the balance: its fit cannot place the α (−398.2 ± 501.9 N·m/bar from the
+/// balance integrated over time; 26.7 ± 507.7 from the force balance). "auto" then keeps the
+/// pipeline's
 /// values with the fit's error in a note and a "none" record, for the whole job and for the
 /// calibrate part; "campaign" stops with the error, naming the campaign.
 #[test]

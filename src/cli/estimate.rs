@@ -319,8 +319,12 @@ fn calibrate_campaign(
         f.runs
     );
     println!(
-        "samples    {} ({:.0} effective after autocorrelation), residual RMS {:.0} N",
+        "samples    {} ({:.0} effective after autocorrelation), residual RMS {:.0} N (the force balance: the delays)",
         f.samples, f.effective_samples, f.rms_residual_n
+    );
+    println!(
+        "integrated {} samples ({:.0} effective), residual RMS {:.0} N·s (the balance integrated over time: every coefficient below)",
+        f.integrated.samples, f.integrated.effective_samples, f.integrated.rms_residual_n_s
     );
     for a in 0..railgrip::format::AXLES {
         println!(

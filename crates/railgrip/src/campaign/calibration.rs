@@ -55,7 +55,8 @@ pub struct CalibrationRecord {
 }
 
 /// The calibration's method and record, for [`campaign_inputs_sha256`]: changed with either.
-const CALIBRATION_METHOD: &str = "calibration 2 (per-run constants; pooled errors over τ)\0";
+const CALIBRATION_METHOD: &str =
+    "calibration 3 (per-run constants; pooled errors over τ; coefficients from the balance integrated over time)\0";
 
 /// The SHA-256 (hex) of what a campaign's calibration depends on: railgrip's version and the
 /// calibration's method ([`CALIBRATION_METHOD`]), the pipeline file's text and, in the

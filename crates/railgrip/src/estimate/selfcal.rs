@@ -20,6 +20,23 @@
 //! a constant pad friction, keeps the pipeline's α. Samples near a locked wheel are left out:
 //! its brake holds it with less than α p.
 //!
+//! **Integrated over time.** The coefficients (α_i, the pad law, the resistance and the run
+//! constants) come from the same balance integrated from the first sample of each stretch of
+//! consecutive samples t₀ to t ([`Balance::integrated_rows`]):
+//!
+//! −(M v(t) + (J/r) Σ_i ω_i(t)) = Σ_i α_i ∫ (1 + γ φ) p_i / r dt + c_run (t − t₀)
+//!                                 + c1 ∫ v dt + c2 ∫ v² dt + K   [N·s]
+//!
+//! with one constant of integration K per stretch. The force balance differentiates the radar's
+//! noise, whose spectrum then rises with frequency; integrated, the noise is the radar's own,
+//! and the slow content of the pressures — what tells the axles and the pad law apart — is
+//! measured against it at the frequencies where it lies. On the mismatch scenes (12 runs, noise
+//! seeds 1–3) the α_i's standard errors fall from ~0.8 % to ~0.45 % and γ's from 0.96 % to
+//! 0.12 % (the pad rise +4.8 … +5.0 % where it is +5 %, against +4.5 … +5.6 % from the force
+//! balance). The delays and the radar's scale are profiled on the force balance (below), which
+//! also decides whether the data call for leaving the pipeline's α at all ([`ForceBalance`]).
+//! The errors of the coefficients are taken over γ ([`Fit::over_gamma`]).
+//!
 //! **The pad friction** α_i(v) = α_i (1 + γ φ(v)), φ(v_ref) = 0 at the campaign's top speed
 //! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
 //! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (the first-order form of a friction
@@ -184,8 +201,36 @@ pub struct CampaignCalibration {
     /// weights average about 1: close to the plain RMS when the runs are alike).
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rms_residual_n: f64,
+    /// The balance integrated over time, which every coefficient but the delays and the
+    /// radar's scale comes from (`samples`, `effective_samples` and `rms_residual_n` above
+    /// are the force balance's, which the delays come from).
+    #[serde(default)]
+    pub integrated: IntegratedBalance,
     /// What could not be calibrated and what was done instead, in plain words.
     pub notes: Vec<String>,
+}
+
+/// The integrated balance's rows and residual ([`CampaignCalibration::integrated`]); zeros and
+/// NaN in files written before it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct IntegratedBalance {
+    /// Rows in its stretches of two or more rows.
+    pub samples: usize,
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
+    pub effective_samples: f64,
+    /// RMS of its residual, N·s (momentum), each run's squares weighted as in the fit.
+    #[serde(with = "crate::config::calibrated::nan_as_null")]
+    pub rms_residual_n_s: f64,
+}
+
+impl Default for IntegratedBalance {
+    fn default() -> Self {
+        IntegratedBalance {
+            samples: 0,
+            effective_samples: f64::NAN,
+            rms_residual_n_s: f64::NAN,
+        }
+    }
 }
 
 impl CampaignCalibration {
@@ -518,6 +563,7 @@ impl<'p> CampaignCalibrator<'p> {
             per_run: true,
             alpha_pipeline: veh.brake_torque_nm_per_bar,
             weights: &[],
+            integrated: false,
         }
     }
 
@@ -553,6 +599,56 @@ impl<'p> CampaignCalibrator<'p> {
         too_few_runs(self.runs.len(), &self.notes).map(|(what, _)| what)
     }
 
+    /// The balance `b`'s coefficients at `at`: the runs weighed by their residuals
+    /// ([`Balance::run_weights`]; equal, with a note in `notes`, where no first fit can be
+    /// made), the pad form and the resistance's constants chosen by BIC ([`select_model`]),
+    /// and the chosen fit's Gram matrix, effective samples and σ² (N² per unit weight,
+    /// inflated by n/n_eff). The error says what failed and what to do.
+    fn coefficients(
+        b: &Balance,
+        at: &At,
+        runs_n: usize,
+        notes: &mut Vec<String>,
+    ) -> Result<Coefficients, (String, &'static str)> {
+        let weights = b.run_weights(at).unwrap_or_else(|| {
+            notes.push(
+                "no first fit of the balance to weigh the runs by: every run weighs the same"
+                    .into(),
+            );
+            vec![1.0; b.runs.len()]
+        });
+        let weighted = Balance {
+            weights: &weights,
+            ..*b
+        };
+        let (best, candidates) = select_model(&weighted, at, runs_n);
+        let Some((fit, _, per_run)) = best else {
+            return Err((
+                "no form of the pad friction could be fitted".into(),
+                "the pressures do not vary enough; calibrate on runs with brake applications",
+            ));
+        };
+        let chosen = Balance {
+            per_run,
+            ..weighted
+        };
+        let g = chosen.gram(at, fit.form);
+        let fit = fit.over_gamma(&g);
+        let n = g.n as f64;
+        let n_eff = chosen.n_eff(at, fit.form, &fit);
+        let dof = (n - runs_n as f64 - fit.beta.len() as f64 - 1.0).max(1.0);
+        let sigma2 = fit.rss / dof * n / n_eff;
+        Ok(Coefficients {
+            weights,
+            fit,
+            per_run,
+            candidates,
+            g,
+            n_eff,
+            sigma2,
+        })
+    }
+
     /// Fits the campaign (see the module's documentation). `what` names the campaign in
     /// errors.
     pub fn finish(self, what: &std::path::Path) -> Result<CampaignCalibration, EstimateError> {
@@ -580,35 +676,31 @@ impl<'p> CampaignCalibrator<'p> {
 
         let window = Self::counting_window(&self.runs, &mut notes);
         let (at, d) = fit_radar_and_delays(&b, &mut notes, window.map(|w| w.delay_s()));
-        let weights = b.run_weights(&at).unwrap_or_else(|| {
-            notes.push(
-                "no first fit of the balance to weigh the runs by: every run weighs the same"
-                    .into(),
-            );
-            vec![1.0; self.runs.len()]
-        });
-        let b = Balance {
-            weights: &weights,
-            ..b
-        };
+        // The delays' standard errors from the force balance they were fitted on (its chosen
+        // model); every coefficient from the balance integrated over time, at those delays.
         let tau = at.radar_s;
         let runs_n = self.runs.len();
-        let (best, candidates, b_common) = select_model(&b, &at, runs_n);
-        let Some((fit, _, per_run)) = best else {
-            return Err(fail(
-                "no form of the pad friction could be fitted".into(),
-                "the pressures do not vary enough; calibrate on runs with brake applications",
-            ));
+        let force = ForceBalance::at(&b, &at, &d, runs_n);
+        let integrated = Balance {
+            integrated: true,
+            ..b
         };
-        let b = if per_run { b } else { b_common };
-        let groups = fit.groups.clone();
-        let g = b.gram(&at, fit.form);
+        let c = Self::coefficients(&integrated, &at, runs_n, &mut notes)
+            .map_err(|(what_failed, hint)| fail(what_failed, hint))?;
+        let Coefficients {
+            weights: _,
+            fit,
+            per_run,
+            candidates,
+            g,
+            n_eff,
+            sigma2,
+        } = &c;
+        let (fit, per_run, g, n_eff, sigma2) = (fit, *per_run, g, *n_eff, *sigma2);
+        let b = c.balance(&integrated);
         let n = g.n as f64;
-        let n_eff = b.n_eff(&at, fit.form, &fit);
         let runs = self.runs.len() as f64;
-        let dof = (n - runs - fit.beta.len() as f64 - 1.0).max(1.0);
-        let sigma2 = fit.rss / dof * n / n_eff;
-        let shared: Vec<Vec<usize>> = groups.iter().filter(|g| g.len() > 1).cloned().collect();
+        let shared: Vec<Vec<usize>> = fit.groups.iter().filter(|g| g.len() > 1).cloned().collect();
         notes.extend(shared.iter().map(|grp| shared_note(grp)));
         let A {
             alpha,
@@ -617,24 +709,30 @@ impl<'p> CampaignCalibrator<'p> {
             fitted_se: alpha_fitted_se,
             between_sd: pooling,
             kept,
-        } = axle_alphas(&g, &fit, sigma2, &veh.brake_torque_nm_per_bar);
+        } = axle_alphas(g, fit, sigma2, &veh.brake_torque_nm_per_bar, force.keeps);
         let constants = if per_run { runs } else { 1.0 };
-        let res = Resistance::applied(&fit, sigma2, kept.is_some(), &g, n / n_eff, constants);
+        let res = Resistance::applied(fit, sigma2, kept.is_some(), g, n / n_eff, constants);
+        // The pipeline's α kept: with the pad friction constant.
+        let (pad_form, pad_gamma, gamma_se) = if kept.is_some() {
+            (PadForm::Constant, 0.0, 0.0)
+        } else {
+            (fit.form, fit.gamma, gamma_error(g, fit, sigma2))
+        };
         let run_constants = b.run_constants(&at, res.fit.form, &res);
         notes.extend(kept);
-        if alpha.iter().any(|a| !(*a > 0.0)) {
-            return Err(fail(
-                format!("the balance gives a non-positive brake coefficient {alpha:?}"),
-                "check the pressure channels' mapping to the axles and the vehicle's mass",
-            ));
-        }
+        // An α whose error spans its value says so first (its sign then means nothing).
         if let Some(worst) = vague_alpha(&alpha_fitted, &alpha_fitted_se) {
             return Err(fail(
                 format!("the balance cannot place the brake coefficients: α {:.1} ± {:.1} N·m/bar, one standard error {:.0} % of it (at most {:.0} %)", alpha_fitted[worst], alpha_fitted_se[worst], alpha_fitted_se[worst] / alpha_fitted[worst].abs() * 100.0, MAX_CALIBRATED_ALPHA_REL_SE * 100.0),
                 "the runs hold too little braking with changing pressures; calibrate on longer brake applications, or estimate with the pipeline's α (estimate.calibration = \"pipeline\")",
             ));
         }
-        let (gamma_se, tau_se, tacho_se) = parameter_errors(&b, &at, &g, &fit, sigma2, &d);
+        if alpha.iter().any(|a| !(*a > 0.0)) {
+            return Err(fail(
+                format!("the balance gives a non-positive brake coefficient {alpha:?}"),
+                "check the pressure channels' mapping to the axles and the vehicle's mass",
+            ));
+        }
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
@@ -643,12 +741,12 @@ impl<'p> CampaignCalibrator<'p> {
             alpha_between_sd: pooling,
             shared,
             pad: PadLaw {
-                form: fit.form,
-                gamma: fit.gamma,
+                form: pad_form,
+                gamma: pad_gamma,
                 gamma_se,
                 v_ref_mps: v_ref,
             },
-            pad_candidates: candidates,
+            pad_candidates: candidates.clone(),
             per_run_constants: per_run,
             resistance_c1_n_s_per_m: res.c[0],
             resistance_c2_n_s2_per_m2: res.c[1],
@@ -659,14 +757,19 @@ impl<'p> CampaignCalibrator<'p> {
             radar_scale_se: d.scale_se,
             radar_scale_runs: d.scale_runs,
             radar_latency_s: tau,
-            radar_latency_se: tau_se,
+            radar_latency_se: force.tau_se,
             tacho_delay_s: at.tacho_s,
-            tacho_delay_se: tacho_se,
+            tacho_delay_se: force.tacho_se,
             tacho_window_s: window.map(|w| w.window_s),
             runs: self.runs.len(),
-            samples: g.n,
-            effective_samples: n_eff,
-            rms_residual_n: (res.rss / n).sqrt(),
+            samples: force.samples,
+            effective_samples: force.n_eff,
+            rms_residual_n: force.rms_n,
+            integrated: IntegratedBalance {
+                samples: g.n,
+                effective_samples: n_eff,
+                rms_residual_n_s: (res.rss / n).sqrt(),
+            },
             notes,
         })
     }
@@ -740,6 +843,9 @@ impl Balance<'_> {
     /// other coefficients' estimates (they are fitted about the run means), so its variance
     /// is σ²/Σw + x̄ᵀ (σ² (XᵀWX)⁻¹) x̄.
     fn run_constants(&self, at: &At, form: PadForm, res: &Resistance) -> Vec<RunConstant> {
+        if self.integrated {
+            return self.integrated_run_constants(at, form, res);
+        }
         let fit = &res.fit;
         let k = fit.beta.len();
         // Per run: Σ w, Σ w e, Σ w x.
@@ -1448,12 +1554,13 @@ fn unidentified(name: &str, t: f64, d2: f64, (lo, hi): (f64, f64)) -> Option<Str
 
 /// The candidate fits at `at` — each pad form with one resistance constant per run or one for
 /// the campaign, the axles that separate — and the best by BIC (with a common n_eff: each
-/// form's own would move the BIC by more than the fits differ); with the one-constant balance.
-fn select_model<'a>(
-    b: &Balance<'a>,
+/// form's own would move the BIC by more than the fits differ), and whether it has one
+/// constant per run.
+fn select_model(
+    b: &Balance,
     at: &At,
     runs_n: usize,
-) -> (Option<(Fit, f64, bool)>, Vec<PadCandidate>, Balance<'a>) {
+) -> (Option<(Fit, f64, bool)>, Vec<PadCandidate>) {
     // The pad forms at that latency and scale, with the axles that separate.
     let groups: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
     // The residuals' autocorrelation, from the constant form with every axle apart, scales
@@ -1510,7 +1617,7 @@ fn select_model<'a>(
             }
         }
     }
-    (best, candidates, b_common)
+    (best, candidates)
 }
 
 /// The runs with the vehicle's constants.
@@ -1528,6 +1635,10 @@ struct Balance<'a> {
     /// Each run's weight in the least squares (1/its residual variance, relative), or empty
     /// for equal weights.
     weights: &'a [f64],
+    /// The balance integrated over time ([`Balance::integrated_rows`]): momentum against the
+    /// forces' impulses, each stretch of consecutive samples with its own constant of
+    /// integration. Else the force balance row by row.
+    integrated: bool,
 }
 
 /// Where the balance is evaluated: the radar's latency and the tachometers' delay (s), and the
@@ -1595,6 +1706,9 @@ impl Balance<'_> {
 
     /// The Gram matrix of z with the constants eliminated (per run, or once).
     fn gram(&self, at: &At, form: PadForm) -> Gram {
+        if self.integrated {
+            return self.integrated_gram(at, form);
+        }
         let mut g = vec![0.0; Z * Z];
         let mut n = 0;
         let mut gr = vec![0.0; Z * Z];
@@ -1699,6 +1813,21 @@ impl Balance<'_> {
     /// one constant per run, [`Self::gram`] is their sum, so a
     /// campaign without one run is the sum less that run's (the delays' jackknife).
     fn run_grams(&self, at: &At, form: PadForm) -> Vec<Gram> {
+        if self.integrated {
+            return self
+                .runs
+                .iter()
+                .enumerate()
+                .map(|(ri, run)| {
+                    let w = self.weights.get(ri).copied().unwrap_or(1.0);
+                    let (mut g, n) = self.integrated_run_gram(run, w, at, form);
+                    Gram {
+                        g: eliminate_time(&mut g),
+                        n,
+                    }
+                })
+                .collect();
+        }
         let mut grams = Vec::with_capacity(self.runs.len());
         for (ri, run) in self.runs.iter().enumerate() {
             let w = self.weights.get(ri).copied().unwrap_or(1.0);
@@ -1836,6 +1965,9 @@ impl Balance<'_> {
 
     /// Each run's residuals of the balance (unweighted, before its constant) at a fit.
     fn residuals(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<f64>> {
+        if self.integrated {
+            return self.integrated_residuals(at, form, fit);
+        }
         self.runs
             .iter()
             .map(|run| {
@@ -1909,6 +2041,309 @@ impl Balance<'_> {
 
 /// The delay minimising `rss(τ)` over `(lo, hi)`: a grid of 5 ms, then golden section within
 /// the best cell's neighbours; with the curvature RSS'' there.
+/// The time column's index in an integrated row's augmented vector (after z).
+const T: usize = Z;
+/// Length of an integrated row's augmented vector: z and the time since its stretch began.
+const U: usize = Z + 1;
+
+/// Eliminates the time column from a (`U` × `U`) centred Gram matrix (its Schur complement,
+/// the run's constant force partialled out) and returns the `Z` × `Z` matrix; a time column
+/// without spread leaves the rest as it is.
+fn eliminate_time(u: &mut [f64]) -> Vec<f64> {
+    let tt = u[T * U + T];
+    let mut g = vec![0.0; Z * Z];
+    for p in 0..Z {
+        for q in 0..Z {
+            let cut = if tt > 0.0 {
+                u[p * U + T] * u[T * U + q] / tt
+            } else {
+                0.0
+            };
+            g[p * Z + q] = u[p * U + q] - cut;
+        }
+    }
+    g
+}
+
+/// One row of the integrated balance: its stretch (0, 1, … within the run), the time since
+/// the stretch began (s) and the integrated z.
+type IntegratedRow = (usize, f64, [f64; Z]);
+
+impl Balance<'_> {
+    /// The balance integrated over time, row by row: with z the force balance's row
+    /// ([`Self::z_row`]: y = −(M v̇ + (J/r) Σ ω̇_i) = Σ x_j β_j + c_run), integrating from the
+    /// first row of each stretch of consecutive rows t₀ to t gives
+    ///
+    /// −(M v(t) + (J/r) Σ_i ω_i(t)) = Σ_j β_j ∫_{t₀}^{t} x_j dt + c_run (t − t₀) + K   [N·s]
+    ///
+    /// with K the stretch's constant of integration (its initial momentum). The integrals are
+    /// trapezoids over the rows (every `DECIMATE`-th sample of signals low-passed at the
+    /// radar's cut-off). The radar's noise, which the force balance differentiates (its
+    /// spectrum rising with frequency), enters here as it is: the slow content of the
+    /// pressures — what tells the axles and the pad friction's speed law apart — is measured
+    /// against the radar's noise at those frequencies rather than against its derivative's
+    /// average over the whole band. A stretch ends where a row is missing (a locked wheel's
+    /// settling, a dropout, the end of the data).
+    fn integrated_rows(&self, run: &RunSignals, at: &At, form: PadForm) -> Vec<IntegratedRow> {
+        let dt = DECIMATE as f64 / run.fs;
+        let shift = at.radar_s * run.fs;
+        let tacho = at.tacho_s * run.fs;
+        let omega_sum = AXLES as f64 * self.inv_r;
+        let mut out: Vec<IntegratedRow> = Vec::with_capacity(run.rows.len());
+        // The previous row's sample index and force-balance z, and the running integrals.
+        let mut prev: Option<(usize, [f64; Z])> = None;
+        let mut acc = [0.0; Z];
+        let (mut stretch, mut t0) = (0usize, 0usize);
+        for row in &run.rows {
+            let k = row.0;
+            let momentum = shifted(&run.v_radar, &run.ok, k, shift).and_then(|v| {
+                shifted(&run.w_mean, &run.ok, k, tacho)
+                    .map(|w| -(self.mass * v / at.scale + self.j_r * omega_sum * w))
+            });
+            let (Some(z), Some(y)) = (self.z_row(run, row, at, form), momentum) else {
+                prev = None;
+                continue;
+            };
+            match prev {
+                Some((kp, zp)) if k == kp + DECIMATE => {
+                    for j in 0..Y {
+                        acc[j] += 0.5 * (zp[j] + z[j]) * dt;
+                    }
+                }
+                _ => {
+                    if !out.is_empty() {
+                        stretch += 1;
+                    }
+                    acc = [0.0; Z];
+                    t0 = k;
+                }
+            }
+            let mut zi = acc;
+            zi[Y] = y;
+            out.push((stretch, (k - t0) as f64 / run.fs, zi));
+            prev = Some((k, z));
+        }
+        out
+    }
+
+    /// A run's integrated rows' Gram matrix of (z, t − t₀) with each stretch's constant of
+    /// integration eliminated (each stretch centred), every row of weight `w`, (`U` × `U`), and
+    /// the rows in it (stretches of one row give none).
+    fn integrated_run_gram(
+        &self,
+        run: &RunSignals,
+        w: f64,
+        at: &At,
+        form: PadForm,
+    ) -> (Vec<f64>, usize) {
+        let rows = self.integrated_rows(run, at, form);
+        let mut g = vec![0.0; U * U];
+        let mut n = 0usize;
+        let mut start = 0usize;
+        while start < rows.len() {
+            let stretch = rows[start].0;
+            let end = rows[start..]
+                .iter()
+                .position(|r| r.0 != stretch)
+                .map_or(rows.len(), |e| start + e);
+            let m = end - start;
+            if m >= 2 {
+                let mut gs = vec![0.0; U * U];
+                let mut s = [0.0; U];
+                for (_, t, z) in &rows[start..end] {
+                    let mut u = [0.0; U];
+                    u[..Z].copy_from_slice(z);
+                    u[T] = *t;
+                    for p in 0..U {
+                        let wp = w * u[p];
+                        s[p] += wp;
+                        for q in 0..=p {
+                            gs[p * U + q] += wp * u[q];
+                        }
+                    }
+                }
+                let ws = w * m as f64;
+                for p in 0..U {
+                    for q in 0..=p {
+                        let c = gs[p * U + q] - s[p] * s[q] / ws;
+                        g[p * U + q] += c;
+                        if q != p {
+                            g[q * U + p] += c;
+                        }
+                    }
+                }
+                n += m;
+            }
+            start = end;
+        }
+        (g, n)
+    }
+
+    /// [`Self::gram`] of the integrated balance: the stretches' constants eliminated, and the
+    /// constant force's time column per run (or once for the campaign).
+    fn integrated_gram(&self, at: &At, form: PadForm) -> Gram {
+        let mut g = vec![0.0; Z * Z];
+        let mut total = vec![0.0; U * U];
+        let mut n = 0;
+        for (ri, run) in self.runs.iter().enumerate() {
+            let w = self.weights.get(ri).copied().unwrap_or(1.0);
+            let (mut gr, nr) = self.integrated_run_gram(run, w, at, form);
+            n += nr;
+            if self.per_run {
+                g.iter_mut()
+                    .zip(eliminate_time(&mut gr))
+                    .for_each(|(a, b)| *a += b);
+            } else {
+                total.iter_mut().zip(&gr).for_each(|(a, b)| *a += b);
+            }
+        }
+        if !self.per_run {
+            g = eliminate_time(&mut total);
+        }
+        Gram { g, n }
+    }
+
+    /// Per run, its integrated rows' e₀ = y − x·β and t − t₀ centred on their stretches, as
+    /// (stretch-centred e₀, stretch-centred t) pairs.
+    fn integrated_centred(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<(f64, f64)>> {
+        self.runs
+            .iter()
+            .map(|run| {
+                let rows = self.integrated_rows(run, at, form);
+                let mut out = Vec::with_capacity(rows.len());
+                let mut start = 0usize;
+                while start < rows.len() {
+                    let stretch = rows[start].0;
+                    let end = rows[start..]
+                        .iter()
+                        .position(|r| r.0 != stretch)
+                        .map_or(rows.len(), |e| start + e);
+                    let part = &rows[start..end];
+                    let m = part.len() as f64;
+                    let e0: Vec<f64> = part.iter().map(|(_, _, z)| z[Y] - fit.predict(z)).collect();
+                    let (em, tm) = (
+                        e0.iter().sum::<f64>() / m,
+                        part.iter().map(|r| r.1).sum::<f64>() / m,
+                    );
+                    out.extend(e0.iter().zip(part).map(|(e, r)| (e - em, r.1 - tm)));
+                    start = end;
+                }
+                out
+            })
+            .collect()
+    }
+
+    /// Each run's integrated residuals at a fit: the stretches' constants and the run's
+    /// constant force (or the campaign's one, `per_run` false) fitted at β and taken out.
+    fn integrated_residuals(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<f64>> {
+        let centred = self.integrated_centred(at, form, fit);
+        let slope = |rows: &[(f64, f64)]| {
+            let (et, tt) = rows
+                .iter()
+                .fold((0.0, 0.0), |(a, b), (e, t)| (a + e * t, b + t * t));
+            if tt > 0.0 {
+                et / tt
+            } else {
+                0.0
+            }
+        };
+        let common = (!self.per_run).then(|| {
+            let all: Vec<(f64, f64)> = centred.iter().flatten().copied().collect();
+            slope(&all)
+        });
+        centred
+            .iter()
+            .map(|rows| {
+                let c = common.unwrap_or_else(|| slope(rows));
+                rows.iter().map(|(e, t)| e - c * t).collect()
+            })
+            .collect()
+    }
+
+    /// [`Self::run_constants`] of the integrated balance: each run's constant force is the
+    /// slope of its stretch-centred e₀ = y − x·β on t − t₀, Σ w e₀ t / Σ w t²; its variance
+    /// σ²/Σ w t² + x̄ᵀ (σ² (XᵀWX)⁻¹) x̄ with x̄ the columns' slopes on t.
+    fn integrated_run_constants(
+        &self,
+        at: &At,
+        form: PadForm,
+        res: &Resistance,
+    ) -> Vec<RunConstant> {
+        let fit = &res.fit;
+        let k = fit.beta.len();
+        // Per run: Σ w t², Σ w e₀ t, Σ w x t (stretch-centred).
+        let sums: Vec<(f64, f64, Vec<f64>)> = self
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(ri, run)| {
+                let w = self.weights.get(ri).copied().unwrap_or(1.0);
+                let rows = self.integrated_rows(run, at, form);
+                let (mut stt, mut set, mut sxt) = (0.0, 0.0, vec![0.0; k]);
+                let mut start = 0usize;
+                while start < rows.len() {
+                    let stretch = rows[start].0;
+                    let end = rows[start..]
+                        .iter()
+                        .position(|r| r.0 != stretch)
+                        .map_or(rows.len(), |e| start + e);
+                    let part = &rows[start..end];
+                    let m = part.len() as f64;
+                    let tm = part.iter().map(|r| r.1).sum::<f64>() / m;
+                    for (_, t, z) in part {
+                        let tc = t - tm;
+                        stt += w * tc * tc;
+                        set += w * (z[Y] - fit.predict(z)) * tc;
+                        let (x, _) = fit.columns(z);
+                        for (s, x) in sxt.iter_mut().zip(x) {
+                            *s += w * x * tc;
+                        }
+                    }
+                    start = end;
+                }
+                (stt, set, sxt)
+            })
+            .collect();
+        let constant = |(stt, set, sxt): &(f64, f64, Vec<f64>)| {
+            let xbar: Vec<f64> = sxt.iter().map(|x| x / stt).collect();
+            let mut var = res.sigma2 / stt;
+            for p in 0..k {
+                for q in 0..k {
+                    var += xbar[p] * res.sigma2 * fit.cov[p * k + q] * xbar[q];
+                }
+            }
+            (set / stt, var.max(0.0).sqrt())
+        };
+        let campaign = (!self.per_run).then(|| {
+            let mut all = (0.0, 0.0, vec![0.0; k]);
+            for (stt, set, sxt) in &sums {
+                all.0 += stt;
+                all.1 += set;
+                all.2.iter_mut().zip(sxt).for_each(|(a, x)| *a += x);
+            }
+            constant(&all)
+        });
+        self.runs
+            .iter()
+            .zip(&sums)
+            .map(|(run, s)| {
+                let (c, se) = campaign.unwrap_or_else(|| {
+                    if s.0 > 0.0 {
+                        constant(s)
+                    } else {
+                        (f64::NAN, f64::NAN)
+                    }
+                });
+                RunConstant {
+                    run: run.name.clone(),
+                    constant_n: c,
+                    se_n: se,
+                }
+            })
+            .collect()
+    }
+}
+
 fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let step = 0.005;
     let grid: Vec<f64> = (0..=((hi - lo) / step).round() as usize)
@@ -1929,6 +2364,98 @@ fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     (t, d2)
 }
 
+/// What the force balance, row by row, gives beside the delays themselves.
+struct ForceBalance {
+    /// The delays' standard errors, s (NaN where not fitted, or where no model could be fitted).
+    tau_se: f64,
+    tacho_se: f64,
+    /// Whether the pipeline's α stand ([`axle_alphas`]'s test on this balance); None where
+    /// no model could be fitted.
+    keeps: Option<bool>,
+    /// Its rows, their effective number and its residual's RMS (N) at its fit.
+    samples: usize,
+    n_eff: f64,
+    rms_n: f64,
+}
+
+impl ForceBalance {
+    /// The force balance `b` at the delays `at` (profiled as `d` says), with the pad form and
+    /// constants its own BIC chooses. The delays' errors come from it because they were fitted
+    /// on it; and whether the data call for a change from the pipeline's α at all is decided
+    /// on it, whose errors are the larger: without pressure differences between the axles the
+    /// integrated balance's errors come out too small (the clean mismatch scenes without the
+    /// wheel-slide protection: the common α 0.1 % off the truth at 2 of its standard errors, γ
+    /// at 3, and runs up to 20 % worse).
+    fn at(b: &Balance, at: &At, d: &Delays, runs_n: usize) -> ForceBalance {
+        match CampaignCalibrator::coefficients(b, at, runs_n, &mut Vec::new()) {
+            Ok(c) => {
+                let (_, tau_se, tacho_se) =
+                    parameter_errors(&c.balance(b), at, &c.g, &c.fit, c.sigma2, d);
+                let keeps = axle_alphas(&c.g, &c.fit, c.sigma2, &b.alpha_pipeline, None)
+                    .kept
+                    .is_some();
+                ForceBalance {
+                    tau_se,
+                    tacho_se,
+                    keeps: Some(keeps),
+                    samples: c.g.n,
+                    n_eff: c.n_eff,
+                    rms_n: (c.fit.rss / (c.g.n as f64).max(1.0)).sqrt(),
+                }
+            }
+            Err(_) => ForceBalance {
+                tau_se: f64::NAN,
+                tacho_se: f64::NAN,
+                keeps: None,
+                samples: 0,
+                n_eff: f64::NAN,
+                rms_n: f64::NAN,
+            },
+        }
+    }
+}
+
+/// What [`CampaignCalibrator::coefficients`] fits on one form of the balance.
+struct Coefficients {
+    /// Each run's weight.
+    weights: Vec<f64>,
+    /// The chosen pad form's fit, with one constant per run (`per_run`) or one for the
+    /// campaign.
+    fit: Fit,
+    per_run: bool,
+    candidates: Vec<PadCandidate>,
+    /// The chosen balance's Gram matrix, its residuals' effective samples and σ².
+    g: Gram,
+    n_eff: f64,
+    sigma2: f64,
+}
+
+impl Coefficients {
+    /// `b` as these coefficients were fitted on: weighted, with their constants.
+    fn balance<'a>(&'a self, b: &Balance<'a>) -> Balance<'a> {
+        Balance {
+            weights: &self.weights,
+            per_run: self.per_run,
+            ..*b
+        }
+    }
+}
+
+/// One standard error of γ from the curvature of the residual sum of squares at the fit,
+/// se² = 2 σ² / RSS'' (0 for the constant form).
+fn gamma_error(g: &Gram, fit: &Fit, sigma2: f64) -> f64 {
+    if fit.form == PadForm::Constant {
+        return 0.0;
+    }
+    let h = 1e-3;
+    let f = |gm: f64| {
+        g.rss_at(&fit.groups, fit.form, gm)
+            .map_or(f64::NAN, |x| x.rss)
+    };
+    let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
+    (2.0 * sigma2 / d2).sqrt()
+}
+
 /// One standard error of γ and of the two delays, from the chosen model's residual sum of
 /// squares: se² = 2 σ² / RSS'' at the fit (NaN for a delay taken as 0: not fitted).
 fn parameter_errors(
@@ -1939,17 +2466,7 @@ fn parameter_errors(
     sigma2: f64,
     d: &Delays,
 ) -> (f64, f64, f64) {
-    let gamma_se = if fit.form == PadForm::Constant {
-        0.0
-    } else {
-        let h = 1e-3;
-        let f = |gm: f64| {
-            g.rss_at(&fit.groups, fit.form, gm)
-                .map_or(f64::NAN, |x| x.rss)
-        };
-        let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
-        (2.0 * sigma2 / d2).sqrt()
-    };
+    let gamma_se = gamma_error(g, fit, sigma2);
     // The delays' standard errors from the chosen model's residual sum of squares, its
     // curvature at each fitted delay (NaN for a delay taken as 0: not fitted).
     let curvature = |shifted: &dyn Fn(f64) -> At, fitted: bool| {
@@ -1998,7 +2515,15 @@ struct A {
     kept: Option<String>,
 }
 
-fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) -> A {
+/// `keep`: whether the pipeline's α stand, decided elsewhere (None: by this fit's own test,
+/// below).
+fn axle_alphas(
+    g: &Gram,
+    fit: &Fit,
+    sigma2: f64,
+    alpha_pipeline: &[f64; AXLES],
+    keep: Option<bool>,
+) -> A {
     let groups = &fit.groups;
     let mut ratio = [f64::NAN; AXLES];
     let mut ratio_se = [f64::NAN; AXLES];
@@ -2027,16 +2552,22 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
             between_sd = Some(p.between_sd);
         }
     }
-    // One ratio for all axles that does not differ from 1 by more than its errors, with the
-    // pad friction constant: the pipeline's α stands (a change the data do not call for only
-    // adds the fit's noise to every estimate).
+    // One ratio for all axles that, with the pad law's γ, does not differ from (1, 0) by
+    // more than their errors: the pipeline's α stand, the pad friction constant (a change the
+    // data do not call for only adds the fit's noise to every estimate). The likelihood ratio
+    // of the common ratio's fit against ratio 1 and γ = 0 (the resistance free in both), with
+    // one degree of freedom for the ratio and one for γ where the form has it — for the
+    // constant form the same test as |ratio − 1| ≤ 1.96 standard errors.
     let one_ratio = between_sd.is_none_or(|sd| sd == 0.0);
-    let kept = fit.form == PadForm::Constant
-        && one_ratio
-        && common.as_ref().is_some_and(|c| {
-            let se = (sigma2 * c.var_unit(0)).sqrt();
-            (c.beta[0] - 1.0).abs() <= Z95 * se
-        });
+    let free = 1 + usize::from(fit.form != PadForm::Constant);
+    let at_pipeline = resistance_at_ratio_1(g, 1.0, 1.0).map(|r| r.rss);
+    let kept = keep.unwrap_or_else(|| {
+        one_ratio
+            && common
+                .as_ref()
+                .zip(at_pipeline)
+                .is_some_and(|(c, rss1)| (rss1 - c.rss) / sigma2 <= chi2_95(free))
+    });
     if kept {
         ratio = [1.0; AXLES];
     }
@@ -2048,9 +2579,7 @@ fn axle_alphas(g: &Gram, fit: &Fit, sigma2: f64, alpha_pipeline: &[f64; AXLES]) 
         fitted_se,
         between_sd: between_sd.map(|sd| sd * mean_pipeline),
         kept: kept.then(|| {
-            format!(
-                "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, within {Z95:.2} standard errors of 1, pad friction constant): the pipeline's α kept"
-            )
+            "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, which with the pad law's speed term is not told from 1 and none at 95 %): the pipeline's α kept, the pad friction constant".to_string()
         }),
     }
 }
@@ -2277,6 +2806,48 @@ impl Fit {
     /// The unscaled variance of coefficient `i`: the diagonal of (XᵀWX)⁻¹.
     fn var_unit(&self, i: usize) -> f64 {
         self.cov[i * self.beta.len() + i]
+    }
+
+    /// The fit with its coefficients' covariance taken over γ too (the fit's columns and
+    /// ∂x·β/∂γ = Σ_g β_g Σ_{a∈g} φ z_a solved together on `g`, the block of the coefficients
+    /// kept): at a fixed γ the errors of c1 and c2, which the pad law's speed term trades off
+    /// against, are too small. As it is for the constant form or where the joint matrix is
+    /// singular.
+    fn over_gamma(self, g: &Gram) -> Fit {
+        if self.form == PadForm::Constant {
+            return self;
+        }
+        let mut cols: Vec<Vec<(usize, f64)>> = self
+            .groups
+            .iter()
+            .map(|grp| {
+                grp.iter()
+                    .flat_map(|&a| [(a, 1.0), (AXLES + a, self.gamma)])
+                    .collect()
+            })
+            .collect();
+        cols.push(vec![(2 * AXLES, 1.0)]);
+        cols.push(vec![(2 * AXLES + 1, 1.0)]);
+        cols.push(
+            self.groups
+                .iter()
+                .zip(&self.beta)
+                .flat_map(|(grp, b)| grp.iter().map(move |&a| (AXLES + a, *b)))
+                .collect(),
+        );
+        let Some((_, inv, _)) = g.solve(&cols) else {
+            return self;
+        };
+        let (k, kj) = (self.beta.len(), cols.len());
+        let cov: Vec<f64> = (0..k * k).map(|i| inv[(i / k) * kj + i % k]).collect();
+        let ng = self.groups.len();
+        let mut corr = vec![0.0; ng * ng];
+        for p in 0..ng {
+            for q in 0..ng {
+                corr[p * ng + q] = cov[p * k + q] / (cov[p * k + p] * cov[q * k + q]).sqrt();
+            }
+        }
+        Fit { cov, corr, ..self }
     }
 }
 
@@ -2546,6 +3117,7 @@ mod tests {
                 per_run,
                 alpha_pipeline: alpha,
                 weights: &weights,
+                integrated: false,
             };
             let fit = b.gram(&at, form).rss_at(&groups(), form, 0.0).unwrap();
             let res = Resistance {
