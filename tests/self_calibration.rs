@@ -364,6 +364,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
         );
         let alpha_within = alpha_errors(&c, &m);
         for (name, before, after) in before_after(&runs, &c) {
+            eprintln!("{name}: RMSE ratio {:.3} (mismatch)", after.1 / before.1);
             assert!(
                 after.1 <= 0.6 * before.1,
                 "{name}: RMSE {} against {}",

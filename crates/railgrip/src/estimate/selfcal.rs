@@ -16,9 +16,10 @@
 //! a wheel-slide protection at work, a brake applied axle by axle — the four separate; where
 //! two axles' pressures never differ, only their sum is identifiable and the pair is fitted
 //! with one ratio (named in [`CampaignCalibration::shared`]). The separated ratios are pooled
-//! partially (empirical Bayes, see `partial_pooling`); one ratio within its errors of 1, with
-//! a constant pad friction, keeps the pipeline's α. Samples near a locked wheel are left out:
-//! its brake holds it with less than α p.
+//! partially (empirical Bayes, see `partial_pooling`); one ratio that, with the pad law's
+//! speed term, is not told from (1, none) by a likelihood ratio on the force balance keeps the
+//! pipeline's α and a constant pad friction. Samples near a locked wheel are left out: its
+//! brake holds it with less than α p.
 //!
 //! **Integrated over time.** The coefficients (α_i, the pad law, the resistance and the run
 //! constants) come from the same balance integrated from the first sample of each stretch of
@@ -66,7 +67,8 @@
 //! a scatter between the axles. The delays and the radar's scale are profiled before, with
 //! equal weights.
 //!
-//! Standard errors: σ²(XᵀWX)⁻¹ inflated by √(n/n_eff); for γ and τ, from the curvature of
+//! Standard errors: σ²(XᵀWX)⁻¹ inflated by √(n/n_eff), the coefficients' taken over γ; for γ
+//! and τ, from the curvature of
 //! the profiled residual sum of squares, se² = 2 σ² n/n_eff / RSS''; for the delays, the
 //! larger of that and the jackknife over runs (each run left out in turn), and delays not
 //! told from 0 with those errors (both together by a Wald test, one alone within 1.96
@@ -152,8 +154,8 @@ pub struct CampaignCalibration {
     /// c2, N·s²/m².
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub resistance_c2_n_s2_per_m2: f64,
-    /// One standard error of c1, N·s/m, from σ²(XᵀWX)⁻¹ at the chosen pad law's γ and the
-    /// fitted delays (conditional on them: where γ φ(v) correlates with c1 v it understates);
+    /// One standard error of c1, N·s/m, from σ² times the inverse of the normal equations taken
+    /// over the pad law's γ ([`Fit::over_gamma`]), at the fitted delays (conditional on those);
     /// null in files written before it was reported.
     #[serde(
         default = "crate::config::calibrated::nan",
@@ -197,8 +199,9 @@ pub struct CampaignCalibration {
     pub samples: usize,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub effective_samples: f64,
-    /// RMS of the balance's residual, N, each run's squares weighted as in the fit (the runs'
-    /// weights average about 1: close to the plain RMS when the runs are alike).
+    /// RMS of the force balance's residual at its own fit, N, each run's squares weighted as in
+    /// the fit (the runs' weights average about 1: close to the plain RMS when the runs are
+    /// alike).
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rms_residual_n: f64,
     /// The balance integrated over time, which every coefficient but the delays and the
@@ -602,8 +605,9 @@ impl<'p> CampaignCalibrator<'p> {
     /// The balance `b`'s coefficients at `at`: the runs weighed by their residuals
     /// ([`Balance::run_weights`]; equal, with a note in `notes`, where no first fit can be
     /// made), the pad form and the resistance's constants chosen by BIC ([`select_model`]),
-    /// and the chosen fit's Gram matrix, effective samples and σ² (N² per unit weight,
-    /// inflated by n/n_eff). The error says what failed and what to do.
+    /// and the chosen fit's Gram matrix, effective samples and σ² (per unit weight, inflated by
+    /// n/n_eff: N² on the force balance, N²·s² on the integrated one). The error says what
+    /// failed and what to do.
     fn coefficients(
         b: &Balance,
         at: &At,
@@ -819,19 +823,22 @@ impl Resistance {
 }
 
 /// One run's constant of the balance (N): the running resistance's constant and the run's
-/// gradient force, M g i for a gradient i (positive uphill), together — the run's mean of
-/// y − Σ α_i (1 + γ φ) p_i/r − c1 v − c2 v² with the α as the balance fitted them (before the
-/// partial pooling), or the pipeline's where those are kept.
+/// gradient force, M g i for a gradient i (positive uphill), together — on the balance
+/// integrated over time the slope on t − t₀ of the run's −(M v + (J/r) Σ ω) − Σ α_i ∫(1 + γ φ)
+/// p_i/r dt − c1 ∫v dt − c2 ∫v² dt, each stretch centred (on the force balance, the run's mean
+/// of y − Σ α_i (1 + γ φ) p_i/r − c1 v − c2 v²), with the α as the balance fitted them (before
+/// the partial pooling), or the pipeline's where those are kept.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct RunConstant {
     /// The run's name (the campaign's name for it, else its log's file name).
     pub run: String,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub constant_n: f64,
-    /// One standard error, N: the run's mean residual's (σ²/Σw over its rows, σ² with the
-    /// residuals' correlation) and the fitted coefficients' (x̄ᵀ Cov(β) x̄ at the run's mean
-    /// columns; where the pipeline's α are kept, with the one common ratio's error), conditional
-    /// on the pad law's γ and the delays as c1's is.
+    /// One standard error, N: the slope's own (σ²/Σw t² over its rows, σ² with the residuals'
+    /// correlation; the mean's σ²/Σw on the force balance) and the fitted coefficients' (x̄ᵀ
+    /// Cov x̄ with x̄ the columns' slopes on t, or their means, and γ's column among them: over γ
+    /// as c1's error is; where the pipeline's α are kept, with the one common ratio's error),
+    /// conditional on the delays.
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub se_n: f64,
 }
@@ -855,7 +862,8 @@ impl Balance<'_> {
             .enumerate()
             .map(|(ri, run)| {
                 let w = self.weights.get(ri).copied().unwrap_or(1.0);
-                let (mut sw, mut se, mut sx) = (0.0, 0.0, vec![0.0; k]);
+                // The columns' sums and, last, the γ column's.
+                let (mut sw, mut se, mut sx) = (0.0, 0.0, vec![0.0; k + 1]);
                 for row in &run.rows {
                     let Some(z) = self.z_row(run, row, at, form) else {
                         continue;
@@ -866,22 +874,18 @@ impl Balance<'_> {
                     for (s, x) in sx.iter_mut().zip(x) {
                         *s += w * x;
                     }
+                    sx[k] += w * fit.gamma_column(&z);
                 }
                 (sw, se, sx)
             })
             .collect();
         let constant = |(sw, se, sx): &(f64, f64, Vec<f64>)| {
             let xbar: Vec<f64> = sx.iter().map(|x| x / sw).collect();
-            let mut var = res.sigma2 / sw;
-            for p in 0..k {
-                for q in 0..k {
-                    var += xbar[p] * res.sigma2 * fit.cov[p * k + q] * xbar[q];
-                }
-            }
+            let var = res.sigma2 / sw + res.sigma2 * fit.combination_var(&xbar[..k], xbar[k]);
             (se / sw, var.max(0.0).sqrt())
         };
         let campaign = (!self.per_run).then(|| {
-            let mut all = (0.0, 0.0, vec![0.0; k]);
+            let mut all = (0.0, 0.0, vec![0.0; k + 1]);
             for (sw, se, sx) in &sums {
                 all.0 += sw;
                 all.1 += se;
@@ -1963,7 +1967,8 @@ impl Balance<'_> {
         Some((s, se.max(jack_se), runs))
     }
 
-    /// Each run's residuals of the balance (unweighted, before its constant) at a fit.
+    /// Each run's residuals of the balance (unweighted) at a fit: on the force balance before
+    /// the run's constant; integrated, after the stretches' and the run's constants.
     fn residuals(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<f64>> {
         if self.integrated {
             return self.integrated_residuals(at, form, fit);
@@ -2039,8 +2044,6 @@ impl Balance<'_> {
     }
 }
 
-/// The delay minimising `rss(τ)` over `(lo, hi)`: a grid of 5 ms, then golden section within
-/// the best cell's neighbours; with the curvature RSS'' there.
 /// The time column's index in an integrated row's augmented vector (after z).
 const T: usize = Z;
 /// Length of an integrated row's augmented vector: z and the time since its stretch began.
@@ -2219,6 +2222,11 @@ impl Balance<'_> {
                         .position(|r| r.0 != stretch)
                         .map_or(rows.len(), |e| start + e);
                     let part = &rows[start..end];
+                    // A stretch of one row is its own constant (it has no rows in the Gram).
+                    if part.len() < 2 {
+                        start = end;
+                        continue;
+                    }
                     let m = part.len() as f64;
                     let e0: Vec<f64> = part.iter().map(|(_, _, z)| z[Y] - fit.predict(z)).collect();
                     let (em, tm) = (
@@ -2247,9 +2255,21 @@ impl Balance<'_> {
                 0.0
             }
         };
+        // The campaign's one slope weighs each run's rows by its weight, as the Gram does.
         let common = (!self.per_run).then(|| {
-            let all: Vec<(f64, f64)> = centred.iter().flatten().copied().collect();
-            slope(&all)
+            let (et, tt) = centred
+                .iter()
+                .enumerate()
+                .fold((0.0, 0.0), |acc, (ri, rows)| {
+                    let w = self.weights.get(ri).copied().unwrap_or(1.0);
+                    rows.iter()
+                        .fold(acc, |(a, b), (e, t)| (a + w * e * t, b + w * t * t))
+                });
+            if tt > 0.0 {
+                et / tt
+            } else {
+                0.0
+            }
         });
         centred
             .iter()
@@ -2279,7 +2299,8 @@ impl Balance<'_> {
             .map(|(ri, run)| {
                 let w = self.weights.get(ri).copied().unwrap_or(1.0);
                 let rows = self.integrated_rows(run, at, form);
-                let (mut stt, mut set, mut sxt) = (0.0, 0.0, vec![0.0; k]);
+                // The columns' slopes' sums and, last, the γ column's.
+                let (mut stt, mut set, mut sxt) = (0.0, 0.0, vec![0.0; k + 1]);
                 let mut start = 0usize;
                 while start < rows.len() {
                     let stretch = rows[start].0;
@@ -2298,6 +2319,7 @@ impl Balance<'_> {
                         for (s, x) in sxt.iter_mut().zip(x) {
                             *s += w * x * tc;
                         }
+                        sxt[k] += w * fit.gamma_column(z) * tc;
                     }
                     start = end;
                 }
@@ -2306,16 +2328,11 @@ impl Balance<'_> {
             .collect();
         let constant = |(stt, set, sxt): &(f64, f64, Vec<f64>)| {
             let xbar: Vec<f64> = sxt.iter().map(|x| x / stt).collect();
-            let mut var = res.sigma2 / stt;
-            for p in 0..k {
-                for q in 0..k {
-                    var += xbar[p] * res.sigma2 * fit.cov[p * k + q] * xbar[q];
-                }
-            }
+            let var = res.sigma2 / stt + res.sigma2 * fit.combination_var(&xbar[..k], xbar[k]);
             (set / stt, var.max(0.0).sqrt())
         };
         let campaign = (!self.per_run).then(|| {
-            let mut all = (0.0, 0.0, vec![0.0; k]);
+            let mut all = (0.0, 0.0, vec![0.0; k + 1]);
             for (stt, set, sxt) in &sums {
                 all.0 += stt;
                 all.1 += set;
@@ -2344,6 +2361,8 @@ impl Balance<'_> {
     }
 }
 
+/// The delay minimising `rss(τ)` over `(lo, hi)`: a grid of 5 ms, then golden section within
+/// the best cell's neighbours; with the curvature RSS'' there.
 fn profile_delay((lo, hi): (f64, f64), rss: impl Fn(f64) -> f64) -> (f64, f64) {
     let step = 0.005;
     let grid: Vec<f64> = (0..=((hi - lo) / step).round() as usize)
@@ -2579,7 +2598,7 @@ fn axle_alphas(
         fitted_se,
         between_sd: between_sd.map(|sd| sd * mean_pipeline),
         kept: kept.then(|| {
-            "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, which with the pad law's speed term is not told from 1 and none at 95 %): the pipeline's α kept, the pad friction constant".to_string()
+            "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, not told from 1, and no speed term of the pad friction, at 95 %): the pipeline's α kept, the pad friction constant".to_string()
         }),
     }
 }
@@ -2773,8 +2792,11 @@ struct Fit {
     gamma: f64,
     beta: Vec<f64>,
     /// (XᵀWX)⁻¹ of the fit's columns (groups' α, c1, c2), row-major: σ² times it is β's
-    /// covariance.
+    /// covariance — after [`Fit::over_gamma`], the block of β in the joint inverse with γ.
     cov: Vec<f64>,
+    /// After [`Fit::over_gamma`]: the joint inverse of the fit's columns and ∂x·β/∂γ (last),
+    /// row-major.
+    joint: Option<Vec<f64>>,
     /// Correlations between the groups' α estimates (groups × groups).
     corr: Vec<f64>,
     rss: f64,
@@ -2808,6 +2830,35 @@ impl Fit {
         self.cov[i * self.beta.len() + i]
     }
 
+    /// ∂(x·β)/∂γ at a z row: Σ_g β_g Σ_{a∈g} φ z_a.
+    fn gamma_column(&self, z: &[f64; Z]) -> f64 {
+        self.groups
+            .iter()
+            .zip(&self.beta)
+            .map(|(grp, b)| b * grp.iter().map(|&a| z[AXLES + a]).sum::<f64>())
+            .sum()
+    }
+
+    /// The unscaled variance of a linear combination x̄·β + x̄_γ γ of the fitted coefficients
+    /// (a run constant's share of the coefficients' errors): over γ where the fit has the joint
+    /// inverse ([`Fit::over_gamma`]), else at the fitted γ.
+    fn combination_var(&self, xbar: &[f64], xg: f64) -> f64 {
+        let k = self.beta.len();
+        match &self.joint {
+            Some(j) => {
+                let x = |p: usize| if p < k { xbar[p] } else { xg };
+                (0..=k)
+                    .flat_map(|p| (0..=k).map(move |q| (p, q)))
+                    .map(|(p, q)| x(p) * j[p * (k + 1) + q] * x(q))
+                    .sum()
+            }
+            None => (0..k)
+                .flat_map(|p| (0..k).map(move |q| (p, q)))
+                .map(|(p, q)| xbar[p] * self.cov[p * k + q] * xbar[q])
+                .sum(),
+        }
+    }
+
     /// The fit with its coefficients' covariance taken over γ too (the fit's columns and
     /// ∂x·β/∂γ = Σ_g β_g Σ_{a∈g} φ z_a solved together on `g`, the block of the coefficients
     /// kept): at a fixed γ the errors of c1 and c2, which the pad law's speed term trades off
@@ -2839,6 +2890,7 @@ impl Fit {
             return self;
         };
         let (k, kj) = (self.beta.len(), cols.len());
+        debug_assert_eq!(kj, k + 1);
         let cov: Vec<f64> = (0..k * k).map(|i| inv[(i / k) * kj + i % k]).collect();
         let ng = self.groups.len();
         let mut corr = vec![0.0; ng * ng];
@@ -2847,7 +2899,12 @@ impl Fit {
                 corr[p * ng + q] = cov[p * k + q] / (cov[p * k + p] * cov[q * k + q]).sqrt();
             }
         }
-        Fit { cov, corr, ..self }
+        Fit {
+            cov,
+            corr,
+            joint: Some(inv),
+            ..self
+        }
     }
 }
 
@@ -2942,6 +2999,7 @@ impl Gram {
             groups: groups.to_vec(),
             gamma,
             cov: inv,
+            joint: None,
             beta,
             corr,
             rss,
