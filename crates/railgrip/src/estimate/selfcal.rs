@@ -3230,6 +3230,161 @@ mod tests {
         }
     }
 
+    /// The integrated balance's Gram (each stretch's constant of integration and each run's
+    /// time column eliminated) gives the coefficients, the residual sum of squares and the run
+    /// constants with their errors of weighted least squares with a column per stretch and a
+    /// time column per run (or one), solved directly; and its rows integrate by trapezoids,
+    /// a stretch ending at a missing row.
+    #[test]
+    fn the_integrated_balance_is_least_squares_with_a_constant_per_stretch() {
+        let (r, mass, alpha) = (0.46, 40_000.0, [1600.0, 1650.0, 1580.0, 1620.0]);
+        let mut rng = crate::rng::Rng::new(11);
+        let mut uniform = move || rng.uniform();
+        let runs: Vec<RunSignals> = [40usize, 25, 30]
+            .iter()
+            .enumerate()
+            .map(|(ri, &rows)| {
+                let n = rows * DECIMATE;
+                let mut run = RunSignals {
+                    name: format!("run{ri}"),
+                    fs: 100.0,
+                    v_radar: vec![0.0; n],
+                    a_radar: vec![0.0; n],
+                    ok: vec![true; n],
+                    w_mean: vec![0.0; n],
+                    wd_sum: vec![0.0; n],
+                    rows: Vec::new(),
+                    coast: Vec::new(),
+                    troughs: vec![None; AXLES],
+                };
+                for j in 0..rows {
+                    let k = j * DECIMATE;
+                    run.v_radar[k] = 5.0 + 50.0 * uniform();
+                    run.a_radar[k] = -1.0 + 0.5 * uniform();
+                    // Run 0 misses a row: two stretches.
+                    if !(ri == 0 && j == 17) {
+                        run.rows
+                            .push((k, std::array::from_fn(|_| 1.0 + 3.0 * uniform())));
+                    }
+                }
+                run
+            })
+            .collect();
+        let weights = [1.0, 2.5, 0.7];
+        let at = At {
+            radar_s: 0.0,
+            tacho_s: 0.0,
+            scale: 1.0,
+        };
+        let form = PadForm::Constant;
+        for per_run in [true, false] {
+            let b = Balance {
+                runs: &runs,
+                r,
+                inv_r: 1.0 / r,
+                mass,
+                j_r: 0.0,
+                v_ref: 55.0,
+                per_run,
+                alpha_pipeline: alpha,
+                weights: &weights,
+                integrated: true,
+            };
+            // The trapezoids: the first axle's column against its own sum, from 0 at each
+            // stretch's first row.
+            let rows0 = b.integrated_rows(&runs[0], &at, form);
+            assert_eq!(rows0.len(), runs[0].rows.len());
+            assert_eq!(rows0.iter().filter(|r| r.0 == 1).count(), 40 - 18);
+            let dt = DECIMATE as f64 / runs[0].fs;
+            let f = |i: usize| alpha[0] * runs[0].rows[i].1[0] / r;
+            let mut acc = 0.0;
+            for i in 0..rows0.len() {
+                if i == 0 || rows0[i].0 != rows0[i - 1].0 {
+                    acc = 0.0;
+                } else {
+                    acc += 0.5 * (f(i - 1) + f(i)) * dt;
+                }
+                assert!(
+                    (rows0[i].2[0] - acc).abs() <= 1e-9 * acc.max(1.0),
+                    "row {i}: {} against {acc}",
+                    rows0[i].2[0]
+                );
+            }
+            let fit = b.gram(&at, form).rss_at(&groups(), form, 0.0).unwrap();
+            let res = Resistance {
+                c: [fit.beta[AXLES], fit.beta[AXLES + 1]],
+                se: [0.0; 2],
+                rss: fit.rss,
+                fit: fit.clone(),
+                sigma2: 1.0,
+            };
+            let got = b.run_constants(&at, form, &res);
+            // The reference: α_i columns, v, v², the time columns, then one per stretch.
+            let rows: Vec<Vec<IntegratedRow>> = runs
+                .iter()
+                .map(|run| b.integrated_rows(run, &at, form))
+                .collect();
+            let nt = if per_run { runs.len() } else { 1 };
+            let stretches: Vec<usize> = rows.iter().map(|r| r.last().unwrap().0 + 1).collect();
+            let k = AXLES + 2 + nt + stretches.iter().sum::<usize>();
+            let mut m = vec![vec![0.0; k]; k];
+            let mut rhs = vec![0.0; k];
+            let mut yy = 0.0;
+            let mut first = 0;
+            for (ri, run_rows) in rows.iter().enumerate() {
+                for (stretch, t, z) in run_rows {
+                    let mut x = vec![0.0; k];
+                    x[..AXLES].copy_from_slice(&z[..AXLES]);
+                    x[AXLES] = z[2 * AXLES];
+                    x[AXLES + 1] = z[2 * AXLES + 1];
+                    x[AXLES + 2 + if per_run { ri } else { 0 }] = *t;
+                    x[AXLES + 2 + nt + first + stretch] = 1.0;
+                    yy += weights[ri] * z[Y] * z[Y];
+                    for p in 0..k {
+                        rhs[p] += weights[ri] * x[p] * z[Y];
+                        for q in 0..k {
+                            m[p][q] += weights[ri] * x[p] * x[q];
+                        }
+                    }
+                }
+                first += stretches[ri];
+            }
+            let inv = gauss_jordan(m);
+            let beta: Vec<f64> = (0..k)
+                .map(|p| (0..k).map(|q| inv[p][q] * rhs[q]).sum())
+                .collect();
+            let rss = yy - beta.iter().zip(&rhs).map(|(b, r)| b * r).sum::<f64>();
+            for p in 0..AXLES + 2 {
+                assert!(
+                    (fit.beta[p] / beta[p] - 1.0).abs() < 1e-6,
+                    "per run {per_run}, coefficient {p}: {} against {}",
+                    fit.beta[p],
+                    beta[p]
+                );
+            }
+            assert!(
+                (fit.rss / rss - 1.0).abs() < 1e-6,
+                "{} against {rss}",
+                fit.rss
+            );
+            for (ri, c) in got.iter().enumerate() {
+                let d = AXLES + 2 + if per_run { ri } else { 0 };
+                assert!(
+                    (c.constant_n - beta[d]).abs() < 1e-6 * beta[d].abs(),
+                    "per run {per_run}, run {ri}: {} against {}",
+                    c.constant_n,
+                    beta[d]
+                );
+                assert!(
+                    (c.se_n / inv[d][d].sqrt() - 1.0).abs() < 1e-6,
+                    "per run {per_run}, run {ri}: se {} against {}",
+                    c.se_n,
+                    inv[d][d].sqrt()
+                );
+            }
+        }
+    }
+
     #[test]
     fn ratios_that_differ_by_no_more_than_their_errors_pool_to_the_common_one() {
         // Groups that do not differ significantly: no scatter between the axles.
