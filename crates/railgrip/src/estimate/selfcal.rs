@@ -3230,17 +3230,60 @@ mod tests {
         }
     }
 
-    /// The integrated balance's Gram (each stretch's constant of integration and each run's
-    /// time column eliminated) gives the coefficients, the residual sum of squares and the run
-    /// constants with their errors of weighted least squares with a column per stretch and a
-    /// time column per run (or one), solved directly; and its rows integrate by trapezoids,
-    /// a stretch ending at a missing row.
-    #[test]
-    fn the_integrated_balance_is_least_squares_with_a_constant_per_stretch() {
-        let (r, mass, alpha) = (0.46, 40_000.0, [1600.0, 1650.0, 1580.0, 1620.0]);
+    /// Weighted least squares of the integrated balance `b` solved directly: the α_i columns, v,
+    /// v², a time column per run (one with `per_run` false), then a constant per stretch. Returns
+    /// β, the inverse normal matrix and the RSS.
+    fn direct_least_squares(
+        b: &Balance,
+        at: &At,
+        weights: &[f64],
+    ) -> (Vec<f64>, Vec<Vec<f64>>, f64) {
+        let form = PadForm::Constant;
+        let rows: Vec<Vec<IntegratedRow>> = b
+            .runs
+            .iter()
+            .map(|run| b.integrated_rows(run, at, form))
+            .collect();
+        let per_run = b.per_run;
+        let nt = if per_run { b.runs.len() } else { 1 };
+        let stretches: Vec<usize> = rows.iter().map(|r| r.last().unwrap().0 + 1).collect();
+        let k = AXLES + 2 + nt + stretches.iter().sum::<usize>();
+        let mut m = vec![vec![0.0; k]; k];
+        let mut rhs = vec![0.0; k];
+        let mut yy = 0.0;
+        let mut first = 0;
+        for (ri, run_rows) in rows.iter().enumerate() {
+            for (stretch, t, z) in run_rows {
+                let mut x = vec![0.0; k];
+                x[..AXLES].copy_from_slice(&z[..AXLES]);
+                x[AXLES] = z[2 * AXLES];
+                x[AXLES + 1] = z[2 * AXLES + 1];
+                x[AXLES + 2 + if per_run { ri } else { 0 }] = *t;
+                x[AXLES + 2 + nt + first + stretch] = 1.0;
+                yy += weights[ri] * z[Y] * z[Y];
+                for p in 0..k {
+                    rhs[p] += weights[ri] * x[p] * z[Y];
+                    for q in 0..k {
+                        m[p][q] += weights[ri] * x[p] * x[q];
+                    }
+                }
+            }
+            first += stretches[ri];
+        }
+        let inv = gauss_jordan(m);
+        let beta: Vec<f64> = (0..k)
+            .map(|p| (0..k).map(|q| inv[p][q] * rhs[q]).sum())
+            .collect();
+        let rss = yy - beta.iter().zip(&rhs).map(|(b, r)| b * r).sum::<f64>();
+        (beta, inv, rss)
+    }
+
+    /// Three runs of 40, 25 and 30 rows every `DECIMATE` samples (random speeds, rates and
+    /// pressures); run 0 misses its 18th row, so it has two stretches.
+    fn stretched_runs() -> Vec<RunSignals> {
         let mut rng = crate::rng::Rng::new(11);
         let mut uniform = move || rng.uniform();
-        let runs: Vec<RunSignals> = [40usize, 25, 30]
+        [40usize, 25, 30]
             .iter()
             .enumerate()
             .map(|(ri, &rows)| {
@@ -3269,7 +3312,18 @@ mod tests {
                 }
                 run
             })
-            .collect();
+            .collect()
+    }
+
+    /// The integrated balance's Gram (each stretch's constant of integration and each run's
+    /// time column eliminated) gives the coefficients, the residual sum of squares and the run
+    /// constants with their errors of weighted least squares with a column per stretch and a
+    /// time column per run (or one), solved directly; and its rows integrate by trapezoids,
+    /// a stretch ending at a missing row.
+    #[test]
+    fn the_integrated_balance_is_least_squares_with_a_constant_per_stretch() {
+        let (r, mass, alpha) = (0.46, 40_000.0, [1600.0, 1650.0, 1580.0, 1620.0]);
+        let runs = stretched_runs();
         let weights = [1.0, 2.5, 0.7];
         let at = At {
             radar_s: 0.0,
@@ -3319,47 +3373,11 @@ mod tests {
                 sigma2: 1.0,
             };
             let got = b.run_constants(&at, form, &res);
-            // The reference: α_i columns, v, v², the time columns, then one per stretch.
-            let rows: Vec<Vec<IntegratedRow>> = runs
-                .iter()
-                .map(|run| b.integrated_rows(run, &at, form))
-                .collect();
-            let nt = if per_run { runs.len() } else { 1 };
-            let stretches: Vec<usize> = rows.iter().map(|r| r.last().unwrap().0 + 1).collect();
-            let k = AXLES + 2 + nt + stretches.iter().sum::<usize>();
-            let mut m = vec![vec![0.0; k]; k];
-            let mut rhs = vec![0.0; k];
-            let mut yy = 0.0;
-            let mut first = 0;
-            for (ri, run_rows) in rows.iter().enumerate() {
-                for (stretch, t, z) in run_rows {
-                    let mut x = vec![0.0; k];
-                    x[..AXLES].copy_from_slice(&z[..AXLES]);
-                    x[AXLES] = z[2 * AXLES];
-                    x[AXLES + 1] = z[2 * AXLES + 1];
-                    x[AXLES + 2 + if per_run { ri } else { 0 }] = *t;
-                    x[AXLES + 2 + nt + first + stretch] = 1.0;
-                    yy += weights[ri] * z[Y] * z[Y];
-                    for p in 0..k {
-                        rhs[p] += weights[ri] * x[p] * z[Y];
-                        for q in 0..k {
-                            m[p][q] += weights[ri] * x[p] * x[q];
-                        }
-                    }
-                }
-                first += stretches[ri];
-            }
-            let inv = gauss_jordan(m);
-            let beta: Vec<f64> = (0..k)
-                .map(|p| (0..k).map(|q| inv[p][q] * rhs[q]).sum())
-                .collect();
-            let rss = yy - beta.iter().zip(&rhs).map(|(b, r)| b * r).sum::<f64>();
-            for p in 0..AXLES + 2 {
+            let (beta, inv, rss) = direct_least_squares(&b, &at, &weights);
+            for (p, (got, want)) in fit.beta.iter().zip(&beta[..AXLES + 2]).enumerate() {
                 assert!(
-                    (fit.beta[p] / beta[p] - 1.0).abs() < 1e-6,
-                    "per run {per_run}, coefficient {p}: {} against {}",
-                    fit.beta[p],
-                    beta[p]
+                    (got / want - 1.0).abs() < 1e-6,
+                    "per run {per_run}, coefficient {p}: {got} against {want}"
                 );
             }
             assert!(
