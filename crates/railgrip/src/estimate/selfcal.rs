@@ -844,39 +844,52 @@ pub struct RunConstant {
 }
 
 impl Balance<'_> {
-    /// Each run's constant c_r = Σ w (y − x·β) / Σ w over its rows at `res`'s fit, with its
-    /// standard error; with one constant for the campaign (`per_run` false) every run gets
-    /// that one (the weighted mean over all rows). The constant is uncorrelated with the
-    /// other coefficients' estimates (they are fitted about the run means), so its variance
-    /// is σ²/Σw + x̄ᵀ (σ² (XᵀWX)⁻¹) x̄.
+    /// Each run's constant at `res`'s fit, with its standard error; with one constant for the
+    /// campaign (`per_run` false) every run gets that one. On the force balance the constant
+    /// is the weighted mean of the residual y − x·β over the run's rows, c_r = Σ w e / Σ w; on
+    /// the integrated balance the slope of the stretch-centred residual on t − t₀, c_r =
+    /// Σ w e t / Σ w t². Either is uncorrelated with the other coefficients' estimates (they
+    /// are fitted about the runs' means, or with the time columns partialled out), so its
+    /// variance is σ²/D + x̄ᵀ (σ² Cov) x̄, D the denominator, x̄ the columns' means (or slopes on
+    /// t) with γ's column among them, Cov over γ where the fit has it ([`Fit::combination_var`]).
     fn run_constants(&self, at: &At, form: PadForm, res: &Resistance) -> Vec<RunConstant> {
-        if self.integrated {
-            return self.integrated_run_constants(at, form, res);
-        }
         let fit = &res.fit;
         let k = fit.beta.len();
-        // Per run: Σ w, Σ w e, Σ w x.
+        // Per run: D, the numerator, and the columns' sums (the γ column's last).
         let sums: Vec<(f64, f64, Vec<f64>)> = self
             .runs
             .iter()
             .enumerate()
             .map(|(ri, run)| {
                 let w = self.weights.get(ri).copied().unwrap_or(1.0);
-                // The columns' sums and, last, the γ column's.
-                let (mut sw, mut se, mut sx) = (0.0, 0.0, vec![0.0; k + 1]);
-                for row in &run.rows {
-                    let Some(z) = self.z_row(run, row, at, form) else {
-                        continue;
-                    };
-                    sw += w;
-                    se += w * (z[Y] - fit.predict(&z));
-                    let (x, _) = fit.columns(&z);
+                let (mut d, mut num, mut sx) = (0.0, 0.0, vec![0.0; k + 1]);
+                let mut add = |z: &[f64; Z], by: f64| {
+                    d += w * by * by;
+                    num += w * (z[Y] - fit.predict(z)) * by;
+                    let (x, _) = fit.columns(z);
                     for (s, x) in sx.iter_mut().zip(x) {
-                        *s += w * x;
+                        *s += w * x * by;
                     }
-                    sx[k] += w * fit.gamma_column(&z);
+                    sx[k] += w * fit.gamma_column(z) * by;
+                };
+                if self.integrated {
+                    // Centred e and x against centred t: the same as the centred t against
+                    // uncentred e and x, which is what `add` sums.
+                    let rows = self.integrated_rows(run, at, form);
+                    for part in stretches(&rows) {
+                        let tm = part.iter().map(|r| r.1).sum::<f64>() / part.len() as f64;
+                        for (_, t, z) in part {
+                            add(z, t - tm);
+                        }
+                    }
+                } else {
+                    for row in &run.rows {
+                        if let Some(z) = self.z_row(run, row, at, form) {
+                            add(&z, 1.0);
+                        }
+                    }
                 }
-                (sw, se, sx)
+                (d, num, sx)
             })
             .collect();
         let constant = |(sw, se, sx): &(f64, f64, Vec<f64>)| {
@@ -1817,21 +1830,8 @@ impl Balance<'_> {
     /// one constant per run, [`Self::gram`] is their sum, so a
     /// campaign without one run is the sum less that run's (the delays' jackknife).
     fn run_grams(&self, at: &At, form: PadForm) -> Vec<Gram> {
-        if self.integrated {
-            return self
-                .runs
-                .iter()
-                .enumerate()
-                .map(|(ri, run)| {
-                    let w = self.weights.get(ri).copied().unwrap_or(1.0);
-                    let (mut g, n) = self.integrated_run_gram(run, w, at, form);
-                    Gram {
-                        g: eliminate_time(&mut g),
-                        n,
-                    }
-                })
-                .collect();
-        }
+        // Only the delays' profiles and jackknife use it, on the force balance.
+        debug_assert!(!self.integrated, "run_grams is the force balance's");
         let mut grams = Vec::with_capacity(self.runs.len());
         for (ri, run) in self.runs.iter().enumerate() {
             let w = self.weights.get(ri).copied().unwrap_or(1.0);
@@ -2072,6 +2072,13 @@ fn eliminate_time(u: &mut [f64]) -> Vec<f64> {
 /// the stretch began (s) and the integrated z.
 type IntegratedRow = (usize, f64, [f64; Z]);
 
+/// The stretches of [`Balance::integrated_rows`]' rows that hold two or more (a stretch of one
+/// row is all its own constant of integration: nothing is left of it for the fit).
+fn stretches(rows: &[IntegratedRow]) -> impl Iterator<Item = &[IntegratedRow]> {
+    rows.chunk_by(|a, b| a.0 == b.0)
+        .filter(|part| part.len() >= 2)
+}
+
 impl Balance<'_> {
     /// The balance integrated over time, row by row: with z the force balance's row
     /// ([`Self::z_row`]: y = −(M v̇ + (J/r) Σ ω̇_i) = Σ x_j β_j + c_run), integrating from the
@@ -2142,42 +2149,32 @@ impl Balance<'_> {
         let rows = self.integrated_rows(run, at, form);
         let mut g = vec![0.0; U * U];
         let mut n = 0usize;
-        let mut start = 0usize;
-        while start < rows.len() {
-            let stretch = rows[start].0;
-            let end = rows[start..]
-                .iter()
-                .position(|r| r.0 != stretch)
-                .map_or(rows.len(), |e| start + e);
-            let m = end - start;
-            if m >= 2 {
-                let mut gs = vec![0.0; U * U];
-                let mut s = [0.0; U];
-                for (_, t, z) in &rows[start..end] {
-                    let mut u = [0.0; U];
-                    u[..Z].copy_from_slice(z);
-                    u[T] = *t;
-                    for p in 0..U {
-                        let wp = w * u[p];
-                        s[p] += wp;
-                        for q in 0..=p {
-                            gs[p * U + q] += wp * u[q];
-                        }
-                    }
-                }
-                let ws = w * m as f64;
+        for part in stretches(&rows) {
+            let mut gs = vec![0.0; U * U];
+            let mut s = [0.0; U];
+            for (_, t, z) in part {
+                let mut u = [0.0; U];
+                u[..Z].copy_from_slice(z);
+                u[T] = *t;
                 for p in 0..U {
+                    let wp = w * u[p];
+                    s[p] += wp;
                     for q in 0..=p {
-                        let c = gs[p * U + q] - s[p] * s[q] / ws;
-                        g[p * U + q] += c;
-                        if q != p {
-                            g[q * U + p] += c;
-                        }
+                        gs[p * U + q] += wp * u[q];
                     }
                 }
-                n += m;
             }
-            start = end;
+            let ws = w * part.len() as f64;
+            for p in 0..U {
+                for q in 0..=p {
+                    let c = gs[p * U + q] - s[p] * s[q] / ws;
+                    g[p * U + q] += c;
+                    if q != p {
+                        g[q * U + p] += c;
+                    }
+                }
+            }
+            n += part.len();
         }
         (g, n)
     }
@@ -2214,19 +2211,7 @@ impl Balance<'_> {
             .map(|run| {
                 let rows = self.integrated_rows(run, at, form);
                 let mut out = Vec::with_capacity(rows.len());
-                let mut start = 0usize;
-                while start < rows.len() {
-                    let stretch = rows[start].0;
-                    let end = rows[start..]
-                        .iter()
-                        .position(|r| r.0 != stretch)
-                        .map_or(rows.len(), |e| start + e);
-                    let part = &rows[start..end];
-                    // A stretch of one row is its own constant (it has no rows in the Gram).
-                    if part.len() < 2 {
-                        start = end;
-                        continue;
-                    }
+                for part in stretches(&rows) {
                     let m = part.len() as f64;
                     let e0: Vec<f64> = part.iter().map(|(_, _, z)| z[Y] - fit.predict(z)).collect();
                     let (em, tm) = (
@@ -2234,7 +2219,6 @@ impl Balance<'_> {
                         part.iter().map(|r| r.1).sum::<f64>() / m,
                     );
                     out.extend(e0.iter().zip(part).map(|(e, r)| (e - em, r.1 - tm)));
-                    start = end;
                 }
                 out
             })
@@ -2245,117 +2229,32 @@ impl Balance<'_> {
     /// constant force (or the campaign's one, `per_run` false) fitted at β and taken out.
     fn integrated_residuals(&self, at: &At, form: PadForm, fit: &Fit) -> Vec<Vec<f64>> {
         let centred = self.integrated_centred(at, form, fit);
-        let slope = |rows: &[(f64, f64)]| {
-            let (et, tt) = rows
-                .iter()
-                .fold((0.0, 0.0), |(a, b), (e, t)| (a + e * t, b + t * t));
-            if tt > 0.0 {
-                et / tt
-            } else {
-                0.0
-            }
-        };
+        // Per run Σ e t and Σ t²; the slope of their ratio (0 without a spread in t).
+        let sums: Vec<(f64, f64)> = centred
+            .iter()
+            .map(|rows| {
+                rows.iter()
+                    .fold((0.0, 0.0), |(a, b), (e, t)| (a + e * t, b + t * t))
+            })
+            .collect();
+        let slope = |(et, tt): (f64, f64)| if tt > 0.0 { et / tt } else { 0.0 };
         // The campaign's one slope weighs each run's rows by its weight, as the Gram does.
         let common = (!self.per_run).then(|| {
-            let (et, tt) = centred
-                .iter()
-                .enumerate()
-                .fold((0.0, 0.0), |acc, (ri, rows)| {
-                    let w = self.weights.get(ri).copied().unwrap_or(1.0);
-                    rows.iter()
-                        .fold(acc, |(a, b), (e, t)| (a + w * e * t, b + w * t * t))
-                });
-            if tt > 0.0 {
-                et / tt
-            } else {
-                0.0
-            }
+            slope(
+                sums.iter()
+                    .enumerate()
+                    .fold((0.0, 0.0), |(a, b), (ri, (et, tt))| {
+                        let w = self.weights.get(ri).copied().unwrap_or(1.0);
+                        (a + w * et, b + w * tt)
+                    }),
+            )
         });
         centred
             .iter()
-            .map(|rows| {
-                let c = common.unwrap_or_else(|| slope(rows));
-                rows.iter().map(|(e, t)| e - c * t).collect()
-            })
-            .collect()
-    }
-
-    /// [`Self::run_constants`] of the integrated balance: each run's constant force is the
-    /// slope of its stretch-centred e₀ = y − x·β on t − t₀, Σ w e₀ t / Σ w t²; its variance
-    /// σ²/Σ w t² + x̄ᵀ (σ² (XᵀWX)⁻¹) x̄ with x̄ the columns' slopes on t.
-    fn integrated_run_constants(
-        &self,
-        at: &At,
-        form: PadForm,
-        res: &Resistance,
-    ) -> Vec<RunConstant> {
-        let fit = &res.fit;
-        let k = fit.beta.len();
-        // Per run: Σ w t², Σ w e₀ t, Σ w x t (stretch-centred).
-        let sums: Vec<(f64, f64, Vec<f64>)> = self
-            .runs
-            .iter()
-            .enumerate()
-            .map(|(ri, run)| {
-                let w = self.weights.get(ri).copied().unwrap_or(1.0);
-                let rows = self.integrated_rows(run, at, form);
-                // The columns' slopes' sums and, last, the γ column's.
-                let (mut stt, mut set, mut sxt) = (0.0, 0.0, vec![0.0; k + 1]);
-                let mut start = 0usize;
-                while start < rows.len() {
-                    let stretch = rows[start].0;
-                    let end = rows[start..]
-                        .iter()
-                        .position(|r| r.0 != stretch)
-                        .map_or(rows.len(), |e| start + e);
-                    let part = &rows[start..end];
-                    let m = part.len() as f64;
-                    let tm = part.iter().map(|r| r.1).sum::<f64>() / m;
-                    for (_, t, z) in part {
-                        let tc = t - tm;
-                        stt += w * tc * tc;
-                        set += w * (z[Y] - fit.predict(z)) * tc;
-                        let (x, _) = fit.columns(z);
-                        for (s, x) in sxt.iter_mut().zip(x) {
-                            *s += w * x * tc;
-                        }
-                        sxt[k] += w * fit.gamma_column(z) * tc;
-                    }
-                    start = end;
-                }
-                (stt, set, sxt)
-            })
-            .collect();
-        let constant = |(stt, set, sxt): &(f64, f64, Vec<f64>)| {
-            let xbar: Vec<f64> = sxt.iter().map(|x| x / stt).collect();
-            let var = res.sigma2 / stt + res.sigma2 * fit.combination_var(&xbar[..k], xbar[k]);
-            (set / stt, var.max(0.0).sqrt())
-        };
-        let campaign = (!self.per_run).then(|| {
-            let mut all = (0.0, 0.0, vec![0.0; k + 1]);
-            for (stt, set, sxt) in &sums {
-                all.0 += stt;
-                all.1 += set;
-                all.2.iter_mut().zip(sxt).for_each(|(a, x)| *a += x);
-            }
-            constant(&all)
-        });
-        self.runs
-            .iter()
             .zip(&sums)
-            .map(|(run, s)| {
-                let (c, se) = campaign.unwrap_or_else(|| {
-                    if s.0 > 0.0 {
-                        constant(s)
-                    } else {
-                        (f64::NAN, f64::NAN)
-                    }
-                });
-                RunConstant {
-                    run: run.name.clone(),
-                    constant_n: c,
-                    se_n: se,
-                }
+            .map(|(rows, s)| {
+                let c = common.unwrap_or_else(|| slope(*s));
+                rows.iter().map(|(e, t)| e - c * t).collect()
             })
             .collect()
     }
