@@ -272,9 +272,9 @@ fn assert_no_run_worse(
 }
 
 /// Per axle, the calibrated α_i(v)'s largest relative error against the truth over 5–55 m/s
-/// (printed with α at the top speed); asserts it within 1 % and α at the top within 3 standard
-/// errors.
-fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
+/// (printed with α at the top speed); asserts it within 1 % and, with `within_3_se`, α at the
+/// top within 3 standard errors.
+fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch, within_3_se: bool) -> [f64; 4] {
     std::array::from_fn(|a| {
         let mut worst = 0.0f64;
         for v in [5.0, 15.0, 25.0, 35.0, 45.0, c.pad.v_ref_mps] {
@@ -294,7 +294,7 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
         );
         assert!(worst <= 0.01, "axle {}: {worst}", a + 1);
         assert!(
-            (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
+            !within_3_se || (c.alpha_nm_per_bar[a] - at_top).abs() <= 3.0 * c.alpha_se[a],
             "axle {}: α {} against {at_top} (se {})",
             a + 1,
             c.alpha_nm_per_bar[a],
@@ -313,10 +313,10 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch) -> [f64; 4] {
 /// within 5 ms, the linear pad law with its rise within 3 standard errors, per-run μ RMSE at
 /// most 0.6 × the uncalibrated one, α_i(v) within 1 % and 3 standard errors — not the 0.5 %
 /// aimed for (measured: 0.03–0.84 %, 9 of 12 axles within 0.5 %; with the force balance's
-/// coefficients 0.37–1.58 %, 5–6 of 12): the per-axle α rest on the wheel-slide protection's
+/// coefficients 0.30–1.48 %, 5 of 12): the per-axle α rest on the wheel-slide protection's
 /// pressure differences against the radar's noise, ~0.45 % one standard error over 12 runs from
 /// the balance integrated over time (~0.8 % from the force balance). Each axle's bias is within
-/// ±0.001 on every run (measured: up to 0.00074; up to 0.0015 with the force balance's). The
+/// ±0.001 on every run (measured: up to 0.00074; up to 0.0014 with the force balance's). The
 /// three campaigns pooled (one vehicle, 36 runs) bring α to −0.16 … +0.49 % with one standard
 /// error of 0.25–0.28 %.
 #[test]
@@ -362,7 +362,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             "rise {rise} against {true_rise} (se {})",
             c.pad.gamma_se
         );
-        let alpha_within = alpha_errors(&c, &m);
+        let alpha_within = alpha_errors(&c, &m, true);
         for (name, before, after) in before_after(&runs, &c) {
             eprintln!("{name}: RMSE ratio {:.3} (mismatch)", after.1 / before.1);
             assert!(
@@ -414,6 +414,40 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             c.alpha_nm_per_bar[a],
             c.alpha_se[a]
         );
+    }
+}
+
+/// What limits the per-axle α is the radar's noise: the mismatch scenes without it (and its
+/// spikes), every other mismatch and sensor effect kept (the wheel loads' fluctuation too),
+/// noise seed 1, on three vehicles (brake scatter seeds 11 — the scenes' own — 13 and 14):
+/// every α_i(v) within 0.25 % over 5–55 m/s (measured: within 0.16 %). Their standard errors
+/// are not asserted: at ~0.05 % they leave out what remains of the model's error (up to 2.8 of
+/// them here). With the radar's noise the same vehicles come out up to 1.2 % off, about as far
+/// as their standard errors (~0.45 %) say (docs/calibration.md, `scripts/alpha-floor.sh`).
+#[test]
+fn without_the_radars_noise_every_alpha_is_within_a_quarter_percent() {
+    let dir = tempfile::tempdir().unwrap();
+    for vehicle in [11, 13, 14] {
+        let runs = mismatch_campaign(1, dir.path(), |sc| {
+            sc.brake.scatter_seed = vehicle;
+            let keep = Effect::ALL.iter().filter(|e| {
+                sc.effects.has(**e) && !matches!(e, Effect::RadarNoise | Effect::RadarSpikes)
+            });
+            sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
+        });
+        let c = calibrate(&runs, dir.path());
+        let m = runs[0].1.mismatch.clone().unwrap();
+        eprintln!(
+            "vehicle {vehicle}: α {:?} against {:?}",
+            c.alpha_nm_per_bar, m.brake_torque_nm_per_bar
+        );
+        for (a, worst) in alpha_errors(&c, &m, false).iter().enumerate() {
+            assert!(
+                *worst <= 0.0025,
+                "vehicle {vehicle}, axle {}: α(v) within {worst}",
+                a + 1
+            );
+        }
     }
 }
 
@@ -582,10 +616,11 @@ fn a_campaign_without_pressure_changes_takes_its_delays_as_0() {
 
 /// Hard case: no run coasts before its brake (the brake applied from the first sample), so
 /// nothing gives the radar's scale. The calibration says so, takes the radar as it reads
-/// (scale 1) and still fits the brake coefficients, less well: the radar's unknown 0.3 %
-/// scales the deceleration, and with a pressure that barely changes within a run the pad
-/// friction's speed law and the resistance's speed term are hard to tell apart (measured:
-/// the axles' mean α 3.0 % high, against 0.1–0.6 % with the coasts).
+/// (scale 1) and still fits the brake coefficients: the radar's unknown 0.3 % scales the
+/// deceleration, and with a pressure that barely changes within a run the pad friction's speed
+/// law and the resistance's speed term are harder to tell apart (measured: the axles' mean α
+/// 0.44 % high; 3.0 % from the force balance). Still better than the pipeline's α (1.7 % low):
+/// every run's μ RMSE at most 0.6 of the uncalibrated (measured 0.27–0.39).
 #[test]
 fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
     let dir = tempfile::tempdir().unwrap();
@@ -610,7 +645,19 @@ fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
         c.alpha_nm_per_bar,
         rel * 100.0
     );
-    assert!(rel.abs() <= 0.04, "{rel}");
+    assert!(rel.abs() <= 0.01, "{rel}");
+    for (name, before, after) in before_after(&runs, &c) {
+        eprintln!(
+            "{name}: RMSE ratio {:.3} (never coasts)",
+            after.1 / before.1
+        );
+        assert!(
+            after.1 <= 0.6 * before.1,
+            "{name}: RMSE {} against {}",
+            after.1,
+            before.1
+        );
+    }
 }
 
 /// A dry campaign without wheel-slide protection whose axles 1 and 2 always get the same

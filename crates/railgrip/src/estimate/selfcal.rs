@@ -49,9 +49,10 @@
 //! the residuals' effective number of samples, as the Polach temperature forms are.
 //!
 //! **The radar.** It reads v_radar(t) = s v(t − τ). The scale s comes from the coasts before
-//! each run's first brake application, where the wheels roll without creep: the
-//! least-squares slope of v_radar(t + τ) on r ω̄ through the origin, pooled over the runs
-//! (the wheel radius of the pipeline taken as known). The latency τ comes from the balance
+//! each run's first brake application, where the wheels roll with only the creep the running
+//! resistance gives them: the least-squares fit of v_radar(t + τ) = s r ω̄ − q r ω̄ d (d the
+//! wheels' deceleration, q that creep's coefficient; s r ω̄ alone where the coasts all
+//! decelerate alike), pooled over the runs (the wheel radius of the pipeline taken as known). The latency τ comes from the balance
 //! itself: the radar's deceleration shifted by τ against the wheels' brake torques, which
 //! carry no delay, minimises the balance's residual at the true τ. (Matching the radar's
 //! deceleration with the wheels' instead is biased by the creep, which grows with the brake
