@@ -278,13 +278,10 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch, within_3_se: bool) -
     std::array::from_fn(|a| {
         let mut worst = 0.0f64;
         for v in [5.0, 15.0, 25.0, 35.0, 45.0, c.pad.v_ref_mps] {
-            let tr = m.brake_torque_nm_per_bar[a]
-                * (1.0 + m.pad_friction_rise * (1.0 - v / m.pad_friction_v0_mps).max(0.0));
+            let tr = m.brake_torque_nm_per_bar[a] * m.pad_factor(v);
             worst = worst.max((c.alpha_nm_per_bar[a] * c.pad.factor(v) / tr - 1.0).abs());
         }
-        let at_top = m.brake_torque_nm_per_bar[a]
-            * (1.0
-                + m.pad_friction_rise * (1.0 - c.pad.v_ref_mps / m.pad_friction_v0_mps).max(0.0));
+        let at_top = m.brake_torque_nm_per_bar[a] * m.pad_factor(c.pad.v_ref_mps);
         eprintln!(
             "  axle {}: α(v) within {:.2} %; α at the top {:+.2} % (se {:.2} %)",
             a + 1,
@@ -447,6 +444,51 @@ fn without_the_radars_noise_every_alpha_is_within_a_quarter_percent() {
                 "vehicle {vehicle}, axle {}: α(v) within {worst}",
                 a + 1
             );
+        }
+    }
+}
+
+/// The pad friction's shape: the mismatch scenes (noise seed 1) with a pad law whose rise
+/// gathers towards standstill, α_i (1 + 0.05 (1 − v/v0)^n). With n = 3, one of the
+/// calibration's forms (cubic), that form is chosen and every axle's μ bias is within ±0.001
+/// on every run (measured: up to 0.00054; 0.0024 with the linear and Karwatzki's forms alone).
+/// With n = 2.5, between two forms, the nearer form's error leaks into the per-axle α (up to
+/// 1.3 % at the top speed, 2.0 % without the radar's noise): the bias is up to 0.0014, asserted
+/// within ±0.002; the runs' μ RMSE stays at most 0.6 of the uncalibrated (measured: 0.31–0.46
+/// and 0.34–0.48).
+#[test]
+fn pad_laws_of_other_shapes_are_calibrated_by_the_nearest_form() {
+    let dir = tempfile::tempdir().unwrap();
+    for (n, form, bound) in [(3.0, Some(PadForm::Cubic), 0.001), (2.5, None, 0.002)] {
+        let runs = mismatch_campaign(1, dir.path(), |sc| sc.brake.pad_friction_exponent = n);
+        let c = calibrate(&runs, dir.path());
+        let m = runs[0].1.mismatch.clone().unwrap();
+        assert_eq!(m.pad_friction_exponent, n);
+        eprintln!(
+            "n = {n}: pad {:?}, α {:?} against {:?}",
+            c.pad, c.alpha_nm_per_bar, m.brake_torque_nm_per_bar
+        );
+        if let Some(form) = form {
+            assert_eq!(c.pad.form, form, "{:?}", c.pad_candidates);
+        }
+        for (name, before, after) in before_after(&runs, &c) {
+            eprintln!(
+                "{name}: RMSE ratio {:.3} (pad law n = {n})",
+                after.1 / before.1
+            );
+            assert!(
+                after.1 <= 0.6 * before.1,
+                "{name}: RMSE {} against {}",
+                after.1,
+                before.1
+            );
+            for (a, (_, bias)) in after.0.iter().enumerate() {
+                assert!(
+                    bias.abs() <= bound,
+                    "n = {n}, {name} axle {}: bias {bias}",
+                    a + 1
+                );
+            }
         }
     }
 }

@@ -6,7 +6,10 @@
 use crate::format::AXLES;
 
 /// The speed form of the pad friction: constant; linear, φ = 1 − v/v_ref (the first-order form of a
-/// friction that rises as the sliding speed falls [assumed]); or Karwatzki's, φ = k(v)/k(v_ref) − 1
+/// friction that rises as the sliding speed falls [assumed]); quadratic and cubic,
+/// φ = max(0, 1 − v/v_ref)^2 and ^3 (a rise that gathers towards standstill; the shape varies
+/// with the pad material, so the powers are candidates for BIC, not a law [assumed]); or
+/// Karwatzki's, φ = k(v)/k(v_ref) − 1
 /// with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 /// formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
 /// Teubner 2003).
@@ -15,16 +18,26 @@ use crate::format::AXLES;
 pub enum PadForm {
     Constant,
     Linear,
+    Quadratic,
+    Cubic,
     Karwatzki,
 }
 
 impl PadForm {
-    pub const ALL: [PadForm; 3] = [PadForm::Constant, PadForm::Linear, PadForm::Karwatzki];
+    pub const ALL: [PadForm; 5] = [
+        PadForm::Constant,
+        PadForm::Linear,
+        PadForm::Quadratic,
+        PadForm::Cubic,
+        PadForm::Karwatzki,
+    ];
 
     pub fn name(self) -> &'static str {
         match self {
             PadForm::Constant => "constant",
             PadForm::Linear => "linear",
+            PadForm::Quadratic => "quadratic",
+            PadForm::Cubic => "cubic",
             PadForm::Karwatzki => "karwatzki",
         }
     }
@@ -34,6 +47,8 @@ impl PadForm {
         match self {
             PadForm::Constant => 0.0,
             PadForm::Linear => 1.0 - v_mps / v_ref_mps,
+            PadForm::Quadratic => (1.0 - v_mps / v_ref_mps).max(0.0).powi(2),
+            PadForm::Cubic => (1.0 - v_mps / v_ref_mps).max(0.0).powi(3),
             PadForm::Karwatzki => {
                 let k = |v: f64| {
                     let kmh = 3.6 * v.max(0.0);

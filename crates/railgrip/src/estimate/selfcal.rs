@@ -42,7 +42,8 @@
 //! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
 //! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (the first-order form of a friction
 //! that rises as the sliding speed falls, as disc pads' does [assumed: no source fixes its
-//! shape]); Karwatzki's, φ = k(v)/k(v_ref) −
+//! shape]); quadratic and cubic, φ = max(0, 1 − v/v_ref)^2 and ^3 (rises gathered towards
+//! standstill [assumed]); Karwatzki's, φ = k(v)/k(v_ref) −
 //! 1 with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 //! formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
 //! Teubner 2003). The form is chosen by BIC = n_eff ln(RSS/n) + k ln(n_eff) with n_eff

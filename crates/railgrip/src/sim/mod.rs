@@ -400,10 +400,12 @@ pub struct Mismatch {
     /// Each axle's brake coefficient at the initial speed, N m/bar (`brake_scatter`; else the
     /// pipeline's).
     pub brake_torque_nm_per_bar: [f64; AXLES],
-    /// α_i(v) = α_i (1 + rise (1 − v/v0)) (`pad_friction`; else 0).
+    /// α_i(v) = α_i (1 + rise max(0, 1 − v/v0)^n) (`pad_friction`; else 0).
     pub pad_friction_rise: f64,
     /// The speed v0 of that law, m/s (`brake.pad_friction_v0_kmh`, or the initial speed).
     pub pad_friction_v0_mps: f64,
+    /// The exponent n of that law (`brake.pad_friction_exponent`: 1 linear).
+    pub pad_friction_exponent: f64,
     /// Radar reading / true speed (`radar_error`; else 1).
     pub radar_scale: f64,
     /// The radar's delay, s (`radar_error`; else 0).
@@ -425,6 +427,12 @@ pub const MISMATCH_EFFECTS: [Effect; 5] = [
 ];
 
 impl Mismatch {
+    /// The true pad factor α_i(v) / α_i at speed `v_mps`: 1 + rise max(0, 1 − v/v0)^n.
+    pub fn pad_factor(&self, v_mps: f64) -> f64 {
+        let x = (1.0 - v_mps / self.pad_friction_v0_mps).max(0.0);
+        1.0 + self.pad_friction_rise * x.powf(self.pad_friction_exponent)
+    }
+
     /// The mismatch of scene `sc`, None when it asks for no mismatch effect.
     pub fn of(sc: &Scene) -> Option<Mismatch> {
         let fx = sc.effects;
@@ -440,6 +448,7 @@ impl Mismatch {
                 0.0
             },
             pad_friction_v0_mps: state::pad_friction_v0_mps(sc),
+            pad_friction_exponent: sc.brake.pad_friction_exponent,
             radar_scale: if radar { sc.sensors.radar_scale } else { 1.0 },
             radar_latency_s: if radar {
                 sc.sensors.radar_latency_s

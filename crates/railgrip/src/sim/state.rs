@@ -46,8 +46,8 @@ pub(super) struct Setup<'a> {
     inv_ddv0: f64,
     /// Each axle's brake coefficient α_i (N m/bar): the pipeline's, off by `brake_scatter`.
     alpha: [f64; AXLES],
-    /// `pad_friction`: (rise, 1/v0): α_i (1 + rise (1 − v/v0)).
-    pad: Option<(f64, f64)>,
+    /// `pad_friction`: (rise, 1/v0, n): α_i (1 + rise (1 − v/v0)^n).
+    pad: Option<(f64, f64, f64)>,
     /// `load_fluctuation`'s filter, if the effect is on.
     fluctuation: Option<LoadFluctuation>,
     /// The `thermal` effect's constants, if listed.
@@ -335,6 +335,7 @@ impl<'a> Setup<'a> {
             (
                 sc.brake.pad_friction_rise,
                 1.0 / pad_friction_v0_mps(sc).max(1e-3),
+                sc.brake.pad_friction_exponent,
             )
         });
         // The simulated vehicle's load transfer: with `pivot_force`, the body's inertia force
@@ -492,9 +493,11 @@ impl<'a> Setup<'a> {
         let (demand_bar, wsp_keys) = (&sc.brake.demand_bar, &sc.wsp);
         // Pad friction: one factor for the four axles at this speed.
         let pad = match self.pad {
-            Some((rise, inv_v0)) => {
+            Some((rise, inv_v0, n)) => {
                 counters.add(Effect::PadFriction, AXLES as u64);
-                1.0 + rise * (1.0 - v * inv_v0).max(0.0)
+                let x = (1.0 - v * inv_v0).max(0.0);
+                // The linear law as it was (the same bits), other shapes by their power.
+                1.0 + rise * if n == 1.0 { x } else { x.powf(n) }
             }
             None => 1.0,
         };
