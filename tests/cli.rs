@@ -2065,6 +2065,20 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
     assert_eq!(campaign["calibration"]["source"], "campaign");
     assert_eq!(campaign["calibration"]["runs"].as_array().unwrap().len(), 3);
     assert!(d.join("o3/calibration.json").is_file());
+    // What was fitted, its uncertainty and its effect on μ: in the campaign record and the
+    // model files' provenance.
+    let errors = &campaign["calibration"]["errors"];
+    assert_eq!(errors["alpha_se"].as_array().unwrap().len(), 4, "{errors}");
+    assert!(errors["alpha_se"][0].as_f64().unwrap() > 0.0, "{errors}");
+    let model = json_file(d.join("o3/models/mlp.json"));
+    let prov = model["provenance"]["calibration"].as_str().unwrap();
+    assert!(
+        prov.starts_with("campaign calibration over 3 runs: α = [")
+            && prov.contains(" ± ")
+            && prov.contains("N·m/bar (1σ)")
+            && prov.contains("% at 10 km/h from [vehicle]'s α"),
+        "{prov}"
+    );
 
     let o = railgrip(&["run", "two", "--out", "o2", "--json"], d);
     assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
@@ -2284,7 +2298,7 @@ fn a_dry_run_calibration_pools_the_full_adhesion_runs_into_the_campaign() {
     let model = json_file(d.join("o/models/mlp.json"));
     let prov = model["provenance"]["calibration"].as_str().unwrap();
     assert!(
-        prov.starts_with("dry-run calibration over 8 runs"),
+        prov.starts_with("dry-run calibration over 8 runs") && prov.contains(" ± "),
         "{prov}"
     );
     let report = std::fs::read_to_string(d.join("o/report/index.html")).unwrap();

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::{CampaignError, Options};
-use crate::config::calibrated::{Calibrated, Corrections, PadLaw};
+use crate::config::calibrated::{Calibrated, Corrections, Errors, PadLaw};
 use crate::config::{CalibrationSource, Pipeline};
 use crate::estimate::calibrate::{calibrate, AlphaFit, Resistance};
 use crate::estimate::selfcal::{CampaignCalibration, CampaignCalibrator, MIN_RUNS};
@@ -246,6 +246,7 @@ fn none_record(
             runs: logs.iter().map(|(n, _)| n.clone()).collect(),
             pipeline_sha256: pipeline_sha256(pipeline),
             inputs_sha256: None,
+            errors: None,
         },
         pipeline_alpha_nm_per_bar: alpha,
         campaign: None,
@@ -427,13 +428,15 @@ fn fit_campaign(
         .expect("fit_campaign is called for a pipeline that asks for a calibration");
     let mut raw = pipeline.clone();
     raw.calibrated = None;
-    let calibrated = |corrections| Calibrated {
+    let calibrated = |corrections, errors| Calibrated {
         source: mode.name().to_string(),
         corrections,
         runs: logs.iter().map(|(n, _)| n.clone()).collect(),
         pipeline_sha256: pipeline_sha256(pipeline),
         inputs_sha256: None,
+        errors: Some(errors),
     };
+    let pipeline_alpha = raw.vehicle.brake_torque_nm_per_bar;
     let read = |src: &LogSource| crate::ingest::ingest_source(src, &raw);
     match mode {
         CalibrationSource::Campaign => {
@@ -467,7 +470,15 @@ fn fit_campaign(
             };
             let notes = fit.notes.clone();
             Ok(CalibrationRecord {
-                calibrated: calibrated(fit.corrections()),
+                calibrated: calibrated(
+                    fit.corrections(),
+                    Errors {
+                        alpha_se: fit.alpha_se,
+                        radar_scale_se: fit.radar_scale_se,
+                        radar_latency_se_s: fit.radar_latency_se,
+                        pipeline_alpha_nm_per_bar: pipeline_alpha,
+                    },
+                ),
                 pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
                 campaign: Some(fit),
                 dry_run: None,
@@ -476,64 +487,88 @@ fn fit_campaign(
             })
         }
         CalibrationSource::DryRun => {
-            let fits: Vec<(String, RunAlpha)> = pool.install(|| {
-                logs.par_iter()
-                    .map(|(name, src)| {
-                        let fit = read(src)
-                            .map_err(|e| e.to_string())
-                            .and_then(|log| {
-                                calibrate(&log, &raw, AlphaFit::Common, Resistance::Fit)
-                                    .map_err(|e| e.to_string())
-                            })
-                            .map(|c| (c.alpha_nm_per_bar[0], c.alpha_se[0]));
-                        (name.clone(), fit)
-                    })
-                    .collect()
-            });
-            let ok: Vec<(String, f64, f64)> = fits
-                .iter()
-                .filter_map(|(n, f)| f.as_ref().ok().map(|(a, se)| (n.clone(), *a, *se)))
-                .collect();
-            if ok.is_empty() {
-                return Err(CampaignError::Input {
-                    path: where_.to_path_buf(),
-                    message: "estimate.calibration = \"dry-run\": no run of the campaign has the full-adhesion samples one α needs".into(),
-                    hint: "add a dry run braked without sliding (e.g. fixtures/archive/dry_120kmh_p20.csv), or use estimate.calibration = \"campaign\"".into(),
-                });
-            }
-            let w: f64 = ok.iter().map(|(_, _, se)| 1.0 / (se * se)).sum();
-            let alpha = ok.iter().map(|(_, a, se)| a / (se * se)).sum::<f64>() / w;
-            let notes = fits
-                .iter()
-                .filter_map(|(n, f)| {
-                    f.as_ref()
-                        .err()
-                        .map(|e| format!("{n}: no α from this run: {e}"))
-                })
-                .collect();
-            Ok(CalibrationRecord {
-                pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
-                calibrated: calibrated(Corrections {
-                    alpha_nm_per_bar: [alpha; AXLES],
-                    pad: PadLaw::constant(),
-                    radar_scale: 1.0,
-                    radar_latency_s: 0.0,
-                    tacho_delay_s: 0.0,
-                }),
-                campaign: None,
-                dry_run: Some(DryRunFit {
-                    alpha_nm_per_bar: alpha,
-                    alpha_se: w.sqrt().recip(),
-                    runs: ok,
-                }),
-                notes,
-                inputs_sha256,
-            })
+            fit_dry_run(logs, &raw, &pool, where_, inputs_sha256, &calibrated)
         }
         CalibrationSource::Auto | CalibrationSource::Pipeline => {
             unreachable!("fitted() is \"campaign\" or \"dry-run\"")
         }
     }
+}
+
+/// "dry-run": one α from each run's full-adhesion samples (the runs without them named in the
+/// notes), pooled by their errors; `calibrated` makes the record's [`Calibrated`] of its
+/// corrections and errors.
+fn fit_dry_run(
+    logs: &[(String, LogSource)],
+    raw: &Pipeline,
+    pool: &rayon::ThreadPool,
+    where_: &Path,
+    inputs_sha256: String,
+    calibrated: &dyn Fn(Corrections, Errors) -> Calibrated,
+) -> Result<CalibrationRecord, CampaignError> {
+    let read = |src: &LogSource| crate::ingest::ingest_source(src, raw);
+    let pipeline_alpha = raw.vehicle.brake_torque_nm_per_bar;
+    let fits: Vec<(String, RunAlpha)> = pool.install(|| {
+        logs.par_iter()
+            .map(|(name, src)| {
+                let fit = read(src)
+                    .map_err(|e| e.to_string())
+                    .and_then(|log| {
+                        calibrate(&log, raw, AlphaFit::Common, Resistance::Fit)
+                            .map_err(|e| e.to_string())
+                    })
+                    .map(|c| (c.alpha_nm_per_bar[0], c.alpha_se[0]));
+                (name.clone(), fit)
+            })
+            .collect()
+    });
+    let ok: Vec<(String, f64, f64)> = fits
+        .iter()
+        .filter_map(|(n, f)| f.as_ref().ok().map(|(a, se)| (n.clone(), *a, *se)))
+        .collect();
+    if ok.is_empty() {
+        return Err(CampaignError::Input {
+            path: where_.to_path_buf(),
+            message: "estimate.calibration = \"dry-run\": no run of the campaign has the full-adhesion samples one α needs".into(),
+            hint: "add a dry run braked without sliding (e.g. fixtures/archive/dry_120kmh_p20.csv), or use estimate.calibration = \"campaign\"".into(),
+        });
+    }
+    let w: f64 = ok.iter().map(|(_, _, se)| 1.0 / (se * se)).sum();
+    let alpha = ok.iter().map(|(_, a, se)| a / (se * se)).sum::<f64>() / w;
+    let notes = fits
+        .iter()
+        .filter_map(|(n, f)| {
+            f.as_ref()
+                .err()
+                .map(|e| format!("{n}: no α from this run: {e}"))
+        })
+        .collect();
+    Ok(CalibrationRecord {
+        pipeline_alpha_nm_per_bar: raw.vehicle.brake_torque_nm_per_bar,
+        calibrated: calibrated(
+            Corrections {
+                alpha_nm_per_bar: [alpha; AXLES],
+                pad: PadLaw::constant(),
+                radar_scale: 1.0,
+                radar_latency_s: 0.0,
+                tacho_delay_s: 0.0,
+            },
+            Errors {
+                alpha_se: [w.sqrt().recip(); AXLES],
+                radar_scale_se: f64::NAN,
+                radar_latency_se_s: f64::NAN,
+                pipeline_alpha_nm_per_bar: pipeline_alpha,
+            },
+        ),
+        campaign: None,
+        dry_run: Some(DryRunFit {
+            alpha_nm_per_bar: alpha,
+            alpha_se: w.sqrt().recip(),
+            runs: ok,
+        }),
+        notes,
+        inputs_sha256,
+    })
 }
 
 /// Reads a calibration file (`calibration.json` as [`calibrate_campaign`]'s record, or the

@@ -127,12 +127,38 @@ pub struct Calibrated {
     /// logs. Not part of the calibration as written (campaign.json, the runs' reuse keys).
     #[serde(skip)]
     pub inputs_sha256: Option<String>,
+    /// Its uncertainties and its effect on μ, where it was fitted with them (a campaign's or a
+    /// dry run's; not "none", nor a record written before them): [`Calibrated::summary`]
+    /// prints them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub errors: Option<Errors>,
+}
+
+/// A fitted calibration's one-standard-error uncertainties and the pipeline's α it changes.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Errors {
+    /// Each α_i's, N·m/bar.
+    pub alpha_se: [f64; AXLES],
+    /// The radar's scale's (NaN where it was not fitted).
+    #[serde(with = "nan_as_null", default = "nan")]
+    pub radar_scale_se: f64,
+    /// The radar's latency's, s (NaN where it was not identified).
+    #[serde(with = "nan_as_null", default = "nan")]
+    pub radar_latency_se_s: f64,
+    /// `[vehicle]`'s α_i, N·m/bar: an axle's brake force, and with it its μ (seed 002 eq. 9:
+    /// μ_i N_i r = α_i p_i − J ω̇_i, the inertia's share aside), moves by α_i(v) / this.
+    pub pipeline_alpha_nm_per_bar: [f64; AXLES],
 }
 
 impl Calibrated {
-    /// One line for notes and the model files' provenance.
+    /// One line for notes and the model files' provenance: the values, and where it has them
+    /// ([`Calibrated::errors`]) their standard errors and how far each axle's brake force (and
+    /// so its μ) moved from the pipeline's at the top speed and at 10 km/h.
     pub fn summary(&self) -> String {
         let c = &self.corrections;
+        if let Some(e) = &self.errors {
+            return self.summary_with(e);
+        }
         let alpha: Vec<String> = c
             .alpha_nm_per_bar
             .iter()
@@ -149,6 +175,53 @@ impl Calibrated {
             c.radar_scale,
             c.radar_latency_s * 1e3,
             c.tacho_delay_s * 1e3
+        )
+    }
+
+    fn summary_with(&self, e: &Errors) -> String {
+        let c = &self.corrections;
+        let pm = |x: f64, se: f64, digits: usize| {
+            if se.is_finite() {
+                format!("{x:.digits$} ± {se:.digits$}")
+            } else {
+                format!("{x:.digits$}")
+            }
+        };
+        let alpha: Vec<String> = (0..AXLES)
+            .map(|a| pm(c.alpha_nm_per_bar[a], e.alpha_se[a], 1))
+            .collect();
+        let rise_se = c.pad.gamma_se * c.pad.form.phi(0.0, c.pad.v_ref_mps).abs() * 100.0;
+        let rise = match c.pad.form {
+            PadForm::Constant => "+0.00".to_string(),
+            _ if rise_se.is_finite() => {
+                format!("{:+.2} ± {rise_se:.2}", c.pad.rise_to_standstill() * 100.0)
+            }
+            _ => format!("{:+.2}", c.pad.rise_to_standstill() * 100.0),
+        };
+        let moved = |v: f64| -> String {
+            (0..AXLES)
+                .map(|a| {
+                    let ratio =
+                        c.alpha_nm_per_bar[a] * c.pad.factor(v) / e.pipeline_alpha_nm_per_bar[a];
+                    format!("{:+.1}", (ratio - 1.0) * 100.0)
+                })
+                .collect::<Vec<_>>()
+                .join("/")
+        };
+        format!(
+            "{} calibration over {} runs: α = [{}] N·m/bar (1σ) at {:.0} km/h, pad friction {} ({} % to standstill), radar ×{} and {} ms late, tachometers {:.1} ms late; each axle's brake force, and with it its μ, moved {} % at {:.0} km/h and {} % at 10 km/h from [vehicle]'s α",
+            self.source,
+            self.runs.len(),
+            alpha.join(", "),
+            c.pad.v_ref_mps * 3.6,
+            c.pad.form.name(),
+            rise,
+            pm(c.radar_scale, e.radar_scale_se, 5),
+            pm(c.radar_latency_s * 1e3, e.radar_latency_se_s * 1e3, 1),
+            c.tacho_delay_s * 1e3,
+            moved(c.pad.v_ref_mps),
+            c.pad.v_ref_mps * 3.6,
+            moved(10.0 / 3.6),
         )
     }
 }
