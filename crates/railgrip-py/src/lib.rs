@@ -198,16 +198,27 @@ fn read_log<'py>(
     Ok((cols, info))
 }
 
-/// Estimates a run: (columns of the long table, info JSON).
+/// Estimates a run: (columns of the long table, info JSON); with `calibration`, a campaign's
+/// calibration.json applied as `railgrip estimate --calibration` does (refused for another
+/// pipeline file or kind of calibration; a record of "none" leaves the pipeline's values).
 #[pyfunction]
-#[pyo3(signature = (path, pipeline=None))]
+#[pyo3(signature = (path, pipeline=None, calibration=None))]
 fn estimate<'py>(
     py: Python<'py>,
     path: String,
     pipeline: Option<&PyPipeline>,
+    calibration: Option<String>,
 ) -> PyResult<(Bound<'py, PyDict>, String)> {
     use polars::prelude::DataType;
-    let pipeline = pipeline_or_default(pipeline)?;
+    use railgrip::campaign::calibration as cal;
+    let mut pipeline = pipeline_or_default(pipeline)?;
+    if let Some(file) = &calibration {
+        let given = cal::read_calibration(std::path::Path::new(file)).map_err(err)?;
+        cal::check_for_run(&given, &pipeline, std::path::Path::new(&path)).map_err(err)?;
+        if given.source != cal::NONE_SOURCE {
+            pipeline.calibrated = Some(given);
+        }
+    }
     let (log, est) = py
         .detach(|| -> Result<_, String> {
             let log = ingest_at(&path, &pipeline)?;

@@ -105,6 +105,30 @@ def test_estimate_has_the_values_of_railgrip_estimate(tmp_path):
     assert ours.attrs["filter_mode"] in ("zero-phase", "causal")
 
 
+def test_estimate_with_a_campaigns_calibration_is_railgrip_estimate_with_it(tmp_path, small_archive):
+    # The default pipeline ("auto") calibrates the campaign of three runs.
+    railgrip.run(small_archive, tmp_path / "o", jobs=2)
+    cal = tmp_path / "o" / "calibration.json"
+    run = small_archive / "soap_120kmh_0c.csv"
+    ours = railgrip.estimate(run, calibration=cal)
+    cli("estimate", str(run), "--out", str(tmp_path / "e"), "--csv", "--calibration", str(cal))
+    theirs = read_exact(tmp_path / "e" / "soap_120kmh_0c.estimates.csv")
+    for c in ours.columns:
+        a, b = ours[c].to_numpy(), theirs[c].to_numpy()
+        if a.dtype.kind == "f":
+            assert np.array_equal(a, b.astype(np.float64), equal_nan=True), c
+        else:
+            assert np.array_equal(a, b), c
+    # The calibration moved the estimates (the tachometers' counting delay at least).
+    plain = railgrip.estimate(run)
+    assert not np.array_equal(plain["mu"].to_numpy(), ours["mu"].to_numpy())
+    # Fitted with another pipeline file: refused, saying so.
+    other = tmp_path / "other.toml"
+    other.write_text(railgrip.Pipeline.default().text + "\n# another pipeline\n")
+    with pytest.raises(railgrip.RailgripError, match="fitted with another pipeline file"):
+        railgrip.estimate(run, railgrip.Pipeline.load(other), calibration=cal)
+
+
 def test_model_mu_is_railgrip_eval_bit_for_bit(tmp_path, small_archive):
     out = tmp_path / "models"
     cli("train", str(small_archive), "--out", str(out), "--quiet")

@@ -63,7 +63,11 @@ def read_log(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFram
     return _frame(*_native.read_log(os.fspath(path), pipeline))
 
 
-def estimate(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFrame:
+def estimate(
+    path: PathLike,
+    pipeline: Optional[Pipeline] = None,
+    calibration: Optional[PathLike] = None,
+) -> pd.DataFrame:
     """Estimates a run: the long table ``railgrip estimate`` writes (one row per sample and
     axle, time-major): ``time_s``, ``axle`` (1–4), ``v_mps``, ``omega_radps``, ``p_bar``,
     ``dv_mps``, ``ddv_mps2``, ``slip_ratio``, ``decel_mps2``, ``normal_N``, ``tangential_N``,
@@ -71,10 +75,13 @@ def estimate(path: PathLike, pipeline: Optional[Pipeline] = None) -> pd.DataFram
     filter_mode, group_delay_s and despiked. The table (with its ``attrs``) can be given to
     :func:`train`. A run alone cannot calibrate itself: with ``estimate.calibration = "auto"``
     (the default) it is estimated with the pipeline's α and the radar as logged, as the command
-    does without ``--calibration``; a campaign's calibration is applied by :func:`run` and
-    :func:`railgrip.ray.run`.
+    does without ``--calibration``. ``calibration``: a campaign's ``calibration.json`` (what
+    :func:`run`, :func:`railgrip.ray.run` or ``railgrip calibrate --campaign`` wrote) to estimate
+    the run with, as ``railgrip estimate --calibration`` does — refused, naming the file, when it
+    was fitted with another pipeline file or is another kind of calibration.
     """
-    frame = _frame(*_native.estimate(os.fspath(path), pipeline))
+    cal = None if calibration is None else os.fspath(calibration)
+    frame = _frame(*_native.estimate(os.fspath(path), pipeline, cal))
     frame.attrs["name"] = _stem(frame.attrs.get("source", "run"))
     return frame
 
