@@ -2076,7 +2076,8 @@ fn auto_calibrates_a_campaign_of_3_runs_and_says_why_not_for_2() {
         prov.starts_with("campaign calibration over 3 runs: α = [")
             && prov.contains(" ± ")
             && prov.contains("N·m/bar (1σ)")
-            && prov.contains("% at 10 km/h from [vehicle]'s α"),
+            && prov.contains("and with it its μ, moved")
+            && prov.ends_with("from [vehicle]'s α"),
         "{prov}"
     );
 

@@ -449,17 +449,28 @@ fn without_the_radars_noise_every_alpha_is_within_a_quarter_percent() {
 }
 
 /// The pad friction's shape: the mismatch scenes (noise seed 1) with a pad law whose rise
-/// gathers towards standstill, α_i (1 + 0.05 (1 − v/v0)^n). With n = 3, one of the
-/// calibration's forms (cubic), that form is chosen and every axle's μ bias is within ±0.001
-/// on every run (measured: up to 0.00054; 0.0024 with the linear and Karwatzki's forms alone).
-/// With n = 2.5, between two forms, the nearer form's error leaks into the per-axle α (up to
-/// 1.3 % at the top speed, 2.0 % without the radar's noise): the bias is up to 0.0014, asserted
-/// within ±0.002; the runs' μ RMSE stays at most 0.6 of the uncalibrated (measured: 0.31–0.46
-/// and 0.34–0.48).
+/// gathers towards standstill, α_i (1 + 0.05 (1 − v/v0)^n) (n = 1, the scenes' own, is the
+/// mismatch test's). Each n gets the nearest of the calibration's forms: linear at 1.5,
+/// quadratic at 2, cubic at 3, quadratic or cubic at 2.5. Every axle's μ bias within ±0.001 on
+/// every run at n = 1.5, 2 and 3 (measured: up to 0.00034, 0.00094 and 0.00054; 0.00125 and
+/// 0.0024 at n = 2 and 3 with the linear and Karwatzki's forms alone). At n = 2.5, between two
+/// forms, the nearer form's error leaks into the per-axle α (up to 1.3 % at the top speed,
+/// 2.0 % without the radar's noise): the bias is up to 0.0014, asserted within ±0.002. The
+/// runs' μ RMSE stays at most 0.6 of the uncalibrated (measured 0.27–0.48).
 #[test]
 fn pad_laws_of_other_shapes_are_calibrated_by_the_nearest_form() {
     let dir = tempfile::tempdir().unwrap();
-    for (n, form, bound) in [(3.0, Some(PadForm::Cubic), 0.001), (2.5, None, 0.002)] {
+    let (linear, quadratic, cubic) = (
+        &[PadForm::Linear][..],
+        &[PadForm::Quadratic][..],
+        &[PadForm::Cubic][..],
+    );
+    for (n, forms, bound) in [
+        (1.5, linear, 0.001),
+        (2.0, quadratic, 0.001),
+        (2.5, &[PadForm::Quadratic, PadForm::Cubic][..], 0.002),
+        (3.0, cubic, 0.001),
+    ] {
         let runs = mismatch_campaign(1, dir.path(), |sc| sc.brake.pad_friction_exponent = n);
         let c = calibrate(&runs, dir.path());
         let m = runs[0].1.mismatch.clone().unwrap();
@@ -468,9 +479,11 @@ fn pad_laws_of_other_shapes_are_calibrated_by_the_nearest_form() {
             "n = {n}: pad {:?}, α {:?} against {:?}",
             c.pad, c.alpha_nm_per_bar, m.brake_torque_nm_per_bar
         );
-        if let Some(form) = form {
-            assert_eq!(c.pad.form, form, "{:?}", c.pad_candidates);
-        }
+        assert!(
+            forms.contains(&c.pad.form),
+            "n = {n}: {:?}",
+            c.pad_candidates
+        );
         for (name, before, after) in before_after(&runs, &c) {
             eprintln!(
                 "{name}: RMSE ratio {:.3} (pad law n = {n})",

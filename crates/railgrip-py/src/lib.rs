@@ -212,12 +212,24 @@ fn estimate<'py>(
     use polars::prelude::DataType;
     use railgrip::campaign::calibration as cal;
     let mut pipeline = pipeline_or_default(pipeline)?;
+    use railgrip::config::CalibrationSource;
     if let Some(file) = &calibration {
         let given = cal::read_calibration(std::path::Path::new(file)).map_err(err)?;
         cal::check_for_run(&given, &pipeline, std::path::Path::new(&path)).map_err(err)?;
         if given.source != cal::NONE_SOURCE {
             pipeline.calibrated = Some(given);
         }
+    } else if pipeline.calibrated.is_none()
+        && !matches!(
+            pipeline.estimate.calibration,
+            CalibrationSource::Auto | CalibrationSource::Pipeline
+        )
+    {
+        return Err(RailgripError::new_err(format!(
+            "{}: estimate.calibration = \"{}\" needs the campaign's calibration. Hint: give it with calibration=FILE (the calibration.json that railgrip.run or `railgrip calibrate --campaign ARCHIVE --out DIR` writes)",
+            pipeline.source,
+            pipeline.estimate.calibration.name()
+        )));
     }
     let (log, est) = py
         .detach(|| -> Result<_, String> {

@@ -127,6 +127,15 @@ def test_estimate_with_a_campaigns_calibration_is_railgrip_estimate_with_it(tmp_
     other.write_text(railgrip.Pipeline.default().text + "\n# another pipeline\n")
     with pytest.raises(railgrip.RailgripError, match="fitted with another pipeline file"):
         railgrip.estimate(run, railgrip.Pipeline.load(other), calibration=cal)
+    # A pipeline that asks for the campaign's calibration is refused without one.
+    asks = tmp_path / "asks.toml"
+    asks.write_text(
+        railgrip.Pipeline.default().text.replace(
+            "[estimate]\n", '[estimate]\ncalibration = "campaign"\n', 1
+        )
+    )
+    with pytest.raises(railgrip.RailgripError, match="needs the campaign's calibration"):
+        railgrip.estimate(run, railgrip.Pipeline.load(asks))
 
 
 def test_model_mu_is_railgrip_eval_bit_for_bit(tmp_path, small_archive):

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from dataclasses import dataclass, field
 from typing import Any, Dict, Iterable, List, Optional, Tuple, Union
 
@@ -77,10 +78,24 @@ def estimate(
     (the default) it is estimated with the pipeline's α and the radar as logged, as the command
     does without ``--calibration``. ``calibration``: a campaign's ``calibration.json`` (what
     :func:`run`, :func:`railgrip.ray.run` or ``railgrip calibrate --campaign`` wrote) to estimate
-    the run with, as ``railgrip estimate --calibration`` does — refused, naming the file, when it
-    was fitted with another pipeline file or is another kind of calibration.
+    the run with, as ``railgrip estimate --calibration`` does: refused, saying why, when it was
+    fitted with another pipeline file or is another kind of calibration; a record that the
+    campaign fitted none leaves the pipeline's values, with a warning. A pipeline with
+    ``estimate.calibration = "campaign"`` or ``"dry-run"`` needs it (or carries one).
     """
     cal = None if calibration is None else os.fspath(calibration)
+    if cal is not None:
+        try:
+            with open(cal, encoding="utf-8") as f:
+                source = json.load(f).get("calibrated", {}).get("source")
+        except (OSError, ValueError, AttributeError):
+            source = None  # the native reader names what is wrong with the file
+        if source == "none":
+            warnings.warn(
+                f"estimated with [vehicle]'s α and the radar as logged: {cal} records that the "
+                'campaign fitted no calibration (estimate.calibration = "auto")',
+                stacklevel=2,
+            )
     frame = _frame(*_native.estimate(os.fspath(path), pipeline, cal))
     frame.attrs["name"] = _stem(frame.attrs.get("source", "run"))
     return frame

@@ -56,7 +56,7 @@ pub struct CalibrationRecord {
 
 /// The calibration's method and record, for [`campaign_inputs_sha256`]: changed with either.
 const CALIBRATION_METHOD: &str =
-    "calibration 3 (per-run constants; pooled errors over τ; coefficients from the balance integrated over time)\0";
+    "calibration 4 (per-run constants; pooled errors over τ; coefficients from the balance integrated over time; five pad forms; errors in the record)\0";
 
 /// The SHA-256 (hex) of what a campaign's calibration depends on: railgrip's version and the
 /// calibration's method ([`CALIBRATION_METHOD`]), the pipeline file's text and, in the

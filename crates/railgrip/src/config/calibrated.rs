@@ -137,7 +137,8 @@ pub struct Calibrated {
 /// A fitted calibration's one-standard-error uncertainties and the pipeline's α it changes.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Errors {
-    /// Each α_i's, N·m/bar.
+    /// Each α_i's, N·m/bar (NaN where it could not be computed).
+    #[serde(with = "nan_as_null_axles")]
     pub alpha_se: [f64; AXLES],
     /// The radar's scale's (NaN where it was not fitted).
     #[serde(with = "nan_as_null", default = "nan")]
@@ -191,12 +192,10 @@ impl Calibrated {
             .map(|a| pm(c.alpha_nm_per_bar[a], e.alpha_se[a], 1))
             .collect();
         let rise_se = c.pad.gamma_se * c.pad.form.phi(0.0, c.pad.v_ref_mps).abs() * 100.0;
-        let rise = match c.pad.form {
-            PadForm::Constant => "+0.00".to_string(),
-            _ if rise_se.is_finite() => {
-                format!("{:+.2} ± {rise_se:.2}", c.pad.rise_to_standstill() * 100.0)
-            }
-            _ => format!("{:+.2}", c.pad.rise_to_standstill() * 100.0),
+        let rise = if rise_se.is_finite() {
+            format!("{:+.2} ± {rise_se:.2}", c.pad.rise_to_standstill() * 100.0)
+        } else {
+            format!("{:+.2}", c.pad.rise_to_standstill() * 100.0)
         };
         let moved = |v: f64| -> String {
             (0..AXLES)
@@ -208,20 +207,37 @@ impl Calibrated {
                 .collect::<Vec<_>>()
                 .join("/")
         };
+        // A constant pad law (a dry run's, or the pipeline's α kept) has no speed to name: α
+        // and the brake forces' change are the same at every speed.
+        let (at, pad, effect) = if c.pad.form == PadForm::Constant {
+            (
+                String::new(),
+                "pad friction constant".to_string(),
+                format!("{} % at every speed", moved(c.pad.v_ref_mps)),
+            )
+        } else {
+            (
+                format!(" at {:.0} km/h", c.pad.v_ref_mps * 3.6),
+                format!(
+                    "pad friction {} ({rise} % to standstill)",
+                    c.pad.form.name()
+                ),
+                format!(
+                    "{} % at {:.0} km/h and {} % at 10 km/h",
+                    moved(c.pad.v_ref_mps),
+                    c.pad.v_ref_mps * 3.6,
+                    moved(10.0 / 3.6)
+                ),
+            )
+        };
         format!(
-            "{} calibration over {} runs: α = [{}] N·m/bar (1σ) at {:.0} km/h, pad friction {} ({} % to standstill), radar ×{} and {} ms late, tachometers {:.1} ms late; each axle's brake force, and with it its μ, moved {} % at {:.0} km/h and {} % at 10 km/h from [vehicle]'s α",
+            "{} calibration over {} runs: α = [{}] N·m/bar (1σ){at}, {pad}, radar ×{} and {} ms late, tachometers {:.1} ms late; each axle's brake force, and with it its μ, moved {effect} from [vehicle]'s α",
             self.source,
             self.runs.len(),
             alpha.join(", "),
-            c.pad.v_ref_mps * 3.6,
-            c.pad.form.name(),
-            rise,
             pm(c.radar_scale, e.radar_scale_se, 5),
             pm(c.radar_latency_s * 1e3, e.radar_latency_se_s * 1e3, 1),
             c.tacho_delay_s * 1e3,
-            moved(c.pad.v_ref_mps),
-            c.pad.v_ref_mps * 3.6,
-            moved(10.0 / 3.6),
         )
     }
 }
@@ -260,5 +276,69 @@ pub mod nan_as_null_axles {
     pub fn deserialize<'de, D: serde::Deserializer<'de>>(d: D) -> Result<[f64; AXLES], D::Error> {
         let v = <[Option<f64>; AXLES] as serde::Deserialize>::deserialize(d)?;
         Ok(v.map(|x| x.unwrap_or(f64::NAN)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn calibrated(errors: Option<Errors>) -> Calibrated {
+        Calibrated {
+            source: "campaign".into(),
+            corrections: Corrections {
+                alpha_nm_per_bar: [1610.0, 1620.0, 1590.0, 1600.0],
+                pad: PadLaw {
+                    form: PadForm::Cubic,
+                    gamma: 0.05,
+                    gamma_se: 0.001,
+                    v_ref_mps: 55.0,
+                },
+                radar_scale: 1.003,
+                radar_latency_s: 0.03,
+                tacho_delay_s: 0.0096,
+            },
+            runs: vec!["a".into(), "b".into(), "c".into()],
+            pipeline_sha256: "00".into(),
+            inputs_sha256: None,
+            errors,
+        }
+    }
+
+    /// A record without errors (written before them) reads back without them and prints the
+    /// values alone; errors that could not be computed (NaN) are written as null and read back
+    /// as NaN, and the summary leaves their ± out.
+    #[test]
+    fn errors_round_trip_and_older_records_read_without_them() {
+        let old = calibrated(None);
+        let text = serde_json::to_string(&old).unwrap();
+        assert!(!text.contains("errors"), "{text}");
+        let back: Calibrated = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, old);
+        assert!(!back.summary().contains('±'), "{}", back.summary());
+
+        let with = calibrated(Some(Errors {
+            alpha_se: [7.0, f64::NAN, 7.2, 7.3],
+            radar_scale_se: 4e-5,
+            radar_latency_se_s: f64::NAN,
+            pipeline_alpha_nm_per_bar: [1600.0; AXLES],
+        }));
+        let text = serde_json::to_string(&with).unwrap();
+        assert!(text.contains("null"), "{text}");
+        let back: Calibrated = serde_json::from_str(&text).unwrap();
+        let e = back.errors.unwrap();
+        assert!(e.alpha_se[1].is_nan() && e.radar_latency_se_s.is_nan());
+        assert_eq!(e.alpha_se[0], 7.0);
+        let line = back.summary();
+        assert!(
+            line.contains(
+                "α = [1610.0 ± 7.0, 1620.0, 1590.0 ± 7.2, 1600.0 ± 7.3] N·m/bar (1σ) at 198 km/h"
+            ) && line.contains("pad friction cubic (+5.00 ± 0.10 % to standstill)")
+                && line.contains("radar ×1.00300 ± 0.00004 and 30.0 ms late")
+                && line.contains(
+                    "moved +0.6/+1.2/-0.6/+0.0 % at 198 km/h and +4.9/+5.6/+3.6/+4.3 % at 10 km/h"
+                ),
+            "{line}"
+        );
     }
 }

@@ -40,8 +40,8 @@ pub struct BrakeSection {
     /// run's initial speed. Give the campaign's top speed for one vehicle's pads in every run
     /// (pad friction depends on the speed, not on where the brake began).
     pub pad_friction_v0_kmh: f64,
-    /// `pad_friction`: the exponent n of its shape, (1 − v/v0)^n: 1 linear; 2 and 3 are
-    /// among the calibration's forms, others lie between them.
+    /// `pad_friction`: the exponent n of its shape, (1 − v/v0)^n: 1 linear; 1, 2 and 3 are
+    /// among the calibration's forms, others (0.5–4) lie between or beyond them.
     pub pad_friction_exponent: f64,
 }
 
