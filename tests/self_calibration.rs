@@ -232,6 +232,28 @@ fn before_after(
         .collect()
 }
 
+/// Per run, asserts the calibrated μ RMSE at most 0.6 of the uncalibrated (printed with
+/// `label`); returns each run's name and calibrated per-axle (RMSE, bias).
+fn assert_rmse_ratio(
+    runs: &[(railgrip::ingest::RunLog, sim::SimOutput)],
+    c: &CampaignCalibration,
+    label: &str,
+) -> Vec<(String, [(f64, f64); 4])> {
+    before_after(runs, c)
+        .into_iter()
+        .map(|(name, before, after)| {
+            eprintln!("{name}: RMSE ratio {:.3} ({label})", after.1 / before.1);
+            assert!(
+                after.1 <= 0.6 * before.1,
+                "{name}: RMSE {} against {}",
+                after.1,
+                before.1
+            );
+            (name, after.0)
+        })
+        .collect()
+}
+
 /// Asserts the calibration's running-resistance speed terms within 3 of their standard errors
 /// of the scenes' (the simulator's default Davis b = 30 N·s/m and c = 6 N·s²/m²).
 fn assert_davis_resistance(c: &CampaignCalibration) {
@@ -360,15 +382,8 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             c.pad.gamma_se
         );
         let alpha_within = alpha_errors(&c, &m, true);
-        for (name, before, after) in before_after(&runs, &c) {
-            eprintln!("{name}: RMSE ratio {:.3} (mismatch)", after.1 / before.1);
-            assert!(
-                after.1 <= 0.6 * before.1,
-                "{name}: RMSE {} against {}",
-                after.1,
-                before.1
-            );
-            for (a, (_, bias)) in after.0.iter().enumerate() {
+        for (name, after) in assert_rmse_ratio(&runs, &c, "mismatch") {
+            for (a, (_, bias)) in after.iter().enumerate() {
                 eprintln!("{name} axle {}: bias {bias:+.5}", a + 1);
                 assert!(
                     bias.abs() <= 0.001,
@@ -484,18 +499,8 @@ fn pad_laws_of_other_shapes_are_calibrated_by_the_nearest_form() {
             "n = {n}: {:?}",
             c.pad_candidates
         );
-        for (name, before, after) in before_after(&runs, &c) {
-            eprintln!(
-                "{name}: RMSE ratio {:.3} (pad law n = {n})",
-                after.1 / before.1
-            );
-            assert!(
-                after.1 <= 0.6 * before.1,
-                "{name}: RMSE {} against {}",
-                after.1,
-                before.1
-            );
-            for (a, (_, bias)) in after.0.iter().enumerate() {
+        for (name, after) in assert_rmse_ratio(&runs, &c, &format!("pad law n = {n}")) {
+            for (a, (_, bias)) in after.iter().enumerate() {
                 assert!(
                     bias.abs() <= bound,
                     "n = {n}, {name} axle {}: bias {bias}",
@@ -701,18 +706,7 @@ fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {
         rel * 100.0
     );
     assert!(rel.abs() <= 0.01, "{rel}");
-    for (name, before, after) in before_after(&runs, &c) {
-        eprintln!(
-            "{name}: RMSE ratio {:.3} (never coasts)",
-            after.1 / before.1
-        );
-        assert!(
-            after.1 <= 0.6 * before.1,
-            "{name}: RMSE {} against {}",
-            after.1,
-            before.1
-        );
-    }
+    assert_rmse_ratio(&runs, &c, "never coasts");
 }
 
 /// A dry campaign without wheel-slide protection whose axles 1 and 2 always get the same

@@ -584,6 +584,11 @@ fn scene_errors_name_the_key_and_the_fix() {
         e.starts_with("s.toml: sensors.radar_latency_s = 2: must be"),
         "{e}"
     );
+    let e = err("[brake]\npad_friction_exponent = 5.0");
+    assert!(
+        e.starts_with("s.toml: brake.pad_friction_exponent = 5: must be"),
+        "{e}"
+    );
     let e = err("[brake]\npad_friction_v0_kmh = 900.0");
     assert!(
         e.starts_with("s.toml: brake.pad_friction_v0_kmh = 900: must be"),

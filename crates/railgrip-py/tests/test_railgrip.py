@@ -88,19 +88,24 @@ def test_read_log_is_the_uniform_log_of_the_command(tmp_path):
     assert mcap.attrs["start_log_time_ns"] is not None
 
 
-def test_estimate_has_the_values_of_railgrip_estimate(tmp_path):
-    ours = railgrip.estimate(CSV_RUN)
-    cli("estimate", str(CSV_RUN), "--out", str(tmp_path), "--csv")
-    theirs = read_exact(tmp_path / "soap_120kmh_0c.estimates.csv")
+def assert_same_table(ours: pd.DataFrame, theirs: pd.DataFrame) -> None:
+    """The same columns and values: floats to the bit (the CSV holds every float in shortest
+    round-trip form), NaN for NaN."""
     assert list(ours.columns) == list(theirs.columns)
     assert len(ours) == len(theirs)
     for c in ours.columns:
         a, b = ours[c].to_numpy(), theirs[c].to_numpy()
         if a.dtype.kind == "f":
-            # The CSV holds every float in shortest round-trip form: equal bits, NaN for NaN.
             assert np.array_equal(a, b.astype(np.float64), equal_nan=True), c
         else:
             assert np.array_equal(a, b), c
+
+
+def test_estimate_has_the_values_of_railgrip_estimate(tmp_path):
+    ours = railgrip.estimate(CSV_RUN)
+    cli("estimate", str(CSV_RUN), "--out", str(tmp_path), "--csv")
+    theirs = read_exact(tmp_path / "soap_120kmh_0c.estimates.csv")
+    assert_same_table(ours, theirs)
     assert ours.attrs["name"] == "soap_120kmh_0c"
     assert ours.attrs["filter_mode"] in ("zero-phase", "causal")
 
@@ -112,13 +117,7 @@ def test_estimate_with_a_campaigns_calibration_is_railgrip_estimate_with_it(tmp_
     run = small_archive / "soap_120kmh_0c.csv"
     ours = railgrip.estimate(run, calibration=cal)
     cli("estimate", str(run), "--out", str(tmp_path / "e"), "--csv", "--calibration", str(cal))
-    theirs = read_exact(tmp_path / "e" / "soap_120kmh_0c.estimates.csv")
-    for c in ours.columns:
-        a, b = ours[c].to_numpy(), theirs[c].to_numpy()
-        if a.dtype.kind == "f":
-            assert np.array_equal(a, b.astype(np.float64), equal_nan=True), c
-        else:
-            assert np.array_equal(a, b), c
+    assert_same_table(ours, read_exact(tmp_path / "e" / "soap_120kmh_0c.estimates.csv"))
     # The calibration moved the estimates (the tachometers' counting delay at least).
     plain = railgrip.estimate(run)
     assert not np.array_equal(plain["mu"].to_numpy(), ours["mu"].to_numpy())
@@ -127,6 +126,9 @@ def test_estimate_with_a_campaigns_calibration_is_railgrip_estimate_with_it(tmp_
     other.write_text(railgrip.Pipeline.default().text + "\n# another pipeline\n")
     with pytest.raises(railgrip.RailgripError, match="fitted with another pipeline file"):
         railgrip.estimate(run, railgrip.Pipeline.load(other), calibration=cal)
+    # A calibration file that is not there: refused, naming it.
+    with pytest.raises(railgrip.RailgripError, match="no_such_calibration.json"):
+        railgrip.estimate(run, calibration=tmp_path / "no_such_calibration.json")
     # A pipeline that asks for the campaign's calibration is refused without one.
     asks = tmp_path / "asks.toml"
     asks.write_text(

@@ -2989,6 +2989,39 @@ mod tests {
     /// Runs of `sizes` rows for a synthetic balance: speeds and the four pressures from a fixed
     /// pseudo-random sequence, y = Σ ratio_i α_i p_i/r + c_run + c1 v + c2 v² + noise (N),
     /// carried by the radar's deceleration (the wheels' ω̇ zero).
+    /// At no delays and scale 1.
+    const AT_0: At = At {
+        radar_s: 0.0,
+        tacho_s: 0.0,
+        scale: 1.0,
+    };
+
+    /// The tests' vehicle: wheel radius (m) and mass (kg).
+    const R_M: f64 = 0.46;
+    const MASS_KG: f64 = 40_000.0;
+
+    /// The tests' balance: [`R_M`], [`MASS_KG`], no axle inertia, top speed 55 m/s.
+    fn test_balance<'a>(
+        runs: &'a [RunSignals],
+        weights: &'a [f64],
+        alpha: [f64; AXLES],
+        per_run: bool,
+        integrated: bool,
+    ) -> Balance<'a> {
+        Balance {
+            runs,
+            r: R_M,
+            inv_r: 1.0 / R_M,
+            mass: MASS_KG,
+            j_r: 0.0,
+            v_ref: 55.0,
+            per_run,
+            alpha_pipeline: alpha,
+            weights,
+            integrated,
+        }
+    }
+
     fn synthetic_runs(sizes: &[usize], r: f64, mass: f64, alpha: [f64; AXLES]) -> Vec<RunSignals> {
         let mut rng = crate::rng::Rng::new(7);
         let mut uniform = move || rng.uniform();
@@ -3056,28 +3089,13 @@ mod tests {
     /// run of one row, σ² = 1 so the error is the inverse normal matrix's.
     #[test]
     fn run_constants_are_those_of_least_squares_with_a_column_per_constant() {
-        let (r, mass, alpha) = (0.46, 40_000.0, [1600.0, 1650.0, 1580.0, 1620.0]);
+        let (r, mass, alpha) = (R_M, MASS_KG, [1600.0, 1650.0, 1580.0, 1620.0]);
         let runs = synthetic_runs(&[40, 25, 1, 30], r, mass, alpha);
         let weights = [1.0, 2.5, 0.7, 1.3];
-        let at = At {
-            radar_s: 0.0,
-            tacho_s: 0.0,
-            scale: 1.0,
-        };
+        let at = AT_0;
         let form = PadForm::Constant;
         for per_run in [true, false] {
-            let b = Balance {
-                runs: &runs,
-                r,
-                inv_r: 1.0 / r,
-                mass,
-                j_r: 0.0,
-                v_ref: 55.0,
-                per_run,
-                alpha_pipeline: alpha,
-                weights: &weights,
-                integrated: false,
-            };
+            let b = test_balance(&runs, &weights, alpha, per_run, false);
             let fit = b.gram(&at, form).rss_at(&groups(), form, 0.0).unwrap();
             let res = Resistance {
                 c: [fit.beta[AXLES], fit.beta[AXLES + 1]],
@@ -3223,28 +3241,13 @@ mod tests {
     /// a stretch ending at a missing row.
     #[test]
     fn the_integrated_balance_is_least_squares_with_a_constant_per_stretch() {
-        let (r, mass, alpha) = (0.46, 40_000.0, [1600.0, 1650.0, 1580.0, 1620.0]);
+        let (r, alpha) = (R_M, [1600.0, 1650.0, 1580.0, 1620.0]);
         let runs = stretched_runs();
         let weights = [1.0, 2.5, 0.7];
-        let at = At {
-            radar_s: 0.0,
-            tacho_s: 0.0,
-            scale: 1.0,
-        };
+        let at = AT_0;
         let form = PadForm::Constant;
         for per_run in [true, false] {
-            let b = Balance {
-                runs: &runs,
-                r,
-                inv_r: 1.0 / r,
-                mass,
-                j_r: 0.0,
-                v_ref: 55.0,
-                per_run,
-                alpha_pipeline: alpha,
-                weights: &weights,
-                integrated: true,
-            };
+            let b = test_balance(&runs, &weights, alpha, per_run, true);
             // The trapezoids: the first axle's column against its own sum, from 0 at each
             // stretch's first row.
             let rows0 = b.integrated_rows(&runs[0], &at, form);
