@@ -693,37 +693,92 @@ fn non_numeric_cell() {
     assert!(err(&p, &default()).contains("line 9, column \"p1\": \"2;5\" is not a number"));
 }
 
+/// A signal's empty or NaN cell is a missing sample of that channel alone: a warning names
+/// the column and lines, the hole follows the gap rules (one missing sample is interpolated),
+/// and the other channels keep that row.
 #[test]
-fn empty_cell() {
+fn empty_and_nan_cells_are_missing_samples_of_their_channel() {
     let dir = tempfile::tempdir().unwrap();
-    let p = write(
-        dir.path(),
-        "hole.csv",
-        replace_cell(&small_csv(), 120, 1, "").as_bytes(),
+    let whole = ingest_file(
+        &write(dir.path(), "whole.csv", small_csv().as_bytes()),
+        &default(),
+    )
+    .unwrap();
+    for (name, cell) in [("hole.csv", ""), ("nan.csv", "NaN")] {
+        let p = write(
+            dir.path(),
+            name,
+            replace_cell(&small_csv(), 120, 1, cell).as_bytes(),
+        );
+        let log = ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        let w: Vec<_> = log
+            .warnings
+            .iter()
+            .filter(|w| w.kind == WarningKind::Missing)
+            .collect();
+        assert_eq!(w.len(), 1, "{name}: {:?}", log.warnings);
+        assert!(
+            w[0].message
+                .contains("1 cell(s) of column \"v_radar\" without a value")
+                && w[0].message.ends_with("line 120"),
+            "{}",
+            w[0].message
+        );
+        assert!(w[0].kind.loses_data());
+        assert_eq!(log.invalid_samples(), 0);
+        assert_eq!(
+            log.channels[Signal::VRadar.index()].samples + 1,
+            whole.channels[0].samples
+        );
+        // The row's other channels are read as they are.
+        assert_eq!(log.omega_radps, whole.omega_radps);
+        assert_eq!(log.p_bar, whole.p_bar);
+    }
+    // A column without any value is a channel without samples: an error naming it.
+    let text: String = small_csv()
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut f: Vec<&str> = l.split(',').collect();
+            if i > 0 {
+                f[5] = "";
+            }
+            format!("{}\n", f.join(","))
+        })
+        .collect();
+    let e = err(
+        &write(dir.path(), "no_omega4.csv", text.as_bytes()),
+        &default(),
     );
-    let e = err(&p, &default());
     assert!(
-        e.contains("hole.csv: line 120, column \"v_radar\": empty cell. Hint:"),
+        e.contains("no_omega4.csv") && e.contains("omega4 has 0 usable sample(s)"),
         "{e}"
     );
 }
 
+/// The time column needs every row; ±inf is no measurement (NaN is a missing value).
 #[test]
-fn nan_and_inf_cells() {
+fn empty_time_and_inf_cells() {
     let dir = tempfile::tempdir().unwrap();
-    for (i, bad) in ["NaN", "inf", "-inf"].iter().enumerate() {
+    for (i, (col, bad)) in [(0, ""), (0, "NaN"), (9, "inf"), (9, "-inf")]
+        .iter()
+        .enumerate()
+    {
         let p = write(
             dir.path(),
-            &format!("nonfinite{i}.csv"),
-            replace_cell(&small_csv(), 33, 9, bad).as_bytes(),
+            &format!("bad{i}.csv"),
+            replace_cell(&small_csv(), 33, *col, bad).as_bytes(),
         );
         let e = err(&p, &default());
-        assert!(
-            e.contains(&format!(
-                "line 33, column \"p4\": \"{bad}\" is not a finite number"
-            )),
-            "{e}"
-        );
+        let what = if bad.is_empty() {
+            "line 33, column \"t\": empty cell. Hint: every row needs its time".to_string()
+        } else {
+            format!(
+                "line 33, column \"{}\": \"{bad}\" is not a finite number",
+                if *col == 0 { "t" } else { "p4" }
+            )
+        };
+        assert!(e.contains(&what), "{e}");
     }
 }
 

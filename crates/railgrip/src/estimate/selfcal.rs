@@ -470,8 +470,21 @@ impl<'p> CampaignCalibrator<'p> {
         // around them out; the rest of the run counts.
         let missing = c.has_data.iter().filter(|h| !**h).count();
         let note = (missing > 0).then(|| {
+            let mut on: Vec<_> = log
+                .gaps
+                .iter()
+                .filter(|g| !g.bridged)
+                .map(|g| g.signal)
+                .collect();
+            on.sort_by_key(|s| s.index());
+            on.dedup();
+            let on = match on.len() {
+                0 => "a channel".to_string(),
+                n if n == crate::format::Signal::ALL.len() => "every channel".to_string(),
+                _ => on.iter().map(ToString::to_string).collect::<Vec<_>>().join(", "),
+            };
             format!(
-                "{}: {:.2} s without data on a channel (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
+                "{}: {:.2} s without data on {on} (a dropout); those samples and {:.2} s of filter settling on each side are left out of the calibration",
                 log_name(log),
                 missing as f64 / c.sample_rate_hz,
                 c.settle_s

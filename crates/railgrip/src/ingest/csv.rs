@@ -1,8 +1,12 @@
 //! CSV logs: canonical (data-contract.md) or mapped through `[ingest.csv]`.
 //!
 //! Fast path: the header is read here, the mapped columns are read with polars as `f64`.
-//! Error path: when polars fails or a column holds an empty cell, NaN/inf, or a time that does
-//! not increase, [`diagnose`] rescans the file line by line to name the exact line and column.
+//! A signal's cell without a value (empty, or `NaN` as MATLAB and pandas write a missing
+//! value) is a missing sample of that channel alone: the channel keeps its other rows, the hole
+//! follows the gap rules of [`super::resample`] and a warning names the column and lines.
+//! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
+//! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
+//! exact line and column.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -72,7 +76,10 @@ fn normalise(s: &str) -> String {
 /// Reads a CSV log: the header is checked against the mapped columns, polars reads those
 /// columns as `f64`, each is converted to its canonical unit and checked, and the nine
 /// channels share the time column.
-pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel>, IngestError> {
+pub(super) fn read(
+    src: &LogSource,
+    cfg: &IngestConfig,
+) -> Result<(Vec<RawChannel>, Vec<Warning>), IngestError> {
     let path = src.name();
     let header = read_header(src)?;
     let wanted = wanted(cfg);
@@ -83,11 +90,12 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
         .collect();
     let df = read_frame(src, cfg, &names)?;
     let extracted = extract_columns(df, &wanted, &names);
-    let mut columns: Vec<Vec<f64>> = Vec::with_capacity(wanted.len());
-    for (v, (_, c)) in extracted.into_iter().zip(&wanted) {
+    let mut columns: Vec<(Vec<f64>, usize)> = Vec::with_capacity(wanted.len());
+    for (i, (v, (_, c))) in extracted.into_iter().zip(&wanted).enumerate() {
         match v {
-            Some(v) => columns.push(v),
-            None => {
+            // The time column needs every row.
+            Some(v) if i > 0 || v.1 == 0 => columns.push(v),
+            _ => {
                 return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
                     path: path.to_path_buf(),
                     message: format!("column {:?} has empty or non-finite cells", c.column),
@@ -95,7 +103,14 @@ pub(super) fn read(src: &LogSource, cfg: &IngestConfig) -> Result<Vec<RawChannel
             }
         }
     }
-    let time = columns.remove(0);
+    // polars reads a short row's absent fields as empty: a rescan tells those (and anything
+    // else wrong in the file) from cells left empty on purpose.
+    if columns.iter().any(|(_, missing)| *missing > 0) {
+        if let Some(e) = diagnose(src, cfg) {
+            return Err(e);
+        }
+    }
+    let (time, _) = columns.remove(0);
     if time.windows(2).any(|w| w[1] <= w[0]) {
         return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
             path: path.to_path_buf(),
@@ -254,13 +269,14 @@ fn read_frame(
 }
 
 /// Copies each mapped column out of polars' chunks (one copy, no rechunk), converting its
-/// unit; columns in parallel. `None` for a column with empty or non-finite cells. The frame
-/// is dropped before returning, ahead of any rescan.
+/// unit; columns in parallel. Each column comes with its count of cells without a value (empty
+/// or NaN), which hold NaN; `None` for a column with ±inf. The frame is dropped before
+/// returning, ahead of any rescan.
 fn extract_columns(
     df: DataFrame,
     wanted: &[(&'static str, &CsvColumn)],
     names: &[PlSmallStr],
-) -> Vec<Option<Vec<f64>>> {
+) -> Vec<Option<(Vec<f64>, usize)>> {
     wanted
         .par_iter()
         .enumerate()
@@ -269,47 +285,113 @@ fn extract_columns(
                 .column(names[i].as_str())
                 .and_then(|c| c.f64().cloned())
                 .ok()?;
-            if ca.null_count() != 0 {
-                return None;
-            }
             let factor = c.unit.to_canonical_factor();
             let mut v = Vec::with_capacity(ca.len());
             for arr in ca.downcast_iter() {
-                v.extend_from_slice(arr.values());
+                match arr.validity() {
+                    None => v.extend_from_slice(arr.values()),
+                    Some(valid) => {
+                        v.extend(arr.values().iter().zip(valid.iter()).map(|(x, ok)| {
+                            if ok {
+                                *x
+                            } else {
+                                f64::NAN
+                            }
+                        }))
+                    }
+                }
             }
             if factor != 1.0 {
                 v.iter_mut().for_each(|x| *x *= factor);
             }
-            v.iter().all(|x| x.is_finite()).then_some(v)
+            if v.iter().any(|x| x.is_infinite()) {
+                return None;
+            }
+            let missing = v.iter().filter(|x| x.is_nan()).count();
+            Some((v, missing))
         })
         .collect()
 }
 
-/// The nine channels of the log, in [`Signal::ALL`] order, sharing one time vector.
+/// The nine channels of the log, in [`Signal::ALL`] order, sharing one time vector — but a
+/// channel with cells without a value, which keeps its own rows with a value (with a map back
+/// to the file's rows) and warns.
 fn channels(
     src: &LogSource,
     cfg: &IngestConfig,
     time: Vec<f64>,
-    columns: Vec<Vec<f64>>,
-) -> Vec<RawChannel> {
+    columns: Vec<(Vec<f64>, usize)>,
+) -> (Vec<RawChannel>, Vec<Warning>) {
     let time = Arc::new(time);
-    let locate = Locator::CsvRows(Arc::new(src.clone()));
-    Signal::ALL
+    let source = Arc::new(src.clone());
+    let mut warnings = Vec::new();
+    let channels = Signal::ALL
         .iter()
         .zip(columns)
-        .map(|(s, values)| RawChannel {
-            signal: *s,
-            source: format!(
-                "column {:?} [{}]",
-                cfg.csv_column(*s).column,
-                cfg.csv_column(*s).unit
-            ),
-            time_s: Arc::clone(&time),
-            values,
-            locate: locate.clone(),
-            dropped: 0,
+        .map(|(s, (values, missing))| {
+            let column = &cfg.csv_column(*s).column;
+            let mut ch = RawChannel {
+                signal: *s,
+                source: format!("column {:?} [{}]", column, cfg.csv_column(*s).unit),
+                time_s: Arc::clone(&time),
+                values,
+                locate: Locator::CsvRows(Arc::clone(&source)),
+                dropped: 0,
+            };
+            if missing > 0 {
+                let rows: Vec<usize> = (0..ch.values.len())
+                    .filter(|&i| !ch.values[i].is_nan())
+                    .collect();
+                let first = ch.values.iter().position(|x| x.is_nan());
+                let last = ch.values.iter().rposition(|x| x.is_nan());
+                if let (Some(a), Some(b)) = (first, last) {
+                    warnings.push(Warning {
+                        kind: WarningKind::Missing,
+                        message: format!(
+                            "{s}: {missing} cell(s) of column {column:?} without a value (empty or NaN) read as missing samples, {}",
+                            if a == b {
+                                format!("line {}", line_of_row(src, a))
+                            } else {
+                                format!(
+                                    "the first at line {}, the last at line {}",
+                                    line_of_row(src, a),
+                                    line_of_row(src, b)
+                                )
+                            }
+                        ),
+                    });
+                }
+                ch.time_s = Arc::new(rows.iter().map(|&i| time[i]).collect());
+                ch.values = rows.iter().map(|&i| ch.values[i]).collect();
+                ch.locate = Locator::CsvRowsOf(Arc::clone(&source), Arc::new(rows));
+            }
+            ch
         })
-        .collect()
+        .collect();
+    (channels, warnings)
+}
+
+/// What is wrong with one cell, and the hint: `None` for a number, and for a signal's empty or
+/// NaN cell (a missing sample); the time column needs a finite number.
+fn cell_problem(cell: &str, is_time: bool) -> Option<(String, &'static str)> {
+    const TIME_HINT: &str = "every row needs its time; fill or delete this row";
+    match cell.parse::<f64>() {
+        _ if cell.is_empty() => is_time.then(|| ("empty cell".into(), TIME_HINT)),
+        Err(_) => Some((
+            format!("{cell:?} is not a number"),
+            "numbers use '.' as decimal point and no thousands separator",
+        )),
+        Ok(x) if x.is_nan() && !is_time => None,
+        Ok(x) if !x.is_finite() => Some((
+            format!("{cell:?} is not a finite number"),
+            if is_time {
+                TIME_HINT
+            } else {
+                "inf is not a measurement; leave the cell empty (or NaN) for a missing sample"
+            },
+        )),
+        Ok(_) => None,
+    }
 }
 
 /// Rescans the file and returns the first problem with its line and column, or `None` if the
@@ -382,34 +464,9 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
                 hint: "check the separator: railgrip reads ',' separated values with '.' as decimal point".into(),
             });
         }
-        for &(col, c) in &idx {
-            let cell = f[col];
-            if cell.is_empty() {
-                return Some(bad(
-                    line_no,
-                    &c.column,
-                    "empty cell".into(),
-                    "every sample needs a value; fill or delete this row",
-                ));
-            }
-            match cell.parse::<f64>() {
-                Err(_) => {
-                    return Some(bad(
-                        line_no,
-                        &c.column,
-                        format!("{cell:?} is not a number"),
-                        "numbers use '.' as decimal point and no thousands separator",
-                    ))
-                }
-                Ok(x) if !x.is_finite() => {
-                    return Some(bad(
-                        line_no,
-                        &c.column,
-                        format!("{cell:?} is not a finite number"),
-                        "NaN and inf are not measurements; delete the row or leave a gap in time",
-                    ))
-                }
-                Ok(_) => {}
+        for (j, &(col, c)) in idx.iter().enumerate() {
+            if let Some((what, hint)) = cell_problem(f[col], j == 0) {
+                return Some(bad(line_no, &c.column, what, hint));
             }
         }
         let t = f[time_col].parse::<f64>().ok()? * time_factor;

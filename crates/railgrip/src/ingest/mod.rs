@@ -262,6 +262,8 @@ pub enum WarningKind {
     Trimmed,
     /// Raw samples outside the plausibility limits were dropped.
     Implausible,
+    /// Cells without a value (a CSV log's empty or NaN cells): missing samples of that channel.
+    Missing,
     /// No metadata found (sidecar or MCAP record): nothing lost, but later stages lack it.
     NoMetadata,
 }
@@ -417,6 +419,9 @@ pub(crate) struct RawChannel {
 pub(crate) enum Locator {
     /// Sample `i` is on CSV data row `i` (line numbers come from a rescan on the error path).
     CsvRows(Arc<LogSource>),
+    /// Sample `i` is on CSV data row `rows[i]` (a channel with cells without a value keeps
+    /// only its other rows).
+    CsvRowsOf(Arc<LogSource>, Arc<Vec<usize>>),
     /// Sample `i` is message `i` (in time order) of the topic, at log time t_ref + t.
     Mcap { topic: String, t_ref_ns: u64 },
 }
@@ -425,6 +430,7 @@ impl Locator {
     fn locate(&self, i: usize, time_s: &[f64]) -> Location {
         match self {
             Locator::CsvRows(path) => Location::CsvLine(csv::line_of_row(path, i)),
+            Locator::CsvRowsOf(path, rows) => Location::CsvLine(csv::line_of_row(path, rows[i])),
             Locator::Mcap { topic, t_ref_ns } => Location::Mcap {
                 topic: topic.clone(),
                 message: i,
@@ -589,8 +595,9 @@ pub fn ingest_source(src: &LogSource, pipeline: &Pipeline) -> Result<RunLog, Ing
     let format = sniff(src)?;
     let (channels, metadata, start_log_time_ns, mut warnings) = match format {
         LogFormat::Csv => {
-            let channels = csv::read(src, cfg)?;
-            let (metadata, w) = csv::read_sidecar(src)?;
+            let (channels, mut w) = csv::read(src, cfg)?;
+            let (metadata, w_meta) = csv::read_sidecar(src)?;
+            w.extend(w_meta);
             (channels, metadata, None, w)
         }
         LogFormat::Mcap => {

@@ -264,11 +264,19 @@ impl Decoder {
         let mut indexes: Vec<Option<usize>> = path.segments.iter().map(|s| s.1).collect();
         let last = chain.last().expect("paths have a segment").clone();
         let scalar = match last.kind() {
-            Kind::Message(m) if WRAPPERS.contains(&m.full_name()) => {
-                let value = m.get_field_by_name("value").expect("wrappers have a value");
+            // A well-known wrapper, read through its number `value` (a schema that only
+            // borrows the name, without such a field, is a message like any other).
+            Kind::Message(m)
+                if WRAPPERS.contains(&m.full_name())
+                    && m
+                        .get_field_by_name("value")
+                        .is_some_and(|v| Scalar::of(&v.kind()).is_some()) =>
+            {
+                let value = m.get_field_by_name("value").expect("checked above");
+                let scalar = Scalar::of(&value.kind()).expect("checked above");
                 chain.push(value);
                 indexes.push(None);
-                Scalar::of(&chain.last().expect("pushed").kind()).expect("wrapped numbers")
+                scalar
             }
             Kind::Message(m) => {
                 return Err(DecodeError::MessageNotNumber {

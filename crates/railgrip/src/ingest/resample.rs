@@ -49,6 +49,7 @@ pub(super) struct Resampled {
 
 /// The kept samples of a channel (dropped NaN samples removed, copied only if there are any).
 fn kept(ch: &RawChannel) -> (Cow<'_, [f64]>, Cow<'_, [f64]>) {
+    // A CSV channel's cells without a value are left out when it is read.
     if ch.dropped == 0 {
         return (Cow::Borrowed(&ch.time_s[..]), Cow::Borrowed(&ch.values[..]));
     }
