@@ -74,7 +74,10 @@
 //! the profiled residual sum of squares, se² = 2 σ² n/n_eff / RSS''; for the delays, the
 //! larger of that and the jackknife over runs (each run left out in turn), and delays not
 //! told from 0 with those errors (both together by a Wald test, one alone within 1.96
-//! standard errors) are taken as 0 ([`drop_insignificant_delays`]).
+//! standard errors) are taken as 0 ([`drop_insignificant_delays`]). The α's errors then carry
+//! the delays' and the radar scale's (the delta method, [`Balance::alpha_spread`]): the
+//! balance is fitted again with each moved by one standard error, and half the change of each
+//! α is added in quadrature.
 
 // `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -728,7 +731,11 @@ impl<'p> CampaignCalibrator<'p> {
             fitted_se: alpha_fitted_se,
             between_sd: pooling,
             kept,
-        } = axle_alphas(g, fit, sigma2, &veh.brake_torque_nm_per_bar, force.keeps);
+        } = axle_alphas(g, fit, sigma2, &veh.brake_torque_nm_per_bar, force.keeps).widened(
+            // The delays' and the radar scale's own errors (the fit holds them fixed).
+            &b.alpha_spread(fit, &at, [force.tau_se, force.tacho_se, d.scale_se]),
+            &veh.brake_torque_nm_per_bar,
+        );
         let constants = if per_run { runs } else { 1.0 };
         let res = Resistance::applied(fit, sigma2, kept.is_some(), g, n / n_eff, constants);
         // The pipeline's α kept: with the pad friction constant.
@@ -1711,6 +1718,58 @@ pub(crate) fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f6
 }
 
 impl Balance<'_> {
+    /// How far each axle's ratio to the pipeline's α moves when the radar's latency, the
+    /// tachometers' delay and the radar's scale each move by one standard error (`se`: s, s, –;
+    /// NaN or 0 where not fitted or not known), the model `fit` chose (its form and axle groups,
+    /// γ fitted again) held: half the central difference per parameter, the parameters'
+    /// shares added in quadrature (the delta method; their correlations are not known here).
+    fn alpha_spread(&self, fit: &Fit, at: &At, se: [f64; 3]) -> [f64; AXLES] {
+        let ratios = |at: &At| -> Option<Vec<f64>> {
+            let g = self.gram(at, fit.form);
+            let f = if fit.form == PadForm::Constant {
+                g.rss_at(&fit.groups, fit.form, 0.0)
+            } else {
+                let rss = |gm: f64| {
+                    g.rss_at(&fit.groups, fit.form, gm)
+                        .map_or(f64::INFINITY, |x| x.rss)
+                };
+                let gamma = golden(&rss, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
+                g.rss_at(&fit.groups, fit.form, gamma)
+            }?;
+            let mut r = vec![f64::NAN; AXLES];
+            for (gi, grp) in fit.groups.iter().enumerate() {
+                for &a in grp {
+                    r[a] = f.beta[gi];
+                }
+            }
+            Some(r)
+        };
+        let mut var = [0.0; AXLES];
+        for (p, &e) in se.iter().enumerate() {
+            if !(e > 0.0 && e.is_finite()) {
+                continue;
+            }
+            let shifted = |sign: f64| {
+                let mut a = *at;
+                match p {
+                    0 => a.radar_s += sign * e,
+                    1 => a.tacho_s += sign * e,
+                    _ => a.scale += sign * e,
+                }
+                ratios(&a)
+            };
+            if let (Some(hi), Some(lo)) = (shifted(1.0), shifted(-1.0)) {
+                for a in 0..AXLES {
+                    let d = 0.5 * (hi[a] - lo[a]);
+                    if d.is_finite() {
+                        var[a] += d * d;
+                    }
+                }
+            }
+        }
+        var.map(f64::sqrt)
+    }
+
     /// One row's z (see [`Z`]) at `at`; None where a shifted signal is not available.
     fn z_row(
         &self,
@@ -2446,6 +2505,21 @@ struct A {
     between_sd: Option<f64>,
     /// The note when the ratios agreed with 1 and the pipeline's α were kept.
     kept: Option<String>,
+}
+
+impl A {
+    /// The standard errors with each axle's `spread` (a ratio to `alpha_pipeline`, from other
+    /// parameters' errors) added in quadrature.
+    fn widened(self, spread: &[f64; AXLES], alpha_pipeline: &[f64; AXLES]) -> A {
+        let widen = |se: [f64; AXLES]| -> [f64; AXLES] {
+            std::array::from_fn(|a| se[a].hypot(spread[a] * alpha_pipeline[a]))
+        };
+        A {
+            alpha_se: widen(self.alpha_se),
+            fitted_se: widen(self.fitted_se),
+            ..self
+        }
+    }
 }
 
 /// `keep`: whether the pipeline's α stand, decided elsewhere (None: by this fit's own test,

@@ -268,8 +268,7 @@ impl Decoder {
             // borrows the name, without such a field, is a message like any other).
             Kind::Message(m)
                 if WRAPPERS.contains(&m.full_name())
-                    && m
-                        .get_field_by_name("value")
+                    && m.get_field_by_name("value")
                         .is_some_and(|v| Scalar::of(&v.kind()).is_some()) =>
             {
                 let value = m.get_field_by_name("value").expect("checked above");
