@@ -751,8 +751,49 @@ fn empty_and_nan_cells_are_missing_samples_of_their_channel() {
         &default(),
     );
     assert!(
-        e.contains("no_omega4.csv") && e.contains("omega4 has 0 usable sample(s)"),
+        e.contains("no_omega4.csv") && e.contains("column \"omega4\" has fewer than two values"),
         "{e}"
+    );
+}
+
+/// Lines without data — blank, separators only, an extra line end at the end — are left out
+/// (polars reads them as rows of empty cells), and the lines named after them stay right.
+#[test]
+fn lines_without_data_are_left_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = ingest_file(
+        &write(dir.path(), "whole.csv", small_csv().as_bytes()),
+        &default(),
+    )
+    .unwrap();
+    let mut lines: Vec<String> = small_csv().lines().map(str::to_string).collect();
+    lines.insert(4, String::new());
+    lines.insert(9, ",,, ,,,,,,".into());
+    lines.insert(20, "  ".into());
+    let text = lines.join("\n") + "\n\n";
+    let log = ingest_file(&write(dir.path(), "blank.csv", text.as_bytes()), &default()).unwrap();
+    assert_eq!(log.omega_radps, whole.omega_radps);
+    assert_eq!(log.v_radar_mps, whole.v_radar_mps);
+    assert!(log.warnings.iter().all(|w| w.kind != WarningKind::Missing));
+    // A missing cell after them is named at its own line.
+    let p = write(
+        dir.path(),
+        "blank_hole.csv",
+        replace_cell(&text, 50, 3, "").as_bytes(),
+    );
+    let log = ingest_file(&p, &default()).unwrap();
+    let w: Vec<_> = log
+        .warnings
+        .iter()
+        .filter(|w| w.kind == WarningKind::Missing)
+        .collect();
+    assert!(
+        w.len() == 1
+            && w[0].message.ends_with(
+                "column \"omega2\" without a value (empty or NaN) read as missing samples, line 50"
+            ),
+        "{:?}",
+        log.warnings
     );
 }
 

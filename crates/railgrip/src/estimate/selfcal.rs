@@ -77,7 +77,7 @@
 //! standard errors) are taken as 0 ([`drop_insignificant_delays`]). The α's errors then carry
 //! the delays' and the radar scale's (the delta method, [`Balance::alpha_spread`]): the
 //! balance is fitted again with each moved by one standard error, and half the change of each
-//! α is added in quadrature.
+//! α is added (the scale's in quadrature, the two delays' with the same sign).
 
 // `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
@@ -685,7 +685,6 @@ impl<'p> CampaignCalibrator<'p> {
         if let Some((what_failed, hint)) = too_few_runs(self.runs.len(), &notes) {
             return Err(fail(what_failed, &hint));
         }
-        let veh = &self.pipeline.vehicle;
         let b = Self::balance(self.pipeline, &self.runs);
         let v_ref = b.v_ref;
         let samples: usize = self.runs.iter().map(|r| r.rows.len()).sum();
@@ -731,10 +730,13 @@ impl<'p> CampaignCalibrator<'p> {
             fitted_se: alpha_fitted_se,
             between_sd: pooling,
             kept,
-        } = axle_alphas(g, fit, sigma2, &veh.brake_torque_nm_per_bar, force.keeps).widened(
-            // The delays' and the radar scale's own errors (the fit holds them fixed).
-            &b.alpha_spread(fit, &at, [force.tau_se, force.tacho_se, d.scale_se]),
-            &veh.brake_torque_nm_per_bar,
+            ..
+        } = b.axle_alphas_at(
+            g,
+            fit,
+            sigma2,
+            &at,
+            (force.keeps, force.tau_se, force.tacho_se, d.scale_se),
         );
         let constants = if per_run { runs } else { 1.0 };
         let res = Resistance::applied(fit, sigma2, kept.is_some(), g, n / n_eff, constants);
@@ -746,19 +748,7 @@ impl<'p> CampaignCalibrator<'p> {
         };
         let run_constants = b.run_constants(&at, res.fit.form, &res);
         notes.extend(kept);
-        // An α whose error spans its value says so first (its sign then means nothing).
-        if let Some(worst) = vague_alpha(&alpha_fitted, &alpha_fitted_se) {
-            return Err(fail(
-                format!("the balance cannot place the brake coefficients: α {:.1} ± {:.1} N·m/bar, one standard error {:.0} % of it (at most {:.0} %)", alpha_fitted[worst], alpha_fitted_se[worst], alpha_fitted_se[worst] / alpha_fitted[worst].abs() * 100.0, MAX_CALIBRATED_ALPHA_REL_SE * 100.0),
-                "the runs hold too little braking with changing pressures; calibrate on longer brake applications, or estimate with the pipeline's α (estimate.calibration = \"pipeline\")",
-            ));
-        }
-        if alpha.iter().any(|a| !(*a > 0.0)) {
-            return Err(fail(
-                format!("the balance gives a non-positive brake coefficient {alpha:?}"),
-                "check the pressure channels' mapping to the axles and the vehicle's mass",
-            ));
-        }
+        placed(&alpha, &alpha_fitted, &alpha_fitted_se).map_err(|(w, h)| fail(w, h))?;
         Ok(CampaignCalibration {
             alpha_nm_per_bar: alpha,
             alpha_se,
@@ -799,6 +789,30 @@ impl<'p> CampaignCalibrator<'p> {
             notes,
         })
     }
+}
+
+/// Whether the balance placed the α: an error when a fitted α's standard error spans its
+/// value (said first: its sign then means nothing) or an applied α is not positive; the error
+/// says what failed and what to do.
+fn placed(
+    alpha: &[f64; AXLES],
+    alpha_fitted: &[f64; AXLES],
+    alpha_fitted_se: &[f64; AXLES],
+) -> Result<(), (String, &'static str)> {
+    // An α whose error spans its value says so first (its sign then means nothing).
+    if let Some(worst) = vague_alpha(alpha_fitted, alpha_fitted_se) {
+        return Err((
+                format!("the balance cannot place the brake coefficients: α {:.1} ± {:.1} N·m/bar, one standard error {:.0} % of it (at most {:.0} %)", alpha_fitted[worst], alpha_fitted_se[worst], alpha_fitted_se[worst] / alpha_fitted[worst].abs() * 100.0, MAX_CALIBRATED_ALPHA_REL_SE * 100.0),
+                "the runs hold too little braking with changing pressures; calibrate on longer brake applications, or estimate with the pipeline's α (estimate.calibration = \"pipeline\")",
+            ));
+    }
+    if alpha.iter().any(|a| !(*a > 0.0)) {
+        return Err((
+            format!("the balance gives a non-positive brake coefficient {alpha:?}"),
+            "check the pressure channels' mapping to the axles and the vehicle's mass",
+        ));
+    }
+    Ok(())
 }
 
 /// The running resistance's speed terms c1 (N·s/m) and c2 (N·s²/m²) with their standard
@@ -1718,13 +1732,42 @@ pub(crate) fn shifted(x: &[f64], ok: &[bool], k: usize, shift: f64) -> Option<f6
 }
 
 impl Balance<'_> {
+    /// [`axle_alphas`] on the balance's fit at `at` (`keeps`: whether the pipeline's α stand,
+    /// as decided elsewhere), their errors widened by the delays' and the radar scale's own
+    /// errors (s, s, –), which the fit holds fixed ([`Balance::alpha_spread`]).
+    fn axle_alphas_at(
+        &self,
+        g: &Gram,
+        fit: &Fit,
+        sigma2: f64,
+        at: &At,
+        (keeps, tau_se, tacho_se, scale_se): (Option<bool>, f64, f64, f64),
+    ) -> A {
+        let a = axle_alphas(g, fit, sigma2, &self.alpha_pipeline, keeps);
+        let spread = self.alpha_spread(fit, at, [tau_se, tacho_se, scale_se], &a.shrink);
+        a.widened(spread, &self.alpha_pipeline)
+    }
+
     /// How far each axle's ratio to the pipeline's α moves when the radar's latency, the
     /// tachometers' delay and the radar's scale each move by one standard error (`se`: s, s, –;
-    /// NaN or 0 where not fitted or not known), the model `fit` chose (its form and axle groups,
-    /// γ fitted again) held: half the central difference per parameter, the parameters'
-    /// shares added in quadrature (the delta method; their correlations are not known here).
-    fn alpha_spread(&self, fit: &Fit, at: &At, se: [f64; 3]) -> [f64; AXLES] {
-        let ratios = |at: &At| -> Option<Vec<f64>> {
+    /// NaN or 0 where not fitted), the model `fit` chose held (its form and axle groups; γ
+    /// fitted again): half the central difference per parameter — the delta method. Returns
+    /// the fitted ratios' spread and the pooled ones' (each axle's ratio moved by
+    /// (1 − B) Δ its group + B Δ the common ratio, with `shrink` = B held). The radar's scale
+    /// (from the coasts) is taken as independent of the delays and added in quadrature; the two
+    /// delays, whose estimates are strongly correlated when both are fitted (−0.96 on the
+    /// bundled scenes), are added with the same sign, an upper bound whatever their
+    /// correlation. NaN where a moved fit fails (the error is then not known, rather than
+    /// too small).
+    fn alpha_spread(
+        &self,
+        fit: &Fit,
+        at: &At,
+        se: [f64; 3],
+        shrink: &[f64; AXLES],
+    ) -> ([f64; AXLES], [f64; AXLES]) {
+        // Each axle's ratio from its group's fit, and the common ratio, at `at`.
+        let ratios = |at: &At| -> Option<([f64; AXLES], f64)> {
             let g = self.gram(at, fit.form);
             let f = if fit.form == PadForm::Constant {
                 g.rss_at(&fit.groups, fit.form, 0.0)
@@ -1736,20 +1779,23 @@ impl Balance<'_> {
                 let gamma = golden(&rss, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
                 g.rss_at(&fit.groups, fit.form, gamma)
             }?;
-            let mut r = vec![f64::NAN; AXLES];
+            let all = [(0..AXLES).collect::<Vec<usize>>()];
+            let common = g.rss_at(&all, fit.form, f.gamma)?.beta[0];
+            let mut r = [f64::NAN; AXLES];
             for (gi, grp) in fit.groups.iter().enumerate() {
                 for &a in grp {
                     r[a] = f.beta[gi];
                 }
             }
-            Some(r)
+            Some((r, common))
         };
-        let mut var = [0.0; AXLES];
-        for (p, &e) in se.iter().enumerate() {
+        // Per parameter, half the change of each fitted and pooled ratio (None: not fitted).
+        let share = |p: usize| -> Option<[[f64; AXLES]; 2]> {
+            let e = se[p];
             if !(e > 0.0 && e.is_finite()) {
-                continue;
+                return None;
             }
-            let shifted = |sign: f64| {
+            let moved = |sign: f64| {
                 let mut a = *at;
                 match p {
                     0 => a.radar_s += sign * e,
@@ -1758,16 +1804,27 @@ impl Balance<'_> {
                 }
                 ratios(&a)
             };
-            if let (Some(hi), Some(lo)) = (shifted(1.0), shifted(-1.0)) {
-                for a in 0..AXLES {
-                    let d = 0.5 * (hi[a] - lo[a]);
-                    if d.is_finite() {
-                        var[a] += d * d;
-                    }
-                }
-            }
-        }
-        var.map(f64::sqrt)
+            let Some(((hi, chi), (lo, clo))) = moved(1.0).zip(moved(-1.0)) else {
+                return Some([[f64::NAN; AXLES]; 2]);
+            };
+            let dc = 0.5 * (chi - clo);
+            Some([
+                std::array::from_fn(|a| 0.5 * (hi[a] - lo[a])),
+                std::array::from_fn(|a| (1.0 - shrink[a]) * 0.5 * (hi[a] - lo[a]) + shrink[a] * dc),
+            ])
+        };
+        let (radar, tacho, scale) = (share(0), share(1), share(2));
+        let combine = |k: usize| -> [f64; AXLES] {
+            std::array::from_fn(|a| {
+                let delays = [radar, tacho]
+                    .iter()
+                    .flatten()
+                    .map(|s| s[k][a].abs())
+                    .sum::<f64>();
+                delays.hypot(scale.map_or(0.0, |s| s[k][a]))
+            })
+        };
+        (combine(0), combine(1))
     }
 
     /// One row's z (see [`Z`]) at `at`; None where a shifted signal is not available.
@@ -2505,18 +2562,25 @@ struct A {
     between_sd: Option<f64>,
     /// The note when the ratios agreed with 1 and the pipeline's α were kept.
     kept: Option<String>,
+    /// Each axle's weight on the common ratio in the partial pooling (0 without pooling).
+    shrink: [f64; AXLES],
 }
 
 impl A {
-    /// The standard errors with each axle's `spread` (a ratio to `alpha_pipeline`, from other
-    /// parameters' errors) added in quadrature.
-    fn widened(self, spread: &[f64; AXLES], alpha_pipeline: &[f64; AXLES]) -> A {
-        let widen = |se: [f64; AXLES]| -> [f64; AXLES] {
-            std::array::from_fn(|a| se[a].hypot(spread[a] * alpha_pipeline[a]))
+    /// The standard errors with the shares of other parameters' errors added in quadrature
+    /// (ratios to `alpha_pipeline`, [`Balance::alpha_spread`]): `fitted` to the fitted α's,
+    /// `pooled` to the partially pooled ones.
+    fn widened(
+        self,
+        (fitted, pooled): ([f64; AXLES], [f64; AXLES]),
+        alpha_pipeline: &[f64; AXLES],
+    ) -> A {
+        let widen = |se: [f64; AXLES], by: [f64; AXLES]| -> [f64; AXLES] {
+            std::array::from_fn(|a| se[a].hypot(by[a] * alpha_pipeline[a]))
         };
         A {
-            alpha_se: widen(self.alpha_se),
-            fitted_se: widen(self.fitted_se),
+            alpha_se: widen(self.alpha_se, pooled),
+            fitted_se: widen(self.fitted_se, fitted),
             ..self
         }
     }
@@ -2545,6 +2609,7 @@ fn axle_alphas(
     let all = [(0..AXLES).collect::<Vec<usize>>()];
     let common = g.rss_at(&all, fit.form, fit.gamma);
     let mut between_sd = None;
+    let mut shrink = [0.0; AXLES];
     if groups.len() > 1 {
         if let Some(common) = &common {
             let common_se = (sigma2 * common.var_unit(0)).sqrt();
@@ -2556,6 +2621,7 @@ fn axle_alphas(
             let p = partial_pooling(groups, &ratio, &ratio_se, common.beta[0], common_se, differ);
             ratio = p.alpha;
             ratio_se = p.alpha_se;
+            shrink = p.shrink;
             between_sd = Some(p.between_sd);
         }
     }
@@ -2585,6 +2651,7 @@ fn axle_alphas(
         fitted,
         fitted_se,
         between_sd: between_sd.map(|sd| sd * mean_pipeline),
+        shrink,
         kept: kept.then(|| {
             "the brake coefficients agree with the pipeline's within their errors (one ratio for all axles, not told from 1, and no speed term of the pad friction, at 95 %): the pipeline's α kept, the pad friction constant".to_string()
         }),
@@ -2599,6 +2666,8 @@ struct Pooled {
     alpha: [f64; AXLES],
     alpha_se: [f64; AXLES],
     between_sd: f64,
+    /// Each axle's weight on the common ratio, B = se²/(se² + τ²) (1: fully pooled).
+    shrink: [f64; AXLES],
 }
 
 /// Partial pooling of the groups' α toward the common α (empirical Bayes, the normal–normal
@@ -2643,6 +2712,7 @@ fn partial_pooling(
         alpha: *alpha,
         alpha_se: *alpha_se,
         between_sd: tau2.sqrt(),
+        shrink: [0.0; AXLES],
     };
     let fitted: Vec<(f64, f64)> = groups
         .iter()
@@ -2656,6 +2726,7 @@ fn partial_pooling(
         for &i in grp {
             out.alpha[i] = pooled;
             out.alpha_se[i] = se;
+            out.shrink[i] = b;
         }
     }
     out

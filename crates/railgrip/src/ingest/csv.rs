@@ -91,24 +91,50 @@ pub(super) fn read(
     let df = read_frame(src, cfg, &names)?;
     let extracted = extract_columns(df, &wanted, &names);
     let mut columns: Vec<(Vec<f64>, usize)> = Vec::with_capacity(wanted.len());
-    for (i, (v, (_, c))) in extracted.into_iter().zip(&wanted).enumerate() {
+    for (v, (_, c)) in extracted.into_iter().zip(&wanted) {
         match v {
-            // The time column needs every row.
-            Some(v) if i > 0 || v.1 == 0 => columns.push(v),
-            _ => {
+            Some(v) => columns.push(v),
+            None => {
                 return Err(diagnose(src, cfg).unwrap_or_else(|| IngestError::CsvParse {
                     path: path.to_path_buf(),
-                    message: format!("column {:?} has empty or non-finite cells", c.column),
+                    message: format!(
+                        "column {:?} holds a value that is not finite in its unit",
+                        c.column
+                    ),
                 }))
             }
         }
     }
-    // polars reads a short row's absent fields as empty: a rescan tells those (and anything
-    // else wrong in the file) from cells left empty on purpose.
+    // polars reads a short row's absent fields, a blank line and a line of separators as empty
+    // cells: a rescan names a short row (and anything else wrong in the file) before cells left
+    // empty on purpose are read as missing samples.
     if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
             return Err(e);
         }
+    }
+    // The rescan found every line with data holding its time, so a row without one is a line
+    // without data (blank, or separators only): left out, as `line_of_row` counts rows.
+    if columns[0].1 > 0 {
+        let keep: Vec<bool> = columns[0].0.iter().map(|t| !t.is_nan()).collect();
+        for (v, missing) in &mut columns {
+            let mut k = keep.iter();
+            v.retain(|_| *k.next().expect("one flag per row"));
+            *missing = v.iter().filter(|x| x.is_nan()).count();
+        }
+    }
+    if let Some(((_, c), _)) = wanted
+        .iter()
+        .zip(&columns)
+        .find(|(_, (v, missing))| v.len() - missing < 2)
+    {
+        return Err(IngestError::CsvParse {
+            path: path.to_path_buf(),
+            message: format!(
+                "column {:?} has fewer than two values (its other cells are empty or NaN): is the signal mapped to the right column?",
+                c.column
+            ),
+        });
     }
     let (time, _) = columns.remove(0);
     if time.windows(2).any(|w| w[1] <= w[0]) {
@@ -301,13 +327,14 @@ fn extract_columns(
                     }
                 }
             }
-            if factor != 1.0 {
-                v.iter_mut().for_each(|x| *x *= factor);
+            let mut missing = 0;
+            for x in &mut v {
+                *x *= factor;
+                if x.is_infinite() {
+                    return None;
+                }
+                missing += usize::from(x.is_nan());
             }
-            if v.iter().any(|x| x.is_infinite()) {
-                return None;
-            }
-            let missing = v.iter().filter(|x| x.is_nan()).count();
             Some((v, missing))
         })
         .collect()
@@ -325,6 +352,8 @@ fn channels(
     let time = Arc::new(time);
     let source = Arc::new(src.clone());
     let mut warnings = Vec::new();
+    // Per warning: its index and its column's first and last row without a value.
+    let mut ends: Vec<(usize, usize, usize)> = Vec::new();
     let channels = Signal::ALL
         .iter()
         .zip(columns)
@@ -339,28 +368,20 @@ fn channels(
                 dropped: 0,
             };
             if missing > 0 {
-                let rows: Vec<usize> = (0..ch.values.len())
-                    .filter(|&i| !ch.values[i].is_nan())
-                    .collect();
                 let first = ch.values.iter().position(|x| x.is_nan());
                 let last = ch.values.iter().rposition(|x| x.is_nan());
                 if let (Some(a), Some(b)) = (first, last) {
+                    ends.push((warnings.len(), a, b));
                     warnings.push(Warning {
                         kind: WarningKind::Missing,
                         message: format!(
-                            "{s}: {missing} cell(s) of column {column:?} without a value (empty or NaN) read as missing samples, {}",
-                            if a == b {
-                                format!("line {}", line_of_row(src, a))
-                            } else {
-                                format!(
-                                    "the first at line {}, the last at line {}",
-                                    line_of_row(src, a),
-                                    line_of_row(src, b)
-                                )
-                            }
+                            "{s}: {missing} cell(s) of column {column:?} without a value (empty or NaN) read as missing samples"
                         ),
                     });
                 }
+                let rows: Vec<usize> = (0..ch.values.len())
+                    .filter(|&i| !ch.values[i].is_nan())
+                    .collect();
                 ch.time_s = Arc::new(rows.iter().map(|&i| time[i]).collect());
                 ch.values = rows.iter().map(|&i| ch.values[i]).collect();
                 ch.locate = Locator::CsvRowsOf(Arc::clone(&source), Arc::new(rows));
@@ -368,6 +389,17 @@ fn channels(
             ch
         })
         .collect();
+    // The first and last such cell's lines, all channels' in one pass over the file.
+    let rows: Vec<usize> = ends.iter().flat_map(|&(_, a, b)| [a, b]).collect();
+    let lines = lines_of_rows(src, &rows);
+    for (k, &(w, a, b)) in ends.iter().enumerate() {
+        let (la, lb) = (lines[2 * k], lines[2 * k + 1]);
+        warnings[w].message += &if a == b {
+            format!(", line {la}")
+        } else {
+            format!(", the first at line {la}, the last at line {lb}")
+        };
+    }
     (channels, warnings)
 }
 
@@ -398,8 +430,9 @@ fn cell_problem(cell: &str, is_time: bool) -> Option<(String, &'static str)> {
 /// rescan finds nothing (then the caller reports polars' own message).
 pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestError> {
     let path = src.name();
-    let mut text = String::new();
-    src.open().ok()?.read_to_string(&mut text).ok()?;
+    let mut bytes = Vec::new();
+    src.open().ok()?.read_to_end(&mut bytes).ok()?;
+    let text = String::from_utf8_lossy(&bytes);
     let ends_with_newline = text.ends_with('\n');
     let mut lines = text
         .lines()
@@ -432,7 +465,7 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
         hint: hint.to_string(),
     };
     for (line_no, line) in lines {
-        if line.trim().is_empty() {
+        if no_data(line) {
             continue;
         }
         let f = fields(line);
@@ -446,7 +479,7 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
             } else {
                 (
                     format!("{} fields, but the header has {}", f.len(), header.len()),
-                    "every row needs a value for every column; repair or delete this row",
+                    "every row needs all of the header's fields (leave a cell empty for a missing sample); repair or delete this row",
                 )
             };
             return Some(IngestError::CsvBadLine {
@@ -486,23 +519,51 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
     None
 }
 
-/// The 1-based line of data row `row` (0-based), skipping blank lines like the reader does.
+/// A line without data: blank, or separators and whitespace only (polars reads it as a row of
+/// empty cells; [`read`] leaves such rows out).
+fn no_data(line: &str) -> bool {
+    line.split(',')
+        .all(|f| f.trim().trim_matches('"').is_empty())
+}
+
+/// The 1-based line of data row `row` (0-based), skipping lines without data as [`read`]
+/// does.
 pub(super) fn line_of_row(src: &LogSource, row: usize) -> usize {
+    lines_of_rows(src, &[row])[0]
+}
+
+/// The 1-based lines of data rows `rows` (0-based, any order), in one pass over the file.
+/// Where the file cannot be read again, row + 2 (a header and no lines without data).
+pub(super) fn lines_of_rows(src: &LogSource, rows: &[usize]) -> Vec<usize> {
+    let mut out: Vec<usize> = rows.iter().map(|r| r + 2).collect();
+    if rows.is_empty() {
+        return out;
+    }
     let Ok(f) = src.open() else {
-        return row + 2;
+        return out;
     };
+    let mut order: Vec<usize> = (0..rows.len()).collect();
+    order.sort_by_key(|&i| rows[i]);
+    let mut next = order.iter().peekable();
     let mut seen = 0usize;
-    for (i, line) in BufReader::new(f).lines().enumerate().skip(1) {
+    for (i, line) in BufReader::new(f).split(b'\n').enumerate().skip(1) {
         let Ok(line) = line else { break };
-        if line.trim().is_empty() {
+        if no_data(&String::from_utf8_lossy(&line)) {
             continue;
         }
-        if seen == row {
-            return i + 1;
+        while let Some(&&k) = next.peek() {
+            if rows[k] != seen {
+                break;
+            }
+            out[k] = i + 1;
+            next.next();
+        }
+        if next.peek().is_none() {
+            break;
         }
         seen += 1;
     }
-    row + 2
+    out
 }
 
 /// Reads `<stem>.meta.toml` beside a CSV log. A missing sidecar is a warning (nothing lost).

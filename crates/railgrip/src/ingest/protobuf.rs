@@ -265,11 +265,11 @@ impl Decoder {
         let last = chain.last().expect("paths have a segment").clone();
         let scalar = match last.kind() {
             // A well-known wrapper, read through its number `value` (a schema that only
-            // borrows the name, without such a field, is a message like any other).
+            // borrows the name, without one such number field, is a message like any other).
             Kind::Message(m)
                 if WRAPPERS.contains(&m.full_name())
                     && m.get_field_by_name("value")
-                        .is_some_and(|v| Scalar::of(&v.kind()).is_some()) =>
+                        .is_some_and(|v| !v.is_list() && Scalar::of(&v.kind()).is_some()) =>
             {
                 let value = m.get_field_by_name("value").expect("checked above");
                 let scalar = Scalar::of(&value.kind()).expect("checked above");
