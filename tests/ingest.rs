@@ -886,6 +886,17 @@ fn header_only_csv() {
         e.contains("header.csv: line 2: the file has a header but no data rows"),
         "{e}"
     );
+    // Followed by lines without data only (polars reads them as rows of empty cells).
+    let p = write(
+        dir.path(),
+        "no_rows.csv",
+        b"t,v_radar,omega1,omega2,omega3,omega4,p1,p2,p3,p4\n\n,,,,,,,,,\n\n",
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains("no_rows.csv: line 2: the file has a header but no data rows"),
+        "{e}"
+    );
 }
 
 #[test]

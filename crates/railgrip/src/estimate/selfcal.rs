@@ -737,6 +737,7 @@ impl<'p> CampaignCalibrator<'p> {
             sigma2,
             &at,
             (force.keeps, force.tau_se, force.tacho_se, d.scale_se),
+            &mut notes,
         );
         let constants = if per_run { runs } else { 1.0 };
         let res = Resistance::applied(fit, sigma2, kept.is_some(), g, n / n_eff, constants);
@@ -1742,10 +1743,18 @@ impl Balance<'_> {
         sigma2: f64,
         at: &At,
         (keeps, tau_se, tacho_se, scale_se): (Option<bool>, f64, f64, f64),
+        notes: &mut Vec<String>,
     ) -> A {
         let a = axle_alphas(g, fit, sigma2, &self.alpha_pipeline, keeps);
-        let spread = self.alpha_spread(fit, at, [tau_se, tacho_se, scale_se], &a.shrink);
-        a.widened(spread, &self.alpha_pipeline)
+        let (mut fitted, mut pooled) =
+            self.alpha_spread(fit, at, [tau_se, tacho_se, scale_se], &a.shrink);
+        // A moved fit that failed: those errors as the fit gives them, and a note.
+        if fitted.iter().chain(&pooled).any(|x| !x.is_finite()) {
+            notes.push("the brake coefficients' standard errors leave out the delays' and the radar scale's errors: the balance could not be fitted with them moved by one standard error".into());
+            fitted = fitted.map(|x| if x.is_finite() { x } else { 0.0 });
+            pooled = pooled.map(|x| if x.is_finite() { x } else { 0.0 });
+        }
+        a.widened((fitted, pooled), &self.alpha_pipeline)
     }
 
     /// How far each axle's ratio to the pipeline's α moves when the radar's latency, the
@@ -1757,8 +1766,8 @@ impl Balance<'_> {
     /// (from the coasts) is taken as independent of the delays and added in quadrature; the two
     /// delays, whose estimates are strongly correlated when both are fitted (−0.96 on the
     /// bundled scenes), are added with the same sign, an upper bound whatever their
-    /// correlation. NaN where a moved fit fails (the error is then not known, rather than
-    /// too small).
+    /// correlation. NaN where a moved fit fails (the caller leaves that share out, with a
+    /// note).
     fn alpha_spread(
         &self,
         fit: &Fit,
@@ -1779,8 +1788,13 @@ impl Balance<'_> {
                 let gamma = golden(&rss, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
                 g.rss_at(&fit.groups, fit.form, gamma)
             }?;
+            // The common ratio only where the pooling weighs it.
             let all = [(0..AXLES).collect::<Vec<usize>>()];
-            let common = g.rss_at(&all, fit.form, f.gamma)?.beta[0];
+            let common = if shrink.iter().any(|b| *b > 0.0) {
+                g.rss_at(&all, fit.form, f.gamma)?.beta[0]
+            } else {
+                0.0
+            };
             let mut r = [f64::NAN; AXLES];
             for (gi, grp) in fit.groups.iter().enumerate() {
                 for &a in grp {

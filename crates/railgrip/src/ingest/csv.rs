@@ -123,6 +123,14 @@ pub(super) fn read(
             *missing = v.iter().filter(|x| x.is_nan()).count();
         }
     }
+    if columns[0].0.is_empty() {
+        return Err(IngestError::CsvBadLine {
+            path: path.to_path_buf(),
+            line: 2,
+            what: "the file has a header but no data rows".into(),
+            hint: "the logger stopped before recording; re-export the run".into(),
+        });
+    }
     if let Some(((_, c), _)) = wanted
         .iter()
         .zip(&columns)
