@@ -1,9 +1,11 @@
 //! CSV logs: canonical (data-contract.md) or mapped through `[ingest.csv]`.
 //!
 //! Fast path: the header is read here, the mapped columns are read with polars as `f64`.
-//! A signal's cell without a value (empty, or `NaN` as MATLAB and pandas write a missing
-//! value) is a missing sample of that channel alone: the channel keeps its other rows, the hole
-//! follows the gap rules of [`super::resample`] and a warning names the column and lines.
+//! A signal's cell without a value (empty, as pandas writes a missing value, or `NaN`) is a
+//! missing sample of that channel alone: the channel keeps its other rows, the hole follows
+//! the gap rules of [`super::resample`] and a warning names the column and lines. Lines
+//! without data (blank, separators only), which polars reads as rows of empty cells, are left
+//! out.
 //! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
 //! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
 //! exact line and column.
