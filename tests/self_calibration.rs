@@ -269,6 +269,21 @@ fn assert_davis_resistance(c: &CampaignCalibration) {
     }
 }
 
+/// Asserts the calibration's radar targets against the truth `m`: the scale within 0.05 %, the
+/// latency within 5 ms (`label` names the case).
+fn assert_radar_targets(c: &CampaignCalibration, m: &sim::Mismatch, label: &str) {
+    assert!(
+        (c.radar_scale / m.radar_scale - 1.0).abs() <= 5e-4,
+        "{label}: scale {}",
+        c.radar_scale
+    );
+    assert!(
+        (c.radar_latency_s - m.radar_latency_s).abs() <= 0.005,
+        "{label}: latency {}",
+        c.radar_latency_s
+    );
+}
+
 /// Asserts that one of `notes` contains every one of `parts`.
 fn assert_note(notes: &[String], parts: &[&str]) {
     assert!(
@@ -356,16 +371,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
             c.radar_latency_s * 1e3, c.radar_latency_se * 1e3, c.tacho_delay_s * 1e3, c.tacho_delay_se * 1e3
         );
         assert!(c.shared.is_empty(), "{:?}", c.shared);
-        assert!(
-            (c.radar_scale / m.radar_scale - 1.0).abs() <= 5e-4,
-            "{}",
-            c.radar_scale
-        );
-        assert!(
-            (c.radar_latency_s - m.radar_latency_s).abs() <= 0.005,
-            "{}",
-            c.radar_latency_s
-        );
+        assert_radar_targets(&c, &m, &format!("seed {seed}"));
         assert!(
             (c.tacho_delay_s - 0.010).abs() <= 0.005,
             "{}",
@@ -896,16 +902,7 @@ fn a_radar_dropout_leaves_its_samples_out() {
             &c.notes,
             &[&file, &format!("without data on {channel}"), "dropout"],
         );
-        assert!(
-            (c.radar_scale / m.radar_scale - 1.0).abs() <= 5e-4,
-            "{what}: {}",
-            c.radar_scale
-        );
-        assert!(
-            (c.radar_latency_s - m.radar_latency_s).abs() <= 0.005,
-            "{what}: {}",
-            c.radar_latency_s
-        );
+        assert_radar_targets(&c, &m, what);
         assert_eq!(c.runs, 12);
         // The run's estimates outside the dropout.
         assert_rmse_ratio(&runs[..1], &c, what);

@@ -803,9 +803,9 @@ fn placed(
     // An α whose error spans its value says so first (its sign then means nothing).
     if let Some(worst) = vague_alpha(alpha_fitted, alpha_fitted_se) {
         return Err((
-                format!("the balance cannot place the brake coefficients: α {:.1} ± {:.1} N·m/bar, one standard error {:.0} % of it (at most {:.0} %)", alpha_fitted[worst], alpha_fitted_se[worst], alpha_fitted_se[worst] / alpha_fitted[worst].abs() * 100.0, MAX_CALIBRATED_ALPHA_REL_SE * 100.0),
-                "the runs hold too little braking with changing pressures; calibrate on longer brake applications, or estimate with the pipeline's α (estimate.calibration = \"pipeline\")",
-            ));
+            format!("the balance cannot place the brake coefficients: α {:.1} ± {:.1} N·m/bar, one standard error {:.0} % of it (at most {:.0} %)", alpha_fitted[worst], alpha_fitted_se[worst], alpha_fitted_se[worst] / alpha_fitted[worst].abs() * 100.0, MAX_CALIBRATED_ALPHA_REL_SE * 100.0),
+            "the runs hold too little braking with changing pressures; calibrate on longer brake applications, or estimate with the pipeline's α (estimate.calibration = \"pipeline\")",
+        ));
     }
     if alpha.iter().any(|a| !(*a > 0.0)) {
         return Err((
@@ -992,8 +992,7 @@ fn resistance_at_ratio_1(g: &Gram, inflate: f64, constants: f64) -> Option<Resis
     // The pipeline's α are kept because one common ratio is within its errors of 1, not
     // because they are known: the errors are those of the balance with that common ratio free
     // (ratio, c1, c2), the values those at ratio 1.
-    let all = [(0..AXLES).collect::<Vec<usize>>()];
-    let common = g.rss_at(&all, PadForm::Constant, 0.0)?;
+    let common = g.rss_at(&together(), PadForm::Constant, 0.0)?;
     Some(Resistance {
         c: [beta[0], beta[1]],
         se: [
@@ -1370,11 +1369,10 @@ fn curvature_cov(
         return None;
     }
     let apart: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
-    let together = [(0..AXLES).collect::<Vec<usize>>()];
     let cg = b.gram(at, PadForm::Constant);
     let n_eff = cg
         .rss_at(&apart, PadForm::Constant, 0.0)
-        .or_else(|| cg.rss_at(&together, PadForm::Constant, 0.0))
+        .or_else(|| cg.rss_at(&together(), PadForm::Constant, 0.0))
         .map(|f| b.n_eff(at, PadForm::Constant, &f))?;
     let scale = 2.0 * rss / dof * n_rows / n_eff;
     let (h, f) = (STENCIL_S, all);
@@ -1778,20 +1776,10 @@ impl Balance<'_> {
         // Each axle's ratio from its group's fit, and the common ratio, at `at`.
         let ratios = |at: &At| -> Option<([f64; AXLES], f64)> {
             let g = self.gram(at, fit.form);
-            let f = if fit.form == PadForm::Constant {
-                g.rss_at(&fit.groups, fit.form, 0.0)
-            } else {
-                let rss = |gm: f64| {
-                    g.rss_at(&fit.groups, fit.form, gm)
-                        .map_or(f64::INFINITY, |x| x.rss)
-                };
-                let gamma = golden(&rss, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
-                g.rss_at(&fit.groups, fit.form, gamma)
-            }?;
+            let f = g.fit_over_gamma(&fit.groups, fit.form)?;
             // The common ratio only where the pooling weighs it.
-            let all = [(0..AXLES).collect::<Vec<usize>>()];
             let common = if shrink.iter().any(|b| *b > 0.0) {
-                g.rss_at(&all, fit.form, f.gamma)?.beta[0]
+                g.rss_at(&together(), fit.form, f.gamma)?.beta[0]
             } else {
                 0.0
             };
@@ -2157,12 +2145,11 @@ impl Balance<'_> {
     /// that is singular: two axles with one pressure); None when neither can be fitted.
     fn run_weights(&self, at: &At) -> Option<Vec<f64>> {
         let apart: Vec<Vec<usize>> = (0..AXLES).map(|a| vec![a]).collect();
-        let together = [(0..AXLES).collect::<Vec<usize>>()];
         let form = PadForm::Constant;
         let g = self.gram(at, form);
         let fit = g
             .rss_at(&apart, form, 0.0)
-            .or_else(|| g.rss_at(&together, form, 0.0))?;
+            .or_else(|| g.rss_at(&together(), form, 0.0))?;
         let var: Vec<Option<f64>> = self
             .residuals(at, form, &fit)
             .into_iter()
@@ -2620,8 +2607,7 @@ fn axle_alphas(
     }
     let times = |r: &[f64; AXLES]| std::array::from_fn(|a| r[a] * alpha_pipeline[a]);
     let (fitted, fitted_se) = (times(&ratio), times(&ratio_se));
-    let all = [(0..AXLES).collect::<Vec<usize>>()];
-    let common = g.rss_at(&all, fit.form, fit.gamma);
+    let common = g.rss_at(&together(), fit.form, fit.gamma);
     let mut between_sd = None;
     let mut shrink = [0.0; AXLES];
     if groups.len() > 1 {
@@ -3079,6 +3065,20 @@ impl Gram {
         })
     }
 
+    /// The fit with `groups` at the best γ for `form` (golden section over [`GAMMA_RANGE`];
+    /// 0 for the constant form).
+    fn fit_over_gamma(&self, groups: &[Vec<usize>], form: PadForm) -> Option<Fit> {
+        if form == PadForm::Constant {
+            return self.rss_at(groups, form, 0.0);
+        }
+        let rss = |g: f64| {
+            self.rss_at(groups, form, g)
+                .map_or(f64::INFINITY, |x| x.rss)
+        };
+        let gamma = golden(&rss, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
+        self.rss_at(groups, form, gamma)
+    }
+
     /// The best γ for `form` (0 for the constant form), merging axles whose α cannot be told
     /// apart ([`MAX_ALPHA_REL_SE`]); the second value says why the form is refused, if it is.
     fn fit_form(
@@ -3088,17 +3088,7 @@ impl Gram {
         inflate: f64,
     ) -> (Option<Fit>, Option<String>) {
         loop {
-            let fit = if form == PadForm::Constant {
-                self.rss_at(groups, form, 0.0)
-            } else {
-                let f = |g: f64| {
-                    self.rss_at(groups, form, g)
-                        .map_or(f64::INFINITY, |x| x.rss)
-                };
-                let gamma = golden(&f, GAMMA_RANGE.0, GAMMA_RANGE.1, 1e-6);
-                self.rss_at(groups, form, gamma)
-            };
-            let Some(fit) = fit else {
+            let Some(fit) = self.fit_over_gamma(groups, form) else {
                 if groups.len() > 1 {
                     merge_first(groups, None);
                     continue;
@@ -3141,6 +3131,11 @@ impl Fit {
     }
 }
 
+/// Every axle in one group (one common ratio).
+fn together() -> [Vec<usize>; 1] {
+    [(0..AXLES).collect()]
+}
+
 /// Merges two groups (the given pair, or the first two).
 fn merge_first(groups: &mut Vec<Vec<usize>>, pair: Option<(usize, usize)>) {
     let (a, b) = pair.unwrap_or((0, 1));
@@ -3158,9 +3153,6 @@ mod tests {
         (0..AXLES).map(|a| vec![a]).collect()
     }
 
-    /// Runs of `sizes` rows for a synthetic balance: speeds and the four pressures from a fixed
-    /// pseudo-random sequence, y = Σ ratio_i α_i p_i/r + c_run + c1 v + c2 v² + noise (N),
-    /// carried by the radar's deceleration (the wheels' ω̇ zero).
     /// At no delays and scale 1.
     const AT_0: At = At {
         radar_s: 0.0,
@@ -3194,6 +3186,9 @@ mod tests {
         }
     }
 
+    /// Runs of `sizes` rows for a synthetic balance: speeds and the four pressures from a fixed
+    /// pseudo-random sequence, y = Σ ratio_i α_i p_i/r + c_run + c1 v + c2 v² + noise (N),
+    /// carried by the radar's deceleration (the wheels' ω̇ zero).
     fn synthetic_runs(sizes: &[usize], r: f64, mass: f64, alpha: [f64; AXLES]) -> Vec<RunSignals> {
         let mut rng = crate::rng::Rng::new(7);
         let mut uniform = move || rng.uniform();
@@ -3227,6 +3222,34 @@ mod tests {
                 run
             })
             .collect()
+    }
+
+    /// The α errors' spread (the delta method): nothing where no parameter was fitted; where
+    /// the radar's latency was, every fitted ratio moves, and each pooled ratio moves as its
+    /// pooling weight says: as its own group's with B = 0, as the common ratio — the same for
+    /// every axle — with B = 1.
+    #[test]
+    fn the_alpha_errors_spread_follows_the_fit_and_the_pooling() {
+        let alpha = [1600.0, 1650.0, 1580.0, 1620.0];
+        let runs = synthetic_runs(&[200, 150], R_M, MASS_KG, alpha);
+        let b = test_balance(&runs, &[], alpha, true, false);
+        let form = PadForm::Constant;
+        let fit = b.gram(&AT_0, form).rss_at(&groups(), form, 0.0).unwrap();
+        let none = b.alpha_spread(&fit, &AT_0, [f64::NAN, 0.0, f64::NAN], &[0.0; AXLES]);
+        assert_eq!(none, ([0.0; AXLES], [0.0; AXLES]));
+        let se = [0.004, f64::NAN, f64::NAN];
+        let (fitted, apart) = b.alpha_spread(&fit, &AT_0, se, &[0.0; AXLES]);
+        assert!(
+            fitted.iter().all(|x| *x > 0.0 && x.is_finite()),
+            "{fitted:?}"
+        );
+        assert_eq!(apart, fitted);
+        let (again, pooled) = b.alpha_spread(&fit, &AT_0, se, &[1.0; AXLES]);
+        assert_eq!(again, fitted);
+        assert!(
+            pooled.iter().all(|x| *x == pooled[0]) && pooled[0] > 0.0,
+            "{pooled:?}"
+        );
     }
 
     /// The inverse of the symmetric positive definite matrix `m` by Gauss–Jordan elimination
