@@ -8,8 +8,10 @@ use crate::format::AXLES;
 /// The speed form of the pad friction: constant; linear, φ = 1 − v/v_ref (the first-order form of a
 /// friction that rises as the sliding speed falls [assumed]); quadratic and cubic,
 /// φ = max(0, 1 − v/v_ref)^2 and ^3 (a rise that gathers towards standstill; the shape varies
-/// with the pad material, so the powers are candidates for BIC, not a law [assumed]); or
-/// Karwatzki's, φ = k(v)/k(v_ref) − 1
+/// with the pad material, so the powers are candidates for BIC, not a law [assumed]); two
+/// mixtures of neighbouring powers, φ = (1 − w) φ_linear + w φ_quadratic and
+/// (1 − w) φ_quadratic + w φ_cubic with 0 ≤ w ≤ 1 fitted (a shape between two of the powers,
+/// one parameter more [assumed]); or Karwatzki's, φ = k(v)/k(v_ref) − 1
 /// with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 /// formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
 /// Teubner 2003).
@@ -20,15 +22,21 @@ pub enum PadForm {
     Linear,
     Quadratic,
     Cubic,
+    #[serde(rename = "linear-quadratic")]
+    LinearQuadratic,
+    #[serde(rename = "quadratic-cubic")]
+    QuadraticCubic,
     Karwatzki,
 }
 
 impl PadForm {
-    pub const ALL: [PadForm; 5] = [
+    pub const ALL: [PadForm; 7] = [
         PadForm::Constant,
         PadForm::Linear,
         PadForm::Quadratic,
         PadForm::Cubic,
+        PadForm::LinearQuadratic,
+        PadForm::QuadraticCubic,
         PadForm::Karwatzki,
     ];
 
@@ -38,17 +46,29 @@ impl PadForm {
             PadForm::Linear => "linear",
             PadForm::Quadratic => "quadratic",
             PadForm::Cubic => "cubic",
+            PadForm::LinearQuadratic => "linear-quadratic",
+            PadForm::QuadraticCubic => "quadratic-cubic",
             PadForm::Karwatzki => "karwatzki",
         }
     }
 
-    /// φ(v), zero at `v_ref` (m/s).
-    pub fn phi(self, v_mps: f64, v_ref_mps: f64) -> f64 {
+    /// Whether the form is a mixture of two powers, with a weight w to fit.
+    pub fn mixes(self) -> bool {
+        matches!(self, PadForm::LinearQuadratic | PadForm::QuadraticCubic)
+    }
+
+    /// φ(v), zero at `v_ref` (m/s); `mix` is a mixture's weight w (0 ≤ w ≤ 1; the other forms
+    /// ignore it).
+    pub fn phi(self, v_mps: f64, v_ref_mps: f64, mix: f64) -> f64 {
+        let u = 1.0 - v_mps / v_ref_mps;
+        let power = |n: i32| u.max(0.0).powi(n);
         match self {
             PadForm::Constant => 0.0,
-            PadForm::Linear => 1.0 - v_mps / v_ref_mps,
-            PadForm::Quadratic => (1.0 - v_mps / v_ref_mps).max(0.0).powi(2),
-            PadForm::Cubic => (1.0 - v_mps / v_ref_mps).max(0.0).powi(3),
+            PadForm::Linear => u,
+            PadForm::Quadratic => power(2),
+            PadForm::Cubic => power(3),
+            PadForm::LinearQuadratic => (1.0 - mix) * u + mix * power(2),
+            PadForm::QuadraticCubic => (1.0 - mix) * power(2) + mix * power(3),
             PadForm::Karwatzki => {
                 let k = |v: f64| {
                     let kmh = 3.6 * v.max(0.0);
@@ -71,6 +91,15 @@ pub struct PadLaw {
     pub gamma_se: f64,
     /// The speed where α_i(v) = α_i, m/s.
     pub v_ref_mps: f64,
+    /// A mixture's weight w ([`PadForm::phi`]); 0, and not written, for the other forms.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mix: f64,
+}
+
+/// Whether a value is 0 (serde's `skip_serializing_if` for a mixture's weight).
+#[allow(clippy::trivially_copy_pass_by_ref)]
+pub(crate) fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 impl PadLaw {
@@ -81,12 +110,27 @@ impl PadLaw {
             gamma: 0.0,
             gamma_se: 0.0,
             v_ref_mps: 1.0,
+            mix: 0.0,
+        }
+    }
+
+    /// φ(v) of the law's form ([`PadForm::phi`]).
+    pub fn phi(&self, v_mps: f64) -> f64 {
+        self.form.phi(v_mps, self.v_ref_mps, self.mix)
+    }
+
+    /// The form's name, with a mixture's weight: "quadratic-cubic (w = 0.48)".
+    pub fn label(&self) -> String {
+        if self.form.mixes() {
+            format!("{} (w = {:.2})", self.form.name(), self.mix)
+        } else {
+            self.form.name().to_string()
         }
     }
 
     /// 1 + γ φ(v).
     pub fn factor(&self, v_mps: f64) -> f64 {
-        1.0 + self.gamma * self.form.phi(v_mps, self.v_ref_mps)
+        1.0 + self.gamma * self.phi(v_mps)
     }
 
     /// The relative rise from the top speed to standstill, γ φ(0).
@@ -171,7 +215,7 @@ impl Calibrated {
             self.runs.len(),
             alpha.join(", "),
             c.pad.v_ref_mps * 3.6,
-            c.pad.form.name(),
+            c.pad.label(),
             c.pad.rise_to_standstill() * 100.0,
             c.radar_scale,
             c.radar_latency_s * 1e3,
@@ -191,7 +235,7 @@ impl Calibrated {
         let alpha: Vec<String> = (0..AXLES)
             .map(|a| pm(c.alpha_nm_per_bar[a], e.alpha_se[a], 1))
             .collect();
-        let rise_se = c.pad.gamma_se * c.pad.form.phi(0.0, c.pad.v_ref_mps).abs() * 100.0;
+        let rise_se = c.pad.gamma_se * c.pad.phi(0.0).abs() * 100.0;
         let rise = if rise_se.is_finite() {
             format!("{:+.2} ± {rise_se:.2}", c.pad.rise_to_standstill() * 100.0)
         } else {
@@ -218,10 +262,7 @@ impl Calibrated {
         } else {
             (
                 format!(" at {:.0} km/h", c.pad.v_ref_mps * 3.6),
-                format!(
-                    "pad friction {} ({rise} % to standstill)",
-                    c.pad.form.name()
-                ),
+                format!("pad friction {} ({rise} % to standstill)", c.pad.label()),
                 format!(
                     "{} % at {:.0} km/h and {} % at 10 km/h",
                     moved(c.pad.v_ref_mps),
@@ -293,6 +334,7 @@ mod tests {
                     gamma: 0.05,
                     gamma_se: 0.001,
                     v_ref_mps: 55.0,
+                    mix: 0.0,
                 },
                 radar_scale: 1.003,
                 radar_latency_s: 0.03,
@@ -340,5 +382,73 @@ mod tests {
                 ),
             "{line}"
         );
+    }
+
+    /// A mixture's φ is its two powers' at w = 0 and 1, lies between them in between, and
+    /// rises monotonically towards standstill; its weight is written only where it is one (a
+    /// record of a pure form keeps its bytes) and named in the summary.
+    #[test]
+    fn a_mixture_lies_between_its_two_powers() {
+        let v_ref = 55.0;
+        for (mixed, lo, hi) in [
+            (
+                PadForm::LinearQuadratic,
+                PadForm::Linear,
+                PadForm::Quadratic,
+            ),
+            (PadForm::QuadraticCubic, PadForm::Quadratic, PadForm::Cubic),
+        ] {
+            assert!(mixed.mixes() && !lo.mixes() && !hi.mixes());
+            for i in 0..=20 {
+                let v = v_ref * f64::from(i) / 20.0;
+                let (a, b) = (lo.phi(v, v_ref, 0.3), hi.phi(v, v_ref, 0.3));
+                assert_eq!(mixed.phi(v, v_ref, 0.0), a);
+                assert_eq!(mixed.phi(v, v_ref, 1.0), b);
+                let m = mixed.phi(v, v_ref, 0.3);
+                assert!(m >= a.min(b) && m <= a.max(b), "{mixed:?} at {v}: {m}");
+                if i > 0 {
+                    assert!(m < mixed.phi(v - v_ref / 20.0, v_ref, 0.3));
+                }
+            }
+            assert_eq!(mixed.phi(v_ref, v_ref, 0.3), 0.0);
+            assert_eq!(mixed.phi(0.0, v_ref, 0.3), 1.0);
+        }
+        let mut c = calibrated(None);
+        let pure = serde_json::to_string(&c).unwrap();
+        assert!(!pure.contains("mix"), "{pure}");
+        c.corrections.pad.form = PadForm::QuadraticCubic;
+        c.corrections.pad.mix = 0.47;
+        let text = serde_json::to_string(&c).unwrap();
+        assert!(
+            text.contains(r#""form":"quadratic-cubic""#) && text.contains(r#""mix":0.47"#),
+            "{text}"
+        );
+        let back: Calibrated = serde_json::from_str(&text).unwrap();
+        assert_eq!(back, c);
+        assert!(
+            back.summary()
+                .contains("pad friction quadratic-cubic (w = 0.47) (+5.0 % to standstill)"),
+            "{}",
+            back.summary()
+        );
+    }
+
+    proptest::proptest! {
+        /// For every weight and speed below the reference, a mixture's φ lies between its two
+        /// powers' and within 0 … 1.
+        #[test]
+        fn every_mixture_lies_between_its_powers(w in 0.0..=1.0f64, x in 0.0..=1.0f64) {
+            let v_ref = 55.0;
+            let v = x * v_ref;
+            for (mixed, lo, hi) in [
+                (PadForm::LinearQuadratic, PadForm::Linear, PadForm::Quadratic),
+                (PadForm::QuadraticCubic, PadForm::Quadratic, PadForm::Cubic),
+            ] {
+                let (a, b) = (lo.phi(v, v_ref, w), hi.phi(v, v_ref, w));
+                let m = mixed.phi(v, v_ref, w);
+                proptest::prop_assert!(m >= a.min(b) - 1e-15 && m <= a.max(b) + 1e-15);
+                proptest::prop_assert!((0.0..=1.0).contains(&m));
+            }
+        }
     }
 }

@@ -43,11 +43,16 @@
 //! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (the first-order form of a friction
 //! that rises as the sliding speed falls, as disc pads' does [assumed: no source fixes its
 //! shape]); quadratic and cubic, φ = max(0, 1 − v/v_ref)^2 and ^3 (rises gathered towards
-//! standstill [assumed]); Karwatzki's, φ = k(v)/k(v_ref) −
+//! standstill [assumed]); the mixtures of neighbouring powers, (1 − w) φ_linear + w φ_quadratic
+//! and (1 − w) φ_quadratic + w φ_cubic, w in [0, 1] fitted ([`best_mix`]; a shape between two
+//! powers would otherwise leak into the per-axle α, where each axle's pressure differences
+//! lie, [assumed]: smooth, rising towards standstill); Karwatzki's, φ = k(v)/k(v_ref) −
 //! 1 with k(v) = (v + 100)/(5 v + 100), v in km/h — the speed factor of Karwatzki's empirical
 //! formula for cast-iron blocks (as given in Wende, *Fahrdynamik des Schienenverkehrs*,
 //! Teubner 2003). The form is chosen by BIC = n_eff ln(RSS/n) + k ln(n_eff) with n_eff
-//! the residuals' effective number of samples, as the Polach temperature forms are.
+//! the residuals' effective number of samples, as the Polach temperature forms are; a mixture
+//! counts w as one parameter more, and one whose w ends at 0 or 1 is refused (a pure power
+//! fits as well).
 //!
 //! **The radar.** It reads v_radar(t) = s v(t − τ). The scale s comes from the coasts before
 //! each run's first brake application, where the wheels roll with only the creep the running
@@ -82,6 +87,7 @@
 // `!(x >= lo)` is deliberate: a NaN fails the check instead of passing it.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+use crate::config::calibrated::is_zero;
 use crate::config::Pipeline;
 use crate::format::AXLES;
 use crate::ingest::RunLog;
@@ -117,6 +123,10 @@ pub const MAX_ALPHA_REL_SE: f64 = 0.05;
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PadCandidate {
     pub form: PadForm,
+    /// A mixture's fitted weight w ([`PadForm::phi`]); 0, and not written, for the other
+    /// forms.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub mix: f64,
     /// With one resistance constant per run (else one for the campaign).
     pub per_run_constants: bool,
     #[serde(with = "crate::config::calibrated::nan_as_null")]
@@ -585,6 +595,7 @@ impl<'p> CampaignCalibrator<'p> {
             alpha_pipeline: veh.brake_torque_nm_per_bar,
             weights: &[],
             integrated: false,
+            pad_mix: 0.0,
         }
     }
 
@@ -652,6 +663,7 @@ impl<'p> CampaignCalibrator<'p> {
         };
         let chosen = Balance {
             per_run,
+            pad_mix: fit.mix,
             ..weighted
         };
         let g = chosen.gram(at, fit.form);
@@ -742,10 +754,10 @@ impl<'p> CampaignCalibrator<'p> {
         let constants = if per_run { runs } else { 1.0 };
         let res = Resistance::applied(fit, sigma2, kept.is_some(), g, n / n_eff, constants);
         // The pipeline's α kept: with the pad friction constant.
-        let (pad_form, pad_gamma, gamma_se) = if kept.is_some() {
-            (PadForm::Constant, 0.0, 0.0)
+        let (pad_form, pad_gamma, gamma_se, pad_mix) = if kept.is_some() {
+            (PadForm::Constant, 0.0, 0.0, 0.0)
         } else {
-            (fit.form, fit.gamma, gamma_error(g, fit, sigma2))
+            (fit.form, fit.gamma, gamma_error(g, fit, sigma2), fit.mix)
         };
         let run_constants = b.run_constants(&at, res.fit.form, &res);
         notes.extend(kept);
@@ -762,6 +774,7 @@ impl<'p> CampaignCalibrator<'p> {
                 gamma: pad_gamma,
                 gamma_se,
                 v_ref_mps: v_ref,
+                mix: pad_mix,
             },
             pad_candidates: candidates.clone(),
             per_run_constants: per_run,
@@ -1639,11 +1652,21 @@ fn select_model(
     let mut best: Option<(Fit, f64, bool)> = None;
     for (bb, per_run) in [(b, true), (&b_common, false)] {
         for form in PadForm::ALL {
-            let g = bb.gram(at, form);
-            let (fit, refused) = g.fit_form(&mut groups.clone(), form, inflate);
-            let Some(fit) = fit else {
+            let (mix, g) = if form.mixes() {
+                best_mix(bb, at, form, &groups)
+            } else {
+                (0.0, bb.gram(at, form))
+            };
+            let (fit, mut refused) = g.fit_form(&mut groups.clone(), form, inflate);
+            if form.mixes() && refused.is_none() && mix.min(1.0 - mix) < 1e-3 {
+                refused = Some(format!(
+                    "w = {mix:.3} is at the end of its range (one of its two powers alone fits as well)"
+                ));
+            }
+            let Some(mut fit) = fit else {
                 candidates.push(PadCandidate {
                     form,
+                    mix,
                     per_run_constants: per_run,
                     gamma: f64::NAN,
                     rss: f64::NAN,
@@ -1652,12 +1675,18 @@ fn select_model(
                 });
                 continue;
             };
+            fit.mix = mix;
             let constants = if per_run { runs_n } else { 1 };
-            let k = fit.groups.len() + 2 + usize::from(form != PadForm::Constant) + constants;
+            let k = fit.groups.len()
+                + 2
+                + usize::from(form != PadForm::Constant)
+                + usize::from(form.mixes())
+                + constants;
             let n = g.n as f64;
             let bic = n_eff_common * (fit.rss / n).ln() + k as f64 * n_eff_common.ln();
             candidates.push(PadCandidate {
                 form,
+                mix,
                 per_run_constants: per_run,
                 gamma: fit.gamma,
                 rss: fit.rss,
@@ -1670,6 +1699,45 @@ fn select_model(
         }
     }
     (best, candidates)
+}
+
+/// A mixed pad form's weight w (0 ≤ w ≤ 1, [`PadForm::phi`]) that leaves the least residual
+/// with every axle apart and γ at its best, and the balance's Gram matrix at it: a grid of
+/// steps of 0.1, then a golden section about its best point (to 1e-3). The residual is a
+/// smooth function of w, but not always unimodal over the whole range, hence the grid first.
+/// The φ columns are affine in w, so every entry of the Gram matrix is a quadratic in w (the
+/// constants' elimination included: the force balance's Σ w z zᵀ − (Σ w z)(Σ w z)ᵀ / Σ w, the
+/// integrated one's projections on columns free of w): three passes over the samples, at
+/// w = 0, ½ and 1, give it at every w.
+fn best_mix(b: &Balance, at: &At, form: PadForm, groups: &[Vec<usize>]) -> (f64, Gram) {
+    let pass = |w: f64| Balance { pad_mix: w, ..*b }.gram(at, form);
+    let (g0, gh, g1) = (pass(0.0), pass(0.5), pass(1.0));
+    let at_w = |w: f64| Gram {
+        g: g0
+            .g
+            .iter()
+            .zip(&gh.g)
+            .zip(&g1.g)
+            .map(|((a, h), c)| {
+                // Lagrange's quadratic through (0, a), (½, h), (1, c).
+                a * (1.0 - w) * (1.0 - 2.0 * w) + 4.0 * h * w * (1.0 - w) + c * w * (2.0 * w - 1.0)
+            })
+            .collect(),
+        n: g0.n,
+    };
+    let rss = |w: f64| {
+        at_w(w)
+            .fit_over_gamma(groups, form)
+            .map_or(f64::INFINITY, |f| f.rss)
+    };
+    let (w0, _) = (0..=10)
+        .map(|i| {
+            let w = f64::from(i) / 10.0;
+            (w, rss(w))
+        })
+        .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
+    let w = golden(&rss, (w0 - 0.1).max(0.0), (w0 + 0.1).min(1.0), 1e-3);
+    (w, at_w(w))
 }
 
 /// The runs with the vehicle's constants.
@@ -1691,6 +1759,9 @@ struct Balance<'a> {
     /// forces' impulses, each stretch of consecutive samples with its own constant of
     /// integration. Else the force balance row by row.
     integrated: bool,
+    /// The pad friction's mixture weight w for the mixed forms ([`PadForm::phi`]; the other
+    /// forms ignore it).
+    pad_mix: f64,
 }
 
 /// Where the balance is evaluated: the radar's latency and the tachometers' delay (s), and the
@@ -1842,7 +1913,7 @@ impl Balance<'_> {
         let v = shifted(&run.v_radar, &run.ok, k, shift)? / at.scale;
         let a = shifted(&run.a_radar, &run.ok, k, shift)? / at.scale;
         let wd = shifted(&run.wd_sum, &run.ok, k, at.tacho_s * run.fs)?;
-        let phi = form.phi(v, self.v_ref);
+        let phi = form.phi(v, self.v_ref, self.pad_mix);
         let mut z = [0.0; Z];
         for i in 0..AXLES {
             z[i] = self.alpha_pipeline[i] * p[i] * self.inv_r;
@@ -2486,6 +2557,7 @@ impl Coefficients {
         Balance {
             weights: &self.weights,
             per_run: self.per_run,
+            pad_mix: self.fit.mix,
             ..*b
         }
     }
@@ -2847,6 +2919,9 @@ struct Gram {
 #[derive(Debug, Clone)]
 struct Fit {
     form: PadForm,
+    /// A mixture's weight w (the balance's [`Balance::pad_mix`] it was fitted on; 0 for the
+    /// other forms): set where the form is chosen ([`select_model`]).
+    mix: f64,
     groups: Vec<Vec<usize>>,
     gamma: f64,
     beta: Vec<f64>,
@@ -3055,6 +3130,7 @@ impl Gram {
         }
         Some(Fit {
             form,
+            mix: 0.0,
             groups: groups.to_vec(),
             gamma,
             cov: inv,
@@ -3183,6 +3259,7 @@ mod tests {
             alpha_pipeline: alpha,
             weights,
             integrated,
+            pad_mix: 0.0,
         }
     }
 
