@@ -655,6 +655,55 @@ fn csv_cut_mid_line() {
     );
 }
 
+/// A last line cut off inside its last mapped column, with only unmapped columns after it:
+/// polars reads the mapped columns alone, so the cut value (a number's first digits) was once
+/// read as it was, without a word. The same file whole, with its unmapped cells left empty,
+/// and with a quoted last cell that holds a comma or a line end, reads.
+#[test]
+fn csv_cut_before_unmapped_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let lines = text.lines().count();
+    let with_extra = |extra: &str| -> String {
+        text.lines()
+            .enumerate()
+            .map(|(i, l)| format!("{l},{}\n", if i == 0 { "gps_fix" } else { extra }))
+            .collect()
+    };
+    let whole = with_extra("4");
+    let p = write(dir.path(), "whole.csv", whole.as_bytes());
+    let run = ingest_file(&p, &default()).unwrap();
+    let empty = write(dir.path(), "empty.csv", with_extra("").as_bytes());
+    let again = ingest_file(&empty, &default()).unwrap();
+    assert_eq!(
+        (&again.time_s, &again.v_radar_mps, &again.p_bar),
+        (&run.time_s, &run.v_radar_mps, &run.p_bar)
+    );
+    // A quoted unmapped field with a comma, and one over two lines, in the last row: its last
+    // physical line is not a cut-off row.
+    let quoted = with_extra("4");
+    let quoted = format!("{}\"a, b\"\n", &quoted[..quoted.len() - "4\n".len()]);
+    let p = write(dir.path(), "quoted.csv", quoted.as_bytes());
+    assert_eq!(ingest_file(&p, &default()).unwrap().time_s, run.time_s);
+    let two_lines = quoted.replace("\"a, b\"", "\"first,\nsecond\"");
+    let p = write(dir.path(), "two_lines.csv", two_lines.as_bytes());
+    assert_eq!(ingest_file(&p, &default()).unwrap().time_s, run.time_s);
+    // The last line without its ",4\n" and its last mapped value's last two characters.
+    let last_value = whole.lines().last().unwrap().rsplit(',').nth(1).unwrap();
+    assert!(last_value.len() > 2, "{last_value}");
+    let cut = &whole[..whole.len() - ",4\n".len() - 2];
+    let p = write(dir.path(), "cut.csv", cut.as_bytes());
+    let e = err(&p, &default());
+    let header_fields = text.lines().next().unwrap().split(',').count() + 1;
+    assert!(
+        e.contains(&format!(
+            "cut.csv: line {lines}: the last line has {} of {header_fields} fields",
+            header_fields - 1
+        )) && e.contains("looks cut off mid-line"),
+        "{e}"
+    );
+}
+
 fn replace_cell(text: &str, line: usize, col: usize, with: &str) -> String {
     text.lines()
         .enumerate()

@@ -500,6 +500,21 @@ fn pad_laws_of_other_shapes_are_calibrated_by_a_form_near_them() {
             "n = {n}: {:?}",
             c.pad_candidates
         );
+        if c.pad.form.mixes() {
+            // The weight written is the chosen candidate's, and inside its range (measured:
+            // 0.28 at n = 1.5, 0.47 at n = 2.5).
+            let chosen = c
+                .pad_candidates
+                .iter()
+                .find(|k| k.form == c.pad.form && k.per_run_constants == c.per_run_constants)
+                .unwrap();
+            assert_eq!(chosen.mix, c.pad.mix);
+            assert!(
+                (0.15..=0.85).contains(&c.pad.mix),
+                "n = {n}: w {}",
+                c.pad.mix
+            );
+        }
         for (name, after) in assert_rmse_ratio(&runs, &c, &format!("pad law n = {n}")) {
             for (a, (_, bias)) in after.iter().enumerate() {
                 assert!(

@@ -339,34 +339,7 @@ fn calibrate_campaign(
         let names: Vec<String> = g.iter().map(|a| (a + 1).to_string()).collect();
         println!("shared     axles {} fitted with one α", names.join(", "));
     }
-    println!("pad        form      constants  γ        BIC");
-    for c in &f.pad_candidates {
-        let chosen = c.form == f.pad.form && c.per_run_constants == f.per_run_constants;
-        let mark = if chosen { "  chosen" } else { "" };
-        println!(
-            "           {:<9} {:<10} {:+.4}  {:>10.1}{mark}{}",
-            c.form.name(),
-            if c.per_run_constants {
-                "per run"
-            } else {
-                "one"
-            },
-            c.gamma,
-            c.bic,
-            c.refused
-                .as_deref()
-                .map(|r| format!(" refused: {r}"))
-                .unwrap_or_default()
-        );
-    }
-    println!(
-        "pad        {} law: α_i(v) = α_i (1 {:+.4} ± {:.4} φ(v)), {:+.2} % from {:.0} km/h to standstill",
-        f.pad.form.name(),
-        f.pad.gamma,
-        f.pad.gamma_se,
-        f.pad.rise_to_standstill() * 100.0,
-        f.pad.v_ref_mps * 3.6
-    );
+    print_pad(f);
     println!(
         "resistance {} + ({:.2} ± {}) N·s/m · v + ({:.3} ± {}) N·s²/m² · v²",
         if f.per_run_constants {
@@ -399,6 +372,64 @@ fn calibrate_campaign(
         println!("written    {}", path.display());
     }
     Ok(EXIT_OK)
+}
+
+/// The pad forms fitted, each with its BIC (a mixture's weight w in its own column), and the
+/// law chosen.
+fn print_pad(f: &railgrip::estimate::selfcal::CampaignCalibration) {
+    // A mixture's weight w in its own column (16: "linear-quadratic").
+    let width = if f.pad_candidates.iter().any(|c| c.form.mixes()) {
+        16
+    } else {
+        9
+    };
+    let w_of = |c: &railgrip::estimate::selfcal::PadCandidate| {
+        if c.form.mixes() {
+            format!(" {:>5.2}", c.mix)
+        } else if width > 9 {
+            "      ".to_string()
+        } else {
+            String::new()
+        }
+    };
+    println!(
+        "pad        {:<width$}{} constants  γ        BIC",
+        "form",
+        if width > 9 { "     w" } else { "" }
+    );
+    for c in &f.pad_candidates {
+        let chosen = c.form == f.pad.form && c.per_run_constants == f.per_run_constants;
+        let mark = if chosen { "  chosen" } else { "" };
+        println!(
+            "           {:<width$}{} {:<10} {:+.4}  {:>10.1}{mark}{}",
+            c.form.name(),
+            w_of(c),
+            if c.per_run_constants {
+                "per run"
+            } else {
+                "one"
+            },
+            c.gamma,
+            c.bic,
+            c.refused
+                .as_deref()
+                .map(|r| format!(" refused: {r}"))
+                .unwrap_or_default()
+        );
+    }
+    println!(
+        "pad        {} law: α_i(v) = α_i (1 {:+.4} ± {:.4} φ(v)){}, {:+.2} % from {:.0} km/h to standstill",
+        f.pad.form.name(),
+        f.pad.gamma,
+        f.pad.gamma_se,
+        if f.pad.form.mixes() {
+            format!(", φ's mixture weight w = {:.3}", f.pad.mix)
+        } else {
+            String::new()
+        },
+        f.pad.rise_to_standstill() * 100.0,
+        f.pad.v_ref_mps * 3.6
+    );
 }
 
 /// The radar's and the tachometers' lines of `railgrip calibrate --campaign`.

@@ -119,10 +119,10 @@ impl PadLaw {
         self.form.phi(v_mps, self.v_ref_mps, self.mix)
     }
 
-    /// The form's name, with a mixture's weight: "quadratic-cubic (w = 0.48)".
+    /// The form's name, with a mixture's weight: "quadratic-cubic, w = 0.48".
     pub fn label(&self) -> String {
         if self.form.mixes() {
-            format!("{} (w = {:.2})", self.form.name(), self.mix)
+            format!("{}, w = {:.2}", self.form.name(), self.mix)
         } else {
             self.form.name().to_string()
         }
@@ -427,7 +427,7 @@ mod tests {
         assert_eq!(back, c);
         assert!(
             back.summary()
-                .contains("pad friction quadratic-cubic (w = 0.47) (+5.0 % to standstill)"),
+                .contains("pad friction quadratic-cubic, w = 0.47 (+5.0 % to standstill)"),
             "{}",
             back.summary()
         );

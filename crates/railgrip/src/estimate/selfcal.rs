@@ -670,7 +670,9 @@ impl<'p> CampaignCalibrator<'p> {
         let fit = fit.over_gamma(&g);
         let n = g.n as f64;
         let n_eff = chosen.n_eff(at, fit.form, &fit);
-        let dof = (n - runs_n as f64 - fit.beta.len() as f64 - 1.0).max(1.0);
+        // γ, and a mixture's weight.
+        let shape = 1.0 + f64::from(u8::from(fit.form.mixes()));
+        let dof = (n - runs_n as f64 - fit.beta.len() as f64 - shape).max(1.0);
         let sigma2 = fit.rss / dof * n / n_eff;
         Ok(Coefficients {
             weights,
@@ -757,7 +759,12 @@ impl<'p> CampaignCalibrator<'p> {
         let (pad_form, pad_gamma, gamma_se, pad_mix) = if kept.is_some() {
             (PadForm::Constant, 0.0, 0.0, 0.0)
         } else {
-            (fit.form, fit.gamma, gamma_error(g, fit, sigma2), fit.mix)
+            (
+                fit.form,
+                fit.gamma,
+                gamma_error_over_mix(&b, &at, g, fit, sigma2),
+                fit.mix,
+            )
         };
         let run_constants = b.run_constants(&at, res.fit.form, &res);
         notes.extend(kept);
@@ -1653,7 +1660,22 @@ fn select_model(
     for (bb, per_run) in [(b, true), (&b_common, false)] {
         for form in PadForm::ALL {
             let (mix, g) = if form.mixes() {
-                best_mix(bb, at, form, &groups)
+                let Some(best) = best_mix(bb, at, form, &groups) else {
+                    candidates.push(PadCandidate {
+                        form,
+                        mix: 0.0,
+                        per_run_constants: per_run,
+                        gamma: f64::NAN,
+                        rss: f64::NAN,
+                        bic: f64::NAN,
+                        refused: Some(
+                            "no mixture weight gives a fit (the balance's normal matrix is singular)"
+                                .into(),
+                        ),
+                    });
+                    continue;
+                };
+                best
             } else {
                 (0.0, bb.gram(at, form))
             };
@@ -1702,42 +1724,87 @@ fn select_model(
 }
 
 /// A mixed pad form's weight w (0 ≤ w ≤ 1, [`PadForm::phi`]) that leaves the least residual
-/// with every axle apart and γ at its best, and the balance's Gram matrix at it: a grid of
-/// steps of 0.1, then a golden section about its best point (to 1e-3). The residual is a
-/// smooth function of w, but not always unimodal over the whole range, hence the grid first.
-/// The φ columns are affine in w, so every entry of the Gram matrix is a quadratic in w (the
-/// constants' elimination included: the force balance's Σ w z zᵀ − (Σ w z)(Σ w z)ᵀ / Σ w, the
-/// integrated one's projections on columns free of w): three passes over the samples, at
-/// w = 0, ½ and 1, give it at every w.
-fn best_mix(b: &Balance, at: &At, form: PadForm, groups: &[Vec<usize>]) -> (f64, Gram) {
-    let pass = |w: f64| Balance { pad_mix: w, ..*b }.gram(at, form);
-    let (g0, gh, g1) = (pass(0.0), pass(0.5), pass(1.0));
-    let at_w = |w: f64| Gram {
-        g: g0
-            .g
-            .iter()
-            .zip(&gh.g)
-            .zip(&g1.g)
-            .map(|((a, h), c)| {
-                // Lagrange's quadratic through (0, a), (½, h), (1, c).
-                a * (1.0 - w) * (1.0 - 2.0 * w) + 4.0 * h * w * (1.0 - w) + c * w * (2.0 * w - 1.0)
+/// with γ at its best, and the balance's Gram matrix at it; None where no w gives a fit. The
+/// search holds the axle groups fixed: every axle apart, or one group where that fit is
+/// singular (axles that share a pressure), as [`Gram::fit_form`] later merges them. A grid of
+/// steps of 0.1, then a golden section about its best point (to 1e-3): the residual is a
+/// smooth function of w, but not always unimodal over the whole range. The φ columns are affine
+/// in w, so every entry of the Gram matrix is a quadratic in w (the constants' elimination
+/// included: the force balance's Σ w z zᵀ − (Σ w z)(Σ w z)ᵀ / Σ w, the integrated one's
+/// projections on columns free of w; the rows and their weights do not depend on w): three
+/// passes over the samples, at w = 0, ½ and 1, give it at every w ([`MixGrams`]).
+fn best_mix(b: &Balance, at: &At, form: PadForm, groups: &[Vec<usize>]) -> Option<(f64, Gram)> {
+    let grams = MixGrams::new(b, at, form);
+    let grid = |groups: &[Vec<usize>]| -> (f64, f64) {
+        (0..=10)
+            .map(|i| {
+                let w = f64::from(i) / 10.0;
+                (w, grams.rss(w, groups, form))
             })
-            .collect(),
-        n: g0.n,
+            .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m })
     };
-    let rss = |w: f64| {
-        at_w(w)
+    let mut groups = groups.to_vec();
+    let mut best = grid(&groups);
+    if !best.1.is_finite() {
+        groups = together().to_vec();
+        best = grid(&groups);
+    }
+    if !best.1.is_finite() {
+        return None;
+    }
+    let w = golden(
+        &|w| grams.rss(w, &groups, form),
+        (best.0 - 0.1).max(0.0),
+        (best.0 + 0.1).min(1.0),
+        1e-3,
+    );
+    Some((w, grams.at(w)))
+}
+
+/// A balance's Gram matrices at the mixture weights 0, ½ and 1, and so at every w: each entry
+/// is a quadratic in w ([`best_mix`]).
+struct MixGrams {
+    g0: Gram,
+    half: Gram,
+    g1: Gram,
+}
+
+impl MixGrams {
+    fn new(b: &Balance, at: &At, form: PadForm) -> MixGrams {
+        let pass = |w: f64| Balance { pad_mix: w, ..*b }.gram(at, form);
+        MixGrams {
+            g0: pass(0.0),
+            half: pass(0.5),
+            g1: pass(1.0),
+        }
+    }
+
+    /// The Gram matrix at w: Lagrange's quadratic through (0, G₀), (½, G½), (1, G₁).
+    fn at(&self, w: f64) -> Gram {
+        let (l0, lh, l1) = (
+            (1.0 - w) * (1.0 - 2.0 * w),
+            4.0 * w * (1.0 - w),
+            w * (2.0 * w - 1.0),
+        );
+        Gram {
+            g: self
+                .g0
+                .g
+                .iter()
+                .zip(&self.half.g)
+                .zip(&self.g1.g)
+                .map(|((a, h), c)| l0 * a + lh * h + l1 * c)
+                .collect(),
+            n: self.g0.n,
+        }
+    }
+
+    /// The residual at w with `groups` and γ at its best (∞ where the fit is singular).
+    fn rss(&self, w: f64, groups: &[Vec<usize>], form: PadForm) -> f64 {
+        self.at(w)
             .fit_over_gamma(groups, form)
             .map_or(f64::INFINITY, |f| f.rss)
-    };
-    let (w0, _) = (0..=10)
-        .map(|i| {
-            let w = f64::from(i) / 10.0;
-            (w, rss(w))
-        })
-        .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
-    let w = golden(&rss, (w0 - 0.1).max(0.0), (w0 + 0.1).min(1.0), 1e-3);
-    (w, at_w(w))
+    }
 }
 
 /// The runs with the vehicle's constants.
@@ -2578,6 +2645,29 @@ fn gamma_error(g: &Gram, fit: &Fit, sigma2: f64) -> f64 {
     (2.0 * sigma2 / d2).sqrt()
 }
 
+/// [`gamma_error`], for a mixture with its weight w profiled out: the curvature of
+/// min over w of the residual at γ, so γ's error takes in what w trades off against it
+/// (at a fixed w it would be too small). `b` is the balance `g` was built from.
+fn gamma_error_over_mix(b: &Balance, at: &At, g: &Gram, fit: &Fit, sigma2: f64) -> f64 {
+    if !fit.form.mixes() {
+        return gamma_error(g, fit, sigma2);
+    }
+    let grams = MixGrams::new(b, at, fit.form);
+    let (lo, hi) = ((fit.mix - 0.2).max(0.0), (fit.mix + 0.2).min(1.0));
+    let profile = |gm: f64| {
+        let rss = |w: f64| {
+            grams
+                .at(w)
+                .rss_at(&fit.groups, fit.form, gm)
+                .map_or(f64::INFINITY, |x| x.rss)
+        };
+        rss(golden(&rss, lo, hi, 1e-5))
+    };
+    let h = 1e-3;
+    let d2 = (profile(fit.gamma + h) - 2.0 * profile(fit.gamma) + profile(fit.gamma - h)) / (h * h);
+    (2.0 * sigma2 / d2).sqrt()
+}
+
 /// One standard error of γ and of the two delays, from the chosen model's residual sum of
 /// squares: se² = 2 σ² / RSS'' at the fit (NaN for a delay taken as 0: not fitted).
 fn parameter_errors(
@@ -2701,10 +2791,11 @@ fn axle_alphas(
     // more than their errors: the pipeline's α stand, the pad friction constant (a change the
     // data do not call for only adds the fit's noise to every estimate). The likelihood ratio
     // of the common ratio's fit against ratio 1 and γ = 0 (the resistance free in both), with
-    // one degree of freedom for the ratio and one for γ where the form has it — for the
-    // constant form the same test as |ratio − 1| ≤ 1.96 standard errors.
+    // one degree of freedom for the ratio, one for γ where the form has it and one for a
+    // mixture's weight — for the constant form the same test as |ratio − 1| ≤ 1.96 standard
+    // errors.
     let one_ratio = between_sd.is_none_or(|sd| sd == 0.0);
-    let free = 1 + usize::from(fit.form != PadForm::Constant);
+    let free = 1 + usize::from(fit.form != PadForm::Constant) + usize::from(fit.form.mixes());
     let at_pipeline = resistance_at_ratio_1(g, 1.0, 1.0).map(|r| r.rss);
     let kept = keep.unwrap_or_else(|| {
         one_ratio
@@ -3504,6 +3595,65 @@ mod tests {
                 run
             })
             .collect()
+    }
+
+    /// A mixture's Gram matrix at any weight from the three at 0, ½ and 1 ([`MixGrams`]) is
+    /// the one built at that weight, on the force balance and the integrated one, with a
+    /// constant per run and one for the campaign, weighted runs; and the weight the search
+    /// finds is the least-residual one (a direct scan over w agrees within its step).
+    #[test]
+    fn a_mixtures_gram_is_quadratic_in_its_weight() {
+        let runs = stretched_runs();
+        let weights = [1.0, 2.5, 0.7];
+        let alpha = [1600.0, 1650.0, 1580.0, 1620.0];
+        for form in [PadForm::LinearQuadratic, PadForm::QuadraticCubic] {
+            for (per_run, integrated) in
+                [(true, false), (false, false), (true, true), (false, true)]
+            {
+                let b = test_balance(&runs, &weights, alpha, per_run, integrated);
+                let grams = MixGrams::new(&b, &AT_0, form);
+                for w in [0.13, 0.3, 0.77] {
+                    let direct = Balance { pad_mix: w, ..b }.gram(&AT_0, form);
+                    let got = grams.at(w);
+                    assert_eq!(got.n, direct.n);
+                    let scale = direct.g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+                    for (i, (a, d)) in got.g.iter().zip(&direct.g).enumerate() {
+                        assert!(
+                            (a - d).abs() <= 1e-9 * scale,
+                            "{form:?} per_run {per_run} integrated {integrated} w {w} entry {i}: {a} against {d}"
+                        );
+                    }
+                }
+                let (w, _) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+                let rss = |w: f64| grams.rss(w, &groups(), form);
+                let scan = (0..=200)
+                    .map(|i| f64::from(i) / 200.0)
+                    .min_by(|p, q| rss(*p).total_cmp(&rss(*q)))
+                    .unwrap();
+                assert!(
+                    rss(w) <= rss(scan) * (1.0 + 1e-6),
+                    "{form:?}: w {w} against {scan}"
+                );
+            }
+        }
+        // Two axles on one pressure: every axle apart is singular at every w, and the search
+        // holds them in one group instead of returning a weight it never fitted.
+        let mut shared = stretched_runs();
+        for run in &mut shared {
+            for row in &mut run.rows {
+                row.1[1] = row.1[0];
+            }
+        }
+        let b = test_balance(&shared, &weights, alpha, true, false);
+        let form = PadForm::QuadraticCubic;
+        assert!(b
+            .gram(&AT_0, form)
+            .fit_over_gamma(&groups(), form)
+            .is_none());
+        let (w, g) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+        let rss = |w: f64| MixGrams::new(&b, &AT_0, form).rss(w, &together(), form);
+        assert!(g.fit_over_gamma(&together(), form).is_some());
+        assert!((0..=20).all(|i| rss(w) <= rss(f64::from(i) / 20.0) * (1.0 + 1e-6)));
     }
 
     /// The integrated balance's Gram (each stretch's constant of integration and each run's

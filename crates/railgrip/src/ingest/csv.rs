@@ -7,8 +7,9 @@
 //! without data (blank, separators only), which polars reads as rows of empty cells, are left
 //! out.
 //! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
-//! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
-//! exact line and column.
+//! a time that does not increase, or the last line with data has fewer fields than the header
+//! (cut off mid-line, perhaps before unmapped columns only, which polars does not read),
+//! [`diagnose`] rescans the file line by line to name the exact line and column.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -67,6 +68,47 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     Ok(fields(line).into_iter().map(str::to_string).collect())
 }
 
+/// The log's last line with data (blank lines and lines of separators after it skipped), from
+/// its last 64 KiB; None where it cannot be read here (an object not fetched) or has none.
+fn last_data_line(src: &LogSource) -> Option<String> {
+    const TAIL: usize = 64 * 1024;
+    let bytes: Vec<u8> = match src {
+        LogSource::File(p) => {
+            use std::io::{Seek, SeekFrom};
+            let mut f = crate::input::open_regular(p).ok()?;
+            let len = f.metadata().ok()?.len();
+            f.seek(SeekFrom::Start(len.saturating_sub(TAIL as u64)))
+                .ok()?;
+            let mut b = Vec::with_capacity(TAIL.min(len as usize));
+            f.read_to_end(&mut b).ok()?;
+            b
+        }
+        LogSource::Memory { bytes, .. } => bytes[bytes.len().saturating_sub(TAIL)..].to_vec(),
+        LogSource::Object { .. } => return None,
+    };
+    String::from_utf8_lossy(&bytes)
+        .lines()
+        .rev()
+        .find(|l| fields(l).iter().any(|f| !f.is_empty()))
+        .map(str::to_string)
+}
+
+/// The number of fields of one line, commas inside double quotes not counted; None where its
+/// quotes do not pair up (the end of a quoted field that spans lines, or a line cut inside
+/// one): nothing to tell from it.
+fn quoted_field_count(line: &str) -> Option<usize> {
+    let mut quoted = false;
+    let mut n = 1;
+    for c in line.chars() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => n += 1,
+            _ => {}
+        }
+    }
+    (!quoted).then_some(n)
+}
+
 /// Lower-case alphanumerics only, for "did you mean" suggestions.
 fn normalise(s: &str) -> String {
     s.chars()
@@ -109,8 +151,13 @@ pub(super) fn read(
     }
     // polars reads a short row's absent fields, a blank line and a line of separators as empty
     // cells: a rescan names a short row (and anything else wrong in the file) before cells left
-    // empty on purpose are read as missing samples.
-    if columns.iter().any(|(_, missing)| *missing > 0) {
+    // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
+    // last line cut off before unmapped columns alone would pass unseen, its last mapped value
+    // perhaps cut short (12.3 of 12.345): the last line's fields are counted too.
+    let cut_off = last_data_line(src)
+        .and_then(|l| quoted_field_count(&l))
+        .is_some_and(|n| n < header.len());
+    if cut_off || columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
             return Err(e);
         }

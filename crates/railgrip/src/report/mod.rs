@@ -837,7 +837,7 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     };
     let _ = writeln!(
         *h,
-        "<p>Pad friction: {} law, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} {}.{} μ of an axle moves with its brake force (the columns above).</p>",
+        "<p>Pad friction law: {}, γ = {:+.4} ± {:.4} ({:+.2} % from {:.0} km/h to standstill). Radar: scale {:.5} ± {}, latency {:.1} ± {} ms — the slip Δv moves by −v (1 − 1/s) = {:+.3} m/s at 100 km/h. Tachometers: delay {:.1} {}.{} μ of an axle moves with its brake force (the columns above).</p>",
         c.pad.label(),
         c.pad.gamma,
         c.pad.gamma_se,
@@ -863,13 +863,12 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         for cand in cands {
             let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
             let chosen = cand["form"].as_str() == Some(c.pad.form.name())
-                && cand["mix"].as_f64().unwrap_or(0.0) == c.pad.mix
                 && fit["per_run_constants"].as_bool() == Some(per_run);
             let _ = writeln!(
                 *h,
                 "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
                 esc(&match cand["mix"].as_f64() {
-                    Some(w) => format!("{} (w = {w:.2})", cand["form"].as_str().unwrap_or("?")),
+                    Some(w) => format!("{}, w = {w:.2}", cand["form"].as_str().unwrap_or("?")),
                     None => cand["form"].as_str().unwrap_or("?").to_string(),
                 }),
                 if per_run { "one per run" } else { "one" },
