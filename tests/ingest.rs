@@ -657,48 +657,95 @@ fn csv_cut_mid_line() {
 
 /// A last line cut off inside its last mapped column, with only unmapped columns after it:
 /// polars reads the mapped columns alone, so the cut value (a number's first digits) was once
-/// read as it was, without a word. The same file whole, with its unmapped cells left empty,
-/// and with a quoted last cell that holds a comma or a line end, reads.
+/// read as it was, without a word. It is named now — also past the first 64 KiB, with CRLF line
+/// ends, and where a quoted comma makes the line-by-line rescan miscount. Read as before: the
+/// same file whole, with its unmapped cells left empty, with a quoted last cell that holds a
+/// comma or a line end, with a quoted comma in an unmapped column's name, and with every row
+/// short of the unmapped column (an export that drops trailing empty cells).
 #[test]
 fn csv_cut_before_unmapped_columns() {
     let dir = tempfile::tempdir().unwrap();
     let text = small_csv();
     let lines = text.lines().count();
-    let with_extra = |extra: &str| -> String {
+    let header_fields = text.lines().next().unwrap().split(',').count() + 1;
+    let extra = |text: &str, name: &str, cell: &str| -> String {
         text.lines()
             .enumerate()
-            .map(|(i, l)| format!("{l},{}\n", if i == 0 { "gps_fix" } else { extra }))
+            .map(|(i, l)| format!("{l},{}\n", if i == 0 { name } else { cell }))
             .collect()
     };
-    let whole = with_extra("4");
-    let p = write(dir.path(), "whole.csv", whole.as_bytes());
-    let run = ingest_file(&p, &default()).unwrap();
-    let empty = write(dir.path(), "empty.csv", with_extra("").as_bytes());
-    let again = ingest_file(&empty, &default()).unwrap();
-    assert_eq!(
-        (&again.time_s, &again.v_radar_mps, &again.p_bar),
-        (&run.time_s, &run.v_radar_mps, &run.p_bar)
-    );
-    // A quoted unmapped field with a comma, and one over two lines, in the last row: its last
-    // physical line is not a cut-off row.
-    let quoted = with_extra("4");
-    let quoted = format!("{}\"a, b\"\n", &quoted[..quoted.len() - "4\n".len()]);
-    let p = write(dir.path(), "quoted.csv", quoted.as_bytes());
-    assert_eq!(ingest_file(&p, &default()).unwrap().time_s, run.time_s);
-    let two_lines = quoted.replace("\"a, b\"", "\"first,\nsecond\"");
-    let p = write(dir.path(), "two_lines.csv", two_lines.as_bytes());
-    assert_eq!(ingest_file(&p, &default()).unwrap().time_s, run.time_s);
+    let reads = |name: &str, body: &str| {
+        let p = write(dir.path(), name, body.as_bytes());
+        ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"))
+    };
+    let run = reads("whole.csv", &extra(&text, "gps_fix", "4"));
+    for (name, body) in [
+        ("empty.csv", extra(&text, "gps_fix", "")),
+        ("quoted.csv", extra(&text, "gps_fix", "\"a, b\"")),
+        ("two_lines.csv", {
+            let w = extra(&text, "gps_fix", "4");
+            w[..w.len() - "4\n".len()].to_string() + "\"first,\nsecond\"\n"
+        }),
+        ("named.csv", extra(&text, "\"speed, km/h\"", "4")),
+        (
+            "ragged.csv",
+            text.replacen('\n', ",gps_fix\n", 1).trim_end().to_string(),
+        ),
+    ] {
+        let got = reads(name, &body);
+        assert_eq!(
+            (&got.time_s, &got.v_radar_mps, &got.p_bar),
+            (&run.time_s, &run.v_radar_mps, &run.p_bar),
+            "{name}"
+        );
+    }
     // The last line without its ",4\n" and its last mapped value's last two characters.
-    let last_value = whole.lines().last().unwrap().rsplit(',').nth(1).unwrap();
-    assert!(last_value.len() > 2, "{last_value}");
-    let cut = &whole[..whole.len() - ",4\n".len() - 2];
-    let p = write(dir.path(), "cut.csv", cut.as_bytes());
+    let cut = |whole: &str| -> String {
+        let last_value = whole.lines().last().unwrap().rsplit(',').nth(1).unwrap();
+        assert!(last_value.len() > 2, "{last_value}");
+        let end = whole.trim_end();
+        end[..end.len() - ",4".len() - 2].to_string()
+    };
+    let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
+    assert!(long.len() > 64 * 1024);
+    let crlf = extra(&text, "gps_fix", "4").replace('\n', "\r\n");
+    for (name, body, line) in [
+        ("cut.csv", cut(&extra(&text, "gps_fix", "4")), lines),
+        (
+            "cut_long.csv",
+            cut(&extra(&long, "gps_fix", "4")),
+            long.lines().count(),
+        ),
+        ("cut_crlf.csv", cut(&crlf), lines),
+    ] {
+        let p = write(dir.path(), name, body.as_bytes());
+        let e = err(&p, &default());
+        assert!(
+            e.contains(&format!(
+                "{name}: line {line}: the last line has {} of {header_fields} fields",
+                header_fields - 1
+            )) && e.contains("looks cut off mid-line"),
+            "{e}"
+        );
+    }
+    // A quoted comma in the cut line: the rescan, which splits at every comma, counts it whole.
+    let noted: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            format!(
+                "{l},{}\n",
+                if i == 0 { "note,gps_fix" } else { "\"a, b\",4" }
+            )
+        })
+        .collect();
+    let body = noted.trim_end().trim_end_matches(",4");
+    let p = write(dir.path(), "cut_noted.csv", body.as_bytes());
     let e = err(&p, &default());
-    let header_fields = text.lines().next().unwrap().split(',').count() + 1;
     assert!(
         e.contains(&format!(
-            "cut.csv: line {lines}: the last line has {} of {header_fields} fields",
-            header_fields - 1
+            "cut_noted.csv: line {lines}: the last line has {header_fields} of {} fields",
+            header_fields + 1
         )) && e.contains("looks cut off mid-line"),
         "{e}"
     );

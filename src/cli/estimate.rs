@@ -377,31 +377,18 @@ fn calibrate_campaign(
 /// The pad forms fitted, each with its BIC (a mixture's weight w in its own column), and the
 /// law chosen.
 fn print_pad(f: &railgrip::estimate::selfcal::CampaignCalibration) {
-    // A mixture's weight w in its own column (16: "linear-quadratic").
-    let width = if f.pad_candidates.iter().any(|c| c.form.mixes()) {
-        16
-    } else {
-        9
+    // A mixture's weight w in its own column ("–" where none could be fitted).
+    let w_of = |c: &railgrip::estimate::selfcal::PadCandidate| match c.form.mixes() {
+        true if c.gamma.is_finite() => format!("{:>5.2}", c.mix),
+        true => format!("{:>5}", "–"),
+        false => " ".repeat(5),
     };
-    let w_of = |c: &railgrip::estimate::selfcal::PadCandidate| {
-        if c.form.mixes() {
-            format!(" {:>5.2}", c.mix)
-        } else if width > 9 {
-            "      ".to_string()
-        } else {
-            String::new()
-        }
-    };
-    println!(
-        "pad        {:<width$}{} constants  γ        BIC",
-        "form",
-        if width > 9 { "     w" } else { "" }
-    );
+    println!("pad        form                 w constants  γ        BIC");
     for c in &f.pad_candidates {
         let chosen = c.form == f.pad.form && c.per_run_constants == f.per_run_constants;
         let mark = if chosen { "  chosen" } else { "" };
         println!(
-            "           {:<width$}{} {:<10} {:+.4}  {:>10.1}{mark}{}",
+            "           {:<16} {} {:<10} {:+.4}  {:>10.1}{mark}{}",
             c.form.name(),
             w_of(c),
             if c.per_run_constants {

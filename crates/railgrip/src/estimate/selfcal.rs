@@ -1659,8 +1659,8 @@ fn select_model(
     let mut best: Option<(Fit, f64, bool)> = None;
     for (bb, per_run) in [(b, true), (&b_common, false)] {
         for form in PadForm::ALL {
-            let (mix, g) = if form.mixes() {
-                let Some(best) = best_mix(bb, at, form, &groups) else {
+            let (mut mix, g, grams) = if form.mixes() {
+                let Some((w, grams, _)) = best_mix(bb, at, form, &groups) else {
                     candidates.push(PadCandidate {
                         form,
                         mix: 0.0,
@@ -1675,11 +1675,23 @@ fn select_model(
                     });
                     continue;
                 };
-                best
+                (w, grams.at(w), Some(grams))
             } else {
-                (0.0, bb.gram(at, form))
+                (0.0, bb.gram(at, form), None)
             };
-            let (fit, mut refused) = g.fit_form(&mut groups.clone(), form, inflate);
+            let (mut fit, mut refused) = g.fit_form(&mut groups.clone(), form, inflate);
+            // The weight again with the groups the fit settled on (axles merged where their α
+            // could not be told apart): the same w where it kept them.
+            if let (Some(grams), Some(f)) = (&grams, &fit) {
+                if let Some(w) = grams.best(&f.groups, form) {
+                    if let Some(again) = grams.at(w).fit_over_gamma(&f.groups, form) {
+                        if again.rss <= f.rss {
+                            mix = w;
+                            fit = Some(again);
+                        }
+                    }
+                }
+            }
             if form.mixes() && refused.is_none() && mix.min(1.0 - mix) < 1e-3 {
                 refused = Some(format!(
                     "w = {mix:.3} is at the end of its range (one of its two powers alone fits as well)"
@@ -1724,41 +1736,27 @@ fn select_model(
 }
 
 /// A mixed pad form's weight w (0 ≤ w ≤ 1, [`PadForm::phi`]) that leaves the least residual
-/// with γ at its best, and the balance's Gram matrix at it; None where no w gives a fit. The
-/// search holds the axle groups fixed: every axle apart, or one group where that fit is
-/// singular (axles that share a pressure), as [`Gram::fit_form`] later merges them. A grid of
-/// steps of 0.1, then a golden section about its best point (to 1e-3): the residual is a
-/// smooth function of w, but not always unimodal over the whole range. The φ columns are affine
-/// in w, so every entry of the Gram matrix is a quadratic in w (the constants' elimination
-/// included: the force balance's Σ w z zᵀ − (Σ w z)(Σ w z)ᵀ / Σ w, the integrated one's
-/// projections on columns free of w; the rows and their weights do not depend on w): three
-/// passes over the samples, at w = 0, ½ and 1, give it at every w ([`MixGrams`]).
-fn best_mix(b: &Balance, at: &At, form: PadForm, groups: &[Vec<usize>]) -> Option<(f64, Gram)> {
+/// with γ at its best ([`MixGrams::best`]), the balance's Gram matrices that give it, and the
+/// axle groups it was searched with: every axle apart, or one group where that is singular at
+/// every w (axles that share a pressure). None where no w gives a fit. [`select_model`]
+/// searches again with the groups [`Gram::fit_form`] settles on. The φ columns are affine in w,
+/// so every entry of the Gram matrix is a quadratic in w (the constants' elimination included:
+/// the force balance's Σ w z zᵀ − (Σ w z)(Σ w z)ᵀ / Σ w, the integrated one's projections on
+/// columns free of w; the rows and their weights do not depend on w): three passes over the
+/// samples, at w = 0, ½ and 1, give it at every w ([`MixGrams`]).
+fn best_mix(
+    b: &Balance,
+    at: &At,
+    form: PadForm,
+    groups: &[Vec<usize>],
+) -> Option<(f64, MixGrams, Vec<Vec<usize>>)> {
     let grams = MixGrams::new(b, at, form);
-    let grid = |groups: &[Vec<usize>]| -> (f64, f64) {
-        (0..=10)
-            .map(|i| {
-                let w = f64::from(i) / 10.0;
-                (w, grams.rss(w, groups, form))
-            })
-            .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m })
-    };
-    let mut groups = groups.to_vec();
-    let mut best = grid(&groups);
-    if !best.1.is_finite() {
-        groups = together().to_vec();
-        best = grid(&groups);
+    if let Some(w) = grams.best(groups, form) {
+        return Some((w, grams, groups.to_vec()));
     }
-    if !best.1.is_finite() {
-        return None;
-    }
-    let w = golden(
-        &|w| grams.rss(w, &groups, form),
-        (best.0 - 0.1).max(0.0),
-        (best.0 + 0.1).min(1.0),
-        1e-3,
-    );
-    Some((w, grams.at(w)))
+    let one = together().to_vec();
+    let w = grams.best(&one, form)?;
+    Some((w, grams, one))
 }
 
 /// A balance's Gram matrices at the mixture weights 0, ½ and 1, and so at every w: each entry
@@ -1797,6 +1795,26 @@ impl MixGrams {
                 .collect(),
             n: self.g0.n,
         }
+    }
+
+    /// The least-residual w with `groups` and γ at its best: a grid of steps of 0.1, then a
+    /// golden section about its best point (to 1e-3) — the residual is a smooth function of w,
+    /// but not always unimodal over the whole range. None where no w of the grid gives a fit.
+    fn best(&self, groups: &[Vec<usize>], form: PadForm) -> Option<f64> {
+        let (w0, r0) = (0..=10)
+            .map(|i| {
+                let w = f64::from(i) / 10.0;
+                (w, self.rss(w, groups, form))
+            })
+            .fold((0.0, f64::INFINITY), |m, x| if x.1 < m.1 { x } else { m });
+        r0.is_finite().then(|| {
+            golden(
+                &|w| self.rss(w, groups, form),
+                (w0 - 0.1).max(0.0),
+                (w0 + 0.1).min(1.0),
+                1e-3,
+            )
+        })
     }
 
     /// The residual at w with `groups` and γ at its best (∞ where the fit is singular).
@@ -2577,8 +2595,7 @@ impl ForceBalance {
     fn at(b: &Balance, at: &At, d: &Delays, runs_n: usize) -> ForceBalance {
         match CampaignCalibrator::coefficients(b, at, runs_n, &mut Vec::new()) {
             Ok(c) => {
-                let (_, tau_se, tacho_se) =
-                    parameter_errors(&c.balance(b), at, &c.g, &c.fit, c.sigma2, d);
+                let (tau_se, tacho_se) = parameter_errors(&c.balance(b), at, &c.fit, c.sigma2, d);
                 let keeps = axle_alphas(&c.g, &c.fit, c.sigma2, &b.alpha_pipeline, None)
                     .kept
                     .is_some();
@@ -2661,24 +2678,22 @@ fn gamma_error_over_mix(b: &Balance, at: &At, g: &Gram, fit: &Fit, sigma2: f64) 
                 .rss_at(&fit.groups, fit.form, gm)
                 .map_or(f64::INFINITY, |x| x.rss)
         };
-        rss(golden(&rss, lo, hi, 1e-5))
+        let r = rss(golden(&rss, lo, hi, 1e-5));
+        if r.is_finite() {
+            r
+        } else {
+            f64::NAN
+        }
     };
     let h = 1e-3;
     let d2 = (profile(fit.gamma + h) - 2.0 * profile(fit.gamma) + profile(fit.gamma - h)) / (h * h);
     (2.0 * sigma2 / d2).sqrt()
 }
 
-/// One standard error of γ and of the two delays, from the chosen model's residual sum of
-/// squares: se² = 2 σ² / RSS'' at the fit (NaN for a delay taken as 0: not fitted).
-fn parameter_errors(
-    b: &Balance,
-    at: &At,
-    g: &Gram,
-    fit: &Fit,
-    sigma2: f64,
-    d: &Delays,
-) -> (f64, f64, f64) {
-    let gamma_se = gamma_error(g, fit, sigma2);
+/// One standard error of each of the two delays, from the chosen model's residual sum of
+/// squares: se² = 2 σ² / RSS'' at the fit (NaN for a delay taken as 0: not fitted), or the
+/// jackknife's where that is larger.
+fn parameter_errors(b: &Balance, at: &At, fit: &Fit, sigma2: f64, d: &Delays) -> (f64, f64) {
     // The delays' standard errors from the chosen model's residual sum of squares, its
     // curvature at each fitted delay (NaN for a delay taken as 0: not fitted).
     let curvature = |shifted: &dyn Fn(f64) -> At, fitted: bool| {
@@ -2710,7 +2725,7 @@ fn parameter_errors(
     // The larger of the curvature's and the jackknife's (the runs' own scatter).
     let tau_se = (2.0 * sigma2 / radar_d2).sqrt().max(d.jack_se.0);
     let tacho_se = (2.0 * sigma2 / tacho_d2).sqrt().max(d.jack_se.1);
-    (gamma_se, tau_se, tacho_se)
+    (tau_se, tacho_se)
 }
 
 /// The axles' α from a fit: each group's ratio to the pipeline's α with its standard error
@@ -3624,7 +3639,8 @@ mod tests {
                         );
                     }
                 }
-                let (w, _) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+                let (w, _, searched) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+                assert_eq!(searched, groups());
                 let rss = |w: f64| grams.rss(w, &groups(), form);
                 let scan = (0..=200)
                     .map(|i| f64::from(i) / 200.0)
@@ -3650,7 +3666,9 @@ mod tests {
             .gram(&AT_0, form)
             .fit_over_gamma(&groups(), form)
             .is_none());
-        let (w, g) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+        let (w, grams, searched) = best_mix(&b, &AT_0, form, &groups()).unwrap();
+        assert_eq!(searched, together().to_vec());
+        let g = grams.at(w);
         let rss = |w: f64| MixGrams::new(&b, &AT_0, form).rss(w, &together(), form);
         assert!(g.fit_over_gamma(&together(), form).is_some());
         assert!((0..=20).all(|i| rss(w) <= rss(f64::from(i) / 20.0) * (1.0 + 1e-6)));

@@ -40,7 +40,9 @@ fn fields(line: &str) -> Vec<&str> {
 /// Longest header line read, bytes.
 pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
-fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
+/// The header's fields, and how many there are with a quoted comma inside a name taken as part
+/// of it (as polars reads it; the naive count where the quotes do not pair).
+fn read_header(src: &LogSource) -> Result<(Vec<String>, usize), IngestError> {
     let path = src.name();
     let f = src.open().map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
@@ -65,32 +67,71 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     let line = line
         .trim_start_matches('\u{feff}')
         .trim_end_matches(['\n', '\r']);
-    Ok(fields(line).into_iter().map(str::to_string).collect())
+    let names: Vec<String> = fields(line).into_iter().map(str::to_string).collect();
+    let count = quoted_field_count(line).unwrap_or(names.len());
+    Ok((names, count))
 }
 
-/// The log's last line with data (blank lines and lines of separators after it skipped), from
-/// its last 64 KiB; None where it cannot be read here (an object not fetched) or has none.
-fn last_data_line(src: &LogSource) -> Option<String> {
-    const TAIL: usize = 64 * 1024;
-    let bytes: Vec<u8> = match src {
+/// The last line's number of fields where the log ends in a line cut off mid-line, else None:
+/// its last line with data ends the file without a line end, has fewer fields than the
+/// header's `header_fields`, and the line with data before it has them all (a file whose rows
+/// all stop short of the header's trailing columns, as an export that drops trailing empty
+/// cells writes them, is read as before). Fields are counted with quoted commas inside a field
+/// ([`quoted_field_count`]). From the log's last 64 KiB; None where they cannot tell (an
+/// object not fetched, lines longer than half of that).
+fn last_line_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
+    const TAIL: u64 = 64 * 1024;
+    let (bytes, whole): (Vec<u8>, bool) = match src {
         LogSource::File(p) => {
             use std::io::{Seek, SeekFrom};
             let mut f = crate::input::open_regular(p).ok()?;
             let len = f.metadata().ok()?.len();
-            f.seek(SeekFrom::Start(len.saturating_sub(TAIL as u64)))
-                .ok()?;
-            let mut b = Vec::with_capacity(TAIL.min(len as usize));
-            f.read_to_end(&mut b).ok()?;
-            b
+            let from = len.saturating_sub(TAIL);
+            f.seek(SeekFrom::Start(from)).ok()?;
+            let mut b = Vec::new();
+            f.take(TAIL).read_to_end(&mut b).ok()?;
+            (b, from == 0)
         }
-        LogSource::Memory { bytes, .. } => bytes[bytes.len().saturating_sub(TAIL)..].to_vec(),
+        LogSource::Memory { bytes, .. } => {
+            let from = bytes.len().saturating_sub(TAIL as usize);
+            (bytes[from..].to_vec(), from == 0)
+        }
+        // `ingest_source` fetches an object into memory before it parses it.
         LogSource::Object { .. } => return None,
     };
-    String::from_utf8_lossy(&bytes)
-        .lines()
-        .rev()
-        .find(|l| fields(l).iter().any(|f| !f.is_empty()))
-        .map(str::to_string)
+    if bytes.ends_with(b"\n") {
+        return None;
+    }
+    let text = String::from_utf8_lossy(&bytes);
+    let mut lines: Vec<&str> = text.lines().collect();
+    // The window's first line may begin mid-line: only whole lines count.
+    if !whole && !lines.is_empty() {
+        lines.remove(0);
+    }
+    // The text ends without a line end, so its last line is the file's; blank lines and lines
+    // of separators before it are skipped.
+    let last = lines.pop()?;
+    let n = quoted_field_count(last)?;
+    if n >= header_fields || no_data(last) {
+        return None;
+    }
+    let before = lines.into_iter().rev().find(|l| !no_data(l))?;
+    (quoted_field_count(before)? >= header_fields).then_some(n)
+}
+
+/// The number of lines of the log (its last line's number, where it ends without a line end).
+fn line_count(src: &LogSource) -> Option<usize> {
+    let mut r = BufReader::new(src.open().ok()?);
+    let mut n = 1;
+    loop {
+        let buf = r.fill_buf().ok()?;
+        if buf.is_empty() {
+            return Some(n);
+        }
+        n += buf.iter().filter(|b| **b == b'\n').count();
+        let used = buf.len();
+        r.consume(used);
+    }
 }
 
 /// The number of fields of one line, commas inside double quotes not counted; None where its
@@ -125,7 +166,7 @@ pub(super) fn read(
     cfg: &IngestConfig,
 ) -> Result<(Vec<RawChannel>, Vec<Warning>), IngestError> {
     let path = src.name();
-    let header = read_header(src)?;
+    let (header, header_fields) = read_header(src)?;
     let wanted = wanted(cfg);
     check_header(path, &header, &wanted)?;
     let names: Vec<PlSmallStr> = wanted
@@ -153,11 +194,17 @@ pub(super) fn read(
     // cells: a rescan names a short row (and anything else wrong in the file) before cells left
     // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
-    // perhaps cut short (12.3 of 12.345): the last line's fields are counted too.
-    let cut_off = last_data_line(src)
-        .and_then(|l| quoted_field_count(&l))
-        .is_some_and(|n| n < header.len());
-    if cut_off || columns.iter().any(|(_, missing)| *missing > 0) {
+    // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
+    // Named here, not by the rescan, which splits at every comma (a quoted one too).
+    if let Some(fields) = last_line_cut_off(src, header_fields) {
+        return Err(IngestError::CsvBadLine {
+            path: path.to_path_buf(),
+            line: line_count(src).unwrap_or(0),
+            what: format!("the last line has {fields} of {header_fields} fields and no line end: the file looks cut off mid-line"),
+            hint: "the logger or copy was interrupted; delete the incomplete last line or re-export the run".into(),
+        });
+    }
+    if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
             return Err(e);
         }
