@@ -658,7 +658,8 @@ fn csv_cut_mid_line() {
 /// A last line cut off inside its last mapped column, with only unmapped columns after it:
 /// polars reads the mapped columns alone, so the cut value (a number's first digits) was once
 /// read as it was, without a word. It is named now — also past the first 64 KiB, with CRLF line
-/// ends, and where a quoted comma makes the line-by-line rescan miscount. Read as before: the
+/// ends, where a quoted comma makes the line-by-line rescan miscount, and where one sits in a
+/// header's name. Read as before: the
 /// same file whole, with its unmapped cells left empty, with a quoted last cell that holds a
 /// comma or a line end, with a quoted comma in an unmapped column's name, and with every row
 /// short of the unmapped column (an export that drops trailing empty cells).
@@ -687,6 +688,15 @@ fn csv_cut_before_unmapped_columns() {
             w[..w.len() - "4\n".len()].to_string() + "\"first,\nsecond\"\n"
         }),
         ("named.csv", extra(&text, "\"speed, km/h\"", "4")),
+        // Without a line end after the last line: its quoted comma counted as one field's.
+        (
+            "quoted_open.csv",
+            extra(&text, "gps_fix", "\"a, b\"").trim_end().to_string(),
+        ),
+        ("two_lines_open.csv", {
+            let w = extra(&text, "gps_fix", "4");
+            w[..w.len() - "4\n".len()].to_string() + "\"first,\nsecond\""
+        }),
         (
             "ragged.csv",
             text.replacen('\n', ",gps_fix\n", 1).trim_end().to_string(),
@@ -709,46 +719,46 @@ fn csv_cut_before_unmapped_columns() {
     let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
     assert!(long.len() > 64 * 1024);
     let crlf = extra(&text, "gps_fix", "4").replace('\n', "\r\n");
-    for (name, body, line) in [
-        ("cut.csv", cut(&extra(&text, "gps_fix", "4")), lines),
+    // A quoted comma in the cut line (a note), where a rescan that splits at every comma would
+    // count it whole; and one in a header's name, where the plain count would find every line
+    // short and the cut line not shorter than the one before it.
+    let noted = extra(&text, "note,gps_fix", "\"a, b\",4");
+    let named = extra(&text, "\"speed, km/h\"", "4");
+    let (h, long_lines) = (header_fields, long.lines().count());
+    for (name, body, line, fields, of) in [
+        (
+            "cut.csv",
+            cut(&extra(&text, "gps_fix", "4")),
+            lines,
+            h - 1,
+            h,
+        ),
         (
             "cut_long.csv",
             cut(&extra(&long, "gps_fix", "4")),
-            long.lines().count(),
+            long_lines,
+            h - 1,
+            h,
         ),
-        ("cut_crlf.csv", cut(&crlf), lines),
+        ("cut_crlf.csv", cut(&crlf), lines, h - 1, h),
+        (
+            "cut_noted.csv",
+            noted.trim_end().trim_end_matches(",4").to_string(),
+            lines,
+            h,
+            h + 1,
+        ),
+        ("cut_named.csv", cut(&named), lines, h - 1, h),
     ] {
         let p = write(dir.path(), name, body.as_bytes());
         let e = err(&p, &default());
         assert!(
             e.contains(&format!(
-                "{name}: line {line}: the last line has {} of {header_fields} fields",
-                header_fields - 1
+                "{name}: line {line}: the last line has {fields} of {of} fields"
             )) && e.contains("looks cut off mid-line"),
             "{e}"
         );
     }
-    // A quoted comma in the cut line: the rescan, which splits at every comma, counts it whole.
-    let noted: String = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            format!(
-                "{l},{}\n",
-                if i == 0 { "note,gps_fix" } else { "\"a, b\",4" }
-            )
-        })
-        .collect();
-    let body = noted.trim_end().trim_end_matches(",4");
-    let p = write(dir.path(), "cut_noted.csv", body.as_bytes());
-    let e = err(&p, &default());
-    assert!(
-        e.contains(&format!(
-            "cut_noted.csv: line {lines}: the last line has {header_fields} of {} fields",
-            header_fields + 1
-        )) && e.contains("looks cut off mid-line"),
-        "{e}"
-    );
 }
 
 fn replace_cell(text: &str, line: usize, col: usize, with: &str) -> String {

@@ -405,10 +405,10 @@ fn print_pad(f: &railgrip::estimate::selfcal::CampaignCalibration) {
         );
     }
     println!(
-        "pad        {} law: α_i(v) = α_i (1 {:+.4} ± {:.4} φ(v)){}, {:+.2} % from {:.0} km/h to standstill",
+        "pad        {} law: α_i(v) = α_i (1 {:+.4} ± {} φ(v)){}, {:+.2} % from {:.0} km/h to standstill",
         f.pad.form.name(),
         f.pad.gamma,
-        f.pad.gamma_se,
+        or_dash(f.pad.gamma_se, 4),
         if f.pad.form.mixes() {
             format!(", φ's mixture weight w = {:.3}", f.pad.mix)
         } else {

@@ -1660,7 +1660,7 @@ fn select_model(
     for (bb, per_run) in [(b, true), (&b_common, false)] {
         for form in PadForm::ALL {
             let (mut mix, g, grams) = if form.mixes() {
-                let Some((w, grams, _)) = best_mix(bb, at, form, &groups) else {
+                let Some((w, grams, searched)) = best_mix(bb, at, form, &groups) else {
                     candidates.push(PadCandidate {
                         form,
                         mix: 0.0,
@@ -1675,19 +1675,22 @@ fn select_model(
                     });
                     continue;
                 };
-                (w, grams.at(w), Some(grams))
+                (w, grams.at(w), Some((grams, searched)))
             } else {
                 (0.0, bb.gram(at, form), None)
             };
             let (mut fit, mut refused) = g.fit_form(&mut groups.clone(), form, inflate);
-            // The weight again with the groups the fit settled on (axles merged where their α
-            // could not be told apart): the same w where it kept them.
-            if let (Some(grams), Some(f)) = (&grams, &fit) {
-                if let Some(w) = grams.best(&f.groups, form) {
-                    if let Some(again) = grams.at(w).fit_over_gamma(&f.groups, form) {
-                        if again.rss <= f.rss {
+            // Where the fit settled on other axle groups than the weight was searched with
+            // (axles merged where their α could not be told apart), the weight again with
+            // those, and the fit (its groups and refusal) at it.
+            if let (Some((grams, searched)), Some(f)) = (&grams, &fit) {
+                if f.groups != *searched {
+                    if let Some(w) = grams.best(&f.groups, form) {
+                        let (again, why) =
+                            grams.at(w).fit_form(&mut f.groups.clone(), form, inflate);
+                        if again.as_ref().is_some_and(|a| a.rss <= f.rss) {
                             mix = w;
-                            fit = Some(again);
+                            (fit, refused) = (again, why);
                         }
                     }
                 }

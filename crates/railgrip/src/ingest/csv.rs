@@ -7,9 +7,9 @@
 //! without data (blank, separators only), which polars reads as rows of empty cells, are left
 //! out.
 //! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
-//! a time that does not increase, or the last line with data has fewer fields than the header
-//! (cut off mid-line, perhaps before unmapped columns only, which polars does not read),
-//! [`diagnose`] rescans the file line by line to name the exact line and column.
+//! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
+//! exact line and column. A last line cut off mid-line, perhaps before unmapped columns only
+//! (which polars does not read), is named by [`last_line_cut_off`] first.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -119,6 +119,16 @@ fn last_line_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
     (quoted_field_count(before)? >= header_fields).then_some(n)
 }
 
+/// A last line cut off mid-line (`line` its number), with `fields` of `of` fields.
+fn cut_off(path: &Path, line: usize, fields: usize, of: usize) -> IngestError {
+    IngestError::CsvBadLine {
+        path: path.to_path_buf(),
+        line,
+        what: format!("the last line has {fields} of {of} fields and no line end: the file looks cut off mid-line"),
+        hint: "the logger or copy was interrupted; delete the incomplete last line or re-export the run".into(),
+    }
+}
+
 /// The number of lines of the log (its last line's number, where it ends without a line end).
 fn line_count(src: &LogSource) -> Option<usize> {
     let mut r = BufReader::new(src.open().ok()?);
@@ -197,12 +207,8 @@ pub(super) fn read(
     // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
     // Named here, not by the rescan, which splits at every comma (a quoted one too).
     if let Some(fields) = last_line_cut_off(src, header_fields) {
-        return Err(IngestError::CsvBadLine {
-            path: path.to_path_buf(),
-            line: line_count(src).unwrap_or(0),
-            what: format!("the last line has {fields} of {header_fields} fields and no line end: the file looks cut off mid-line"),
-            hint: "the logger or copy was interrupted; delete the incomplete last line or re-export the run".into(),
-        });
+        let line = line_count(src).unwrap_or(0);
+        return Err(cut_off(path, line, fields, header_fields));
     }
     if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
@@ -575,22 +581,14 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
         let f = fields(line);
         if f.len() < header.len() {
             let last = line_no == total_lines;
-            let (what, hint) = if last && !ends_with_newline {
-                (
-                    format!("the last line has {} of {} fields and no line end: the file looks cut off mid-line", f.len(), header.len()),
-                    "the logger or copy was interrupted; delete the incomplete last line or re-export the run",
-                )
-            } else {
-                (
-                    format!("{} fields, but the header has {}", f.len(), header.len()),
-                    "every row needs all of the header's fields (leave a cell empty for a missing sample); repair or delete this row",
-                )
-            };
+            if last && !ends_with_newline {
+                return Some(cut_off(path, line_no, f.len(), header.len()));
+            }
             return Some(IngestError::CsvBadLine {
                 path: path.to_path_buf(),
                 line: line_no,
-                what,
-                hint: hint.into(),
+                what: format!("{} fields, but the header has {}", f.len(), header.len()),
+                hint: "every row needs all of the header's fields (leave a cell empty for a missing sample); repair or delete this row".into(),
             });
         }
         if f.len() > header.len() {

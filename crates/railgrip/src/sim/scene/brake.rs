@@ -101,7 +101,7 @@ pub(super) const PAD_EXPONENT: Key = Key::num(
     "–",
     closed(0.5, 4.0),
     1.0,
-    "`pad_friction`: n of that law: 1 linear; other powers test the calibration's choice of form (its candidates: constant, linear, quadratic, cubic, Karwatzki's; n = 2.5 lies between two) [assumed]",
+    "`pad_friction`: n of that law: 1 linear; other powers test the calibration's choice of form (its candidates: constant, linear, quadratic, cubic, the linear–quadratic and quadratic–cubic mixtures, Karwatzki's; n = 2.5 lies between two powers) [assumed]",
 );
 
 /// The keys of `[brake]`, in the order of the documented table.
