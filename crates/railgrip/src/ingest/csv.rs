@@ -30,19 +30,38 @@ fn wanted(cfg: &IngestConfig) -> Vec<(&'static str, &CsvColumn)> {
     v
 }
 
-/// Splits one CSV line into trimmed fields, removing surrounding double quotes.
+/// Splits one CSV line into trimmed fields, removing surrounding double quotes; a comma inside
+/// double quotes belongs to its field, as polars reads it.
 fn fields(line: &str) -> Vec<&str> {
-    line.split(',')
-        .map(|f| f.trim().trim_matches('"'))
-        .collect()
+    split_fields(line).0
+}
+
+/// [`fields`], and whether the line's quotes pair up (where they do not, it ends inside a
+/// quoted field: one that spans lines, or a line cut inside one).
+fn split_fields(line: &str) -> (Vec<&str>, bool) {
+    fn clean(f: &str) -> &str {
+        f.trim().trim_matches('"')
+    }
+    let mut out = Vec::new();
+    let (mut quoted, mut start) = (false, 0);
+    for (i, c) in line.char_indices() {
+        match c {
+            '"' => quoted = !quoted,
+            ',' if !quoted => {
+                out.push(clean(&line[start..i]));
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(clean(&line[start..]));
+    (out, !quoted)
 }
 
 /// Longest header line read, bytes.
 pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
-/// The header's fields, and how many there are with a quoted comma inside a name taken as part
-/// of it (as polars reads it; the naive count where the quotes do not pair).
-fn read_header(src: &LogSource) -> Result<(Vec<String>, usize), IngestError> {
+fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     let path = src.name();
     let f = src.open().map_err(|e| IngestError::Io {
         path: path.to_path_buf(),
@@ -67,9 +86,7 @@ fn read_header(src: &LogSource) -> Result<(Vec<String>, usize), IngestError> {
     let line = line
         .trim_start_matches('\u{feff}')
         .trim_end_matches(['\n', '\r']);
-    let names: Vec<String> = fields(line).into_iter().map(str::to_string).collect();
-    let count = quoted_field_count(line).unwrap_or(names.len());
-    Ok((names, count))
+    Ok(fields(line).into_iter().map(str::to_string).collect())
 }
 
 /// The last line's number of fields where the log ends in a line cut off mid-line, else None:
@@ -144,20 +161,11 @@ fn line_count(src: &LogSource) -> Option<usize> {
     }
 }
 
-/// The number of fields of one line, commas inside double quotes not counted; None where its
-/// quotes do not pair up (the end of a quoted field that spans lines, or a line cut inside
-/// one): nothing to tell from it.
+/// The number of fields of one line ([`fields`]); None where its quotes do not pair up (the
+/// end of a quoted field that spans lines, or a line cut inside one): nothing to tell from it.
 fn quoted_field_count(line: &str) -> Option<usize> {
-    let mut quoted = false;
-    let mut n = 1;
-    for c in line.chars() {
-        match c {
-            '"' => quoted = !quoted,
-            ',' if !quoted => n += 1,
-            _ => {}
-        }
-    }
-    (!quoted).then_some(n)
+    let (f, paired) = split_fields(line);
+    paired.then_some(f.len())
 }
 
 /// Lower-case alphanumerics only, for "did you mean" suggestions.
@@ -176,7 +184,7 @@ pub(super) fn read(
     cfg: &IngestConfig,
 ) -> Result<(Vec<RawChannel>, Vec<Warning>), IngestError> {
     let path = src.name();
-    let (header, header_fields) = read_header(src)?;
+    let header = read_header(src)?;
     let wanted = wanted(cfg);
     check_header(path, &header, &wanted)?;
     let names: Vec<PlSmallStr> = wanted
@@ -205,10 +213,9 @@ pub(super) fn read(
     // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
     // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
-    // Named here, not by the rescan, which splits at every comma (a quoted one too).
-    if let Some(fields) = last_line_cut_off(src, header_fields) {
+    if let Some(fields) = last_line_cut_off(src, header.len()) {
         let line = line_count(src).unwrap_or(0);
-        return Err(cut_off(path, line, fields, header_fields));
+        return Err(cut_off(path, line, fields, header.len()));
     }
     if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
@@ -624,8 +631,7 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
 /// A line without data: blank, or separators and whitespace only (polars reads it as a row of
 /// empty cells; [`read`] leaves such rows out).
 fn no_data(line: &str) -> bool {
-    line.split(',')
-        .all(|f| f.trim().trim_matches('"').is_empty())
+    fields(line).iter().all(|f| f.is_empty())
 }
 
 /// The 1-based line of data row `row` (0-based), skipping lines without data as [`read`]
