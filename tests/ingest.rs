@@ -8,7 +8,8 @@ use std::path::{Path, PathBuf};
 use common::*;
 use railgrip::format::{McapCompression, RunMetadata, Signal};
 use railgrip::ingest::{
-    ingest_file, linear_interpolation_bound, write_runlog_parquet, IngestError, RunLog, WarningKind,
+    ingest_file, linear_interpolation_bound, write_runlog_parquet, IngestError, RunLog, Warning,
+    WarningKind,
 };
 use railgrip::Pipeline;
 
@@ -774,13 +775,17 @@ fn quoted_commas_survive_the_rescan() {
         .collect();
     let p = write(dir.path(), "noted.csv", noted.as_bytes());
     let log = ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{e}"));
-    let w: Vec<_> = log
-        .warnings
-        .iter()
-        .filter(|w| w.kind == WarningKind::Missing)
-        .collect();
+    let w = missing_warnings(&log);
     assert_eq!(w.len(), 1, "{:?}", log.warnings);
     assert!(w[0].message.ends_with("line 120"), "{}", w[0].message);
+}
+
+/// A log's warnings of missing samples.
+fn missing_warnings(log: &RunLog) -> Vec<&Warning> {
+    log.warnings
+        .iter()
+        .filter(|w| w.kind == WarningKind::Missing)
+        .collect()
 }
 
 fn replace_cell(text: &str, line: usize, col: usize, with: &str) -> String {
@@ -839,11 +844,7 @@ fn empty_and_nan_cells_are_missing_samples_of_their_channel() {
             replace_cell(&small_csv(), 120, 1, cell).as_bytes(),
         );
         let log = ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
-        let w: Vec<_> = log
-            .warnings
-            .iter()
-            .filter(|w| w.kind == WarningKind::Missing)
-            .collect();
+        let w = missing_warnings(&log);
         assert_eq!(w.len(), 1, "{name}: {:?}", log.warnings);
         assert!(
             w[0].message

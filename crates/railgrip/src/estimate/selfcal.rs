@@ -1659,20 +1659,23 @@ fn select_model(
     let mut best: Option<(Fit, f64, bool)> = None;
     for (bb, per_run) in [(b, true), (&b_common, false)] {
         for form in PadForm::ALL {
+            // A form that could not be fitted, and why.
+            let refused_candidate = |mix: f64, why: String| PadCandidate {
+                form,
+                mix,
+                per_run_constants: per_run,
+                gamma: f64::NAN,
+                rss: f64::NAN,
+                bic: f64::NAN,
+                refused: Some(why),
+            };
             let (mut mix, g, grams) = if form.mixes() {
                 let Some((w, grams, searched)) = best_mix(bb, at, form, &groups) else {
-                    candidates.push(PadCandidate {
-                        form,
-                        mix: 0.0,
-                        per_run_constants: per_run,
-                        gamma: f64::NAN,
-                        rss: f64::NAN,
-                        bic: f64::NAN,
-                        refused: Some(
-                            "no mixture weight gives a fit (the balance's normal matrix is singular)"
-                                .into(),
-                        ),
-                    });
+                    candidates.push(refused_candidate(
+                        0.0,
+                        "no mixture weight gives a fit (the balance's normal matrix is singular)"
+                            .into(),
+                    ));
                     continue;
                 };
                 (w, grams.at(w), Some((grams, searched)))
@@ -1701,15 +1704,10 @@ fn select_model(
                 ));
             }
             let Some(mut fit) = fit else {
-                candidates.push(PadCandidate {
-                    form,
+                candidates.push(refused_candidate(
                     mix,
-                    per_run_constants: per_run,
-                    gamma: f64::NAN,
-                    rss: f64::NAN,
-                    bic: f64::NAN,
-                    refused: Some(refused.unwrap_or_else(|| "the fit failed".into())),
-                });
+                    refused.unwrap_or_else(|| "the fit failed".into()),
+                ));
                 continue;
             };
             fit.mix = mix;
@@ -2656,12 +2654,18 @@ fn gamma_error(g: &Gram, fit: &Fit, sigma2: f64) -> f64 {
     if fit.form == PadForm::Constant {
         return 0.0;
     }
-    let h = 1e-3;
-    let f = |gm: f64| {
+    let rss = |gm: f64| {
         g.rss_at(&fit.groups, fit.form, gm)
             .map_or(f64::NAN, |x| x.rss)
     };
-    let d2 = (f(fit.gamma + h) - 2.0 * fit.rss + f(fit.gamma - h)) / (h * h);
+    curvature_se(rss, fit.gamma, fit.rss, sigma2)
+}
+
+/// se² = 2 σ² / RSS'' of the residual `rss` (NaN where it cannot be fitted) at γ, where it is
+/// `centre`: a central difference of step 10⁻³.
+fn curvature_se(rss: impl Fn(f64) -> f64, gamma: f64, centre: f64, sigma2: f64) -> f64 {
+    let h = 1e-3;
+    let d2 = (rss(gamma + h) - 2.0 * centre + rss(gamma - h)) / (h * h);
     (2.0 * sigma2 / d2).sqrt()
 }
 
@@ -2688,9 +2692,7 @@ fn gamma_error_over_mix(b: &Balance, at: &At, g: &Gram, fit: &Fit, sigma2: f64) 
             f64::NAN
         }
     };
-    let h = 1e-3;
-    let d2 = (profile(fit.gamma + h) - 2.0 * profile(fit.gamma) + profile(fit.gamma - h)) / (h * h);
-    (2.0 * sigma2 / d2).sqrt()
+    curvature_se(profile, fit.gamma, profile(fit.gamma), sigma2)
 }
 
 /// One standard error of each of the two delays, from the chosen model's residual sum of
