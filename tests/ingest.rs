@@ -780,6 +780,44 @@ fn quoted_commas_survive_the_rescan() {
     assert!(w[0].message.ends_with("line 120"), "{}", w[0].message);
 }
 
+/// A quoted cell that holds a line end (a note over two lines, as polars reads it) moves every
+/// later row one line down: the missing sample and the bad cell after it are named at the
+/// lines a text editor shows, not one line early.
+#[test]
+fn lines_are_named_past_a_quoted_line_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let noted = |text: &str| -> String {
+        text.lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let note = match i {
+                    0 => "note",
+                    10 => "\"first,\nsecond\"",
+                    _ => "",
+                };
+                format!("{l},{note}\n")
+            })
+            .collect()
+    };
+    // Line 120 of the file without the note's line end is line 121 with it.
+    let p = write(
+        dir.path(),
+        "noted_missing.csv",
+        noted(&replace_cell(&small_csv(), 120, 1, "")).as_bytes(),
+    );
+    let log = ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{e}"));
+    let w = missing_warnings(&log);
+    assert_eq!(w.len(), 1, "{:?}", log.warnings);
+    assert!(w[0].message.ends_with("line 121"), "{}", w[0].message);
+    let p = write(
+        dir.path(),
+        "noted_bad.csv",
+        noted(&replace_cell(&small_csv(), 120, 1, "abc")).as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(e.contains("noted_bad.csv: line 121"), "{e}");
+}
+
 /// A log's warnings of missing samples.
 fn missing_warnings(log: &RunLog) -> Vec<&Warning> {
     log.warnings

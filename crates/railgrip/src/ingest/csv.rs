@@ -8,7 +8,8 @@
 //! out.
 //! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
 //! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
-//! exact line and column. A last line cut off mid-line, perhaps before unmapped columns only
+//! exact line and column, counting lines as a text editor does (a quoted cell that holds a line
+//! end spans two). A last line cut off mid-line, perhaps before unmapped columns only
 //! (which polars does not read), is named by [`last_line_cut_off`] first.
 
 use std::collections::BTreeMap;
@@ -551,12 +552,12 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
     src.open().ok()?.read_to_end(&mut bytes).ok()?;
     let text = String::from_utf8_lossy(&bytes);
     let ends_with_newline = text.ends_with('\n');
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim_end_matches('\r')));
-    let (_, header_line) = lines.next()?;
-    let header = fields(header_line.trim_start_matches('\u{feff}'));
+    let mut lines = Records::new(text.lines().map(|l| l.trim_end_matches('\r')));
+    let (_, _, header_line) = lines.next()?;
+    let header: Vec<String> = fields(header_line.trim_start_matches('\u{feff}'))
+        .into_iter()
+        .map(str::to_string)
+        .collect();
     let wanted = wanted(cfg);
     let idx: Vec<(usize, &CsvColumn)> = wanted
         .iter()
@@ -581,13 +582,13 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
         what,
         hint: hint.to_string(),
     };
-    for (line_no, line) in lines {
-        if no_data(line) {
+    for (line_no, last_line_no, line) in lines {
+        if no_data(&line) {
             continue;
         }
-        let f = fields(line);
+        let f = fields(&line);
         if f.len() < header.len() {
-            let last = line_no == total_lines;
+            let last = last_line_no == total_lines;
             if last && !ends_with_newline {
                 return Some(cut_off(path, line_no, f.len(), header.len()));
             }
@@ -628,6 +629,45 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
     None
 }
 
+/// A log's records from its lines: a line whose double quotes do not pair up ends inside a
+/// quoted field that holds a line end, as polars reads it, and the record goes on over the
+/// next lines until they do (or the log ends). Each record with its first and last line's
+/// 1-based numbers, its lines joined by `\n`.
+struct Records<I> {
+    lines: I,
+    next_line: usize,
+}
+
+impl<I> Records<I> {
+    fn new(lines: I) -> Self {
+        Records {
+            lines,
+            next_line: 1,
+        }
+    }
+}
+
+impl<S: AsRef<str>, I: Iterator<Item = S>> Iterator for Records<I> {
+    type Item = (usize, usize, String);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let first = self.lines.next()?;
+        let mut text = first.as_ref().to_string();
+        let start = self.next_line;
+        let mut open = text.matches('"').count() % 2 == 1;
+        while open {
+            let Some(more) = self.lines.next() else { break };
+            let more = more.as_ref();
+            open ^= more.matches('"').count() % 2 == 1;
+            text.push('\n');
+            text.push_str(more);
+            self.next_line += 1;
+        }
+        self.next_line += 1;
+        Some((start, self.next_line - 1, text))
+    }
+}
+
 /// A line without data: blank, or separators and whitespace only (polars reads it as a row of
 /// empty cells; [`read`] leaves such rows out).
 fn no_data(line: &str) -> bool {
@@ -635,7 +675,8 @@ fn no_data(line: &str) -> bool {
 }
 
 /// The 1-based line of data row `row` (0-based), skipping lines without data as [`read`]
-/// does.
+/// does: the first line of its record ([`Records`]), so a quoted cell that holds a line end
+/// does not shift the lines after it.
 pub(super) fn line_of_row(src: &LogSource, row: usize) -> usize {
     lines_of_rows(src, &[row])[0]
 }
@@ -654,16 +695,19 @@ pub(super) fn lines_of_rows(src: &LogSource, rows: &[usize]) -> Vec<usize> {
     order.sort_by_key(|&i| rows[i]);
     let mut next = order.iter().peekable();
     let mut seen = 0usize;
-    for (i, line) in BufReader::new(f).split(b'\n').enumerate().skip(1) {
-        let Ok(line) = line else { break };
-        if no_data(&String::from_utf8_lossy(&line)) {
+    let lines = BufReader::new(f)
+        .split(b'\n')
+        .map_while(Result::ok)
+        .map(|l| String::from_utf8_lossy(&l).into_owned());
+    for (line_no, _, line) in Records::new(lines).skip(1) {
+        if no_data(&line) {
             continue;
         }
         while let Some(&&k) = next.peek() {
             if rows[k] != seen {
                 break;
             }
-            out[k] = i + 1;
+            out[k] = line_no;
             next.next();
         }
         if next.peek().is_none() {
