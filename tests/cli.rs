@@ -1838,6 +1838,76 @@ fn auto_estimates_a_run_alone_with_the_pipelines_values_unless_given_the_calibra
     assert!(!same(&plain, &given));
 }
 
+/// A run's reuse key holds the calibration it was estimated with: the same shard given the same
+/// calibration again is reused, given one that differs in one value (the radar's scale) it is
+/// estimated again, with other μ.
+#[test]
+fn a_changed_calibration_estimates_the_runs_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (camp, pipe, cal) = bundled_calibration(d);
+    let shard = |cal: &str| {
+        let args = [
+            "run",
+            camp.as_str(),
+            "--pipeline",
+            pipe.as_str(),
+            "--out",
+            "o",
+            "--stage",
+            "estimate",
+            "--shard",
+            "1/4",
+            "--calibration",
+            cal,
+        ];
+        let o = railgrip(&args, d);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
+        // Each run's line of the summary: its name, then "ok" or "reused".
+        let out = text(&o.stdout);
+        let reused: Vec<bool> = ["dry_120kmh_p20", "soap_120kmh_p20"]
+            .iter()
+            .map(|run| {
+                let line = out
+                    .lines()
+                    .find(|l| l.starts_with(run))
+                    .unwrap_or_else(|| panic!("no line for {run}: {out}"));
+                line.split_whitespace().nth(1) == Some("reused")
+            })
+            .collect();
+        let mu =
+            common::parquet_columns(&d.join("o/runs/dry_120kmh_p20/estimates.parquet"), &["mu"])
+                .remove(0);
+        (reused, mu)
+    };
+    let (reused, mu) = shard(&cal);
+    assert_eq!(reused, [false, false]);
+    let (reused, mu_again) = shard(&cal);
+    assert_eq!(reused, [true, true], "the same calibration again");
+    assert_eq!(mu_again.len(), mu.len());
+    let mut other = json_file(&cal);
+    let scale = other["calibrated"]["corrections"]["radar_scale"]
+        .as_f64()
+        .unwrap();
+    other["calibrated"]["corrections"]["radar_scale"] = serde_json::json!(scale * 1.002);
+    let other_path = d.join("other.json");
+    std::fs::write(&other_path, serde_json::to_vec_pretty(&other).unwrap()).unwrap();
+    let (reused, mu_other) = shard(other_path.to_str().unwrap());
+    assert_eq!(
+        reused,
+        [false, false],
+        "another calibration reused the runs"
+    );
+    assert_eq!(mu_other.len(), mu.len());
+    assert!(
+        mu_other
+            .iter()
+            .zip(&mu)
+            .any(|(a, b)| a.is_finite() && b.is_finite() && a != b),
+        "the radar's scale moved no μ"
+    );
+}
+
 /// A campaign calibration, as `railgrip calibrate --campaign` writes it for the bundled archive
 /// and a pipeline that runs with it: (archive, pipeline file, calibration file).
 fn bundled_calibration(d: &Path) -> (String, String, String) {
