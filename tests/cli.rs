@@ -720,6 +720,33 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     assert!(html.contains("Fig. 9") && html.contains("k_A(T)") && html.contains("Fig. 11"));
     // The creepage the Polach fits took: Polach's own on this archive of Polach truth.
     assert!(html.contains("Creepage: Polach's w/v"), "report");
+    // The campaign's calibration ("auto", three runs estimated): what was fitted with its
+    // errors, what it does to each axle's brake force, the pad forms compared (a mixture's
+    // weight beside its name) and the one chosen.
+    for want in [
+        "<h2>Calibration</h2>",
+        "<b>campaign</b> calibration fitted on 3 of 9 runs",
+        "<th>± 1σ</th>",
+        "<th>brake force at ",
+        "Pad friction law: ",
+        "Radar: scale ",
+        "the slip Δv moves by ",
+        "Tachometers: delay ",
+        "Running resistance: ",
+        "<td class=\"l\">linear-quadratic, w = ",
+        "<td class=\"l\">quadratic-cubic, w = ",
+        ">chosen",
+    ] {
+        assert!(
+            html.contains(want),
+            "no {want:?} in the report's calibration"
+        );
+    }
+    assert_eq!(
+        html.matches("<td class=\"l\">karwatzki</td>").count(),
+        2,
+        "each pad form with one and with a constant per run"
+    );
     // Every run that was estimated has its own section (drawn as the report loads the run),
     // and Fig. 10 still has the first training run's validation axle.
     let ok_runs = rows.iter().filter(|r| r.contains(",ok,")).count();

@@ -57,6 +57,16 @@ impl PadForm {
         matches!(self, PadForm::LinearQuadratic | PadForm::QuadraticCubic)
     }
 
+    /// The form's name, with a mixture's weight `mix`: "quadratic-cubic, w = 0.48" (the
+    /// other forms' name alone).
+    pub fn label(self, mix: f64) -> String {
+        if self.mixes() {
+            format!("{}, w = {mix:.2}", self.name())
+        } else {
+            self.name().to_string()
+        }
+    }
+
     /// φ(v), zero at `v_ref` (m/s); `mix` is a mixture's weight w (0 ≤ w ≤ 1; the other forms
     /// ignore it).
     pub fn phi(self, v_mps: f64, v_ref_mps: f64, mix: f64) -> f64 {
@@ -121,11 +131,7 @@ impl PadLaw {
 
     /// The form's name, with a mixture's weight: "quadratic-cubic, w = 0.48".
     pub fn label(&self) -> String {
-        if self.form.mixes() {
-            format!("{}, w = {:.2}", self.form.name(), self.mix)
-        } else {
-            self.form.name().to_string()
-        }
+        self.form.label(self.mix)
     }
 
     /// 1 + γ φ(v).
@@ -193,9 +199,23 @@ pub struct Errors {
     /// `[vehicle]`'s α_i, N·m/bar: an axle's brake force, and with it its μ (seed 002 eq. 9:
     /// μ_i N_i r = α_i p_i − J ω̇_i, the inertia's share aside), moves by α_i(v) / this.
     pub pipeline_alpha_nm_per_bar: [f64; AXLES],
+    /// How many of [`Calibrated::runs`] the values were fitted on: the runs with samples in
+    /// the balance ("campaign") or with full-adhesion samples ("dry-run"); the others failed
+    /// to read or had none. Absent in records written before it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fitted_runs: Option<usize>,
 }
 
 impl Calibrated {
+    /// "8 runs", or "3 of 9 runs" where only some of the campaign's runs were fitted on.
+    pub fn runs_fitted(&self) -> String {
+        let all = self.runs.len();
+        match self.errors.as_ref().and_then(|e| e.fitted_runs) {
+            Some(n) if n != all => format!("{n} of {all} runs"),
+            _ => format!("{all} runs"),
+        }
+    }
+
     /// One line for notes and the model files' provenance: the values, and where it has them
     /// ([`Calibrated::errors`]) their standard errors and how far each axle's brake force (and
     /// so its μ) moved from the pipeline's at the top speed and at 10 km/h.
@@ -210,9 +230,9 @@ impl Calibrated {
             .map(|a| format!("{a:.1}"))
             .collect();
         format!(
-            "{} calibration over {} runs: α = [{}] N·m/bar at {:.0} km/h, pad friction {} ({:+.1} % to standstill), radar ×{:.5} and {:.1} ms late, tachometers {:.1} ms late",
+            "{} calibration over {}: α = [{}] N·m/bar at {:.0} km/h, pad friction {} ({:+.1} % to standstill), radar ×{:.5} and {:.1} ms late, tachometers {:.1} ms late",
             self.source,
-            self.runs.len(),
+            self.runs_fitted(),
             alpha.join(", "),
             c.pad.v_ref_mps * 3.6,
             c.pad.label(),
@@ -272,9 +292,9 @@ impl Calibrated {
             )
         };
         format!(
-            "{} calibration over {} runs: α = [{}] N·m/bar (1σ){at}, {pad}, radar ×{} and {} ms late, tachometers {:.1} ms late; each axle's brake force, and with it its μ, moved {effect} from [vehicle]'s α",
+            "{} calibration over {}: α = [{}] N·m/bar (1σ){at}, {pad}, radar ×{} and {} ms late, tachometers {:.1} ms late; each axle's brake force, and with it its μ, moved {effect} from [vehicle]'s α",
             self.source,
-            self.runs.len(),
+            self.runs_fitted(),
             alpha.join(", "),
             pm(c.radar_scale, e.radar_scale_se, 5),
             pm(c.radar_latency_s * 1e3, e.radar_latency_se_s * 1e3, 1),
@@ -364,6 +384,7 @@ mod tests {
             radar_scale_se: 4e-5,
             radar_latency_se_s: f64::NAN,
             pipeline_alpha_nm_per_bar: [1600.0; AXLES],
+            fitted_runs: None,
         }));
         let text = serde_json::to_string(&with).unwrap();
         assert!(text.contains("null"), "{text}");

@@ -797,9 +797,9 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     };
     let _ = writeln!(
         *h,
-        "<h2>Calibration</h2>\n<p>The runs were estimated with a <b>{}</b> calibration fitted on {} runs (<code>calibration.json</code>; see docs/calibration.md).</p>\n<table><tr><th class=\"l\">axle</th><th>α at {:.0} km/h, N·m/bar</th><th>± 1σ</th><th>pipeline's</th><th>brake force at {:.0} km/h</th><th>at 10 km/h</th></tr>",
+        "<h2>Calibration</h2>\n<p>The runs were estimated with a <b>{}</b> calibration fitted on {} (<code>calibration.json</code>; see docs/calibration.md).</p>\n<table><tr><th class=\"l\">axle</th><th>α at {:.0} km/h, N·m/bar</th><th>± 1σ</th><th>pipeline's</th><th>brake force at {:.0} km/h</th><th>at 10 km/h</th></tr>",
         esc(&cal.source),
-        cal.runs.len(),
+        cal.runs_fitted(),
         c.pad.v_ref_mps * 3.6,
         c.pad.v_ref_mps * 3.6
     );
@@ -867,10 +867,18 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
             let _ = writeln!(
                 *h,
                 "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
-                esc(&match cand["mix"].as_f64() {
-                    Some(w) => format!("{}, w = {w:.2}", cand["form"].as_str().unwrap_or("?")),
-                    None => cand["form"].as_str().unwrap_or("?").to_string(),
-                }),
+                esc(
+                    &match serde_json::from_value::<crate::config::calibrated::PadForm>(
+                        cand["form"].clone()
+                    ) {
+                        // A form that could not be fitted has no weight to give.
+                        Ok(form) if cand["gamma"].is_number() => {
+                            form.label(cand["mix"].as_f64().unwrap_or(0.0))
+                        }
+                        Ok(form) => form.name().to_string(),
+                        Err(_) => cand["form"].as_str().unwrap_or("?").to_string(),
+                    }
+                ),
                 if per_run { "one per run" } else { "one" },
                 num(&cand["gamma"]),
                 num(&cand["bic"]),
