@@ -858,36 +858,7 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         },
         resistance
     );
-    if let Some(cands) = fit["pad_candidates"].as_array() {
-        h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
-        for cand in cands {
-            let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
-            let chosen = cand["form"].as_str() == Some(c.pad.form.name())
-                && fit["per_run_constants"].as_bool() == Some(per_run);
-            let _ = writeln!(
-                *h,
-                "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
-                esc(
-                    &match serde_json::from_value::<crate::config::calibrated::PadForm>(
-                        cand["form"].clone()
-                    ) {
-                        // A form that could not be fitted has no weight to give.
-                        Ok(form) if cand["gamma"].is_number() => {
-                            form.label(cand["mix"].as_f64().unwrap_or(0.0))
-                        }
-                        Ok(form) => form.name().to_string(),
-                        Err(_) => cand["form"].as_str().unwrap_or("?").to_string(),
-                    }
-                ),
-                if per_run { "one per run" } else { "one" },
-                num(&cand["gamma"]),
-                num(&cand["bic"]),
-                if chosen { "chosen" } else { "" },
-                esc(cand["refused"].as_str().unwrap_or(""))
-            );
-        }
-        h.push_str("</table>\n");
-    }
+    pad_candidates(h, fit, c);
     run_constants(h, fit);
     if let Some(notes) = rec["notes"].as_array() {
         for n in notes {
@@ -898,6 +869,47 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
             );
         }
     }
+}
+
+/// The pad-friction forms the calibration compared (`fit`: `calibration.json`'s "campaign"),
+/// each with its resistance constants, γ, BIC, and whether it was chosen or why refused.
+fn pad_candidates(
+    h: &mut String,
+    fit: &serde_json::Value,
+    c: &crate::config::calibrated::Corrections,
+) {
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
+    let Some(cands) = fit["pad_candidates"].as_array() else {
+        return;
+    };
+    h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
+    for cand in cands {
+        let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
+        let chosen = cand["form"].as_str() == Some(c.pad.form.name())
+            && fit["per_run_constants"].as_bool() == Some(per_run);
+        let _ = writeln!(
+            *h,
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
+            esc(
+                &match serde_json::from_value::<crate::config::calibrated::PadForm>(
+                    cand["form"].clone()
+                ) {
+                    // A form that could not be fitted has no weight to give.
+                    Ok(form) if cand["gamma"].is_number() => {
+                        form.label(cand["mix"].as_f64().unwrap_or(0.0))
+                    }
+                    Ok(form) => form.name().to_string(),
+                    Err(_) => cand["form"].as_str().unwrap_or("?").to_string(),
+                }
+            ),
+            if per_run { "one per run" } else { "one" },
+            num(&cand["gamma"]),
+            num(&cand["bic"]),
+            if chosen { "chosen" } else { "" },
+            esc(cand["refused"].as_str().unwrap_or(""))
+        );
+    }
+    h.push_str("</table>\n");
 }
 
 /// The balance's constant per run (the running resistance's constant and the run's gradient
