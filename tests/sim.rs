@@ -594,11 +594,13 @@ fn scene_errors_name_the_key_and_the_fix() {
         e.starts_with("s.toml: brake.pad_friction_v0_kmh = 900: must be"),
         "{e}"
     );
-    let e = err("[run]\nload_fluctuation_band_hz = [10.0, 2.0]");
-    assert!(
-        e.contains("run.load_fluctuation_band_hz") && e.contains("0 < low < high <= 100 Hz"),
-        "{e}"
-    );
+    for band in ["[10.0, 2.0]", "[0.01, 10.0]"] {
+        let e = err(&format!("[run]\nload_fluctuation_band_hz = {band}"));
+        assert!(
+            e.contains("run.load_fluctuation_band_hz") && e.contains("0.1 <= low < high <= 100 Hz"),
+            "{e}"
+        );
+    }
     let e = err("[run]\nload_fluctuation_rms = 0.5");
     assert!(
         e.starts_with("s.toml: run.load_fluctuation_rms = 0.5: must be"),
@@ -1186,13 +1188,6 @@ fastsim_beta = 0.5"#,
     }
 }
 
-/// `load_fluctuation`: before the brake (the deceleration the same with and without it), each
-/// axle's true load is the load without it × (1 + ε), ε of the asked rms (within the sampling
-/// error of 3 s of a 2–10 Hz process) and a mean near 0 (the high-pass takes out the slow
-/// part). `pivot_force`: under a
-/// steady brake the load moves from each bogie's trailing to its leading axle by
-/// (m_c/2) h_b d / l2 more than eq. 12–13 say. Neither is in the log's effects list; both are in
-/// the truth's mismatch.
 /// The wheel-load fluctuation lies in its band: over a 20 s coast, 86 % of ε's variance
 /// between 2 and 10 Hz for the 4th-order Butterworth high- and low-pass (a first-order pair
 /// put 37 % there), and little below 2 Hz, where the estimator's 1.5 and 4 Hz filters would
@@ -1251,6 +1246,13 @@ fn the_load_fluctuation_lies_in_its_band() {
     }
 }
 
+/// `load_fluctuation`: before the brake (the deceleration the same with and without it), each
+/// axle's true load is the load without it × (1 + ε), ε of the asked rms (within the sampling
+/// error of 3 s of a 2–10 Hz process) and a mean near 0 (the high-pass takes out the slow
+/// part). `pivot_force`: under a
+/// steady brake the load moves from each bogie's trailing to its leading axle by
+/// (m_c/2) h_b d / l2 more than eq. 12–13 say. Neither is in the log's effects list; both are in
+/// the truth's mismatch.
 #[test]
 fn load_fluctuation_and_pivot_force_do_what_they_say() {
     let base = "[\"load_transfer\"]\n[brake]\ndemand_bar = [[0.0, 0.0], [3.0, 0.0], [3.5, 2.5]]";

@@ -168,7 +168,8 @@ pub struct Calibrated {
     /// `calibration.json`, for the later parts of a scheduled campaign).
     pub source: String,
     pub corrections: Corrections,
-    /// The campaign's runs (names, in the campaign's order) it was fitted on.
+    /// The campaign's runs (names, in the campaign's order): the campaign it belongs to.
+    /// [`Errors::fitted_runs`] says how many of them gave the fit its samples.
     pub runs: Vec<String>,
     /// SHA-256 of the pipeline file's text it was fitted with.
     pub pipeline_sha256: String,

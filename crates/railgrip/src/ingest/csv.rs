@@ -590,7 +590,7 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
         if f.len() < header.len() {
             let last = last_line_no == total_lines;
             if last && !ends_with_newline {
-                return Some(cut_off(path, line_no, f.len(), header.len()));
+                return Some(cut_off(path, last_line_no, f.len(), header.len()));
             }
             return Some(IngestError::CsvBadLine {
                 path: path.to_path_buf(),
@@ -630,8 +630,10 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
 }
 
 /// A log's records from its lines: a line whose double quotes do not pair up ends inside a
-/// quoted field that holds a line end, as polars reads it, and the record goes on over the
-/// next lines until they do (or the log ends). Each record with its first and last line's
+/// quoted field that holds a line end, and the record goes on over the next lines until they
+/// do (or the log ends). Every quote counts, wherever it stands in its cell, as polars 0.55
+/// splits a file into rows (`SplitLines`: each quote character toggles the quoted state), so
+/// the rows here are polars' rows. Each record with its first and last line's
 /// 1-based numbers, its lines joined by `\n`.
 struct Records<I> {
     lines: I,

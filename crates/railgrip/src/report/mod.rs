@@ -858,7 +858,13 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         },
         resistance
     );
-    pad_candidates(h, fit, c);
+    // A candidate's form with a mixture's weight where it was searched (written where it is
+    // not 0), refused or not — read as the chosen law's type reads it, so labelled alike.
+    let label = |cand: &serde_json::Value| match read_like(&c.pad.form, &cand["form"]) {
+        Some(form) => form.label(cand["mix"].as_f64().unwrap_or(0.0)),
+        None => cand["form"].as_str().unwrap_or("?").to_string(),
+    };
+    pad_candidates(h, fit, c.pad.form.name(), &label);
     run_constants(h, fit);
     if let Some(notes) = rec["notes"].as_array() {
         for n in notes {
@@ -871,12 +877,20 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     }
 }
 
+/// `value` read as the type of `like`: a type the report reaches through the records it is
+/// given, not by its module.
+fn read_like<T: serde::de::DeserializeOwned>(_like: &T, value: &serde_json::Value) -> Option<T> {
+    serde_json::from_value(value.clone()).ok()
+}
+
 /// The pad-friction forms the calibration compared (`fit`: `calibration.json`'s "campaign"),
-/// each with its resistance constants, γ, BIC, and whether it was chosen or why refused.
+/// each with its resistance constants, γ, BIC, and whether it was chosen or why refused;
+/// `chosen` is the chosen form's name, `label` a candidate's label.
 fn pad_candidates(
     h: &mut String,
     fit: &serde_json::Value,
-    c: &crate::config::calibrated::Corrections,
+    chosen: &str,
+    label: &dyn Fn(&serde_json::Value) -> String,
 ) {
     let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
     let Some(cands) = fit["pad_candidates"].as_array() else {
@@ -885,23 +899,12 @@ fn pad_candidates(
     h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
     for cand in cands {
         let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
-        let chosen = cand["form"].as_str() == Some(c.pad.form.name())
+        let chosen = cand["form"].as_str() == Some(chosen)
             && fit["per_run_constants"].as_bool() == Some(per_run);
         let _ = writeln!(
             *h,
             "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:+.4}</td><td>{:.1}</td><td class=\"l\">{}{}</td></tr>",
-            esc(
-                &match serde_json::from_value::<crate::config::calibrated::PadForm>(
-                    cand["form"].clone()
-                ) {
-                    // A form that could not be fitted has no weight to give.
-                    Ok(form) if cand["gamma"].is_number() => {
-                        form.label(cand["mix"].as_f64().unwrap_or(0.0))
-                    }
-                    Ok(form) => form.name().to_string(),
-                    Err(_) => cand["form"].as_str().unwrap_or("?").to_string(),
-                }
-            ),
+            esc(&label(cand)),
             if per_run { "one per run" } else { "one" },
             num(&cand["gamma"]),
             num(&cand["bic"]),

@@ -190,11 +190,13 @@ const FLUCT_SECTIONS: usize = 4;
 
 /// The `load_fluctuation` effect: per axle, white noise through a band-pass of two 4th-order
 /// Butterworth filters, a high-pass at the band's bottom and a low-pass at its top (each two
-/// of the biquad crate's bilinear-transform sections, Q = 0.541196 and 1.306563, as
-/// [`crate::signal::filter`]'s low-pass; at the step's rate 1/h), scaled so that ε has the rms
-/// `run.load_fluctuation_rms` — the gain from the filter's impulse response, Σ g_k² = 1 for
-/// the unit-variance input. 86 % of ε's variance lies inside the band (a first-order band-pass
-/// kept 37 %, so at [2, 10] Hz and 1.5 % rms only 0.92 % rms lay between 2 and 10 Hz).
+/// of the biquad crate's bilinear-transform sections, Q = 1/(2 cos(π/8)) = 0.541196 and
+/// 1/(2 cos(3π/8)) = 1.306563, as [`crate::signal::filter`]'s low-pass; at the step's rate 1/h,
+/// h in s), scaled so that ε (relative, –) has the rms `run.load_fluctuation_rms` — the gain
+/// from the filter's impulse response, Σ g_k² = 1 for the unit-variance input. 86 % of ε's
+/// variance lies inside the band (a first-order band-pass kept 37 % of it, so at [2, 10] Hz and
+/// 1.5 % rms only 0.92 % rms lay between 2 and 10 Hz). The band's top is at most 100 Hz and the
+/// step at most 1 ms (the scene's rules), so every section lies below half the step rate.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct LoadFluctuation {
     /// Each section's (b0, b1, b2, a1, a2), a0 = 1.
@@ -203,6 +205,7 @@ pub(super) struct LoadFluctuation {
 }
 
 impl LoadFluctuation {
+    /// The filter for the step `h` (s).
     fn new(sc: &Scene, h: f64) -> Result<LoadFluctuation, String> {
         use biquad::{Coefficients, ToHertz, Type};
         let [lo, hi] = sc.run.load_fluctuation_band_hz;
@@ -227,8 +230,8 @@ impl LoadFluctuation {
             sections,
             gain: 1.0,
         };
-        // Energy of the impulse response, until it has decayed (twenty time constants of the
-        // high-pass: its Butterworth poles ring longer than a first-order one's).
+        // Energy of the impulse response over 20 / (2π f_low) s (~7.7 time constants of the
+        // high-pass's slowest pole, Q = 1.31: what is left is ~1e-7 of the energy).
         let steps = (20.0 / (std::f64::consts::TAU * lo * h)).ceil() as usize + 10;
         let mut state = [[0.0; 2]; FLUCT_SECTIONS];
         let mut energy = 0.0;
@@ -240,8 +243,9 @@ impl LoadFluctuation {
         Ok(f)
     }
 
-    /// One sample `x` through the four sections (Direct Form II transposed), the gain not
-    /// applied.
+    /// One sample `x` through the four sections (Direct Form II transposed, as the biquad
+    /// crate's `DirectForm2Transposed`: y = b0 x + s0, s0 ← b1 x − a1 y + s1, s1 ← b2 x − a2 y,
+    /// its a1, a2 the denominator's own signs), the gain not applied.
     #[inline(always)]
     fn filter(&self, state: &mut [[f64; 2]; FLUCT_SECTIONS], x: f64) -> f64 {
         let mut y = x;

@@ -107,7 +107,7 @@ pub(super) const LOAD_FLUCT: Key = Key::num(
 pub(super) const LOAD_BAND: Key = text(
     "run.load_fluctuation_band_hz",
     "[Hz, Hz]",
-    "0 < low < high ≤ 100",
+    "0.1 ≤ low < high ≤ 100",
     "[2, 10]",
     "`load_fluctuation`: its band (4th-order Butterworth high-pass at low, low-pass at high)",
 );
@@ -158,12 +158,12 @@ impl Checker<'_> {
             load_fluctuation_rms: self.value(&LOAD_FLUCT, r.load_fluctuation_rms)?,
             load_fluctuation_band_hz: match r.load_fluctuation_band_hz {
                 None => [2.0, 10.0],
-                Some([lo, hi]) if lo > 0.0 && lo < hi && hi <= 100.0 => [lo, hi],
+                Some([lo, hi]) if lo >= 0.1 && lo < hi && hi <= 100.0 => [lo, hi],
                 Some(b) => {
                     return Err(self.invalid(
                         LOAD_BAND.name,
                         format!("{b:?}"),
-                        "must be [low, high] with 0 < low < high <= 100 Hz",
+                        "must be [low, high] with 0.1 <= low < high <= 100 Hz (a lower low would take the filter's start-up minutes of steps)",
                     ))
                 }
             },
