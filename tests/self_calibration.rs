@@ -347,12 +347,12 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch, within_3_se: bool) -
 /// within 5 ms, the linear pad law with its rise within 3 standard errors, per-run μ RMSE at
 /// most 0.6 × the uncalibrated one, α_i(v) within 1 % and 3 standard errors — not the 0.5 %
 /// aimed for (measured: 0.11–0.65 %, 8 of 12 axles within 0.5 % and one at 0.50 %; with the
-/// force balance's coefficients 0.30–1.48 %, 5 of 12, before the load fluctuation's band): the per-axle α rest on the wheel-slide protection's
-/// pressure differences against the radar's noise, ~0.45 % one standard error over 12 runs from
+/// force balance's coefficients 0.30–1.48 %, 5 of 12, before the load fluctuation's band): the
+/// per-axle α rest on the wheel-slide protection's pressure differences against the radar's noise, ~0.45 % one standard error over 12 runs from
 /// the balance integrated over time (~0.8 % from the force balance). Each axle's bias is within
 /// ±0.001 on every run (measured: up to 0.0007; up to 0.0014 with the force balance's). The
-/// three campaigns pooled (one vehicle, 36 runs) bring α to −0.16 … +0.49 % with one standard
-/// error of 0.25–0.28 %.
+/// three campaigns pooled (one vehicle, 36 runs) bring α to −0.38 … +0.39 % with one standard
+/// error of 0.24–0.29 %.
 #[test]
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();

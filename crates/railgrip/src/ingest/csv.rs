@@ -632,8 +632,10 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
 /// A log's records from its lines: a line whose double quotes do not pair up ends inside a
 /// quoted field that holds a line end, and the record goes on over the next lines until they
 /// do (or the log ends). Every quote counts, wherever it stands in its cell, as polars 0.55
-/// splits a file into rows (`SplitLines`: each quote character toggles the quoted state), so
-/// the rows here are polars' rows. Each record with its first and last line's
+/// splits a file into rows (`CountLines` and `SplitLines`: each quote character toggles the
+/// quoted state), so the rows here are polars' rows. (Within a row polars opens a quoted cell
+/// only at a cell's start: a stray quote inside a cell is malformed input on which its row
+/// splitting and its cell reading disagree.) Each record with its first and last line's
 /// 1-based numbers, its lines joined by `\n`.
 struct Records<I> {
     lines: I,

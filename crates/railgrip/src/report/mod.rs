@@ -861,7 +861,13 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     // A candidate's form with a mixture's weight where it was searched (written where it is
     // not 0), refused or not — read as the chosen law's type reads it, so labelled alike.
     let label = |cand: &serde_json::Value| match read_like(&c.pad.form, &cand["form"]) {
-        Some(form) => form.label(cand["mix"].as_f64().unwrap_or(0.0)),
+        Some(form) => match cand["mix"].as_f64() {
+            Some(w) => form.label(w),
+            None if cand["gamma"].is_number() => form.label(0.0),
+            // A mixture no weight gave a fit: none to name.
+            None if form.mixes() => format!("{}, w = –", form.name()),
+            None => form.name().to_string(),
+        },
         None => cand["form"].as_str().unwrap_or("?").to_string(),
     };
     pad_candidates(h, fit, c.pad.form.name(), &label);
@@ -877,19 +883,19 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
     }
 }
 
-/// `value` read as the type of `like`: a type the report reaches through the records it is
-/// given, not by its module.
+/// `value` read as the type of the first argument (only its type is used): a type the report
+/// reaches through the records it is given, not by its module.
 fn read_like<T: serde::de::DeserializeOwned>(_like: &T, value: &serde_json::Value) -> Option<T> {
     serde_json::from_value(value.clone()).ok()
 }
 
 /// The pad-friction forms the calibration compared (`fit`: `calibration.json`'s "campaign"),
 /// each with its resistance constants, γ, BIC, and whether it was chosen or why refused;
-/// `chosen` is the chosen form's name, `label` a candidate's label.
+/// `chosen_form` is the chosen form's name, `label` a candidate's label.
 fn pad_candidates(
     h: &mut String,
     fit: &serde_json::Value,
-    chosen: &str,
+    chosen_form: &str,
     label: &dyn Fn(&serde_json::Value) -> String,
 ) {
     let num = |v: &serde_json::Value| v.as_f64().unwrap_or(f64::NAN);
@@ -899,7 +905,7 @@ fn pad_candidates(
     h.push_str("<table><tr><th class=\"l\">pad form</th><th class=\"l\">resistance constants</th><th>γ</th><th>BIC</th><th class=\"l\"></th></tr>\n");
     for cand in cands {
         let per_run = cand["per_run_constants"].as_bool().unwrap_or(false);
-        let chosen = cand["form"].as_str() == Some(chosen)
+        let chosen = cand["form"].as_str() == Some(chosen_form)
             && fit["per_run_constants"].as_bool() == Some(per_run);
         let _ = writeln!(
             *h,

@@ -163,7 +163,7 @@ impl Checker<'_> {
                     return Err(self.invalid(
                         LOAD_BAND.name,
                         format!("{b:?}"),
-                        "must be [low, high] with 0.1 <= low < high <= 100 Hz (a lower low would take the filter's start-up minutes of steps)",
+                        "must be [low, high] with 0.1 <= low < high <= 100 Hz (below 0.1 Hz the filter takes minutes of steps to settle: its start-up grows as 1/low)",
                     ))
                 }
             },
