@@ -3674,7 +3674,7 @@ mod tests {
         let (w, grams, searched) = best_mix(&b, &AT_0, form, &groups()).unwrap();
         assert_eq!(searched, together().to_vec());
         let g = grams.at(w);
-        let rss = |w: f64| MixGrams::new(&b, &AT_0, form).rss(w, &together(), form);
+        let rss = |w: f64| grams.rss(w, &together(), form);
         assert!(g.fit_over_gamma(&together(), form).is_some());
         assert!((0..=20).all(|i| rss(w) <= rss(f64::from(i) / 20.0) * (1.0 + 1e-6)));
     }

@@ -858,16 +858,14 @@ fn calibration(h: &mut String, out: &OutDir, camp: &CampaignRecord) {
         },
         resistance
     );
-    // A candidate's form with a mixture's weight where it was searched (written where it is
-    // not 0), refused or not — read as the chosen law's type reads it, so labelled alike.
+    // A candidate's form with a mixture's weight (written where it is not 0), "–" where the
+    // mixture was not fitted, as the CLI prints it — read as the chosen law's type reads it,
+    // so labelled alike.
     let label = |cand: &serde_json::Value| match read_like(&c.pad.form, &cand["form"]) {
-        Some(form) => match cand["mix"].as_f64() {
-            Some(w) => form.label(w),
-            None if cand["gamma"].is_number() => form.label(0.0),
-            // A mixture no weight gave a fit: none to name.
-            None if form.mixes() => format!("{}, w = –", form.name()),
-            None => form.name().to_string(),
-        },
+        Some(form) if form.mixes() && !cand["gamma"].is_number() => {
+            format!("{}, w = –", form.name())
+        }
+        Some(form) => form.label(cand["mix"].as_f64().unwrap_or(0.0)),
         None => cand["form"].as_str().unwrap_or("?").to_string(),
     };
     pad_candidates(h, fit, c.pad.form.name(), &label);
