@@ -1519,3 +1519,52 @@ fn fifos_and_devices_are_refused_without_blocking() {
         "{e}"
     );
 }
+
+/// A record over two lines (a quoted note holding a line end) that the file's end cuts off —
+/// after its note, or inside it — is named at the file's last line, the record's last, with
+/// the fields it has.
+#[test]
+fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let lines = text.lines().count();
+    let h = text.lines().next().unwrap().split(',').count();
+    let noted: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let tail = match i {
+                0 => "note,gps_fix".to_string(),
+                i if i + 1 == lines => "\"first,\nsecond\",4".to_string(),
+                _ => "\"\",4".to_string(),
+            };
+            format!("{l},{tail}\n")
+        })
+        .collect();
+    // Whole, it reads.
+    let p = write(dir.path(), "whole.csv", noted.as_bytes());
+    ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{e}"));
+    for (name, body, fields) in [
+        (
+            "after_note.csv",
+            noted.trim_end().trim_end_matches(",4").to_string(),
+            h + 1,
+        ),
+        (
+            "inside_note.csv",
+            noted.trim_end().trim_end_matches("ond\",4").to_string(),
+            h + 1,
+        ),
+    ] {
+        let p = write(dir.path(), name, body.as_bytes());
+        let e = err(&p, &default());
+        assert!(
+            e.contains(&format!(
+                "{name}: line {}: the last line has {fields} of {} fields",
+                lines + 1,
+                h + 2
+            )) && e.contains("looks cut off mid-line"),
+            "{e}"
+        );
+    }
+}

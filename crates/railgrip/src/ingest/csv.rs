@@ -10,7 +10,7 @@
 //! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
 //! exact line and column, counting lines as a text editor does (a quoted cell that holds a line
 //! end spans two). A last line cut off mid-line, perhaps before unmapped columns only
-//! (which polars does not read), is named by [`last_line_cut_off`] first.
+//! (which polars does not read), is named by [`last_record_cut_off`] first.
 
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader, Read};
@@ -90,14 +90,15 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     Ok(fields(line).into_iter().map(str::to_string).collect())
 }
 
-/// The last line's number of fields where the log ends in a line cut off mid-line, else None:
-/// its last line with data ends the file without a line end, has fewer fields than the
-/// header's `header_fields`, and the line with data before it has them all (a file whose rows
-/// all stop short of the header's trailing columns, as an export that drops trailing empty
-/// cells writes them, is read as before). Fields are counted with quoted commas inside a field
+/// The last record's number of fields where the log ends in a record cut off, else None: its
+/// last record with data (one line, or several where a quoted field holds a line end;
+/// [`Records`]) ends the file without a line end — perhaps inside a quoted field — has fewer
+/// fields than the header's `header_fields`, and the record with data before it has them all
+/// (a file whose rows all stop short of the header's trailing columns, as an export that drops
+/// trailing empty cells writes them, is read as before). Fields are counted with quoted commas inside a field
 /// ([`quoted_field_count`]). From the log's last 64 KiB; None where they cannot tell (an
 /// object not fetched, lines longer than half of that).
-fn last_line_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
+fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
     const TAIL: u64 = 64 * 1024;
     let (bytes, whole): (Vec<u8>, bool) = match src {
         LogSource::File(p) => {
@@ -126,14 +127,21 @@ fn last_line_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
     if !whole && !lines.is_empty() {
         lines.remove(0);
     }
-    // The text ends without a line end, so its last line is the file's; blank lines and lines
+    // Records, not lines: a quoted note that holds a line end makes one record of two lines.
+    let mut records: Vec<String> = Records::new(lines.into_iter()).map(|r| r.2).collect();
+    // The text ends without a line end, so its last record is the file's; blank lines and lines
     // of separators before it are skipped.
-    let last = lines.pop()?;
-    let n = quoted_field_count(last)?;
-    if n >= header_fields || no_data(last) {
+    let last = records.pop()?;
+    if no_data(&last) {
         return None;
     }
-    let before = lines.into_iter().rev().find(|l| !no_data(l))?;
+    // A record whose quotes do not pair up ends inside a quoted field: the file's end cut it
+    // there, and its fields so far are counted (the open one among them).
+    let n = split_fields(&last).0.len();
+    if n >= header_fields {
+        return None;
+    }
+    let before = records.iter().rev().find(|l| !no_data(l))?;
     (quoted_field_count(before)? >= header_fields).then_some(n)
 }
 
@@ -214,7 +222,7 @@ pub(super) fn read(
     // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
     // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
-    if let Some(fields) = last_line_cut_off(src, header.len()) {
+    if let Some(fields) = last_record_cut_off(src, header.len()) {
         let line = line_count(src).unwrap_or(0);
         return Err(cut_off(path, line, fields, header.len()));
     }
