@@ -482,8 +482,8 @@ fn without_the_radars_noise_every_alpha_is_within_a_quarter_percent() {
 /// misfit leaking into the per-axle α, over 4 vehicles × 3 seeds). With the radar's noise, at
 /// n = 2.5, the mixture is still chosen and the bias within ±0.0015 (the target's ±0.001 is
 /// asserted on the scenes' own law by the mismatch test; over 4 vehicles × 3 seeds at n = 1.5,
-/// 44 of 48 axles are within it, all within 0.0013). Measured: 0.00015, 0.00013, 0.00012 and
-/// 0.00019 without the noise, 0.00049 with it. The runs' μ RMSE stays at most 0.6 of the
+/// 44 of 48 axles are within it, all within 0.0013). Measured: 0.00019, 0.00013, 0.00014 and
+/// 0.00019 without the noise, 0.00059 with it. The runs' μ RMSE stays at most 0.6 of the
 /// uncalibrated (measured 0.28–0.47).
 #[test]
 fn pad_laws_of_other_shapes_are_calibrated_by_a_form_near_them() {

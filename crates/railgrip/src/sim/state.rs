@@ -179,14 +179,19 @@ pub(super) struct SimState {
     pub thermal_power: [f64; AXLES],
     pub thermal_steps: u32,
     /// `load_fluctuation`: each axle's load factor 1 + ε (1 without the effect), the band
-    /// filter's four sections' states (Direct Form II transposed), and its noise source.
+    /// filter's four sections with their states (None without the effect), and its noise
+    /// source.
     pub load_factor: [f64; AXLES],
-    pub fluct_state: [[[f64; 2]; FLUCT_SECTIONS]; AXLES],
+    pub fluct_state: Option<[FluctSections; AXLES]>,
     pub fluct_rng: crate::rng::Rng,
 }
 
 /// The load fluctuation's band filter: two high-pass and two low-pass second-order sections.
 const FLUCT_SECTIONS: usize = 4;
+
+/// One axle's band filter: its sections, each with its state (the biquad crate's Direct Form
+/// II transposed).
+pub(super) type FluctSections = [biquad::DirectForm2Transposed<f64>; FLUCT_SECTIONS];
 
 /// The `load_fluctuation` effect: per axle, white noise through a band-pass of two 4th-order
 /// Butterworth filters, a high-pass at the band's bottom and a low-pass at its top (each two
@@ -199,8 +204,8 @@ const FLUCT_SECTIONS: usize = 4;
 /// step at most 1 ms (the scene's rules), so every section lies below half the step rate.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct LoadFluctuation {
-    /// Each section's (b0, b1, b2, a1, a2), a0 = 1.
-    sections: [[f64; 5]; FLUCT_SECTIONS],
+    /// Each section's coefficients (a0 = 1).
+    sections: [biquad::Coefficients<f64>; FLUCT_SECTIONS],
     gain: f64,
 }
 
@@ -212,9 +217,7 @@ impl LoadFluctuation {
         let fs = 1.0 / h;
         const Q: [f64; 2] = [0.541_196_100_146_197, 1.306_562_964_876_376_6];
         let section = |kind: Type<f64>, f: f64, q: f64| {
-            Coefficients::<f64>::from_params(kind, fs.hz(), f.hz(), q)
-                .map(|c| [c.b0, c.b1, c.b2, c.a1, c.a2])
-                .map_err(|e| {
+            Coefficients::<f64>::from_params(kind, fs.hz(), f.hz(), q).map_err(|e| {
                     format!(
                         "run.load_fluctuation_band_hz: {f} Hz at the step's {fs} Hz: {e:?} (the band must lie below half the step rate)"
                     )
@@ -233,29 +236,26 @@ impl LoadFluctuation {
         // Energy of the impulse response over 20 / (2π f_low) s (~7.7 time constants of the
         // high-pass's slowest pole, Q = 1.31: what is left is ~1e-7 of the energy).
         let steps = (20.0 / (std::f64::consts::TAU * lo * h)).ceil() as usize + 10;
-        let mut state = [[0.0; 2]; FLUCT_SECTIONS];
+        let mut state = f.sections();
         let mut energy = 0.0;
         for n in 0..steps {
-            let y = f.filter(&mut state, if n == 0 { 1.0 } else { 0.0 });
+            let y = LoadFluctuation::filter(&mut state, if n == 0 { 1.0 } else { 0.0 });
             energy += y * y;
         }
         f.gain = sc.run.load_fluctuation_rms / energy.sqrt();
         Ok(f)
     }
 
-    /// One sample `x` through the four sections (Direct Form II transposed, as the biquad
-    /// crate's `DirectForm2Transposed`: y = b0 x + s0, s0 ← b1 x − a1 y + s1, s1 ← b2 x − a2 y,
-    /// its a1, a2 the denominator's own signs), the gain not applied.
+    /// The four sections at rest (zero states), for one axle.
+    fn sections(&self) -> FluctSections {
+        self.sections.map(biquad::DirectForm2Transposed::<f64>::new)
+    }
+
+    /// One sample `x` through an axle's four sections in turn, the gain not applied.
     #[inline(always)]
-    fn filter(&self, state: &mut [[f64; 2]; FLUCT_SECTIONS], x: f64) -> f64 {
-        let mut y = x;
-        for ([b0, b1, b2, a1, a2], s) in self.sections.iter().zip(state.iter_mut()) {
-            let out = b0 * y + s[0];
-            s[0] = b1 * y - a1 * out + s[1];
-            s[1] = b2 * y - a2 * out;
-            y = out;
-        }
-        y
+    fn filter(state: &mut FluctSections, x: f64) -> f64 {
+        use biquad::Biquad;
+        state.iter_mut().fold(x, |y, s| s.run(y))
     }
 }
 
@@ -483,7 +483,7 @@ impl<'a> Setup<'a> {
             thermal_power: [0.0; AXLES],
             thermal_steps: 0,
             load_factor: [1.0; AXLES],
-            fluct_state: [[[0.0; 2]; FLUCT_SECTIONS]; AXLES],
+            fluct_state: self.fluctuation.as_ref().map(|f| [f.sections(); AXLES]),
             // Seeded from the run's noise seed by the step loop.
             fluct_rng: crate::rng::Rng::new(0),
         };
@@ -695,13 +695,13 @@ impl<'a> Setup<'a> {
     /// (see [`LoadFluctuation`]).
     #[inline(always)]
     pub(super) fn fluctuate(&self, st: &mut SimState, counters: &mut EffectCounters) {
-        let Some(f) = &self.fluctuation else {
+        let (Some(f), Some(sections)) = (&self.fluctuation, &mut st.fluct_state) else {
             return;
         };
         counters.add(Effect::LoadFluctuation, AXLES as u64);
-        for a in 0..AXLES {
+        for (factor, axle) in st.load_factor.iter_mut().zip(sections.iter_mut()) {
             let w = st.fluct_rng.normal();
-            st.load_factor[a] = 1.0 + f.gain * f.filter(&mut st.fluct_state[a], w);
+            *factor = 1.0 + f.gain * LoadFluctuation::filter(axle, w);
         }
     }
 
