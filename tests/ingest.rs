@@ -1520,51 +1520,112 @@ fn fifos_and_devices_are_refused_without_blocking() {
     );
 }
 
-/// A record over two lines (a quoted note holding a line end) that the file's end cuts off —
-/// after its note, or inside it — is named at the file's last line, the record's last, with
-/// the fields it has.
+/// A row over two lines (a quoted note holding a line end) that the file's end cuts off — after
+/// its note or inside it — is named at the file's last line, as a row of two lines with the
+/// fields it has; one cut right after the note's first line end, as a line ending inside it. A stray quote inside a cell's text is no open
+/// note. Past the first 64 KiB, where only the file's tail is looked at, a tail that begins
+/// inside a note over many lines (each holding more commas than the header has fields) is
+/// read right: the whole file reads, and its last row cut before an unmapped column is named.
 #[test]
 fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     let dir = tempfile::tempdir().unwrap();
+    let with_note = |text: &str, note_row: usize, note: &str| -> String {
+        text.lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let tail = match i {
+                    0 => "note,gps_fix".to_string(),
+                    i if i == note_row => format!("{note},4"),
+                    _ => "\"\",4".to_string(),
+                };
+                format!("{l},{tail}\n")
+            })
+            .collect()
+    };
     let text = small_csv();
     let lines = text.lines().count();
     let h = text.lines().next().unwrap().split(',').count();
-    let noted: String = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            let tail = match i {
-                0 => "note,gps_fix".to_string(),
-                i if i + 1 == lines => "\"first,\nsecond\",4".to_string(),
-                _ => "\"\",4".to_string(),
-            };
-            format!("{l},{tail}\n")
-        })
-        .collect();
-    // Whole, it reads.
-    let p = write(dir.path(), "whole.csv", noted.as_bytes());
-    ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{e}"));
-    for (name, body, fields) in [
+    let noted = with_note(&text, lines - 1, "\"first,\nsecond\"");
+    let stray = with_note(&text, lines - 1, "5\" wheel");
+    // Whole, they read; so does a stray quote in the last row, with and without a line end.
+    for (name, body) in [
+        ("whole.csv", noted.clone()),
+        ("stray.csv", stray.clone()),
+        ("stray_open.csv", stray.trim_end().to_string()),
+    ] {
+        let p = write(dir.path(), name, body.as_bytes());
+        ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
+    let row = |how: &str| {
+        format!(
+            "line {}: the last row (lines {lines}–{}) has {} of {} fields and {how}",
+            lines + 1,
+            lines + 1,
+            h + 1,
+            h + 2
+        )
+    };
+    for (name, body, what) in [
         (
             "after_note.csv",
             noted.trim_end().trim_end_matches(",4").to_string(),
-            h + 1,
+            row("no line end"),
         ),
         (
             "inside_note.csv",
             noted.trim_end().trim_end_matches("ond\",4").to_string(),
-            h + 1,
+            row("ends inside a quoted field, with no line end"),
         ),
     ] {
         let p = write(dir.path(), name, body.as_bytes());
         let e = err(&p, &default());
         assert!(
-            e.contains(&format!(
-                "{name}: line {}: the last line has {fields} of {} fields",
-                lines + 1,
-                h + 2
-            )) && e.contains("looks cut off mid-line"),
+            e.contains(&format!("{name}: {what}"))
+                && e.contains("looks cut off mid-row")
+                && e.contains("delete the incomplete last row"),
             "{e}"
         );
     }
+    // Cut right after the note's line end: a line that ends inside its open note.
+    let name = "inside_note_line_end.csv";
+    let p = write(
+        dir.path(),
+        name,
+        noted.trim_end().trim_end_matches("second\",4").as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(&format!(
+            "{name}: line {lines}: the last line has {} of {} fields and ends inside a quoted field: the file looks cut off mid-line",
+            h + 1,
+            h + 2
+        )),
+        "{e}"
+    );
+    // A note of ~90 KiB over 2 500 lines, five rows before the end: the last 64 KiB begin inside it.
+    let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
+    let long_lines = long.lines().count();
+    let big = format!(
+        "\"{}\"",
+        "a, b, c, d, e, f, g, h, i, j, k, l, m\n".repeat(2500)
+    );
+    let body = with_note(&long, long_lines - 6, &big);
+    assert!(body.len() > 64 * 1024 && big.len() > 64 * 1024);
+    let last_line = long_lines + 2500;
+    let p = write(dir.path(), "long_whole.csv", body.trim_end().as_bytes());
+    ingest_file(&p, &default()).unwrap_or_else(|e| panic!("long_whole.csv: {e}"));
+    let p = write(
+        dir.path(),
+        "long_cut.csv",
+        body.trim_end().trim_end_matches(",4").as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(&format!(
+            "long_cut.csv: line {last_line}: the last line has {} of {} fields and no line end",
+            h + 1,
+            h + 2
+        )),
+        "{e}"
+    );
 }

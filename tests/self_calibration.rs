@@ -346,13 +346,13 @@ fn alpha_errors(c: &CampaignCalibration, m: &sim::Mismatch, within_3_se: bool) -
 /// has the figures): the radar's scale within 0.05 %, its latency and the tachometers' delay
 /// within 5 ms, the linear pad law with its rise within 3 standard errors, per-run μ RMSE at
 /// most 0.6 × the uncalibrated one, α_i(v) within 1 % and 3 standard errors — not the 0.5 %
-/// aimed for (measured: 0.11–0.65 %, 8 of 12 axles within 0.5 % and one at 0.50 %; with the
-/// force balance's coefficients 0.30–1.48 %, 5 of 12, before the load fluctuation's band): the
-/// per-axle α rest on the wheel-slide protection's pressure differences against the radar's noise, ~0.45 % one standard error over 12 runs from
-/// the balance integrated over time (~0.8 % from the force balance). Each axle's bias is within
-/// ±0.001 on every run (measured: up to 0.0007; up to 0.0014 with the force balance's). The
-/// three campaigns pooled (one vehicle, 36 runs) bring α to −0.38 … +0.39 % with one standard
-/// error of 0.24–0.29 %.
+/// aimed for (measured: 0.08–0.59 %, 9 of 12 axles within 0.5 %; with the force balance's
+/// coefficients 0.30–1.48 %, 5 of 12, before the load fluctuation's band): the per-axle α rest
+/// on the wheel-slide protection's pressure differences against the radar's noise, ~0.45 % one
+/// standard error over 12 runs from the balance integrated over time (~0.8 % from the force
+/// balance). Each axle's bias is within ±0.001 on every run (measured: up to 0.00064; up to
+/// 0.0014 with the force balance's). The three campaigns pooled (one vehicle, 36 runs) bring α
+/// to −0.44 … +0.37 % with one standard error of 0.24–0.29 %.
 #[test]
 fn the_campaign_calibrates_itself_on_mismatch_scenes() {
     let dir = tempfile::tempdir().unwrap();
@@ -438,7 +438,7 @@ fn the_campaign_calibrates_itself_on_mismatch_scenes() {
 /// What limits the per-axle α is the radar's noise: the mismatch scenes without it (and its
 /// spikes), every other mismatch and sensor effect kept (the wheel loads' fluctuation too),
 /// noise seed 1, on three vehicles (brake scatter seeds 11 — the scenes' own — 13 and 14):
-/// every α_i(v) within 0.25 % over 5–55 m/s (measured: within 0.16 %). Their standard errors
+/// every α_i(v) within 0.25 % over 5–55 m/s (measured: within 0.12 %). Their standard errors
 /// are not asserted: at ~0.05 % they leave out what remains of the model's error (up to 2.8 of
 /// them here). With the radar's noise the same vehicles come out up to 1.2 % off, about as far
 /// as their standard errors (~0.45 %) say (docs/calibration.md, `scripts/alpha-floor.sh`).
@@ -730,7 +730,7 @@ fn a_campaign_without_pressure_changes_takes_its_delays_as_0() {
 /// (scale 1) and still fits the brake coefficients: the radar's unknown 0.3 % scales the
 /// deceleration, and with a pressure that barely changes within a run the pad friction's speed
 /// law and the resistance's speed term are harder to tell apart (measured: the axles' mean α
-/// 0.44 % high; 3.0 % from the force balance). Still better than the pipeline's α (1.7 % low):
+/// 0.41 % high; 3.0 % from the force balance). Still better than the pipeline's α (1.7 % low):
 /// every run's μ RMSE at most 0.6 of the uncalibrated (measured 0.27–0.39).
 #[test]
 fn a_campaign_that_never_coasts_keeps_the_radar_as_it_reads() {

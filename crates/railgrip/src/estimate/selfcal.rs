@@ -3374,6 +3374,23 @@ mod tests {
         }
     }
 
+    /// Run `ri` of `n` samples at 100 Hz, every sample valid, the wheels' terms zero; no radar
+    /// samples, rows, coast or troughs yet.
+    fn test_run(ri: usize, n: usize) -> RunSignals {
+        RunSignals {
+            name: format!("run{ri}"),
+            fs: 100.0,
+            v_radar: Vec::new(),
+            a_radar: Vec::new(),
+            ok: vec![true; n],
+            w_mean: vec![0.0; n],
+            wd_sum: vec![0.0; n],
+            rows: Vec::new(),
+            coast: Vec::new(),
+            troughs: vec![None; AXLES],
+        }
+    }
+
     /// Runs of `sizes` rows for a synthetic balance: speeds and the four pressures from a fixed
     /// pseudo-random sequence, y = Σ ratio_i α_i p_i/r + c_run + c1 v + c2 v² + noise (N),
     /// carried by the radar's deceleration (the wheels' ω̇ zero).
@@ -3386,18 +3403,7 @@ mod tests {
             .enumerate()
             .map(|(ri, &n)| {
                 let c_run = 900.0 + 400.0 * ri as f64;
-                let mut run = RunSignals {
-                    name: format!("run{ri}"),
-                    fs: 100.0,
-                    v_radar: Vec::new(),
-                    a_radar: Vec::new(),
-                    ok: vec![true; n],
-                    w_mean: vec![0.0; n],
-                    wd_sum: vec![0.0; n],
-                    rows: Vec::new(),
-                    coast: Vec::new(),
-                    troughs: vec![None; AXLES],
-                };
+                let mut run = test_run(ri, n);
                 for k in 0..n {
                     let v = 5.0 + 50.0 * uniform();
                     let p: [f64; AXLES] = std::array::from_fn(|_| 1.0 + 3.0 * uniform());
@@ -3590,18 +3596,9 @@ mod tests {
             .enumerate()
             .map(|(ri, &rows)| {
                 let n = rows * DECIMATE;
-                let mut run = RunSignals {
-                    name: format!("run{ri}"),
-                    fs: 100.0,
-                    v_radar: vec![0.0; n],
-                    a_radar: vec![0.0; n],
-                    ok: vec![true; n],
-                    w_mean: vec![0.0; n],
-                    wd_sum: vec![0.0; n],
-                    rows: Vec::new(),
-                    coast: Vec::new(),
-                    troughs: vec![None; AXLES],
-                };
+                let mut run = test_run(ri, n);
+                run.v_radar = vec![0.0; n];
+                run.a_radar = vec![0.0; n];
                 for j in 0..rows {
                     let k = j * DECIMATE;
                     run.v_radar[k] = 5.0 + 50.0 * uniform();
@@ -3682,9 +3679,9 @@ mod tests {
     /// A mixture's weight searched again with the axle groups its fit settled on: axles 1 and 2
     /// on one pressure (singular apart at every w, so the first search holds all four in one
     /// group), axle 4's pressure rising towards standstill as (1 − v/v_top)³ and its α 6 % below
-    /// the others', so that one common ratio leaks into the pad law's shape. The first search's weight is
-    /// then far from the truth; the second, with axles 1 and 2 as one group and 3 and 4 apart,
-    /// finds it, and the candidate carries it.
+    /// the others', so that one common ratio leaks into the pad law's shape. The first search's
+    /// weight is then far from the truth; the second, with the groups the fit settles on (axles
+    /// 1 and 2 merged, since they cannot be told apart), finds it, and the candidate carries it.
     #[test]
     fn a_mixtures_weight_is_searched_again_with_the_groups_its_fit_settles_on() {
         let (w_true, gamma_true) = (0.4, 0.06);
@@ -3696,18 +3693,7 @@ mod tests {
             .iter()
             .enumerate()
             .map(|(ri, &n)| {
-                let mut run = RunSignals {
-                    name: format!("run{ri}"),
-                    fs: 100.0,
-                    v_radar: Vec::new(),
-                    a_radar: Vec::new(),
-                    ok: vec![true; n],
-                    w_mean: vec![0.0; n],
-                    wd_sum: vec![0.0; n],
-                    rows: Vec::new(),
-                    coast: Vec::new(),
-                    troughs: vec![None; AXLES],
-                };
+                let mut run = test_run(ri, n);
                 for k in 0..n {
                     let v = 55.0 * rng.uniform();
                     let u = 1.0 - v / 55.0;

@@ -9,7 +9,7 @@
 //! Error path: when polars fails or a column holds ±inf, the time column an empty or NaN cell,
 //! or a time that does not increase, [`diagnose`] rescans the file line by line to name the
 //! exact line and column, counting lines as a text editor does (a quoted cell that holds a line
-//! end spans two). A last line cut off mid-line, perhaps before unmapped columns only
+//! end spans two). A last row cut off by the file's end, perhaps before unmapped columns only
 //! (which polars does not read), is named by [`last_record_cut_off`] first.
 
 use std::collections::BTreeMap;
@@ -90,17 +90,33 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
     Ok(fields(line).into_iter().map(str::to_string).collect())
 }
 
-/// The last record's number of fields where the log ends in a record cut off, else None: its
-/// last record with data (one line, or several where a quoted field holds a line end;
-/// [`Records`]) ends the file without a line end — perhaps inside a quoted field — has fewer
-/// fields than the header's `header_fields`, and the record with data before it has them all
-/// (a file whose rows all stop short of the header's trailing columns, as an export that drops
-/// trailing empty cells writes them, is read as before). Fields are counted with quoted commas inside a field
-/// ([`quoted_field_count`]). From the log's last 64 KiB; None where they cannot tell (an
-/// object not fetched, lines longer than half of that).
-fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
+/// A log's last record cut off by the file's end ([`last_record_cut_off`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CutRecord {
+    /// Its fields, counted as [`split_fields`] does (a field left open counts).
+    fields: usize,
+    /// How many lines it spans (more than one where a quoted field holds a line end).
+    lines: usize,
+    /// It ends inside a quoted field (a quote opened at a field's start and never closed).
+    open: bool,
+    /// The file ends with a line end (inside that open field).
+    line_end: bool,
+}
+
+/// The log's last record where the file's end cut it off, else None: its last record with data
+/// (one line, or several where a quoted field holds a line end; [`Records`]) either ends the
+/// file without a line end with fewer fields than the header's `header_fields`, or ends inside
+/// a quoted field (a field that opens with a quote and never closes, with or without a line
+/// end after it) — and the record with data before it has all the header's fields (a file whose
+/// rows all stop short of the header's trailing columns, as an export that drops trailing
+/// empty cells writes them, is read as before). A stray quote inside a cell's text, which does
+/// not open a quoted field, tells nothing. From the log's last 64 KiB, the quoted state at its
+/// first whole line taken from the quotes before it (counted only where the window holds a
+/// quote); None where the window cannot tell (an object not fetched, a last record that began
+/// before the window).
+fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<CutRecord> {
     const TAIL: u64 = 64 * 1024;
-    let (bytes, whole): (Vec<u8>, bool) = match src {
+    let (bytes, from): (Vec<u8>, u64) = match src {
         LogSource::File(p) => {
             use std::io::{Seek, SeekFrom};
             let mut f = crate::input::open_regular(p).ok()?;
@@ -109,49 +125,144 @@ fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<usize> {
             f.seek(SeekFrom::Start(from)).ok()?;
             let mut b = Vec::new();
             f.take(TAIL).read_to_end(&mut b).ok()?;
-            (b, from == 0)
+            (b, from)
         }
         LogSource::Memory { bytes, .. } => {
             let from = bytes.len().saturating_sub(TAIL as usize);
-            (bytes[from..].to_vec(), from == 0)
+            (bytes[from..].to_vec(), from as u64)
         }
         // `ingest_source` fetches an object into memory before it parses it.
         LogSource::Object { .. } => return None,
     };
-    if bytes.ends_with(b"\n") {
+    let line_end = bytes.ends_with(b"\n");
+    let quoted = bytes.contains(&b'"');
+    // Without a quote, a file that ends with a line end ends with a whole record.
+    if line_end && !quoted {
         return None;
     }
     let text = String::from_utf8_lossy(&bytes);
     let mut lines: Vec<&str> = text.lines().collect();
-    // The window's first line may begin mid-line: only whole lines count.
-    if !whole && !lines.is_empty() {
-        lines.remove(0);
+    let mut open = false;
+    if from > 0 && !lines.is_empty() {
+        // The window's first line may begin mid-line: only whole lines count, and the quotes
+        // before them say whether they begin inside a quoted field.
+        let partial = lines.remove(0);
+        if quoted {
+            open = (quotes_before(src, from)? + partial.matches('"').count()) % 2 == 1;
+        }
     }
-    // Records, not lines: a quoted note that holds a line end makes one record of two lines.
-    let mut records: Vec<String> = Records::new(lines.into_iter()).map(|r| r.2).collect();
-    // The text ends without a line end, so its last record is the file's; blank lines and lines
-    // of separators before it are skipped.
-    let last = records.pop()?;
+    // The rest of a record whose quoted field began before the window: its lines up to the one
+    // that closes the field (and ends the record) are left out.
+    let mut skip = 0;
+    while open && skip < lines.len() {
+        open ^= lines[skip].matches('"').count() % 2 == 1;
+        skip += 1;
+    }
+    if open {
+        return None;
+    }
+    let mut records: Vec<(usize, usize, String)> = Records::new(lines[skip..].iter()).collect();
+    let (first, last_line, last) = records.pop()?;
     if no_data(&last) {
         return None;
     }
-    // A record whose quotes do not pair up ends inside a quoted field: the file's end cut it
-    // there, and its fields so far are counted (the open one among them).
-    let n = split_fields(&last).0.len();
-    if n >= header_fields {
+    let (f, paired) = split_fields(&last);
+    let cut = CutRecord {
+        fields: f.len(),
+        lines: last_line + 1 - first,
+        open: !paired,
+        line_end,
+    };
+    if cut.open {
+        if !opens_a_field(&last) {
+            return None;
+        }
+    } else if line_end || cut.fields >= header_fields {
         return None;
     }
-    let before = records.iter().rev().find(|l| !no_data(l))?;
-    (quoted_field_count(before)? >= header_fields).then_some(n)
+    let (_, _, before) = records.iter().rev().find(|r| !no_data(&r.2))?;
+    (quoted_field_count(before)? >= header_fields).then_some(cut)
 }
 
-/// A last line cut off mid-line (`line` its number), with `fields` of `of` fields.
-fn cut_off(path: &Path, line: usize, fields: usize, of: usize) -> IngestError {
+/// The number of double quotes in the log's first `n` bytes; None where it cannot be read.
+fn quotes_before(src: &LogSource, n: u64) -> Option<usize> {
+    match src {
+        LogSource::Memory { bytes, .. } => {
+            let n = usize::try_from(n).ok()?.min(bytes.len());
+            Some(bytes[..n].iter().filter(|b| **b == b'"').count())
+        }
+        _ => {
+            let mut r = BufReader::new(src.open().ok()?.take(n));
+            let mut count = 0;
+            loop {
+                let buf = r.fill_buf().ok()?;
+                if buf.is_empty() {
+                    return Some(count);
+                }
+                count += buf.iter().filter(|b| **b == b'"').count();
+                let used = buf.len();
+                r.consume(used);
+            }
+        }
+    }
+}
+
+/// Whether a record whose quotes do not pair up ends in a quoted field: the quote that opened
+/// the field it ends in stands at a field's start, after a comma or the line end before it and
+/// any spaces — as polars opens a quoted field — and not inside a cell's text (`5" wheel`). A
+/// doubled quote inside a quoted field (`""`, an escaped quote) leaves that field open.
+fn opens_a_field(record: &str) -> bool {
+    let mut quoted = false;
+    let (mut opened_at, mut closed_at) = (None, None);
+    for (i, c) in record.char_indices() {
+        if c != '"' {
+            continue;
+        }
+        if quoted {
+            closed_at = Some(i);
+        } else if closed_at.is_none_or(|j| j + 1 != i) {
+            opened_at = Some(i);
+        }
+        quoted = !quoted;
+    }
+    opened_at.is_some_and(|i| {
+        record[..i]
+            .trim_end_matches([' ', '\t'])
+            .chars()
+            .next_back()
+            .is_none_or(|c| c == ',' || c == '\n')
+    })
+}
+
+/// The error for a last record cut off by the file's end ([`CutRecord`]), its last line `line`
+/// (1-based), with `of` fields in the header.
+fn cut_off(path: &Path, line: usize, cut: CutRecord, of: usize) -> IngestError {
+    let first = (line + 1).saturating_sub(cut.lines.max(1));
+    let (what, delete) = if cut.lines > 1 {
+        (
+            format!("the last row (lines {first}–{line})"),
+            format!("the incomplete last row (lines {first}–{line})"),
+        )
+    } else {
+        (
+            "the last line".to_string(),
+            "the incomplete last line".to_string(),
+        )
+    };
+    let how = match (cut.open, cut.line_end) {
+        (true, true) => "ends inside a quoted field",
+        (true, false) => "ends inside a quoted field, with no line end",
+        (false, _) => "no line end",
+    };
     IngestError::CsvBadLine {
         path: path.to_path_buf(),
         line,
-        what: format!("the last line has {fields} of {of} fields and no line end: the file looks cut off mid-line"),
-        hint: "the logger or copy was interrupted; delete the incomplete last line or re-export the run".into(),
+        what: format!(
+            "{what} has {} of {of} fields and {how}: the file looks cut off mid-{}",
+            cut.fields,
+            if cut.lines > 1 { "row" } else { "line" }
+        ),
+        hint: format!("the logger or copy was interrupted; delete {delete} or re-export the run"),
     }
 }
 
@@ -222,9 +333,12 @@ pub(super) fn read(
     // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
     // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
-    if let Some(fields) = last_record_cut_off(src, header.len()) {
-        let line = line_count(src).unwrap_or(0);
-        return Err(cut_off(path, line, fields, header.len()));
+    if let Some(cut) = last_record_cut_off(src, header.len()) {
+        // A file that ends with a line end has its last line before it.
+        let line = line_count(src)
+            .unwrap_or(0)
+            .saturating_sub(usize::from(cut.line_end));
+        return Err(cut_off(path, line, cut, header.len()));
     }
     if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
@@ -594,11 +708,18 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
         if no_data(&line) {
             continue;
         }
-        let f = fields(&line);
+        let (f, paired) = split_fields(&line);
         if f.len() < header.len() {
-            let last = last_line_no == total_lines;
-            if last && !ends_with_newline {
-                return Some(cut_off(path, last_line_no, f.len(), header.len()));
+            // The last record, without a line end or inside a quoted field: cut off.
+            let open = !paired && opens_a_field(&line);
+            if last_line_no == total_lines && (!ends_with_newline || open) {
+                let cut = CutRecord {
+                    fields: f.len(),
+                    lines: last_line_no + 1 - line_no,
+                    open,
+                    line_end: ends_with_newline,
+                };
+                return Some(cut_off(path, last_line_no, cut, header.len()));
             }
             return Some(IngestError::CsvBadLine {
                 path: path.to_path_buf(),

@@ -218,10 +218,10 @@ impl LoadFluctuation {
         const Q: [f64; 2] = [0.541_196_100_146_197, 1.306_562_964_876_376_6];
         let section = |kind: Type<f64>, f: f64, q: f64| {
             Coefficients::<f64>::from_params(kind, fs.hz(), f.hz(), q).map_err(|e| {
-                    format!(
-                        "run.load_fluctuation_band_hz: {f} Hz at the step's {fs} Hz: {e:?} (the band must lie below half the step rate)"
-                    )
-                })
+                format!(
+                    "run.load_fluctuation_band_hz: {f} Hz at the step's {fs} Hz: {e:?} (the band must lie below half the step rate)"
+                )
+            })
         };
         let sections = [
             section(Type::HighPass, lo, Q[0])?,
