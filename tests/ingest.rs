@@ -1522,10 +1522,11 @@ fn fifos_and_devices_are_refused_without_blocking() {
 
 /// A row over two lines (a quoted note holding a line end) that the file's end cuts off — after
 /// its note or inside it — is named at the file's last line, as a row of two lines with the
-/// fields it has; one cut right after the note's first line end, as a line ending inside it. A stray quote inside a cell's text is no open
-/// note. Past the first 64 KiB, where only the file's tail is looked at, a tail that begins
-/// inside a note over many lines (each holding more commas than the header has fields) is
-/// read right: the whole file reads, and its last row cut before an unmapped column is named.
+/// fields it has; one cut right after the note's first line end, as a line ending inside it.
+/// Past the first 64 KiB, where only the file's tail is looked at, a tail that begins
+/// inside a note over many lines (each with more fields than the header) is read right: the
+/// whole file reads, with and without a line end, and its last row cut before an unmapped
+/// column is named.
 #[test]
 fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     let dir = tempfile::tempdir().unwrap();
@@ -1546,16 +1547,8 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     let lines = text.lines().count();
     let h = text.lines().next().unwrap().split(',').count();
     let noted = with_note(&text, lines - 1, "\"first,\nsecond\"");
-    let stray = with_note(&text, lines - 1, "5\" wheel");
-    // Whole, they read; so does a stray quote in the last row, with and without a line end.
-    for (name, body) in [
-        ("whole.csv", noted.clone()),
-        ("stray.csv", stray.clone()),
-        ("stray_open.csv", stray.trim_end().to_string()),
-    ] {
-        let p = write(dir.path(), name, body.as_bytes());
-        ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
-    }
+    let p = write(dir.path(), "whole.csv", noted.as_bytes());
+    ingest_file(&p, &default()).unwrap_or_else(|e| panic!("whole.csv: {e}"));
     let row = |how: &str| {
         format!(
             "line {}: the last row (lines {lines}–{}) has {} of {} fields and {how}",
@@ -1612,8 +1605,13 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     let body = with_note(&long, long_lines - 6, &big);
     assert!(body.len() > 64 * 1024 && big.len() > 64 * 1024);
     let last_line = long_lines + 2500;
-    let p = write(dir.path(), "long_whole.csv", body.trim_end().as_bytes());
-    ingest_file(&p, &default()).unwrap_or_else(|e| panic!("long_whole.csv: {e}"));
+    for (name, whole) in [
+        ("long_whole.csv", body.trim_end()),
+        ("long_whole_line_end.csv", body.as_str()),
+    ] {
+        let p = write(dir.path(), name, whole.as_bytes());
+        ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
     let p = write(
         dir.path(),
         "long_cut.csv",
@@ -1623,6 +1621,104 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     assert!(
         e.contains(&format!(
             "long_cut.csv: line {last_line}: the last line has {} of {} fields and no line end",
+            h + 1,
+            h + 2
+        )),
+        "{e}"
+    );
+}
+
+/// Quotes polars reads two ways: its row splitting toggles at every quote, its cell reading
+/// opens a quoted cell only at a cell's first character. A quote inside a cell's text
+/// (`5" wheel`), or after a space, is named at its line — polars drops the rows after it
+/// without a word where the cell lies past the columns it reads — in the last row too, whole or
+/// cut. Two such quotes on one line keep the two readings in step: the file reads, every row.
+/// A doubled quote inside a quoted note is an escaped quote: the file reads, and a last row cut
+/// inside such a note is named as open.
+#[test]
+fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let lines = text.lines().count();
+    let h = text.lines().next().unwrap().split(',').count();
+    let with_notes = |notes: &[(usize, &str)]| -> String {
+        text.lines()
+            .enumerate()
+            .map(|(i, l)| {
+                let note = notes.iter().find(|(r, _)| *r == i).map_or("n", |(_, n)| *n);
+                let tail = if i == 0 {
+                    "note,gps_fix".to_string()
+                } else {
+                    format!("{note},4")
+                };
+                format!("{l},{tail}\n")
+            })
+            .collect()
+    };
+    let p = write(dir.path(), "plain.csv", with_notes(&[]).as_bytes());
+    let plain = ingest_file(&p, &default()).unwrap();
+    let escaped = with_notes(&[(lines - 1, "\"say \"\"hi\"\" twice\"")]);
+    for (name, body) in [
+        (
+            "two_strays.csv",
+            with_notes(&[(lines - 20, "5\" and 6\" wheels")]),
+        ),
+        ("escaped.csv", escaped.clone()),
+        ("escaped_open.csv", escaped.trim_end().to_string()),
+    ] {
+        let p = write(dir.path(), name, body.as_bytes());
+        let got = ingest_file(&p, &default()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(
+            (&got.time_s, &got.v_radar_mps),
+            (&plain.time_s, &plain.v_radar_mps),
+            "{name}"
+        );
+    }
+    let stray_last = with_notes(&[(lines - 1, "5\" wheel")]);
+    for (name, body, line) in [
+        (
+            "stray_before.csv",
+            with_notes(&[(lines - 20, "5\" wheel")]),
+            lines - 19,
+        ),
+        (
+            "spaced.csv",
+            with_notes(&[(lines - 20, " \"x")]),
+            lines - 19,
+        ),
+        ("stray_last.csv", stray_last.clone(), lines),
+        (
+            "stray_last_open.csv",
+            stray_last.trim_end().to_string(),
+            lines,
+        ),
+        (
+            "stray_last_cut.csv",
+            stray_last.trim_end().trim_end_matches(",4").to_string(),
+            lines,
+        ),
+    ] {
+        let p = write(dir.path(), name, body.as_bytes());
+        let e = err(&p, &default());
+        assert!(
+            e.contains(&format!(
+                "{name}: line {line}: a double quote inside a cell's text"
+            )) && e.contains("quote doubled"),
+            "{e}"
+        );
+    }
+    let p = write(
+        dir.path(),
+        "escaped_cut.csv",
+        escaped
+            .trim_end()
+            .trim_end_matches("\"\" twice\",4")
+            .as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(&format!(
+            "escaped_cut.csv: line {lines}: the last line has {} of {} fields and ends inside a quoted field, with no line end: the file looks cut off mid-line",
             h + 1,
             h + 2
         )),

@@ -93,11 +93,11 @@ fn read_header(src: &LogSource) -> Result<Vec<String>, IngestError> {
 /// A log's last record cut off by the file's end ([`last_record_cut_off`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct CutRecord {
-    /// Its fields, counted as [`split_fields`] does (a field left open counts).
+    /// Its fields, counted as polars reads cells ([`cells`]; a field left open counts).
     fields: usize,
     /// How many lines it spans (more than one where a quoted field holds a line end).
     lines: usize,
-    /// It ends inside a quoted field (a quote opened at a field's start and never closed).
+    /// It ends inside a quoted field (one that opens with a quote and never closes).
     open: bool,
     /// The file ends with a line end (inside that open field).
     line_end: bool,
@@ -106,14 +106,18 @@ struct CutRecord {
 /// The log's last record where the file's end cut it off, else None: its last record with data
 /// (one line, or several where a quoted field holds a line end; [`Records`]) either ends the
 /// file without a line end with fewer fields than the header's `header_fields`, or ends inside
-/// a quoted field (a field that opens with a quote and never closes, with or without a line
-/// end after it) — and the record with data before it has all the header's fields (a file whose
-/// rows all stop short of the header's trailing columns, as an export that drops trailing
-/// empty cells writes them, is read as before). A stray quote inside a cell's text, which does
-/// not open a quoted field, tells nothing. From the log's last 64 KiB, the quoted state at its
-/// first whole line taken from the quotes before it (counted only where the window holds a
-/// quote); None where the window cannot tell (an object not fetched, a last record that began
-/// before the window).
+/// a quoted field (with or without a line end after it) — and the record with data before it
+/// has all the header's fields (a file whose rows all stop short of the header's trailing
+/// columns, as an export that drops trailing empty cells writes them, is read as before).
+/// Fields are counted as polars reads cells ([`cells`]). Where a quote inside a cell's text
+/// (`5" wheel`, malformed: polars' row splitting counts it, its cell reading does not) leaves
+/// the last record's quotes unpaired without an open quoted field, the last line is judged
+/// alone, as a reading line by line sees it.
+///
+/// From the log's last 64 KiB. Where the tail holds a quote, it is read both as beginning
+/// outside a quoted field and inside one; where the two differ, the quotes before the tail
+/// decide. None where the tail cannot tell: an object not fetched, a last record (or the record
+/// before it) that began before the tail.
 fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<CutRecord> {
     const TAIL: u64 = 64 * 1024;
     let (bytes, from): (Vec<u8>, u64) = match src {
@@ -142,17 +146,35 @@ fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<CutRecor
     }
     let text = String::from_utf8_lossy(&bytes);
     let mut lines: Vec<&str> = text.lines().collect();
-    let mut open = false;
-    if from > 0 && !lines.is_empty() {
-        // The window's first line may begin mid-line: only whole lines count, and the quotes
-        // before them say whether they begin inside a quoted field.
-        let partial = lines.remove(0);
-        if quoted {
-            open = (quotes_before(src, from)? + partial.matches('"').count()) % 2 == 1;
-        }
+    if from == 0 || lines.is_empty() {
+        return tail_cut(&lines, false, header_fields, line_end);
     }
-    // The rest of a record whose quoted field began before the window: its lines up to the one
-    // that closes the field (and ends the record) are left out.
+    // The tail's first line may begin mid-line: only whole lines count.
+    let partial = lines.remove(0);
+    let outside = tail_cut(&lines, false, header_fields, line_end);
+    if !quoted {
+        return outside;
+    }
+    let inside = tail_cut(&lines, true, header_fields, line_end);
+    if inside == outside {
+        return outside;
+    }
+    let open = (quotes_before(src, from)? + partial.matches('"').count()) % 2 == 1;
+    if open {
+        inside
+    } else {
+        outside
+    }
+}
+
+/// [`last_record_cut_off`] on the tail's whole `lines`, which begin inside a quoted field where
+/// `open`: the rest of that record (its lines up to the one that closes the field) is left out.
+fn tail_cut(
+    lines: &[&str],
+    mut open: bool,
+    header_fields: usize,
+    line_end: bool,
+) -> Option<CutRecord> {
     let mut skip = 0;
     while open && skip < lines.len() {
         open ^= lines[skip].matches('"').count() % 2 == 1;
@@ -161,27 +183,138 @@ fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<CutRecor
     if open {
         return None;
     }
-    let mut records: Vec<(usize, usize, String)> = Records::new(lines[skip..].iter()).collect();
+    let lines = &lines[skip..];
+    let mut records: Vec<(usize, usize, String)> = Records::new(lines.iter()).collect();
     let (first, last_line, last) = records.pop()?;
     if no_data(&last) {
         return None;
     }
-    let (f, paired) = split_fields(&last);
+    let (fields, open) = cells(&last);
+    let paired = split_fields(&last).1;
+    if !paired && !open {
+        return last_line_cut(lines, header_fields, line_end);
+    }
     let cut = CutRecord {
-        fields: f.len(),
+        fields,
         lines: last_line + 1 - first,
-        open: !paired,
+        open: open && !paired,
         line_end,
     };
-    if cut.open {
-        if !opens_a_field(&last) {
-            return None;
-        }
-    } else if line_end || cut.fields >= header_fields {
+    if !cut.open && (line_end || cut.fields >= header_fields) {
         return None;
     }
     let (_, _, before) = records.iter().rev().find(|r| !no_data(&r.2))?;
-    (quoted_field_count(before)? >= header_fields).then_some(cut)
+    complete(before, header_fields).then_some(cut)
+}
+
+/// The last line alone, as a reading line by line sees it: without a line end after it, fewer
+/// fields than the header's and the line with data before it has them all ([`tail_cut`], where
+/// a quote inside a cell's text leaves the last record's quotes unpaired).
+fn last_line_cut(lines: &[&str], header_fields: usize, line_end: bool) -> Option<CutRecord> {
+    let (last, rest) = lines.split_last()?;
+    if line_end || no_data(last) {
+        return None;
+    }
+    let (fields, open) = cells(last);
+    if fields >= header_fields && !open {
+        return None;
+    }
+    let before = rest.iter().rev().find(|l| !no_data(l))?;
+    complete(before, header_fields).then_some(CutRecord {
+        fields,
+        lines: 1,
+        open,
+        line_end,
+    })
+}
+
+/// A record with all the header's fields, none left open.
+fn complete(record: &str, header_fields: usize) -> bool {
+    let (fields, open) = cells(record);
+    fields >= header_fields && !open
+}
+
+/// A record's fields as polars reads cells, and whether its last is left open: a field that
+/// begins with a quote (its first byte, no space before it) is quoted, and every quote in it
+/// toggles its state until a comma outside the quotes ends it (`""` inside is an escaped
+/// quote: it toggles twice); a quote elsewhere is text (`5" wheel`).
+fn cells(record: &str) -> (usize, bool) {
+    let (mut fields, mut at_start, mut quoted, mut in_quotes) = (1, true, false, false);
+    for c in record.chars() {
+        if at_start {
+            at_start = false;
+            if c == '"' {
+                (quoted, in_quotes) = (true, true);
+                continue;
+            }
+            quoted = false;
+        }
+        match c {
+            '"' if quoted => in_quotes = !in_quotes,
+            ',' if !in_quotes => {
+                fields += 1;
+                at_start = true;
+            }
+            _ => {}
+        }
+    }
+    (fields, in_quotes)
+}
+
+/// The first line (1-based) at whose end polars' two readings of the quotes disagree, else
+/// None: its row splitting toggles a quoted state at every double quote (polars 0.55
+/// `CountLines`/`SplitLines`), its cell reading opens a quoted cell only at a quote that is the
+/// cell's first character ([`cells`]). A quote inside a cell's text (`12" wheel`) toggles the
+/// first and not the second: the rows after it are then read as one quoted cell — dropped
+/// without a word where the cell lies past the last column read. Files without a quote (the
+/// usual log) are only searched for one.
+fn stray_quote_line(src: &LogSource) -> Option<usize> {
+    {
+        let mut r = BufReader::new(src.open().ok()?);
+        loop {
+            let buf = r.fill_buf().ok()?;
+            if buf.is_empty() {
+                return None;
+            }
+            if buf.contains(&b'"') {
+                break;
+            }
+            let used = buf.len();
+            r.consume(used);
+        }
+    }
+    let mut r = BufReader::new(src.open().ok()?);
+    let mut buf = Vec::new();
+    let (mut row_open, mut cell_quoted, mut in_quotes, mut at_start) = (false, false, false, true);
+    let mut line = 0;
+    loop {
+        buf.clear();
+        if r.read_until(b'\n', &mut buf).ok()? == 0 {
+            return None;
+        }
+        line += 1;
+        for &b in &buf {
+            if b == b'"' {
+                row_open = !row_open;
+            }
+            if at_start {
+                at_start = false;
+                cell_quoted = b == b'"';
+                if cell_quoted {
+                    in_quotes = true;
+                    continue;
+                }
+            }
+            match b {
+                b'"' if cell_quoted => in_quotes = !in_quotes,
+                b',' | b'\n' if !in_quotes => at_start = true,
+                _ => {}
+            }
+        }
+        if row_open != in_quotes {
+            return Some(line);
+        }
+    }
 }
 
 /// The number of double quotes in the log's first `n` bytes; None where it cannot be read.
@@ -191,7 +324,7 @@ fn quotes_before(src: &LogSource, n: u64) -> Option<usize> {
             let n = usize::try_from(n).ok()?.min(bytes.len());
             Some(bytes[..n].iter().filter(|b| **b == b'"').count())
         }
-        _ => {
+        LogSource::File(_) => {
             let mut r = BufReader::new(src.open().ok()?.take(n));
             let mut count = 0;
             loop {
@@ -204,34 +337,8 @@ fn quotes_before(src: &LogSource, n: u64) -> Option<usize> {
                 r.consume(used);
             }
         }
+        LogSource::Object { .. } => None,
     }
-}
-
-/// Whether a record whose quotes do not pair up ends in a quoted field: the quote that opened
-/// the field it ends in stands at a field's start, after a comma or the line end before it and
-/// any spaces — as polars opens a quoted field — and not inside a cell's text (`5" wheel`). A
-/// doubled quote inside a quoted field (`""`, an escaped quote) leaves that field open.
-fn opens_a_field(record: &str) -> bool {
-    let mut quoted = false;
-    let (mut opened_at, mut closed_at) = (None, None);
-    for (i, c) in record.char_indices() {
-        if c != '"' {
-            continue;
-        }
-        if quoted {
-            closed_at = Some(i);
-        } else if closed_at.is_none_or(|j| j + 1 != i) {
-            opened_at = Some(i);
-        }
-        quoted = !quoted;
-    }
-    opened_at.is_some_and(|i| {
-        record[..i]
-            .trim_end_matches([' ', '\t'])
-            .chars()
-            .next_back()
-            .is_none_or(|c| c == ',' || c == '\n')
-    })
 }
 
 /// The error for a last record cut off by the file's end ([`CutRecord`]), its last line `line`
@@ -254,12 +361,16 @@ fn cut_off(path: &Path, line: usize, cut: CutRecord, of: usize) -> IngestError {
         (true, false) => "ends inside a quoted field, with no line end",
         (false, _) => "no line end",
     };
+    let count = if cut.fields >= of {
+        format!("all {of} fields, but its last")
+    } else {
+        format!("{} of {of} fields and", cut.fields)
+    };
     IngestError::CsvBadLine {
         path: path.to_path_buf(),
         line,
         what: format!(
-            "{what} has {} of {of} fields and {how}: the file looks cut off mid-{}",
-            cut.fields,
+            "{what} has {count} {how}: the file looks cut off mid-{}",
             if cut.lines > 1 { "row" } else { "line" }
         ),
         hint: format!("the logger or copy was interrupted; delete {delete} or re-export the run"),
@@ -279,13 +390,6 @@ fn line_count(src: &LogSource) -> Option<usize> {
         let used = buf.len();
         r.consume(used);
     }
-}
-
-/// The number of fields of one line ([`fields`]); None where its quotes do not pair up (the
-/// end of a quoted field that spans lines, or a line cut inside one): nothing to tell from it.
-fn quoted_field_count(line: &str) -> Option<usize> {
-    let (f, paired) = split_fields(line);
-    paired.then_some(f.len())
 }
 
 /// Lower-case alphanumerics only, for "did you mean" suggestions.
@@ -332,7 +436,16 @@ pub(super) fn read(
     // cells: a rescan names a short row (and anything else wrong in the file) before cells left
     // empty on purpose are read as missing samples. polars reads only the mapped columns, so a
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
-    // perhaps cut short (12.3 of 12.345): the end of the file is looked at too.
+    // perhaps cut short (12.3 of 12.345): the end of the file is looked at too. Before it, a
+    // quote inside a cell's text, which makes polars drop rows without a word.
+    if let Some(line) = stray_quote_line(src) {
+        return Err(IngestError::CsvBadLine {
+            path: path.to_path_buf(),
+            line,
+            what: "a double quote inside a cell's text (not as its first character): polars reads the rows after it as one quoted cell and drops them".into(),
+            hint: "write the cell quoted with its quote doubled (\"12\"\" wheel\"), as pandas' to_csv does, or remove the quote".into(),
+        });
+    }
     if let Some(cut) = last_record_cut_off(src, header.len()) {
         // A file that ends with a line end has its last line before it.
         let line = line_count(src)
@@ -709,18 +822,22 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
             continue;
         }
         let (f, paired) = split_fields(&line);
+        // The last record, inside a quoted field or short without a line end: cut off (as
+        // `last_record_cut_off` judges it).
+        let (cell_count, cell_open) = cells(&line);
+        let open = !paired && cell_open;
+        if last_line_no == total_lines
+            && (open || (!ends_with_newline && cell_count < header.len()))
+        {
+            let cut = CutRecord {
+                fields: cell_count,
+                lines: last_line_no + 1 - line_no,
+                open,
+                line_end: ends_with_newline,
+            };
+            return Some(cut_off(path, last_line_no, cut, header.len()));
+        }
         if f.len() < header.len() {
-            // The last record, without a line end or inside a quoted field: cut off.
-            let open = !paired && opens_a_field(&line);
-            if last_line_no == total_lines && (!ends_with_newline || open) {
-                let cut = CutRecord {
-                    fields: f.len(),
-                    lines: last_line_no + 1 - line_no,
-                    open,
-                    line_end: ends_with_newline,
-                };
-                return Some(cut_off(path, last_line_no, cut, header.len()));
-            }
             return Some(IngestError::CsvBadLine {
                 path: path.to_path_buf(),
                 line: line_no,
