@@ -1632,9 +1632,10 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
 /// opens a quoted cell only at a cell's first character. A quote inside a cell's text
 /// (`5" wheel`), or after a space, is named at its line — polars drops the rows after it
 /// without a word where the cell lies past the columns it reads — in the last row too, whole or
-/// cut. Two such quotes on one line keep the two readings in step: the file reads, every row.
+/// cut. Two such quotes in one cell keep the two readings in step: the file reads, every row.
 /// A doubled quote inside a quoted note is an escaped quote: the file reads, and a last row cut
-/// inside such a note is named as open.
+/// inside such a note is named as open. A quoted cell that never closes, opened further back
+/// than the file's last 64 KiB, is named where it opens.
 #[test]
 fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
     let dir = tempfile::tempdir().unwrap();
@@ -1707,6 +1708,28 @@ fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
             "{e}"
         );
     }
+    // A quoted cell that opens 100 rows in and never closes, in a log over 64 KiB: named where
+    // it opens (polars would read every row after it as that cell).
+    let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
+    let unclosed: String = long
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let tail = match i {
+                0 => "note,gps_fix",
+                100 => "\"12 wheel,4",
+                _ => "n,4",
+            };
+            format!("{l},{tail}\n")
+        })
+        .collect();
+    assert!(unclosed.len() > 64 * 1024);
+    let p = write(dir.path(), "unclosed.csv", unclosed.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("unclosed.csv: line 101: a quoted cell opens here and the file ends inside it"),
+        "{e}"
+    );
     let p = write(
         dir.path(),
         "escaped_cut.csv",

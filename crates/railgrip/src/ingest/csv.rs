@@ -109,10 +109,9 @@ struct CutRecord {
 /// a quoted field (with or without a line end after it) — and the record with data before it
 /// has all the header's fields (a file whose rows all stop short of the header's trailing
 /// columns, as an export that drops trailing empty cells writes them, is read as before).
-/// Fields are counted as polars reads cells ([`cells`]). Where a quote inside a cell's text
-/// (`5" wheel`, malformed: polars' row splitting counts it, its cell reading does not) leaves
-/// the last record's quotes unpaired without an open quoted field, the last line is judged
-/// alone, as a reading line by line sees it.
+/// Fields are counted as polars reads cells ([`cells`]). A quote inside a cell's text
+/// (`5" wheel`, which polars' row splitting counts and its cell reading does not) is named
+/// before by [`quote_problem`]; here it leaves nothing to tell.
 ///
 /// From the log's last 64 KiB. Where the tail holds a quote, it is read both as beginning
 /// outside a quoted field and inside one; where the two differ, the quotes before the tail
@@ -191,8 +190,10 @@ fn tail_cut(
     }
     let (fields, open) = cells(&last);
     let paired = split_fields(&last).1;
+    // Unpaired quotes without an open quoted cell: a quote inside a cell's text, which
+    // `quote_problem` names first.
     if !paired && !open {
-        return last_line_cut(lines, header_fields, line_end);
+        return None;
     }
     let cut = CutRecord {
         fields,
@@ -205,27 +206,6 @@ fn tail_cut(
     }
     let (_, _, before) = records.iter().rev().find(|r| !no_data(&r.2))?;
     complete(before, header_fields).then_some(cut)
-}
-
-/// The last line alone, as a reading line by line sees it: without a line end after it, fewer
-/// fields than the header's and the line with data before it has them all ([`tail_cut`], where
-/// a quote inside a cell's text leaves the last record's quotes unpaired).
-fn last_line_cut(lines: &[&str], header_fields: usize, line_end: bool) -> Option<CutRecord> {
-    let (last, rest) = lines.split_last()?;
-    if line_end || no_data(last) {
-        return None;
-    }
-    let (fields, open) = cells(last);
-    if fields >= header_fields && !open {
-        return None;
-    }
-    let before = rest.iter().rev().find(|l| !no_data(l))?;
-    complete(before, header_fields).then_some(CutRecord {
-        fields,
-        lines: 1,
-        open,
-        line_end,
-    })
 }
 
 /// A record with all the header's fields, none left open.
@@ -261,14 +241,25 @@ fn cells(record: &str) -> (usize, bool) {
     (fields, in_quotes)
 }
 
-/// The first line (1-based) at whose end polars' two readings of the quotes disagree, else
-/// None: its row splitting toggles a quoted state at every double quote (polars 0.55
-/// `CountLines`/`SplitLines`), its cell reading opens a quoted cell only at a quote that is the
-/// cell's first character ([`cells`]). A quote inside a cell's text (`12" wheel`) toggles the
-/// first and not the second: the rows after it are then read as one quoted cell — dropped
-/// without a word where the cell lies past the last column read. Files without a quote (the
+/// What polars' two readings of a log's quotes say wrong ([`quote_problem`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum QuoteProblem {
+    /// At the end of this line (1-based) they disagree: a quote inside a cell's text.
+    Stray(usize),
+    /// A quoted cell opens on this line and the file ends inside it.
+    Unclosed(usize),
+}
+
+/// The first line at whose end polars' two readings of the quotes disagree, or the line where
+/// a quoted cell opens that the file never closes, else None. Its row splitting toggles a
+/// quoted state at every double quote (polars 0.55 `CountLines`/`SplitLines`), its cell reading
+/// opens a quoted cell only at a quote that is the cell's first character ([`cells`]; polars
+/// strips a UTF-8 byte-order mark first). A quote inside a cell's text (`12" wheel`) toggles the
+/// first and not the second: what follows is then read as one quoted cell, and rows are merged
+/// into it or split — dropped without a word where the cell lies past the last column read. A
+/// cell that never closes takes every row after it the same way. Files without a quote (the
 /// usual log) are only searched for one.
-fn stray_quote_line(src: &LogSource) -> Option<usize> {
+fn quote_problem(src: &LogSource) -> Option<QuoteProblem> {
     {
         let mut r = BufReader::new(src.open().ok()?);
         loop {
@@ -286,14 +277,19 @@ fn stray_quote_line(src: &LogSource) -> Option<usize> {
     let mut r = BufReader::new(src.open().ok()?);
     let mut buf = Vec::new();
     let (mut row_open, mut cell_quoted, mut in_quotes, mut at_start) = (false, false, false, true);
-    let mut line = 0;
+    let (mut line, mut opened) = (0, 0);
     loop {
         buf.clear();
         if r.read_until(b'\n', &mut buf).ok()? == 0 {
-            return None;
+            return in_quotes.then_some(QuoteProblem::Unclosed(opened));
         }
         line += 1;
-        for &b in &buf {
+        let bytes = if line == 1 {
+            buf.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&buf)
+        } else {
+            &buf[..]
+        };
+        for &b in bytes {
             if b == b'"' {
                 row_open = !row_open;
             }
@@ -302,6 +298,7 @@ fn stray_quote_line(src: &LogSource) -> Option<usize> {
                 cell_quoted = b == b'"';
                 if cell_quoted {
                     in_quotes = true;
+                    opened = line;
                     continue;
                 }
             }
@@ -312,7 +309,7 @@ fn stray_quote_line(src: &LogSource) -> Option<usize> {
             }
         }
         if row_open != in_quotes {
-            return Some(line);
+            return Some(QuoteProblem::Stray(line));
         }
     }
 }
@@ -438,11 +435,12 @@ pub(super) fn read(
     // last line cut off before unmapped columns alone would pass unseen, its last mapped value
     // perhaps cut short (12.3 of 12.345): the end of the file is looked at too. Before it, a
     // quote inside a cell's text, which makes polars drop rows without a word.
-    if let Some(line) = stray_quote_line(src) {
+    let quotes = quote_problem(src);
+    if let Some(QuoteProblem::Stray(line)) = quotes {
         return Err(IngestError::CsvBadLine {
             path: path.to_path_buf(),
             line,
-            what: "a double quote inside a cell's text (not as its first character): polars reads the rows after it as one quoted cell and drops them".into(),
+            what: "a double quote inside a cell's text (not as its first character): polars splits rows at every quote, so it reads what follows as one quoted cell and may merge, split or drop rows without a word".into(),
             hint: "write the cell quoted with its quote doubled (\"12\"\" wheel\"), as pandas' to_csv does, or remove the quote".into(),
         });
     }
@@ -452,6 +450,15 @@ pub(super) fn read(
             .unwrap_or(0)
             .saturating_sub(usize::from(cut.line_end));
         return Err(cut_off(path, line, cut, header.len()));
+    }
+    // A quoted cell that opened further back than the tail looked, never closed.
+    if let Some(QuoteProblem::Unclosed(line)) = quotes {
+        return Err(IngestError::CsvBadLine {
+            path: path.to_path_buf(),
+            line,
+            what: "a quoted cell opens here and the file ends inside it: polars reads every row after it as part of that cell".into(),
+            hint: "close the quote if it was left open, or, if the file was cut off, re-export the run".into(),
+        });
     }
     if columns.iter().any(|(_, missing)| *missing > 0) {
         if let Some(e) = diagnose(src, cfg) {
