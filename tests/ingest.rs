@@ -1634,8 +1634,7 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
 /// without a word where the cell lies past the columns it reads — in the last row too, whole or
 /// cut. Two such quotes in one cell keep the two readings in step: the file reads, every row.
 /// A doubled quote inside a quoted note is an escaped quote: the file reads, and a last row cut
-/// inside such a note is named as open. A quoted cell that never closes, opened further back
-/// than the file's last 64 KiB, is named where it opens.
+/// inside such a note is named as open.
 #[test]
 fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
     let dir = tempfile::tempdir().unwrap();
@@ -1708,6 +1707,59 @@ fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
             "{e}"
         );
     }
+    let p = write(
+        dir.path(),
+        "escaped_cut.csv",
+        escaped
+            .trim_end()
+            .trim_end_matches("\"\" twice\",4")
+            .as_bytes(),
+    );
+    let e = err(&p, &default());
+    assert!(
+        e.contains(&format!(
+            "escaped_cut.csv: line {lines}: the last line has {} of {} fields and ends inside a quoted field, with no line end: the file looks cut off mid-line",
+            h + 1,
+            h + 2
+        )),
+        "{e}"
+    );
+}
+
+/// Quotes that take rows with them further back than the file's end: two quotes inside the text
+/// of two cells of one row, which pair up across the commas between them (polars then fails to
+/// read the file), are named as such at their line, not as a row of too few fields; a quoted
+/// cell that opens and never closes, further back than the file's last 64 KiB, is named where
+/// it opens.
+#[test]
+fn quotes_that_pair_across_cells_or_never_close_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = small_csv();
+    let h = text.lines().next().unwrap().split(',').count();
+    // Two quotes in two cells, one before the last mapped column and one after: polars fails,
+    // and the rescan names the line as a quote inside a cell's text (not as a short row).
+    let straddle: String = text
+        .lines()
+        .enumerate()
+        .map(|(i, l)| {
+            let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
+            let tail = match i {
+                0 => "note,gps_fix".to_string(),
+                100 => {
+                    f[h - 2].push('"');
+                    "5\" wheel,4".to_string()
+                }
+                _ => "n,4".to_string(),
+            };
+            format!("{},{tail}\n", f.join(","))
+        })
+        .collect();
+    let p = write(dir.path(), "straddle.csv", straddle.as_bytes());
+    let e = err(&p, &default());
+    assert!(
+        e.contains("straddle.csv: line 101: a double quote inside a cell's text"),
+        "{e}"
+    );
     // A quoted cell that opens 100 rows in and never closes, in a log over 64 KiB: named where
     // it opens (polars would read every row after it as that cell).
     let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
@@ -1728,23 +1780,6 @@ fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
     let e = err(&p, &default());
     assert!(
         e.contains("unclosed.csv: line 101: a quoted cell opens here and the file ends inside it"),
-        "{e}"
-    );
-    let p = write(
-        dir.path(),
-        "escaped_cut.csv",
-        escaped
-            .trim_end()
-            .trim_end_matches("\"\" twice\",4")
-            .as_bytes(),
-    );
-    let e = err(&p, &default());
-    assert!(
-        e.contains(&format!(
-            "escaped_cut.csv: line {lines}: the last line has {} of {} fields and ends inside a quoted field, with no line end: the file looks cut off mid-line",
-            h + 1,
-            h + 2
-        )),
         "{e}"
     );
 }

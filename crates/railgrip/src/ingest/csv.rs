@@ -314,6 +314,16 @@ fn quote_problem(src: &LogSource) -> Option<QuoteProblem> {
     }
 }
 
+/// The error for a double quote inside a cell's text on line `line` ([`quote_problem`]).
+fn stray_quote(path: &Path, line: usize) -> IngestError {
+    IngestError::CsvBadLine {
+        path: path.to_path_buf(),
+        line,
+        what: "a double quote inside a cell's text (not as its first character): polars splits rows at every quote, so it reads what follows as one quoted cell and may merge, split or drop rows without a word".into(),
+        hint: "write the cell quoted with its quote doubled (\"12\"\" wheel\"), as pandas' to_csv does, or remove the quote".into(),
+    }
+}
+
 /// The number of double quotes in the log's first `n` bytes; None where it cannot be read.
 fn quotes_before(src: &LogSource, n: u64) -> Option<usize> {
     match src {
@@ -437,12 +447,7 @@ pub(super) fn read(
     // quote inside a cell's text, which makes polars drop rows without a word.
     let quotes = quote_problem(src);
     if let Some(QuoteProblem::Stray(line)) = quotes {
-        return Err(IngestError::CsvBadLine {
-            path: path.to_path_buf(),
-            line,
-            what: "a double quote inside a cell's text (not as its first character): polars splits rows at every quote, so it reads what follows as one quoted cell and may merge, split or drop rows without a word".into(),
-            hint: "write the cell quoted with its quote doubled (\"12\"\" wheel\"), as pandas' to_csv does, or remove the quote".into(),
-        });
+        return Err(stray_quote(path, line));
     }
     if let Some(cut) = last_record_cut_off(src, header.len()) {
         // A file that ends with a line end has its last line before it.
@@ -843,6 +848,11 @@ pub(super) fn diagnose(src: &LogSource, cfg: &IngestConfig) -> Option<IngestErro
                 line_end: ends_with_newline,
             };
             return Some(cut_off(path, last_line_no, cut, header.len()));
+        }
+        // Quotes inside cells' text that pair up across cells: the row has all its cells as
+        // polars reads them, but its row splitting quotes the commas between them.
+        if f.len() != header.len() && cell_count == header.len() {
+            return Some(stray_quote(path, line_no));
         }
         if f.len() < header.len() {
             return Some(IngestError::CsvBadLine {
