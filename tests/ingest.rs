@@ -1520,6 +1520,24 @@ fn fifos_and_devices_are_refused_without_blocking() {
     );
 }
 
+/// `text` (a log with a header) with two columns more, `note` and `gps_fix` (4 on every row):
+/// each row's note is `fill`, or the one `notes` gives for its 0-based line.
+fn with_notes(text: &str, fill: &str, notes: &[(usize, &str)]) -> String {
+    text.lines()
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                return format!("{l},note,gps_fix\n");
+            }
+            let note = notes
+                .iter()
+                .find(|(r, _)| *r == i)
+                .map_or(fill, |(_, n)| *n);
+            format!("{l},{note},4\n")
+        })
+        .collect()
+}
+
 /// A row over two lines (a quoted note holding a line end) that the file's end cuts off — after
 /// its note or inside it — is named at the file's last line, as a row of two lines with the
 /// fields it has; one cut right after the note's first line end, as a line ending inside it.
@@ -1530,23 +1548,10 @@ fn fifos_and_devices_are_refused_without_blocking() {
 #[test]
 fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
     let dir = tempfile::tempdir().unwrap();
-    let with_note = |text: &str, note_row: usize, note: &str| -> String {
-        text.lines()
-            .enumerate()
-            .map(|(i, l)| {
-                let tail = match i {
-                    0 => "note,gps_fix".to_string(),
-                    i if i == note_row => format!("{note},4"),
-                    _ => "\"\",4".to_string(),
-                };
-                format!("{l},{tail}\n")
-            })
-            .collect()
-    };
     let text = small_csv();
     let lines = text.lines().count();
     let h = text.lines().next().unwrap().split(',').count();
-    let noted = with_note(&text, lines - 1, "\"first,\nsecond\"");
+    let noted = with_notes(&text, "\"\"", &[(lines - 1, "\"first,\nsecond\"")]);
     let p = write(dir.path(), "whole.csv", noted.as_bytes());
     ingest_file(&p, &default()).unwrap_or_else(|e| panic!("whole.csv: {e}"));
     let row = |how: &str| {
@@ -1602,7 +1607,7 @@ fn a_record_over_two_lines_cut_off_at_the_end_is_named_at_its_last_line() {
         "\"{}\"",
         "a, b, c, d, e, f, g, h, i, j, k, l, m\n".repeat(2500)
     );
-    let body = with_note(&long, long_lines - 6, &big);
+    let body = with_notes(&long, "\"\"", &[(long_lines - 6, &big)]);
     assert!(body.len() > 64 * 1024 && big.len() > 64 * 1024);
     let last_line = long_lines + 2500;
     for (name, whole) in [
@@ -1641,20 +1646,7 @@ fn quotes_inside_a_cells_text_are_named_and_escaped_ones_read() {
     let text = small_csv();
     let lines = text.lines().count();
     let h = text.lines().next().unwrap().split(',').count();
-    let with_notes = |notes: &[(usize, &str)]| -> String {
-        text.lines()
-            .enumerate()
-            .map(|(i, l)| {
-                let note = notes.iter().find(|(r, _)| *r == i).map_or("n", |(_, n)| *n);
-                let tail = if i == 0 {
-                    "note,gps_fix".to_string()
-                } else {
-                    format!("{note},4")
-                };
-                format!("{l},{tail}\n")
-            })
-            .collect()
-    };
+    let with_notes = |notes: &[(usize, &str)]| with_notes(&text, "n", notes);
     let p = write(dir.path(), "plain.csv", with_notes(&[]).as_bytes());
     let plain = ingest_file(&p, &default()).unwrap();
     let escaped = with_notes(&[(lines - 1, "\"say \"\"hi\"\" twice\"")]);
@@ -1738,20 +1730,15 @@ fn quotes_that_pair_across_cells_or_never_close_are_named() {
     let h = text.lines().next().unwrap().split(',').count();
     // Two quotes in two cells, one before the last mapped column and one after: polars fails,
     // and the rescan names the line as a quote inside a cell's text (not as a short row).
-    let straddle: String = text
+    let straddle: String = with_notes(&text, "n", &[(100, "5\" wheel")])
         .lines()
         .enumerate()
         .map(|(i, l)| {
             let mut f: Vec<String> = l.split(',').map(str::to_string).collect();
-            let tail = match i {
-                0 => "note,gps_fix".to_string(),
-                100 => {
-                    f[h - 2].push('"');
-                    "5\" wheel,4".to_string()
-                }
-                _ => "n,4".to_string(),
-            };
-            format!("{},{tail}\n", f.join(","))
+            if i == 100 {
+                f[h - 2].push('"');
+            }
+            f.join(",") + "\n"
         })
         .collect();
     let p = write(dir.path(), "straddle.csv", straddle.as_bytes());
@@ -1763,18 +1750,7 @@ fn quotes_that_pair_across_cells_or_never_close_are_named() {
     // A quoted cell that opens 100 rows in and never closes, in a log over 64 KiB: named where
     // it opens (polars would read every row after it as that cell).
     let long = String::from_utf8(Table::analytic(3.0, 417.0, 0.0, 2).csv_bytes()).unwrap();
-    let unclosed: String = long
-        .lines()
-        .enumerate()
-        .map(|(i, l)| {
-            let tail = match i {
-                0 => "note,gps_fix",
-                100 => "\"12 wheel,4",
-                _ => "n,4",
-            };
-            format!("{l},{tail}\n")
-        })
-        .collect();
+    let unclosed = with_notes(&long, "n", &[(100, "\"12 wheel")]);
     assert!(unclosed.len() > 64 * 1024);
     let p = write(dir.path(), "unclosed.csv", unclosed.as_bytes());
     let e = err(&p, &default());

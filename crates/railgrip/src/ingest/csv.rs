@@ -158,7 +158,7 @@ fn last_record_cut_off(src: &LogSource, header_fields: usize) -> Option<CutRecor
     if inside == outside {
         return outside;
     }
-    let open = (quotes_before(src, from)? + partial.matches('"').count()) % 2 == 1;
+    let open = (count_byte(src, from, b'"')? + partial.matches('"').count()) % 2 == 1;
     if open {
         inside
     } else {
@@ -260,19 +260,13 @@ enum QuoteProblem {
 /// cell that never closes takes every row after it the same way. Files without a quote (the
 /// usual log) are only searched for one.
 fn quote_problem(src: &LogSource) -> Option<QuoteProblem> {
-    {
-        let mut r = BufReader::new(src.open().ok()?);
-        loop {
-            let buf = r.fill_buf().ok()?;
-            if buf.is_empty() {
-                return None;
-            }
-            if buf.contains(&b'"') {
-                break;
-            }
-            let used = buf.len();
-            r.consume(used);
-        }
+    let mut any = false;
+    scan_chunks(src, u64::MAX, |chunk| {
+        any = chunk.contains(&b'"');
+        !any
+    })?;
+    if !any {
+        return None;
     }
     let mut r = BufReader::new(src.open().ok()?);
     let mut buf = Vec::new();
@@ -324,28 +318,28 @@ fn stray_quote(path: &Path, line: usize) -> IngestError {
     }
 }
 
-/// The number of double quotes in the log's first `n` bytes; None where it cannot be read.
-fn quotes_before(src: &LogSource, n: u64) -> Option<usize> {
-    match src {
-        LogSource::Memory { bytes, .. } => {
-            let n = usize::try_from(n).ok()?.min(bytes.len());
-            Some(bytes[..n].iter().filter(|b| **b == b'"').count())
+/// Hands the log's first `limit` bytes to `f` chunk by chunk while `f` returns true; None where
+/// the log cannot be read.
+fn scan_chunks(src: &LogSource, limit: u64, mut f: impl FnMut(&[u8]) -> bool) -> Option<()> {
+    let mut r = BufReader::new(src.open().ok()?.take(limit));
+    loop {
+        let buf = r.fill_buf().ok()?;
+        if buf.is_empty() || !f(buf) {
+            return Some(());
         }
-        LogSource::File(_) => {
-            let mut r = BufReader::new(src.open().ok()?.take(n));
-            let mut count = 0;
-            loop {
-                let buf = r.fill_buf().ok()?;
-                if buf.is_empty() {
-                    return Some(count);
-                }
-                count += buf.iter().filter(|b| **b == b'"').count();
-                let used = buf.len();
-                r.consume(used);
-            }
-        }
-        LogSource::Object { .. } => None,
+        let used = buf.len();
+        r.consume(used);
     }
+}
+
+/// How many times `byte` occurs in the log's first `limit` bytes; None where it cannot be read.
+fn count_byte(src: &LogSource, limit: u64, byte: u8) -> Option<usize> {
+    let mut n = 0;
+    scan_chunks(src, limit, |chunk| {
+        n += chunk.iter().filter(|b| **b == byte).count();
+        true
+    })?;
+    Some(n)
 }
 
 /// The error for a last record cut off by the file's end ([`CutRecord`]), its last line `line`
@@ -386,17 +380,7 @@ fn cut_off(path: &Path, line: usize, cut: CutRecord, of: usize) -> IngestError {
 
 /// The number of lines of the log (its last line's number, where it ends without a line end).
 fn line_count(src: &LogSource) -> Option<usize> {
-    let mut r = BufReader::new(src.open().ok()?);
-    let mut n = 1;
-    loop {
-        let buf = r.fill_buf().ok()?;
-        if buf.is_empty() {
-            return Some(n);
-        }
-        n += buf.iter().filter(|b| **b == b'\n').count();
-        let used = buf.len();
-        r.consume(used);
-    }
+    Some(count_byte(src, u64::MAX, b'\n')? + 1)
 }
 
 /// Lower-case alphanumerics only, for "did you mean" suggestions.
