@@ -716,16 +716,16 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
-/// At the runs' states (each curve cell at its samples' mean slip and slip rate) the chosen
-/// model's curve RMSE is within 0.005 and its bias within ±0.002 at every initial speed
-/// (0.0026–0.0044 and −0.0007 … +0.0018 measured).
+/// Its curve RMSE is within 0.005 at every initial speed, at the cells' nominal centres
+/// against each run's own law (0.0029–0.0044 measured, since the residual network holds its
+/// residual along the slip rate beyond the data; 0.0038–0.0061 when it fell back to the law
+/// alone there), and at the runs' states (each curve cell at its samples' mean slip and slip
+/// rate) with its bias within ±0.002 (0.0029–0.0043 and −0.0007 … +0.0015 measured).
 ///
-/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): curve
-/// RMSE ≤ 0.005 in every band at the cells' nominal centres (0.0039 … 0.0061; against the law
-/// at the runs' mean rail condition 0.0035 … 0.0050), a hysteresis ratio of 0.8–1.2
-/// everywhere (0.72–1.02 at the centres, 0.74–1.07 at the runs' states), and per
-/// run and band a replay bias within ±0.0015 (each run's rail condition is ±5 % of the mean,
-/// which no model input carries).
+/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): a
+/// hysteresis ratio of 0.8–1.2 everywhere (0.79–1.18 at the centres, 0.78–1.17 at the runs'
+/// states), and per run and band a replay bias within ±0.0015 (each run's rail condition is
+/// ±5 % of the mean, which no model input carries).
 #[test]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
@@ -769,6 +769,15 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             "seed {seed}: {} hysteresis ratios {:?}",
             c.chosen,
             chosen.hysteresis
+        );
+        // At the cells' nominal centres, against each run's own law: RMSE within 0.005 at
+        // every initial speed (0.0051–0.0059 at 80–160 km/h while the residual fell back to
+        // the law alone beyond the data's slip rates).
+        assert!(
+            chosen.curve_rmse.iter().all(|(_, r)| *r <= 0.005),
+            "seed {seed}: {} curve RMSE {:?}",
+            c.chosen,
+            chosen.curve_rmse
         );
         // At the runs' states (each curve cell at its samples' mean slip and slip rate):
         // RMSE within 0.005 and bias within ±0.002 at every initial speed.
@@ -826,6 +835,8 @@ struct BandScores {
     replay: Vec<f64>,
     /// Curve bias per initial speed (km/h), pooled over that speed's runs (cell-weighted).
     curve: Vec<(i64, f64)>,
+    /// Curve RMSE per initial speed (km/h), pooled over that speed's runs (cell-weighted).
+    curve_rmse: Vec<(i64, f64)>,
     /// Per run: (initial speed, the curve's hysteresis ratio) where the truth's loss − recovery
     /// difference is at least 0.002.
     hysteresis: Vec<(i64, f64)>,
@@ -947,7 +958,7 @@ fn band_scores(
     let model = Model::new(file).unwrap();
     let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
     let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
-    let mut curves: std::collections::BTreeMap<i64, (f64, usize)> = Default::default();
+    let mut curves: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
     let mut hysteresis = Vec::new();
     let mut states: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
     for (t, sc) in truths.iter().zip(scenes) {
@@ -972,7 +983,8 @@ fn band_scores(
         }
         let e = curves.entry(v0.round() as i64).or_default();
         e.0 += c.stats.bias * c.stats.n as f64;
-        e.1 += c.stats.n;
+        e.1 += c.stats.rmse * c.stats.rmse * c.stats.n as f64;
+        e.2 += c.stats.n;
         let at_means = Grid {
             at_sample_means: true,
             ..Grid::default()
@@ -994,7 +1006,11 @@ fn band_scores(
         replay: sums.iter().map(|(s, n)| s / *n as f64).collect(),
         curve: curves
             .iter()
-            .map(|(k, (s, n))| (*k, s / (*n).max(1) as f64))
+            .map(|(k, (s, _, n))| (*k, s / (*n).max(1) as f64))
+            .collect(),
+        curve_rmse: curves
+            .iter()
+            .map(|(k, (_, sq, n))| (*k, (sq / (*n).max(1) as f64).sqrt()))
             .collect(),
         hysteresis,
         at_states: states
@@ -1006,8 +1022,8 @@ fn band_scores(
             .collect(),
     };
     eprintln!(
-        "{what}: replay bias per band {:.4?}; curve bias per initial speed {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
-        s.replay, s.curve, s.hysteresis, s.at_states
+        "{what}: replay bias per band {:.4?}; curve bias per initial speed {:.4?}, RMSE {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
+        s.replay, s.curve, s.curve_rmse, s.hysteresis, s.at_states
     );
     s
 }

@@ -1364,18 +1364,38 @@ fn residual_points() -> Vec<[f64; 4]> {
 }
 
 /// A residual network is its law plus the network before the creep region (seed 002 eq. 6–8
-/// apply to the sum), odd in the slip like every model, the law alone where the support is 0
-/// and law + network where it is 1; the batch path and the C header give the same bits.
+/// apply to the sum), odd in the slip like every model, where the support is 0 the law alone
+/// (`fallback = "law"`) or the law plus the held residual (`"law_held"`), and law + network
+/// where it is 1; the batch path and the C header give the same bits.
 #[test]
 fn residual_networks_add_their_law_and_fall_back_to_it() {
     let (file, law_file) = residual_model();
+    check_residual(&file, &law_file, Some(0.0));
+    // A held residual, the same everywhere: outside the data the law plus it.
+    let mut held = file.clone();
+    let s = held.support.as_mut().unwrap();
+    s.fallback = "law_held".into();
+    s.fallback_mu.fill(0.003);
+    check_residual(&held, &law_file, Some(0.003));
+    // A held residual that varies from cell to cell and changes sign: Rust's batch path and
+    // the C header interpolate it as the single calls do.
+    let s = held.support.as_mut().unwrap();
+    for (j, f) in s.fallback_mu.iter_mut().enumerate() {
+        *f = 0.002 * ((j % 7) as f64 - 3.0);
+    }
+    check_residual(&held, &law_file, None);
+}
+
+/// [`residual_networks_add_their_law_and_fall_back_to_it`] for one file: where the support
+/// is 0, μ is the law plus `held` (when given, a residual the same in every cell).
+fn check_residual(file: &ModelFile, law_file: &ModelFile, held: Option<f64>) {
     file.check().unwrap();
     let text = file.to_json();
     schema_check(&text, "residual network");
     let back = ModelFile::from_json(&text, "residual").unwrap();
-    assert_eq!(back, file, "JSON round trip");
+    assert_eq!(&back, file, "JSON round trip");
     let model = Model::new(back).unwrap();
-    let law = Model::new(law_file).unwrap();
+    let law = Model::new(law_file.clone()).unwrap();
     let plain = Model::new(synthetic_model()).unwrap();
     let blend = file.creep.as_ref().unwrap().blend_mps;
     let pts = residual_points();
@@ -1395,7 +1415,16 @@ fn residual_networks_add_their_law_and_fall_back_to_it() {
         match model.support_weight_t(dv, ddv, v, t) {
             Some(0.0) => {
                 outside += 1;
-                assert_eq!(mu, law.mu_vt(dv, ddv, v, t), "the law alone at {p:?}");
+                let b = law.mu_vt(dv, ddv, v, t);
+                match held {
+                    Some(0.0) => assert_eq!(mu, b, "the law alone at {p:?}"),
+                    Some(h) => assert!(
+                        (mu - (b + h.copysign(dv))).abs() <= 1e-15,
+                        "the law plus the held residual at {p:?}: {mu} vs {}",
+                        b + h.copysign(dv)
+                    ),
+                    None => {}
+                }
             }
             Some(1.0) => {
                 inside += 1;
@@ -1439,8 +1468,8 @@ fn residual_networks_add_their_law_and_fall_back_to_it() {
     }
 }
 
-/// What a residual network file cannot be: a law fallback without a law, a law with a
-/// non-zero fallback, a law outside Polach's domain.
+/// What a residual network file cannot be: a law fallback without a law (held or not), a
+/// `law` fallback with a non-zero residual, a law outside Polach's domain.
 #[test]
 fn residual_network_files_reject_what_they_cannot_evaluate() {
     let good = residual_model().0.to_json();
@@ -1451,15 +1480,23 @@ fn residual_network_files_reject_what_they_cannot_evaluate() {
         &|v| {
             v.as_object_mut().unwrap().remove("base");
         },
-        "fallback \"law\" goes with",
+        "goes with a \"base\"",
     );
     bad(
         &|v| v["support"]["fallback"] = "polach".into(),
-        "fallback \"law\" goes with",
+        "goes with a \"base\"",
     );
     bad(
         &|v| v["support"]["fallback_mu"][0] = 0.1.into(),
-        "fallback_mu must be 0",
+        "needs every fallback_mu 0",
+    );
+    // A held residual needs a law to be held on, and a plain network has none.
+    bad(
+        &|v| {
+            v["support"]["fallback"] = "law_held".into();
+            v.as_object_mut().unwrap().remove("base");
+        },
+        "goes with a \"base\"",
     );
     bad(&|v| v["base"]["mu0"] = 2.0.into(), "base:");
     bad(

@@ -184,10 +184,14 @@ pub struct SupportSpec {
     pub min_samples: u64,
     /// Training and validation samples per cell, row-major (the last input varies fastest).
     pub counts: Vec<u64>,
-    /// What `fallback_mu` holds: `polach` (the campaign's Polach model at the cell centre) or
-    /// `nearest` (the network at the nearest supported cell centre).
+    /// What `fallback_mu` holds: `polach` (the campaign's Polach model at the cell centre),
+    /// `nearest` (the network at the nearest supported cell centre), or for a residual network
+    /// `law` (0: the law alone) or `law_held` (the residual held along dΔv/dt: at an
+    /// unsupported cell the count-weighted mean residual of the supported cells at the same
+    /// slip, speed and temperature whose slip rate has the cell's sign, 0 where none has).
     pub fallback: String,
-    /// |μ| of the fallback at every cell centre.
+    /// |μ| of the fallback at every cell centre (a residual network: the residual added to
+    /// its law there).
     pub fallback_mu: Vec<f64>,
     /// Standard deviation of an ensemble's members' μ at every cell centre (empty for a single
     /// network).
@@ -371,7 +375,9 @@ pub struct ModelFile {
     pub audit: Option<AuditSpec>,
     /// kind mlp: the Polach law (with its temperature and speed laws) the network is a residual
     /// over — a grey-box model, μ = μ_P(Δv, v, T) + N(Δv, dΔv/dt, …) (see [`crate`], step 3);
-    /// its support grid falls back to the law itself (`fallback = "law"`, `fallback_mu` all 0).
+    /// its support grid falls back to the law plus the residual held along the slip rate
+    /// (`fallback = "law_held"`) or, in files before that, to the law itself (`fallback =
+    /// "law"`, `fallback_mu` all 0).
     /// An older railgrip refuses such a file by its unknown field.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub base: Option<polach::PolachSpec>,
@@ -493,15 +499,15 @@ impl ModelFile {
         }
         if let Some(s) = &self.support {
             check_support(s, self.inputs.len())?;
-            let law = s.fallback == "law";
+            let law = s.fallback == "law" || s.fallback == "law_held";
             if law != self.base.is_some() {
                 return Err(Defect::Support(
-                    "fallback \"law\" goes with a \"base\" Polach law (a residual network), and a residual network falls back to its law".into(),
+                    "fallback \"law\" or \"law_held\" goes with a \"base\" Polach law (a residual network), and a residual network falls back to its law".into(),
                 ));
             }
-            if law && s.fallback_mu.iter().any(|&f| f != 0.0) {
+            if s.fallback == "law" && s.fallback_mu.iter().any(|&f| f != 0.0) {
                 return Err(Defect::Support(
-                    "a residual network's fallback_mu must be 0 (the residual vanishes outside the data; the law remains)".into(),
+                    "fallback \"law\" needs every fallback_mu 0 (the residual vanishes outside the data; the law remains); \"law_held\" holds a residual there".into(),
                 ));
             }
         }
@@ -827,9 +833,9 @@ fn check_support(s: &SupportSpec, inputs: usize) -> Result<(), Defect> {
     if s.min_samples == 0 {
         return bad("min_samples must be at least 1".into());
     }
-    if !["polach", "nearest", "law"].contains(&s.fallback.as_str()) {
+    if !["polach", "nearest", "law", "law_held"].contains(&s.fallback.as_str()) {
         return bad(format!(
-            "fallback \"{}\" is not \"polach\", \"nearest\" or \"law\"",
+            "fallback \"{}\" is not \"polach\", \"nearest\", \"law\" or \"law_held\"",
             s.fallback
         ));
     }

@@ -18,7 +18,9 @@
 //!    interpolated multilinearly between cell centres at the normalised, unclamped inputs,
 //!    w fading to 0 over one cell beyond the grid's edge (module `support`). A residual
 //!    (grey-box) network, a file with a `base` Polach law ([`polach`]), then adds the law:
-//!    N ← w N + μ_P(Δv, v, T) (its fallback F is 0: outside the data the law alone).
+//!    N ← w N + (1 − w) F + μ_P(Δv, v, T), its F the residual held along the slip rate
+//!    (`fallback = "law_held"`; 0 in files with `"law"`, where the law alone remains outside
+//!    the data).
 //! 4. Creep region (seed 002 002_8d8769283f5e9cb6.txt: "in the pseudo-slip region the network
 //!    is replaced by the linear law", eq. 6–8): below the blend slip Δv_b the model blends, with
 //!    the weight w = t²(3 − 2t), t = Δv/Δv_b, from the Kalker linear law saturated by

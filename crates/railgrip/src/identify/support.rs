@@ -147,6 +147,47 @@ fn nearest_supported(occ: &Occupancy, own: &[f64]) -> Vec<f64> {
     value
 }
 
+/// A residual network's fallback (`law_held`): each unsupported cell takes the mean of the
+/// residuals `own` of the supported cells along the slip-rate axis (input 1) at the same slip,
+/// speed and temperature whose slip rate (`centres[j][1]`, m/s²) has the cell's sign, weighted
+/// by their counts; 0 where that side holds none. Supported cells keep their own value.
+///
+/// Why: the law has one branch, so a fallback of 0 (the law alone) erases the loss/recovery
+/// hysteresis wherever the data's slip rates end, while the hysteresis saturates with the slip
+/// rate (the contact is on one branch or the other once the slip changes fast: seed 002 feeds
+/// dΔv/dt to the network for it). The branch's mean residual over the slip rates the data
+/// reach is the estimate that assumes least beyond them; the edge cell alone, the network's
+/// least certain value, carried its errors far (measured: docs/training.md, "Residual
+/// networks").
+fn held_along_slip_rate(occ: &Occupancy, own: &[f64], centres: &[[f64; MAX_INPUTS]]) -> Vec<f64> {
+    let st: usize = occ.cells.iter().skip(2).product();
+    let nq = occ.cells[1];
+    let ok = |j: usize| occ.counts[j] >= occ.min_samples;
+    (0..occ.counts.len())
+        .map(|j| {
+            if ok(j) {
+                return own[j];
+            }
+            let i = j / st % nq;
+            let first = j - i * st;
+            let side = centres[j][1] >= 0.0;
+            let (mut sw, mut swy) = (0.0, 0.0);
+            for m in (0..nq).map(|d| first + d * st) {
+                if ok(m) && (centres[m][1] >= 0.0) == side {
+                    let w = occ.counts[m] as f64;
+                    sw += w;
+                    swy += w * own[m];
+                }
+            }
+            if sw > 0.0 {
+                swy / sw
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
 /// The support grid of `file` (a network without one yet): counts from `occ`, the fallback
 /// from `polach` (|μ| of that model at each cell centre, at the network's reference speed for
 /// two-input networks, at the centre's temperature for four-input networks — the base
@@ -169,8 +210,22 @@ pub fn support_spec(
         .map(|x| net.mu_vt(x[0], x[1], x[2], x[3]).abs())
         .collect();
     let (fallback, fallback_mu) = match polach {
-        // A residual network fades to its law: the residual's fallback is 0.
-        _ if file.base.is_some() => ("law", vec![0.0; centres.len()]),
+        // A residual network fades to its law plus its residual held along dΔv/dt: the
+        // residual N at each centre is the network without its law and without the creep
+        // region (step 4 applies to the sum; the fallback enters at step 3).
+        _ if file.base.is_some() => {
+            let mut plain = file.clone();
+            plain.base = None;
+            if let Some(c) = plain.creep.as_mut() {
+                c.blend_mps = f64::MIN_POSITIVE;
+            }
+            let n = Model::named(plain, "residual network")?;
+            let res: Vec<f64> = centres
+                .iter()
+                .map(|x| n.mu_vt(x[0], x[1], x[2], x[3]))
+                .collect();
+            ("law_held", held_along_slip_rate(occ, &res, &centres))
+        }
         Some(p) => (
             "polach",
             centres
@@ -312,6 +367,57 @@ mod tests {
             counts: vec![0, 3, 1, 0],
         };
         assert_eq!(projected_onto_slip(&two), two);
+    }
+
+    #[test]
+    fn a_residual_is_held_per_slip_rate_sign_along_its_slip_and_speed() {
+        // 2 slips × 6 slip rates (−5 … +5 m/s²) × 2 speeds; support projected onto the slip.
+        let q = [-5.0, -3.0, -1.0, 1.0, 3.0, 5.0];
+        let mut centres = Vec::new();
+        let mut counts = Vec::new();
+        let mut own = Vec::new();
+        // Slip 0: supported at −3 (count 10), −1 (30) and +1 (20); slip 1: only at +3 (5).
+        let slip0 = [0, 10, 30, 20, 0, 0];
+        let slip1 = [0, 0, 0, 0, 5, 0];
+        for (s, support) in [slip0, slip1].iter().enumerate() {
+            for (k, &qk) in q.iter().enumerate() {
+                for v in 0..2 {
+                    centres.push([0.5 + s as f64, qk, 10.0 + 20.0 * v as f64, f64::NAN]);
+                    counts.push(support[k]);
+                    // The residual differs per speed, so the mean must stay in its speed.
+                    own.push(
+                        if qk < 0.0 { -0.01 } else { 0.004 } * (1 + v) as f64 + 0.001 * k as f64,
+                    );
+                }
+            }
+        }
+        let occ = Occupancy {
+            cells: vec![2, 6, 2],
+            min_samples: 5,
+            counts,
+        };
+        let held = held_along_slip_rate(&occ, &own, &centres);
+        let at = |s: usize, k: usize, v: usize| (s * 6 + k) * 2 + v;
+        for v in 0..2 {
+            let recovery = (10.0 * own[at(0, 1, v)] + 30.0 * own[at(0, 2, v)]) / 40.0;
+            // Beyond the data on the falling side: the falling side's count-weighted mean.
+            assert!((held[at(0, 0, v)] - recovery).abs() < 1e-15, "{held:?}");
+            // On the rising side: its one supported cell's value, at +3 and +5 m/s².
+            let close = |a: f64, b: f64| assert!((a - b).abs() <= 1e-15, "{a} against {b}");
+            close(held[at(0, 4, v)], own[at(0, 3, v)]);
+            close(held[at(0, 5, v)], own[at(0, 3, v)]);
+            // Slip 1 has no falling side: 0 (the law alone); its rising side holds +3.
+            for k in 0..3 {
+                assert_eq!(held[at(1, k, v)], 0.0);
+            }
+            close(held[at(1, 3, v)], own[at(1, 4, v)]);
+            close(held[at(1, 5, v)], own[at(1, 4, v)]);
+            // Supported cells keep their own value.
+            for k in 1..4 {
+                assert_eq!(held[at(0, k, v)], own[at(0, k, v)]);
+            }
+        }
+        assert_ne!(held[at(0, 0, 0)], held[at(0, 0, 1)]);
     }
 
     #[test]
