@@ -2788,6 +2788,57 @@ fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
     }
     // The slips seen are supported at every speed, including the speed cells no run reached.
     assert!(seen > 20, "{seen} supported (Δv, dΔv/dt) cells");
+    // The fallback holds the residual along the slip rate: a supported cell its network's
+    // raw output N at the centre, an unsupported one the count-weighted mean of the supported
+    // cells' N at the same slip and speed whose slip rate has the same sign (0 without).
+    assert_eq!(s.fallback, "law_held");
+    let mut plain = file.clone();
+    (plain.base, plain.support, plain.audit) = (None, None, None);
+    plain.creep.as_mut().unwrap().blend_mps = f64::MIN_POSITIVE;
+    let n = Model::new(plain).unwrap();
+    let centres = railgrip::identify::support::cell_centres(&file, &s.cells);
+    let own: Vec<f64> = centres
+        .iter()
+        .map(|x| n.mu_vt(x[0], x[1], x[2], x[3]))
+        .collect();
+    let ok = |j: usize| s.counts[j] >= s.min_samples;
+    let (mut held, mut law_alone) = (0, 0);
+    for dv in 0..16 {
+        for v in 0..8 {
+            let line: Vec<usize> = (0..16).map(|q| (dv * 16 + q) * 8 + v).collect();
+            for &j in &line {
+                if ok(j) {
+                    assert_eq!(s.fallback_mu[j], own[j], "supported cell {j}");
+                    continue;
+                }
+                let side: Vec<usize> = line
+                    .iter()
+                    .copied()
+                    .filter(|&m| ok(m) && (centres[m][1] >= 0.0) == (centres[j][1] >= 0.0))
+                    .collect();
+                let w: f64 = side.iter().map(|&m| s.counts[m] as f64).sum();
+                let want = if side.is_empty() {
+                    law_alone += 1;
+                    0.0
+                } else {
+                    held += 1;
+                    side.iter()
+                        .map(|&m| s.counts[m] as f64 * own[m])
+                        .sum::<f64>()
+                        / w
+                };
+                assert!(
+                    (s.fallback_mu[j] - want).abs() <= 1e-15,
+                    "cell {j}: {} against {want}",
+                    s.fallback_mu[j]
+                );
+            }
+        }
+    }
+    assert!(
+        held > 100 && law_alone > 100,
+        "{held} held, {law_alone} law alone"
+    );
 }
 
 /// Runs' tables parked in their estimates files (a pool holds tables only while it stays

@@ -374,7 +374,9 @@ impl ModelFamily for PolachWithLaws {
 /// μ − μ_P(Δv, v, T) of every sample (T the run's ambient temperature), the law embedded in
 /// the file: μ = μ_P + N (docs/model-files.md, "Residual networks"). The law carries the speed
 /// and temperature structure where the data thin out — outside the data support the residual
-/// fades and the law alone remains — and the network the shape and the hysteresis it misses.
+/// fades to its mean over the supported slip rates of the same sign (the law alone where no
+/// slip rate at that slip is supported) — and the network the shape and the hysteresis it
+/// misses.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Residual;
 

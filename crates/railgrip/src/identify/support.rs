@@ -157,8 +157,10 @@ fn nearest_supported(occ: &Occupancy, own: &[f64]) -> Vec<f64> {
 /// rate (the contact is on one branch or the other once the slip changes fast: seed 002 feeds
 /// dΔv/dt to the network for it). The branch's mean residual over the slip rates the data
 /// reach is the estimate that assumes least beyond them; the edge cell alone, the network's
-/// least certain value, carried its errors far (measured: docs/training.md, "Residual
-/// networks").
+/// least certain value, carried its errors far (measured: docs/training.md, "The residual
+/// held along the slip rate"). The side is that of the cell centre's slip rate, so a cell
+/// that straddles 0 counts with its centre's sign. Beyond the grid's edge the evaluators take
+/// the edge cells' values: there a supported edge cell's own residual is held.
 fn held_along_slip_rate(occ: &Occupancy, own: &[f64], centres: &[[f64; MAX_INPUTS]]) -> Vec<f64> {
     let st: usize = occ.cells.iter().skip(2).product();
     let nq = occ.cells[1];
@@ -189,10 +191,12 @@ fn held_along_slip_rate(occ: &Occupancy, own: &[f64], centres: &[[f64; MAX_INPUT
 }
 
 /// The support grid of `file` (a network without one yet): counts from `occ`, the fallback
-/// from `polach` (|μ| of that model at each cell centre, at the network's reference speed for
-/// two-input networks, at the centre's temperature for four-input networks — the base
-/// k_A, k_S without) or else the nearest supported cell's network value, and the spread of
-/// `members` (the ensemble's networks as model files; fewer than two: none).
+/// — for a residual network (a file with a `base` law) its residual held along the slip rate
+/// ([`held_along_slip_rate`], `law_held`), else from `polach` (|μ| of that model at each
+/// cell centre, at the network's reference speed for two-input networks, at the centre's
+/// temperature for four-input networks — the base k_A, k_S without) or else the nearest
+/// supported cell's network value — and the spread of `members` (the ensemble's networks as
+/// model files; fewer than two: none).
 pub fn support_spec(
     file: &ModelFile,
     occ: &Occupancy,
@@ -215,7 +219,7 @@ pub fn support_spec(
         // region (step 4 applies to the sum; the fallback enters at step 3).
         _ if file.base.is_some() => {
             let mut plain = file.clone();
-            plain.base = None;
+            (plain.base, plain.support, plain.audit) = (None, None, None);
             if let Some(c) = plain.creep.as_mut() {
                 c.blend_mps = f64::MIN_POSITIVE;
             }
