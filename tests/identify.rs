@@ -2835,10 +2835,9 @@ fn a_residual_networks_support_holds_at_every_speed_its_slips_were_seen() {
             }
         }
     }
-    assert!(
-        held > 100 && law_alone > 100,
-        "{held} held, {law_alone} law alone"
-    );
+    // On these runs every slip that was seen has slip rates of both signs, so no cell is left
+    // to the law alone (the unit test in identify::support covers that case).
+    assert!(held > 100, "{held} held, {law_alone} law alone");
 }
 
 /// Runs' tables parked in their estimates files (a pool holds tables only while it stays
