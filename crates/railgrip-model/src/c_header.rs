@@ -188,7 +188,12 @@ fn mlp_header(m: &ModelFile, creep: &CreepSpec, prefix: &str, source: &str) -> S
             (
                 "resid",
                 if m.base.is_some() {
-                    format!("\n * A residual (grey-box) network: mu = the Polach law {prefix}_base_mu_vt(dv, 0, v, T)\n * plus the network, before the creep region; outside the data support the law plus the\n * fallback residual of the support grid ({}).", m.support.as_ref().map_or("no grid: the network everywhere", |s| if s.fallback == "law" { "0: the law alone" } else { "held along the slip rate" }))
+                    let outside = match &m.support {
+                        None => "no grid: the network everywhere",
+                        Some(s) if s.fallback == "law" => "0: the law alone",
+                        Some(_) => "held along the slip rate",
+                    };
+                    format!("\n * A residual (grey-box) network: mu = the Polach law {prefix}_base_mu_vt(dv, 0, v, T)\n * plus the network, before the creep region; outside the data support the law plus the\n * fallback residual of the support grid ({outside}).")
                 } else {
                     String::new()
                 },

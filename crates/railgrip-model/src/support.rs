@@ -1,7 +1,8 @@
 //! The data-support blend of networks with a support grid (format version 2; step 3 of the
 //! evaluation rule in [`super`]): a multilinear interpolation, over the grid's cell centres,
-//! of the support indicator and of the fallback (|μ|; a residual network's residual). The C header does the same operations in
-//! the same order (no fused multiply-adds), so the results agree to the bit.
+//! of the support indicator and of the fallback (|μ|; a residual network's residual). The C
+//! header does the same operations in the same order (no fused multiply-adds), so the results
+//! agree to the bit.
 
 use super::file::{SupportSpec, MAX_INPUTS};
 

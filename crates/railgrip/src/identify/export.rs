@@ -55,8 +55,9 @@ pub fn mlp_file(
 
 /// Builds the file of a residual (grey-box) network: `t` trained on μ − μ_P, `base` the law
 /// μ_P (a `polach` model file's section) embedded as the file's `base`; its support grid falls
-/// back to the law plus the residual held along the slip rate (`law_held`), and the audit sees the whole model (law plus network) against the
-/// data (`t.data` must hold μ, not the residual).
+/// back to the law plus the residual held along the slip rate (`law_held`), and the audit sees
+/// the whole model (law plus network) against the data (`t.data` must hold μ, not the
+/// residual).
 pub fn residual_file(
     t: &TrainedMlp,
     creep: CreepSpec,

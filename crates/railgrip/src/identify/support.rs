@@ -203,16 +203,13 @@ pub fn support_spec(
     polach: Option<&Model>,
     members: &[ModelFile],
 ) -> Result<SupportSpec, crate::model::ModelError> {
+    // Built first also to refuse a file the evaluators cannot take, whatever its fallback.
     let net = Model::named(file.clone(), "trained network")?;
     let centres = cell_centres(file, &occ.cells);
     let v_ref = file
         .creep
         .as_ref()
         .map_or(f64::NAN, |c| c.reference_speed_mps);
-    let own: Vec<f64> = centres
-        .iter()
-        .map(|x| net.mu_vt(x[0], x[1], x[2], x[3]).abs())
-        .collect();
     let (fallback, fallback_mu) = match polach {
         // A residual network fades to its law plus its residual held along dΔv/dt: the
         // residual N at each centre is the network without its law and without the creep
@@ -240,7 +237,13 @@ pub fn support_spec(
                 })
                 .collect(),
         ),
-        None => ("nearest", nearest_supported(occ, &own)),
+        None => {
+            let own: Vec<f64> = centres
+                .iter()
+                .map(|x| net.mu_vt(x[0], x[1], x[2], x[3]).abs())
+                .collect();
+            ("nearest", nearest_supported(occ, &own))
+        }
     };
     let spread = if members.len() < 2 {
         Vec::new()
