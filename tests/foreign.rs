@@ -710,9 +710,10 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 ///   measured), and in the curve view (the model at each run's initial speed and temperature)
 ///   a bias within ±0.0025 at every initial speed (−0.0009 … +0.0013 measured, by `railgrip
 ///   score`; +0.0023 with Polach's creepage) — at 200 km/h less than half the 2-input
-///   network's — and a loss/recovery difference of 0.65–1.3 times the truth's in every run
-///   where the truth's is at least 0.002 (0.79 … 1.14 measured; 0.58 … 0.99 with Polach's
-///   creepage);
+///   network's — and a loss/recovery difference of 0.8–1.2 times the truth's at every initial
+///   speed, its runs' pairs pooled as the band's bias pools their cells (0.89 … 1.13
+///   measured), and 0.65–1.3 times in every run where the truth's is at least 0.002 (0.79 …
+///   1.14 measured; 0.58 … 0.99 with Polach's creepage);
 /// - the 2-input network is printed beside them (replay +0.0055 at 145–170 km/h and +0.0105 at
 ///   170–210 km/h, measured).
 ///
@@ -722,10 +723,14 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// alone there), and at the runs' states (each curve cell at its samples' mean slip and slip
 /// rate) with its bias within ±0.002 (0.0029–0.0043 and −0.0007 … +0.0015 measured).
 ///
-/// Not asserted because not met (docs/training.md#top-speeds-the-models-per-speed-band): a
-/// hysteresis ratio of 0.8–1.2 everywhere (0.79–1.14 at the centres, 0.78–1.17 at the runs'
-/// states), and per run and band a replay bias within ±0.0015 (each run's rail condition is
-/// ±5 % of the mean, which no model input carries).
+/// Per run and band, a replay bias within ±0.0015 is out of reach of any model trained on the
+/// pooled runs: the exact law at the runs' mean rail condition (each run's own is ±5 % of it,
+/// which no model input carries) is biased by more than 0.003 on some run and band (up to
+/// 0.0050 measured). Net of that — the chosen model's bias less the exact law's at the mean
+/// condition, per run and band — it is within ±0.005 (0.0037 measured). Not asserted because
+/// not met (docs/training.md#top-speeds-the-models-per-speed-band): a hysteresis ratio of
+/// 0.8–1.2 in every run (0.79–1.14 at the centres, one run of 36 at 0.795; 0.78–1.17 at the
+/// runs' states).
 #[test]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
@@ -770,6 +775,46 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             c.chosen,
             chosen.hysteresis
         );
+        // Per initial speed, the runs' pairs pooled: within 0.8–1.2 of the truth's.
+        assert!(
+            chosen.hysteresis_pooled.len() == 4
+                && chosen
+                    .hysteresis_pooled
+                    .iter()
+                    .all(|(_, r)| (0.8..=1.2).contains(r)),
+            "seed {seed}: {} pooled hysteresis ratios {:?}",
+            c.chosen,
+            chosen.hysteresis_pooled
+        );
+        // Per run and band, what the runs' own conditions leave to any campaign model, and
+        // the chosen model's bias net of it.
+        let floor = c
+            .replay_condition_floor
+            .as_ref()
+            .expect("the top-speed runs' conditions differ");
+        let worst = floor
+            .iter()
+            .flatten()
+            .filter(|b| b.is_finite())
+            .fold(0.0f64, |m, b| m.max(b.abs()));
+        assert!(
+            worst > 0.003,
+            "seed {seed}: the exact law's worst run bias {worst}"
+        );
+        for (run, (m, f)) in chosen.replay_per_run.iter().zip(floor).enumerate() {
+            for (band, (a, b)) in m.iter().zip(f).enumerate() {
+                assert_eq!(
+                    a.is_finite(),
+                    b.is_finite(),
+                    "seed {seed}: run {run} band {band}"
+                );
+                assert!(
+                    !a.is_finite() || (a - b).abs() <= 0.005,
+                    "seed {seed}: run {run} band {band}: {} bias {a} against the exact law's {b}",
+                    c.chosen
+                );
+            }
+        }
         // At the cells' nominal centres, against each run's own law: RMSE within 0.005 at
         // every initial speed (0.0051–0.0059 at 80–160 km/h while the residual fell back to
         // the law alone beyond the data's slip rates).
@@ -835,6 +880,8 @@ struct BandScores {
     /// Replay bias per band of [`railgrip::score::SPEED_BANDS_KMH`], pooled over the runs
     /// (sample-weighted; every band holds samples).
     replay: Vec<f64>,
+    /// Replay bias per run and band (NaN where the run has no sample in the band).
+    replay_per_run: Vec<Vec<f64>>,
     /// Curve bias per initial speed (km/h), pooled over that speed's runs (cell-weighted).
     curve: Vec<(i64, f64)>,
     /// Curve RMSE per initial speed (km/h), pooled over that speed's runs (cell-weighted).
@@ -842,6 +889,9 @@ struct BandScores {
     /// Per run: (initial speed, the curve's hysteresis ratio) where the truth's loss − recovery
     /// difference is at least 0.002.
     hysteresis: Vec<(i64, f64)>,
+    /// Per initial speed: the hysteresis ratio of its runs pooled (their pairs; runs whose
+    /// true difference is under 0.002 left out), as `railgrip score` prints it per band.
+    hysteresis_pooled: Vec<(i64, f64)>,
     /// The curve at the runs' states (each cell at its samples' mean slip and slip rate): per
     /// initial speed, pooled over its runs (cell-weighted), (RMSE, bias).
     at_states: Vec<(i64, (f64, f64))>,
@@ -859,6 +909,11 @@ struct CampaignScores {
     /// The Polach model's fixed creepage speed (m/s), if it has one, and its reference speed.
     polach_creepage: Option<f64>,
     polach_reference_speed: f64,
+    /// Where the runs' rail conditions differ (`loss_recovery`'s `level_scale`): per run and
+    /// band, the replay bias of the true law at the runs' mean condition — what a campaign
+    /// model with the exact law, which cannot know a run's own condition, would show (NaN
+    /// where the run has no sample in the band).
+    replay_condition_floor: Option<Vec<Vec<f64>>>,
 }
 
 impl CampaignScores {
@@ -944,7 +999,41 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         polach_speed,
         polach_creepage,
         polach_reference_speed,
+        replay_condition_floor: replay_condition_floor(&truths, &scenes),
     }
+}
+
+/// Per run and band of [`railgrip::score::SPEED_BANDS_KMH`], the replay bias of each run's true
+/// law scaled to the runs' mean rail condition (`loss_recovery`'s `level_scale`; μ is
+/// proportional to it), as `railgrip score` prints it; `None` where the conditions do not
+/// differ or a law has none.
+fn replay_condition_floor(truths: &[Vec<Sample>], scenes: &[Scene]) -> Option<Vec<Vec<f64>>> {
+    use railgrip::score::{replay, SPEED_BANDS_KMH};
+    let scales: Vec<f64> = scenes
+        .iter()
+        .map(|sc| match &sc.adhesion.law {
+            AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
+            _ => None,
+        })
+        .collect::<Option<_>>()?;
+    if scales.iter().all(|s| *s == scales[0]) {
+        return None;
+    }
+    let mean = scales.iter().sum::<f64>() / scales.len() as f64;
+    let runs = truths
+        .iter()
+        .zip(scenes)
+        .zip(&scales)
+        .map(|((t, sc), own)| {
+            let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
+            let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / own;
+            let mut run = vec![f64::NAN; SPEED_BANDS_KMH.len() - 1];
+            for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, at_mean).unwrap() {
+                run[SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap()] = b.stats.bias;
+            }
+            run
+        });
+    Some(runs.collect())
 }
 
 /// One model's scores on the campaign's runs (`truths` the runs' true samples, `scenes` their
@@ -956,19 +1045,26 @@ fn band_scores(
     scenes: &[Scene],
     what: &str,
 ) -> BandScores {
-    use railgrip::score::{curve, replay, SPEED_BANDS_KMH};
+    use railgrip::score::{curve, pooled_hysteresis_ratio, replay, SPEED_BANDS_KMH};
     let model = Model::new(file).unwrap();
     let predict = |dv, q, v, tc| model.mu_vt(dv, q, v, tc);
     let mut sums = vec![(0.0, 0usize); SPEED_BANDS_KMH.len() - 1];
+    let mut per_run = Vec::new();
     let mut curves: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
     let mut hysteresis = Vec::new();
+    // Per initial speed, each run's (true, predicted, pairs) loss − recovery difference.
+    type Hysteresis = Option<(f64, f64, usize)>;
+    let mut pairs: std::collections::BTreeMap<i64, Vec<Hysteresis>> = Default::default();
     let mut states: std::collections::BTreeMap<i64, (f64, f64, usize)> = Default::default();
     for (t, sc) in truths.iter().zip(scenes) {
+        let mut run = vec![f64::NAN; sums.len()];
         for b in replay(t, &Grid::default(), &SPEED_BANDS_KMH, predict).unwrap() {
             let i = SPEED_BANDS_KMH.iter().position(|e| *e == b.lo_kmh).unwrap();
             sums[i].0 += b.stats.bias * b.stats.n as f64;
             sums[i].1 += b.stats.n;
+            run[i] = b.stats.bias;
         }
+        per_run.push(run);
         let law = railgrip::sim::TrueLaw::of(sc).unwrap().unwrap();
         let (v0, t_c) = (sc.run.initial_speed_kmh, sc.run.ambient_temperature_c);
         let c = curve(
@@ -983,6 +1079,10 @@ fn band_scores(
         if let Some(r) = c.hysteresis_ratio(0.002) {
             hysteresis.push((v0.round() as i64, r));
         }
+        pairs
+            .entry(v0.round() as i64)
+            .or_default()
+            .push(c.hysteresis_with_pairs());
         let e = curves.entry(v0.round() as i64).or_default();
         e.0 += c.stats.bias * c.stats.n as f64;
         e.1 += c.stats.rmse * c.stats.rmse * c.stats.n as f64;
@@ -1006,6 +1106,7 @@ fn band_scores(
     );
     let s = BandScores {
         replay: sums.iter().map(|(s, n)| s / *n as f64).collect(),
+        replay_per_run: per_run,
         curve: curves
             .iter()
             .map(|(k, (s, _, n))| (*k, s / (*n).max(1) as f64))
@@ -1015,6 +1116,10 @@ fn band_scores(
             .map(|(k, (_, sq, n))| (*k, (sq / (*n).max(1) as f64).sqrt()))
             .collect(),
         hysteresis,
+        hysteresis_pooled: pairs
+            .into_iter()
+            .filter_map(|(k, runs)| Some((k, pooled_hysteresis_ratio(runs, 0.002)?)))
+            .collect(),
         at_states: states
             .iter()
             .map(|(k, (sq, b, n))| {
@@ -1024,8 +1129,8 @@ fn band_scores(
             .collect(),
     };
     eprintln!(
-        "{what}: replay bias per band {:.4?}; curve bias per initial speed {:.4?}, RMSE {:.4?}; hysteresis ratio per run {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
-        s.replay, s.curve, s.curve_rmse, s.hysteresis, s.at_states
+        "{what}: replay bias per band {:.4?}; curve bias per initial speed {:.4?}, RMSE {:.4?}; hysteresis ratio per run {:.2?}, per initial speed {:.2?}; curve at the runs' states (RMSE, bias) {:.4?}",
+        s.replay, s.curve, s.curve_rmse, s.hysteresis, s.hysteresis_pooled, s.at_states
     );
     s
 }

@@ -336,7 +336,9 @@ fn train_exits_3_and_marks_the_file_when_the_audit_fails() {
 /// Scenes on rails of different condition (`level_scale` 0.95 and 1.05): `score` adds the
 /// curve view against the law at their mean condition and the condition floor, the exact law
 /// at the mean condition against each run's own — high on the slippery run, low on the other,
-/// by the condition's share of μ — and neither where the conditions are equal.
+/// by the condition's share of μ, in the curve view and in replay — and neither where the
+/// conditions are equal. The true law's own replay, at each run's condition, is near 0 on both.
+/// Each initial speed's hysteresis ratio pools its runs' pairs: between the runs' own.
 #[test]
 fn score_separates_the_runs_rail_condition_from_the_models_error() {
     let dir = tempfile::tempdir().unwrap();
@@ -381,6 +383,41 @@ fn score_separates_the_runs_rail_condition_from_the_models_error() {
         assert!(b.abs() <= r && r <= m && m < 0.06 * 0.13 && r > 0.0, "{v}");
         let at_mean = &run["curve_mean_condition"];
         assert!(at_mean["n"] == run["curve"]["n"], "the same cells: {v}");
+        // In replay, per band: the same sign as in the curve view, the same samples as the
+        // model's replay; the law at the run's own condition an order smaller.
+        let bands = |k: &str| run[k].as_array().unwrap().clone();
+        let (model, own, floor) = (
+            bands("replay"),
+            bands("replay_law"),
+            bands("replay_condition_floor"),
+        );
+        assert!(!floor.is_empty() && floor.len() == model.len() && own.len() == model.len());
+        let sign = floor_sign(run);
+        for ((m, o), f) in model.iter().zip(&own).zip(&floor) {
+            assert_eq!(m["stats"]["n"], f["stats"]["n"], "{v}");
+            let (o, f) = (
+                o["stats"]["bias"].as_f64().unwrap(),
+                f["stats"]["bias"].as_f64().unwrap(),
+            );
+            assert!(f * sign > 0.0015 && o.abs() < 0.3 * f.abs(), "{o} {f}: {v}");
+        }
+    }
+    let row = &v["curve_by_initial_speed"][0];
+    let (lo, hi) = (
+        row["hysteresis_ratio"][0].as_f64().unwrap(),
+        row["hysteresis_ratio"][1].as_f64().unwrap(),
+    );
+    let pooled = row["hysteresis_ratio_pooled"].as_f64().unwrap();
+    assert!(lo <= pooled && pooled <= hi && lo < hi, "{row}");
+    for key in [
+        "replay_law_by_speed_band",
+        "replay_condition_floor_by_speed_band",
+    ] {
+        assert_eq!(
+            v[key].as_array().unwrap().len(),
+            2,
+            "0–40 and 40–80 km/h: {v}"
+        );
     }
     for key in ["curve_at_mean_condition", "curve_condition_floor"] {
         assert_eq!(
@@ -392,7 +429,10 @@ fn score_separates_the_runs_rail_condition_from_the_models_error() {
     let text = railgrip(&["score", model, &slippery, &good], dir.path());
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(
-        text.contains("mean rail condition") && text.contains("Condition floor"),
+        text.contains("mean rail condition")
+            && text.contains("Condition floor")
+            && text.contains("Replay of the true law itself")
+            && text.contains("Replay floor of a campaign model"),
         "{text}"
     );
     // Equal conditions: no such tables.
@@ -403,6 +443,23 @@ fn score_separates_the_runs_rail_condition_from_the_models_error() {
         v["curve_condition_floor"].as_array().unwrap().is_empty(),
         "{v}"
     );
+    assert!(
+        v["replay_condition_floor_by_speed_band"]
+            .as_array()
+            .unwrap()
+            .is_empty()
+            && !v["replay_law_by_speed_band"].as_array().unwrap().is_empty(),
+        "{v}"
+    );
+}
+
+/// The sign of a run's condition floor: + where the mean condition is better than the run's.
+fn floor_sign(run: &serde_json::Value) -> f64 {
+    if run["level_scale"].as_f64().unwrap() < 1.0 {
+        1.0
+    } else {
+        -1.0
+    }
 }
 
 #[test]

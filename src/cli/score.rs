@@ -8,7 +8,8 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use railgrip::model::Model;
 use railgrip::score::{
-    replay, score, Band, CurveSupport, Grid, Sample, Score, Stats, SPEED_BANDS_KMH,
+    pooled_hysteresis_ratio, replay, score, Band, CurveSupport, Grid, Sample, Score, Stats,
+    SPEED_BANDS_KMH,
 };
 use railgrip::sim::{self, AdhesionLaw, Scene, TrueLaw};
 
@@ -37,6 +38,10 @@ pub struct Args {
 /// True loss − recovery differences below this give no hysteresis ratio.
 const MIN_HYSTERESIS: f64 = 0.002;
 
+/// A curve's mean true and predicted loss − recovery differences and their pairs
+/// ([`railgrip::score::CurveScore::hysteresis_with_pairs`]).
+type Hysteresis = Option<(f64, f64, usize)>;
+
 #[derive(serde::Serialize)]
 struct Line {
     scene: String,
@@ -51,10 +56,14 @@ struct Line {
     /// The curve view at the run's initial speed and temperature (laws in closed form only).
     curve: Option<Stats>,
     curve_hysteresis_ratio: Option<f64>,
+    /// The curve's mean true and predicted loss − recovery differences and their pairs (a
+    /// band pools its runs by them).
+    curve_hysteresis: Hysteresis,
     /// The curve view with each cell at its samples' mean slip and slip rate (the run's
     /// states) instead of its nominal centre, and its hysteresis ratio.
     curve_at_states: Option<Stats>,
     curve_at_states_hysteresis_ratio: Option<f64>,
+    curve_at_states_hysteresis: Hysteresis,
     /// The scene's rail condition (`adhesion.level_scale`); absent for laws without one.
     level_scale: Option<f64>,
     /// The curve view against the law at the scored runs' mean condition (the run's law
@@ -65,6 +74,13 @@ struct Line {
     curve_condition_floor: Option<Stats>,
     /// The replay view per speed band.
     replay: Vec<Band>,
+    /// The replay view of the true law itself at the run's condition (each sample's slip,
+    /// slip rate and speed; the truth blends its branches by a lagged slip rate and loads
+    /// each wheel dynamically, which no μ(Δv, dΔv/dt, v) has): the floor of any such model.
+    replay_law: Vec<Band>,
+    /// The same with the law at the scored runs' mean condition (the run's law × s̄/s): the
+    /// floor of a campaign model, which cannot know the run's own condition.
+    replay_condition_floor: Vec<Band>,
 }
 
 impl Line {
@@ -81,12 +97,16 @@ impl Line {
             hysteresis_predicted: s.hysteresis.map(|h| h.1),
             curve: None,
             curve_hysteresis_ratio: None,
+            curve_hysteresis: None,
             curve_at_states: None,
             curve_at_states_hysteresis_ratio: None,
+            curve_at_states_hysteresis: None,
             level_scale: None,
             curve_mean_condition: None,
             curve_condition_floor: None,
             replay: Vec::new(),
+            replay_law: Vec::new(),
+            replay_condition_floor: Vec::new(),
         }
     }
 }
@@ -105,6 +125,9 @@ struct BandRow {
     bias_max: f64,
     /// Curve view only: the range of the runs' hysteresis ratios.
     hysteresis_ratio: Option<(f64, f64)>,
+    /// Curve view only: the band's own ratio, its runs' pairs pooled
+    /// ([`pooled_hysteresis_ratio`]), as `pooled` pools their cells.
+    hysteresis_ratio_pooled: Option<f64>,
 }
 
 #[derive(serde::Serialize)]
@@ -121,6 +144,10 @@ struct Report {
     curve_at_mean_condition: Vec<BandRow>,
     curve_condition_floor: Vec<BandRow>,
     replay_by_speed_band: Vec<BandRow>,
+    /// The true law replayed at its own runs' conditions, and at their mean condition (the
+    /// latter where the conditions differ).
+    replay_law_by_speed_band: Vec<BandRow>,
+    replay_condition_floor_by_speed_band: Vec<BandRow>,
 }
 
 /// The rail condition of a scene's true law: `loss_recovery`'s `level_scale` multiplies both
@@ -184,11 +211,15 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                     .with_context(context)?;
                 line.curve = Some(c.stats);
                 line.curve_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
+                line.curve_hysteresis = c.hysteresis_with_pairs();
                 let c = cells
                     .curve(true, v0, t_c, predict, own)
                     .with_context(context)?;
                 line.curve_at_states = Some(c.stats);
                 line.curve_at_states_hysteresis_ratio = c.hysteresis_ratio(MIN_HYSTERESIS);
+                line.curve_at_states_hysteresis = c.hysteresis_with_pairs();
+                line.replay_law =
+                    replay(&samples, &grid, &SPEED_BANDS_KMH, own).with_context(context)?;
                 line.level_scale = level_scale(&scene);
                 if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
@@ -197,6 +228,8 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                     line.curve_mean_condition = Some(m.with_context(context)?.stats);
                     let f = cells.curve(false, v0, t_c, at_mean, own);
                     line.curve_condition_floor = Some(f.with_context(context)?.stats);
+                    line.replay_condition_floor =
+                        replay(&samples, &grid, &SPEED_BANDS_KMH, at_mean).with_context(context)?;
                 }
             }
             line.replay =
@@ -216,16 +249,18 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let all = score(&pooled, &grid, predict)?;
     let negative = lines.iter().any(|l| l.negative_cells > 0) || all.negative_cells > 0;
     let report = Report {
-        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, Some(|l| l.curve_hysteresis_ratio)),
+        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, Some(|l| l.curve_hysteresis)),
         curve_at_runs_states: curve_rows(
             &lines,
             |l| l.curve_at_states,
-            Some(|l| l.curve_at_states_hysteresis_ratio),
+            Some(|l| l.curve_at_states_hysteresis),
         ),
         mean_level_scale: mean_scale,
         curve_at_mean_condition: curve_rows(&lines, |l| l.curve_mean_condition, None),
         curve_condition_floor: curve_rows(&lines, |l| l.curve_condition_floor, None),
-        replay_by_speed_band: replay_rows(&lines),
+        replay_by_speed_band: replay_rows(&lines, |l| &l.replay),
+        replay_law_by_speed_band: replay_rows(&lines, |l| &l.replay_law),
+        replay_condition_floor_by_speed_band: replay_rows(&lines, |l| &l.replay_condition_floor),
         scenes: lines,
         all: Line::new("all", f64::NAN, f64::NAN, &all),
     };
@@ -245,7 +280,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
 fn curve_rows(
     lines: &[Line],
     stats: fn(&Line) -> Option<Stats>,
-    ratio: Option<fn(&Line) -> Option<f64>>,
+    hysteresis: Option<fn(&Line) -> Hysteresis>,
 ) -> Vec<BandRow> {
     let mut by: BTreeMap<u64, Vec<&Line>> = BTreeMap::new();
     for l in lines.iter().filter(|l| stats(l).is_some()) {
@@ -255,22 +290,31 @@ fn curve_rows(
         .into_values()
         .map(|ls| {
             let stats: Vec<Stats> = ls.iter().filter_map(|l| stats(l)).collect();
-            let ratios: Vec<f64> = match ratio {
-                Some(r) => ls.iter().filter_map(|l| r(l)).collect(),
+            let runs: Vec<Hysteresis> = match hysteresis {
+                Some(h) => ls.iter().map(|l| h(l)).collect(),
                 None => Vec::new(),
             };
+            let ratios: Vec<f64> = runs
+                .iter()
+                .flatten()
+                .filter(|(t, _, _)| t.abs() >= MIN_HYSTERESIS)
+                .map(|(t, p, _)| p / t)
+                .collect();
             let v = ls[0].initial_speed_kmh;
-            row(v, v, &stats, &ratios)
+            BandRow {
+                hysteresis_ratio_pooled: pooled_hysteresis_ratio(runs, MIN_HYSTERESIS),
+                ..row(v, v, &stats, &ratios)
+            }
         })
         .collect();
     rows.sort_by(|a, b| a.lo_kmh.total_cmp(&b.lo_kmh));
     rows
 }
 
-/// The replay view per speed band over all runs.
-fn replay_rows(lines: &[Line]) -> Vec<BandRow> {
+/// A replay view (`bands` of a line: the model's, or a floor's) per speed band over all runs.
+fn replay_rows(lines: &[Line], bands: fn(&Line) -> &Vec<Band>) -> Vec<BandRow> {
     let mut by: BTreeMap<u64, (f64, f64, Vec<Stats>)> = BTreeMap::new();
-    for b in lines.iter().flat_map(|l| &l.replay) {
+    for b in lines.iter().flat_map(bands) {
         by.entry(b.lo_kmh.to_bits())
             .or_insert((b.lo_kmh, b.hi_kmh, Vec::new()))
             .2
@@ -314,6 +358,7 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             let hi = ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             (lo, hi)
         }),
+        hysteresis_ratio_pooled: None,
     }
 }
 
@@ -342,7 +387,7 @@ fn print_report(r: &Report, min_samples: usize) {
     let table = |title: &str, rows: &[BandRow], speed: &dyn Fn(&BandRow) -> String| {
         println!("\n{title}");
         println!(
-            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>19} {:>13}",
+            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>19} {:>20}",
             "km/h",
             "runs",
             "n",
@@ -351,11 +396,11 @@ fn print_report(r: &Report, min_samples: usize) {
             "run mean",
             "max |e|",
             "run biases",
-            "hyst. ratio"
+            "hyst. ratio (runs)"
         );
         for b in rows {
             println!(
-                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>+8.4} {:>8.4} {:>19} {:>13}",
+                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>+8.4} {:>8.4} {:>19} {:>20}",
                 speed(b),
                 b.runs,
                 b.pooled.n,
@@ -364,8 +409,10 @@ fn print_report(r: &Report, min_samples: usize) {
                 b.bias_run_mean,
                 b.pooled.max_error,
                 format!("{:+.4} … {:+.4}", b.bias_min, b.bias_max),
-                b.hysteresis_ratio
-                    .map_or("–".into(), |(lo, hi)| format!("{lo:.2} … {hi:.2}")),
+                match (b.hysteresis_ratio_pooled, b.hysteresis_ratio) {
+                    (Some(p), Some((lo, hi))) => format!("{p:.2} ({lo:.2} … {hi:.2})"),
+                    _ => "–".into(),
+                },
             );
         }
     };
@@ -393,9 +440,24 @@ fn print_report(r: &Report, min_samples: usize) {
             &|b| format!("{:.0}", b.lo_kmh),
         );
     }
+    let band = |b: &BandRow| format!("{:.0}–{:.0}", b.lo_kmh, b.hi_kmh);
     table(
         "Replay view: the model at each sample's own inputs against its μ, samples in supported cells, by the sample's speed (n = samples)",
         &r.replay_by_speed_band,
-        &|b| format!("{:.0}–{:.0}", b.lo_kmh, b.hi_kmh),
+        &band,
     );
+    if !r.replay_law_by_speed_band.is_empty() {
+        table(
+            "Replay of the true law itself, at each sample's slip, slip rate and speed and its run's condition: what a model of μ(Δv, dΔv/dt, v) could reach at best (the truth blends its branches by a lagged slip rate and loads each wheel dynamically)",
+            &r.replay_law_by_speed_band,
+            &band,
+        );
+    }
+    if !r.replay_condition_floor_by_speed_band.is_empty() {
+        table(
+            "Replay floor of a campaign model: the true law at the runs' mean condition, as above — no model trained on the pooled runs knows a run's own condition, so its run biases are out of reach",
+            &r.replay_condition_floor_by_speed_band,
+            &band,
+        );
+    }
 }

@@ -16,7 +16,8 @@
 //! **Hysteresis.** Over supported pairs (Δv_c, +q_c) and (Δv_c, −q_c) of one axle and speed
 //! with 0.5 ≤ Δv_c ≤ 3 m/s: the mean of μ(Δv, +q) − μ(Δv, −q), true (cell means of the truth)
 //! and predicted (cell means of the model) — a law whose recovery branch lies below its loss
-//! branch has a positive value, and a model must reproduce its sign.
+//! branch has a positive value, and a model must reproduce its sign. Several runs (a speed
+//! band) pool their pairs: [`pooled_hysteresis_ratio`].
 //!
 //! Two further views of one run, each reported per speed band with RMSE, **bias** (mean
 //! μ̂ − μ: a model 8 % high where braking matters is biased, not only noisy) and max error:
@@ -291,6 +292,8 @@ pub struct CurveScore {
     /// Mean μ(Δv, +q) − μ(Δv, −q) over supported pairs with 0.5 ≤ Δv ≤ 3 m/s: true and
     /// predicted; `None` without pairs.
     pub hysteresis: Option<(f64, f64)>,
+    /// Pairs behind [`CurveScore::hysteresis`].
+    pub hysteresis_pairs: usize,
 }
 
 impl CurveScore {
@@ -301,6 +304,31 @@ impl CurveScore {
             .filter(|(t, _)| t.abs() >= min_true)
             .map(|(t, p)| p / t)
     }
+
+    /// [`CurveScore::hysteresis`] with its pairs: (true, predicted, pairs).
+    pub fn hysteresis_with_pairs(&self) -> Option<(f64, f64, usize)> {
+        self.hysteresis.map(|(t, p)| (t, p, self.hysteresis_pairs))
+    }
+}
+
+/// The hysteresis ratio of several runs' curves taken together (a speed band's): the sum of
+/// the predicted loss − recovery differences over the sum of the true ones, each run's mean
+/// weighted by its pairs — as a band's bias pools its runs' cells. `runs` gives each run's
+/// [`CurveScore::hysteresis_with_pairs`]; runs whose own true difference is below `min_true`
+/// (no ratio of their own) are left out; `None` when none is left.
+pub fn pooled_hysteresis_ratio(
+    runs: impl IntoIterator<Item = Option<(f64, f64, usize)>>,
+    min_true: f64,
+) -> Option<f64> {
+    let (mut t, mut p, mut any) = (0.0, 0.0, false);
+    for (tr, pr, n) in runs.into_iter().flatten() {
+        if tr.abs() >= min_true {
+            t += tr * n as f64;
+            p += pr * n as f64;
+            any = true;
+        }
+    }
+    any.then(|| p / t)
 }
 
 /// The cells a run supports in the [`curve`] view: per (slip rate, slip) cell of `grid`'s
@@ -405,6 +433,7 @@ impl CurveSupport {
             cells,
             stats,
             hysteresis: (pairs > 0).then(|| (dt / pairs as f64, dp / pairs as f64)),
+            hysteresis_pairs: pairs,
         })
     }
 }
@@ -757,6 +786,28 @@ mod tests {
         let flat = curve(&s, &g, 33.0, f64::NAN, |a, _, c, t| law(a, 1.0, c, t), law).unwrap();
         assert!(flat.hysteresis_ratio(0.002).unwrap().abs() < 1e-12);
         assert!(flat.hysteresis_ratio(1.0).is_none());
+        // Pooled over runs: the predicted differences over the true ones, pair-weighted. The
+        // exact law and the flat model, both on the same pairs, pool to ½; a run below the
+        // threshold counts for nothing; none left, none.
+        assert!(c.hysteresis_pairs > 10 && flat.hysteresis_pairs == c.hysteresis_pairs);
+        let pool = |runs: &[&CurveScore]| {
+            pooled_hysteresis_ratio(runs.iter().map(|c| c.hysteresis_with_pairs()), 0.002)
+        };
+        let half = pool(&[&c, &flat]).unwrap();
+        assert!((half - 0.5).abs() < 1e-12, "{half}");
+        let twice = CurveScore {
+            hysteresis: c.hysteresis.map(|(t, p)| (t, 2.0 * p)),
+            hysteresis_pairs: 3 * c.hysteresis_pairs,
+            ..c.clone()
+        };
+        let w = pool(&[&c, &twice]).unwrap();
+        assert!((w - 7.0 / 4.0).abs() < 1e-12, "pair-weighted: {w}");
+        let tiny = CurveScore {
+            hysteresis: Some((0.001, 5.0)),
+            ..c.clone()
+        };
+        assert_eq!(pool(&[&c, &tiny]), Some(ratio));
+        assert_eq!(pool(&[&tiny]), None);
         // Replay: samples at 30–35 m/s (108–126 km/h) fall in two bands; a model 10 % high is
         // biased by 10 % of the mean μ there, per band.
         let r = replay(&s, &g, &SPEED_BANDS_KMH, |a, b, c, t| 1.1 * law(a, b, c, t)).unwrap();
