@@ -723,14 +723,18 @@ fn temperature_laws_on_foreign_laws_follow_the_level() {
 /// alone there), and at the runs' states (each curve cell at its samples' mean slip and slip
 /// rate) with its bias within ±0.002 (0.0029–0.0043 and −0.0007 … +0.0015 measured).
 ///
-/// Per run and band, a replay bias within ±0.0015 is out of reach of any model trained on the
-/// pooled runs: the exact law at the runs' mean rail condition (each run's own is ±5 % of it,
-/// which no model input carries) is biased by more than 0.003 on some run and band (up to
-/// 0.0050 measured). Net of that — the chosen model's bias less the exact law's at the mean
-/// condition, per run and band — it is within ±0.005 (0.0037 measured). Not asserted because
-/// not met (docs/training.md#top-speeds-the-models-per-speed-band): a hysteresis ratio of
-/// 0.8–1.2 in every run (0.79–1.14 at the centres, one run of 36 at 0.795; 0.78–1.17 at the
-/// runs' states).
+/// Per run and band, a replay bias within ±0.0015 is out of reach of a model trained on the
+/// pooled runs: each run's rail condition is ±5 % of the mean, which no model input carries,
+/// and two runs at the same ambient temperature on different rails share speed bands where
+/// the same inputs met μ differing by more than 0.003 (the exact law at the runs' mean
+/// condition is biased by up to ±0.0050 per run and band, seeds 1–3). Net of that — the
+/// chosen model's bias less the exact law's at the mean condition, per run and band — it is
+/// within ±0.005 (0.0037 measured, seeds 1–3): itself more than the ±0.0015 asked, so the
+/// condition explains part of the per-run bias, not all of it. Not asserted because not met
+/// (docs/training.md#top-speeds-the-models-per-speed-band): a hysteresis ratio of 0.8–1.2 in
+/// every run (0.79–1.14 at the centres, one run of 36 at 0.795; 0.78–1.17 at the runs'
+/// states); per initial speed, pooled over its runs' pairs or as the mean of their ratios,
+/// it is within 0.8–1.2 (asserted).
 #[test]
 fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
     for seed in [1, 2, 3] {
@@ -775,17 +779,18 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             c.chosen,
             chosen.hysteresis
         );
-        // Per initial speed, the runs' pairs pooled: within 0.8–1.2 of the truth's.
-        assert!(
-            chosen.hysteresis_pooled.len() == 4
-                && chosen
-                    .hysteresis_pooled
-                    .iter()
-                    .all(|(_, r)| (0.8..=1.2).contains(r)),
-            "seed {seed}: {} pooled hysteresis ratios {:?}",
-            c.chosen,
-            chosen.hysteresis_pooled
-        );
+        // Per initial speed, the runs' pairs pooled, and the mean of the runs' own ratios:
+        // within 0.8–1.2 of the truth's.
+        for (how, ratios) in [
+            ("pooled", &chosen.hysteresis_pooled),
+            ("run mean", &chosen.hysteresis_run_mean),
+        ] {
+            assert!(
+                ratios.len() == 4 && ratios.iter().all(|(_, r)| (0.8..=1.2).contains(r)),
+                "seed {seed}: {} hysteresis ratios, {how}: {ratios:?}",
+                c.chosen
+            );
+        }
         // Per run and band, what the runs' own conditions leave to any campaign model, and
         // the chosen model's bias net of it.
         let floor = c
@@ -801,6 +806,28 @@ fn the_chosen_model_and_polach_hold_the_top_speed_bands() {
             worst > 0.003,
             "seed {seed}: the exact law's worst run bias {worst}"
         );
+        // Two runs at the same ambient temperature on different rails, in the same speed band,
+        // whose true μ differs by more than 0.003 where one model of (Δv, dΔv/dt, v, T) sees
+        // the same inputs: no campaign model holds both within ±0.0015.
+        let mut spread = 0.0f64;
+        for (i, (ti, si)) in c.conditions.iter().enumerate() {
+            for (j, (tj, sj)) in c.conditions.iter().enumerate() {
+                if ti == tj && si < sj {
+                    for (a, b) in floor[i].iter().zip(&floor[j]) {
+                        if a.is_finite() && b.is_finite() {
+                            spread = spread.max(a - b);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            spread > 0.003,
+            "seed {seed}: the runs' condition spread {spread}"
+        );
+        // The model's bias against the law at the mean condition — the most a campaign model
+        // can aim at — per run and band. (Both replays score the same samples: the support
+        // does not depend on the model.)
         for (run, (m, f)) in chosen.replay_per_run.iter().zip(floor).enumerate() {
             for (band, (a, b)) in m.iter().zip(f).enumerate() {
                 assert_eq!(
@@ -890,8 +917,10 @@ struct BandScores {
     /// difference is at least 0.002.
     hysteresis: Vec<(i64, f64)>,
     /// Per initial speed: the hysteresis ratio of its runs pooled (their pairs; runs whose
-    /// true difference is under 0.002 left out), as `railgrip score` prints it per band.
+    /// true difference is under 0.002 left out), as `railgrip score` prints it per band …
     hysteresis_pooled: Vec<(i64, f64)>,
+    /// … and the mean of its runs' own ratios (one weight per run).
+    hysteresis_run_mean: Vec<(i64, f64)>,
     /// The curve at the runs' states (each cell at its samples' mean slip and slip rate): per
     /// initial speed, pooled over its runs (cell-weighted), (RMSE, bias).
     at_states: Vec<(i64, (f64, f64))>,
@@ -914,6 +943,9 @@ struct CampaignScores {
     /// model with the exact law, which cannot know a run's own condition, would show (NaN
     /// where the run has no sample in the band).
     replay_condition_floor: Option<Vec<Vec<f64>>>,
+    /// Per run: its ambient temperature (°C) and rail condition (`level_scale`, if its law
+    /// has one).
+    conditions: Vec<(f64, Option<f64>)>,
 }
 
 impl CampaignScores {
@@ -1000,6 +1032,16 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         polach_creepage,
         polach_reference_speed,
         replay_condition_floor: replay_condition_floor(&truths, &scenes),
+        conditions: scenes
+            .iter()
+            .map(|sc| {
+                let scale = match &sc.adhesion.law {
+                    AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
+                    _ => None,
+                };
+                (sc.run.ambient_temperature_c, scale)
+            })
+            .collect(),
     }
 }
 
@@ -1115,6 +1157,15 @@ fn band_scores(
             .iter()
             .map(|(k, (_, sq, n))| (*k, (sq / (*n).max(1) as f64).sqrt()))
             .collect(),
+        hysteresis_run_mean: {
+            let mut by: std::collections::BTreeMap<i64, Vec<f64>> = Default::default();
+            for (k, r) in &hysteresis {
+                by.entry(*k).or_default().push(*r);
+            }
+            by.into_iter()
+                .map(|(k, r)| (k, r.iter().sum::<f64>() / r.len() as f64))
+                .collect()
+        },
         hysteresis,
         hysteresis_pooled: pairs
             .into_iter()

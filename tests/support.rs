@@ -402,13 +402,26 @@ fn score_separates_the_runs_rail_condition_from_the_models_error() {
             assert!(f * sign > 0.0015 && o.abs() < 0.3 * f.abs(), "{o} {f}: {v}");
         }
     }
+    // The initial speed's hysteresis ratio: the runs' (true, predicted, pairs) pooled, and the
+    // mean of their own ratios.
     let row = &v["curve_by_initial_speed"][0];
-    let (lo, hi) = (
-        row["hysteresis_ratio"][0].as_f64().unwrap(),
-        row["hysteresis_ratio"][1].as_f64().unwrap(),
+    let h: Vec<[f64; 3]> = runs
+        .iter()
+        .map(|r| std::array::from_fn(|i| r["curve_hysteresis"][i].as_f64().unwrap()))
+        .collect();
+    assert!(h.iter().all(|[t, _, n]| *t >= 0.002 && *n >= 1.0), "{v}");
+    let pooled =
+        h.iter().map(|[_, p, n]| p * n).sum::<f64>() / h.iter().map(|[t, _, n]| t * n).sum::<f64>();
+    let mean = h.iter().map(|[t, p, _]| p / t).sum::<f64>() / h.len() as f64;
+    let near = |k: &str, x: f64| (row[k].as_f64().unwrap() - x).abs() < 1e-12;
+    assert!(
+        near("hysteresis_ratio_pooled", pooled) && near("hysteresis_ratio_run_mean", mean),
+        "{row}"
     );
-    let pooled = row["hysteresis_ratio_pooled"].as_f64().unwrap();
-    assert!(lo <= pooled && pooled <= hi && lo < hi, "{row}");
+    assert!(
+        row["hysteresis_ratio"][0].as_f64().unwrap() < row["hysteresis_ratio"][1].as_f64().unwrap(),
+        "{row}"
+    );
     for key in [
         "replay_law_by_speed_band",
         "replay_condition_floor_by_speed_band",
@@ -432,7 +445,7 @@ fn score_separates_the_runs_rail_condition_from_the_models_error() {
         text.contains("mean rail condition")
             && text.contains("Condition floor")
             && text.contains("Replay of the true law itself")
-            && text.contains("Replay floor of a campaign model"),
+            && text.contains("Replay of the true law at the runs' mean condition"),
         "{text}"
     );
     // Equal conditions: no such tables.

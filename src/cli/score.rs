@@ -76,10 +76,11 @@ struct Line {
     replay: Vec<Band>,
     /// The replay view of the true law itself at the run's condition (each sample's slip,
     /// slip rate and speed; the truth blends its branches by a lagged slip rate and loads
-    /// each wheel dynamically, which no μ(Δv, dΔv/dt, v) has): the floor of any such model.
+    /// each wheel dynamically, which no μ(Δv, dΔv/dt, v) has): a reference, not a bound — a
+    /// fitted model may absorb part of those effects on average.
     replay_law: Vec<Band>,
     /// The same with the law at the scored runs' mean condition (the run's law × s̄/s): the
-    /// floor of a campaign model, which cannot know the run's own condition.
+    /// reference for a campaign model, which cannot know the run's own condition.
     replay_condition_floor: Vec<Band>,
 }
 
@@ -126,8 +127,11 @@ struct BandRow {
     /// Curve view only: the range of the runs' hysteresis ratios.
     hysteresis_ratio: Option<(f64, f64)>,
     /// Curve view only: the band's own ratio, its runs' pairs pooled
-    /// ([`pooled_hysteresis_ratio`]), as `pooled` pools their cells.
+    /// ([`pooled_hysteresis_ratio`]), as `pooled` pools their cells (a run on a slippery rail,
+    /// which supports more cells, weighs most) …
     hysteresis_ratio_pooled: Option<f64>,
+    /// … and the mean of the runs' own ratios, one weight per run (as `bias_run_mean`).
+    hysteresis_ratio_run_mean: Option<f64>,
 }
 
 #[derive(serde::Serialize)]
@@ -303,6 +307,8 @@ fn curve_rows(
             let v = ls[0].initial_speed_kmh;
             BandRow {
                 hysteresis_ratio_pooled: pooled_hysteresis_ratio(runs, MIN_HYSTERESIS),
+                hysteresis_ratio_run_mean: (!ratios.is_empty())
+                    .then(|| ratios.iter().sum::<f64>() / ratios.len() as f64),
                 ..row(v, v, &stats, &ratios)
             }
         })
@@ -359,6 +365,7 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             (lo, hi)
         }),
         hysteresis_ratio_pooled: None,
+        hysteresis_ratio_run_mean: None,
     }
 }
 
@@ -387,7 +394,7 @@ fn print_report(r: &Report, min_samples: usize) {
     let table = |title: &str, rows: &[BandRow], speed: &dyn Fn(&BandRow) -> String| {
         println!("\n{title}");
         println!(
-            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>19} {:>20}",
+            "{:<12} {:>5} {:>8} {:>8} {:>8} {:>8} {:>8} {:>19} {:>27}",
             "km/h",
             "runs",
             "n",
@@ -396,11 +403,11 @@ fn print_report(r: &Report, min_samples: usize) {
             "run mean",
             "max |e|",
             "run biases",
-            "hyst. ratio (runs)"
+            "hyst. ratio: pooled, mean (runs)"
         );
         for b in rows {
             println!(
-                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>+8.4} {:>8.4} {:>19} {:>20}",
+                "{:<12} {:>5} {:>8} {:>8.4} {:>+8.4} {:>+8.4} {:>8.4} {:>19} {:>27}",
                 speed(b),
                 b.runs,
                 b.pooled.n,
@@ -409,8 +416,14 @@ fn print_report(r: &Report, min_samples: usize) {
                 b.bias_run_mean,
                 b.pooled.max_error,
                 format!("{:+.4} … {:+.4}", b.bias_min, b.bias_max),
-                match (b.hysteresis_ratio_pooled, b.hysteresis_ratio) {
-                    (Some(p), Some((lo, hi))) => format!("{p:.2} ({lo:.2} … {hi:.2})"),
+                match (
+                    b.hysteresis_ratio_pooled,
+                    b.hysteresis_ratio_run_mean,
+                    b.hysteresis_ratio,
+                ) {
+                    (Some(p), Some(m), Some((lo, hi))) => {
+                        format!("{p:.2}, {m:.2} ({lo:.2} … {hi:.2})")
+                    }
                     _ => "–".into(),
                 },
             );
@@ -448,14 +461,14 @@ fn print_report(r: &Report, min_samples: usize) {
     );
     if !r.replay_law_by_speed_band.is_empty() {
         table(
-            "Replay of the true law itself, at each sample's slip, slip rate and speed and its run's condition: what a model of μ(Δv, dΔv/dt, v) could reach at best (the truth blends its branches by a lagged slip rate and loads each wheel dynamically)",
+            "Replay of the true law itself, at each sample's slip, slip rate and speed and its run's condition: a reference for a model of μ(Δv, dΔv/dt, v) (the truth blends its branches by a lagged slip rate and loads each wheel dynamically, which such a model can follow only on average)",
             &r.replay_law_by_speed_band,
             &band,
         );
     }
     if !r.replay_condition_floor_by_speed_band.is_empty() {
         table(
-            "Replay floor of a campaign model: the true law at the runs' mean condition, as above — no model trained on the pooled runs knows a run's own condition, so its run biases are out of reach",
+            "Replay of the true law at the runs' mean condition, as above: the reference for a campaign model — a model trained on the pooled runs sees one curve where two runs at the same speed and temperature on different rails had two, so run biases of this size remain",
             &r.replay_condition_floor_by_speed_band,
             &band,
         );
