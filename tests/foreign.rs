@@ -1034,13 +1034,7 @@ fn run_and_score(prefix: &str, seed: u64) -> CampaignScores {
         replay_condition_floor: replay_condition_floor(&truths, &scenes),
         conditions: scenes
             .iter()
-            .map(|sc| {
-                let scale = match &sc.adhesion.law {
-                    AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
-                    _ => None,
-                };
-                (sc.run.ambient_temperature_c, scale)
-            })
+            .map(|sc| (sc.run.ambient_temperature_c, sc.adhesion.law.level_scale()))
             .collect(),
     }
 }
@@ -1053,10 +1047,7 @@ fn replay_condition_floor(truths: &[Vec<Sample>], scenes: &[Scene]) -> Option<Ve
     use railgrip::score::{replay, SPEED_BANDS_KMH};
     let scales: Vec<f64> = scenes
         .iter()
-        .map(|sc| match &sc.adhesion.law {
-            AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
-            _ => None,
-        })
+        .map(|sc| sc.adhesion.law.level_scale())
         .collect::<Option<_>>()?;
     if scales.iter().all(|s| *s == scales[0]) {
         return None;

@@ -11,7 +11,7 @@ use railgrip::score::{
     pooled_hysteresis_ratio, replay, score, Band, CurveSupport, Grid, Sample, Score, Stats,
     SPEED_BANDS_KMH,
 };
-use railgrip::sim::{self, AdhesionLaw, Scene, TrueLaw};
+use railgrip::sim::{self, Scene, TrueLaw};
 
 use super::{EXIT_LOSSY, EXIT_OK};
 
@@ -41,6 +41,9 @@ const MIN_HYSTERESIS: f64 = 0.002;
 /// A curve's mean true and predicted loss − recovery differences and their pairs
 /// ([`railgrip::score::CurveScore::hysteresis_with_pairs`]).
 type Hysteresis = Option<(f64, f64, usize)>;
+
+/// A curve table's hysteresis columns: each line's own ratio, and its differences and pairs.
+type HysteresisOf = (fn(&Line) -> Option<f64>, fn(&Line) -> Hysteresis);
 
 #[derive(serde::Serialize)]
 struct Line {
@@ -154,15 +157,6 @@ struct Report {
     replay_condition_floor_by_speed_band: Vec<BandRow>,
 }
 
-/// The rail condition of a scene's true law: `loss_recovery`'s `level_scale` multiplies both
-/// peaks, so μ is proportional to it (docs/simulator.md#foreign-laws); other laws have none.
-fn level_scale(scene: &Scene) -> Option<f64> {
-    match &scene.adhesion.law {
-        AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
-        _ => None,
-    }
-}
-
 pub fn run(args: Args) -> anyhow::Result<u8> {
     let model = Model::load(&args.model)?;
     let grid = Grid {
@@ -184,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let scales: Vec<f64> = loaded
         .iter()
         .filter(|(_, _, law)| law.is_some())
-        .filter_map(|(_, scene, _)| level_scale(scene))
+        .filter_map(|(_, scene, _)| scene.adhesion.law.level_scale())
         .collect();
     let mean_scale = (scales.iter().any(|s| *s != scales[0]))
         .then(|| scales.iter().sum::<f64>() / scales.len() as f64);
@@ -224,7 +218,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
                 line.curve_at_states_hysteresis = c.hysteresis_with_pairs();
                 line.replay_law =
                     replay(&samples, &grid, &SPEED_BANDS_KMH, own).with_context(context)?;
-                line.level_scale = level_scale(&scene);
+                line.level_scale = scene.adhesion.law.level_scale();
                 if let (Some(mean), Some(own_scale)) = (mean_scale, line.level_scale) {
                     // μ is proportional to the condition: the law at the mean one is × s̄/s.
                     let at_mean = |dv, q, v, _| law.mu(dv, q, v) * mean / own_scale;
@@ -253,11 +247,18 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
     let all = score(&pooled, &grid, predict)?;
     let negative = lines.iter().any(|l| l.negative_cells > 0) || all.negative_cells > 0;
     let report = Report {
-        curve_by_initial_speed: curve_rows(&lines, |l| l.curve, Some(|l| l.curve_hysteresis)),
+        curve_by_initial_speed: curve_rows(
+            &lines,
+            |l| l.curve,
+            Some((|l| l.curve_hysteresis_ratio, |l| l.curve_hysteresis)),
+        ),
         curve_at_runs_states: curve_rows(
             &lines,
             |l| l.curve_at_states,
-            Some(|l| l.curve_at_states_hysteresis),
+            Some((
+                |l| l.curve_at_states_hysteresis_ratio,
+                |l| l.curve_at_states_hysteresis,
+            )),
         ),
         mean_level_scale: mean_scale,
         curve_at_mean_condition: curve_rows(&lines, |l| l.curve_mean_condition, None),
@@ -284,7 +285,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
 fn curve_rows(
     lines: &[Line],
     stats: fn(&Line) -> Option<Stats>,
-    hysteresis: Option<fn(&Line) -> Hysteresis>,
+    hysteresis: Option<HysteresisOf>,
 ) -> Vec<BandRow> {
     let mut by: BTreeMap<u64, Vec<&Line>> = BTreeMap::new();
     for l in lines.iter().filter(|l| stats(l).is_some()) {
@@ -294,21 +295,16 @@ fn curve_rows(
         .into_values()
         .map(|ls| {
             let stats: Vec<Stats> = ls.iter().filter_map(|l| stats(l)).collect();
-            let runs: Vec<Hysteresis> = match hysteresis {
-                Some(h) => ls.iter().map(|l| h(l)).collect(),
-                None => Vec::new(),
-            };
-            let ratios: Vec<f64> = runs
-                .iter()
-                .flatten()
-                .filter(|(t, _, _)| t.abs() >= MIN_HYSTERESIS)
-                .map(|(t, p, _)| p / t)
-                .collect();
             let v = ls[0].initial_speed_kmh;
+            let Some((ratio, pairs)) = hysteresis else {
+                return row(v, v, &stats, &[]);
+            };
+            let ratios: Vec<f64> = ls.iter().filter_map(|l| ratio(l)).collect();
             BandRow {
-                hysteresis_ratio_pooled: pooled_hysteresis_ratio(runs, MIN_HYSTERESIS),
-                hysteresis_ratio_run_mean: (!ratios.is_empty())
-                    .then(|| ratios.iter().sum::<f64>() / ratios.len() as f64),
+                hysteresis_ratio_pooled: pooled_hysteresis_ratio(
+                    ls.iter().map(|l| pairs(l)),
+                    MIN_HYSTERESIS,
+                ),
                 ..row(v, v, &stats, &ratios)
             }
         })
@@ -365,7 +361,8 @@ fn row(lo: f64, hi: f64, stats: &[Stats], ratios: &[f64]) -> BandRow {
             (lo, hi)
         }),
         hysteresis_ratio_pooled: None,
-        hysteresis_ratio_run_mean: None,
+        hysteresis_ratio_run_mean: (!ratios.is_empty())
+            .then(|| ratios.iter().sum::<f64>() / ratios.len() as f64),
     }
 }
 

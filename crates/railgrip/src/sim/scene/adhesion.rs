@@ -99,6 +99,15 @@ pub enum AdhesionLaw {
 }
 
 impl AdhesionLaw {
+    /// The run's rail condition: `loss_recovery`'s `level_scale`, which multiplies both peaks,
+    /// so μ is proportional to it (docs/simulator.md#foreign-laws); other laws have none.
+    pub fn level_scale(&self) -> Option<f64> {
+        match self {
+            AdhesionLaw::LossRecovery(l) => Some(l.level_scale),
+            _ => None,
+        }
+    }
+
     /// The name used in scene files.
     pub fn name(&self) -> &'static str {
         match self {
