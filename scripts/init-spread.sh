@@ -3,8 +3,8 @@
 # each seed's top-speed campaign (scripts/top-speed.sh, run first into the same OUT_DIR) with
 # `train.seed` set to each of TRAIN_SEEDS, and once with four starts averaged (`starts = 4`,
 # `ensemble = 4`), through `railgrip train`, scores the residual network with `railgrip score`
-# and prints one row per training: the lowest and highest hysteresis ratio over the runs and
-# the curve RMSE per speed band (80 / 120 / 160 / 200 km/h), nominal cell centres
+# and prints one row per training: the lowest and highest hysteresis ratio over the runs, each
+# initial speed's ratio with its runs' pairs pooled, and the curve RMSE per speed band (80 / 120 / 160 / 200 km/h), nominal cell centres
 # (docs/training.md, "The network's initialisation").
 #
 #   scripts/top-speed.sh OUT_DIR "1 2 3"
@@ -23,7 +23,7 @@ for key in '^seed = 1 ' '^starts = 1 ' '^ensemble = 1 '; do
     grep -q "$key" "$base" || { echo "$base: no line matching '$key' to edit" >&2; exit 2; }
 done
 scenes=(pipelines/scenes/top_speed/*.toml)
-printf '%-5s %-18s %7s %7s   %s\n' seed training lowest highest "curve RMSE 80 / 120 / 160 / 200 km/h"
+printf '%-5s %-18s %7s %7s   %-26s %s\n' seed training lowest highest "pooled 80 / 120 / 160 / 200" "curve RMSE 80 / 120 / 160 / 200 km/h"
 for seed in $seeds; do
     runs="$out/seed$seed/out/runs"
     [ -d "$runs" ] || { echo "no $runs: run scripts/top-speed.sh $out \"$seed\" first" >&2; exit 2; }
@@ -43,18 +43,21 @@ for seed in $seeds; do
         "$bin" train "$work"/tables/*.estimates.parquet --out "$work/m_$t" --pipeline "$work/p_$t.toml" --quiet \
             > "$work/train_$t.log" 2>&1 || { echo "seed $seed, $label: railgrip train failed, see $work/train_$t.log" >&2; exit 1; }
         "$bin" score "$work/m_$t/mlp.residual.json" "${scenes[@]}" --seeds "$seed" > "$work/score_$t.txt"
-        # The curve view's table: one row per speed band; the last two columns are the band's
-        # lowest and highest hysteresis ratio.
+        # The curve view's table: one row per speed band, ending in its hysteresis ratios
+        # "pooled, run mean (lowest … highest)".
         awk -v s="$seed" -v l="$label" '
             /^Curve view: the model/ { c = 1; next }
             c && /^(80|120|160|200) / {
-                if (lo == "" || $(NF-2) < lo) lo = $(NF-2)
-                if (hi == "" || $NF > hi) hi = $NF
+                low = $(NF-2); high = $NF; pooled = $(NF-4)
+                gsub(/[(),]/, "", low); gsub(/[(),]/, "", high); gsub(/[(),]/, "", pooled)
+                if (lo == "" || low + 0 < lo + 0) lo = low
+                if (hi == "" || high + 0 > hi + 0) hi = high
                 r = r (r == "" ? "" : " / ") $4
+                p = p (p == "" ? "" : " / ") pooled
                 n++
             }
             c && n == 4 { c = 0 }
             END { if (n != 4) { print "seed " s ", " l ": no curve view in the score" > "/dev/stderr"; exit 1 }
-                  printf "%-5s %-18s %7s %7s   %s\n", s, l, lo, hi, r }' "$work/score_$t.txt"
+                  printf "%-5s %-18s %7s %7s   %-26s %s\n", s, l, lo, hi, p, r }' "$work/score_$t.txt"
     done
 done

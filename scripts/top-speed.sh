@@ -8,8 +8,9 @@
 #
 # PIPELINE=file.toml runs the campaign with that pipeline (e.g. train.inputs with v_mps and
 # ambient_temperature_c for the 4-input network).
-# Prints the chosen model and one `railgrip score` report per seed and candidate model; the
-# per-band tables of docs/training.md come from it. Needs a release build (cargo build --release).
+# Prints the candidates' held-out scores and the chosen model (as `railgrip run` prints them,
+# all of its output in OUT_DIR/seedN/run.txt) and one `railgrip score` report per seed and
+# candidate model; the per-band tables of docs/training.md come from it. Needs a release build (cargo build --release).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/top-speed}"
@@ -23,9 +24,10 @@ for seed in $seeds; do
     for s in "${scenes[@]}"; do
         "$bin" simulate "$s" --out "$archive" --seed "$seed" --format csv >/dev/null
     done
-    "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} >/dev/null
-    chosen=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1])).get('chosen_model',''))" "$out/seed$seed/out/campaign.json")
-    echo "== seed $seed: the campaign chose $chosen"
+    "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} > "$out/seed$seed/run.txt"
+    # The candidates' held-out scores and the choice, as `run` printed them.
+    echo "== seed $seed: the model choice"
+    grep -E '^(candidate|chosen) ' "$out/seed$seed/run.txt" || echo "no model choice (see $out/seed$seed/run.txt)"
     for model in mlp.json mlp.polach.json mlp.3in.json mlp.4in.json mlp.residual.json; do
         echo "== seed $seed: $model"
         [ -f "$out/seed$seed/out/models/$model" ] || { echo "no $model (see the run's notes)"; continue; }

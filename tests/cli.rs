@@ -1346,10 +1346,10 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
             .output()
             .unwrap();
         assert_eq!(o.status.code(), Some(0), "{}", text(&o.stderr));
-        outputs(&dir.path().join(out))
+        (outputs(&dir.path().join(out)), text(&o.stdout))
     };
-    let one = run("one", "1", None);
-    let two = run("two", "2", None);
+    let (one, printed) = run("one", "1", None);
+    let (two, _) = run("two", "2", None);
     assert_eq!(
         one.keys().collect::<Vec<_>>(),
         two.keys().collect::<Vec<_>>()
@@ -1380,6 +1380,15 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     for c in choice["candidates"].as_array().unwrap() {
         assert!(c["rmse_mu"].as_f64().unwrap() > 0.0, "{c}");
         assert_eq!(c["runs"].as_array().unwrap().len(), 3, "{c}");
+        // `run` prints the candidates' table as `train` does, a line each.
+        let line = format!("candidate  {:<9}", c["name"].as_str().unwrap());
+        let rmse = format!("held-out RMSE {:.5}", c["rmse_mu"].as_f64().unwrap());
+        assert!(
+            printed
+                .lines()
+                .any(|l| l.starts_with(&line) && l.contains(&rmse)),
+            "{line} … {rmse} not in:\n{printed}"
+        );
     }
     let best = choice["candidates"]
         .as_array()
@@ -1417,7 +1426,7 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     let text_p =
         railgrip::config::DEFAULT_PIPELINE_TOML.replace("model = \"auto\"", "model = \"polach\"");
     std::fs::write(&pipeline, text_p).unwrap();
-    let named = run("named", "2", Some(pipeline.to_str().unwrap()));
+    let (named, _) = run("named", "2", Some(pipeline.to_str().unwrap()));
     let camp_json: serde_json::Value =
         serde_json::from_slice(&named[Path::new("campaign.json")]).unwrap();
     assert_eq!(camp_json["chosen_model"], "models/mlp.polach.json");
@@ -1435,7 +1444,7 @@ fn the_model_choice_names_its_file_and_is_the_same_on_any_thread_count() {
     assert_eq!(choice["folds"], 0);
     // The same over the first output folder: the candidates it held are removed.
     assert!(one.keys().any(|k| other(k)));
-    let again = run("one", "2", Some(pipeline.to_str().unwrap()));
+    let (again, _) = run("one", "2", Some(pipeline.to_str().unwrap()));
     assert!(!again.keys().any(|k| other(k)), "{:?}", again.keys());
 }
 

@@ -94,6 +94,12 @@ pub fn train(args: TrainArgs) -> anyhow::Result<u8> {
 
 /// The model choice: every candidate's held-out scores and the chosen one.
 fn print_choice(c: &railgrip::identify::choice::Choice) {
+    print_candidates(c);
+    println!("chosen     {} ({})", c.chosen, c.reason);
+}
+
+/// Every candidate's held-out scores, a line each (`train` and `run` print them).
+pub(super) fn print_candidates(c: &railgrip::identify::choice::Choice) {
     for k in &c.candidates {
         let score = match (k.rmse_mu, k.bias_mu) {
             (Some(r), Some(b)) => format!(
@@ -104,7 +110,6 @@ fn print_choice(c: &railgrip::identify::choice::Choice) {
         };
         println!("candidate  {:<9} {:<16} {score}", k.name, k.architecture);
     }
-    println!("chosen     {} ({})", c.chosen, c.reason);
 }
 
 /// What `train` prints about the network: shape, samples, epochs, starts, errors, support.

@@ -12,6 +12,9 @@ pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     if let Some(c) = &o.condition {
         println!("\nmodels     trained on {c} rail");
     }
+    if let Some(c) = &o.choice {
+        super::model::print_candidates(c);
+    }
     if let Some((path, why)) = &o.chosen {
         println!("chosen     {} ({why})", path.display());
     }

@@ -204,6 +204,8 @@ pub struct Outcome {
     pub model_error: Option<String>,
     /// The campaign's model (`campaign.json`'s `chosen_model`), which candidate it is and why.
     pub chosen: Option<(PathBuf, String)>,
+    /// The model choice: every candidate's held-out scores (as `models/mlp.choice.json`).
+    pub choice: Option<crate::identify::choice::Choice>,
     /// The network's plausibility audit (docs/model-files.md#plausibility-audit); a failed audit still
     /// writes the model, marked.
     pub audit: Option<crate::model::AuditSpec>,
@@ -462,6 +464,7 @@ fn run_sources(
         condition: trained.condition,
         models: trained.models,
         chosen: trained.chosen.map(|p| (p, trained.chosen_why)),
+        choice: trained.choice,
         model_error: trained.model_error,
         audit: trained.audit,
         notes,
@@ -586,6 +589,7 @@ fn calibrate_part(
         models: vec![],
         model_error: None,
         chosen: None,
+        choice: None,
         audit: None,
         notes,
         report: None,
@@ -663,6 +667,7 @@ fn estimate_shard(
         models: vec![],
         model_error: None,
         chosen: None,
+        choice: None,
         audit: None,
         notes: vec![format!(
             "estimate shard {}/{}: {} of the campaign's runs; train and report with --stage models once every shard is done",
@@ -1007,6 +1012,7 @@ struct Trained {
     /// The chosen model's file, and which candidate it is and why.
     chosen: Option<PathBuf>,
     chosen_why: String,
+    choice: Option<crate::identify::choice::Choice>,
 }
 
 /// Stage 2: the campaign's models from the pooled tables, written with their C headers.
@@ -1029,6 +1035,7 @@ fn train_stage(
         train_s: None,
         chosen: None,
         chosen_why: String::new(),
+        choice: None,
     };
     if tables.is_empty() {
         t.model_error = Some("no run could be estimated, so no model was trained".to_string());
@@ -1053,6 +1060,7 @@ fn train_stage(
             t.models = m.write(&out.models(), true)?;
             t.chosen = Some(out.models().candidate(&m.choice.chosen));
             t.chosen_why = format!("{}: {}", m.choice.chosen, m.choice.reason);
+            t.choice = Some(m.choice.clone());
         }
         Err(e) => t.model_error = Some(e.to_string()),
     }
