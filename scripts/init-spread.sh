@@ -4,8 +4,9 @@
 # `train.seed` set to each of TRAIN_SEEDS, and once with four starts averaged (`starts = 4`,
 # `ensemble = 4`), through `railgrip train`, scores the residual network with `railgrip score`
 # and prints one row per training: the lowest and highest hysteresis ratio over the runs, each
-# initial speed's ratio with its runs' pairs pooled, and the curve RMSE per speed band (80 / 120 / 160 / 200 km/h), nominal cell centres
-# (docs/training.md, "The network's initialisation").
+# initial speed's ratio with its runs' pairs pooled, and the curve RMSE per speed band
+# (80 / 120 / 160 / 200 km/h), nominal cell centres (docs/training.md, "Top speeds: the models
+# per speed band").
 #
 #   scripts/top-speed.sh OUT_DIR "1 2 3"
 #   scripts/init-spread.sh [OUT_DIR] [SEEDS] [TRAIN_SEEDS]   default: target/top-speed "1 2 3" "1 2 3 4"
@@ -23,7 +24,7 @@ for key in '^seed = 1 ' '^starts = 1 ' '^ensemble = 1 '; do
     grep -q "$key" "$base" || { echo "$base: no line matching '$key' to edit" >&2; exit 2; }
 done
 scenes=(pipelines/scenes/top_speed/*.toml)
-printf '%-5s %-18s %7s %7s   %-26s %s\n' seed training lowest highest "pooled 80 / 120 / 160 / 200" "curve RMSE 80 / 120 / 160 / 200 km/h"
+printf '%-5s %-18s %7s %7s   %-27s %s\n' seed training lowest highest "pooled 80 / 120 / 160 / 200" "curve RMSE 80 / 120 / 160 / 200 km/h"
 for seed in $seeds; do
     runs="$out/seed$seed/out/runs"
     [ -d "$runs" ] || { echo "no $runs: run scripts/top-speed.sh $out \"$seed\" first" >&2; exit 2; }
@@ -48,6 +49,8 @@ for seed in $seeds; do
         awk -v s="$seed" -v l="$label" '
             /^Curve view: the model/ { c = 1; next }
             c && /^(80|120|160|200) / {
+                # A band without a ratio (no true difference of 0.002) ends in "–".
+                if ($NF == "–") { print "seed " s ", " l ": no hysteresis ratio at " $1 " km/h" > "/dev/stderr"; bad = 1; n++; next }
                 low = $(NF-2); high = $NF; pooled = $(NF-4)
                 gsub(/[(),]/, "", low); gsub(/[(),]/, "", high); gsub(/[(),]/, "", pooled)
                 if (lo == "" || low + 0 < lo + 0) lo = low
@@ -57,7 +60,7 @@ for seed in $seeds; do
                 n++
             }
             c && n == 4 { c = 0 }
-            END { if (n != 4) { print "seed " s ", " l ": no curve view in the score" > "/dev/stderr"; exit 1 }
-                  printf "%-5s %-18s %7s %7s   %-26s %s\n", s, l, lo, hi, p, r }' "$work/score_$t.txt"
+            END { if (n != 4 || bad) { if (n != 4) print "seed " s ", " l ": no curve view in the score" > "/dev/stderr"; exit 1 }
+                  printf "%-5s %-18s %7s %7s   %-27s %s\n", s, l, lo, hi, p, r }' "$work/score_$t.txt"
     done
 done

@@ -24,13 +24,24 @@ for seed in $seeds; do
     for s in "${scenes[@]}"; do
         "$bin" simulate "$s" --out "$archive" --seed "$seed" --format csv >/dev/null
     done
-    "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} > "$out/seed$seed/run.txt"
+    # Exit 3 (a run failed, or the audit) still writes models; anything else stops here.
+    rc=0
+    "$bin" run "$archive" --out "$out/seed$seed/out" ${PIPELINE:+--pipeline "$PIPELINE"} > "$out/seed$seed/run.txt" || rc=$?
+    if [ "$rc" -ne 0 ] && [ "$rc" -ne 3 ]; then
+        echo "seed $seed: railgrip run exited $rc (its output: $out/seed$seed/run.txt)" >&2
+        exit 1
+    fi
+    [ "$rc" -eq 0 ] || echo "== seed $seed: railgrip run exited 3 (see $out/seed$seed/run.txt)"
     # The candidates' held-out scores and the choice, as `run` printed them.
     echo "== seed $seed: the model choice"
     grep -E '^(candidate|chosen) ' "$out/seed$seed/run.txt" || echo "no model choice (see $out/seed$seed/run.txt)"
-    for model in mlp.json mlp.polach.json mlp.3in.json mlp.4in.json mlp.residual.json; do
+    # mlp.2in.json only where the pipeline's network has other inputs than (Δv, dΔv/dt).
+    for model in mlp.json mlp.polach.json mlp.2in.json mlp.3in.json mlp.4in.json mlp.residual.json; do
+        if [ ! -f "$out/seed$seed/out/models/$model" ]; then
+            [ "$model" = mlp.2in.json ] || echo "== seed $seed: no $model (see the run's notes)"
+            continue
+        fi
         echo "== seed $seed: $model"
-        [ -f "$out/seed$seed/out/models/$model" ] || { echo "no $model (see the run's notes)"; continue; }
         "$bin" score "$out/seed$seed/out/models/$model" "${scenes[@]}" --seeds "$seed" || true
     done
 done

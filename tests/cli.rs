@@ -793,6 +793,20 @@ fn run_completes_a_campaign_with_broken_files_and_reuses_unchanged_runs() {
     }
     assert_eq!(j["exit_code"], 3);
     assert_eq!(j["condition"], "soap");
+    // The chosen model and the candidates' table, as campaign.json and mlp.choice.json hold
+    // them.
+    let camp_json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(o_dir.join("campaign.json")).unwrap()).unwrap();
+    let chosen = camp_json["chosen_model"].as_str().unwrap();
+    assert!(
+        j["chosen"]["path"].as_str().unwrap().ends_with(chosen),
+        "{} against {chosen}",
+        j["chosen"]
+    );
+    let choice: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(o_dir.join("models/mlp.choice.json")).unwrap())
+            .unwrap();
+    assert_eq!(j["choice"], choice);
     // A changed sidecar invalidates its run only.
     let meta = camp.join("soap_120kmh_m20.meta.toml");
     let t = std::fs::read_to_string(&meta).unwrap();

@@ -67,6 +67,10 @@ struct JsonSummary<'a> {
     condition: &'a Option<String>,
     models: Vec<String>,
     model_error: &'a Option<String>,
+    /// The campaign's model (`campaign.json`'s `chosen_model`) and why, and every candidate's
+    /// held-out scores (`models/mlp.choice.json`).
+    chosen: Option<serde_json::Value>,
+    choice: &'a Option<railgrip::identify::choice::Choice>,
     audit: &'a Option<railgrip::model::AuditSpec>,
     notes: &'a [String],
     /// Files of the campaign that are not logs, with why.
@@ -147,6 +151,11 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             condition: &o.condition,
             models: o.models.iter().map(|p| p.display().to_string()).collect(),
             model_error: &o.model_error,
+            chosen: o
+                .chosen
+                .as_ref()
+                .map(|(p, why)| serde_json::json!({"path": p.display().to_string(), "why": why})),
+            choice: &o.choice,
             audit: &o.audit,
             notes: &o.notes,
             skipped: &o.skipped,

@@ -585,6 +585,7 @@ fn outcome_json(o: &railgrip::campaign::Outcome) -> serde_json::Value {
         "models": o.models.iter().map(path).collect::<Vec<_>>(),
         "model_error": o.model_error,
         "chosen": o.chosen.as_ref().map(|(p, why)| serde_json::json!({"path": path(p), "why": why})),
+        "choice": o.choice,
         "notes": o.notes,
         "report": o.report.as_ref().map(path),
         "stages": o.stages,

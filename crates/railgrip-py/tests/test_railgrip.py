@@ -5,6 +5,7 @@ target/debug or target/release of the repository)."""
 from __future__ import annotations
 
 import filecmp
+import json
 import os
 import shutil
 import subprocess
@@ -225,6 +226,9 @@ def test_run_writes_the_same_bytes_as_railgrip_run(tmp_path, small_archive):
     assert result.failed == 0 and len(result.records) == 3
     assert result.report is not None and Path(result.report).is_file()
     assert len(result.runs) == 3
+    # The candidates' table, as the file holds it.
+    with open(ours / "models" / "mlp.choice.json") as f:
+        assert result.choice == json.load(f)
 
     def files(d: Path):
         return sorted(p.relative_to(d) for p in d.rglob("*") if p.is_file())

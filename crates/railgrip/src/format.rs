@@ -389,9 +389,9 @@ pub fn write_mcap<W: Write + Seek>(
         // Chunk indexes stay; per-message index records (16 bytes a message, uncompressed)
         // would double the size of these small-message logs.
         .emit_message_indexes(false)
-        // zstd on the calling thread: its worker threads, one a CPU by default, took a lock per
-        // message for these small messages (the same bytes here, ~10 % of `railgrip simulate`'s
-        // whole process on 2 cores), and campaigns already write their runs side by side.
+        // zstd on the calling thread: its worker threads (one a physical CPU by default) took a
+        // lock per message for these small messages (the same bytes here, ~10 % of `railgrip
+        // simulate`'s whole process on 2 cores), and campaigns already write runs side by side.
         .compression_threads(0)
         .create(w)?;
     let mut channel_ids = Vec::with_capacity(series.len());

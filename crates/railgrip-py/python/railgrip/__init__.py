@@ -335,6 +335,9 @@ class Campaign:
     report: Optional[str]
     stages: List[Tuple[str, float]]
     skipped: List[Dict[str, str]] = field(default_factory=list)
+    #: The model choice: every candidate's held-out scores and the chosen one (as
+    #: ``models/mlp.choice.json``); None when no models were trained.
+    choice: Optional[Dict[str, Any]] = None
 
     @property
     def runs(self) -> pd.DataFrame:
