@@ -151,10 +151,7 @@ pub fn run(args: Args) -> anyhow::Result<u8> {
             condition: &o.condition,
             models: o.models.iter().map(|p| p.display().to_string()).collect(),
             model_error: &o.model_error,
-            chosen: o
-                .chosen
-                .as_ref()
-                .map(|(p, why)| serde_json::json!({"path": p.display().to_string(), "why": why})),
+            chosen: o.chosen_json(),
             choice: &o.choice,
             audit: &o.audit,
             notes: &o.notes,

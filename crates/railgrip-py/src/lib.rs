@@ -584,7 +584,7 @@ fn outcome_json(o: &railgrip::campaign::Outcome) -> serde_json::Value {
         "condition": o.condition,
         "models": o.models.iter().map(path).collect::<Vec<_>>(),
         "model_error": o.model_error,
-        "chosen": o.chosen.as_ref().map(|(p, why)| serde_json::json!({"path": path(p), "why": why})),
+        "chosen": o.chosen_json(),
         "choice": o.choice,
         "notes": o.notes,
         "report": o.report.as_ref().map(path),

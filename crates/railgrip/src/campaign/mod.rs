@@ -32,6 +32,7 @@ pub use tables::{load_pooled, load_tables};
 pub use train::{train_models, train_pooled, CampaignModels};
 
 use crate::config::Pipeline;
+use crate::identify::choice::Choice;
 use crate::identify::dataset::RunTable;
 use crate::ingest::LogSource;
 use crate::model::Epoch;
@@ -205,7 +206,7 @@ pub struct Outcome {
     /// The campaign's model (`campaign.json`'s `chosen_model`), which candidate it is and why.
     pub chosen: Option<(PathBuf, String)>,
     /// The model choice: every candidate's held-out scores (as `models/mlp.choice.json`).
-    pub choice: Option<crate::identify::choice::Choice>,
+    pub choice: Option<Choice>,
     /// The network's plausibility audit (docs/model-files.md#plausibility-audit); a failed audit still
     /// writes the model, marked.
     pub audit: Option<crate::model::AuditSpec>,
@@ -228,6 +229,12 @@ pub struct Outcome {
 pub type Given = Vec<(RunRecord, Option<RunTable>)>;
 
 impl Outcome {
+    /// [`Outcome::chosen`] as JSON, `{"path": …, "why": …}` (`run --json`, Python's `Campaign`).
+    pub fn chosen_json(&self) -> Option<serde_json::Value> {
+        self.chosen
+            .as_ref()
+            .map(|(p, why)| serde_json::json!({"path": p.display().to_string(), "why": why}))
+    }
     pub fn failed(&self) -> usize {
         self.records.iter().filter(|r| !r.ok()).count()
     }
@@ -463,7 +470,7 @@ fn run_sources(
         records,
         condition: trained.condition,
         models: trained.models,
-        chosen: trained.chosen.map(|p| (p, trained.chosen_why)),
+        chosen: trained.chosen.zip(trained.choice.as_ref().map(Choice::why)),
         choice: trained.choice,
         model_error: trained.model_error,
         audit: trained.audit,
@@ -1009,10 +1016,9 @@ struct Trained {
     /// Network training epochs and seconds (for `timings.json`).
     epochs: usize,
     train_s: Option<f64>,
-    /// The chosen model's file, and which candidate it is and why.
+    /// The chosen model's file, and the choice (which candidate it is and why).
     chosen: Option<PathBuf>,
-    chosen_why: String,
-    choice: Option<crate::identify::choice::Choice>,
+    choice: Option<Choice>,
 }
 
 /// Stage 2: the campaign's models from the pooled tables, written with their C headers.
@@ -1034,7 +1040,6 @@ fn train_stage(
         epochs: 0,
         train_s: None,
         chosen: None,
-        chosen_why: String::new(),
         choice: None,
     };
     if tables.is_empty() {
@@ -1059,7 +1064,6 @@ fn train_stage(
             t.audit = m.mlp.audit.clone();
             t.models = m.write(&out.models(), true)?;
             t.chosen = Some(out.models().candidate(&m.choice.chosen));
-            t.chosen_why = format!("{}: {}", m.choice.chosen, m.choice.reason);
             t.choice = Some(m.choice.clone());
         }
         Err(e) => t.model_error = Some(e.to_string()),

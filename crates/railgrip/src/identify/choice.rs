@@ -184,6 +184,13 @@ pub struct Choice {
     pub generation: Option<String>,
 }
 
+impl Choice {
+    /// Which candidate was chosen and why, in one line (`residual: lowest held-out …`).
+    pub fn why(&self) -> String {
+        format!("{}: {}", self.chosen, self.reason)
+    }
+}
+
 /// The fold of run `i` of `n` runs with `folds` folds.
 pub fn fold_of(i: usize, n: usize, folds: usize) -> usize {
     if n <= folds {
