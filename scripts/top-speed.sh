@@ -10,7 +10,8 @@
 # ambient_temperature_c for the 4-input network).
 # Prints the candidates' held-out scores and the chosen model (as `railgrip run` prints them,
 # all of its output in OUT_DIR/seedN/run.txt) and one `railgrip score` report per seed and
-# candidate model; the per-band tables of docs/training.md come from it. Needs a release build (cargo build --release).
+# candidate model; the per-band tables of docs/training.md come from it. Needs a release build
+# (cargo build --release).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-target/top-speed}"
