@@ -1746,6 +1746,11 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     for want in ["α1 ", "α4 ", "pad ", "radar      scale", "tachos     delay"] {
         assert!(s.contains(want), "{want}: {s}");
     }
+    // One bundled run's radar is logged at its own rate: its samples do not show its noise.
+    assert!(
+        s.contains("floor      not known: the radar of 1 of 8 runs was logged at another rate"),
+        "{s}"
+    );
     let record = json_file(cal);
     assert_eq!(record["calibrated"]["source"], "campaign");
     assert_eq!(record["calibrated"]["runs"].as_array().unwrap().len(), 8);

@@ -326,6 +326,7 @@ fn calibrate_campaign(
         "integrated {} samples ({:.0} effective), residual RMS {:.0} N·s (the balance integrated over time: every coefficient below)",
         f.integrated.samples, f.integrated.effective_samples, f.integrated.rms_residual_n_s
     );
+    println!("floor      {}", radar_floor_line(f));
     for a in 0..railgrip::format::AXLES {
         println!(
             "α{}         {:.1} ± {:.1} N·m/bar (1σ) at {:.0} km/h",
@@ -372,6 +373,26 @@ fn calibrate_campaign(
         println!("written    {}", path.display());
     }
     Ok(EXIT_OK)
+}
+
+/// What the radar's noise leaves the coefficients' errors, in words: whether more runs narrow
+/// them or the balance's model leaves more than the noise.
+fn radar_floor_line(f: &railgrip::estimate::selfcal::CampaignCalibration) -> String {
+    let b = &f.integrated;
+    match (b.radar_noise_mps, b.radar_floor_ratio) {
+        (None, _) => format!(
+            "not known: the radar of {} of {} runs was logged at another rate than the time base, so its samples do not show its noise",
+            f.runs - b.radar_noise_runs.min(f.runs),
+            f.runs
+        ),
+        (Some(sd), None) => format!("the radar shows no noise above its resolution ({sd:.4} m/s rms per sample)"),
+        (Some(sd), Some(r)) if r <= 1.5 => format!(
+            "the coefficients' errors are {r:.2}× what the radar's noise alone leaves them ({sd:.4} m/s rms per sample): more runs narrow them (as 1/√runs), or a quieter radar"
+        ),
+        (Some(sd), Some(r)) => format!(
+            "the coefficients' errors are {r:.2}× what the radar's noise alone leaves them ({sd:.4} m/s rms per sample): the balance leaves more than the radar's noise (the wheel loads' fluctuation, or a force its model lacks)"
+        ),
+    }
 }
 
 /// The pad forms fitted, each with its BIC (a mixture's weight w in its own column), and the
