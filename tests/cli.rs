@@ -1746,9 +1746,12 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     for want in ["α1 ", "α4 ", "pad ", "radar      scale", "tachos     delay"] {
         assert!(s.contains(want), "{want}: {s}");
     }
-    // One bundled run's radar is logged at its own rate: its samples do not show its noise.
+    // One bundled run's radar is logged at its own rate: its samples do not show its noise,
+    // and the residual is held against the other seven runs' (all of it their noise).
     assert!(
-        s.contains("floor      not known: the radar of 1 of 8 runs was logged at another rate"),
+        s.contains("noise      the radar's 0.050")
+            && s.contains("on the 7 of 8 runs whose radar shows it")
+            && s.contains("the coefficients' errors are that noise's"),
         "{s}"
     );
     let record = json_file(cal);

@@ -326,7 +326,7 @@ fn calibrate_campaign(
         "integrated {} samples ({:.0} effective), residual RMS {:.0} N·s (the balance integrated over time: every coefficient below)",
         f.integrated.samples, f.integrated.effective_samples, f.integrated.rms_residual_n_s
     );
-    println!("floor      {}", radar_floor_line(f));
+    println!("noise      {}", radar_noise_line(f));
     for a in 0..railgrip::format::AXLES {
         println!(
             "α{}         {:.1} ± {:.1} N·m/bar (1σ) at {:.0} km/h",
@@ -375,22 +375,28 @@ fn calibrate_campaign(
     Ok(EXIT_OK)
 }
 
-/// What the radar's noise leaves the coefficients' errors, in words: whether more runs narrow
-/// them or the balance's model leaves more than the noise.
-fn radar_floor_line(f: &railgrip::estimate::selfcal::CampaignCalibration) -> String {
+/// How much of the balance's residual is the radar's noise, in words: whether the coefficients'
+/// errors are that noise's (more runs narrow them) or the balance leaves more than it.
+fn radar_noise_line(f: &railgrip::estimate::selfcal::CampaignCalibration) -> String {
     let b = &f.integrated;
-    match (b.radar_noise_mps, b.radar_floor_ratio) {
-        (None, _) => format!(
-            "not known: the radar of {} of {} runs was logged at another rate than the time base, so its samples do not show its noise",
-            f.runs - b.radar_noise_runs.min(f.runs),
-            f.runs
+    let over = if b.radar_noise_runs == f.runs {
+        String::new()
+    } else {
+        format!(
+            ", on the {} of {} runs whose radar shows it",
+            b.radar_noise_runs, f.runs
+        )
+    };
+    match (b.radar_noise_mps, b.residual_over_radar_noise) {
+        (None, _) => "not read: no run's radar shows its noise (logged at another rate than the time base, or under 1 000 samples above estimate.min_speed_mps)".into(),
+        (Some(sd), None) => format!(
+            "the radar shows no noise ({sd:.4} m/s rms per sample{over}): the residual is not compared"
         ),
-        (Some(sd), None) => format!("the radar shows no noise above its resolution ({sd:.4} m/s rms per sample)"),
-        (Some(sd), Some(r)) if r <= 1.5 => format!(
-            "the coefficients' errors are {r:.2}× what the radar's noise alone leaves them ({sd:.4} m/s rms per sample): more runs narrow them (as 1/√runs), or a quieter radar"
+        (Some(sd), Some(r)) if r <= 1.2 => format!(
+            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the coefficients' errors are that noise's, more runs (as 1/√runs) or a quieter radar narrow them"
         ),
         (Some(sd), Some(r)) => format!(
-            "the coefficients' errors are {r:.2}× what the radar's noise alone leaves them ({sd:.4} m/s rms per sample): the balance leaves more than the radar's noise (the wheel loads' fluctuation, or a force its model lacks)"
+            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the balance leaves more than the radar's noise (the wheel loads' fluctuation, another sensor's noise, or a force its model lacks)"
         ),
     }
 }

@@ -27,6 +27,7 @@
 
 pub mod calibrate;
 pub mod counting;
+pub mod noise;
 pub mod radar;
 pub mod selfcal;
 

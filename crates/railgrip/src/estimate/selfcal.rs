@@ -97,7 +97,7 @@ use crate::linalg::{cho_solve, cholesky, effective_samples};
 use crate::signal;
 use crate::vehicle::total_mass_kg;
 
-use super::{counting, EstimateError};
+use super::{counting, noise, EstimateError};
 pub use crate::config::calibrated::{Corrections, PadForm, PadLaw};
 
 /// The fewest runs with samples in the balance that a campaign's calibration is fitted on.
@@ -241,20 +241,21 @@ pub struct IntegratedBalance {
     /// RMS of its residual, N·s (momentum), each run's squares weighted as in the fit.
     #[serde(with = "crate::config::calibrated::nan_as_null")]
     pub rms_residual_n_s: f64,
-    /// The radar's white noise, m/s rms per sample, over the runs (their rows' mean square;
-    /// [`radar_white_noise`]); None where a run's radar was resampled to the time base, or in
-    /// files written before it was reported.
+    /// The radar's white noise, m/s rms per sample, over the runs whose radar shows it (their
+    /// rows' mean square; [`super::noise`]); None where none does, or in files written before
+    /// it was reported.
     #[serde(default)]
     pub radar_noise_mps: Option<f64>,
-    /// The coefficients' statistical standard errors over what the radar's noise alone leaves
-    /// them ([`radar_floor`]): about 1 where the radar's noise is all the balance leaves (more
-    /// runs, or a quieter radar, are then what narrows them), well above it where the
-    /// balance's model leaves more. None where the noise is unknown or below the radar's
-    /// resolution.
+    /// The balance's residual RMS over what the radar's noise, through the same low-pass,
+    /// leaves on those runs' rows ([`residual_over_radar_noise`]): about 1 where the radar's
+    /// noise is all the fit leaves (its coefficients' errors are then that noise's, and more
+    /// runs or a quieter radar narrow them), above 1 by what else it leaves (the wheel loads'
+    /// fluctuation, another sensor's noise, a force the balance's model lacks). None where no
+    /// run's noise could be read or it is 0 (below the radar's resolution).
     #[serde(default)]
-    pub radar_floor_ratio: Option<f64>,
-    /// Runs whose radar showed its noise (logged at the time base's rate); both figures above
-    /// are None unless every run did.
+    pub residual_over_radar_noise: Option<f64>,
+    /// Runs whose radar noise could be read (logged at the time base's rate, with 1 000 or
+    /// more samples above the lowest speed); the two figures above are over these.
     #[serde(default)]
     pub radar_noise_runs: usize,
 }
@@ -266,7 +267,7 @@ impl Default for IntegratedBalance {
             effective_samples: f64::NAN,
             rms_residual_n_s: f64::NAN,
             radar_noise_mps: None,
-            radar_floor_ratio: None,
+            residual_over_radar_noise: None,
             radar_noise_runs: 0,
         }
     }
@@ -305,9 +306,9 @@ struct RunSignals {
     /// Each axle's deepest trough of its raw tachometer's quantisation residual
     /// ([`counting::deepest_trough`]).
     troughs: Vec<Option<counting::Trough>>,
-    /// The radar's white noise per sample, m/s ([`radar_white_noise`]); None where the radar
-    /// was resampled to the time base or too few samples show it.
-    radar_noise: Option<f64>,
+    /// The radar's white noise per sample and what the calibration's low-pass leaves of it,
+    /// m/s rms ([`super::noise`]), or why it could not be read.
+    radar_noise: Result<(f64, f64), noise::Unknown>,
 }
 
 /// A log's file name for notes (not its whole path: a campaign's calibration must not depend
@@ -559,7 +560,16 @@ impl<'p> CampaignCalibrator<'p> {
                 troughs: (0..AXLES)
                     .map(|a| counting::deepest_trough(&log.omega_radps[a], log.sample_rate_hz))
                     .collect(),
-                radar_noise: radar_white_noise(log, est.min_speed_mps),
+                radar_noise: noise::radar_white_noise(log, filters.despike, est.min_speed_mps)
+                    .and_then(|sd| {
+                        let gain = noise::lowpass_noise_gain(
+                            filters.radar_cutoff_hz,
+                            c.sample_rate_hz,
+                            filters.mode,
+                        )
+                        .ok_or(noise::Unknown::OtherRate)?;
+                        Ok((sd, sd * gain.sqrt()))
+                    }),
             }),
             note,
         })
@@ -748,7 +758,7 @@ impl<'p> CampaignCalibrator<'p> {
         let c = Self::coefficients(&integrated, &at, runs_n, &mut notes)
             .map_err(|(what_failed, hint)| fail(what_failed, hint))?;
         let Coefficients {
-            weights,
+            weights: _,
             fit,
             per_run,
             candidates,
@@ -833,100 +843,50 @@ impl<'p> CampaignCalibrator<'p> {
                 rms_residual_n_s: (res.rss / n).sqrt(),
                 ..Default::default()
             }
-            .with_radar_floor(&self.runs, weights, b.mass, at.scale, sigma2),
+            .with_radar_noise(&b, &at, fit),
             notes,
         })
     }
 }
 
-/// The radar's white noise per sample (m/s rms) from its second differences,
-/// σ = 1.4826 MAD(Δ²v) / √6 (for white noise of variance σ², Δ²v = v_{k+1} − 2 v_k + v_{k−1}
-/// has variance 6σ²; the median absolute deviation leaves spikes out, and the vehicle's own
-/// jerk adds ~1e-5 m/s per step at 417 Hz), over consecutive valid samples above `min_speed`
-/// (m/s). None where the radar's own rate differs from the time base's by more than 5 %
-/// (resampled, its samples are no longer its noise's) or fewer than 100 triples show it.
-fn radar_white_noise(log: &RunLog, min_speed: f64) -> Option<f64> {
-    let rate = log
-        .channels
-        .iter()
-        .find(|c| c.signal == crate::format::Signal::VRadar)?
-        .rate_hz;
-    if !((rate / log.sample_rate_hz - 1.0).abs() <= 0.05) {
-        return None;
-    }
-    second_difference_noise(&log.v_radar_mps, &log.valid, min_speed)
-}
-
-/// [`radar_white_noise`] on the samples `v` (m/s), `ok` their validity.
-fn second_difference_noise(v: &[f64], ok: &[bool], min_speed: f64) -> Option<f64> {
-    let mut d2: Vec<f64> = (1..v.len().saturating_sub(1))
-        .filter(|&k| ok[k - 1] && ok[k] && ok[k + 1] && v[k] >= min_speed)
-        .map(|k| v[k + 1] - 2.0 * v[k] + v[k - 1])
-        .filter(|d| d.is_finite())
-        .collect();
-    if d2.len() < 100 {
-        return None;
-    }
-    let median = |x: &mut Vec<f64>| {
-        let m = x.len() / 2;
-        *x.select_nth_unstable_by(m, f64::total_cmp).1
-    };
-    let centre = median(&mut d2);
-    let mut dev: Vec<f64> = d2.iter().map(|d| (d - centre).abs()).collect();
-    Some(1.4826 * median(&mut dev) / 6f64.sqrt())
-}
-
-/// How far the integrated balance's coefficients are from what the radar's noise alone allows
-/// them. With y = −M v_radar / s (N·s) and the radar's white noise σ_r (m/s per sample) on
-/// run r, a row (every `DECIMATE`-th sample, the regressors smooth at that spacing) carries
-/// the information of `DECIMATE` samples of noise (M σ_r / s)²: the least squares' variance per
-/// unit weight can be no smaller than b = Σ_r n_r w_r (M σ_r / s)² / DECIMATE / Σ_r n_r
-/// (n_r rows, w_r the runs' weights) for the balance's content below the filters' cut-off. The
-/// ratio √(σ² / b) (σ² the fit's variance per unit weight, inflated by n/n_eff) is then what
-/// the coefficients' statistical errors are over that floor. Returns the runs' noise (rows'
-/// mean square, m/s), the ratio and how many runs showed their noise; the noise and the ratio
-/// None unless every run did, the ratio None where the noise is 0 (below the radar's
-/// resolution).
-fn radar_floor(
-    runs: &[RunSignals],
-    weights: &[f64],
-    mass: f64,
-    scale: f64,
-    sigma2: f64,
-) -> (Option<f64>, Option<f64>, usize) {
-    let known = runs.iter().filter(|r| r.radar_noise.is_some()).count();
-    let (mut n, mut msq, mut floor) = (0.0, 0.0, 0.0);
-    for (run, w) in runs.iter().zip(weights) {
-        let Some(sd) = run.radar_noise else {
-            return (None, None, known);
+/// The balance's residual RMS over what the radar's noise leaves on its rows, over the runs
+/// whose noise could be read: with y = −(M v_radar / s + (J/r) Σ ω) (N·s) and the radar's
+/// white noise through the calibration's low-pass σ_f,r (m/s rms per sample) on run r, the
+/// noise alone leaves each row of run r a variance (M σ_f,r / s)²; the ratio is
+/// √(Σ_r Σ e² / Σ_r n_r (M σ_f,r / s)²) over those runs' residuals e (the fit's, after the
+/// stretches' and runs' constants; n_r rows). It does not depend on the balance's design: it
+/// says how much of the residual is the radar's noise, not how well any other estimator could
+/// do. Returns the runs' noise (rows' mean square, m/s), the ratio (None where the noise is 0)
+/// and how many runs it is over.
+fn residual_over_radar_noise(b: &Balance, at: &At, fit: &Fit) -> (Option<f64>, Option<f64>, usize) {
+    let residuals = b.residuals(at, fit.form, fit);
+    let (mut runs, mut rows, mut msq, mut sse, mut expected) = (0, 0.0, 0.0, 0.0, 0.0);
+    for (run, e) in b.runs.iter().zip(&residuals) {
+        let (Ok((sd, filtered)), false) = (run.radar_noise, e.is_empty()) else {
+            continue;
         };
-        let rows = run.rows.len() as f64;
-        n += rows;
-        msq += rows * sd * sd;
-        floor += rows * w * (mass * sd / scale).powi(2) / DECIMATE as f64;
+        let n = e.len() as f64;
+        runs += 1;
+        rows += n;
+        msq += n * sd * sd;
+        sse += e.iter().map(|x| x * x).sum::<f64>();
+        expected += n * (b.mass * filtered / at.scale).powi(2);
     }
-    if n == 0.0 {
-        return (None, None, known);
+    if runs == 0 {
+        return (None, None, 0);
     }
-    let ratio = (floor > 0.0 && sigma2.is_finite()).then(|| (sigma2 / (floor / n)).sqrt());
-    (Some((msq / n).sqrt()), ratio, known)
+    let ratio = (expected > 0.0 && sse.is_finite()).then(|| (sse / expected).sqrt());
+    (Some((msq / rows).sqrt()), ratio, runs)
 }
 
 impl IntegratedBalance {
-    /// With the radar's noise and the coefficients' errors over its floor ([`radar_floor`]).
-    fn with_radar_floor(
-        self,
-        runs: &[RunSignals],
-        weights: &[f64],
-        mass: f64,
-        scale: f64,
-        sigma2: f64,
-    ) -> Self {
-        let (noise, ratio, known) = radar_floor(runs, weights, mass, scale, sigma2);
+    /// With the radar's noise and the residual over it ([`residual_over_radar_noise`]).
+    fn with_radar_noise(self, b: &Balance, at: &At, fit: &Fit) -> Self {
+        let (noise, ratio, runs) = residual_over_radar_noise(b, at, fit);
         IntegratedBalance {
             radar_noise_mps: noise,
-            radar_floor_ratio: ratio,
-            radar_noise_runs: known,
+            residual_over_radar_noise: ratio,
+            radar_noise_runs: runs,
             ..self
         }
     }
@@ -3508,51 +3468,8 @@ mod tests {
             rows: Vec::new(),
             coast: Vec::new(),
             troughs: vec![None; AXLES],
-            radar_noise: None,
+            radar_noise: Err(noise::Unknown::TooFew),
         }
-    }
-
-    /// The radar's white noise from its second differences: 0.05 m/s of noise on a braking
-    /// run at 417 Hz, with 1 % of the samples spiked by ±3 m/s and every reading rounded to
-    /// 1 mm/s, is read within 3 %; without the noise only the rounding's remainder is left; too
-    /// few samples, or samples below the lowest speed, give none.
-    #[test]
-    fn the_radars_noise_is_read_from_its_second_differences() {
-        let mut rng = crate::rng::Rng::new(3);
-        let n = 20_000;
-        let fs = 417.0;
-        let truth: Vec<f64> = (0..n)
-            .map(|k| {
-                let t = k as f64 / fs;
-                (50.0 - 1.0 * t + 0.2 * (0.7 * t).sin()).max(0.0)
-            })
-            .collect();
-        let round = |x: f64| (x * 1e3).round() / 1e3;
-        let noisy: Vec<f64> = truth
-            .iter()
-            .map(|v| {
-                let spike = if rng.uniform() < 0.01 {
-                    3.0 * (rng.uniform() - 0.5).signum()
-                } else {
-                    0.0
-                };
-                round(v + 0.05 * rng.normal() + spike)
-            })
-            .collect();
-        let ok = vec![true; n];
-        let sd = second_difference_noise(&noisy, &ok, 1.0).unwrap();
-        assert!((sd / 0.05 - 1.0).abs() <= 0.03, "{sd}");
-        let quiet: Vec<f64> = truth.iter().map(|v| round(*v)).collect();
-        let sd = second_difference_noise(&quiet, &ok, 1.0).unwrap();
-        assert!(sd < 0.001, "{sd}");
-        assert_eq!(second_difference_noise(&noisy[..90], &ok[..90], 1.0), None);
-        assert_eq!(second_difference_noise(&noisy, &ok, 60.0), None);
-        let mut holes = noisy.clone();
-        holes[100] = f64::NAN;
-        let mut ok_holes = ok.clone();
-        ok_holes[5000] = false;
-        let sd = second_difference_noise(&holes, &ok_holes, 1.0).unwrap();
-        assert!((sd / 0.05 - 1.0).abs() <= 0.03, "{sd}");
     }
 
     /// Runs of `sizes` rows for a synthetic balance: speeds and the four pressures from a fixed
