@@ -41,11 +41,11 @@
 //! **The pad friction** α_i(v) = α_i (1 + γ φ(v)), φ(v_ref) = 0 at the campaign's top speed
 //! v_ref, so α_i is the coefficient there and γ φ(0) the rise to standstill. Forms
 //! ([`PadForm`]): constant (φ = 0); linear, φ = 1 − v/v_ref (the first-order form of a friction
-//! that rises as the sliding speed falls, as disc pads' does); quadratic and cubic,
+//! that rises as the sliding speed falls [assumed for disc pads]); quadratic and cubic,
 //! φ = max(0, 1 − v/v_ref)^2 and ^3 (rises gathered towards standstill) — low-order members of
-//! the polynomial-in-speed laws that brake-friction models fit to bench data (Cantone and
-//! Ottati, The Open Transportation Journal 12 (2018) 114, doi:10.2174/1874447801812010114: the
-//! UIC's TrainDy describes LL blocks' friction so), their coefficients fitted here, not taken; the mixtures of neighbouring powers, (1 − w) φ_linear + w φ_quadratic
+//! the polynomial-in-speed laws train-dynamics codes fit to brake bench data (the UIC's TrainDy
+//! for LL tread-brake blocks: Cantone and Ottati, The Open Transportation Journal 12 (2018)
+//! 114, read in its abstract), their coefficients fitted here, not taken; the mixtures of neighbouring powers, (1 − w) φ_linear + w φ_quadratic
 //! and (1 − w) φ_quadratic + w φ_cubic, w in [0, 1] fitted ([`best_mix`]; a shape between two
 //! powers would otherwise leak into the per-axle α, where each axle's pressure differences
 //! lie, [assumed]: smooth, rising towards standstill); Karwatzki's, φ = k(v)/k(v_ref) −
