@@ -1751,7 +1751,7 @@ fn calibrate_a_campaign_and_give_its_calibration_to_every_part() {
     assert!(
         s.contains("noise      the radar's 0.050")
             && s.contains("on the 7 of 8 runs whose radar shows it")
-            && s.contains("the coefficients' errors are that noise's"),
+            && s.contains("the residual shows nothing but the radar's noise"),
         "{s}"
     );
     let record = json_file(cal);

@@ -375,8 +375,9 @@ fn calibrate_campaign(
     Ok(EXIT_OK)
 }
 
-/// How much of the balance's residual is the radar's noise, in words: whether the coefficients'
-/// errors are that noise's (more runs narrow them) or the balance leaves more than it.
+/// How much of the balance's residual is the radar's noise, in words: whether the residual
+/// shows nothing else (the noise then sets the coefficients' statistical errors: more runs
+/// narrow them) or the balance leaves more than it.
 fn radar_noise_line(f: &railgrip::estimate::selfcal::CampaignCalibration) -> String {
     let b = &f.integrated;
     let over = if b.radar_noise_runs == f.runs {
@@ -388,12 +389,18 @@ fn radar_noise_line(f: &railgrip::estimate::selfcal::CampaignCalibration) -> Str
         )
     };
     match (b.radar_noise_mps, b.residual_over_radar_noise) {
-        (None, _) => "not read: no run's radar shows its noise (logged at another rate than the time base, or under 1 000 samples above estimate.min_speed_mps)".into(),
+        (None, _) => "not read: no run's radar shows its noise (logged at another rate than the time base, a time base under 100 Hz, or under 1 000 samples above estimate.min_speed_mps)".into(),
+        (Some(0.0), None) => format!(
+            "the radar shows no noise between 10 and 40 Hz{over}: the residual is not compared"
+        ),
         (Some(sd), None) => format!(
-            "the radar shows no noise ({sd:.4} m/s rms per sample{over}): the residual is not compared"
+            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual could not be compared with it"
+        ),
+        (Some(sd), Some(r)) if r < 0.8 => format!(
+            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the radar shows more than white noise there (the vehicle's vibration, a noise rising with frequency), so its noise is not what the residual is held against"
         ),
         (Some(sd), Some(r)) if r <= 1.2 => format!(
-            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the coefficients' errors are that noise's, more runs (as 1/√runs) or a quieter radar narrow them"
+            "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the residual shows nothing but the radar's noise, which sets the coefficients' statistical errors (more runs narrow them as 1/√runs, or a quieter radar)"
         ),
         (Some(sd), Some(r)) => format!(
             "the radar's {sd:.4} m/s rms per sample (read between 10 and 40 Hz{over}); the balance's residual is {r:.2}× what it leaves: the balance leaves more than the radar's noise (the wheel loads' fluctuation, another sensor's noise, or a force its model lacks)"

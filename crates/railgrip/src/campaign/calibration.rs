@@ -56,7 +56,7 @@ pub struct CalibrationRecord {
 
 /// The calibration's method and record, for [`campaign_inputs_sha256`]: changed with either.
 const CALIBRATION_METHOD: &str =
-    "calibration 6 (per-run constants; pooled errors over τ; coefficients from the balance integrated over time; five pad forms and two mixtures; errors in the record; α errors carry the delays' and the scale's; CSV cells without a value are missing samples)\0";
+    "calibration 7 (per-run constants; pooled errors over τ; coefficients from the balance integrated over time; five pad forms and two mixtures; errors in the record; α errors carry the delays' and the scale's; CSV cells without a value are missing samples; the radar's noise and the residual over it)\0";
 
 /// The SHA-256 (hex) of what a campaign's calibration depends on: railgrip's version and the
 /// calibration's method ([`CALIBRATION_METHOD`]), the pipeline file's text and, in the

@@ -4,7 +4,9 @@
 //!
 //! **The reading.** Between 10 and 40 Hz a braking vehicle's speed has no content a radar
 //! could see (the body's mass smooths it; the filters' cut-offs are 1.5–4 Hz), so what the
-//! radar shows there is its noise. Each valid stretch of the raw radar is despiked as the
+//! radar shows there is its noise [assumed: true of the simulated radar; a real radar whose
+//! beam sees the body's or bogies' vibration reads it as noise, and the residual then comes out
+//! well below what that "noise" would leave, which the `calibrate` command says]. Each valid stretch of the raw radar is despiked as the
 //! conditioning does (Hampel, the pipeline's `[filters.despike]`), band-passed by the
 //! difference of two zero-phase 4th-order Butterworth low-passes (40 and 10 Hz), and its
 //! robust spread 1.4826 MAD taken over the samples above the lowest speed, 0.25 s in from each
