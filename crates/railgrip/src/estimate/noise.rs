@@ -24,7 +24,7 @@
 use crate::config::{DespikeConfig, FilterMode};
 use crate::ingest::RunLog;
 use crate::signal::despike::hampel;
-use crate::signal::filter::{LowPass4, MIN_LEN};
+use crate::signal::filter::{zero_phase_many, LowPass4, MIN_LEN};
 
 /// The band the radar's noise is read in, Hz (a rate of at least 100 Hz: the upper edge at
 /// most 0.4 × the rate).
@@ -102,9 +102,10 @@ pub fn band_noise(
             let k = ((d.half_window_s * fs).round() as usize).max(1);
             hampel(&mut x, k, d.threshold, d.min_deviation_mps);
         }
-        let (Ok(h), Ok(l)) = (f_hi.zero_phase(&x), f_lo.zero_phase(&x)) else {
+        let (mut h, mut l) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+        if zero_phase_many(&[f_hi, f_lo], [&x, &x], [&mut h, &mut l]).is_err() {
             continue;
-        };
+        }
         band.extend(
             (edge..x.len() - edge)
                 .filter(|&k| x[k] >= min_speed)
@@ -118,8 +119,8 @@ pub fn band_noise(
     let mut dev: Vec<f64> = band.iter().map(|d| (d - centre).abs()).collect();
     let spread = 1.4826 * median(&mut dev);
     let gain = impulse_energy(fs, |x| {
-        let h = f_hi.zero_phase(x).expect("long enough");
-        let l = f_lo.zero_phase(x).expect("long enough");
+        let (mut h, mut l) = (vec![0.0; x.len()], vec![0.0; x.len()]);
+        zero_phase_many(&[f_hi, f_lo], [x, x], [&mut h, &mut l]).expect("long enough");
         h.iter().zip(&l).map(|(a, b)| a - b).collect()
     });
     Ok(spread / gain.sqrt())
@@ -135,10 +136,11 @@ pub fn lowpass_noise_gain(cutoff_hz: f64, fs: f64, mode: FilterMode) -> Option<f
     }))
 }
 
-/// Σ y² of `filter`'s response to a unit impulse in the middle of 40 s of zeros at `fs` (Hz):
-/// long enough for the slowest filter here (1.5 Hz: its slowest poles decay by e in 0.28 s).
+/// Σ y² of `filter`'s response to a unit impulse in the middle of 10 s of zeros at `fs` (Hz):
+/// long enough for the slowest filter here (1.5 Hz: its slowest poles decay by e in 0.28 s, so
+/// 5 s leave e^-18 of the response).
 fn impulse_energy(fs: f64, filter: impl Fn(&[f64]) -> Vec<f64>) -> f64 {
-    let n = ((40.0 * fs).round() as usize).max(2 * MIN_LEN);
+    let n = ((10.0 * fs).round() as usize).max(2 * MIN_LEN);
     let mut x = vec![0.0; n];
     x[n / 2] = 1.0;
     filter(&x).iter().map(|y| y * y).sum()
