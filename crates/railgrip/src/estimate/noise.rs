@@ -6,9 +6,10 @@
 //! could see (the body's mass smooths it; the filters' cut-offs are 1.5–4 Hz), so what the
 //! radar shows there is its noise [assumed: true of the simulated radar; a real radar whose
 //! beam sees the body's or bogies' vibration reads it as noise, and the residual then comes out
-//! well below what that "noise" would leave, which the `calibrate` command says]. Each valid stretch of the raw radar is despiked as the
-//! conditioning does (Hampel, the pipeline's `[filters.despike]`), band-passed by the
-//! difference of two zero-phase 4th-order Butterworth low-passes (40 and 10 Hz), and its
+//! well below what that "noise" would leave, which the `calibrate` command says]. Each valid
+//! stretch of the raw radar is despiked as the conditioning does
+//! ([`crate::signal::despike::despike`] with the pipeline's `[filters.despike]`), band-passed
+//! by the difference of two zero-phase 4th-order Butterworth low-passes (40 and 10 Hz), and its
 //! robust spread 1.4826 MAD taken over the samples above the lowest speed, 0.25 s in from each
 //! stretch's ends; the white noise per sample is that spread over the band's noise gain
 //! √(Σ h²) (h the band-pass's impulse response, computed, not assumed). A radar resampled onto
@@ -23,7 +24,6 @@
 
 use crate::config::{DespikeConfig, FilterMode};
 use crate::ingest::RunLog;
-use crate::signal::despike::hampel;
 use crate::signal::filter::{zero_phase_many, LowPass4, MIN_LEN};
 
 /// The band the radar's noise is read in, Hz (a rate of at least 100 Hz: the upper edge at
@@ -98,9 +98,8 @@ pub fn band_noise(
         if x.iter().any(|s| !s.is_finite()) {
             continue;
         }
-        if let Some(d) = despike {
-            let k = ((d.half_window_s * fs).round() as usize).max(1);
-            hampel(&mut x, k, d.threshold, d.min_deviation_mps);
+        if let Some(d) = &despike {
+            crate::signal::despike::despike(&mut x, d, fs);
         }
         let (mut h, mut l) = (vec![0.0; x.len()], vec![0.0; x.len()]);
         if zero_phase_many(&[f_hi, f_lo], [&x, &x], [&mut h, &mut l]).is_err() {

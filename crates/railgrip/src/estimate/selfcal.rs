@@ -45,7 +45,8 @@
 //! φ = max(0, 1 − v/v_ref)^2 and ^3 (rises gathered towards standstill) — low-order members of
 //! the polynomial-in-speed laws train-dynamics codes fit to brake bench data (the UIC's TrainDy
 //! for LL tread-brake blocks: Cantone and Ottati, The Open Transportation Journal 12 (2018)
-//! 114, read in its abstract), their coefficients fitted here, not taken; the mixtures of neighbouring powers, (1 − w) φ_linear + w φ_quadratic
+//! 114, read in its abstract), their coefficients fitted here, not taken; the mixtures of
+//! neighbouring powers, (1 − w) φ_linear + w φ_quadratic
 //! and (1 − w) φ_quadratic + w φ_cubic, w in [0, 1] fitted ([`best_mix`]; a shape between two
 //! powers would otherwise leak into the per-axle α, where each axle's pressure differences
 //! lie, [assumed]: smooth, rising towards standstill); Karwatzki's, φ = k(v)/k(v_ref) −
@@ -249,8 +250,9 @@ pub struct IntegratedBalance {
     /// The balance's residual RMS over what the radar's noise, through the same low-pass,
     /// leaves on those runs' rows ([`residual_over_radar_noise`]): about 1 where the residual
     /// shows nothing but the radar's noise (which then sets the coefficients' statistical
-    /// errors: more runs or a quieter radar narrow them), above 1 by what else it leaves (the wheel loads'
-    /// fluctuation, another sensor's noise, a force the balance's model lacks). None where no
+    /// errors: more runs or a quieter radar narrow them), above 1 by what else it leaves (the
+    /// wheel loads' fluctuation, another sensor's noise, a force the balance's model lacks),
+    /// well below 1 where the radar shows more than white noise in its band. None where no
     /// run's noise could be read or it is 0 (below the radar's resolution).
     #[serde(default)]
     pub residual_over_radar_noise: Option<f64>,
@@ -858,8 +860,9 @@ impl<'p> CampaignCalibrator<'p> {
 /// constants are applied). On noise alone it reads low by the share of the effective samples
 /// the stretches' constants, the runs' slopes and the coefficients take (~1–3 % on 12-run
 /// campaigns). It says how much of the residual is the radar's noise, not how well another
-/// estimator could do, nor a model error the regressors absorb (that leaves no residual). Returns the runs' noise (rows' mean square, m/s), the ratio (None where the noise is 0)
-/// and how many runs it is over.
+/// estimator could do, nor a model error the regressors absorb (that leaves no residual).
+/// Returns the runs' noise (rows' mean square, m/s), the ratio (None where the noise is 0) and
+/// how many runs it is over.
 fn residual_over_radar_noise(b: &Balance, at: &At, fit: &Fit) -> (Option<f64>, Option<f64>, usize) {
     let residuals = b.residuals(at, fit.form, fit);
     let (mut runs, mut rows, mut msq, mut sse, mut expected) = (0, 0.0, 0.0, 0.0, 0.0);

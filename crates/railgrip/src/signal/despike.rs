@@ -22,6 +22,15 @@
 
 use std::collections::VecDeque;
 
+use crate::config::DespikeConfig;
+
+/// [`hampel`] with the pipeline's `[filters.despike]` at `fs` (Hz): the half window
+/// `half_window_s` in samples (at least 1). Returns how many samples were replaced.
+pub fn despike(x: &mut [f64], d: &DespikeConfig, fs: f64) -> usize {
+    let k = ((d.half_window_s * fs).round() as usize).max(1);
+    hampel(x, k, d.threshold, d.min_deviation_mps)
+}
+
 /// Replaces outliers of `x` in place; returns how many samples were replaced.
 /// `half_window` = k in samples (≥ 1), `threshold` = t (> 0), `min_deviation` = d_min (≥ 0,
 /// in the unit of `x`). Values must be finite (callers filter finite segments).

@@ -222,8 +222,7 @@ fn filter_segments(
         radar.clear();
         radar.extend_from_slice(&log.v_radar_mps[a..b]);
         if let Some(d) = cfg.despike {
-            let k = ((d.half_window_s * fs).round() as usize).max(1);
-            despiked += despike::hampel(&mut radar, k, d.threshold, d.min_deviation_mps);
+            despiked += despike::despike(&mut radar, &d, fs);
         }
         let x: [&[f64]; LANES] = std::array::from_fn(|l| match l {
             0 => &radar[..],
