@@ -15,8 +15,8 @@ pub(super) fn print_outcome(o: &campaign::Outcome, out: &OutDir) {
     if let Some(c) = &o.choice {
         super::model::print_candidates(c);
     }
-    if let Some((path, why)) = &o.chosen {
-        println!("chosen     {} ({why})", path.display());
+    if let Some((path, c)) = o.chosen.as_ref().zip(o.choice.as_ref()) {
+        println!("chosen     {} ({})", path.display(), c.why());
     }
     if let Some(e) = &o.model_error {
         println!("\nmodels     none: {e}");

@@ -203,8 +203,9 @@ pub struct Outcome {
     pub models: Vec<PathBuf>,
     /// Why no models were trained.
     pub model_error: Option<String>,
-    /// The campaign's model (`campaign.json`'s `chosen_model`), which candidate it is and why.
-    pub chosen: Option<(PathBuf, String)>,
+    /// The campaign's model file (`campaign.json`'s `chosen_model`); which candidate it is and
+    /// why is [`Outcome::choice`]'s ([`Choice::why`]).
+    pub chosen: Option<PathBuf>,
     /// The model choice: every candidate's held-out scores (as `models/mlp.choice.json`).
     pub choice: Option<Choice>,
     /// The network's plausibility audit (docs/model-files.md#plausibility-audit); a failed audit still
@@ -231,9 +232,8 @@ pub type Given = Vec<(RunRecord, Option<RunTable>)>;
 impl Outcome {
     /// [`Outcome::chosen`] as JSON, `{"path": …, "why": …}` (`run --json`, Python's `Campaign`).
     pub fn chosen_json(&self) -> Option<serde_json::Value> {
-        self.chosen
-            .as_ref()
-            .map(|(p, why)| serde_json::json!({"path": p.display().to_string(), "why": why}))
+        let (p, c) = self.chosen.as_ref().zip(self.choice.as_ref())?;
+        Some(serde_json::json!({"path": p.display().to_string(), "why": c.why()}))
     }
     pub fn failed(&self) -> usize {
         self.records.iter().filter(|r| !r.ok()).count()
@@ -470,7 +470,7 @@ fn run_sources(
         records,
         condition: trained.condition,
         models: trained.models,
-        chosen: trained.chosen.zip(trained.choice.as_ref().map(Choice::why)),
+        chosen: trained.chosen,
         choice: trained.choice,
         model_error: trained.model_error,
         audit: trained.audit,

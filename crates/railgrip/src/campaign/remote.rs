@@ -554,7 +554,7 @@ impl Staged {
         };
         o.models = o.models.iter().map(|p| to_uri(p)).collect();
         o.report = o.report.as_deref().map(to_uri);
-        o.chosen = o.chosen.map(|(p, why)| (to_uri(&p), why));
+        o.chosen = o.chosen.as_deref().map(to_uri);
         let dir = self.dir.display().to_string();
         for n in &mut o.notes {
             *n = n.replace(&dir, uri);
