@@ -58,6 +58,15 @@ pub trait LeastSquares {
     fn n_train(&self) -> usize;
     /// Σ r² over the training residuals.
     fn sse(&self, theta: &[f64]) -> f64;
+    /// [`LeastSquares::sse`], or a partial sum of its terms (in the order `sse` adds them) as
+    /// soon as that makes `reject` true. `reject` must hold for every sum at or above one it
+    /// holds for; the terms being squares, a partial sum that rejects then proves the whole
+    /// sum would, and the caller's decision is the same (a trial step whose error only has to
+    /// be found too large). By default the whole sum.
+    fn sse_unless(&self, theta: &[f64], reject: &(dyn Fn(f64) -> bool + Sync)) -> f64 {
+        let _ = reject;
+        self.sse(theta)
+    }
     /// JᵀJ, Jᵀr and Σ r² over the training residuals.
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations;
     /// Mean squared validation error, `None` without a validation set.
@@ -85,6 +94,9 @@ impl<T: LeastSquares + ?Sized> LeastSquares for &T {
     }
     fn sse(&self, theta: &[f64]) -> f64 {
         (**self).sse(theta)
+    }
+    fn sse_unless(&self, theta: &[f64], reject: &(dyn Fn(f64) -> bool + Sync)) -> f64 {
+        (**self).sse_unless(theta, reject)
     }
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         (**self).normal_equations(theta)
@@ -533,11 +545,15 @@ impl LevenbergMarquardt<'_> {
             system.shift_diagonal(self.mu + system.ridge);
             let accepted = match system.trial(theta, rhs) {
                 Some(t) if t.iter().all(|v| v.is_finite()) => {
-                    let e = problem.problem("cost_count", |o| Ok(o.sse(&t)))?;
-                    if e.is_finite() && objective(bayes, e, &t) < f0 {
-                        Some((t, e))
-                    } else {
+                    // Rejected unless finite and below the objective before the step: true
+                    // for every larger SSE too (β > 0), so the SSE may stop as soon as its
+                    // partial sum rejects.
+                    let reject = |e: f64| !(e.is_finite() && objective(bayes, e, &t) < f0);
+                    let e = problem.problem("cost_count", |o| Ok(o.sse_unless(&t, &reject)))?;
+                    if reject(e) {
                         None
+                    } else {
+                        Some((t, e))
                     }
                 }
                 _ => None,

@@ -28,6 +28,10 @@ use crate::simd::{Isa, Portable};
 /// number of threads.
 pub const CHUNK: usize = 8 * BLOCK;
 
+/// The waves a trial step's SSE runs in ([`LeastSquares::sse_unless`]): after each, the sum so
+/// far may already reject the step.
+const SSE_WAVES: usize = 8;
+
 /// Values between the end of one row of a chunk's matrix A and the start of the next (one
 /// 64-byte cache line), so that rows are not a power of two apart.
 const ROW_PAD: usize = 8;
@@ -248,10 +252,21 @@ impl MlpProblem {
         }
     }
 
-    /// Σ r² over `cols` (blocks in order, samples in order within a block); with `cache`, the
-    /// pass's activations and residuals are kept in it for [`MlpProblem::normal_equations`].
-    fn sse_of(&self, theta: &[f64], cols: &Columns, cache: Option<&mut ForwardCache>) -> f64 {
+    /// Σ r² over `cols` (blocks in order, samples in order within a block, the chunks' sums
+    /// added in chunk order); with `cache`, the pass's activations and residuals are kept in it
+    /// for [`MlpProblem::normal_equations`]. With `reject`, the chunks run in [`SSE_WAVES`]
+    /// waves, and once the sum of the chunks so far makes `reject` true that partial sum is
+    /// returned (and nothing kept): every later chunk only adds a square, so the whole sum
+    /// would reject too ([`LeastSquares::sse_unless`]).
+    fn sse_of(
+        &self,
+        theta: &[f64],
+        cols: &Columns,
+        mut cache: Option<&mut ForwardCache>,
+        reject: Option<&(dyn Fn(f64) -> bool + Sync)>,
+    ) -> f64 {
         let per_block = Scratch::activations(self.shape) + BLOCK;
+        let per_chunk = CHUNK / BLOCK * per_block;
         let pass = |range: std::ops::Range<usize>, mut keep: Option<&mut [f64]>| {
             let mut scratch = Scratch::new(self.shape);
             let mut r = vec![0.0; BLOCK];
@@ -269,24 +284,46 @@ impl MlpProblem {
             }
             sse
         };
-        let parts: Vec<f64> = match cache {
-            Some(cache) => {
-                cache.theta.clear();
-                let parts = cols
-                    .chunks()
-                    .into_par_iter()
-                    .zip_eq(cache.data.par_chunks_mut(CHUNK / BLOCK * per_block))
-                    .map(|(range, keep)| pass(range, Some(keep)))
-                    .collect();
-                cache.theta.extend_from_slice(theta);
-                parts
-            }
-            None => cols
-                .chunks()
-                .into_par_iter()
-                .map(|range| pass(range, None))
-                .collect(),
+        let chunks = cols.chunks();
+        let wave = match reject {
+            Some(_) => chunks.len().div_ceil(SSE_WAVES).max(1),
+            None => chunks.len().max(1),
         };
+        if let Some(c) = cache.as_deref_mut() {
+            c.theta.clear();
+        }
+        let mut parts: Vec<f64> = Vec::with_capacity(chunks.len());
+        for (w, ranges) in chunks.chunks(wave).enumerate() {
+            let done: Vec<f64> = match cache.as_deref_mut() {
+                Some(c) => {
+                    // The last chunk may hold fewer blocks: its part is the rest.
+                    let at = w * wave * per_chunk;
+                    let end = (at + ranges.len() * per_chunk).min(c.data.len());
+                    let data = &mut c.data[at..end];
+                    ranges
+                        .par_iter()
+                        .cloned()
+                        .zip_eq(data.par_chunks_mut(per_chunk))
+                        .map(|(range, keep)| pass(range, Some(keep)))
+                        .collect()
+                }
+                None => ranges
+                    .par_iter()
+                    .cloned()
+                    .map(|range| pass(range, None))
+                    .collect(),
+            };
+            parts.extend(done);
+            if let Some(reject) = reject {
+                let so_far: f64 = parts.iter().sum();
+                if parts.len() < chunks.len() && reject(so_far) {
+                    return so_far;
+                }
+            }
+        }
+        if let Some(c) = cache {
+            c.theta.extend_from_slice(theta);
+        }
         parts.iter().sum()
     }
 
@@ -398,7 +435,12 @@ impl LeastSquares for MlpProblem {
     fn sse(&self, theta: &[f64]) -> f64 {
         let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
         let cache = guard.as_deref_mut().filter(|c| c.shape == self.shape);
-        self.sse_of(theta, &self.train, cache)
+        self.sse_of(theta, &self.train, cache, None)
+    }
+    fn sse_unless(&self, theta: &[f64], reject: &(dyn Fn(f64) -> bool + Sync)) -> f64 {
+        let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
+        let cache = guard.as_deref_mut().filter(|c| c.shape == self.shape);
+        self.sse_of(theta, &self.train, cache, Some(reject))
     }
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         let p = self.shape.n_params();
@@ -463,7 +505,7 @@ impl LeastSquares for MlpProblem {
         if self.val.n == 0 {
             return None;
         }
-        Some(self.sse_of(theta, &self.val, None) / self.val.n as f64 * self.scale)
+        Some(self.sse_of(theta, &self.val, None, None) / self.val.n as f64 * self.scale)
     }
     fn mse_scale(&self) -> f64 {
         self.scale
@@ -524,6 +566,113 @@ mod tests {
             assert_eq!(bits(&fresh), bits(&reused), "{shape:?}");
             assert_eq!(bits(&fresh), bits(&after_other), "{shape:?}");
             assert_eq!(sse.to_bits(), fresh.sse.to_bits());
+        }
+    }
+
+    /// A problem of `shape` on `n` deterministic samples (the same for training and validation).
+    fn problem_of(shape: Shape, n: usize) -> MlpProblem {
+        let k = shape.inputs;
+        let x: Vec<f64> = (0..n * k)
+            .map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0)
+            .collect();
+        let y: Vec<f64> = (0..n)
+            .map(|i| ((i * 104_729) % 997) as f64 / 498.5 - 1.0)
+            .collect();
+        MlpProblem::new(shape, x.clone(), y.clone(), x, y, 1.0)
+    }
+
+    /// A trial's SSE stops early only where the whole sum rejects too: for limits below,
+    /// at and above the SSE it rejects exactly when the whole sum does, returns the whole sum's
+    /// bits when it does not, stops before the end well below, and leaves no forward pass
+    /// kept when it stopped (the normal equations after it are the fresh ones).
+    #[test]
+    fn a_trial_sse_stops_only_where_the_whole_sum_rejects() {
+        let shape = Shape::one(2, 10);
+        let problem = problem_of(shape, 20 * CHUNK + 3 * BLOCK + 17);
+        let theta = mlp::nguyen_widrow(shape, 7);
+        let full = problem.sse(&theta);
+        let fresh = problem.normal_equations(&theta);
+        for q in [0.0, 0.05, 0.3, 0.7, 0.999, 1.0, 1.001, 2.0] {
+            let f0 = full * q;
+            let reject = |e: f64| !(e.is_finite() && e < f0);
+            let e = problem.sse_unless(&theta, &reject);
+            assert_eq!(reject(e), reject(full), "limit {q} × SSE");
+            if !reject(full) {
+                assert_eq!(e.to_bits(), full.to_bits(), "limit {q} × SSE");
+            } else {
+                assert!(e <= full, "limit {q} × SSE: {e} > {full}");
+                if q < 0.5 {
+                    assert!(e < full, "limit {q} × SSE: no early stop");
+                    let kept = problem
+                        .cache
+                        .as_ref()
+                        .unwrap()
+                        .lock()
+                        .unwrap()
+                        .theta
+                        .clone();
+                    assert!(kept.is_empty(), "a stopped pass is not kept");
+                }
+                let ne = problem.normal_equations(&theta);
+                assert_eq!(ne.jtj, fresh.jtj);
+                assert_eq!(ne.sse.to_bits(), fresh.sse.to_bits());
+            }
+        }
+    }
+
+    /// The same problem without the early stop (every trial's SSE summed whole).
+    struct Whole<'a>(&'a MlpProblem);
+    impl LeastSquares for Whole<'_> {
+        fn n_params(&self) -> usize {
+            self.0.n_params()
+        }
+        fn n_train(&self) -> usize {
+            self.0.n_train()
+        }
+        fn sse(&self, theta: &[f64]) -> f64 {
+            self.0.sse(theta)
+        }
+        fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
+            self.0.normal_equations(theta)
+        }
+        fn validation_mse(&self, theta: &[f64]) -> Option<f64> {
+            self.0.validation_mse(theta)
+        }
+        fn mse_scale(&self) -> f64 {
+            self.0.mse_scale()
+        }
+    }
+
+    /// Trained with trial errors that stop early, and with every trial summed whole: the same
+    /// parameters and the same history, bit for bit (trainlm and trainbr).
+    #[test]
+    fn training_is_the_same_bits_with_and_without_the_early_stop() {
+        use crate::identify::lm::{run, LevenbergMarquardt, LmSettings};
+        let shape = Shape::one(2, 10);
+        for settings in [
+            LmSettings {
+                epochs: 40,
+                ..LmSettings::default()
+            },
+            LmSettings {
+                epochs: 40,
+                ..LmSettings::trainbr()
+            },
+        ] {
+            let problem = problem_of(shape, 12 * CHUNK + 5 * BLOCK + 9);
+            let theta0 = mlp::nguyen_widrow(shape, 3);
+            let (a, _) = run(&problem, LevenbergMarquardt::new(settings), theta0.clone()).unwrap();
+            let (b, _) = run(Whole(&problem), LevenbergMarquardt::new(settings), theta0).unwrap();
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(a.best().unwrap()), bits(b.best().unwrap()));
+            let hist = |s: &LevenbergMarquardt| {
+                s.history()
+                    .iter()
+                    .map(|e| [e.train_mse, e.val_mse, e.mu, e.grad_norm].map(f64::to_bits))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(hist(&a), hist(&b));
+            assert!(a.history().len() > 5, "too few epochs to show anything");
         }
     }
 }

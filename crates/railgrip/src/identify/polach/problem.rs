@@ -96,6 +96,11 @@ pub(super) struct PolachProblem<'a> {
     pub(super) stop_at_bound: [bool; 5],
     /// The lanes the law is evaluated on ([`LawBlock::eval`]).
     isa: Isa,
+    /// The normal equations at the θ of the last [`LeastSquares::sse`], which computes them
+    /// whole: LM asks for the normal equations next at the step it accepted, almost always the
+    /// θ of the last SSE (rejections are rare with the gain-ratio rule), and the SSE alone
+    /// would evaluate the law there once more. The same bits as computing them again.
+    last: std::sync::Mutex<Option<(Vec<f64>, NormalEquations)>>,
 }
 
 /// Node values of the five parameters, and in row [`SPEED`] the speed law's coefficients.
@@ -136,6 +141,7 @@ impl<'a> PolachProblem<'a> {
             speed_held: [None; 3],
             stop_at_bound: [false; 5],
             isa: Isa::detect(),
+            last: std::sync::Mutex::new(None),
         }
     }
 
@@ -400,8 +406,15 @@ impl LeastSquares for PolachProblem<'_> {
     fn n_train(&self) -> usize {
         self.samples.len()
     }
+    /// The SSE as [`PolachProblem::sse_nodes`] sums it (the same samples in the same order),
+    /// with JᵀJ and Jᵀr at θ beside it, kept for [`LeastSquares::normal_equations`].
     fn sse(&self, theta: &[f64]) -> f64 {
-        self.sse_nodes(&self.nodes(theta).0)
+        let ne = self.accumulate(theta, false, None);
+        let sse = ne.sse;
+        if let Ok(mut last) = self.last.lock() {
+            *last = Some((theta.to_vec(), ne));
+        }
+        sse
     }
     fn stop_at(&self, theta: &[f64]) -> bool {
         self.free
@@ -413,7 +426,18 @@ impl LeastSquares for PolachProblem<'_> {
     /// analytic Jacobian in the natural parameters times the chain of node → parameter and
     /// θ → node, column by column).
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
-        self.accumulate(theta, false, None)
+        let kept = self.last.lock().ok().and_then(|mut last| last.take());
+        match kept {
+            Some((at, ne))
+                if at
+                    .iter()
+                    .map(|x| x.to_bits())
+                    .eq(theta.iter().map(|x| x.to_bits())) =>
+            {
+                ne
+            }
+            _ => self.accumulate(theta, false, None),
+        }
     }
     fn validation_mse(&self, _: &[f64]) -> Option<f64> {
         None

@@ -269,3 +269,50 @@ fn gram_against_plain_sums(n: usize) {
         }
     }
 }
+
+/// The SSE LM takes at a trial step is [`PolachProblem::sse_nodes`]'s, bit for bit, and the
+/// normal equations it keeps beside it are the ones computed afresh: right after the SSE at
+/// their θ, after an SSE at another θ, and asked for twice (the second time computed again).
+#[test]
+fn normal_equations_kept_from_the_sse_are_the_fresh_ones_bit_for_bit() {
+    let (s, ranges) = grouped_samples();
+    let degrees = [1, 0, 0, 2, 1];
+    let problem = || PolachProblem::new(&s, groups_for(degrees, &ranges), degrees, [None; 5], None);
+    let mut nodes = constant_nodes(&[0.1, 0.4, 0.5, 0.2, 0.4]);
+    nodes[0][1] = 0.12;
+    nodes[3][2] = 0.25;
+    let p = problem();
+    let theta = p.theta(&nodes);
+    let other: Vec<f64> = theta.iter().map(|t| t + 0.01).collect();
+    let bits = |ne: &crate::identify::lm::NormalEquations| {
+        ne.jtj
+            .iter()
+            .chain(&ne.jtr)
+            .chain([&ne.sse])
+            .map(|v| v.to_bits())
+            .collect::<Vec<_>>()
+    };
+    let fresh = problem().normal_equations(&theta);
+    assert_eq!(
+        p.sse(&theta).to_bits(),
+        p.sse_nodes(&p.nodes(&theta).0).to_bits()
+    );
+    assert_eq!(bits(&p.normal_equations(&theta)), bits(&fresh), "kept");
+    assert_eq!(
+        bits(&p.normal_equations(&theta)),
+        bits(&fresh),
+        "asked again"
+    );
+    p.sse(&theta);
+    p.sse(&other);
+    assert_eq!(
+        bits(&p.normal_equations(&theta)),
+        bits(&fresh),
+        "after another θ"
+    );
+    assert_eq!(
+        bits(&p.normal_equations(&other)),
+        bits(&problem().normal_equations(&other)),
+        "the other θ, kept before"
+    );
+}
