@@ -48,6 +48,7 @@ pub mod identify;
 pub mod ingest;
 pub(crate) mod linalg;
 pub(crate) mod outdir;
+pub(crate) mod parallel;
 pub mod progress;
 pub mod replay;
 pub mod report;

@@ -14,7 +14,6 @@
 
 use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
 use super::{CampaignError, Options};
@@ -441,16 +440,13 @@ fn fit_campaign(
     match mode {
         CalibrationSource::Campaign => {
             let mut cal = CampaignCalibrator::new(&raw);
-            let prepared: Vec<Result<_, String>> = pool.install(|| {
-                logs.par_iter()
-                    .map(|(name, src)| {
-                        let log = read(src).map_err(|e| format!("{name}: {e}"))?;
-                        cal.prepare(&log)
-                            .map(|p| p.named(name))
-                            .map_err(|e| format!("{name}: {e}"))
-                    })
-                    .collect()
-            });
+            let prepared: Vec<Result<_, String>> =
+                crate::parallel::each(&pool, logs, |(name, src)| {
+                    let log = read(src).map_err(|e| format!("{name}: {e}"))?;
+                    cal.prepare(&log)
+                        .map(|p| p.named(name))
+                        .map_err(|e| format!("{name}: {e}"))
+                });
             for p in prepared {
                 match p {
                     Ok(p) => cal.add_prepared(p),
@@ -509,19 +505,14 @@ fn fit_dry_run(
 ) -> Result<CalibrationRecord, CampaignError> {
     let read = |src: &LogSource| crate::ingest::ingest_source(src, raw);
     let pipeline_alpha = raw.vehicle.brake_torque_nm_per_bar;
-    let fits: Vec<(String, RunAlpha)> = pool.install(|| {
-        logs.par_iter()
-            .map(|(name, src)| {
-                let fit = read(src)
-                    .map_err(|e| e.to_string())
-                    .and_then(|log| {
-                        calibrate(&log, raw, AlphaFit::Common, Resistance::Fit)
-                            .map_err(|e| e.to_string())
-                    })
-                    .map(|c| (c.alpha_nm_per_bar[0], c.alpha_se[0]));
-                (name.clone(), fit)
+    let fits: Vec<(String, RunAlpha)> = crate::parallel::each(pool, logs, |(name, src)| {
+        let fit = read(src)
+            .map_err(|e| e.to_string())
+            .and_then(|log| {
+                calibrate(&log, raw, AlphaFit::Common, Resistance::Fit).map_err(|e| e.to_string())
             })
-            .collect()
+            .map(|c| (c.alpha_nm_per_bar[0], c.alpha_se[0]));
+        (name.clone(), fit)
     });
     let ok: Vec<(String, f64, f64)> = fits
         .iter()

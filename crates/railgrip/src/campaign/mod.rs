@@ -16,8 +16,6 @@ pub mod train;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use rayon::prelude::*;
-
 pub use crate::outdir::{
     generation_id, CampaignRecord, ModelPaths, OutDir, RecordError, RunRecord, RunStatus,
     RunTiming, Skipped, Timings,
@@ -405,7 +403,7 @@ fn run_sources(
     progress.event(Event::StageDone(Stage::Train));
 
     let t = Instant::now();
-    let mut replay_notes = replay_stage(out, &records, &trained, options.mcap);
+    let mut replay_notes = replay_stage(out, &records, &trained, options.mcap, options.jobs);
     stages.push(("replay".to_string(), t.elapsed().as_secs_f64()));
 
     let t = Instant::now();
@@ -692,8 +690,9 @@ fn estimate_shard(
     })
 }
 
-/// `work` on every run, in parallel on a pool of `options.jobs` threads, in the order of
-/// `logs`; the progress sees the stage start and each run's record as `record` finds it.
+/// `work` on every run, in parallel on a pool of `options.jobs` threads, one run per thread
+/// at a time ([`crate::parallel::each`]), in the order of `logs`; the progress sees the stage
+/// start and each run's record as `record` finds it.
 fn each_run<T: Send>(
     root: &Path,
     logs: &[(String, LogSource)],
@@ -710,16 +709,12 @@ fn each_run<T: Send>(
         source: root,
         threads: pool.current_num_threads(),
     });
-    Ok(pool.install(|| {
-        logs.par_iter()
-            .map(|(name, src)| {
-                let done = work(name, src);
-                if let Some(rec) = record(&done) {
-                    progress.event(Event::RunDone(rec));
-                }
-                done
-            })
-            .collect()
+    Ok(crate::parallel::each(&pool, logs, |(name, src)| {
+        let done = work(name, src);
+        if let Some(rec) = record(&done) {
+            progress.event(Event::RunDone(rec));
+        }
+        done
     }))
 }
 
@@ -957,7 +952,13 @@ fn remove_campaign_results(out: &OutDir) -> Result<(), CampaignError> {
 /// campaign's chosen model's μ, or the estimates alone when no model was trained), in parallel;
 /// without, removes such files an earlier run left (they would show an older model).
 /// A run whose replay cannot be written gets a note; the others go on.
-fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bool) -> Vec<String> {
+fn replay_stage(
+    out: &OutDir,
+    records: &[RunRecord],
+    trained: &Trained,
+    mcap: bool,
+    jobs: Option<usize>,
+) -> Vec<String> {
     if !mcap {
         for r in records {
             let _ = std::fs::remove_file(out.run_replay(&r.run));
@@ -981,15 +982,21 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
         // A failed run has no estimates; no replay of an earlier run stays beside it.
         let _ = std::fs::remove_file(out.run_replay(&r.run));
     }
-    let mut notes: Vec<String> = records
-        .par_iter()
-        .filter(|r| r.ok())
-        .filter_map(|r| {
-            let path = out.run_replay(&r.run);
-            crate::replay::ReplayRun::read_parquet(
-                &out.run_estimates(&r.run),
-                r.ambient_temperature_c,
-            )
+    let ok: Vec<&RunRecord> = records.iter().filter(|r| r.ok()).collect();
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.unwrap_or(0))
+        .build()
+    {
+        Ok(pool) => pool,
+        Err(e) => {
+            return vec![format!(
+                "replay MCAP files not written: no threads for them: {e}"
+            )]
+        }
+    };
+    let mut notes: Vec<String> = crate::parallel::each(&pool, &ok, |r| {
+        let path = out.run_replay(&r.run);
+        crate::replay::ReplayRun::read_parquet(&out.run_estimates(&r.run), r.ambient_temperature_c)
             .and_then(|run| {
                 crate::replay::write_replay(
                     &path,
@@ -1000,8 +1007,10 @@ fn replay_stage(out: &OutDir, records: &[RunRecord], trained: &Trained, mcap: bo
             })
             .err()
             .map(|e| format!("{}: replay not written: {e}", r.run))
-        })
-        .collect();
+    })
+    .into_iter()
+    .flatten()
+    .collect();
     notes.extend(load_note);
     notes
 }

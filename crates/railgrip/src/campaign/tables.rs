@@ -5,8 +5,6 @@
 
 use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
-
 use super::pool::{Pool, PooledRun};
 use super::CampaignError;
 use crate::config::Pipeline;
@@ -100,27 +98,29 @@ fn load_each<T: Send>(
     pipeline: &Pipeline,
     keep: impl Fn(RunTable, Option<&Path>) -> T + Sync,
 ) -> Result<Vec<T>, CampaignError> {
-    expand(inputs)?
-        .par_iter()
-        .map(|input| -> Result<T, CampaignError> {
-            let (run, src) = match input {
-                Input::Table(p) => return Ok(keep(RunTable::read_parquet(p)?, Some(p))),
-                Input::Log(run, src) => (run, src),
-            };
-            // A log in a bucket is fetched once for the estimation and the hash.
-            let src = &src.fetched().map_err(|source| CampaignError::Read {
-                path: src.name().to_path_buf(),
-                source,
-            })?;
-            let name = src.name().display().to_string();
-            let log = crate::ingest::ingest_source(src, pipeline)?;
-            let e = crate::estimate::estimate(&log, pipeline)?;
-            let (_, sha) =
-                super::input_hash(src, pipeline).map_err(|source| CampaignError::Read {
-                    path: src.name().to_path_buf(),
-                    source,
-                })?;
-            Ok(keep(RunTable::from_estimates(run, &name, &sha, &e), None))
-        })
-        .collect()
+    let inputs = expand(inputs)?;
+    // As many threads as rayon's global pool, one input per thread at a time (the reads go
+    // through polars' pool: [`crate::parallel::each`]).
+    let pool = rayon::ThreadPoolBuilder::new().build()?;
+    crate::parallel::each(&pool, &inputs, |input| -> Result<T, CampaignError> {
+        let (run, src) = match input {
+            Input::Table(p) => return Ok(keep(RunTable::read_parquet(p)?, Some(p))),
+            Input::Log(run, src) => (run, src),
+        };
+        // A log in a bucket is fetched once for the estimation and the hash.
+        let src = &src.fetched().map_err(|source| CampaignError::Read {
+            path: src.name().to_path_buf(),
+            source,
+        })?;
+        let name = src.name().display().to_string();
+        let log = crate::ingest::ingest_source(src, pipeline)?;
+        let e = crate::estimate::estimate(&log, pipeline)?;
+        let (_, sha) = super::input_hash(src, pipeline).map_err(|source| CampaignError::Read {
+            path: src.name().to_path_buf(),
+            source,
+        })?;
+        Ok(keep(RunTable::from_estimates(run, &name, &sha, &e), None))
+    })
+    .into_iter()
+    .collect()
 }

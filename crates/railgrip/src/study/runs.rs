@@ -5,8 +5,6 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use rayon::prelude::*;
-
 use super::{Plan, StudyError};
 use crate::campaign::{process_run, OutDir, RunRecord};
 use crate::config::Pipeline;
@@ -98,11 +96,10 @@ pub(super) fn estimate(
             }
         }
         let pipe = &cal.pipeline;
-        let results: Vec<(RunRecord, Option<RunTable>)> = pool.install(|| {
-            logs.par_iter()
-                .map(|(name, src)| process_run(src, name, &od, pipe, false))
-                .collect()
-        });
+        let results: Vec<(RunRecord, Option<RunTable>)> =
+            crate::parallel::each(pool, logs, |(name, src)| {
+                process_run(src, name, &od, pipe, false)
+            });
         let (records, tables): (Vec<_>, Vec<_>) = results.into_iter().unzip();
         for r in records.iter().filter(|r| !r.ok()) {
             let note = format!(
