@@ -1,47 +1,81 @@
-//! Work over the runs of a campaign on a pool of threads, one run per thread at a time.
+//! Work over the runs of a campaign on a pool of threads, at most two runs per thread under
+//! way at a time.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
+
+/// The stack of each thread of a campaign's pool, bytes: 16 MiB, 8× rayon's default. A
+/// worker can hold up to twice its pool's threads of runs on its stack ([`each`]); the
+/// memory is reserved, not touched, until used.
+const STACK_BYTES: usize = 16 << 20;
+
+/// A pool of `jobs` threads (`None`: as many as rayon's global pool) for [`each`].
+pub fn pool(jobs: Option<usize>) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.unwrap_or(0))
+        .stack_size(STACK_BYTES)
+        .build()
+}
 
 /// `f` on every item of `items` on `pool`'s threads, the results in the items' order, with at
 /// most two items per thread of the pool under way at a time.
 ///
-/// Why not `items.par_iter()` inside `pool.install`: polars reads CSV and Parquet on a thread
-/// pool of its own, and a rayon worker that waits for another pool runs whatever its own pool
-/// has queued meanwhile. With every item queued at once, each such wait could start another
-/// item on top of the waiting one's stack (holding that one's data as well): `railgrip run` on
-/// a folder of 636 logs overflowed a worker's stack that way. Here two feeder threads per
-/// thread of the pool each hand the pool their next item only when their last one is done, so
-/// at most that many items are under way, and no stack holds more of them. Two, not one:
-/// while a worker waits for polars to write a run (the atomic write's fsync), it computes the
-/// next run, as it did with `par_iter` (one feeder per thread made the bundled archive's
-/// estimation ~15 % slower).
+/// Why not `items.par_iter()` inside `pool.install`: polars reads CSV and reads and writes
+/// Parquet on a thread pool of its own, and a rayon worker that waits for another pool runs
+/// whatever its own pool has queued meanwhile. With every item queued at once, each such wait
+/// could start another item on top of the waiting one's stack (holding that one's data as
+/// well): `railgrip run` on a folder of 636 logs overflowed a worker's stack that way. Here two
+/// feeder threads per thread of the pool each hand the pool their next item only when their
+/// last one is done, so at most 2 × threads items are under way, and no stack can hold more of
+/// them than that ([`pool`] gives the threads room for it). Two, not one: while a worker waits
+/// for polars it can run the next item instead of idling; with one feeder per thread the
+/// bundled archive's estimation took ~15 % longer.
 ///
-/// A panic in `f` reaches the caller, as it would from `par_iter`.
+/// Must not be called from a thread of `pool` itself (that thread would wait for items only it
+/// could run). A panic in `f` stops the feeders from starting further items and reaches the
+/// caller with its own payload once the items under way are done.
 pub fn each<I: Sync, T: Send>(
     pool: &rayon::ThreadPool,
     items: &[I],
     f: impl Fn(&I) -> T + Sync,
 ) -> Vec<T> {
     let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let panicked = Mutex::new(None);
     let slots: Vec<Mutex<Option<T>>> = items.iter().map(|_| Mutex::new(None)).collect();
     let feeders = (2 * pool.current_num_threads()).clamp(1, items.len().max(1));
     std::thread::scope(|s| {
         for _ in 0..feeders {
-            s.spawn(|| loop {
-                let i = next.fetch_add(1, Ordering::Relaxed);
-                let Some(item) = items.get(i) else { break };
-                let done = pool.install(|| f(item));
-                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(done);
+            s.spawn(|| {
+                while !stop.load(Ordering::Relaxed) {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(item) = items.get(i) else { break };
+                    let run = std::panic::AssertUnwindSafe(|| pool.install(|| f(item)));
+                    match std::panic::catch_unwind(run) {
+                        Ok(done) => {
+                            *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(done)
+                        }
+                        Err(payload) => {
+                            stop.store(true, Ordering::Relaxed);
+                            panicked
+                                .lock()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .get_or_insert(payload);
+                        }
+                    }
+                }
             });
         }
     });
+    if let Some(payload) = panicked.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        std::panic::resume_unwind(payload);
+    }
     slots
         .into_iter()
         .map(|m| {
             m.into_inner()
                 .unwrap_or_else(|e| e.into_inner())
-                .expect("every item was done (a feeder that panicked has panicked the scope)")
+                .expect("every item was done: the feeders stop early only on a panic")
         })
         .collect()
 }
@@ -50,7 +84,6 @@ pub fn each<I: Sync, T: Send>(
 mod tests {
     use super::*;
     use std::cell::Cell;
-    use std::sync::atomic::AtomicUsize;
 
     thread_local! {
         static DEPTH: Cell<usize> = const { Cell::new(0) };
@@ -61,10 +94,7 @@ mod tests {
     /// `par_iter` they were started 178 deep); every result comes back in order.
     #[test]
     fn items_that_wait_for_another_pool_do_not_nest_deeper_than_the_pool() {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(2)
-            .build()
-            .unwrap();
+        let pool = pool(Some(2)).unwrap();
         let other = rayon::ThreadPoolBuilder::new()
             .num_threads(2)
             .build()
@@ -89,11 +119,32 @@ mod tests {
     /// No items, no work; one item on a pool of several threads.
     #[test]
     fn empty_and_single() {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(3)
-            .build()
-            .unwrap();
+        let pool = pool(Some(3)).unwrap();
         assert!(each(&pool, &[] as &[u8], |_| 0).is_empty());
         assert_eq!(each(&pool, &[7], |x| x + 1), vec![8]);
+    }
+
+    /// A panic in one item reaches the caller with its own message, and the feeders stop
+    /// starting items after it.
+    #[test]
+    fn a_panic_reaches_the_caller_with_its_message() {
+        let pool = pool(Some(2)).unwrap();
+        let started = AtomicUsize::new(0);
+        let items: Vec<usize> = (0..1000).collect();
+        let caught = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            each(&pool, &items, |&i| {
+                started.fetch_add(1, Ordering::Relaxed);
+                if i == 3 {
+                    panic!("item three is bad");
+                }
+                // All of them would take 0.5 s on the pool's two threads; the panic (its
+                // message and backtrace printed first) stops the feeders well before.
+                std::thread::sleep(std::time::Duration::from_millis(1));
+            })
+        }))
+        .unwrap_err();
+        assert_eq!(caught.downcast_ref::<&str>(), Some(&"item three is bad"));
+        let n = started.load(Ordering::Relaxed);
+        assert!(n < items.len(), "the feeders went on: {n} items started");
     }
 }

@@ -416,9 +416,7 @@ fn fit_campaign(
     where_: &Path,
     inputs_sha256: String,
 ) -> Result<CalibrationRecord, CampaignError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.unwrap_or(0))
-        .build()?;
+    let pool = crate::parallel::pool(options.jobs)?;
     let auto = pipeline.estimate.calibration == CalibrationSource::Auto;
     let mode = pipeline
         .estimate

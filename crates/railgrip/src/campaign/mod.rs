@@ -690,8 +690,8 @@ fn estimate_shard(
     })
 }
 
-/// `work` on every run, in parallel on a pool of `options.jobs` threads, one run per thread
-/// at a time ([`crate::parallel::each`]), in the order of `logs`; the progress sees the stage
+/// `work` on every run, in parallel on a pool of `options.jobs` threads, at most two runs per
+/// thread under way ([`crate::parallel::each`]), in the order of `logs`; the progress sees the stage
 /// start and each run's record as `record` finds it.
 fn each_run<T: Send>(
     root: &Path,
@@ -701,9 +701,7 @@ fn each_run<T: Send>(
     work: impl Fn(&str, &LogSource) -> T + Sync,
     record: impl Fn(&T) -> Option<&RunRecord> + Sync,
 ) -> Result<Vec<T>, CampaignError> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.unwrap_or(0))
-        .build()?;
+    let pool = crate::parallel::pool(options.jobs)?;
     progress.event(Event::EstimateStarts {
         runs: logs.len(),
         source: root,
@@ -983,15 +981,16 @@ fn replay_stage(
         let _ = std::fs::remove_file(out.run_replay(&r.run));
     }
     let ok: Vec<&RunRecord> = records.iter().filter(|r| r.ok()).collect();
-    let pool = match rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.unwrap_or(0))
-        .build()
-    {
+    let pool = match crate::parallel::pool(jobs) {
         Ok(pool) => pool,
         Err(e) => {
-            return vec![format!(
-                "replay MCAP files not written: no threads for them: {e}"
-            )]
+            // None written: none of an earlier run stays beside the new models either.
+            for r in &ok {
+                let _ = std::fs::remove_file(out.run_replay(&r.run));
+            }
+            let mut notes = vec![format!("replay MCAP files not written: no threads: {e}")];
+            notes.extend(load_note);
+            return notes;
         }
     };
     let mut notes: Vec<String> = crate::parallel::each(&pool, &ok, |r| {

@@ -92,16 +92,17 @@ pub fn load_pooled(
 }
 
 /// Each input's table given to `keep` with the estimates file it was read from (None for a
-/// log, estimated on the fly).
+/// log, estimated on the fly). Every input is read before the first error (in the inputs'
+/// order) is returned.
 fn load_each<T: Send>(
     inputs: &[PathBuf],
     pipeline: &Pipeline,
     keep: impl Fn(RunTable, Option<&Path>) -> T + Sync,
 ) -> Result<Vec<T>, CampaignError> {
     let inputs = expand(inputs)?;
-    // As many threads as rayon's global pool, one input per thread at a time (the reads go
-    // through polars' pool: [`crate::parallel::each`]).
-    let pool = rayon::ThreadPoolBuilder::new().build()?;
+    // As many threads as rayon's global pool, at most two inputs per thread under way (the
+    // reads go through polars' pool: [`crate::parallel::each`]).
+    let pool = crate::parallel::pool(None)?;
     crate::parallel::each(&pool, &inputs, |input| -> Result<T, CampaignError> {
         let (run, src) = match input {
             Input::Table(p) => return Ok(keep(RunTable::read_parquet(p)?, Some(p))),

@@ -224,10 +224,7 @@ pub fn run(
         .iter()
         .map(|s| format!("{}: skipped ({})", s.path.display(), s.reason))
         .collect();
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(options.jobs.unwrap_or(0))
-        .build()
-        .map_err(CampaignError::from)?;
+    let pool = crate::parallel::pool(options.jobs).map_err(CampaignError::from)?;
 
     // 1. Every conditioning's estimates (reused from earlier studies when unchanged).
     let conditionings = runs::Conditionings::of(plan);

@@ -155,6 +155,8 @@ impl<'a> PolachProblem<'a> {
         );
         self.speed = Some(basis);
         self.speed_held = held;
+        // Normal equations kept before would be another problem's.
+        self.last = std::sync::Mutex::new(None);
         self
     }
 

@@ -313,6 +313,6 @@ fn normal_equations_kept_from_the_sse_are_the_fresh_ones_bit_for_bit() {
     assert_eq!(
         bits(&p.normal_equations(&other)),
         bits(&problem().normal_equations(&other)),
-        "the other θ, kept before"
+        "the other θ, computed again (its kept ones were taken by the θ before)"
     );
 }
