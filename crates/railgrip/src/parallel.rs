@@ -4,16 +4,24 @@
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::Mutex;
 
-/// The stack of each thread of a campaign's pool, bytes: 16 MiB, 8× rayon's default. A
-/// worker can hold up to twice its pool's threads of runs on its stack ([`each`]); the
-/// memory is reserved, not touched, until used.
-const STACK_BYTES: usize = 16 << 20;
+/// The least stack of a thread of a campaign's pool, bytes: 16 MiB, 8× rayon's default.
+const MIN_STACK_BYTES: usize = 16 << 20;
 
-/// A pool of `jobs` threads (`None`: as many as rayon's global pool) for [`each`].
+/// Stack room per run under way, bytes: 256 KiB, twice what one run needed (the bundled
+/// archive's eight runs were estimated and calibrated on pools of 1 and 2 threads with
+/// 128 KiB stacks; with 64 KiB they overflowed).
+const RUN_STACK_BYTES: usize = 256 << 10;
+
+/// A pool of `jobs` threads (`None`: as many as rayon's global pool) for [`each`], each with
+/// room on its stack for every run [`each`] can have under way (2 × threads runs), and at
+/// least [`MIN_STACK_BYTES`]. The stacks are reserved address space, touched only as used.
 pub fn pool(jobs: Option<usize>) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
+    let threads = jobs
+        .filter(|j| *j > 0)
+        .unwrap_or_else(rayon::current_num_threads);
     rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.unwrap_or(0))
-        .stack_size(STACK_BYTES)
+        .num_threads(threads)
+        .stack_size(MIN_STACK_BYTES.max(2 * threads * RUN_STACK_BYTES))
         .build()
 }
 
@@ -31,8 +39,8 @@ pub fn pool(jobs: Option<usize>) -> Result<rayon::ThreadPool, rayon::ThreadPoolB
 /// for polars it can run the next item instead of idling; with one feeder per thread the
 /// bundled archive's estimation took ~15 % longer.
 ///
-/// Must not be called from a thread of `pool` itself (that thread would wait for items only it
-/// could run). A panic in `f` stops the feeders from starting further items and reaches the
+/// Must not be called from a thread of `pool` itself (that thread would wait in the scope
+/// instead of working, and with one thread nothing would run the items). A panic in `f` stops the feeders from starting further items and reaches the
 /// caller with its own payload once the items under way are done.
 pub fn each<I: Sync, T: Send>(
     pool: &rayon::ThreadPool,

@@ -691,8 +691,8 @@ fn estimate_shard(
 }
 
 /// `work` on every run, in parallel on a pool of `options.jobs` threads, at most two runs per
-/// thread under way ([`crate::parallel::each`]), in the order of `logs`; the progress sees the stage
-/// start and each run's record as `record` finds it.
+/// thread under way ([`crate::parallel::each`]), in the order of `logs`; the progress sees the
+/// stage start and each run's record as `record` finds it.
 fn each_run<T: Send>(
     root: &Path,
     logs: &[(String, LogSource)],
