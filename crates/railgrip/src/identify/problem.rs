@@ -31,7 +31,8 @@ pub const CHUNK: usize = 8 * BLOCK;
 /// The waves a trial step's SSE runs in at most ([`LeastSquares::sse_unless`]): after each,
 /// the sum so far may already reject the step. More waves stop a rejected trial sooner but
 /// wait for the slowest chunk more often; over the bundled archive's networks a rejected
-/// trial's sum already rejects about halfway through, so 8 waves stop it after ~4.
+/// trial's sum already rejects about halfway through, so 8 waves stop it after ~4. Fewer on
+/// small training sets (see [`MlpProblem::sse_of`]).
 const SSE_WAVES: usize = 8;
 
 /// Values between the end of one row of a chunk's matrix A and the start of the next (one
@@ -287,13 +288,14 @@ impl MlpProblem {
             sse
         };
         let chunks = cols.chunks();
-        // A wave is at least a chunk per thread, so that a pass of few chunks still runs on
-        // every thread.
+        // A wave is at least four chunks per thread: each wave ends in a wait for the slowest
+        // chunk and wakes the pool's other threads again, which cost one network trained alone
+        // on 15 000 samples (8 chunks, waves of 2) 14 % per epoch (`cargo bench --bench lm`).
         let wave = match reject {
             Some(_) => chunks
                 .len()
                 .div_ceil(SSE_WAVES)
-                .max(rayon::current_num_threads())
+                .max(4 * rayon::current_num_threads())
                 .max(1),
             None => chunks.len().max(1),
         };
@@ -595,6 +597,15 @@ mod tests {
     /// kept when it stopped (the normal equations after it are the fresh ones).
     #[test]
     fn a_trial_sse_stops_only_where_the_whole_sum_rejects() {
+        // On two threads whatever the machine: the waves' size follows the pool's threads.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .unwrap();
+        pool.install(a_trial_sse_stops_only_where_the_whole_sum_rejects_on_this_pool);
+    }
+
+    fn a_trial_sse_stops_only_where_the_whole_sum_rejects_on_this_pool() {
         let shape = Shape::one(2, 10);
         let problem = problem_of(shape, 20 * CHUNK + 3 * BLOCK + 17);
         let theta = mlp::nguyen_widrow(shape, 7);
