@@ -40,8 +40,9 @@ pub fn pool(jobs: Option<usize>) -> Result<rayon::ThreadPool, rayon::ThreadPoolB
 /// bundled archive's estimation took ~15 % longer.
 ///
 /// Must not be called from a thread of `pool` itself (that thread would wait in the scope
-/// instead of working, and with one thread nothing would run the items). A panic in `f` stops the feeders from starting further items and reaches the
-/// caller with its own payload once the items under way are done.
+/// instead of working, and with one thread nothing would run the items). A panic in `f` stops
+/// the feeders from starting further items and reaches the caller with its own payload once
+/// the items under way are done.
 pub fn each<I: Sync, T: Send>(
     pool: &rayon::ThreadPool,
     items: &[I],

@@ -258,9 +258,9 @@ impl MlpProblem {
     /// Σ r² over `cols` (blocks in order, samples in order within a block, the chunks' sums
     /// added in chunk order); with `cache`, the pass's activations and residuals are kept in it
     /// for [`MlpProblem::normal_equations`]. With `reject`, the chunks run in at most
-    /// [`SSE_WAVES`] waves, and once the sum of the chunks so far makes `reject` true that partial sum is
-    /// returned (and nothing kept): every later chunk only adds a square, so the whole sum
-    /// would reject too ([`LeastSquares::sse_unless`]).
+    /// [`SSE_WAVES`] waves, and once the sum of the chunks so far makes `reject` true that
+    /// partial sum is returned (and nothing kept): every later chunk only adds a square, so the
+    /// whole sum would reject too ([`LeastSquares::sse_unless`]).
     fn sse_of(
         &self,
         theta: &[f64],
