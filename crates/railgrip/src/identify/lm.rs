@@ -50,6 +50,25 @@ pub struct NormalEquations {
     pub sse: f64,
 }
 
+impl NormalEquations {
+    /// Every value's bits, JᵀJ then Jᵀr then the SSE (tests compare them bit for bit).
+    #[cfg(test)]
+    pub(crate) fn bits(&self) -> Vec<u64> {
+        self.jtj
+            .iter()
+            .chain(&self.jtr)
+            .chain([&self.sse])
+            .map(|v| v.to_bits())
+            .collect()
+    }
+}
+
+/// True when parameter vectors `a` and `b` are the same bits: whether what a problem kept at
+/// one θ ([`LeastSquares::sse`]'s pass, its normal equations) is for another.
+pub(crate) fn same_theta(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// A nonlinear least-squares problem for [`LevenbergMarquardt`].
 pub trait LeastSquares {
     /// Number of parameters p.

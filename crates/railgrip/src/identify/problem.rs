@@ -17,7 +17,7 @@ use faer::linalg::matmul::triangular::{matmul, BlockStructure};
 use faer::{Accum, MatMut, MatRef, Par};
 use rayon::prelude::*;
 
-use super::lm::{LeastSquares, NormalEquations};
+use super::lm::{same_theta, LeastSquares, NormalEquations};
 use super::mlp::{self, Pass, Scratch, Shape, BLOCK};
 use crate::model::MAX_INPUTS;
 #[cfg(target_arch = "x86_64")]
@@ -455,14 +455,7 @@ impl LeastSquares for MlpProblem {
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         let p = self.shape.n_params();
         let mut guard = self.cache.as_ref().and_then(|c| c.try_lock().ok());
-        let holds = |c: &ForwardCache| {
-            c.shape == self.shape
-                && c.theta.len() == theta.len()
-                && c.theta
-                    .iter()
-                    .zip(theta)
-                    .all(|(a, b)| a.to_bits() == b.to_bits())
-        };
+        let holds = |c: &ForwardCache| c.shape == self.shape && same_theta(&c.theta, theta);
         // Released at once when it holds another θ: a start beside this one may fill it.
         if !guard.as_deref().is_some_and(holds) {
             guard = None;
@@ -537,15 +530,7 @@ mod tests {
             hidden2: 5,
         };
         for shape in [Shape::one(3, 10), two] {
-            let n = 2 * CHUNK + 3 * BLOCK + 17;
-            let k = shape.inputs;
-            let x: Vec<f64> = (0..n * k)
-                .map(|i| ((i * 7919) % 1000) as f64 / 500.0 - 1.0)
-                .collect();
-            let y: Vec<f64> = (0..n)
-                .map(|i| ((i * 104_729) % 997) as f64 / 498.5 - 1.0)
-                .collect();
-            let problem = MlpProblem::new(shape, x.clone(), y.clone(), x, y, 1.0);
+            let problem = problem_of(shape, 2 * CHUNK + 3 * BLOCK + 17);
             assert!(problem.cache.is_some());
             let theta = mlp::nguyen_widrow(shape, 5);
             let other: Vec<f64> = theta.iter().map(|t| t * 0.9).collect();
@@ -553,30 +538,23 @@ mod tests {
             // LM's order: the trial's SSE, the validation error, the next normal equations.
             let sse = problem.sse(&theta);
             problem.validation_mse(&theta);
-            let kept = problem
-                .cache
-                .as_ref()
-                .unwrap()
-                .lock()
-                .unwrap()
-                .theta
-                .clone();
-            assert_eq!(kept, theta, "the training pass is kept");
+            assert_eq!(kept_theta(&problem), theta, "the training pass is kept");
             let reused = problem.normal_equations(&theta);
             problem.sse(&other);
             let after_other = problem.normal_equations(&theta);
-            let bits = |ne: &NormalEquations| {
-                ne.jtj
-                    .iter()
-                    .chain(&ne.jtr)
-                    .chain([&ne.sse])
-                    .map(|v| v.to_bits())
-                    .collect::<Vec<_>>()
-            };
-            assert_eq!(bits(&fresh), bits(&reused), "{shape:?}");
-            assert_eq!(bits(&fresh), bits(&after_other), "{shape:?}");
+            assert_eq!(fresh.bits(), reused.bits(), "{shape:?}");
+            assert_eq!(fresh.bits(), after_other.bits(), "{shape:?}");
             assert_eq!(sse.to_bits(), fresh.sse.to_bits());
         }
+    }
+
+    /// The θ whose training forward pass `problem` keeps (empty: none kept).
+    fn kept_theta(problem: &MlpProblem) -> Vec<f64> {
+        let cache = problem
+            .cache
+            .as_ref()
+            .expect("a problem that keeps its pass");
+        cache.lock().unwrap().theta.clone()
     }
 
     /// A problem of `shape` on `n` deterministic samples (the same for training and validation).
@@ -622,19 +600,13 @@ mod tests {
                 assert!(e <= full, "limit {q} × SSE: {e} > {full}");
                 if q < 0.5 {
                     assert!(e < full, "limit {q} × SSE: no early stop");
-                    let kept = problem
-                        .cache
-                        .as_ref()
-                        .unwrap()
-                        .lock()
-                        .unwrap()
-                        .theta
-                        .clone();
-                    assert!(kept.is_empty(), "a stopped pass is not kept");
+                    assert!(
+                        kept_theta(&problem).is_empty(),
+                        "a stopped pass is not kept"
+                    );
                 }
                 let ne = problem.normal_equations(&theta);
-                assert_eq!(ne.jtj, fresh.jtj);
-                assert_eq!(ne.sse.to_bits(), fresh.sse.to_bits());
+                assert_eq!(ne.bits(), fresh.bits(), "limit {q} × SSE");
             }
         }
     }

@@ -430,14 +430,7 @@ impl LeastSquares for PolachProblem<'_> {
     fn normal_equations(&self, theta: &[f64]) -> NormalEquations {
         let kept = self.last.lock().ok().and_then(|mut last| last.take());
         match kept {
-            Some((at, ne))
-                if at
-                    .iter()
-                    .map(|x| x.to_bits())
-                    .eq(theta.iter().map(|x| x.to_bits())) =>
-            {
-                ne
-            }
+            Some((at, ne)) if lm::same_theta(&at, theta) => ne,
             _ => self.accumulate(theta, false, None),
         }
     }

@@ -284,14 +284,7 @@ fn normal_equations_kept_from_the_sse_are_the_fresh_ones_bit_for_bit() {
     let p = problem();
     let theta = p.theta(&nodes);
     let other: Vec<f64> = theta.iter().map(|t| t + 0.01).collect();
-    let bits = |ne: &crate::identify::lm::NormalEquations| {
-        ne.jtj
-            .iter()
-            .chain(&ne.jtr)
-            .chain([&ne.sse])
-            .map(|v| v.to_bits())
-            .collect::<Vec<_>>()
-    };
+    let bits = |ne: &crate::identify::lm::NormalEquations| ne.bits();
     let fresh = problem().normal_equations(&theta);
     assert_eq!(
         p.sse(&theta).to_bits(),
